@@ -1,0 +1,111 @@
+#!/usr/bin/env bash
+# One entry point that sets everything up from nothing and then does one job.
+#
+#   bash scripts/dev.sh demo    set up, then render scenes/projectile.yaml into renders/
+#   bash scripts/dev.sh test    set up, then run the whole test suite (what CI runs)
+#   bash scripts/dev.sh bench   set up, then run the benchmark suite and print its table
+#   bash scripts/dev.sh setup   only set up
+#
+# Set-up is idempotent and quick when nothing changed: it installs the off-screen OpenGL library when it is
+# missing (as root, with apt-get; otherwise it says what to install), creates .venv with Python >= 3.11 and
+# installs the package in editable mode with its test dependencies, re-installing only when pyproject.toml changes.
+set -euo pipefail
+
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+root=$(pwd)
+venv="$root/.venv"
+
+say() { printf '[animbatch setup] %s\n' "$*" >&2; }
+
+find_python() {
+    for candidate in "${PYTHON:-}" python3.13 python3.12 python3.11 python3; do
+        [ -n "$candidate" ] || continue
+        if command -v "$candidate" >/dev/null 2>&1 &&
+            "$candidate" -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' 2>/dev/null; then
+            command -v "$candidate"
+            return 0
+        fi
+    done
+    say "Python >= 3.11 is required and none was found (tried \$PYTHON, python3.13 … python3)."
+    say "On Debian 12: apt-get install python3 python3-venv"
+    exit 1
+}
+
+have_library() {
+    local ldconfig
+    ldconfig=$(command -v ldconfig || echo /sbin/ldconfig)
+    "$ldconfig" -p 2>/dev/null | grep -q "$1"
+}
+
+ensure_system_libraries() {
+    # VTK draws off-screen through OSMesa or EGL; it loads either at run time (never an X server).
+    if have_library 'libOSMesa.so.8'; then
+        return 0
+    fi
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+        say "installing libosmesa6 (off-screen OpenGL for rendering) with apt-get"
+        export DEBIAN_FRONTEND=noninteractive
+        if ! apt-get install -y --no-install-recommends libosmesa6 >/dev/null 2>&1; then
+            apt-get update -qq >/dev/null
+            apt-get install -y --no-install-recommends libosmesa6 >/dev/null
+        fi
+        return 0
+    fi
+    if have_library 'libEGL.so.1' && have_library 'libEGL_mesa.so.0'; then
+        say "libosmesa6 is not installed; using EGL (Mesa) instead."
+        return 0
+    fi
+    say "No off-screen OpenGL library found, and this user cannot install one."
+    say "Ask an administrator to run:  apt-get install libosmesa6"
+    say "(Fedora/RHEL: dnf install mesa-libOSMesa)"
+    exit 1
+}
+
+ensure_venv() {
+    local python stamp
+    if [ ! -x "$venv/bin/python" ]; then
+        python=$(find_python)
+        say "creating .venv with $python"
+        "$python" -m venv "$venv" || {
+            say "could not create a virtual environment; on Debian: apt-get install python3-venv"
+            exit 1
+        }
+    fi
+    stamp="$venv/.animbatch-installed-$(sha256sum pyproject.toml | cut -c1-16)"
+    if [ ! -f "$stamp" ]; then
+        say "installing animbatch and its dependencies into .venv (first run takes a minute)"
+        "$venv/bin/python" -m pip install --quiet --upgrade pip
+        "$venv/bin/python" -m pip install --quiet -e ".[test]"
+        rm -f "$venv"/.animbatch-installed-*
+        touch "$stamp"
+    fi
+}
+
+setup() {
+    ensure_system_libraries
+    ensure_venv
+}
+
+command=${1:-}
+shift || true
+case "$command" in
+    setup)
+        setup
+        ;;
+    demo)
+        setup
+        exec "$venv/bin/animbatch" render scenes/projectile.yaml --out renders "$@"
+        ;;
+    test)
+        setup
+        exec "$venv/bin/python" -m pytest "$@"
+        ;;
+    bench)
+        setup
+        exec "$venv/bin/python" benchmarks/run.py "$@"
+        ;;
+    *)
+        echo "usage: bash scripts/dev.sh {demo|test|bench|setup} [extra arguments]" >&2
+        exit 2
+        ;;
+esac
