@@ -1,0 +1,94 @@
+"""Checks that need the whole scene: names that must exist or be unique.
+
+They read the raw loaded data rather than the validated model, so that they run even when other keys are invalid
+and ``animbatch validate`` reports every problem of a file at once. Anything malformed is skipped here: the schema
+reports it. Rules that concern one item only (a drag law and its coefficient, say) live in the schema's validators.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+from animbatch.scene.diagnostics import did_you_mean
+from animbatch.scene.yaml_source import KeyPath, format_path
+
+Problem = tuple[KeyPath, str]
+
+
+def check_references(data: dict[str, Any]) -> list[Problem]:
+    """Every cross-reference problem in raw scene data, as ``(key path, message)``."""
+    bodies = _names(data, "bodies")
+    anchors = _names(data, "anchors")
+    return [*_body_list(data), *_duplicate_names(data), *_springs(data, bodies, anchors),
+            *_fields(data, bodies, anchors)]
+
+
+def _items(data: dict[str, Any], section: str) -> list[tuple[int, dict[str, Any]]]:
+    items = data.get(section)
+    return [(i, item) for i, item in enumerate(items) if isinstance(item, dict)] if isinstance(items, list) else []
+
+
+def _names(data: dict[str, Any], section: str) -> dict[str, KeyPath]:
+    """Name -> path of its first use, for the named items of a section."""
+    names: dict[str, KeyPath] = {}
+    for index, item in _items(data, section):
+        if isinstance(item.get("name"), str):
+            names.setdefault(item["name"], (section, index, "name"))
+    return names
+
+
+def _body_list(data: dict[str, Any]) -> Iterator[Problem]:
+    if data.get("bodies") in (None, []):
+        yield ("bodies",), "a scene needs at least one body (a list under 'bodies:')"
+
+
+def _springs(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath]) -> Iterator[Problem]:
+    known = sorted(bodies.keys() | anchors.keys())
+    for index, spring in _items(data, "springs"):
+        ends = spring.get("between")
+        if not (isinstance(ends, list) and len(ends) == 2 and all(isinstance(e, str) for e in ends)):
+            continue
+        for end, name in enumerate(ends):
+            if name not in bodies and name not in anchors:
+                yield ("springs", index, "between", end), (
+                    f"unknown body or anchor {name!r}{did_you_mean(name, known)} Known: {', '.join(known) or '(none)'}")
+        if ends[0] != ends[1] and ends[0] in anchors and ends[1] in anchors:
+            yield ("springs", index, "between"), (f"both ends ({ends[0]!r}, {ends[1]!r}) are anchors; "
+                                                  "a spring needs at least one body")
+
+
+def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath]) -> Iterator[Problem]:
+    for index, field in _items(data, "fields"):
+        selection = field.get("bodies")
+        if isinstance(selection, list):
+            for position, name in enumerate(selection):
+                if not isinstance(name, str) or name in bodies:
+                    continue
+                if name in anchors:
+                    reason = " (it is an anchor; fields act on bodies only)"
+                else:
+                    reason = did_you_mean(name, bodies)
+                yield ("fields", index, "bodies", position), (
+                    f"unknown body {name!r}{reason} Bodies: {', '.join(bodies) or '(none)'}")
+        if field.get("type") == "gravitation":
+            count = len(selection) if isinstance(selection, list) else len(bodies)
+            if count < 2:
+                yield ("fields", index, "bodies" if isinstance(selection, list) else "type"), (
+                    f"gravitation acts between bodies and needs at least 2 (got {count})")
+
+
+def _duplicate_names(data: dict[str, Any]) -> Iterator[Problem]:
+    """Bodies and anchors share one namespace; springs have their own."""
+    for sections in (("bodies", "anchors"), ("springs",)):
+        first: dict[str, KeyPath] = {}
+        for section in sections:
+            for index, item in _items(data, section):
+                name = item.get("name")
+                if not isinstance(name, str):
+                    continue
+                if name in first:
+                    yield (section, index, "name"), (f"name {name!r} is already used by "
+                                                     f"{format_path(first[name][:2])}; names must be unique")
+                else:
+                    first[name] = (section, index, "name")

@@ -1,0 +1,116 @@
+"""Load a scene: read the file, apply overrides, validate against the schema, check cross-references.
+
+Every problem found is collected and raised together as one :class:`~animbatch.errors.SceneError`, so that
+``animbatch validate`` can list all of a file's errors at once.
+"""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import json
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+
+from animbatch.errors import SceneError, SceneIssue
+from animbatch.scene.checks import check_references
+from animbatch.scene.diagnostics import issues_from_validation, sort_issues
+from animbatch.scene.overrides import Override, apply_overrides
+from animbatch.scene.schema import PRESENTATION_KEYS, SceneSpec
+from animbatch.scene.yaml_source import SourceMap, format_path, load_yaml
+
+
+@dataclass(frozen=True)
+class LoadedScene:
+    """A validated scene, where it came from, and how to point back into its file."""
+
+    spec: SceneSpec
+    source: SourceMap
+    path: Path | None = None
+
+    @property
+    def name(self) -> str:
+        assert self.spec.name is not None  # filled in by the loader
+        return self.spec.name
+
+
+def load_scene(path: str | Path, overrides: Sequence[Override] = ()) -> LoadedScene:
+    """Read and validate the scene file at ``path``, applying ``--set`` style ``overrides`` first."""
+    path = Path(path)
+    text = _read(path)
+    return parse_scene(text, filename=str(path), overrides=overrides, default_name=path.stem, path=path)
+
+
+def parse_scene(text: str, *, filename: str = "<scene>", overrides: Sequence[Override] = (),
+                default_name: str = "scene", path: Path | None = None) -> LoadedScene:
+    """Validate scene text (YAML); ``filename`` is only used in messages."""
+    data, source = load_yaml(text, filename)
+    if not isinstance(data, dict):
+        raise SceneError([SceneIssue(source.source_of(()), "",
+                                     f"the scene must be a mapping of keys (name:, bodies:, …), not a "
+                                     f"{type(data).__name__}")])
+    data = apply_overrides(data, overrides, source)
+    issues = [SceneIssue(source.source_of(p), format_path(p), message) for p, message in check_references(data)]
+    try:
+        spec = SceneSpec.model_validate(data)
+    except ValidationError as error:
+        issues.extend(issues_from_validation(error, SceneSpec, source))
+    if issues:
+        raise SceneError(sort_issues(issues))
+    if spec.name is None:
+        spec = spec.model_copy(update={"name": _as_name(default_name)})
+    return LoadedScene(spec, source, path)
+
+
+def _read(path: Path) -> str:
+    if not path.exists():
+        raise SceneError([SceneIssue(str(path), "", "no such file" + _similar_files(path))])
+    if path.is_dir():
+        raise SceneError([SceneIssue(str(path), "", "is a directory; give a scene file (.yaml)")])
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as error:
+        raise SceneError([SceneIssue(str(path), "", f"is not UTF-8 text ({error.reason} at byte {error.start})")]) from None
+    except OSError as error:
+        raise SceneError([SceneIssue(str(path), "", f"cannot be read: {error.strerror}")]) from None
+
+
+def _similar_files(path: Path) -> str:
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        return f" (the folder {str(folder)!r} does not exist either)"
+    candidates = [p.name for p in folder.iterdir() if p.suffix in (".yaml", ".yml")]
+    close = difflib.get_close_matches(path.name, candidates, n=1, cutoff=0.5)
+    if close:
+        return f"; did you mean {str(folder / close[0])!r}?"
+    return ""
+
+
+def _as_name(stem: str) -> str:
+    """A file stem made into a valid scene name ('my scene.yaml' -> 'my-scene')."""
+    name = re.sub(r"[^A-Za-z0-9_.\-]+", "-", stem).strip("-.") or "scene"
+    return name if re.match(r"[A-Za-z_]", name) else f"scene-{name}"
+
+
+def physics_fingerprint(spec: SceneSpec) -> str:
+    """SHA-256 of everything that determines the motion, and of nothing that only changes how it looks.
+
+    Excluded: the name, description, solver settings (stored separately with a trajectory), render settings and
+    colours. Two scenes with the same fingerprint describe the same physical system over the same frame times.
+    """
+    data = _without_colors(spec.model_dump(mode="json", exclude=set(PRESENTATION_KEYS)))
+    canonical = json.dumps(data, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(canonical.encode()).hexdigest()
+
+
+def _without_colors(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _without_colors(v) for k, v in value.items() if k != "color"}
+    if isinstance(value, list):
+        return [_without_colors(v) for v in value]
+    return value

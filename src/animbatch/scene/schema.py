@@ -1,0 +1,385 @@
+"""The scene format: every key with its type, unit, default and limits (pydantic v2, unknown keys forbidden).
+
+This module is the single source of truth for the format. ``docs/scene-format.md`` and ``animbatch schema`` are
+generated from it, and error messages take their units and allowed values from it. Each key is declared with
+:func:`key`, which records a description and an SI unit.
+
+Conventions: SI units throughout (m, kg, s, N); vectors are lists of 3 numbers ``[x, y, z]``; the world is y-up by
+default (gravity ``[0, -9.81, 0]``), though nothing but the default camera and ground assumes it.
+"""
+
+from __future__ import annotations
+
+import difflib
+from typing import Annotated, Any, Literal, Union
+
+import annotated_types as at
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, PlainValidator, WithJsonSchema, field_validator,
+                      model_validator)
+from pydantic_core import PydanticCustomError, PydanticUndefined
+
+NAME_PATTERN = r"^[A-Za-z_][A-Za-z0-9_.\-]*$"
+
+
+def key(default: Any = PydanticUndefined, description: str = "", unit: str | None = None, *,
+        example: Any = None, **constraints: Any) -> Any:
+    """Declare a scene key: default, one-line description, SI unit (``None`` when it has none) and limits."""
+    extra: dict[str, Any] = {}
+    if unit is not None:
+        extra["unit"] = unit
+    if example is not None:
+        extra["example"] = example
+    return Field(default, description=description, json_schema_extra=extra or None, **constraints)
+
+
+def rule_error(message: str, key: str | int | None = None) -> PydanticCustomError:
+    """An error from a validator that breaks a rule between keys; ``key`` names the key it points at."""
+    return PydanticCustomError("scene_rule", "{message}", {"message": message, "key": key})
+
+
+class SceneModel(BaseModel):
+    """Base of every scene section: unknown keys are errors, no silent type coercion, values are immutable."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False, validate_default=True)
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Value types
+
+
+Vec3 = Annotated[list[float], at.Len(3, 3)]
+Name = Annotated[str, Field(pattern=NAME_PATTERN, max_length=64)]
+
+
+def _check_color(value: Any) -> str:
+    """Accept a CSS colour name, ``#rgb``/``#rrggbb``, or ``[r, g, b]`` in 0…1; return ``#rrggbb``."""
+    from PIL import ImageColor  # light import; knows the CSS colour names
+
+    if isinstance(value, str):
+        try:
+            rgb = ImageColor.getrgb(value)[:3]
+        except ValueError:
+            close = difflib.get_close_matches(value.lower(), ImageColor.colormap.keys(), n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else "."
+            raise rule_error(f"unknown colour {value!r}{hint} Use a CSS name (e.g. 'tomato'), '#rrggbb' or "
+                             "[r, g, b] in 0..1") from None
+        return "#{:02x}{:02x}{:02x}".format(*rgb)
+    if (isinstance(value, list | tuple) and len(value) == 3
+            and all(isinstance(c, int | float) and not isinstance(c, bool) and 0 <= c <= 1 for c in value)):
+        return "#{:02x}{:02x}{:02x}".format(*(round(255 * c) for c in value))
+    raise rule_error(f"must be a colour: a CSS name, '#rrggbb' or [r, g, b] in 0..1 (got {value!r})")
+
+
+Color = Annotated[
+    str,
+    PlainValidator(_check_color),
+    WithJsonSchema({"anyOf": [{"type": "string"},
+                              {"type": "array", "items": {"type": "number", "minimum": 0, "maximum": 1},
+                               "minItems": 3, "maxItems": 3}]}),
+]
+
+ADAPTIVE_METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
+FIXED_STEP_METHODS = ("euler", "midpoint", "symplectic_euler", "verlet")
+METHOD_ALIASES = {
+    "explicit_euler": "euler",
+    "forward_euler": "euler",
+    "rk2": "midpoint",
+    "semi_implicit_euler": "symplectic_euler",
+    "velocity_verlet": "verlet",
+}
+
+
+def _canonical_method(value: Any) -> Any:
+    """Method names are case-insensitive, and ``-`` may stand for ``_``; aliases map to canonical names."""
+    if not isinstance(value, str):
+        return value
+    folded = value.strip().lower().replace("-", "_")
+    for name in (*ADAPTIVE_METHODS, *FIXED_STEP_METHODS):
+        if name.lower() == folded:
+            return name
+    return METHOD_ALIASES.get(folded, value)
+
+
+Method = Annotated[Literal[*ADAPTIVE_METHODS, *FIXED_STEP_METHODS], BeforeValidator(_canonical_method)]  # type: ignore[valid-type]
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Solver
+
+
+class SolverSpec(SceneModel):
+    """How the equations of motion are integrated."""
+
+    method: Method = key("RK45", "Integrator: an adaptive solve_ivp method (RK23, RK45, DOP853, Radau, BDF, LSODA) "
+                                 "or a fixed-step one (euler, midpoint, symplectic_euler, verlet).",
+                         example="DOP853")
+    rtol: float = key(1e-6, "Relative tolerance of adaptive methods (ignored by fixed-step ones).", "1",
+                      gt=0, lt=1)
+    atol: float = key(1e-9, "Absolute tolerance of adaptive methods, in the units of each state component "
+                            "(m for positions, m/s for velocities).", "m, m/s", gt=0)
+    max_step: float | None = key(None, "Largest step an adaptive method may take (default: no limit).", "s", gt=0)
+    dt: float | None = key(None, "Step of fixed-step methods (default 1e-3 s). The step used is the largest one "
+                                 "<= dt that divides the frame interval 1/fps, so that frames fall on steps.",
+                           "s", gt=0)
+
+    @property
+    def is_adaptive(self) -> bool:
+        return self.method in ADAPTIVE_METHODS
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Bodies, anchors, springs
+
+
+class ParticleSpec(SceneModel):
+    """A point mass. Its radius is used for display, Stokes drag and (later) collisions; it has no rotation."""
+
+    type: Literal["particle"] = key("particle", "Body type.")
+    name: Name = key(description="Unique name, used by springs, fields and the trajectory file.", example="ball")
+    mass: float = key(1.0, "Mass.", "kg", gt=0)
+    radius: float = key(0.05, "Radius for display, Stokes drag and collisions.", "m", gt=0)
+    position: Vec3 = key([0.0, 0.0, 0.0], "Initial position [x, y, z].", "m")
+    velocity: Vec3 = key([0.0, 0.0, 0.0], "Initial velocity [vx, vy, vz].", "m/s")
+    color: Color | None = key(None, "Display colour: CSS name, '#rrggbb' or [r, g, b] in 0..1 "
+                                    "(default: from a palette, by body index).", example="tomato")
+
+
+class AnchorSpec(SceneModel):
+    """A fixed point in space that springs can attach to. It is not simulated."""
+
+    name: Name = key(description="Unique name (shared namespace with bodies).", example="ceiling")
+    position: Vec3 = key(description="Position [x, y, z].", unit="m")
+    color: Color | None = key(None, "Display colour (default dark grey).")
+
+
+class SpringSpec(SceneModel):
+    """A Hooke spring with a damper along its axis, between two bodies or a body and an anchor.
+
+    Force on the first end: ``f1 = -(ks (|L| - r) + kd (v1 - v2)·L/|L|) L/|L|`` with ``L = x1 - x2``; ``f2 = -f1``.
+    A spring with ``stiffness: 0`` is a pure damper.
+    """
+
+    name: Name | None = key(None, "Name used in messages (default: '<first>--<second>').")
+    between: Annotated[list[Name], at.Len(2, 2)] = key(
+        description="The two ends: names of bodies or anchors (at most one anchor).", example=["ceiling", "bob"])
+    stiffness: float = key(description="Spring constant ks.", unit="N/m", ge=0)
+    damping: float = key(0.0, "Damping constant kd along the spring axis.", "N·s/m", ge=0)
+    rest_length: float | None = key(None, "Rest length r (default: the initial distance between the ends).",
+                                    "m", ge=0)
+    color: Color | None = key(None, "Display colour (default grey).")
+
+    @field_validator("between")
+    @classmethod
+    def _two_different_ends(cls, ends: list[str]) -> list[str]:
+        if ends[0] == ends[1]:
+            raise rule_error(f"both ends are {ends[0]!r}; a spring joins two different points")
+        return ends
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Force fields. Each is compiled into a force term only when declared.
+
+BodySelection = list[Name] | None
+_BODIES_DESCRIPTION = "Names of the bodies this field acts on (default: all bodies)."
+
+
+class GravitySpec(SceneModel):
+    """Uniform gravity: ``f = m g`` on each selected body."""
+
+    type: Literal["gravity"] = key(description="Field type.")
+    g: Vec3 = key([0.0, -9.81, 0.0], "Gravitational acceleration vector.", "m/s²")
+    bodies: BodySelection = key(None, _BODIES_DESCRIPTION)
+
+
+class GravitationSpec(SceneModel):
+    """Newtonian gravitation between every pair of selected bodies, with Plummer softening.
+
+    ``f_i = Σ_j G m_i m_j (x_j - x_i) / (|x_j - x_i|² + ε²)^(3/2)``.
+    """
+
+    type: Literal["gravitation"] = key(description="Field type.")
+    G: float = key(6.674e-11, "Gravitational constant (scenes often use G = 1 with scaled masses).",
+                   "m³/(kg·s²)", gt=0)
+    softening: float = key(0.0, "Plummer softening length ε; keeps close encounters finite.", "m", ge=0)
+    bodies: BodySelection = key(None, _BODIES_DESCRIPTION)
+
+
+DragModel = Literal["linear", "quadratic", "stokes"]
+
+
+class _DragLaw(SceneModel):
+    """The keys shared by drag and wind, and the rule tying the drag law to its parameters."""
+
+    coefficient: float | None = key(None, "C for the linear (N·s/m) or quadratic (kg/m) law; not used by stokes.",
+                                    "N·s/m or kg/m", ge=0)
+    viscosity: float | None = key(None, "Dynamic viscosity η of the fluid for the stokes law "
+                                        "(default 1.81e-5, air at 15 °C).", "Pa·s", gt=0)
+
+    @model_validator(mode="after")
+    def _parameters_match_law(self) -> "_DragLaw":
+        model = self.model  # type: ignore[attr-defined]
+        if model in ("linear", "quadratic") and self.coefficient is None:
+            unit = "N·s/m" if model == "linear" else "kg/m"
+            raise rule_error(f"required key missing: the {model} drag law needs 'coefficient' (C in {unit})",
+                             "coefficient")
+        if model == "stokes" and self.coefficient is not None:
+            raise rule_error("not used by the stokes law (its coefficient is 6 π η r); remove it, or set 'viscosity'",
+                             "coefficient")
+        if model != "stokes" and self.viscosity is not None:
+            raise rule_error(f"only the stokes law uses 'viscosity'; the {model} law uses 'coefficient'",
+                             "viscosity")
+        return self
+
+
+class DragSpec(_DragLaw):
+    """Fluid drag against the body's velocity.
+
+    ``linear``: ``f = -C v``; ``quadratic``: ``f = -C |v| v``; ``stokes``: ``f = -6 π η r v`` (r: body radius).
+    """
+
+    type: Literal["drag"] = key(description="Field type.")
+    model: DragModel = key(description="Drag law: linear, quadratic or stokes.", example="quadratic")
+    bodies: BodySelection = key(None, _BODIES_DESCRIPTION)
+
+
+class WindSpec(_DragLaw):
+    """Drag relative to moving air: the drag law applied to ``v - wind velocity``."""
+
+    type: Literal["wind"] = key(description="Field type.")
+    velocity: Vec3 = key(description="Wind velocity.", unit="m/s")
+    model: DragModel = key("quadratic", "Drag law: linear, quadratic or stokes.")
+    bodies: BodySelection = key(None, _BODIES_DESCRIPTION)
+
+
+FIELD_SPECS: tuple[type[SceneModel], ...] = (GravitySpec, GravitationSpec, DragSpec, WindSpec)
+FieldSpec = Annotated[Union[*FIELD_SPECS], Field(discriminator="type")]  # type: ignore[valid-type]
+
+
+def field_type_names() -> tuple[str, ...]:
+    """The ``type`` values of all field kinds, in declaration order."""
+    return tuple(spec.model_fields["type"].annotation.__args__[0] for spec in FIELD_SPECS)  # type: ignore[union-attr]
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Rendering
+
+
+class CameraSpec(SceneModel):
+    """The camera. Without position and focal point it is fitted to the bounding box of the whole motion."""
+
+    position: Vec3 | None = key(None, "Camera position (give together with focal_point; default: fitted).", "m")
+    focal_point: Vec3 | None = key(None, "Point the camera looks at (default: centre of the motion).", "m")
+    up: Vec3 = key([0.0, 1.0, 0.0], "Up direction on screen; also the ground normal.", "1")
+    view_angle: float = key(30.0, "Vertical field of view.", "deg", gt=0, lt=180)
+    direction: Vec3 = key([0.4, 0.35, 1.0], "When fitted: direction from the focal point towards the camera.", "1")
+    fit_margin: float = key(1.15, "When fitted: how much room to leave around the motion (1 = tight).", "1",
+                            ge=1, le=10)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "CameraSpec":
+        if (self.position is None) != (self.focal_point is None):
+            given = "position" if self.position is not None else "focal_point"
+            raise rule_error("give both position and focal_point, or neither (then the camera is fitted to the "
+                             "motion)", given)
+        if self.position is not None and self.position == self.focal_point:
+            raise rule_error("must differ from the camera position", "focal_point")
+        for name in ("up", "direction"):
+            if not any(getattr(self, name)):
+                raise rule_error("must not be the zero vector", name)
+        return self
+
+
+class GroundSpec(SceneModel):
+    """A ground plane drawn perpendicular to ``camera.up`` (display only: it does not collide)."""
+
+    level: float = key(0.0, "Height of the ground along camera.up.", "m")
+    size: float | None = key(None, "Side length of the ground square (default: fitted to the motion).", "m", gt=0)
+    color: Color = key("#d8d8d8", "Ground colour.")
+    grid: bool = key(True, "Draw grid lines on the ground.")
+
+
+VideoPreset = Literal["ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower", "veryslow"]
+
+
+class VideoSpec(SceneModel):
+    """H.264 MP4 encoding (yuv420p, plays in browsers)."""
+
+    preset: VideoPreset = key("veryfast", "x264 speed preset. 'veryfast' keeps up with the renderer; slower presets "
+                                          "give smaller files at equal quality.")
+    crf: int = key(20, "x264 constant rate factor: 0 lossless, 18 visually lossless, 23 x264's default, 51 worst.",
+                   "1", ge=0, le=51)
+
+
+class RenderSpec(SceneModel):
+    """How frames are drawn and written."""
+
+    resolution: Annotated[list[Annotated[int, Field(ge=16, le=7680)]], at.Len(2, 2)] = key(
+        [1280, 720], "Frame size [width, height]; both even (required by H.264 yuv420p).", "px")
+    background: Color = key("white", "Background colour.")
+    anti_aliasing: Literal["fxaa", "msaa", "none"] = key(
+        "fxaa", "Edge smoothing: fxaa (default), msaa (smoother, slower) or none (fastest).")
+    msaa_samples: int = key(4, "Samples per pixel when anti_aliasing is msaa.", "1", ge=2, le=16)
+    particles: Literal["auto", "mesh", "sprite"] = key(
+        "auto", "How particles are drawn: sphere meshes, point sprites (fast for many), or auto "
+                "(meshes up to 200 particles, sprites beyond).")
+    sphere_resolution: int = key(32, "Segments around a sphere mesh.", "1", ge=8, le=256)
+    springs: Literal["tube", "line", "hidden"] = key("tube", "How springs are drawn.")
+    spring_width: float = key(3.0, "Width of spring lines and tubes on screen.", "px", gt=0, le=50)
+    show_anchors: bool = key(True, "Draw anchors as small dark cubes.")
+    ground: GroundSpec | None = key(None, "Ground plane (omit for none; 'ground: {}' for the defaults).")
+    show_time: bool = key(True, "Overlay the simulated time.")
+    time_label: str = key("t = {t:.2f} s", "Format of the time overlay; {t} is the simulated time in s.")
+    camera: CameraSpec = key(CameraSpec(), "Camera.")
+    formats: Annotated[list[Literal["mp4", "png"]], at.Len(1, 2)] = key(
+        ["mp4"], "Outputs: mp4 (one video) and/or png (one file per frame).")
+    video: VideoSpec = key(VideoSpec(), "MP4 encoding settings.")
+
+    @field_validator("resolution")
+    @classmethod
+    def _even(cls, size: list[int]) -> list[int]:
+        for index, value in enumerate(size):
+            if value % 2:
+                raise rule_error(f"must be even (got {value}): H.264 with yuv420p halves the colour resolution; "
+                                 f"try {value + 1}", index)
+        return size
+
+    @field_validator("time_label")
+    @classmethod
+    def _formattable(cls, label: str) -> str:
+        try:
+            label.format(t=1.0)
+        except (KeyError, IndexError, ValueError) as error:
+            raise rule_error(f"is not a valid format string ({error}); use {{t}} for the time, e.g. "
+                             "'t = {t:.2f} s'") from None
+        return label
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# The scene
+
+
+class SceneSpec(SceneModel):
+    """A whole scene: what exists, what acts on it, how to integrate it and how to draw it."""
+
+    name: Name | None = key(None, "Scene name; output goes to renders/<name>/ (default: the file name).")
+    description: str = key("", "Free text, shown by 'animbatch info'.")
+    duration: float = key(5.0, "Length of the animation; frames are at t = k/fps for k = 0 … ceil(duration·fps)-1.",
+                          "s", gt=0, le=86400)
+    fps: int = key(30, "Frames per second of the animation (and of the trajectory samples).", "1/s", ge=1, le=240)
+    solver: SolverSpec = key(SolverSpec(), "Integrator settings.")
+    bodies: list[ParticleSpec] = key([], "Simulated bodies.")
+    anchors: list[AnchorSpec] = key([], "Fixed points for springs.")
+    springs: list[SpringSpec] = key([], "Springs and dampers.")
+    fields: list[FieldSpec] = key([], "Force fields; only the declared ones are compiled.")  # type: ignore[valid-type]
+    render: RenderSpec = key(RenderSpec(), "Rendering and output settings.")
+
+    @property
+    def frame_count(self) -> int:
+        """Number of frames: ``ceil(duration · fps)`` (at least 1), so that the video lasts ``duration``."""
+        import math
+
+        return max(1, math.ceil(self.duration * self.fps - 1e-9))
+
+
+#: Top-level keys that do not change the physics (excluded from the physics hash).
+PRESENTATION_KEYS = frozenset({"name", "description", "render", "solver"})
