@@ -1,0 +1,87 @@
+"""The contract every integrator keeps, and what a run records about its solver.
+
+An integrator takes the equations of motion, an initial state and the frame times, and returns the state at exactly
+those times (whatever its internal steps). It raises :class:`~animbatch.errors.SimulationError` as soon as the state
+stops being finite or the solver fails, before any frame could be rendered from a broken state.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+#: Called after each frame's state is known: ``on_frame(frame_index, time)``.
+FrameCallback = Callable[[int, float], None]
+
+
+class EquationsOfMotion(Protocol):
+    """What integrators need from a system (see :class:`~animbatch.model.dynamics.ParticleDynamics`)."""
+
+    size: int
+
+    def rhs(self, t: float, y: np.ndarray) -> np.ndarray: ...
+
+    def split(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def acceleration(self, t: float, x: np.ndarray, v: np.ndarray, out: np.ndarray | None = None) -> np.ndarray: ...
+
+
+@dataclass
+class SolverStats:
+    """Work done by a solver during one run.
+
+    ``rhs_evaluations`` is counted by our own wrapper and includes the evaluations made for finite-difference
+    Jacobians, which scipy's ``nfev`` leaves out (it is kept as ``scipy_nfev`` for comparison).
+    """
+
+    method: str
+    rhs_evaluations: int = 0
+    steps: int = 0
+    jacobian_evaluations: int = 0
+    lu_decompositions: int = 0
+    scipy_nfev: int | None = None
+    dt: float | None = None  # fixed-step methods: the step actually used [s]
+    substeps_per_frame: int | None = None
+    wall_time: float = 0.0  # [s]
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass
+class IntegrationResult:
+    """States at the frame times, shape (F, n), and the solver's statistics."""
+
+    states: np.ndarray
+    stats: SolverStats
+
+
+class CountingRhs:
+    """Wraps a right-hand side and counts its calls."""
+
+    def __init__(self, fun: Callable[[float, np.ndarray], np.ndarray]) -> None:
+        self.fun = fun
+        self.count = 0
+
+    def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
+        self.count += 1
+        return self.fun(t, y)
+
+
+class Integrator(ABC):
+    """Integrates equations of motion and samples the state at given times."""
+
+    method: str
+
+    @abstractmethod
+    def integrate(self, system: EquationsOfMotion, y0: np.ndarray, times: np.ndarray, *,
+                  on_frame: FrameCallback | None = None) -> IntegrationResult:
+        """States at ``times`` (increasing, ``times[0]`` is the time of ``y0``), shape (len(times), len(y0))."""
+
+    @abstractmethod
+    def describe(self) -> str:
+        """One line: the method and its settings."""

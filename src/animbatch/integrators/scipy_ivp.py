@@ -1,0 +1,80 @@
+"""Adaptive methods from ``scipy.integrate``: RK23, RK45, DOP853, Radau, BDF, LSODA.
+
+The solver object is stepped directly (as ``solve_ivp`` does internally) rather than through ``solve_ivp``, so that
+each accepted step can be checked for a finite state, progress can be reported per frame, and a failure can name the
+time and body. Frames are evaluated from the solver's dense output at exactly the requested times, independent of
+where its steps fall.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
+
+from animbatch.errors import SimulationError
+from animbatch.integrators.base import (CountingRhs, EquationsOfMotion, FrameCallback, IntegrationResult, Integrator,
+                                        SolverStats)
+from animbatch.integrators.guard import divergence_error, fastest_body, first_non_finite
+
+SCIPY_METHODS: dict[str, type[OdeSolver]] = {
+    "RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA,
+}
+
+
+class ScipyIntegrator(Integrator):
+    """An adaptive scipy method with tolerances ``rtol``, ``atol`` and an optional ``max_step`` [s]."""
+
+    def __init__(self, method: str, *, rtol: float = 1e-6, atol: float = 1e-9, max_step: float | None = None) -> None:
+        if method not in SCIPY_METHODS:
+            raise ValueError(f"unknown adaptive method {method!r}; choose from {', '.join(SCIPY_METHODS)}")
+        self.method = method
+        self.rtol = rtol
+        self.atol = atol
+        self.max_step = max_step
+
+    def describe(self) -> str:
+        limit = f", max_step {self.max_step:g} s" if self.max_step else ""
+        return f"{self.method} (adaptive, rtol {self.rtol:g}, atol {self.atol:g}{limit})"
+
+    def integrate(self, system: EquationsOfMotion, y0: np.ndarray, times: np.ndarray, *,
+                  on_frame: FrameCallback | None = None) -> IntegrationResult:
+        started = time.perf_counter()
+        layout = getattr(getattr(system, "model", None), "layout", None)
+        stats = SolverStats(self.method)
+        states = np.empty((len(times), len(y0)))
+        states[0] = y0
+        if on_frame is not None:
+            on_frame(0, float(times[0]))
+        fun = CountingRhs(system.rhs)
+        if len(times) > 1:
+            solver = SCIPY_METHODS[self.method](fun, float(times[0]), np.array(y0, dtype=float), float(times[-1]),
+                                                rtol=self.rtol, atol=self.atol,
+                                                max_step=self.max_step if self.max_step else np.inf)
+            frame = 1
+            while frame < len(times):
+                message = solver.step()
+                if solver.status == "failed":
+                    body = fastest_body(layout, fun(solver.t, solver.y), solver.y, self.atol, self.rtol)
+                    raise SimulationError(
+                        f"{self.method} failed at t = {solver.t:.6g} s: {message} The fastest-changing body is "
+                        f"{body!r}. Stiff springs or near collisions cause this: try solver.method Radau or BDF, "
+                        "or check that body's parameters.", time=solver.t, body=body)
+                stats.steps += 1
+                bad = first_non_finite(solver.y)
+                if bad is not None:
+                    raise divergence_error(layout, solver.y, bad, solver.t, method=self.method, step=stats.steps)
+                if times[frame] <= solver.t:
+                    interpolant = solver.dense_output()
+                    while frame < len(times) and times[frame] <= solver.t:
+                        states[frame] = solver.y if times[frame] == solver.t else interpolant(times[frame])
+                        if on_frame is not None:
+                            on_frame(frame, float(times[frame]))
+                        frame += 1
+            stats.jacobian_evaluations = int(solver.njev)
+            stats.lu_decompositions = int(solver.nlu)
+            stats.scipy_nfev = int(solver.nfev)
+        stats.rhs_evaluations = fun.count
+        stats.wall_time = time.perf_counter() - started
+        return IntegrationResult(states, stats)

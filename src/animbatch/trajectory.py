@@ -1,0 +1,111 @@
+"""The hand-off between simulation and rendering: states sampled at frame times, with where they came from.
+
+File format (``.npz``, version 1), readable with numpy alone (``np.load(path)``; no pickled objects):
+
+=====================  ==============  =================================================================
+key                    shape / type    meaning
+=====================  ==============  =================================================================
+``format``             str             ``"animbatch-trajectory"``
+``format_version``     int             ``1``
+``times``              (F,) float64    frame times ``k / fps`` [s]
+``body_names``         (N,) str        body names, in scene order
+``positions``          (F, N, 3)       body positions [m]
+``velocities``         (F, N, 3)       body velocities [m/s]
+``anchor_names``       (A,) str        anchor names
+``anchor_positions``   (A, 3)          anchor positions [m]
+``physics_hash``       str             SHA-256 of the scene's physics (bodies, fields, springs, timeline)
+``scene_name``         str             the scene's name
+``package_version``    str             animbatch version that wrote the file
+``solver``             str (JSON)      solver settings used
+``solver_stats``       str (JSON)      RHS evaluations, steps, Jacobian evaluations, wall time, …
+=====================  ==============  =================================================================
+
+Example::
+
+    data = np.load("run.npz")
+    ball = list(data["body_names"]).index("ball")
+    heights = data["positions"][:, ball, 1]
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from animbatch.errors import TrajectoryError
+from animbatch.files import atomic_path
+
+FORMAT = "animbatch-trajectory"
+FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """Body states at frame times. ``positions``/``velocities``: (F, N, 3) [m], [m/s]; ``times``: (F,) [s]."""
+
+    times: np.ndarray
+    body_names: tuple[str, ...]
+    positions: np.ndarray
+    velocities: np.ndarray
+    anchor_names: tuple[str, ...]
+    anchor_positions: np.ndarray
+    physics_hash: str
+    scene_name: str
+    package_version: str
+    solver: dict[str, Any] = field(default_factory=dict)
+    solver_stats: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def frame_count(self) -> int:
+        return len(self.times)
+
+    def save(self, path: str | Path) -> Path:
+        """Write the trajectory atomically to ``path`` (``.npz`` is appended when missing)."""
+        path = Path(path)
+        if path.suffix != ".npz":
+            path = path.with_name(path.name + ".npz")
+        with atomic_path(path) as temporary, open(temporary, "wb") as stream:
+            np.savez(stream, format=np.str_(FORMAT), format_version=np.int64(FORMAT_VERSION), times=self.times,
+                     body_names=np.array(self.body_names, dtype=str), positions=self.positions,
+                     velocities=self.velocities, anchor_names=np.array(self.anchor_names, dtype=str),
+                     anchor_positions=self.anchor_positions.reshape(-1, 3), physics_hash=np.str_(self.physics_hash),
+                     scene_name=np.str_(self.scene_name), package_version=np.str_(self.package_version),
+                     solver=np.str_(json.dumps(self.solver)), solver_stats=np.str_(json.dumps(self.solver_stats)))
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> Trajectory:
+        """Read a trajectory file, checking its format and the consistency of its arrays."""
+        path = Path(path)
+        if not path.is_file():
+            raise TrajectoryError(f"{path}: no such trajectory file (write one with 'animbatch simulate SCENE -o {path}')")
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                arrays = {key: data[key] for key in data.files}
+        except (OSError, ValueError, EOFError) as error:
+            raise TrajectoryError(f"{path}: not a readable .npz trajectory ({error})") from None
+        if str(arrays.get("format", "")) != FORMAT:
+            raise TrajectoryError(f"{path}: not an animbatch trajectory (missing format marker)")
+        version = int(arrays.get("format_version", -1))
+        if version != FORMAT_VERSION:
+            raise TrajectoryError(f"{path}: trajectory format version {version}; this animbatch reads version "
+                                  f"{FORMAT_VERSION}. Re-run 'animbatch simulate'.")
+        missing = {"times", "body_names", "positions", "velocities", "physics_hash"} - arrays.keys()
+        if missing:
+            raise TrajectoryError(f"{path}: incomplete trajectory, missing {', '.join(sorted(missing))}")
+        times, positions, velocities = arrays["times"], arrays["positions"], arrays["velocities"]
+        names = tuple(str(n) for n in arrays["body_names"])
+        expected = (len(times), len(names), 3)
+        if positions.shape != expected or velocities.shape != expected:
+            raise TrajectoryError(f"{path}: positions/velocities have shape {positions.shape}/{velocities.shape}, "
+                                  f"expected {expected}")
+        return cls(times, names, positions, velocities,
+                   tuple(str(n) for n in arrays.get("anchor_names", ())),
+                   arrays.get("anchor_positions", np.zeros((0, 3))).reshape(-1, 3),
+                   str(arrays["physics_hash"]), str(arrays.get("scene_name", "")),
+                   str(arrays.get("package_version", "")),
+                   json.loads(str(arrays.get("solver", "{}"))), json.loads(str(arrays.get("solver_stats", "{}"))))
