@@ -1,0 +1,187 @@
+"""The pipeline as library functions: load → compile → simulate → render/encode, and ``run`` for all of them.
+
+    from animbatch import api
+    scene = api.load_scene("scenes/projectile.yaml", overrides=["solver.method=DOP853"])
+    model = api.compile_scene(scene.spec)
+    trajectory = api.simulate(scene, model=model)
+    result = api.render(scene, trajectory, model=model, out_dir="renders")
+
+Simulation and rendering meet only at the :class:`~animbatch.trajectory.Trajectory`: a trajectory saved by
+``simulate`` can be rendered later (with another camera or resolution) without simulating again.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import platform
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from animbatch import __version__
+from animbatch.errors import TrajectoryError
+from animbatch.files import write_json_atomic
+from animbatch.integrators import make_integrator
+from animbatch.model import Model, ParticleDynamics, compile_scene
+from animbatch.progress import Progress
+from animbatch.scene import LoadedScene, load_scene, physics_fingerprint
+from animbatch.scene.overrides import Override
+from animbatch.stopwatch import Stopwatch
+from animbatch.trajectory import Trajectory
+
+__all__ = ["RenderResult", "RunReport", "check_trajectory", "compile_scene", "load_scene", "render", "run", "simulate"]
+
+
+def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progress | None = None) -> Trajectory:
+    """Integrate the scene and sample it at the frame times. Raises SimulationError on divergence or failure."""
+    spec = scene.spec
+    model = model if model is not None else compile_scene(spec)
+    integrator = make_integrator(spec.solver)
+    progress = progress or Progress(enabled=False)
+    with progress.task("simulate", len(model.frame_times)) as on_frame:
+        result = integrator.integrate(ParticleDynamics(model), model.y0, model.frame_times, on_frame=on_frame)
+    return Trajectory(
+        times=model.frame_times.copy(), body_names=model.particles.names,
+        positions=model.positions(result.states).copy(), velocities=model.velocities(result.states).copy(),
+        anchor_names=model.anchor_names, anchor_positions=model.anchor_position.copy(),
+        physics_hash=physics_fingerprint(spec), scene_name=scene.name, package_version=__version__,
+        solver={**spec.solver.model_dump(), "description": integrator.describe()},
+        solver_stats=result.stats.as_dict())
+
+
+def check_trajectory(scene: LoadedScene, trajectory: Trajectory, source: str | Path = "trajectory") -> None:
+    """Refuse a trajectory that was not simulated from this scene's physics (bodies, fields, timeline)."""
+    if trajectory.physics_hash != physics_fingerprint(scene.spec):
+        raise TrajectoryError(
+            f"{source} was simulated from different physics than {scene.path or scene.name} (bodies, springs, fields, "
+            f"duration or fps changed). Re-run 'animbatch simulate {scene.path or 'SCENE'} -o {source}'.")
+    names = tuple(body.name for body in scene.spec.bodies)
+    if trajectory.body_names != names:
+        raise TrajectoryError(f"{source} holds bodies {', '.join(trajectory.body_names)}, the scene has "
+                              f"{', '.join(names)}")
+
+
+@dataclass
+class RenderResult:
+    """What a render wrote, and how long drawing and encoding took [s]."""
+
+    outputs: list[Path]
+    frame_count: int
+    backend: str
+    render_seconds: float
+    encode_seconds: float
+    resolution: tuple[int, int]
+    fps: int
+
+
+def render(scene: LoadedScene, trajectory: Trajectory, *, model: Model | None = None,
+           out_dir: str | Path = "renders", backend: str = "auto", progress: Progress | None = None) -> RenderResult:
+    """Draw every frame of ``trajectory`` and write the scene's outputs into ``out_dir/<scene name>/``.
+
+    The MP4 is encoded while frames are rendered; every file is written atomically.
+    """
+    from animbatch.encode import Mp4Writer, PngSequenceWriter
+    from animbatch.render.backend import select_backend
+    from animbatch.render.camera import motion_bounds
+    from animbatch.render.frames import FrameGeometry, FrameRenderer
+
+    spec = scene.spec
+    model = model if model is not None else compile_scene(spec)
+    chosen = select_backend(backend)
+    folder = Path(out_dir) / scene.name
+    width, height = spec.render.resolution
+    geometry = FrameGeometry.from_scene(spec, model, motion_bounds(trajectory.positions, model.particles.radius,
+                                                                   model.anchor_position))
+    video = Mp4Writer(folder / f"{scene.name}.mp4", (width, height), spec.fps, preset=spec.render.video.preset,
+                      crf=spec.render.video.crf) if "mp4" in spec.render.formats else None
+    frames = PngSequenceWriter(folder / "frames") if "png" in spec.render.formats else None
+    render_seconds = encode_seconds = 0.0
+    progress = progress or Progress(enabled=False)
+    with contextlib.ExitStack() as stack:
+        renderer = stack.enter_context(FrameRenderer(spec.render, geometry, chosen))
+        if video is not None:
+            stack.enter_context(video)
+        on_frame = stack.enter_context(progress.task("render", trajectory.frame_count))
+        for index, t in enumerate(trajectory.times):
+            started = time.perf_counter()
+            image = renderer.draw(float(t), trajectory.positions[index])
+            drawn = time.perf_counter()
+            if video is not None:
+                video.write(image)
+            if frames is not None:
+                frames.write(index, image)
+            encode_seconds += time.perf_counter() - drawn
+            render_seconds += drawn - started
+            on_frame(index, float(t))
+        outputs = []
+        started = time.perf_counter()
+        if video is not None:
+            outputs.append(video.commit())
+        encode_seconds += time.perf_counter() - started
+    if frames is not None:
+        frames.remove_beyond(trajectory.frame_count)
+        outputs.append(frames.folder)
+    return RenderResult(outputs, trajectory.frame_count, chosen.name, render_seconds, encode_seconds,
+                        (width, height), spec.fps)
+
+
+@dataclass
+class RunReport:
+    """Everything a run did, written as ``report.json`` beside its outputs."""
+
+    scene: str
+    scene_file: str | None
+    physics_hash: str
+    package_version: str
+    stages: dict[str, float]  # seconds per stage: load, compile, simulate (or load_trajectory), render, encode
+    solver: dict[str, Any]
+    solver_stats: dict[str, Any]
+    frame_count: int
+    resolution: tuple[int, int]
+    fps: int
+    backend: str
+    outputs: list[str]
+    trajectory_file: str | None = None
+    created: str = field(default_factory=lambda: _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
+    host: str = field(default_factory=platform.node)
+
+    def summary(self) -> str:
+        """One line for logs: outputs, frames, timings and solver work."""
+        stats = self.solver_stats
+        solver = (f"{stats.get('method')}: {stats.get('steps')} steps, {stats.get('rhs_evaluations')} RHS"
+                  if stats else "from trajectory")
+        timings = ", ".join(f"{stage} {seconds:.2f} s" for stage, seconds in self.stages.items())
+        width, height = self.resolution
+        target = self.outputs[0] if self.outputs else "(no output)"
+        return (f"{self.scene}: {self.frame_count} frames {width}×{height} @ {self.fps} fps -> {target} | "
+                f"{timings} | {solver} | {self.backend}")
+
+
+def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: str | Path = "renders",
+        backend: str = "auto", trajectory_path: str | Path | None = None,
+        progress: Progress | None = None) -> RunReport:
+    """Load, compile, simulate (or read ``trajectory_path``), render and encode one scene; write its report."""
+    watch = Stopwatch()
+    with watch.stage("load"):
+        scene = load_scene(scene_path, overrides)
+    with watch.stage("compile"):
+        model = compile_scene(scene.spec)
+    if trajectory_path is not None:
+        with watch.stage("load_trajectory"):
+            trajectory = Trajectory.load(trajectory_path)
+            check_trajectory(scene, trajectory, trajectory_path)
+    else:
+        with watch.stage("simulate"):
+            trajectory = simulate(scene, model=model, progress=progress)
+    result = render(scene, trajectory, model=model, out_dir=out_dir, backend=backend, progress=progress)
+    watch.add("render", result.render_seconds)
+    watch.add("encode", result.encode_seconds)
+    report = RunReport(scene.name, str(scene.path) if scene.path else None, trajectory.physics_hash, __version__,
+                       dict(watch.seconds), trajectory.solver, trajectory.solver_stats if trajectory_path is None
+                       else {}, result.frame_count, result.resolution, result.fps, result.backend,
+                       [str(p) for p in result.outputs], str(trajectory_path) if trajectory_path else None)
+    write_json_atomic(Path(out_dir) / scene.name / "report.json", report.__dict__)
+    return report

@@ -1,0 +1,199 @@
+"""The ``animbatch`` command: argument parsing only; the work is done by :mod:`animbatch.api`.
+
+Exit codes: 0 success, 1 invalid scene or trajectory, 2 bad command-line usage, 3 simulation failed,
+4 rendering failed, 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar
+
+import click
+
+from animbatch import __version__
+from animbatch.errors import AnimbatchError, SceneError
+from animbatch.scene.overrides import Override
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _reports_errors(command: F) -> F:
+    """Print AnimbatchErrors as plain messages (no traceback) and exit with their code."""
+
+    @functools.wraps(command)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return command(*args, **kwargs)
+        except SceneError as error:
+            click.echo(str(error), err=True)
+            sys.exit(error.exit_code)
+        except AnimbatchError as error:
+            click.echo(f"error: {error}", err=True)
+            sys.exit(error.exit_code)
+        except KeyboardInterrupt:
+            click.echo("interrupted: partial outputs were removed", err=True)
+            sys.exit(130)
+
+    return wrapper  # type: ignore[return-value]
+
+
+def _scene_options(command: F) -> F:
+    """--set and the solver shortcuts, shared by every command that reads a scene."""
+    options = [
+        click.option("--set", "settings", multiple=True, metavar="KEY.PATH=VALUE",
+                     help="Override any scene value, e.g. --set bodies[ball].mass=2 (repeatable)."),
+        click.option("--method", help="Integrator (solver.method), e.g. RK45, DOP853, Radau, verlet."),
+        click.option("--dt", type=str, help="Fixed step in s (solver.dt)."),
+        click.option("--rtol", type=str, help="Relative tolerance (solver.rtol)."),
+        click.option("--atol", type=str, help="Absolute tolerance (solver.atol)."),
+        click.option("--max-step", type=str, help="Largest adaptive step in s (solver.max_step)."),
+        click.option("--fps", type=str, help="Frames per second (fps)."),
+    ]
+    for option in reversed(options):
+        command = option(command)
+    return command
+
+
+def _overrides(settings: tuple[str, ...], **shortcuts: str | None) -> list[Override]:
+    """Command-line settings as overrides; shortcuts such as --dt keep their own spelling for error messages."""
+    keys = {"method": "solver.method", "dt": "solver.dt", "rtol": "solver.rtol", "atol": "solver.atol",
+            "max_step": "solver.max_step", "fps": "fps", "resolution": "render.resolution", "formats": "render.formats",
+            "backend": None}
+    result: list[Override] = list(settings)
+    for name, value in shortcuts.items():
+        if value is None or keys.get(name) is None:
+            continue
+        flag = "--" + name.replace("_", "-")
+        if name == "resolution":
+            width, _, height = value.lower().partition("x")
+            result.append((f"render.resolution=[{width},{height}]", f"{flag} {value}"))
+        elif name == "formats":
+            result.append((f"render.formats=[{value}]", f"{flag} {value}"))
+        else:
+            result.append((f"{keys[name]}={value}", f"{flag} {value}"))
+    return result
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 110})
+@click.version_option(__version__, prog_name="animbatch")
+def cli() -> None:
+    """Turn YAML scene files into physically based animations, rendered headless.
+
+    \b
+    animbatch validate scenes/projectile.yaml
+    animbatch info scenes/projectile.yaml
+    animbatch render scenes/projectile.yaml            # -> renders/projectile/projectile.mp4
+    animbatch simulate scenes/projectile.yaml -o run.npz
+    animbatch render scenes/projectile.yaml --trajectory run.npz --resolution 640x360
+    """
+
+
+@cli.command()
+@click.argument("scenes", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--set", "settings", multiple=True, metavar="KEY.PATH=VALUE", help="Override a scene value.")
+def validate(scenes: tuple[Path, ...], settings: tuple[str, ...]) -> None:
+    """Check scene files; report every error of each file, exit 1 if any is invalid."""
+    from animbatch.info import one_line_summary
+    from animbatch.scene import load_scene
+
+    failed = 0
+    for path in scenes:
+        try:
+            click.echo(one_line_summary(load_scene(path, list(settings))))
+        except SceneError as error:
+            click.echo(str(error), err=True)
+            failed += 1
+    if failed:
+        if len(scenes) > 1:
+            click.echo(f"{failed} of {len(scenes)} scene files are invalid", err=True)
+        sys.exit(1)
+
+
+@cli.command()
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), help="Write to a file.")
+def schema(output: Path | None) -> None:
+    """Print the JSON Schema of the scene format (for editor completion and checks)."""
+    from animbatch.scene.schema import SceneSpec
+
+    document = SceneSpec.model_json_schema()
+    document["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    document["title"] = "animbatch scene"
+    text = json.dumps(document, indent=2) + "\n"
+    if output is None:
+        click.echo(text, nl=False)
+    else:
+        from animbatch.files import write_text_atomic
+
+        write_text_atomic(output, text)
+
+
+@cli.command()
+@click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
+@_scene_options
+@_reports_errors
+def info(scene: Path, settings: tuple[str, ...], **shortcuts: str | None) -> None:
+    """Show the compiled model: force terms, state layout, bodies and their masses."""
+    from animbatch.info import describe_model
+    from animbatch.model import compile_scene
+    from animbatch.scene import load_scene
+
+    loaded = load_scene(scene, _overrides(settings, **shortcuts))
+    click.echo(describe_model(loaded, compile_scene(loaded.spec)))
+
+
+@cli.command()
+@click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+              help="Trajectory file (.npz); default renders/<scene>/<scene>.npz.")
+@_scene_options
+@click.option("--progress/--no-progress", default=None, help="Progress bar (default: on a terminal).")
+@_reports_errors
+def simulate(scene: Path, output: Path | None, settings: tuple[str, ...], progress: bool | None,
+             **shortcuts: str | None) -> None:
+    """Simulate a scene and save its trajectory, sampled at the frame times."""
+    from animbatch import api
+    from animbatch.progress import Progress
+
+    loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
+    trajectory = api.simulate(loaded, progress=Progress(enabled=progress))
+    target = trajectory.save(output or Path("renders") / loaded.name / f"{loaded.name}.npz")
+    stats = trajectory.solver_stats
+    click.echo(f"{loaded.name}: {trajectory.frame_count} frames -> {target} | {stats['method']}: {stats['steps']} "
+               f"steps, {stats['rhs_evaluations']} RHS evaluations, {stats['wall_time']:.3f} s")
+
+
+@cli.command()
+@click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--trajectory", type=click.Path(dir_okay=False, path_type=Path),
+              help="Render this trajectory (from 'animbatch simulate') instead of simulating.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("renders"),
+              show_default=True, help="Output folder; files go to OUT/<scene name>/.")
+@click.option("--backend", type=click.Choice(["auto", "egl", "osmesa"]), default="auto", show_default=True,
+              help="Off-screen OpenGL backend.")
+@click.option("--resolution", metavar="WxH", help="Frame size, e.g. 1920x1080 (render.resolution).")
+@click.option("--formats", metavar="LIST", help="Outputs: mp4, png or mp4,png (render.formats).")
+@_scene_options
+@click.option("--progress/--no-progress", default=None, help="Progress bars (default: on a terminal).")
+@_reports_errors
+def render(scene: Path, trajectory: Path | None, out_dir: Path, backend: str, settings: tuple[str, ...],
+           progress: bool | None, **shortcuts: str | None) -> None:
+    """Simulate (or read a trajectory), render frames off-screen and write MP4/PNG into renders/<scene>/."""
+    from animbatch import api
+    from animbatch.progress import Progress
+
+    report = api.run(scene, overrides=_overrides(settings, **shortcuts), out_dir=out_dir, backend=backend,
+                     trajectory_path=trajectory, progress=Progress(enabled=progress))
+    click.echo(report.summary())
+
+
+def main() -> None:
+    cli(prog_name="animbatch")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,6 @@
+"""Writers for rendered frames: H.264 MP4 through ffmpeg, and PNG sequences. Heavy imports stay inside."""
+
+from animbatch.encode.images import PngSequenceWriter
+from animbatch.encode.video import Mp4Writer
+
+__all__ = ["Mp4Writer", "PngSequenceWriter"]

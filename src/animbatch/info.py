@@ -1,0 +1,69 @@
+"""Human-readable descriptions of a scene and its compiled model (``animbatch validate`` and ``animbatch info``)."""
+
+from __future__ import annotations
+
+from animbatch.forces import FIELD_TERMS
+from animbatch.integrators import make_integrator
+from animbatch.model import Model
+from animbatch.scene import LoadedScene
+
+
+def _plural(count: int, word: str, plural: str | None = None) -> str:
+    return f"{count} {word if count == 1 else (plural or word + 's')}"
+
+
+def one_line_summary(scene: LoadedScene) -> str:
+    """``scenes/x.yaml: OK - 'x': 3 bodies, 2 springs; fields gravity, drag; 4 s at 30 fps (120 frames); RK45 …``."""
+    spec = scene.spec
+    parts = [_plural(len(spec.bodies), "body", "bodies")]
+    if spec.anchors:
+        parts.append(_plural(len(spec.anchors), "anchor"))
+    if spec.springs:
+        parts.append(_plural(len(spec.springs), "spring"))
+    fields = ", ".join(field.type for field in spec.fields) or "none"
+    return (f"{scene.path or scene.name}: OK - '{scene.name}': {', '.join(parts)}; fields: {fields}; "
+            f"{spec.duration:g} s at {spec.fps} fps ({spec.frame_count} frames); "
+            f"{make_integrator(spec.solver).describe()}")
+
+
+def _vector(values: object) -> str:
+    return "(" + ", ".join(f"{float(c):.4g}" for c in values) + ")"  # type: ignore[attr-defined]
+
+
+def describe_model(scene: LoadedScene, model: Model) -> str:
+    """What was compiled: timeline, solver, state layout, force terms (in evaluation order), bodies and anchors."""
+    spec = scene.spec
+    times = model.frame_times
+    lines = [f"scene      {scene.name}" + (f"  ({scene.path})" if scene.path else "")]
+    if spec.description:
+        lines.append(f"           {spec.description}")
+    lines += [
+        f"timeline   {spec.duration:g} s at {spec.fps} fps: {len(times)} frames at t = k/{spec.fps} s, "
+        f"k = 0 … {len(times) - 1} (last frame at {times[-1]:.6g} s)",
+        f"solver     {make_integrator(spec.solver).describe()}",
+        f"state      {model.layout.size} values (float64)",
+    ]
+    for block in model.layout.blocks:
+        span = block.span
+        shape = " × ".join(map(str, block.shape))
+        lines.append(f"           y[{span.start}:{span.stop}]  {block.name}  ({shape}) [{block.unit}]  {block.role}")
+    lines.append(f"terms      {_plural(len(model.force_terms), 'force term')} compiled, evaluated in this order:")
+    for number, term in enumerate(model.force_terms, 1):
+        lines.append(f"           {number}. {term.label:<12} {term.describe()}")
+    declared = {field.type for field in spec.fields} | ({"spring"} if model.springs is not None else set())
+    absent = [name for name in (*FIELD_TERMS, "spring") if name not in declared]
+    if absent:
+        lines.append(f"           not compiled (not declared): {', '.join(absent)}")
+    lines.append(f"bodies     {_plural(model.particle_count, 'particle')}, total mass "
+                 f"{float(model.particles.mass.sum()):.6g} kg")
+    lines.append(f"           {'name':<16} {'mass [kg]':>10} {'radius [m]':>11}  {'position [m]':<26} velocity [m/s]")
+    x0, v0 = model.positions(model.y0), model.velocities(model.y0)
+    shown = min(model.particle_count, 50)
+    for i in range(shown):
+        lines.append(f"           {model.particles.names[i]:<16} {model.particles.mass[i]:>10.4g} "
+                     f"{model.particles.radius[i]:>11.4g}  {_vector(x0[i]):<26} {_vector(v0[i])}")
+    if model.particle_count > shown:
+        lines.append(f"           … and {model.particle_count - shown} more")
+    for name, position in zip(model.anchor_names, model.anchor_position):
+        lines.append(f"anchor     {name:<16} at {_vector(position)} m")
+    return "\n".join(lines)
