@@ -61,15 +61,24 @@ class IntegrationResult:
 
 
 class CountingRhs:
-    """Wraps a right-hand side and counts its calls."""
+    """Wraps a right-hand side, counts its calls and remembers the first non-finite derivative it returned.
+
+    Adaptive methods never accept a step whose error estimate is not finite, so a non-finite force shows up as a
+    solver failure ("step size too small") a few rejections later; ``first_non_finite`` (time, component) then says
+    where it came from.
+    """
 
     def __init__(self, fun: Callable[[float, np.ndarray], np.ndarray]) -> None:
         self.fun = fun
         self.count = 0
+        self.first_non_finite: tuple[float, int] | None = None
 
     def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
         self.count += 1
-        return self.fun(t, y)
+        dydt = self.fun(t, y)
+        if self.first_non_finite is None and not np.isfinite(dydt).all():
+            self.first_non_finite = (t, int(np.flatnonzero(~np.isfinite(dydt))[0]))
+        return dydt
 
 
 class Integrator(ABC):

@@ -201,6 +201,18 @@ class FixedStepIntegrator(Integrator):
         states[0] = y
         if on_frame is not None:
             on_frame(0, float(times[0]))
+        with np.errstate(all="ignore"):  # overflow is detected once per frame and reported, not warned about
+            largest_step = self._run(scheme, y, states, times, stats, layout, on_frame)
+        stats.rhs_evaluations = scheme.evaluations
+        stats.dt = largest_step or None
+        if len(times) > 1:
+            stats.substeps_per_frame = substeps(float(times[1] - times[0]), self.dt)
+        stats.wall_time = time.perf_counter() - started
+        return IntegrationResult(states, stats)
+
+    def _run(self, scheme: Scheme, y: np.ndarray, states: np.ndarray, times: np.ndarray, stats: SolverStats,
+             layout: Any, on_frame: FrameCallback | None) -> float:
+        """Step through every frame interval; return the largest step used [s]."""
         scheme.start(float(times[0]), y)
         largest_step = 0.0
         for frame in range(1, len(times)):
@@ -220,12 +232,7 @@ class FixedStepIntegrator(Integrator):
             states[frame] = y
             if on_frame is not None:
                 on_frame(frame, t1)
-        stats.rhs_evaluations = scheme.evaluations
-        stats.dt = largest_step or None
-        if len(times) > 1:
-            stats.substeps_per_frame = substeps(float(times[1] - times[0]), self.dt)
-        stats.wall_time = time.perf_counter() - started
-        return IntegrationResult(states, stats)
+        return largest_step
 
     def _raise_at_first_bad_step(self, scheme: Scheme, layout: Any, y: np.ndarray, t0: float, h: float, count: int,
                                  steps_before: int) -> None:

@@ -9,6 +9,7 @@ where its steps fall.
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
@@ -48,6 +49,14 @@ class ScipyIntegrator(Integrator):
         if on_frame is not None:
             on_frame(0, float(times[0]))
         fun = CountingRhs(system.rhs)
+        with np.errstate(all="ignore"):  # overflow is detected and reported by the checks below, not as warnings
+            self._run(system, fun, y0, times, states, stats, layout, on_frame)
+        stats.rhs_evaluations = fun.count
+        stats.wall_time = time.perf_counter() - started
+        return IntegrationResult(states, stats)
+
+    def _run(self, system: EquationsOfMotion, fun: CountingRhs, y0: np.ndarray, times: np.ndarray,
+             states: np.ndarray, stats: SolverStats, layout: Any, on_frame: FrameCallback | None) -> None:
         if len(times) > 1:
             solver = SCIPY_METHODS[self.method](fun, float(times[0]), np.array(y0, dtype=float), float(times[-1]),
                                                 rtol=self.rtol, atol=self.atol,
@@ -56,11 +65,7 @@ class ScipyIntegrator(Integrator):
             while frame < len(times):
                 message = solver.step()
                 if solver.status == "failed":
-                    body = fastest_body(layout, fun(solver.t, solver.y), solver.y, self.atol, self.rtol)
-                    raise SimulationError(
-                        f"{self.method} failed at t = {solver.t:.6g} s: {message} The fastest-changing body is "
-                        f"{body!r}. Stiff springs or near collisions cause this: try solver.method Radau or BDF, "
-                        "or check that body's parameters.", time=solver.t, body=body)
+                    raise self._failure(solver, fun, layout, message)
                 stats.steps += 1
                 bad = first_non_finite(solver.y)
                 if bad is not None:
@@ -75,6 +80,18 @@ class ScipyIntegrator(Integrator):
             stats.jacobian_evaluations = int(solver.njev)
             stats.lu_decompositions = int(solver.nlu)
             stats.scipy_nfev = int(solver.nfev)
-        stats.rhs_evaluations = fun.count
-        stats.wall_time = time.perf_counter() - started
-        return IntegrationResult(states, stats)
+
+    def _failure(self, solver: OdeSolver, fun: CountingRhs, layout: Any, message: str | None) -> SimulationError:
+        """Why the solver gave up: non-finite forces if any were seen, else the fastest-changing body."""
+        if fun.first_non_finite is not None and layout is not None:
+            seen_at, index = fun.first_non_finite
+            body, quantity = layout.describe_index(index)
+            return SimulationError(
+                f"{self.method} failed at t = {solver.t:.6g} s: the rate of change of body {body!r} {quantity} "
+                f"became non-finite (first at t = {seen_at:.6g} s), so no step could be accepted. Check that body's "
+                "springs and fields for extreme values.", time=solver.t, body=body)
+        body = fastest_body(layout, fun(solver.t, solver.y), solver.y, self.atol, self.rtol)
+        return SimulationError(
+            f"{self.method} failed at t = {solver.t:.6g} s: {message} The fastest-changing body is {body!r}. "
+            "Stiff springs or near collisions cause this: try solver.method Radau or BDF, or check that body's "
+            "parameters.", time=solver.t, body=body)

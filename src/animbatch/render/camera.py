@@ -38,28 +38,38 @@ def motion_bounds(positions: np.ndarray, radius: np.ndarray, extra_points: np.nd
     return np.stack([low, high])
 
 
-def place_camera(spec: CameraSpec, bounds: np.ndarray) -> CameraPlacement:
-    """Where the camera goes for ``bounds`` (2, 3): fitted unless the scene gives position and focal point."""
+def place_camera(spec: CameraSpec, bounds: np.ndarray, aspect: float = 16 / 9) -> CameraPlacement:
+    """Where the camera goes for ``bounds`` (2, 3) and frame ``aspect`` (width / height).
+
+    Fitted unless the scene gives position and focal point: the camera looks at the centre of the box from
+    ``spec.direction`` and backs off until all eight corners of the box fit the frame, in both the vertical field of
+    view and the horizontal one (wider by ``aspect``), with ``fit_margin`` to spare.
+    """
     centre = bounds.mean(axis=0)
-    # Bounding sphere of the motion; a point-like motion still gets a sensible size.
-    radius = max(0.5 * float(np.linalg.norm(bounds[1] - bounds[0])), 1e-3)
-    up = np.asarray(spec.up, float)
-    up = up / np.linalg.norm(up)
-    half_angle = math.radians(spec.view_angle) / 2
+    size = max(float(np.linalg.norm(bounds[1] - bounds[0])), 1e-3)  # a point-like motion still gets a size
+    up = _unit(np.asarray(spec.up, float))
+    tan_vertical = math.tan(math.radians(spec.view_angle) / 2)
     if spec.position is not None and spec.focal_point is not None:
         position = np.asarray(spec.position, float)
         focal = np.asarray(spec.focal_point, float)
     else:
-        direction = np.asarray(spec.direction, float)
-        direction = direction / np.linalg.norm(direction)
+        direction = _unit(np.asarray(spec.direction, float))
         if abs(float(np.dot(direction, up))) > 0.999:  # looking straight along 'up': tilt slightly
             direction = _unit(direction + 0.05 * _any_perpendicular(up))
-        distance = spec.fit_margin * radius / math.sin(half_angle)
+        right = _unit(np.cross(up, direction))
+        screen_up = np.cross(direction, right)
+        corners = np.array([[bounds[i][0], bounds[j][1], bounds[k][2]] for i in (0, 1) for j in (0, 1)
+                            for k in (0, 1)]) - centre
+        corners *= spec.fit_margin
+        toward_camera = corners @ direction  # a corner nearer the camera needs more distance
+        distance = max(float(np.max(toward_camera + np.abs(corners @ screen_up) / tan_vertical)),
+                       float(np.max(toward_camera + np.abs(corners @ right) / (tan_vertical * aspect))),
+                       1e-3)
         focal = centre
         position = centre + direction * distance
     to_centre = float(np.linalg.norm(centre - position))
-    near = max(to_centre - 2.5 * radius, to_centre * 1e-3, 1e-4)
-    far = to_centre + 6.0 * radius  # room for the ground plane behind the motion
+    near = max(to_centre - 1.5 * size, to_centre * 1e-3, 1e-4)
+    far = to_centre + 4.0 * size  # room for the ground plane behind the motion
     return CameraPlacement(position, focal, up, float(spec.view_angle), (near, far))
 
 

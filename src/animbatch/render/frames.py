@@ -84,7 +84,7 @@ class FrameRenderer:
         self.plotter = pv.Plotter(off_screen=True, window_size=[self.width, self.height], lighting="light kit")
         self._configure_quality()
         self.plotter.set_background(render.background)
-        self.camera = place_camera(render.camera, geometry.bounds)
+        self.camera = place_camera(render.camera, geometry.bounds, self.width / self.height)
         self._add_ground()
         self._add_particles()
         self._add_springs()
@@ -159,7 +159,7 @@ class FrameRenderer:
         first, second = plane_axes(up)
         corners = np.array([[bounds[i][0], bounds[j][1], bounds[k][2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
         extent = max(np.ptp(corners @ first), np.ptp(corners @ second))
-        size = ground.size or max(2.0 * extent, 1.0)
+        size = ground.size or max(1.4 * extent, 1.0)
         origin = centre - np.dot(centre, up) * up + ground.level * up  # centre projected onto the ground plane
         plane = self.pv.Plane(center=origin, direction=up, i_size=size, j_size=size)
         self.plotter.add_mesh(plane, color=ground.color, ambient=0.2)

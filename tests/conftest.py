@@ -1,0 +1,42 @@
+"""Shared helpers: build scenes from YAML text and simulate them without touching the file system."""
+
+from __future__ import annotations
+
+import textwrap
+
+import numpy as np
+import pytest
+
+from animbatch import api
+from animbatch.model import Model, compile_scene
+from animbatch.scene import LoadedScene, parse_scene
+from animbatch.trajectory import Trajectory
+
+
+def scene(text: str, *overrides: str) -> LoadedScene:
+    """A validated scene from (indented) YAML text."""
+    return parse_scene(textwrap.dedent(text), filename="test.yaml", overrides=list(overrides))
+
+
+def run(text: str, *overrides: str) -> tuple[Model, Trajectory]:
+    """Compile and simulate a scene given as YAML text."""
+    loaded = scene(text, *overrides)
+    model = compile_scene(loaded.spec)
+    return model, api.simulate(loaded, model=model)
+
+
+def body(trajectory: Trajectory, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and velocities of one body over all frames, each (F, 3)."""
+    index = trajectory.body_names.index(name)
+    return trajectory.positions[:, index], trajectory.velocities[:, index]
+
+
+ADAPTIVE = ["RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA"]
+FIXED_STEP = ["euler", "midpoint", "symplectic_euler", "verlet"]
+
+
+@pytest.fixture
+def tmp_cwd(tmp_path, monkeypatch):
+    """Run in an empty temporary folder (so relative outputs like renders/ land there)."""
+    monkeypatch.chdir(tmp_path)
+    return tmp_path

@@ -1,0 +1,78 @@
+"""Only the effects a scene declares are compiled and evaluated."""
+
+from __future__ import annotations
+
+import pytest
+from click.testing import CliRunner
+
+from animbatch.cli import cli
+from animbatch.forces import FIELD_TERMS, Drag, Gravitation, SpringForces, UniformGravity
+from animbatch.forces import springs as spring_module
+from animbatch.model import compile_scene
+from animbatch.scene.schema import field_type_names
+from conftest import run, scene
+
+PLAIN = """
+    duration: 0.5
+    bodies: [{name: a, velocity: [1, 2, 0]}, {name: b, position: [1, 0, 0]}, {name: c, position: [2, 0, 0]}]
+    fields: [{type: gravity}]
+"""
+WITH_SPRING = PLAIN + """
+    springs: [{between: [a, b], stiffness: 10}]
+"""
+
+
+def test_every_field_type_in_the_schema_has_a_force_term():
+    """The schema's field types and the registry of force terms are the same set."""
+    assert set(field_type_names()) == set(FIELD_TERMS)
+
+
+def test_three_particles_with_gravity_compile_one_term():
+    """A scene with gravity only evaluates exactly one term: gravity."""
+    model = compile_scene(scene(PLAIN).spec)
+    assert [type(term) for term in model.force_terms] == [UniformGravity]
+    assert model.springs is None
+
+
+def test_each_declared_field_adds_exactly_its_term():
+    """Terms appear in declaration order; springs add one term however many springs there are."""
+    model = compile_scene(scene(PLAIN.replace("fields: [{type: gravity}]", "") + """
+    fields:
+      - {type: drag, model: quadratic, coefficient: 0.1}
+      - {type: gravitation, G: 1}
+      - {type: wind, velocity: [1, 0, 0], coefficient: 0.1}
+    springs: [{between: [a, b], stiffness: 10}, {between: [b, c], stiffness: 10}]
+    """).spec)
+    assert [type(term) for term in model.force_terms] == [Drag, Gravitation, Drag, SpringForces]
+    assert [term.label for term in model.force_terms] == ["drag", "gravitation", "wind", "spring"]
+
+
+def test_scene_without_springs_never_runs_spring_code(monkeypatch):
+    """With spring evaluation sabotaged, a spring-less scene still simulates; a scene with springs hits it."""
+    calls = []
+
+    def sabotaged(self, x, v):
+        calls.append(1)
+        raise AssertionError("spring code evaluated")
+
+    monkeypatch.setattr(spring_module.SpringForces, "spring_forces", sabotaged)
+    for method in ("RK45", "verlet"):
+        run(PLAIN, f"solver.method={method}")
+    assert calls == []
+    with pytest.raises(AssertionError, match="spring code evaluated"):
+        run(WITH_SPRING)
+    assert calls
+
+
+def test_info_lists_compiled_terms_layout_and_masses(tmp_path):
+    """'animbatch info' shows the compiled terms, the state layout, what was not compiled, and body masses."""
+    path = tmp_path / "s.yaml"
+    path.write_text(WITH_SPRING)
+    result = CliRunner().invoke(cli, ["info", str(path)])
+    assert result.exit_code == 0, result.output
+    out = result.output
+    assert "state      18 values" in out
+    assert "y[0:9]  particle_position  (3 × 3) [m]" in out and "y[9:18]  particle_velocity  (3 × 3) [m/s]" in out
+    assert "1. gravity" in out and "2. spring" in out and "1 spring (1 body–body, 0 body–anchor)" in out
+    assert "not compiled (not declared): drag, wind, gravitation" in out
+    assert "a                         1        0.05" in out
