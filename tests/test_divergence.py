@@ -48,12 +48,17 @@ def test_divergence_writes_no_frames(tmp_cwd):
     assert not (tmp_cwd / "renders").exists()
 
 
-def test_adaptive_method_stops_at_non_finite_forces_and_names_the_body():
-    """Non-finite forces make an adaptive method reject every step; the run stops there, naming time and body."""
+def two_particles(second: str):
+    """A model of two free particles ('steady' and ``second``), 1 s at 10 fps, for sabotaged right-hand sides."""
     builder = ModelBuilder()
     builder.add_particle("steady")
-    builder.add_particle("runaway", velocity=(1, 0, 0))
-    model = builder.finalize(duration=1.0, fps=10)
+    builder.add_particle(second, position=(1, 0, 0), velocity=(1, 0, 0))
+    return builder.finalize(duration=1.0, fps=10)
+
+
+def test_adaptive_method_stops_at_non_finite_forces_and_names_the_body():
+    """Non-finite forces make an adaptive method reject every step; the run stops there, naming time and body."""
+    model = two_particles("runaway")
 
     class Exploding(ParticleDynamics):
         def rhs(self, t, y):
@@ -72,10 +77,7 @@ def test_adaptive_method_stops_at_non_finite_forces_and_names_the_body():
 
 def test_solver_failure_names_the_fastest_body():
     """When scipy gives up (step size too small), the error names the time and the fastest-changing body."""
-    builder = ModelBuilder()
-    builder.add_particle("quiet")
-    builder.add_particle("singular", position=(1, 0, 0))
-    model = builder.finalize(duration=1.0, fps=10)
+    model = two_particles("singular")
 
     class Singular(ParticleDynamics):
         def rhs(self, t, y):

@@ -197,3 +197,20 @@ def test_cli_shortcut_errors_name_the_flag(tmp_path):
     assert result.exit_code == 1
     assert "--dt -1: solver.dt: must be > 0 s (got -1)" in result.output
     assert "--method verlt: solver.method: must be one of" in result.output and "did you mean 'verlet'?" in result.output
+
+
+def test_yaml_merge_keys_override_without_being_duplicates():
+    """'<<: *anchor' merges shared values; the item's own keys override them, and errors point at the own value."""
+    loaded = scene("""
+        bodies:
+          - &bead {name: b1, mass: 0.1, radius: 0.04, position: [0.2, 2, 0]}
+          - {<<: *bead, name: b2, position: [0.4, 2, 0]}
+    """)
+    assert [(b.name, b.mass, b.position) for b in loaded.spec.bodies] == [
+        ("b1", 0.1, [0.2, 2, 0]), ("b2", 0.1, [0.4, 2, 0])]
+    with pytest.raises(SceneError, match=r"test.yaml:4:56: bodies\[1\].mass: must be > 0 kg"):
+        scene("""
+            bodies:
+              - &bead {name: b1, mass: 0.1, radius: 0.04, position: [0.2, 2, 0]}
+              - {<<: *bead, name: b2, position: [0.4, 2, 0], mass: -1}
+        """)

@@ -22,7 +22,8 @@ AIR_VISCOSITY = 1.81e-5  # Pa·s, dry air at 15 °C
 
 @dataclass(frozen=True, eq=False)
 class Drag(ForceTerm):
-    """``coefficient``: C per selected particle, shape (S, 1) so it broadcasts over xyz; ``wind``: (3,) or None."""
+    """``coefficient``: C, a number when it is the same for every particle (linear, quadratic), else per selected
+    particle with shape (S, 1) (stokes: 6 π η r); ``wind``: (3,) or None."""
 
     kind = "drag"
 
@@ -31,7 +32,7 @@ class Drag(ForceTerm):
         return True
 
     law: Literal["linear", "quadratic", "stokes"]
-    coefficient: np.ndarray
+    coefficient: float | np.ndarray
     wind: np.ndarray | None
     index: np.ndarray | None
     names: tuple[str, ...]
@@ -44,13 +45,13 @@ class Drag(ForceTerm):
         selected_radius = radius if index is None else radius[index]
         if law == "stokes":
             viscosity = AIR_VISCOSITY if viscosity is None else viscosity
-            per_particle = 6.0 * np.pi * viscosity * selected_radius  # Stokes' law for a sphere
+            value: float | np.ndarray = (6.0 * np.pi * viscosity * selected_radius)[:, None]  # Stokes, per sphere
         else:
             if coefficient is None:
                 raise ValueError(f"the {law} drag law needs a coefficient")
-            per_particle = np.full(len(selected_radius), float(coefficient))
+            value = float(coefficient)
         wind_vector = None if wind is None or not np.any(wind) else np.asarray(wind, float)
-        return cls(law, per_particle[:, None], wind_vector, index, names, viscosity)
+        return cls(law, value, wind_vector, index, names, viscosity)
 
     @property
     def label(self) -> str:
@@ -61,8 +62,9 @@ class Drag(ForceTerm):
         if self.wind is not None:
             relative = relative - self.wind
         if self.law == "quadratic":
-            speed = np.sqrt(np.einsum("ij,ij->i", relative, relative))[:, None]
-            term = (self.coefficient * speed) * relative
+            scale = np.sqrt(np.einsum("ij,ij->i", relative, relative))  # |u|, shape (S,)
+            scale *= self.coefficient
+            term = scale[:, None] * relative
         else:
             term = self.coefficient * relative
         if self.index is None:
@@ -75,7 +77,7 @@ class Drag(ForceTerm):
             law = f"stokes 6πηr with η = {self.viscosity:g} Pa·s"
         else:
             unit = "N·s/m" if self.law == "linear" else "kg/m"
-            law = f"{self.law}, C = {float(self.coefficient[0, 0]) if len(self.coefficient) else 0:g} {unit}"
+            law = f"{self.law}, C = {self.coefficient:g} {unit}"
         wind = f", wind {vector_text(self.wind)} m/s" if self.wind is not None else ""
         return f"{law}{wind} on {selection_text(self.index, self.names)}"
 

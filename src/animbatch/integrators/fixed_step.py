@@ -114,25 +114,38 @@ class Midpoint(ExplicitRungeKutta):
     tableau = MIDPOINT
 
 
-class SymplecticEuler(Scheme):
+class PartitionedScheme(Scheme):
+    """A scheme that updates positions and velocities separately, in preallocated buffers shaped like ``x``.
+
+    At 1e4+ particles every numpy temporary is a fresh memory mapping; doing all arithmetic in these buffers with
+    ``out=`` makes a step several times faster.
+    """
+
+    def __init__(self, system: EquationsOfMotion) -> None:
+        super().__init__(system)
+        self._shape = system.split(np.zeros(system.size))[0].shape
+        self._a = self.buffer()
+        self._work = self.buffer()
+
+    def buffer(self) -> np.ndarray:
+        return np.empty(self._shape)
+
+
+class SymplecticEuler(PartitionedScheme):
     """``v' = v + h a(t, x, v)``; ``x' = x + h v'``."""
 
     order = 1
     evaluations_per_step = 1
 
-    def __init__(self, system: EquationsOfMotion) -> None:
-        super().__init__(system)
-        self._a: np.ndarray | None = None
-
     def step(self, t: float, y: np.ndarray, h: float) -> None:
         x, v = self.system.split(y)
-        self._a = self.system.acceleration(t, x, v, out=self._a)
+        a = self.system.acceleration(t, x, v, out=self._a)
         self.evaluations += 1
-        v += h * self._a
-        x += h * v
+        v += np.multiply(a, h, out=self._work)
+        x += np.multiply(v, h, out=self._work)
 
 
-class VelocityVerlet(Scheme):
+class VelocityVerlet(PartitionedScheme):
     """Velocity Verlet with a predicted velocity for velocity-dependent forces; caches a(t) between steps."""
 
     order = 2
@@ -140,32 +153,30 @@ class VelocityVerlet(Scheme):
 
     def __init__(self, system: EquationsOfMotion) -> None:
         super().__init__(system)
-        self._a: np.ndarray | None = None
-        self._a_next: np.ndarray | None = None
+        self._a_next = self.buffer()
+        self._predicted_v = self.buffer()
 
     def start(self, t: float, y: np.ndarray) -> None:
         x, v = self.system.split(y)
-        self._a = self.system.acceleration(t, x, v).copy()
-        self._a_next = np.empty_like(self._a)
+        self.system.acceleration(t, x, v, out=self._a)
         self.evaluations += 1
 
     def step(self, t: float, y: np.ndarray, h: float) -> None:
-        assert self._a is not None and self._a_next is not None, "start() must be called first"
         x, v = self.system.split(y)
-        a = self._a
-        predicted_v = v + h * a
-        x += h * v + (0.5 * h * h) * a
-        a_next = self.system.acceleration(t + h, x, predicted_v, out=self._a_next)
+        a, work = self._a, self._work
+        np.add(v, np.multiply(a, h, out=work), out=self._predicted_v)  # v + h a
+        x += np.multiply(v, h, out=work)
+        x += np.multiply(a, 0.5 * h * h, out=work)
+        a_next = self.system.acceleration(t + h, x, self._predicted_v, out=self._a_next)
         self.evaluations += 1
-        v += (0.5 * h) * (a + a_next)
+        v += np.multiply(np.add(a, a_next, out=work), 0.5 * h, out=work)
         self._a, self._a_next = a_next, a
 
     def snapshot(self) -> Any:
-        return None if self._a is None else self._a.copy()
+        return self._a.copy()
 
     def restore(self, saved: Any) -> None:
-        if saved is not None and self._a is not None:
-            self._a[...] = saved
+        self._a[...] = saved
 
 
 FIXED_STEP_SCHEMES: dict[str, type[Scheme]] = {

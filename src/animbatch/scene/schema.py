@@ -365,7 +365,7 @@ class SceneSpec(SceneModel):
     description: str = key("", "Free text, shown by 'animbatch info'.")
     duration: float = key(5.0, "Length of the animation; frames are at t = k/fps for k = 0 … ceil(duration·fps)-1.",
                           "s", gt=0, le=86400)
-    fps: int = key(30, "Frames per second of the animation (and of the trajectory samples).", "1/s", ge=1, le=240)
+    fps: int = key(30, "Frames per second of the animation (and of the trajectory samples).", "Hz", ge=1, le=240)
     solver: SolverSpec = key(SolverSpec(), "Integrator settings.")
     bodies: list[ParticleSpec] = key([], "Simulated bodies.")
     anchors: list[AnchorSpec] = key([], "Fixed points for springs.")

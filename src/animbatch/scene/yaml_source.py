@@ -146,9 +146,11 @@ class _Builder:
         return self.loader.construct_object(node, deep=True)
 
     def _mapping(self, node: yaml.MappingNode, path: KeyPath) -> dict[Any, Any]:
-        self.loader.flatten_mapping(node)  # resolves YAML merge keys (<<: *defaults)
+        # Keys written in this mapping (as opposed to merged in with '<<: *anchor'); only these can be duplicates.
+        own_keys = {id(key) for key, _ in node.value if key.tag != "tag:yaml.org,2002:merge"}
+        self.loader.flatten_mapping(node)  # merged pairs first, then own pairs, so own values override merged ones
         result: dict[Any, Any] = {}
-        first_seen: dict[Any, Position] = {}
+        own_seen: dict[Any, Position] = {}
         for key_node, value_node in node.value:
             key = self.loader.construct_object(key_node, deep=True)
             where = _position(key_node.start_mark)
@@ -157,12 +159,15 @@ class _Builder:
                                               format_path(path),
                                               f"keys must be text, got {key!r} ({type(key).__name__})"))
                 continue
-            if key in first_seen:
-                self.issues.append(SceneIssue(
-                    f"{self.source.filename}:{where.line}:{where.column}", format_path((*path, key)),
-                    f"duplicate key (first given at line {first_seen[key].line}); keep only one"))
-                continue
-            first_seen[key] = where
+            if id(key_node) in own_keys:
+                if key in own_seen:
+                    self.issues.append(SceneIssue(
+                        f"{self.source.filename}:{where.line}:{where.column}", format_path((*path, key)),
+                        f"duplicate key (first given at line {own_seen[key].line}); keep only one"))
+                    continue
+                own_seen[key] = where
+            if key in result:  # replacing a merged value: positions must point at the new one
+                self.source.forget_below((*path, key))
             self.source.keys[(*path, key)] = where
             result[key] = self.build(value_node, (*path, key))
         return result

@@ -1,0 +1,211 @@
+"""animbatch benchmarks: run with ``bash scripts/dev.sh bench`` (or ``.venv/bin/python benchmarks/run.py``).
+
+Prints one table. Measures:
+
+1. particle throughput, ns per particle-step, gravity + quadratic drag, fixed-step (Verlet and symplectic Euler),
+   N = 1e3 … 1e6;
+2. the per-step cost of our solve_ivp path (stepping scipy's solver ourselves) next to bare ``solve_ivp`` on the same
+   right-hand side, for RK45 and DOP853;
+3. rendered frames per second at 1280×720 for one sphere and for 1e4 particles (sprites), with FXAA and without;
+4. encoding frames per second (H.264 at several presets, and PNG).
+
+Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, render, encode),
+``--json FILE`` (also write the rows as JSON).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")  # keep BLAS from competing with the measurement
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+from scipy.integrate import solve_ivp  # noqa: E402
+
+from animbatch.integrators import ScipyIntegrator  # noqa: E402
+from animbatch.integrators.fixed_step import SymplecticEuler, VelocityVerlet  # noqa: E402
+from animbatch.model import ModelBuilder, ParticleDynamics  # noqa: E402
+
+Row = dict[str, object]
+
+
+def best_of(repeats: int, work: Callable[[], None]) -> float:
+    """Minimum wall time [s] over ``repeats`` runs, after one warm-up run."""
+    work()
+    times = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        work()
+        times.append(time.perf_counter() - started)
+    return min(times)
+
+
+def particle_model(count: int) -> ParticleDynamics:
+    rng = np.random.default_rng(0)
+    builder = ModelBuilder()
+    builder.add_particles(rng.normal(size=(count, 3)), velocities=rng.normal(size=(count, 3)), mass=0.1,
+                          radius=0.01, names=[""] * count)
+    builder.add_field({"type": "gravity"})
+    builder.add_field({"type": "drag", "model": "quadratic", "coefficient": 0.01})
+    return ParticleDynamics(builder.finalize(duration=1.0, fps=30))
+
+
+def bench_particles(quick: bool) -> list[Row]:
+    rows = []
+    sizes = [1_000, 10_000, 100_000] if quick else [1_000, 10_000, 100_000, 1_000_000]
+    for count in sizes:
+        system = particle_model(count)
+        steps = max(10, int((2e6 if quick else 2e7) / count))
+        for scheme_class in (VelocityVerlet, SymplecticEuler):
+            y = system.model.y0.copy()
+            scheme = scheme_class(system)
+            scheme.start(0.0, y)
+
+            def work() -> None:
+                for i in range(steps):
+                    scheme.step(i * 1e-3, y, 1e-3)
+
+            seconds = best_of(3, work)
+            rows.append({"benchmark": "particle throughput", "case": f"{scheme_class.__name__}, N = {count:.0e}",
+                         "value": seconds / (steps * count) * 1e9, "unit": "ns/particle-step"})
+    return rows
+
+
+def bench_ivp(quick: bool) -> list[Row]:
+    """Per-step cost with a tiny RHS (a damped spring), where solver overhead dominates."""
+    builder = ModelBuilder()
+    mass = builder.add_particle("m", position=(1.3, 0, 0))
+    anchor = builder.add_anchor("a", (0, 0, 0))
+    builder.add_spring(mass, anchor, stiffness=50, damping=0.1, rest_length=1.0, second_is_anchor=True)
+    model = builder.finalize(duration=20.0 if not quick else 5.0, fps=30)
+    system = ParticleDynamics(model)
+    rows = []
+    for method in ("RK45", "DOP853"):
+        integrator = ScipyIntegrator(method, rtol=1e-9, atol=1e-11)
+        result = integrator.integrate(system, model.y0, model.frame_times)
+        ours = best_of(3, lambda: integrator.integrate(system, model.y0, model.frame_times))
+
+        def bare() -> None:
+            solve_ivp(system.rhs, (model.frame_times[0], model.frame_times[-1]), model.y0, method=method, rtol=1e-9,
+                      atol=1e-11, t_eval=model.frame_times)
+
+        reference = solve_ivp(system.rhs, (model.frame_times[0], model.frame_times[-1]), model.y0, method=method,
+                              rtol=1e-9, atol=1e-11, t_eval=model.frame_times)
+        theirs = best_of(3, bare)
+        # Both run the same scipy solver class with the same settings, so they take the same steps.
+        steps = result.stats.steps
+        assert np.allclose(reference.y.T, result.states, rtol=1e-6, atol=1e-8), "paths disagree"
+        rows += [
+            {"benchmark": "solve_ivp path", "case": f"{method}, animbatch ({steps} steps, rtol 1e-9)",
+             "value": ours / steps * 1e6, "unit": "µs/step"},
+            {"benchmark": "solve_ivp path", "case": f"{method}, bare solve_ivp, same steps",
+             "value": theirs / steps * 1e6, "unit": "µs/step"},
+        ]
+    y = model.y0.copy()
+    calls = 20000
+    rhs_seconds = best_of(3, lambda: [system.rhs(0.0, y) for _ in range(calls)])
+    rows.append({"benchmark": "solve_ivp path", "case": "one RHS evaluation (1 particle, 1 spring)",
+                 "value": rhs_seconds / calls * 1e6, "unit": "µs/call"})
+    return rows
+
+
+def render_frames(count: int, anti_aliasing: str, frames: int) -> tuple[float, list[np.ndarray]]:
+    """Frames per second of drawing ``count`` particles at 1280×720, and a few of the images."""
+    from animbatch.render.backend import select_backend
+    from animbatch.render.frames import FrameGeometry, FrameRenderer
+    from animbatch.scene.schema import RenderSpec
+
+    rng = np.random.default_rng(1)
+    positions = rng.normal(size=(count, 3)) * (0.0 if count == 1 else 1.0)
+    radius = np.full(count, 0.5 if count == 1 else 0.02)
+    bounds = np.array([positions.min(axis=0) - 1, positions.max(axis=0) + 1])
+    geometry = FrameGeometry(radius, ["#e15759"] * count, np.zeros((0, 3)), np.zeros((0, 2), dtype=np.intp), [],
+                             bounds)
+    spec = RenderSpec(anti_aliasing=anti_aliasing, ground={} if count == 1 else None)
+    images = []
+    with FrameRenderer(spec, geometry, select_backend("auto")) as renderer:
+        renderer.draw(0.0, positions)  # warm-up: shader compilation
+        started = time.perf_counter()
+        for k in range(frames):
+            image = renderer.draw(k / 30, positions + 0.01 * k)
+            if k % max(1, frames // 8) == 0:
+                images.append(image)
+        seconds = time.perf_counter() - started
+        backend = renderer.backend.name
+    return frames / seconds, images, backend
+
+
+def bench_render(quick: bool) -> list[Row]:
+    rows = []
+    frames = 30 if quick else 120
+    for count, label in ((1, "one sphere (mesh)"), (10_000, "1e4 particles (sprites)")):
+        for anti_aliasing in ("none", "fxaa"):
+            fps, _, backend = render_frames(count, anti_aliasing, frames)
+            rows.append({"benchmark": "render 1280×720", "case": f"{label}, {anti_aliasing}, {backend}",
+                         "value": fps, "unit": "frames/s"})
+    return rows
+
+
+def bench_encode(quick: bool) -> list[Row]:
+    from animbatch.encode import Mp4Writer, PngSequenceWriter
+
+    _, images, _ = render_frames(10_000, "none", 16)
+    frames = 60 if quick else 240
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        for preset in ("ultrafast", "veryfast", "medium"):
+            target = Path(folder) / f"{preset}.mp4"
+
+            def encode() -> None:
+                with Mp4Writer(target, (1280, 720), 30, preset=preset, crf=20) as writer:
+                    for k in range(frames):
+                        writer.write(np.roll(images[k % len(images)], 3 * k, axis=1))
+                    writer.commit()
+
+            seconds = best_of(1, encode)
+            rows.append({"benchmark": "encode 1280×720", "case": f"H.264 preset {preset} (crf 20)",
+                         "value": frames / seconds, "unit": "frames/s"})
+        writer = PngSequenceWriter(Path(folder) / "frames")
+        count = frames // 4
+        seconds = best_of(1, lambda: [writer.write(k, images[k % len(images)]) for k in range(count)])
+        rows.append({"benchmark": "encode 1280×720", "case": "PNG (compress level 1)", "value": count / seconds,
+                     "unit": "frames/s"})
+    return rows
+
+
+BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "render": bench_render, "encode": bench_encode}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="smaller sizes, for a smoke run")
+    parser.add_argument("--only", choices=sorted(BENCHMARKS), action="append", help="run only these")
+    parser.add_argument("--json", type=Path, help="also write the rows to this JSON file")
+    args = parser.parse_args()
+    print(f"animbatch benchmarks on {platform.node()}: {os.cpu_count()} CPUs, Python {platform.python_version()}, "
+          f"numpy {np.__version__}", flush=True)
+    rows: list[Row] = []
+    for name in args.only or list(BENCHMARKS):
+        print(f"running {name} …", file=sys.stderr, flush=True)
+        rows += BENCHMARKS[name](args.quick)
+    width = max(len(str(row["case"])) for row in rows)
+    print(f"\n{'benchmark':<22} {'case':<{width}} {'result':>12}  unit")
+    print("-" * (22 + width + 24))
+    for row in rows:
+        print(f"{row['benchmark']:<22} {row['case']:<{width}} {row['value']:>12.3g}  {row['unit']}")
+    if args.json:
+        args.json.write_text(json.dumps(rows, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

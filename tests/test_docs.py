@@ -1,0 +1,64 @@
+"""The documentation and the JSON Schema match the code, and the bundled scenes satisfy both."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import jsonschema
+import pytest
+from click.testing import CliRunner
+
+from animbatch.cli import cli
+from animbatch.scene.reference import BEGIN, END, generate, key_paths
+from animbatch.scene.schema import SceneSpec
+from animbatch.scene.yaml_source import load_yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "scene-format.md"
+SCENES = sorted([*(ROOT / "scenes").glob("*.yaml"), *(ROOT / "templates").glob("*.yaml")])
+
+
+def test_generated_reference_is_up_to_date():
+    """docs/scene-format.md holds exactly the reference generated from the schema (regenerate with the command in
+    its marker if this fails)."""
+    text = DOC.read_text(encoding="utf-8")
+    section = BEGIN + text.split(BEGIN, 1)[1].split(END, 1)[0] + END
+    assert section == generate()
+
+
+def test_every_key_is_documented():
+    """Each key path of the schema appears in the docs, and every model and field has a description."""
+    text = DOC.read_text(encoding="utf-8")
+    for path in key_paths():
+        assert f"`{path}`" in text, path
+    assert len(list(key_paths())) > 60
+
+
+def test_json_schema_is_valid_and_accepts_the_bundled_scenes():
+    """'animbatch schema' prints a valid JSON Schema under which every scene in scenes/ is valid."""
+    result = CliRunner().invoke(cli, ["schema"])
+    assert result.exit_code == 0
+    document = json.loads(result.output)
+    jsonschema.Draft202012Validator.check_schema(document)
+    validator = jsonschema.Draft202012Validator(document)
+    for path in SCENES:
+        data, _ = load_yaml(path.read_text(), str(path))
+        errors = [e.message for e in validator.iter_errors(data)]
+        assert errors == [], f"{path.name}: {errors}"
+    assert not validator.is_valid({"bodies": [{"name": "a", "mas": 1}]})  # extra keys are refused there too
+
+
+def test_schema_file_output(tmp_path):
+    """'animbatch schema -o file' writes the same document."""
+    assert CliRunner().invoke(cli, ["schema", "-o", str(tmp_path / "s.json")]).exit_code == 0
+    assert json.loads((tmp_path / "s.json").read_text())["title"] == "animbatch scene"
+    assert SceneSpec.model_json_schema()["properties"].keys() <= json.loads((tmp_path / "s.json").read_text())[
+        "properties"].keys()
+
+
+@pytest.mark.parametrize("path", SCENES, ids=[p.stem for p in SCENES])
+def test_bundled_scene_validates(path):
+    """Every example scene is valid."""
+    result = CliRunner().invoke(cli, ["validate", str(path)])
+    assert result.exit_code == 0, result.output

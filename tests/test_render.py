@@ -1,0 +1,191 @@
+"""Rendering end to end, checked by pixels and video metadata (never by byte hashes)."""
+
+from __future__ import annotations
+
+import math
+
+import imageio_ffmpeg
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from animbatch import api
+from animbatch.cli import cli
+from animbatch.errors import RenderError
+from animbatch.render import backend as backend_module
+from animbatch.render.camera import place_camera
+from animbatch.scene.schema import CameraSpec
+
+pytestmark = pytest.mark.render
+
+WIDTH, HEIGHT = 192, 108
+DISTANCE, VIEW_ANGLE = 4.0, 40.0
+# A red ball sliding right at 1.5 m/s through the focal plane of a fixed camera looking down -z.
+SLIDE = f"""
+name: slide
+duration: 0.4
+fps: 30
+solver: {{method: verlet, dt: 0.01}}
+bodies: [{{name: ball, radius: 0.12, position: [-0.6, 0, 0], velocity: [1.5, 0, 0], color: "#ff0000"}}]
+render:
+  resolution: [{WIDTH}, {HEIGHT}]
+  background: white
+  show_time: false
+  camera: {{position: [0, 0, {DISTANCE}], focal_point: [0, 0, 0], view_angle: {VIEW_ANGLE}}}
+  formats: [mp4, png]
+"""
+
+
+def red_centroid(image: np.ndarray) -> tuple[float, float]:
+    """Pixel centroid (column, row) of the strongly red pixels."""
+    rgb = image.astype(int)
+    mask = (rgb[..., 0] > 150) & (rgb[..., 1] < 110) & (rgb[..., 2] < 110)
+    assert mask.sum() > 10, "ball not visible"
+    rows, cols = np.nonzero(mask)
+    return float(cols.mean()), float(rows.mean())
+
+
+@pytest.fixture
+def slide_scene(tmp_cwd):
+    (tmp_cwd / "slide.yaml").write_text(SLIDE)
+    return tmp_cwd / "slide.yaml"
+
+
+def test_mp4_has_right_metadata_and_shows_motion(slide_scene, tmp_cwd):
+    """The MP4 is H.264 yuv420p with the scene's size, fps and frame count, and the ball moves right in it."""
+    result = CliRunner().invoke(cli, ["render", str(slide_scene), "--no-progress"])
+    assert result.exit_code == 0, result.output
+    video = tmp_cwd / "renders" / "slide" / "slide.mp4"
+    reader = imageio_ffmpeg.read_frames(str(video))
+    meta = next(reader)
+    frames = [np.frombuffer(f, np.uint8).reshape(HEIGHT, WIDTH, 3) for f in reader]
+    assert meta["size"] == (WIDTH, HEIGHT) and meta["fps"] == 30
+    assert meta["codec"].startswith("h264") and meta["pix_fmt"].startswith("yuv420p")
+    assert len(frames) == 12  # ceil(0.4 s × 30 fps)
+    assert imageio_ffmpeg.count_frames_and_secs(str(video))[0] == 12
+    columns = [red_centroid(frame)[0] for frame in frames]
+    assert np.all(np.diff(columns) > 0)
+    assert "slide: 12 frames 192×108 @ 30 fps" in result.output
+
+
+def test_ball_appears_where_the_camera_projects_it(slide_scene, tmp_cwd):
+    """In the PNG frames the ball's centre is at the pinhole projection of its simulated position (±1 px)."""
+    api.run(slide_scene, out_dir="renders")
+    pixels_per_metre = HEIGHT / (2 * DISTANCE * math.tan(math.radians(VIEW_ANGLE) / 2))
+    for k in (0, 5, 11):
+        image = np.asarray(Image.open(tmp_cwd / "renders" / "slide" / "frames" / f"frame_{k:05d}.png"))
+        column, row = red_centroid(image)
+        x = -0.6 + 1.5 * k / 30
+        assert column == pytest.approx(WIDTH / 2 + x * pixels_per_metre - 0.5, abs=1.0)
+        assert row == pytest.approx(HEIGHT / 2 - 0.5, abs=1.0)
+
+
+def test_rendering_from_a_trajectory_gives_the_same_frames(slide_scene, tmp_cwd):
+    """simulate -o run.npz then render --trajectory produces frames identical to a direct render."""
+    runner = CliRunner()
+    assert runner.invoke(cli, ["render", str(slide_scene), "--out", "direct", "--formats", "png"]).exit_code == 0
+    assert runner.invoke(cli, ["simulate", str(slide_scene), "-o", "run.npz"]).exit_code == 0
+    result = runner.invoke(cli, ["render", str(slide_scene), "--trajectory", "run.npz", "--out", "baked",
+                                 "--formats", "png"])
+    assert result.exit_code == 0, result.output
+    for k in range(12):
+        direct = np.asarray(Image.open(tmp_cwd / "direct" / "slide" / "frames" / f"frame_{k:05d}.png"))
+        baked = np.asarray(Image.open(tmp_cwd / "baked" / "slide" / "frames" / f"frame_{k:05d}.png"))
+        assert np.array_equal(direct, baked)
+    assert not (tmp_cwd / "baked" / "slide" / "slide.mp4").exists()  # only the formats asked for
+
+
+def test_camera_change_renders_from_trajectory_without_simulating(slide_scene, tmp_cwd, monkeypatch):
+    """A different resolution and camera render from the saved trajectory; the simulator is not called."""
+    runner = CliRunner()
+    assert runner.invoke(cli, ["simulate", str(slide_scene), "-o", "run.npz"]).exit_code == 0
+    monkeypatch.setattr(api, "simulate", lambda *a, **k: pytest.fail("simulated again"))
+    result = runner.invoke(cli, ["render", str(slide_scene), "--trajectory", "run.npz", "--resolution", "96x54",
+                                 "--set", "render.camera.view_angle=60", "--formats", "png"])
+    assert result.exit_code == 0, result.output
+    assert Image.open(tmp_cwd / "renders" / "slide" / "frames" / "frame_00000.png").size == (96, 54)
+
+
+def test_interrupted_render_leaves_no_video_or_partial_file(slide_scene, tmp_cwd, monkeypatch):
+    """An error mid-render removes the partial MP4; no file under the final name exists."""
+    from animbatch.render.frames import FrameRenderer
+
+    original = FrameRenderer.draw
+
+    def failing(self, t, positions):
+        if t > 0.2:
+            raise KeyboardInterrupt
+        return original(self, t, positions)
+
+    monkeypatch.setattr(FrameRenderer, "draw", failing)
+    result = CliRunner().invoke(cli, ["render", str(slide_scene), "--formats", "mp4"])
+    assert result.exit_code == 130 and "interrupted" in result.output
+    folder = tmp_cwd / "renders" / "slide"
+    leftovers = list(folder.iterdir()) if folder.exists() else []
+    assert leftovers == []  # neither slide.mp4 nor its hidden partial file
+
+
+def test_no_backend_gives_one_clear_message(slide_scene, monkeypatch):
+    """Without EGL or OSMesa libraries, the render stops with what to install, exit code 4, no traceback."""
+    monkeypatch.setattr(backend_module, "_loads", lambda library: False)
+    result = CliRunner().invoke(cli, ["render", str(slide_scene)])
+    assert result.exit_code == 4
+    assert "no off-screen OpenGL library found" in result.output and "apt-get install libosmesa6" in result.output
+    assert "Traceback" not in result.output
+    with pytest.raises(RenderError, match="apt-get install libegl1"):
+        backend_module.select_backend("egl")
+
+
+@pytest.mark.parametrize("name", ["egl", "osmesa"])
+def test_each_backend_renders_when_installed(slide_scene, tmp_cwd, name):
+    """A forced backend is used (and reported) when its library is present."""
+    if not backend_module.is_available(backend_module.BACKENDS[name]):
+        pytest.skip(f"{name} libraries not installed")
+    report = api.run(slide_scene, out_dir="renders", backend=name)
+    assert report.backend == name
+    image = np.asarray(Image.open(tmp_cwd / "renders" / "slide" / "frames" / "frame_00000.png"))
+    red_centroid(image)
+
+
+def test_many_particles_render_as_sprites_with_springs_and_anchors(tmp_cwd):
+    """Sprite particles, spring lines, anchors, ground and time label all draw without a mesh per particle."""
+    bodies = "\n".join(f"  - {{name: p{i}, position: [{i % 20 * 0.1}, {i // 20 * 0.1}, 0], color: blue}}"
+                       for i in range(400))
+    (tmp_cwd / "many.yaml").write_text(f"""
+name: many
+duration: 0.1
+bodies:
+{bodies}
+anchors: [{{name: top, position: [1, 2.5, 0]}}]
+springs: [{{between: [top, p399], stiffness: 1}}]
+render:
+  resolution: [160, 120]
+  particles: auto
+  ground: {{level: -0.2}}
+  formats: [png]
+""")
+    report = api.run(tmp_cwd / "many.yaml", out_dir="renders")
+    assert report.frame_count == 3
+    image = np.asarray(Image.open(tmp_cwd / "renders" / "many" / "frames" / "frame_00000.png")).astype(int)
+    blue = (image[..., 2] > 120) & (image[..., 0] < 90)
+    assert blue.sum() > 500  # the sprites cover a good part of the frame
+
+
+def test_fitted_camera_keeps_the_whole_motion_in_view():
+    """Every corner of the motion's box projects inside the frame, for several directions and aspects."""
+    bounds = np.array([[-1.0, 0.0, -0.5], [3.0, 2.0, 0.5]])
+    corners = np.array([[bounds[i][0], bounds[j][1], bounds[k][2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    for direction, aspect in (([0.4, 0.35, 1.0], 16 / 9), ([1, 0, 0], 1.0), ([0, 1, 0.01], 4 / 3)):
+        placement = place_camera(CameraSpec(direction=direction), bounds, aspect)
+        view = placement.focal_point - placement.position
+        view /= np.linalg.norm(view)
+        right = np.cross(view, placement.up)
+        right /= np.linalg.norm(right)
+        up = np.cross(right, view)
+        rel = corners - placement.position
+        depth = rel @ view
+        assert np.all(depth > placement.clipping_range[0]) and np.all(depth < placement.clipping_range[1])
+        tan_half = math.tan(math.radians(placement.view_angle) / 2)
+        assert np.all(np.abs(rel @ up) / depth <= tan_half + 1e-9)
+        assert np.all(np.abs(rel @ right) / depth <= tan_half * aspect + 1e-9)
