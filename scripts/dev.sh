@@ -46,8 +46,12 @@ ensure_system_libraries() {
         say "installing libosmesa6 (off-screen OpenGL for rendering) with apt-get"
         export DEBIAN_FRONTEND=noninteractive
         if ! apt-get install -y --no-install-recommends libosmesa6 >/dev/null 2>&1; then
-            apt-get update -qq >/dev/null
-            apt-get install -y --no-install-recommends libosmesa6 >/dev/null
+            if ! { apt-get update -qq >/dev/null && apt-get install -y --no-install-recommends libosmesa6 >/dev/null; }
+            then
+                say "apt-get could not install libosmesa6 (no network or no package lists?)."
+                say "Install it by hand: apt-get update && apt-get install libosmesa6"
+                exit 1
+            fi
         fi
         return 0
     fi

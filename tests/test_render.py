@@ -138,12 +138,22 @@ def test_no_backend_gives_one_clear_message(slide_scene, monkeypatch):
 
 
 @pytest.mark.parametrize("name", ["egl", "osmesa"])
-def test_each_backend_renders_when_installed(slide_scene, tmp_cwd, name):
+def test_each_backend_renders_when_installed(slide_scene, tmp_cwd, monkeypatch, name):
     """A forced backend is used (and reported) when its library is present."""
     if not backend_module.is_available(backend_module.BACKENDS[name]):
         pytest.skip(f"{name} libraries not installed")
+    from animbatch.render.frames import FrameRenderer
+
+    created = []
+    original = FrameRenderer.draw
+
+    def spy(self, t, positions):
+        created.append(self.plotter.ren_win.GetClassName())
+        return original(self, t, positions)
+
+    monkeypatch.setattr(FrameRenderer, "draw", spy)
     report = api.run(slide_scene, out_dir="renders", backend=name)
-    assert report.backend == name
+    assert report.backend == name and set(created) == {backend_module.BACKENDS[name].vtk_window_class}
     image = np.asarray(Image.open(tmp_cwd / "renders" / "slide" / "frames" / "frame_00000.png"))
     red_centroid(image)
 

@@ -151,8 +151,9 @@ class RunReport:
     def summary(self) -> str:
         """One line for logs: outputs, frames, timings and solver work."""
         stats = self.solver_stats
-        solver = (f"{stats.get('method')}: {stats.get('steps')} steps, {stats.get('rhs_evaluations')} RHS"
-                  if stats else "from trajectory")
+        solver = f"{stats.get('method')}: {stats.get('steps')} steps, {stats.get('rhs_evaluations')} RHS"
+        if self.trajectory_file:
+            solver = f"from {self.trajectory_file} ({solver})"
         timings = ", ".join(f"{stage} {seconds:.2f} s" for stage, seconds in self.stages.items())
         width, height = self.resolution
         target = self.outputs[0] if self.outputs else "(no output)"
@@ -180,8 +181,8 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
     watch.add("render", result.render_seconds)
     watch.add("encode", result.encode_seconds)
     report = RunReport(scene.name, str(scene.path) if scene.path else None, trajectory.physics_hash, __version__,
-                       dict(watch.seconds), trajectory.solver, trajectory.solver_stats if trajectory_path is None
-                       else {}, result.frame_count, result.resolution, result.fps, result.backend,
-                       [str(p) for p in result.outputs], str(trajectory_path) if trajectory_path else None)
+                       dict(watch.seconds), trajectory.solver, trajectory.solver_stats, result.frame_count,
+                       result.resolution, result.fps, result.backend, [str(p) for p in result.outputs],
+                       str(trajectory_path) if trajectory_path else None)
     write_json_atomic(Path(out_dir) / scene.name / "report.json", report.__dict__)
     return report

@@ -82,6 +82,11 @@ class FrameRenderer:
         self.backend = backend
         self.width, self.height = render.resolution
         self.plotter = pv.Plotter(off_screen=True, window_size=[self.width, self.height], lighting="light kit")
+        created = self.plotter.ren_win.GetClassName()
+        if created != backend.vtk_window_class:  # e.g. a VTK build without runtime window selection
+            self.plotter.close()
+            raise RenderError(f"VTK created a {created} instead of {backend.vtk_window_class} for the {backend.name} "
+                              "backend; install VTK >= 9.4 ('bash scripts/dev.sh setup') or try another --backend")
         self._configure_quality()
         self.plotter.set_background(render.background)
         self.camera = place_camera(render.camera, geometry.bounds, self.width / self.height)

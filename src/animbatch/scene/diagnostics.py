@@ -9,7 +9,6 @@ unit, so that every message can say what would have been accepted.
 from __future__ import annotations
 
 import difflib
-import types
 import typing
 from dataclasses import dataclass
 from typing import Any
@@ -18,6 +17,7 @@ from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
 from animbatch.errors import SceneIssue
+from animbatch.scene.annotations import length_limits, model_members, strip_annotated, tag_of, union_members
 from animbatch.scene.yaml_source import KeyPath, SourceMap, format_path
 
 #: What one item of a top-level list is called in messages ("unknown field type 'gravty'").
@@ -34,37 +34,6 @@ class Located:
     union_members: tuple[type[BaseModel], ...] = ()  # set when the location ends at a discriminated union
 
 
-def _strip_annotated(annotation: Any) -> Any:
-    while typing.get_origin(annotation) is typing.Annotated:
-        annotation = annotation.__origin__
-    return annotation
-
-
-def _non_none_members(annotation: Any) -> tuple[Any, ...]:
-    origin = typing.get_origin(annotation)
-    if origin in (typing.Union, types.UnionType):
-        return tuple(a for a in typing.get_args(annotation) if a is not type(None))
-    return (annotation,)
-
-
-def _model_members(annotation: Any) -> tuple[type[BaseModel], ...]:
-    """The model classes an annotation can hold, looking through Annotated, Optional and unions."""
-    members = []
-    for member in _non_none_members(_strip_annotated(annotation)):
-        member = _strip_annotated(member)
-        if isinstance(member, type) and issubclass(member, BaseModel):
-            members.append(member)
-    return tuple(members)
-
-
-def _tag_of(model: type[BaseModel]) -> str | None:
-    field = model.model_fields.get("type")
-    if field is None:
-        return None
-    args = typing.get_args(_strip_annotated(field.annotation))
-    return args[0] if args else None
-
-
 def locate(root: type[BaseModel], loc: tuple[str | int, ...]) -> Located:
     """Follow ``loc`` through the schema rooted at ``root``."""
     annotation: Any = root
@@ -72,10 +41,10 @@ def locate(root: type[BaseModel], loc: tuple[str | int, ...]) -> Located:
     owner: type[BaseModel] | None = None
     field: FieldInfo | None = None
     for part in loc:
-        models = _model_members(annotation)
-        inner = _non_none_members(_strip_annotated(annotation))
+        models = model_members(annotation)
+        inner = union_members(strip_annotated(annotation))
         if len(models) > 1:  # discriminated union: this part is the tag, not a key
-            chosen = next((m for m in models if _tag_of(m) == part), None)
+            chosen = next((m for m in models if tag_of(m) == part), None)
             if chosen is not None:
                 annotation = chosen
                 continue
@@ -89,10 +58,10 @@ def locate(root: type[BaseModel], loc: tuple[str | int, ...]) -> Located:
                 annotation = typing.Annotated[annotation, *field.metadata] if field.metadata else annotation
             continue
         path.append(part)
-        sequence = next((a for a in inner if typing.get_origin(_strip_annotated(a)) in (list, tuple)), None)
-        args = typing.get_args(_strip_annotated(sequence)) if sequence is not None else ()
+        sequence = next((a for a in inner if typing.get_origin(strip_annotated(a)) in (list, tuple)), None)
+        args = typing.get_args(strip_annotated(sequence)) if sequence is not None else ()
         annotation = args[0] if args else None
-    models = _model_members(annotation)
+    models = model_members(annotation)
     return Located(tuple(path), owner, field, models if len(models) > 1 else ())
 
 
@@ -154,7 +123,7 @@ def describe(error: dict[str, Any], located: Located) -> tuple[KeyPath, str, boo
         return path, f"required key missing: add '{path[-1]}'{about}", False
     if kind in ("union_tag_invalid", "union_tag_not_found"):
         word = ITEM_WORDS.get(next((p for p in reversed(path) if isinstance(p, str)), ""), "item")
-        tags = [t for t in (_tag_of(m) for m in located.union_members) if t]
+        tags = [t for t in (tag_of(m) for m in located.union_members) if t]
         if kind == "union_tag_not_found":
             return (*path, "type"), f"missing key 'type': say which kind of {word} this is ({', '.join(tags)})", False
         tag = ctx.get("tag")
@@ -184,10 +153,10 @@ def describe(error: dict[str, Any], located: Located) -> tuple[KeyPath, str, boo
     if kind == "string_too_long":
         return path, f"must be at most {ctx.get('max_length')} characters (got {len(str(given))})", False
     if kind in ("list_type", "tuple_type"):
-        shape = " of 3 numbers [x, y, z]" if _length_limits(located.field) == (3, 3) else ""
+        shape = " of 3 numbers [x, y, z]" if length_limits(located.field) == (3, 3) else ""
         return path, f"must be a list{shape} (got {show(given)})", False
     if kind in ("too_short", "too_long"):
-        low, high = _length_limits(located.field)
+        low, high = length_limits(located.field)
         actual = ctx.get("actual_length")
         if (low, high) == (3, 3):
             return path, f"must be a list of 3 numbers [x, y, z]{unit and ' in' + unit} (got {show(given)})", False
@@ -197,7 +166,7 @@ def describe(error: dict[str, Any], located: Located) -> tuple[KeyPath, str, boo
         count = ctx.get("min_length") if kind == "too_short" else ctx.get("max_length")
         return path, f"must have {which} {count} items (got {actual})", False
     if kind in ("model_type", "dict_type", "model_attributes_type"):
-        allowed = _allowed_keys(_model_members(located.field.annotation)[0]) if located.field and _model_members(
+        allowed = _allowed_keys(model_members(located.field.annotation)[0]) if located.field and model_members(
             located.field.annotation) else []
         keys = f" with keys {', '.join(allowed)}" if allowed else ""
         return path, f"must be a mapping{keys} (got {show(given)})", False
@@ -206,21 +175,6 @@ def describe(error: dict[str, Any], located: Located) -> tuple[KeyPath, str, boo
         return (*path, extra) if extra is not None else path, ctx["message"], False
     message = error["msg"].removeprefix("Value error, ")
     return path, f"{message} (got {show(given)})", False
-
-
-def _length_limits(field: FieldInfo | None) -> tuple[int | None, int | None]:
-    """Declared (min, max) item count of a list field, looking through Optional and Annotated."""
-    import annotated_types as at
-
-    if field is None:
-        return None, None
-    metadata = list(field.metadata)
-    for member in _non_none_members(field.annotation):
-        metadata.extend(getattr(member, "__metadata__", ()))
-    for item in metadata:
-        if isinstance(item, at.Len):
-            return item.min_length, item.max_length
-    return None, None
 
 
 def issues_from_validation(error: ValidationError, root: type[BaseModel], source: SourceMap) -> list[SceneIssue]:

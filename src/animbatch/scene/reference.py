@@ -21,6 +21,7 @@ from pydantic.fields import FieldInfo
 from pydantic_core import PydanticUndefined
 
 from animbatch.scene import schema
+from animbatch.scene.annotations import field_metadata, union_members
 
 BEGIN = "<!-- BEGIN GENERATED REFERENCE (python -m animbatch.scene.reference docs/scene-format.md) -->"
 END = "<!-- END GENERATED REFERENCE -->"
@@ -41,27 +42,14 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
 ]
 
 
-def _members(annotation: Any) -> tuple[Any, ...]:
-    if typing.get_origin(annotation) in (typing.Union, types.UnionType):
-        return typing.get_args(annotation)
-    return (annotation,)
-
-
-def _metadata(field: FieldInfo) -> list[Any]:
-    items = list(field.metadata)
-    for member in _members(field.annotation):
-        items.extend(getattr(member, "__metadata__", ()))
-    return items
-
-
 def type_text(field: FieldInfo) -> str:
     """A short, user-facing type: 'number', '[x, y, z]', 'colour', 'one of: a, b', 'list of names', …"""
     parts = []
-    for member in _members(field.annotation):
+    for member in union_members(field.annotation, keep_none=True):
         if member is type(None):
             continue
         parts.append(_one_type(member, field))
-    nullable = " or null" if type(None) in _members(field.annotation) else ""
+    nullable = " or null" if type(None) in union_members(field.annotation, keep_none=True) else ""
     return " or ".join(dict.fromkeys(parts)) + nullable
 
 
@@ -111,8 +99,8 @@ def _bounds(items: list[Any], prefix: str = "") -> list[str]:
 
 def limits_text(field: FieldInfo) -> str:
     """Numeric limits of a key, and of each item for lists of bounded numbers."""
-    found = _bounds(_metadata(field))
-    for member in _members(field.annotation):
+    found = _bounds(field_metadata(field))
+    for member in union_members(field.annotation, keep_none=True):
         if typing.get_origin(member) is list:
             (item,) = typing.get_args(member)
             for constraint in getattr(item, "__metadata__", ()):

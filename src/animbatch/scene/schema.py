@@ -257,7 +257,9 @@ FieldSpec = Annotated[Union[*FIELD_SPECS], Field(discriminator="type")]  # type:
 
 def field_type_names() -> tuple[str, ...]:
     """The ``type`` values of all field kinds, in declaration order."""
-    return tuple(spec.model_fields["type"].annotation.__args__[0] for spec in FIELD_SPECS)  # type: ignore[union-attr]
+    from animbatch.scene.annotations import tag_of
+
+    return tuple(str(tag_of(spec)) for spec in FIELD_SPECS)
 
 
 # ----------------------------------------------------------------------------------------------------------------

@@ -1,0 +1,82 @@
+"""The command and the run as a whole: entry points, solver statistics, the run report, progress output."""
+
+from __future__ import annotations
+
+import io
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from animbatch import api
+from animbatch.progress import Progress
+from conftest import run
+
+SPRING = """
+    duration: 2
+    fps: 10
+    anchors: [{name: pin, position: [0, 0, 0]}]
+    bodies: [{name: bob, mass: 0.5, position: [0, -1.2, 0]}]
+    springs: [{between: [pin, bob], stiffness: 30, damping: 0.2, rest_length: 1.0}]
+    fields: [{type: gravity}]
+"""
+
+
+def test_python_dash_m_runs_the_command():
+    """'python -m animbatch' is the same program as the 'animbatch' console script."""
+    result = subprocess.run([sys.executable, "-m", "animbatch", "--version"], capture_output=True, text=True,
+                            check=True)
+    assert result.stdout.startswith("animbatch, version ")
+
+
+def test_rhs_count_includes_jacobian_evaluations_for_implicit_methods():
+    """For Radau, our count exceeds scipy's nfev by the finite-difference Jacobian columns (6 per Jacobian here)."""
+    _, trajectory = run(SPRING, "solver.method=Radau")
+    stats = trajectory.solver_stats
+    assert stats["jacobian_evaluations"] >= 1 and stats["lu_decompositions"] >= 1
+    assert stats["rhs_evaluations"] == stats["scipy_nfev"] + 6 * stats["jacobian_evaluations"]
+
+
+@pytest.mark.parametrize("method", ["RK45", "DOP853", "LSODA"])
+def test_explicit_methods_count_every_evaluation(method):
+    """Without Jacobians, our count equals scipy's nfev."""
+    _, trajectory = run(SPRING, f"solver.method={method}")
+    assert trajectory.solver_stats["rhs_evaluations"] == trajectory.solver_stats["scipy_nfev"]
+
+
+def test_max_step_limits_adaptive_steps():
+    """With max_step, an adaptive method takes at least duration / max_step steps."""
+    _, loose = run(SPRING, "solver.method=RK45")
+    _, limited = run(SPRING, "solver.method=RK45", "solver.max_step=0.001")
+    assert limited.solver_stats["steps"] >= 1900 > loose.solver_stats["steps"]
+    assert np.allclose(limited.positions, loose.positions, atol=1e-4)
+
+
+@pytest.mark.render
+def test_run_report_records_stages_solver_and_outputs(tmp_cwd):
+    """report.json holds timings per stage, solver settings and work, frame count, size, fps and backend."""
+    (tmp_cwd / "spring.yaml").write_text(SPRING + "\n    render: {resolution: [64, 48]}\n")
+    report = api.run(tmp_cwd / "spring.yaml", out_dir="renders")
+    data = json.loads((tmp_cwd / "renders" / "spring" / "report.json").read_text())
+    assert list(data["stages"]) == ["load", "compile", "simulate", "render", "encode"]
+    assert all(seconds >= 0 for seconds in data["stages"].values())
+    assert data["solver"]["method"] == "RK45" and data["solver_stats"]["steps"] > 0
+    assert data["frame_count"] == 20 and data["resolution"] == [64, 48] and data["fps"] == 10
+    assert data["backend"] in ("egl", "osmesa") and data["outputs"] == ["renders/spring/spring.mp4"]
+    assert len(data["physics_hash"]) == 64 and data["package_version"]
+    assert report.summary().startswith("spring: 20 frames 64×48 @ 10 fps -> renders/spring/spring.mp4 | load ")
+
+
+def test_progress_bar_only_when_enabled():
+    """An enabled reporter draws a bar with the frame count; a disabled one writes nothing."""
+    stream = io.StringIO()
+    with Progress(enabled=True, stream=stream).task("simulate", 5) as on_frame:
+        for k in range(5):
+            on_frame(k, k / 10)
+    assert "/5 [" in stream.getvalue() and "simulate" in stream.getvalue()  # tqdm throttles redraws
+    quiet = io.StringIO()
+    with Progress(enabled=None, stream=quiet).task("simulate", 5) as on_frame:  # not a terminal
+        on_frame(0, 0.0)
+    assert quiet.getvalue() == ""
