@@ -47,12 +47,12 @@ def _scene_options(command: F) -> F:
     options = [
         click.option("--set", "settings", multiple=True, metavar="KEY.PATH=VALUE",
                      help="Override any scene value, e.g. --set bodies[ball].mass=2 (repeatable)."),
-        click.option("--method", help="Integrator (solver.method), e.g. RK45, DOP853, Radau, verlet."),
-        click.option("--dt", type=str, help="Fixed step in s (solver.dt)."),
-        click.option("--rtol", type=str, help="Relative tolerance (solver.rtol)."),
-        click.option("--atol", type=str, help="Absolute tolerance (solver.atol)."),
-        click.option("--max-step", type=str, help="Largest adaptive step in s (solver.max_step)."),
-        click.option("--fps", type=str, help="Frames per second (fps)."),
+        click.option("--method", metavar="NAME", help="Integrator (solver.method), e.g. RK45, DOP853, Radau, verlet."),
+        click.option("--dt", metavar="SECONDS", help="Fixed step (solver.dt)."),
+        click.option("--rtol", metavar="NUMBER", help="Relative tolerance (solver.rtol)."),
+        click.option("--atol", metavar="NUMBER", help="Absolute tolerance (solver.atol)."),
+        click.option("--max-step", metavar="SECONDS", help="Largest adaptive step (solver.max_step)."),
+        click.option("--fps", metavar="N", help="Frames per second (fps)."),
     ]
     for option in reversed(options):
         command = option(command)
@@ -61,12 +61,12 @@ def _scene_options(command: F) -> F:
 
 def _overrides(settings: tuple[str, ...], **shortcuts: str | None) -> list[Override]:
     """Command-line settings as overrides; shortcuts such as --dt keep their own spelling for error messages."""
+    # Values stay text here: they are read as YAML and validated with the scene, like --set.
     keys = {"method": "solver.method", "dt": "solver.dt", "rtol": "solver.rtol", "atol": "solver.atol",
-            "max_step": "solver.max_step", "fps": "fps", "resolution": "render.resolution", "formats": "render.formats",
-            "backend": None}
+            "max_step": "solver.max_step", "fps": "fps", "resolution": "render.resolution", "formats": "render.formats"}
     result: list[Override] = list(settings)
     for name, value in shortcuts.items():
-        if value is None or keys.get(name) is None:
+        if value is None:
             continue
         flag = "--" + name.replace("_", "-")
         if name == "resolution":

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import shutil
 import sys
 from collections.abc import Callable, Iterator
 from typing import TextIO
@@ -29,8 +30,9 @@ class Progress:
             return
         from tqdm import tqdm
 
-        with tqdm(total=total, desc=f"{label:>8}", unit="frame", file=self.stream, leave=False,
-                  dynamic_ncols=True) as bar:
+        # Some terminals (and bare ptys) report a width of 0, which makes tqdm draw nothing; fall back to 100.
+        width = shutil.get_terminal_size((100, 24)).columns
+        with tqdm(total=total, desc=f"{label:>8}", unit="frame", file=self.stream, leave=False, ncols=width) as bar:
 
             def on_frame(index: int, t: float) -> None:
                 bar.set_postfix_str(f"t={t:.3f} s", refresh=False)
