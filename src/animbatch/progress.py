@@ -30,9 +30,10 @@ class Progress:
             return
         from tqdm import tqdm
 
-        # Some terminals (and bare ptys) report a width of 0, which makes tqdm draw nothing; fall back to 100.
-        width = shutil.get_terminal_size((100, 24)).columns
-        with tqdm(total=total, desc=f"{label:>8}", unit="frame", file=self.stream, leave=False, ncols=width) as bar:
+        # Some terminals (and bare ptys) report a size of 0×0, which makes tqdm draw nothing; fall back to 100×24.
+        width, height = shutil.get_terminal_size((100, 24))
+        with tqdm(total=total, desc=f"{label:>8}", unit="frame", file=self.stream, leave=False, ncols=width,
+                  nrows=height) as bar:
 
             def on_frame(index: int, t: float) -> None:
                 bar.set_postfix_str(f"t={t:.3f} s", refresh=False)
