@@ -78,7 +78,6 @@ ensure_venv() {
     stamp="$venv/.animbatch-installed-$(sha256sum pyproject.toml | cut -c1-16)"
     if [ ! -f "$stamp" ]; then
         say "installing animbatch and its dependencies into .venv (first run takes a minute)"
-        "$venv/bin/python" -m pip install --quiet --upgrade pip
         "$venv/bin/python" -m pip install --quiet -e ".[test]"
         rm -f "$venv"/.animbatch-installed-*
         touch "$stamp"

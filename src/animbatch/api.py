@@ -81,13 +81,15 @@ def render(scene: LoadedScene, trajectory: Trajectory, *, model: Model | None = 
            out_dir: str | Path = "renders", backend: str = "auto", progress: Progress | None = None) -> RenderResult:
     """Draw every frame of ``trajectory`` and write the scene's outputs into ``out_dir/<scene name>/``.
 
-    The MP4 is encoded while frames are rendered; every file is written atomically.
+    The trajectory must come from this scene's physics (TrajectoryError otherwise). The MP4 is encoded while
+    frames are rendered; every file is written atomically.
     """
     from animbatch.encode import Mp4Writer, PngSequenceWriter
     from animbatch.render.backend import select_backend
     from animbatch.render.camera import motion_bounds
     from animbatch.render.frames import FrameGeometry, FrameRenderer
 
+    check_trajectory(scene, trajectory)
     spec = scene.spec
     model = model if model is not None else compile_scene(spec)
     chosen = select_backend(backend)
@@ -173,7 +175,7 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
     if trajectory_path is not None:
         with watch.stage("load_trajectory"):
             trajectory = Trajectory.load(trajectory_path)
-            check_trajectory(scene, trajectory, trajectory_path)
+            check_trajectory(scene, trajectory, trajectory_path)  # before rendering, naming the file
     else:
         with watch.stage("simulate"):
             trajectory = simulate(scene, model=model, progress=progress)
