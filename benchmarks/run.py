@@ -33,7 +33,7 @@ from scipy.integrate import solve_ivp  # noqa: E402
 
 from animbatch.integrators import ScipyIntegrator  # noqa: E402
 from animbatch.integrators.fixed_step import SymplecticEuler, VelocityVerlet  # noqa: E402
-from animbatch.model import ModelBuilder, ParticleDynamics  # noqa: E402
+from animbatch.model import ModelBuilder, Dynamics  # noqa: E402
 
 Row = dict[str, object]
 
@@ -49,14 +49,14 @@ def best_of(repeats: int, work: Callable[[], None]) -> float:
     return min(times)
 
 
-def particle_model(count: int) -> ParticleDynamics:
+def particle_model(count: int) -> Dynamics:
     rng = np.random.default_rng(0)
     builder = ModelBuilder()
     builder.add_particles(rng.normal(size=(count, 3)), velocities=rng.normal(size=(count, 3)), mass=0.1,
                           radius=0.01, names=[""] * count)
     builder.add_field({"type": "gravity"})
     builder.add_field({"type": "drag", "model": "quadratic", "coefficient": 0.01})
-    return ParticleDynamics(builder.finalize(duration=1.0, fps=30))
+    return Dynamics(builder.finalize(duration=1.0, fps=30))
 
 
 def bench_particles(quick: bool) -> list[Row]:
@@ -87,7 +87,7 @@ def bench_ivp(quick: bool) -> list[Row]:
     anchor = builder.add_anchor("a", (0, 0, 0))
     builder.add_spring(mass, anchor, stiffness=50, damping=0.1, rest_length=1.0, second_is_anchor=True)
     model = builder.finalize(duration=20.0 if not quick else 5.0, fps=30)
-    system = ParticleDynamics(model)
+    system = Dynamics(model)
     rows = []
     for method in ("RK45", "DOP853"):
         integrator = ScipyIntegrator(method, rtol=1e-9, atol=1e-11)

@@ -25,6 +25,12 @@ def run(text: str, *overrides: str) -> tuple[Model, Trajectory]:
     return model, api.simulate(loaded, model=model)
 
 
+def states(model: Model, trajectory: Trajectory) -> np.ndarray:
+    """The flat states (F, n) behind a trajectory's per-body arrays."""
+    return model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
+                             trajectory.angular_velocities)
+
+
 def body(trajectory: Trajectory, name: str) -> tuple[np.ndarray, np.ndarray]:
     """Positions and velocities of one body over all frames, each (F, 3)."""
     index = trajectory.body_names.index(name)

@@ -51,7 +51,7 @@ def test_scene_without_springs_never_runs_spring_code(monkeypatch):
     """With spring evaluation sabotaged, a spring-less scene still simulates; a scene with springs hits it."""
     calls = []
 
-    def sabotaged(self, x, v):
+    def sabotaged(self, *args):
         calls.append(1)
         raise AssertionError("spring code evaluated")
 
@@ -74,5 +74,5 @@ def test_info_lists_compiled_terms_layout_and_masses(tmp_path):
     assert "state      18 values" in out
     assert "y[0:9]  particle_position  (3 × 3) [m]" in out and "y[9:18]  particle_velocity  (3 × 3) [m/s]" in out
     assert "1. gravity" in out and "2. spring" in out and "1 spring (1 body–body, 0 body–anchor)" in out
-    assert "not compiled (not declared): drag, wind, gravitation" in out
+    assert "not compiled (not declared): force, torque, angular_drag, buoyancy, drag, wind, gravitation" in out
     assert "a                         1        0.05" in out

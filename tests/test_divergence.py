@@ -9,7 +9,7 @@ from click.testing import CliRunner
 from animbatch.cli import cli
 from animbatch.errors import SimulationError
 from animbatch.integrators import ScipyIntegrator
-from animbatch.model import ModelBuilder, ParticleDynamics
+from animbatch.model import ModelBuilder, Dynamics
 from conftest import run
 
 # ω = sqrt(k/m) = 1e4 rad/s, so explicit Euler at h = 1e-3 (ω h = 10) multiplies the energy by ~100 per step.
@@ -60,7 +60,7 @@ def test_adaptive_method_stops_at_non_finite_forces_and_names_the_body():
     """Non-finite forces make an adaptive method reject every step; the run stops there, naming time and body."""
     model = two_particles("runaway")
 
-    class Exploding(ParticleDynamics):
+    class Exploding(Dynamics):
         def rhs(self, t, y):
             dydt = super().rhs(t, y)
             if t > 0.35:
@@ -79,7 +79,7 @@ def test_solver_failure_names_the_fastest_body():
     """When scipy gives up (step size too small), the error names the time and the fastest-changing body."""
     model = two_particles("singular")
 
-    class Singular(ParticleDynamics):
+    class Singular(Dynamics):
         def rhs(self, t, y):
             dydt = super().rhs(t, y)
             dydt[4] = 1.0 / (0.5 - t) ** 2  # finite-time blow-up at t = 0.5 for body 1

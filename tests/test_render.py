@@ -113,10 +113,10 @@ def test_interrupted_render_leaves_no_video_or_partial_file(slide_scene, tmp_cwd
 
     original = FrameRenderer.draw
 
-    def failing(self, t, positions):
+    def failing(self, t, *state):
         if t > 0.2:
             raise KeyboardInterrupt
-        return original(self, t, positions)
+        return original(self, t, *state)
 
     monkeypatch.setattr(FrameRenderer, "draw", failing)
     result = CliRunner().invoke(cli, ["render", str(slide_scene), "--formats", "mp4"])
@@ -147,9 +147,9 @@ def test_each_backend_renders_when_installed(slide_scene, tmp_cwd, monkeypatch, 
     created = []
     original = FrameRenderer.draw
 
-    def spy(self, t, positions):
+    def spy(self, t, *state):
         created.append(self.plotter.ren_win.GetClassName())
-        return original(self, t, positions)
+        return original(self, t, *state)
 
     monkeypatch.setattr(FrameRenderer, "draw", spy)
     report = api.run(slide_scene, out_dir="renders", backend=name)

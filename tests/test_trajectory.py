@@ -30,7 +30,7 @@ def test_trajectory_file_is_plain_numpy(tmp_path):
     _, trajectory = run(SCENE)
     path = trajectory.save(tmp_path / "run.npz")
     with np.load(path, allow_pickle=False) as data:
-        assert str(data["format"]) == "animbatch-trajectory" and int(data["format_version"]) == 1
+        assert str(data["format"]) == "animbatch-trajectory" and int(data["format_version"]) == 2
         assert np.array_equal(data["times"], np.arange(10) / 10)
         names = list(data["body_names"])
         assert names == ["ball", "bob"]
@@ -82,7 +82,7 @@ def test_trajectory_from_other_physics_is_refused(tmp_path):
     loaded = scene(SCENE)
     _, trajectory = run(SCENE, "bodies[ball].mass=2")
     with pytest.raises(TrajectoryError, match="simulated from different physics.*Re-run 'animbatch simulate"):
-        api.check_trajectory(loaded, trajectory, "run.npz")
+        api.check_trajectory(loaded, api.compile_model(loaded), trajectory, "run.npz")
 
 
 def test_not_a_trajectory(tmp_path):

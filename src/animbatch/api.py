@@ -21,47 +21,81 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from animbatch import __version__
 from animbatch.errors import TrajectoryError
 from animbatch.files import write_json_atomic
 from animbatch.integrators import make_integrator
-from animbatch.model import Model, ParticleDynamics, compile_scene
+from animbatch.model import Dynamics, Model, compile_scene
 from animbatch.progress import Progress
 from animbatch.scene import LoadedScene, load_scene, physics_fingerprint
 from animbatch.scene.overrides import Override
 from animbatch.stopwatch import Stopwatch
 from animbatch.trajectory import Trajectory
 
-__all__ = ["RenderResult", "RunReport", "check_trajectory", "compile_scene", "load_scene", "render", "run", "simulate"]
+__all__ = ["RenderResult", "RunReport", "check_trajectory", "compile_model", "compile_scene", "load_scene", "render",
+           "run", "scene_fingerprint", "simulate"]
 
 
 def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progress | None = None) -> Trajectory:
     """Integrate the scene and sample it at the frame times. Raises SimulationError on divergence or failure."""
     spec = scene.spec
-    model = model if model is not None else compile_scene(spec)
+    model = model if model is not None else compile_model(scene)
     integrator = make_integrator(spec.solver)
     progress = progress or Progress(enabled=False)
     with progress.task("simulate", len(model.frame_times)) as on_frame:
-        result = integrator.integrate(ParticleDynamics(model), model.y0, model.frame_times, on_frame=on_frame)
+        result = integrator.integrate(Dynamics(model), model.y0, model.frame_times, on_frame=on_frame)
+    states = result.states
+    kinds = ("particle",) * model.particle_count + ("rigid",) * model.rigid_count
     return Trajectory(
-        times=model.frame_times.copy(), body_names=model.particles.names,
-        positions=model.positions(result.states).copy(), velocities=model.velocities(result.states).copy(),
+        times=model.frame_times.copy(), body_names=model.body_names, positions=model.positions(states),
+        velocities=model.velocities(states), orientations=model.orientations(states),
+        angular_velocities=model.angular_velocities(states), body_kinds=kinds,
         anchor_names=model.anchor_names, anchor_positions=model.anchor_position.copy(),
-        physics_hash=physics_fingerprint(spec), scene_name=scene.name, package_version=__version__,
+        physics_hash=scene_fingerprint(scene), scene_name=scene.name, package_version=__version__,
         solver={**spec.solver.model_dump(), "description": integrator.describe()},
         solver_stats=result.stats.as_dict())
 
 
-def check_trajectory(scene: LoadedScene, trajectory: Trajectory, source: str | Path = "trajectory") -> None:
+def scene_folder(scene: LoadedScene) -> Path:
+    """Where the scene's relative file names (mesh files) are resolved: the scene file's folder."""
+    return scene.path.parent if scene.path is not None else Path(".")
+
+
+def compile_model(scene: LoadedScene) -> Model:
+    """The Model of a loaded scene, with mesh files found beside the scene file."""
+    return compile_scene(scene.spec, scene_folder(scene))
+
+
+def scene_fingerprint(scene: LoadedScene) -> str:
+    """The physics hash of a loaded scene, including the contents of its mesh files."""
+    return physics_fingerprint(scene.spec, scene_folder(scene))
+
+
+def check_trajectory(scene: LoadedScene, model: Model, trajectory: Trajectory, source: str | Path = "trajectory"
+                     ) -> None:
     """Refuse a trajectory that was not simulated from this scene's physics (bodies, fields, timeline)."""
-    if trajectory.physics_hash != physics_fingerprint(scene.spec):
+    if trajectory.physics_hash != scene_fingerprint(scene):
         raise TrajectoryError(
             f"{source} was simulated from different physics than {scene.path or scene.name} (bodies, springs, fields, "
-            f"duration or fps changed). Re-run 'animbatch simulate {scene.path or 'SCENE'} -o {source}'.")
-    names = tuple(body.name for body in scene.spec.bodies)
-    if trajectory.body_names != names:
+            f"mesh files, duration or fps changed). Re-run 'animbatch simulate {scene.path or 'SCENE'} -o {source}'.")
+    if trajectory.body_names != model.body_names:
         raise TrajectoryError(f"{source} holds bodies {', '.join(trajectory.body_names)}, the scene has "
-                              f"{', '.join(names)}")
+                              f"{', '.join(model.body_names)}")
+
+
+def largest_vector(model: Model, trajectory: Trajectory, kind: str) -> float:
+    """The largest |ω| [rad/s] or |L| [kg·m²/s] of any rigid body over the trajectory (0 when not drawn)."""
+    if kind == "none" or model.rigid is None:
+        return 0.0
+    omega = trajectory.angular_velocities[:, model.particle_count:]
+    if kind == "angular_velocity":
+        return float(np.max(np.linalg.norm(omega, axis=-1), initial=0.0))
+    states = model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
+                               trajectory.angular_velocities)
+    momentum = model.layout.view(states, "rigid_angular_momentum")
+    return float(np.max(np.linalg.norm(momentum, axis=-1), initial=0.0))
 
 
 @dataclass
@@ -87,16 +121,17 @@ def render(scene: LoadedScene, trajectory: Trajectory, *, model: Model | None = 
     from animbatch.encode import Mp4Writer, PngSequenceWriter
     from animbatch.render.backend import select_backend
     from animbatch.render.camera import motion_bounds
-    from animbatch.render.frames import FrameGeometry, FrameRenderer
+    from animbatch.render.frames import FrameGeometry, FrameRenderer, body_extents
 
-    check_trajectory(scene, trajectory)
     spec = scene.spec
-    model = model if model is not None else compile_scene(spec)
+    model = model if model is not None else compile_model(scene)
+    check_trajectory(scene, model, trajectory)
     chosen = select_backend(backend)
     folder = Path(out_dir) / scene.name
     width, height = spec.render.resolution
-    geometry = FrameGeometry.from_scene(spec, model, motion_bounds(trajectory.positions, model.particles.radius,
-                                                                   model.anchor_position))
+    bounds = motion_bounds(trajectory.positions, body_extents(model), model.anchor_position)
+    geometry = FrameGeometry.from_scene(spec, model, bounds, largest_vector(model, trajectory,
+                                                                            spec.render.show_vectors))
     video = Mp4Writer(folder / f"{scene.name}.mp4", (width, height), spec.fps, preset=spec.render.video.preset,
                       crf=spec.render.video.crf) if "mp4" in spec.render.formats else None
     frames = PngSequenceWriter(folder / "frames") if "png" in spec.render.formats else None
@@ -109,7 +144,8 @@ def render(scene: LoadedScene, trajectory: Trajectory, *, model: Model | None = 
         on_frame = stack.enter_context(progress.task("render", trajectory.frame_count))
         for index, t in enumerate(trajectory.times):
             started = time.perf_counter()
-            image = renderer.draw(float(t), trajectory.positions[index])
+            image = renderer.draw(float(t), trajectory.positions[index], trajectory.orientations[index],
+                                  trajectory.angular_velocities[index])
             drawn = time.perf_counter()
             if video is not None:
                 video.write(image)
@@ -171,11 +207,11 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
     with watch.stage("load"):
         scene = load_scene(scene_path, overrides)
     with watch.stage("compile"):
-        model = compile_scene(scene.spec)
+        model = compile_model(scene)
     if trajectory_path is not None:
         with watch.stage("load_trajectory"):
             trajectory = Trajectory.load(trajectory_path)
-            check_trajectory(scene, trajectory, trajectory_path)  # before rendering, naming the file
+            check_trajectory(scene, model, trajectory, trajectory_path)  # before rendering, naming the file
     else:
         with watch.stage("simulate"):
             trajectory = simulate(scene, model=model, progress=progress)

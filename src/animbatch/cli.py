@@ -138,12 +138,12 @@ def schema(output: Path | None) -> None:
 @_reports_errors
 def info(scene: Path, settings: tuple[str, ...], **shortcuts: str | None) -> None:
     """Show the compiled model: force terms, state layout, bodies and their masses."""
+    from animbatch.api import compile_model
     from animbatch.info import describe_model
-    from animbatch.model import compile_scene
     from animbatch.scene import load_scene
 
     loaded = load_scene(scene, _overrides(settings, **shortcuts))
-    click.echo(describe_model(loaded, compile_scene(loaded.spec)))
+    click.echo(describe_model(loaded, compile_model(loaded)))
 
 
 @cli.command()

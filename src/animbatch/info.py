@@ -30,6 +30,28 @@ def _vector(values: object) -> str:
     return "(" + ", ".join(f"{float(c):.4g}" for c in values) + ")"  # type: ignore[attr-defined]
 
 
+def _rigid_lines(model: Model, x0: object, v0: object) -> list[str]:
+    """Mass properties of each rigid body: mass, centre of mass, inertia tensor and principal moments."""
+    rigid = model.rigid
+    assert rigid is not None
+    omega = model.angular_velocities(model.y0)
+    lines = []
+    for b, name in enumerate(rigid.names):
+        point = model.particle_count + b
+        properties = rigid.geometry[b].properties
+        inertia = rigid.inertia[b]
+        lines += [
+            f"rigid      {name}: mass {rigid.mass[b]:.6g} kg, volume {properties.volume:.6g} m³, "
+            f"centre of mass {_vector(rigid.centre[b])} m from the shape origin",
+            f"           inertia about the centre of mass, body axes [kg·m²]: "
+            + "  ".join(_vector(row) for row in inertia),
+            f"           principal moments {_vector(properties.principal_moments)} kg·m²",
+            f"           start: centre at {_vector(x0[point])} m, velocity {_vector(v0[point])} m/s, "  # type: ignore[index]
+            f"ω {_vector(omega[point])} rad/s",
+        ]
+    return lines
+
+
 def describe_model(scene: LoadedScene, model: Model) -> str:
     """What was compiled: timeline, solver, state layout, force terms (in evaluation order), bodies and anchors."""
     spec = scene.spec
@@ -54,16 +76,22 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
     absent = [name for name in (*FIELD_TERMS, "spring") if name not in declared]
     if absent:
         lines.append(f"           not compiled (not declared): {', '.join(absent)}")
-    lines.append(f"bodies     {_plural(model.particle_count, 'particle')}, total mass "
-                 f"{float(model.particles.mass.sum()):.6g} kg")
-    lines.append(f"           {'name':<16} {'mass [kg]':>10} {'radius [m]':>11}  {'position [m]':<26} velocity [m/s]")
+    bodies = model.bodies
+    counts = [_plural(model.particle_count, "particle")] if model.particle_count else []
+    counts += [_plural(model.rigid_count, "rigid body", "rigid bodies")] if model.rigid_count else []
+    lines.append(f"bodies     {', '.join(counts)}, total mass {float(bodies.mass.sum()):.6g} kg")
     x0, v0 = model.positions(model.y0), model.velocities(model.y0)
-    shown = min(model.particle_count, 50)
-    for i in range(shown):
-        lines.append(f"           {model.particles.names[i]:<16} {model.particles.mass[i]:>10.4g} "
-                     f"{model.particles.radius[i]:>11.4g}  {_vector(x0[i]):<26} {_vector(v0[i])}")
-    if model.particle_count > shown:
-        lines.append(f"           … and {model.particle_count - shown} more")
+    if model.particle_count:
+        lines.append(f"           {'particle':<16} {'mass [kg]':>10} {'radius [m]':>11}  {'position [m]':<26} "
+                     "velocity [m/s]")
+        shown = min(model.particle_count, 50)
+        for i in range(shown):
+            lines.append(f"           {bodies.names[i]:<16} {bodies.mass[i]:>10.4g} {bodies.radius[i]:>11.4g}  "
+                         f"{_vector(x0[i]):<26} {_vector(v0[i])}")
+        if model.particle_count > shown:
+            lines.append(f"           … and {model.particle_count - shown} more")
+    if model.rigid is not None:
+        lines += _rigid_lines(model, x0, v0)
     for name, position in zip(model.anchor_names, model.anchor_position):
         lines.append(f"anchor     {name:<16} at {_vector(position)} m")
     return "\n".join(lines)

@@ -6,11 +6,14 @@ File format (``.npz``, version 1), readable with numpy alone (``np.load(path)``;
 key                    shape / type    meaning
 =====================  ==============  =================================================================
 ``format``             str             ``"animbatch-trajectory"``
-``format_version``     int             ``1``
+``format_version``     int             ``2``
 ``times``              (F,) float64    frame times ``k / fps`` [s]
-``body_names``         (N,) str        body names, in scene order
-``positions``          (F, N, 3)       body positions [m]
-``velocities``         (F, N, 3)       body velocities [m/s]
+``body_names``         (N,) str        body names: particles first, then rigid bodies, each in scene order
+``body_kinds``         (N,) str        ``particle`` or ``rigid``
+``positions``          (F, N, 3)       centre-of-mass positions [m]
+``velocities``         (F, N, 3)       centre-of-mass velocities [m/s]
+``orientations``       (F, N, 4)       unit quaternions [w, x, y, z], body to world (identity for particles)
+``angular_velocities`` (F, N, 3)       angular velocities ω [rad/s], world axes (zero for particles)
 ``anchor_names``       (A,) str        anchor names
 ``anchor_positions``   (A, 3)          anchor positions [m]
 ``physics_hash``       str             SHA-256 of the scene's physics (bodies, fields, springs, timeline)
@@ -40,17 +43,21 @@ from animbatch.errors import TrajectoryError
 from animbatch.files import atomic_path
 
 FORMAT = "animbatch-trajectory"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 
 
 @dataclass(frozen=True, eq=False)
 class Trajectory:
-    """Body states at frame times. ``positions``/``velocities``: (F, N, 3) [m], [m/s]; ``times``: (F,) [s]."""
+    """Body states at frame times: ``times`` (F,) [s]; ``positions``/``velocities`` (F, N, 3) [m], [m/s];
+    ``orientations`` (F, N, 4); ``angular_velocities`` (F, N, 3) [rad/s]."""
 
     times: np.ndarray
     body_names: tuple[str, ...]
     positions: np.ndarray
     velocities: np.ndarray
+    orientations: np.ndarray
+    angular_velocities: np.ndarray
+    body_kinds: tuple[str, ...]
     anchor_names: tuple[str, ...]
     anchor_positions: np.ndarray
     physics_hash: str
@@ -70,8 +77,9 @@ class Trajectory:
             path = path.with_name(path.name + ".npz")
         with atomic_path(path) as temporary, open(temporary, "wb") as stream:
             np.savez(stream, format=np.str_(FORMAT), format_version=np.int64(FORMAT_VERSION), times=self.times,
-                     body_names=np.array(self.body_names, dtype=str), positions=self.positions,
-                     velocities=self.velocities, anchor_names=np.array(self.anchor_names, dtype=str),
+                     body_names=np.array(self.body_names, dtype=str), body_kinds=np.array(self.body_kinds, dtype=str),
+                     positions=self.positions, velocities=self.velocities, orientations=self.orientations,
+                     angular_velocities=self.angular_velocities, anchor_names=np.array(self.anchor_names, dtype=str),
                      anchor_positions=self.anchor_positions.reshape(-1, 3), physics_hash=np.str_(self.physics_hash),
                      scene_name=np.str_(self.scene_name), package_version=np.str_(self.package_version),
                      solver=np.str_(json.dumps(self.solver)), solver_stats=np.str_(json.dumps(self.solver_stats)))
@@ -94,16 +102,19 @@ class Trajectory:
         if version != FORMAT_VERSION:
             raise TrajectoryError(f"{path}: trajectory format version {version}; this animbatch reads version "
                                   f"{FORMAT_VERSION}. Re-run 'animbatch simulate'.")
-        missing = {"times", "body_names", "positions", "velocities", "physics_hash"} - arrays.keys()
+        required = {"times", "body_names", "body_kinds", "positions", "velocities", "orientations",
+                    "angular_velocities", "physics_hash"}
+        missing = required - arrays.keys()
         if missing:
             raise TrajectoryError(f"{path}: incomplete trajectory, missing {', '.join(sorted(missing))}")
-        times, positions, velocities = arrays["times"], arrays["positions"], arrays["velocities"]
+        times = arrays["times"]
         names = tuple(str(n) for n in arrays["body_names"])
-        expected = (len(times), len(names), 3)
-        if positions.shape != expected or velocities.shape != expected:
-            raise TrajectoryError(f"{path}: positions/velocities have shape {positions.shape}/{velocities.shape}, "
-                                  f"expected {expected}")
-        return cls(times, names, positions, velocities,
+        for key, width in (("positions", 3), ("velocities", 3), ("orientations", 4), ("angular_velocities", 3)):
+            expected = (len(times), len(names), width)
+            if arrays[key].shape != expected:
+                raise TrajectoryError(f"{path}: {key} has shape {arrays[key].shape}, expected {expected}")
+        return cls(times, names, arrays["positions"], arrays["velocities"], arrays["orientations"],
+                   arrays["angular_velocities"], tuple(str(k) for k in arrays["body_kinds"]),
                    tuple(str(n) for n in arrays.get("anchor_names", ())),
                    arrays.get("anchor_positions", np.zeros((0, 3))).reshape(-1, 3),
                    str(arrays["physics_hash"]), str(arrays.get("scene_name", "")),

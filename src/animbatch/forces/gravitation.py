@@ -1,4 +1,4 @@
-"""Newtonian gravitation between all pairs of selected particles, with Plummer softening.
+"""Newtonian gravitation between all pairs of selected bodies (as point masses), with Plummer softening.
 
 ``f_i = Σ_j G m_i m_j (x_j - x_i) / (|x_j - x_i|² + ε²)^(3/2)``; potential ``-Σ_{i<j} G m_i m_j / sqrt(r² + ε²)``.
 The pair sums are vectorised in row blocks, so memory stays bounded for thousands of bodies.
@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from animbatch.scene.schema import GravitationSpec
-from animbatch.forces.base import ForceTerm, ParticleProperties, field_term, selection_text
+from animbatch.forces.base import BodyTable, ForceTerm, Kinematics, add_at, field_term, selection_text
 
 #: Pairs evaluated at once (rows × columns); bounds the temporary arrays to a few tens of MB.
 PAIR_BLOCK = 1 << 20
@@ -33,8 +33,8 @@ class Gravitation(ForceTerm):
     def _row_blocks(self, count: int) -> range:
         return range(0, count, max(1, PAIR_BLOCK // max(count, 1)))
 
-    def accumulate(self, t: float, x: np.ndarray, v: np.ndarray, force: np.ndarray) -> None:
-        points = x if self.index is None else x[self.index]
+    def accumulate(self, t: float, state: Kinematics, force: np.ndarray, torque: np.ndarray | None) -> None:
+        points = state.x if self.index is None else state.x[self.index]
         count = len(points)
         result = np.empty_like(points)
         eps2 = self.softening**2
@@ -48,13 +48,10 @@ class Gravitation(ForceTerm):
             inv_r3[np.arange(stop - start), np.arange(start, stop)] = 0.0  # no self-attraction
             result[start:stop] = np.einsum("ij,ijk->ik", inv_r3 * self.mass[None, :], separation)
         result *= (self.G * self.mass)[:, None]
-        if self.index is None:
-            force += result
-        else:
-            force[self.index] += result
+        add_at(force, self.index, result)
 
-    def potential_energy(self, x: np.ndarray) -> float:
-        points = x if self.index is None else x[self.index]
+    def potential_energy(self, state: Kinematics) -> float:
+        points = state.x if self.index is None else state.x[self.index]
         count = len(points)
         total = 0.0
         rows = self._row_blocks(count)
@@ -73,6 +70,6 @@ class Gravitation(ForceTerm):
 
 
 @field_term("gravitation")
-def _gravitation(spec: GravitationSpec, particles: ParticleProperties, index: np.ndarray | None) -> Gravitation:
-    mass = particles.mass if index is None else particles.mass[index]
-    return Gravitation(spec.G, spec.softening, mass, index, particles.names)
+def _gravitation(spec: GravitationSpec, bodies: BodyTable, index: np.ndarray | None) -> Gravitation:
+    mass = bodies.mass if index is None else bodies.mass[index]
+    return Gravitation(spec.G, spec.softening, mass, index, bodies.names)

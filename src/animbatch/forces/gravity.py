@@ -1,4 +1,4 @@
-"""Uniform gravity: ``f = m g`` on each selected particle."""
+"""Uniform gravity: ``f = m g`` on each selected body, at its centre of mass (so it makes no torque)."""
 
 from __future__ import annotations
 
@@ -6,15 +6,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from animbatch.forces.base import BodyTable, ForceTerm, Kinematics, add_at, field_term, selection_text, vector_text
 from animbatch.scene.schema import GravitySpec
-from animbatch.forces.base import ForceTerm, ParticleProperties, field_term, selection_text, vector_text
 
 
 @dataclass(frozen=True, eq=False)
 class UniformGravity(ForceTerm):
-    """Weight ``m g``, precomputed per particle since neither mass nor g changes.
+    """Weight ``m g``, precomputed per body since neither mass nor g changes.
 
-    ``weight``: force per selected particle [N], shape (S, 3); ``index``: the selected particles, or None for all.
+    ``weight``: force per selected body [N], shape (S, 3); ``index``: the selected points, or None for all.
     """
 
     kind = "gravity"
@@ -30,14 +30,11 @@ class UniformGravity(ForceTerm):
         selected_mass = mass if index is None else mass[index]
         return cls(np.asarray(g, float), selected_mass[:, None] * np.asarray(g, float), index, names)
 
-    def accumulate(self, t: float, x: np.ndarray, v: np.ndarray, force: np.ndarray) -> None:
-        if self.index is None:
-            force += self.weight
-        else:
-            force[self.index] += self.weight  # indices are unique, so fancy-index += is exact
+    def accumulate(self, t: float, state: Kinematics, force: np.ndarray, torque: np.ndarray | None) -> None:
+        add_at(force, self.index, self.weight)
 
-    def potential_energy(self, x: np.ndarray) -> float:
-        selected = x if self.index is None else x[self.index]
+    def potential_energy(self, state: Kinematics) -> float:
+        selected = state.x if self.index is None else state.x[self.index]
         return -float(np.sum(self.weight * selected))
 
     def describe(self) -> str:
@@ -45,5 +42,5 @@ class UniformGravity(ForceTerm):
 
 
 @field_term("gravity")
-def _gravity(spec: GravitySpec, particles: ParticleProperties, index: np.ndarray | None) -> UniformGravity:
-    return UniformGravity.build(np.asarray(spec.g), particles.mass, index, particles.names)
+def _gravity(spec: GravitySpec, bodies: BodyTable, index: np.ndarray | None) -> UniformGravity:
+    return UniformGravity.build(np.asarray(spec.g), bodies.mass, index, bodies.names)

@@ -1,13 +1,16 @@
-"""Hooke springs with dampers along their axis, between two particles or a particle and a fixed anchor.
+"""Hooke springs with dampers along their axis, between two bodies or a body and a fixed anchor.
 
-For a spring from end 1 to end 2 with ``L = x1 - x2``, unit vector ``u = L / |L|``, rest length ``r``, stiffness
-``ks`` and damping ``kd`` (lecture notes, spring-damper)::
+For a spring from end 1 to end 2 with ``L = p1 - p2`` (the attachment points), unit vector ``u = L / |L|``, rest length
+``r``, stiffness ``ks`` and damping ``kd`` (lecture notes, spring-damper)::
 
-    f1 = -(ks (|L| - r) + kd (v1 - v2)·u) u,     f2 = -f1
+    f1 = -(ks (|L| - r) + kd (ṗ1 - ṗ2)·u) u,     f2 = -f1
 
-All springs are evaluated at once; forces are scattered onto particles with a sparse incidence matrix (one matrix
-product instead of a Python loop or ``np.add.at``). A spring of zero length exerts no force (its direction is
-undefined).
+An end on a rigid body may sit at a body point ``r_b`` (body axes, from the centre of mass): it is at
+``p = x + R r_b``, moves with ``ṗ = v + ω × (R r_b)``, and its force also gives the torque ``(R r_b) × f``.
+
+All springs are evaluated at once; forces (and torques) are scattered onto bodies with sparse incidence matrices
+(one matrix product instead of a Python loop or ``np.add.at``). A spring of zero length exerts no force (its
+direction is undefined).
 """
 
 from __future__ import annotations
@@ -17,14 +20,16 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from animbatch.forces.base import ForceTerm
+from animbatch.forces.base import ForceTerm, Kinematics
 
 
 @dataclass(frozen=True, eq=False)
 class SpringSet:
     """Spring topology and constants, shape (S,) each.
 
-    ``first`` indexes particles. ``second`` indexes particles, or anchors where ``second_is_anchor`` is true.
+    ``first`` indexes bodies (points: particles, then rigid bodies). ``second`` indexes bodies, or anchors where
+    ``second_is_anchor`` is true. ``first_offset``/``second_offset`` (S, 3): attachment points in body axes from the
+    centre of mass (zero for particles, anchors and ends at a centre of mass).
     """
 
     names: tuple[str, ...]
@@ -34,6 +39,8 @@ class SpringSet:
     stiffness: np.ndarray  # ks [N/m]
     damping: np.ndarray  # kd [N·s/m]
     rest_length: np.ndarray  # r [m]
+    first_offset: np.ndarray
+    second_offset: np.ndarray
 
     @property
     def count(self) -> int:
@@ -45,58 +52,108 @@ def _incidence(rows: np.ndarray, signs: np.ndarray, columns: np.ndarray, shape: 
 
 
 @dataclass(frozen=True, eq=False)
+class _Attachment:
+    """The springs whose end (first or second) sits at a point of a rigid body: which springs, which bodies."""
+
+    springs: np.ndarray  # (K,) spring indices
+    rigid: np.ndarray  # (K,) rigid body indices
+    offset: np.ndarray  # (K, 3) body axes, from the centre of mass
+    torque_scatter: sp.csr_matrix  # (B, K): +1 at (rigid, k)
+
+
+def _attachment(ends: np.ndarray, offsets: np.ndarray, on_body: np.ndarray, first_rigid: int,
+                rigid_count: int) -> _Attachment | None:
+    selected = np.flatnonzero(on_body & (ends >= first_rigid) & np.any(offsets != 0, axis=1))
+    if len(selected) == 0:
+        return None
+    rigid = ends[selected] - first_rigid
+    scatter = _incidence(rigid, np.ones(len(selected)), np.arange(len(selected)), (rigid_count, len(selected)))
+    return _Attachment(selected, rigid, offsets[selected], scatter)
+
+
+@dataclass(frozen=True, eq=False)
 class SpringForces(ForceTerm):
-    """The spring term for a model: particle–particle springs and particle–anchor springs, each vectorised."""
+    """The spring term for a model: all springs at once, with body-point attachments where the scene gives them."""
 
     kind = "spring"
     has_potential = True
 
     springs: SpringSet
     anchor_position: np.ndarray  # (A, 3) [m]
-    particle_count: int
-    scatter: sp.csr_matrix  # (N, S): +1 at (first, s), -1 at (second, s) for particle–particle springs
+    scatter: sp.csr_matrix  # (P, S): +1 at (first, s), -1 at (second, s) for springs between two bodies
+    first_attachment: _Attachment | None
+    second_attachment: _Attachment | None
 
     @classmethod
-    def build(cls, springs: SpringSet, anchor_position: np.ndarray, particle_count: int) -> SpringForces:
+    def build(cls, springs: SpringSet, anchor_position: np.ndarray, point_count: int, first_rigid: int
+              ) -> SpringForces:
         s = np.arange(springs.count)
-        pp = ~springs.second_is_anchor
-        rows = np.concatenate([springs.first, springs.second[pp]])
-        cols = np.concatenate([s, s[pp]])
-        signs = np.concatenate([np.ones(springs.count), -np.ones(int(pp.sum()))])
-        scatter = _incidence(rows, signs, cols, (particle_count, springs.count))
-        return cls(springs, np.asarray(anchor_position, float).reshape(-1, 3), particle_count, scatter)
+        to_body = ~springs.second_is_anchor
+        rows = np.concatenate([springs.first, springs.second[to_body]])
+        cols = np.concatenate([s, s[to_body]])
+        signs = np.concatenate([np.ones(springs.count), -np.ones(int(to_body.sum()))])
+        rigid_count = point_count - first_rigid
+        return cls(springs, np.asarray(anchor_position, float).reshape(-1, 3),
+                   _incidence(rows, signs, cols, (point_count, springs.count)),
+                   _attachment(springs.first, springs.first_offset, np.ones(springs.count, bool), first_rigid,
+                               rigid_count),
+                   _attachment(springs.second, springs.second_offset, to_body, first_rigid, rigid_count))
 
-    def _second_end(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Positions and velocities of every spring's second end, shape (S, 3); anchors are at rest."""
+    def _levers(self, state: Kinematics, attachment: _Attachment | None) -> np.ndarray | None:
+        """World vectors from each spring end's centre of mass to its attachment point, (S, 3), or None."""
+        if attachment is None:
+            return None
+        levers = np.zeros((self.springs.count, 3))
+        levers[attachment.springs] = state.lever(attachment.rigid, attachment.offset)
+        return levers
+
+    def _ends(self, state: Kinematics) -> tuple[np.ndarray, ...]:
+        """Positions and velocities of both ends of every spring (S, 3) each, and the levers (or None)."""
         springs = self.springs
+        p1, v1 = state.x[springs.first], state.v[springs.first]
         on_anchor = springs.second_is_anchor
-        if not on_anchor.any():
-            return x[springs.second], v[springs.second]
-        position = np.empty((springs.count, 3))
-        velocity = np.zeros((springs.count, 3))
-        position[on_anchor] = self.anchor_position[springs.second[on_anchor]]
-        position[~on_anchor] = x[springs.second[~on_anchor]]
-        velocity[~on_anchor] = v[springs.second[~on_anchor]]
-        return position, velocity
+        if on_anchor.any():
+            p2 = np.empty((springs.count, 3))
+            v2 = np.zeros((springs.count, 3))  # anchors are at rest
+            p2[on_anchor] = self.anchor_position[springs.second[on_anchor]]
+            p2[~on_anchor] = state.x[springs.second[~on_anchor]]
+            v2[~on_anchor] = state.v[springs.second[~on_anchor]]
+        else:
+            p2, v2 = state.x[springs.second], state.v[springs.second]
+        lever1, lever2 = self._levers(state, self.first_attachment), self._levers(state, self.second_attachment)
+        for lever, attachment, p, v in ((lever1, self.first_attachment, p1, v1),
+                                        (lever2, self.second_attachment, p2, v2)):
+            if lever is not None:
+                assert attachment is not None and state.omega is not None
+                k = attachment.springs
+                p[k] = p[k] + lever[k]
+                v[k] = v[k] + np.cross(state.omega[attachment.rigid], lever[k])
+        return p1, v1, p2, v2, lever1, lever2
 
-    def spring_forces(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Force on each spring's first end, ``f1`` [N], shape (S, 3)."""
+    def spring_forces(self, state: Kinematics) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """Force on each spring's first end ``f1`` [N] (S, 3), and the levers of both ends (or None)."""
         springs = self.springs
-        x2, v2 = self._second_end(x, v)
-        axis = x[springs.first] - x2  # L
+        p1, v1, p2, v2, lever1, lever2 = self._ends(state)
+        axis = p1 - p2  # L
         length = np.sqrt(np.einsum("ij,ij->i", axis, axis))
         unit = np.divide(axis, length[:, None], out=np.zeros_like(axis), where=length[:, None] > 0)
-        closing = np.einsum("ij,ij->i", v[springs.first] - v2, unit)  # (v1 - v2)·u
+        closing = np.einsum("ij,ij->i", v1 - v2, unit)  # (ṗ1 - ṗ2)·u
         magnitude = springs.stiffness * (length - springs.rest_length) + springs.damping * closing
-        return -magnitude[:, None] * unit
+        return -magnitude[:, None] * unit, lever1, lever2
 
-    def accumulate(self, t: float, x: np.ndarray, v: np.ndarray, force: np.ndarray) -> None:
-        force += self.scatter @ self.spring_forces(x, v)
+    def accumulate(self, t: float, state: Kinematics, force: np.ndarray, torque: np.ndarray | None) -> None:
+        f1, lever1, lever2 = self.spring_forces(state)
+        force += self.scatter @ f1
+        for lever, attachment, sign in ((lever1, self.first_attachment, 1.0), (lever2, self.second_attachment, -1.0)):
+            if lever is not None:
+                assert torque is not None and attachment is not None
+                k = attachment.springs
+                torque += attachment.torque_scatter @ np.cross(lever[k], sign * f1[k])
 
-    def potential_energy(self, x: np.ndarray) -> float:
+    def potential_energy(self, state: Kinematics) -> float:
         """Elastic energy ½ ks (|L| - r)² summed over springs [J] (dampers store none)."""
-        x2, _ = self._second_end(x, np.zeros_like(x))
-        length = np.linalg.norm(x[self.springs.first] - x2, axis=1)
+        p1, _, p2, _, _, _ = self._ends(state)
+        length = np.linalg.norm(p1 - p2, axis=1)
         return float(0.5 * np.sum(self.springs.stiffness * (length - self.springs.rest_length) ** 2))
 
     @property
@@ -107,6 +164,8 @@ class SpringForces(ForceTerm):
         springs = self.springs
         anchored = int(springs.second_is_anchor.sum())
         parts = f"{springs.count - anchored} body–body, {anchored} body–anchor"
+        attached = sum(len(a.springs) for a in (self.first_attachment, self.second_attachment) if a is not None)
+        points = f", {attached} end{'s' if attached != 1 else ''} at body points" if attached else ""
         k = f"ks {springs.stiffness.min():g}…{springs.stiffness.max():g} N/m"
         c = f"kd {springs.damping.min():g}…{springs.damping.max():g} N·s/m"
-        return f"{springs.count} spring{'s' if springs.count != 1 else ''} ({parts}), {k}, {c}"
+        return f"{springs.count} spring{'s' if springs.count != 1 else ''} ({parts}{points}), {k}, {c}"

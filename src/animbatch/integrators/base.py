@@ -19,7 +19,7 @@ FrameCallback = Callable[[int, float], None]
 
 
 class EquationsOfMotion(Protocol):
-    """What integrators need from a system (see :class:`~animbatch.model.dynamics.ParticleDynamics`)."""
+    """What integrators need from a system (see :class:`~animbatch.model.dynamics.Dynamics`)."""
 
     size: int
 
@@ -27,7 +27,12 @@ class EquationsOfMotion(Protocol):
 
     def split(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
 
-    def acceleration(self, t: float, x: np.ndarray, v: np.ndarray, out: np.ndarray | None = None) -> np.ndarray: ...
+    def motion_rate(self, t: float, config: np.ndarray, motion: np.ndarray,
+                    out: np.ndarray | None = None) -> np.ndarray: ...
+
+    def drift(self, config: np.ndarray, motion: np.ndarray, h: float) -> None: ...
+
+    def project(self, y: np.ndarray) -> None: ...
 
 
 @dataclass

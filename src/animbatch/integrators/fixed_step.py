@@ -16,6 +16,11 @@ Methods (h: step, a(t, x, v) = F/m):
   for position-only forces this is exactly the classic method. This is the lecture notes' update
   ``p' = p + (v + v')/2 Δt`` with ``v' = v + a Δt``.
 
+The partitioned methods work on configuration c and motion m (for rigid bodies: x, q and P, L): a *kick* changes m by
+``h dm/dt`` and a *drift* moves c with m held fixed, turning orientations by the exact rotation ``exp(h ω)``
+(:meth:`~animbatch.model.dynamics.Dynamics.drift`). Semi-implicit Euler is kick, drift; Verlet is half kick, drift,
+half kick. After every step of every method, quaternions are re-normalised.
+
 Explicit Runge–Kutta methods are given as Butcher tableaux, so adding one is adding data.
 """
 
@@ -104,6 +109,7 @@ class ExplicitRungeKutta(Scheme):
         for b_i, k_i in zip(tableau.b, k):
             if b_i:
                 y += (h * b_i) * k_i
+        self.system.project(y)
 
 
 class ExplicitEuler(ExplicitRungeKutta):
@@ -115,68 +121,72 @@ class Midpoint(ExplicitRungeKutta):
 
 
 class PartitionedScheme(Scheme):
-    """A scheme that updates positions and velocities separately, in preallocated buffers shaped like ``x``.
+    """A scheme that kicks the motion and drifts the configuration, in preallocated buffers shaped like the motion.
 
-    At 1e4+ particles every numpy temporary is a fresh memory mapping; doing all arithmetic in these buffers with
+    At 1e4+ particles every numpy temporary is a fresh memory mapping; doing the arithmetic in these buffers with
     ``out=`` makes a step several times faster.
     """
 
     def __init__(self, system: EquationsOfMotion) -> None:
         super().__init__(system)
-        self._shape = system.split(np.zeros(system.size))[0].shape
-        self._a = self.buffer()
+        self._size = len(system.split(np.zeros(system.size))[1])
+        self._rate = self.buffer()
         self._work = self.buffer()
 
     def buffer(self) -> np.ndarray:
-        return np.empty(self._shape)
+        return np.empty(self._size)
 
 
 class SymplecticEuler(PartitionedScheme):
-    """``v' = v + h a(t, x, v)``; ``x' = x + h v'``."""
+    """Kick ``m' = m + h dm/dt(t, c, m)``, then drift c with m'. For particles: ``v' = v + h a``; ``x' = x + h v'``."""
 
     order = 1
     evaluations_per_step = 1
 
     def step(self, t: float, y: np.ndarray, h: float) -> None:
-        x, v = self.system.split(y)
-        a = self.system.acceleration(t, x, v, out=self._a)
+        config, motion = self.system.split(y)
+        rate = self.system.motion_rate(t, config, motion, out=self._rate)
         self.evaluations += 1
-        v += np.multiply(a, h, out=self._work)
-        x += np.multiply(v, h, out=self._work)
+        motion += np.multiply(rate, h, out=self._work)
+        self.system.drift(config, motion, h)
+        self.system.project(y)
 
 
 class VelocityVerlet(PartitionedScheme):
-    """Velocity Verlet with a predicted velocity for velocity-dependent forces; caches a(t) between steps."""
+    """Half kick, drift, half kick; the second rate is evaluated with the predicted motion ``m + h dm/dt`` and kept
+    for the next step, so each step costs one evaluation. For particles this is
+    ``x' = x + h v + h²/2 a``, ``v' = v + h/2 (a + a')``."""
 
     order = 2
     evaluations_per_step = 1
 
     def __init__(self, system: EquationsOfMotion) -> None:
         super().__init__(system)
-        self._a_next = self.buffer()
-        self._predicted_v = self.buffer()
+        self._rate_next = self.buffer()
+        self._predicted = self.buffer()
 
     def start(self, t: float, y: np.ndarray) -> None:
-        x, v = self.system.split(y)
-        self.system.acceleration(t, x, v, out=self._a)
+        config, motion = self.system.split(y)
+        self.system.motion_rate(t, config, motion, out=self._rate)
         self.evaluations += 1
 
     def step(self, t: float, y: np.ndarray, h: float) -> None:
-        x, v = self.system.split(y)
-        a, work = self._a, self._work
-        np.add(v, np.multiply(a, h, out=work), out=self._predicted_v)  # v + h a
-        x += np.multiply(v, h, out=work)
-        x += np.multiply(a, 0.5 * h * h, out=work)
-        a_next = self.system.acceleration(t + h, x, self._predicted_v, out=self._a_next)
+        config, motion = self.system.split(y)
+        rate, work = self._rate, self._work
+        np.add(motion, np.multiply(rate, h, out=work), out=self._predicted)  # m + h dm/dt
+        motion += np.multiply(rate, 0.5 * h, out=work)
+        self.system.drift(config, motion, h)
+        rate_next = self.system.motion_rate(t + h, config, self._predicted, out=self._rate_next)
         self.evaluations += 1
-        v += np.multiply(np.add(a, a_next, out=work), 0.5 * h, out=work)
-        self._a, self._a_next = a_next, a
+        motion += np.multiply(rate_next, 0.5 * h, out=work)
+        self.system.project(y)
+        self._rate, self._rate_next = rate_next, rate
 
     def snapshot(self) -> Any:
-        return self._a.copy()
+        return self._rate.copy()
 
     def restore(self, saved: Any) -> None:
-        self._a[...] = saved
+        self._rate[...] = saved
 
 
 FIXED_STEP_SCHEMES: dict[str, type[Scheme]] = {

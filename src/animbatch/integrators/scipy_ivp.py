@@ -74,6 +74,7 @@ class ScipyIntegrator(Integrator):
                     interpolant = solver.dense_output()
                     while frame < len(times) and times[frame] <= solver.t:
                         states[frame] = solver.y if times[frame] == solver.t else interpolant(times[frame])
+                        system.project(states[frame])  # unit quaternions in every output
                         if on_frame is not None:
                             on_frame(frame, float(times[frame]))
                         frame += 1

@@ -1,50 +1,145 @@
-"""The equations of motion of a Model: ``dy/dt = f(t, y)`` for the flat state, and its partitioned form.
+"""The equations of motion of a Model, in the forms the integrators need.
 
-For particles, ``dx/dt = v`` and ``dv/dt = F(t, x, v) / m``, where F sums the model's force terms (only those the scene
-declares). Fixed-step symplectic integrators use the partitioned form (:meth:`ParticleDynamics.acceleration`);
-adaptive ones use :meth:`ParticleDynamics.rhs`.
+State (see :mod:`animbatch.model.layout`): configuration ``c = [x_particles, x_rigid, q]`` and motion
+``m = [v_particles, P, L]``. The lecture notes' rigid-body equations::
+
+    dx/dt = v = P / M        dq/dt = ½ (0, ω) ⊗ q,  ω = I(t)⁻¹ L,  I(t)⁻¹ = R I_body⁻¹ Rᵀ
+    dP/dt = F                dL/dt = τ
+
+and for particles ``dx/dt = v``, ``dv/dt = F / m``. F and τ sum the model's force terms (only those the scene
+declares). The quaternion's norm is conserved by these equations; integrators re-normalise it (:meth:`project`)
+after each fixed step and on every output, so rounding never accumulates.
+
+Forms offered: :meth:`Dynamics.rhs` (all of ``dy/dt``, for adaptive and Runge–Kutta methods), and for partitioned
+(symplectic) methods :meth:`motion_rate` (``dm/dt``: the "kick") and :meth:`drift` (advance c with the motion held
+fixed). A scene of particles only takes exactly the particle path: no rigid-body work is done.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from animbatch.model.model import Model
+from animbatch.forces import Kinematics
+from animbatch.model.model import Model, world_inverse_inertia_times
+from animbatch.rigid import quaternion
 
 
-class ParticleDynamics:
-    """Right-hand side for a Model. Holds one force buffer, reused by every evaluation."""
+class Dynamics:
+    """Right-hand side for a Model. Holds its force/torque buffers, reused by every evaluation."""
 
     def __init__(self, model: Model) -> None:
         self.model = model
         self.terms = model.force_terms
-        self.count = model.particle_count
         self.size = model.layout.size
-        self._inverse_mass = (1.0 / model.particles.mass)[:, None]
-        self._force = np.zeros((self.count, 3))
+        self.particles = model.particle_count
+        self.rigid = model.rigid_count
+        n, b = self.particles, self.rigid
+        self._config_size = 3 * n + 7 * b
+        self._inverse_mass = (1.0 / model.bodies.mass[:n])[:, None]
+        self._force = np.zeros((n + b, 3))
+        self._torque = np.zeros((b, 3)) if b else None
+        if b:
+            rigid = model.rigid
+            assert rigid is not None
+            self._rigid_inverse_mass = (1.0 / rigid.mass)[:, None]
+            self._inverse_inertia = rigid.inverse_inertia
+            self._x = np.empty((n + b, 3))
+            self._v = np.empty((n + b, 3))
+
+    # ------------------------------------------------------------------------------------------ state views
 
     def split(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Views ``(x, v)`` of a state vector, each of shape (N, 3)."""
-        n3 = 3 * self.count
-        return y[:n3].reshape(self.count, 3), y[n3:].reshape(self.count, 3)
+        """Views ``(configuration, motion)`` of a flat state."""
+        return y[: self._config_size], y[self._config_size:]
 
-    def forces(self, t: float, x: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Total force [N] on each particle, shape (N, 3). The returned buffer is overwritten by the next call."""
-        force = self._force
+    def _rigid_views(self, config: np.ndarray, motion: np.ndarray) -> tuple[np.ndarray, ...]:
+        n, b = self.particles, self.rigid
+        return (config[3 * n: 3 * n + 3 * b].reshape(b, 3), config[3 * n + 3 * b:].reshape(b, 4),
+                motion[3 * n: 3 * n + 3 * b].reshape(b, 3), motion[3 * n + 3 * b:].reshape(b, 3))
+
+    def kinematics(self, config: np.ndarray, motion: np.ndarray) -> Kinematics:
+        """Positions, velocities, rotations and angular velocities of all bodies."""
+        n = self.particles
+        x = config[: 3 * n].reshape(n, 3)
+        v = motion[: 3 * n].reshape(n, 3)
+        if not self.rigid:
+            return Kinematics(x, v, None, None, n)
+        position, orientation, momentum, angular_momentum = self._rigid_views(config, motion)
+        rotation = quaternion.to_matrix(orientation)
+        omega = world_inverse_inertia_times(rotation, self._inverse_inertia, angular_momentum)
+        self._x[:n], self._x[n:] = x, position
+        self._v[:n] = v
+        np.multiply(momentum, self._rigid_inverse_mass, out=self._v[n:])
+        return Kinematics(self._x, self._v, rotation, omega, n)
+
+    def loads(self, t: float, state: Kinematics) -> tuple[np.ndarray, np.ndarray | None]:
+        """Total force [N] (P, 3) on every body and torque [N·m] (B, 3) on every rigid body (buffers, overwritten by
+        the next call)."""
+        force, torque = self._force, self._torque
         force.fill(0.0)
+        if torque is not None:
+            torque.fill(0.0)
         for term in self.terms:
-            term.accumulate(t, x, v, force)
-        return force
+            term.accumulate(t, state, force, torque)
+        return force, torque
 
-    def acceleration(self, t: float, x: np.ndarray, v: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """``a = F(t, x, v) / m`` [m/s²], shape (N, 3), written to ``out`` when given."""
-        return np.multiply(self.forces(t, x, v), self._inverse_mass, out=out)
+    # ------------------------------------------------------------------------------------------ the forms
+
+    def motion_rate(self, t: float, config: np.ndarray, motion: np.ndarray,
+                    out: np.ndarray | None = None) -> np.ndarray:
+        """``dm/dt = [F_particles / m, F_rigid, τ]``, flat, written to ``out`` when given."""
+        state = self.kinematics(config, motion)
+        force, torque = self.loads(t, state)
+        out = np.empty(len(motion)) if out is None else out
+        n = self.particles
+        np.multiply(force[:n], self._inverse_mass, out=out[: 3 * n].reshape(n, 3))
+        if self.rigid:
+            out[3 * n: 3 * n + 3 * self.rigid] = force[n:].ravel()
+            out[3 * n + 3 * self.rigid:] = torque.ravel()  # type: ignore[union-attr]
+        return out
+
+    def config_rate(self, config: np.ndarray, motion: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """``dc/dt = [v, P / M, ½ (0, ω) ⊗ q]``, flat, into ``out``."""
+        n = self.particles
+        out[: 3 * n] = motion[: 3 * n]
+        if self.rigid:
+            position, orientation, momentum, angular_momentum = self._rigid_views(config, motion)
+            b = self.rigid
+            rotation = quaternion.to_matrix(orientation)
+            omega = world_inverse_inertia_times(rotation, self._inverse_inertia, angular_momentum)
+            out[3 * n: 3 * n + 3 * b] = (momentum * self._rigid_inverse_mass).ravel()
+            out[3 * n + 3 * b:] = quaternion.rate(orientation, omega).ravel()
+        return out
 
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         """``dy/dt`` as a new array (solve_ivp keeps references to the arrays it receives)."""
-        x, v = self.split(y)
+        config, motion = self.split(y)
         dydt = np.empty_like(y)
-        n3 = 3 * self.count
-        dydt[:n3] = y[n3:]
-        self.acceleration(t, x, v, out=dydt[n3:].reshape(self.count, 3))
+        self.config_rate(config, motion, dydt[: self._config_size])
+        self.motion_rate(t, config, motion, out=dydt[self._config_size:])
         return dydt
+
+    def drift(self, config: np.ndarray, motion: np.ndarray, h: float) -> None:
+        """Advance the configuration by ``h`` [s] with the motion held fixed, in place.
+
+        Positions move by ``h v``. Orientations turn by the exact rotation ``exp(h ω)``, with ω evaluated at the
+        half-turned orientation (a midpoint rule, second-order accurate, and norm-preserving).
+        """
+        n = self.particles
+        config[: 3 * n] += h * motion[: 3 * n]
+        if self.rigid:
+            position, orientation, momentum, angular_momentum = self._rigid_views(config, motion)
+            position += h * momentum * self._rigid_inverse_mass
+            omega = world_inverse_inertia_times(quaternion.to_matrix(orientation), self._inverse_inertia,
+                                                angular_momentum)
+            halfway = quaternion.multiply(quaternion.from_rotation_vector(0.5 * h * omega), orientation)
+            omega = world_inverse_inertia_times(quaternion.to_matrix(halfway), self._inverse_inertia,
+                                                angular_momentum)
+            orientation[...] = quaternion.multiply(quaternion.from_rotation_vector(h * omega), orientation)
+
+    def project(self, y: np.ndarray) -> None:
+        """Re-normalise the quaternions of a state (…, n) in place (nothing to do without rigid bodies)."""
+        if self.rigid:
+            block = self.model.layout.block("rigid_orientation")
+            q = y[..., block.span].reshape(*y.shape[:-1], self.rigid, 4)
+            q /= np.linalg.norm(q, axis=-1, keepdims=True)

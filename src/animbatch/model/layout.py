@@ -1,11 +1,18 @@
 """The flat state vector and its documented layout.
 
-All integrators see one flat float64 vector ``y``. The layout names its blocks, in order::
+All integrators see one flat float64 vector ``y``. The layout names its blocks, in order (blocks of size zero are
+left out, so a scene of particles only has just the first and fourth)::
 
-    [ particle_position (N×3, m) | particle_velocity (N×3, m/s) ]
+    configuration:  particle_position      (N×3, m)
+                    rigid_position         (B×3, m)        centre of mass x
+                    rigid_orientation      (B×4, 1)        unit quaternion q = [w, x, y, z]
+    motion:         particle_velocity      (N×3, m/s)
+                    rigid_momentum         (B×3, kg·m/s)   P = M v
+                    rigid_angular_momentum (B×3, kg·m²/s)  L = I(t) ω, world axes
 
-Configuration blocks (positions) come first and motion blocks (velocities) after them, each contiguous, so that
-partitioned (symplectic) integrators can take ``y[config]`` and ``y[motion]`` as views without copying.
+This is the lecture notes' rigid-body state ``S = [x, R, P, L]`` with the rotation R stored as a quaternion.
+Configuration blocks come first and motion blocks after them, each contiguous, so that partitioned (symplectic)
+integrators can take ``y[config]`` and ``y[motion]`` as views without copying.
 """
 
 from __future__ import annotations
@@ -43,10 +50,23 @@ class StateLayout:
     blocks: tuple[StateBlock, ...]
 
     @classmethod
-    def for_particles(cls, names: tuple[str, ...]) -> StateLayout:
-        n = len(names)
-        return cls((StateBlock("particle_position", 0, (n, 3), "m", "config", names),
-                    StateBlock("particle_velocity", 3 * n, (n, 3), "m/s", "motion", names)))
+    def for_bodies(cls, particles: tuple[str, ...], rigid: tuple[str, ...] = ()) -> StateLayout:
+        """The layout for N particles and B rigid bodies (names in state order)."""
+        specs = [("particle_position", particles, 3, "m", "config"),
+                 ("rigid_position", rigid, 3, "m", "config"),
+                 ("rigid_orientation", rigid, 4, "1", "config"),
+                 ("particle_velocity", particles, 3, "m/s", "motion"),
+                 ("rigid_momentum", rigid, 3, "kg·m/s", "motion"),
+                 ("rigid_angular_momentum", rigid, 3, "kg·m²/s", "motion")]
+        blocks, offset = [], 0
+        for name, owners, width, unit, role in specs:
+            if owners:
+                blocks.append(StateBlock(name, offset, (len(owners), width), unit, role, owners))  # type: ignore[arg-type]
+                offset += len(owners) * width
+        return cls(tuple(blocks))
+
+    def has(self, name: str) -> bool:
+        return any(block.name == name for block in self.blocks)
 
     @property
     def size(self) -> int:
@@ -82,6 +102,7 @@ class StateLayout:
         for block in self.blocks:
             if block.offset <= index < block.offset + block.size:
                 row, column = divmod(index - block.offset, block.shape[-1])
-                quantity = block.name.split("_", 1)[-1]
-                return block.owners[row], f"{quantity} {'xyz'[column]}" if block.shape[-1] == 3 else quantity
+                quantity = block.name.split("_", 1)[-1].replace("_", " ")
+                components = "xyz" if block.shape[-1] == 3 else "wxyz"
+                return block.owners[row], f"{quantity} {components[column]}"
         raise IndexError(f"state index {index} is outside the state (size {self.size})")

@@ -2,9 +2,13 @@
 
 Measured on a 2-core machine with Mesa llvmpipe at 1280×720 (see ``benchmarks/``): a reused plotter renders a
 simple scene at well over 100 fps without anti-aliasing, while re-creating it per frame drops to about 10 fps; so
-every actor is created once here and a frame only moves things. Particles are sphere meshes (one actor each, moved by
-its transform) up to ``SPRITE_THRESHOLD`` particles, and point sprites (one actor, shaded as spheres of their radius)
-beyond, since meshes cost 10–30× more per particle.
+every actor is created once here and a frame only moves things:
+
+* particles are sphere meshes (one actor each, moved by its position) up to ``SPRITE_THRESHOLD`` particles, and point
+  sprites (one actor, shaded as spheres of their radius) beyond, since meshes cost 10–30× more per particle;
+* each rigid body is its own mesh, built once in its centre-of-mass frame; a frame only rewrites the 4×4 transform
+  ``[R | x]`` that its actor (and its axes) share;
+* springs are one line set whose end points are rewritten.
 
 Anti-aliasing uses VTK's FXAA pass directly (``renderer.SetUseFXAA``): PyVista's ``enable_anti_aliasing('fxaa')``
 silently switches to SSAA on OSMesa/EGL builds, which is several times slower.
@@ -13,6 +17,8 @@ silently switches to SSAA on OSMesa/EGL builds, which is several times slower.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -20,7 +26,9 @@ from animbatch.errors import RenderError
 from animbatch.model.model import Model
 from animbatch.render.backend import Backend, activate
 from animbatch.render.camera import CameraPlacement, nice_spacing, place_camera, plane_axes
-from animbatch.scene.schema import RenderSpec, SceneSpec
+from animbatch.rigid import quaternion
+from animbatch.scene.schema import (BoxShape, CompoundShape, CylinderShape, MeshShape, RenderSpec, RodShape,
+                                    SceneSpec, ShellShape, SphereShape)
 
 #: Above this many particles, ``particles: auto`` draws point sprites instead of sphere meshes.
 SPRITE_THRESHOLD = 200
@@ -30,6 +38,7 @@ PALETTE = ("#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948", "#b
            "#bab0ac")
 ANCHOR_COLOR = "#333333"
 SPRING_COLOR = "#808080"
+AXIS_COLORS = ("#d62728", "#2ca02c", "#1f77b4")
 
 
 def hex_to_rgb(color: str) -> tuple[float, float, float]:
@@ -38,33 +47,110 @@ def hex_to_rgb(color: str) -> tuple[float, float, float]:
     return tuple(int(value[i:i + 2], 16) / 255 for i in (0, 2, 4))  # type: ignore[return-value]
 
 
-def body_colors(spec: SceneSpec) -> list[str]:
-    return [body.color or PALETTE[i % len(PALETTE)] for i, body in enumerate(spec.bodies)]
+def body_extents(model: Model) -> np.ndarray:
+    """How far each body reaches from its centre of mass [m], shape (P,): radius for particles, the farthest
+    surface point for rigid bodies (used to fit the camera)."""
+    extents = np.array(model.bodies.radius, float)
+    rigid = model.rigid
+    if rigid is not None:
+        for b, geometry in enumerate(rigid.geometry):
+            reach = 0.0
+            if len(geometry.triangles):
+                reach = float(np.max(np.linalg.norm(geometry.triangles - rigid.centre[b], axis=-1)))
+            for x, y, z, r in geometry.spheres:
+                reach = max(reach, float(np.linalg.norm(np.array([x, y, z]) - rigid.centre[b]) + r))
+            extents[model.particle_count + b] = reach
+    return extents
 
 
 @dataclass(frozen=True)
 class FrameGeometry:
-    """What the renderer draws, independent of the scene file: topology, sizes, colours, bounds."""
+    """What the renderer draws, independent of the scene file: sizes, shapes, colours, springs, fluids, bounds."""
 
-    radius: np.ndarray  # (N,) [m]
-    colors: list[str]  # (N,) '#rrggbb'
+    particle_radius: np.ndarray  # (N,) [m]
+    colors: list[str]  # (P,) '#rrggbb', bodies in model order
+    rigid_shapes: tuple[Any, ...]  # (B,) scene shape specs
+    rigid_centre: np.ndarray  # (B, 3) centre of mass in shape coordinates [m]
+    rigid_inertia: np.ndarray  # (B, 3, 3) body axes [kg·m²]
+    rigid_extent: np.ndarray  # (B,) [m]
+    base_dir: Path
     anchor_positions: np.ndarray  # (A, 3) [m]
-    spring_ends: np.ndarray  # (S, 2) indices into concat(particles, anchors)
+    spring_first: np.ndarray  # (S,) body indices
+    spring_second: np.ndarray  # (S,) body or anchor indices
+    spring_to_anchor: np.ndarray  # (S,) bool
+    spring_first_offset: np.ndarray  # (S, 3) body axes from the centre of mass
+    spring_second_offset: np.ndarray
     spring_colors: list[str]
+    fluids: list[tuple[float, np.ndarray]]  # (level, up) of each buoyancy fluid
     bounds: np.ndarray  # (2, 3) [m], whole motion
+    vector_scale: float = 0.0  # arrow length per unit of |ω| or |L| [m per unit]
 
     @classmethod
-    def from_scene(cls, spec: SceneSpec, model: Model, bounds: np.ndarray) -> FrameGeometry:
-        n = model.particle_count
-        springs = model.springs
+    def from_scene(cls, spec: SceneSpec, model: Model, bounds: np.ndarray, largest_vector: float = 0.0
+                   ) -> FrameGeometry:
+        by_name = {body.name: body for body in spec.bodies}
+        colors = [by_name[name].color or PALETTE[spec.bodies.index(by_name[name]) % len(PALETTE)]
+                  for name in model.body_names]
+        n, rigid, springs = model.particle_count, model.rigid, model.springs
+        extents = body_extents(model)
         if springs is None:
-            ends = np.zeros((0, 2), dtype=np.intp)
+            none = np.zeros(0, np.intp)
+            spring_parts = (none, none, np.zeros(0, bool), np.zeros((0, 3)), np.zeros((0, 3)))
         else:
-            second = np.where(springs.second_is_anchor, springs.second + n, springs.second)
-            ends = np.stack([springs.first, second], axis=1)
-        spring_colors = [s.color or SPRING_COLOR for s in spec.springs]
-        return cls(np.asarray(model.particles.radius), body_colors(spec), np.asarray(model.anchor_position),
-                   ends, spring_colors, bounds)
+            spring_parts = (springs.first, springs.second, springs.second_is_anchor, springs.first_offset,
+                            springs.second_offset)
+        fluids = [(term.level, term.up) for term in model.force_terms if term.kind == "buoyancy"]
+        rigid_extent = extents[n:]
+        scale = 2 * float(np.max(rigid_extent)) / largest_vector if largest_vector > 0 and len(rigid_extent) else 0.0
+        return cls(np.asarray(model.bodies.radius[:n]), colors,
+                   rigid.shapes if rigid is not None else (),
+                   rigid.centre if rigid is not None else np.zeros((0, 3)),
+                   rigid.inertia if rigid is not None else np.zeros((0, 3, 3)), rigid_extent,
+                   rigid.base_dir if rigid is not None else Path("."), np.asarray(model.anchor_position),
+                   *spring_parts, [s.color or SPRING_COLOR for s in spec.springs], fluids, bounds, scale)
+
+
+def shape_mesh(shape: Any, base_dir: Path, resolution: int) -> Any:
+    """A PyVista surface of a scene shape, in shape coordinates."""
+    import pyvista as pv
+
+    if isinstance(shape, SphereShape | ShellShape):
+        return pv.Sphere(radius=shape.radius, theta_resolution=resolution, phi_resolution=resolution)
+    if isinstance(shape, BoxShape):
+        a, b, c = (s / 2 for s in shape.size)
+        return pv.Box(bounds=(-a, a, -b, b, -c, c)).triangulate()
+    if isinstance(shape, CylinderShape | RodShape):
+        radius = shape.radius if shape.radius is not None else shape.length / 100
+        return pv.Cylinder(center=(0, 0, 0), direction=(0, 0, 1), radius=radius, height=shape.length,
+                           resolution=resolution).triangulate()
+    if isinstance(shape, MeshShape):
+        from animbatch.rigid.shapes import load_mesh
+
+        mesh = load_mesh(base_dir / shape.file, shape.scale)
+        faces = np.hstack([np.full((len(mesh.faces), 1), 3), mesh.faces]).ravel()
+        return pv.PolyData(mesh.vertices, faces)
+    if isinstance(shape, CompoundShape):
+        from animbatch.rigid.shapes import orientation_matrix
+
+        merged = None
+        for part in shape.parts:
+            transform = np.eye(4)
+            transform[:3, :3] = orientation_matrix(part.orientation)
+            transform[:3, 3] = part.offset
+            piece = shape_mesh(part.shape, base_dir, resolution).transform(transform, inplace=False)
+            merged = piece if merged is None else merged.merge(piece)
+        return merged
+    raise TypeError(f"cannot draw shape {shape!r}")
+
+
+def arrow_basis(vectors: np.ndarray) -> np.ndarray:
+    """Rotation matrices (K, 3, 3) taking the x axis to each vector's direction (identity for zero vectors)."""
+    length = np.linalg.norm(vectors, axis=1, keepdims=True)
+    x = np.divide(vectors, length, out=np.tile([1.0, 0.0, 0.0], (len(vectors), 1)), where=length > 0)
+    helper = np.where(np.abs(x[:, [2]]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
+    y = np.cross(helper, x)
+    y /= np.linalg.norm(y, axis=1, keepdims=True)
+    return np.stack([x, y, np.cross(x, y)], axis=2)
 
 
 class FrameRenderer:
@@ -74,9 +160,11 @@ class FrameRenderer:
         activate(backend)
         try:
             import pyvista as pv
+            from vtkmodules.vtkCommonMath import vtkMatrix4x4
         except ImportError as error:  # pragma: no cover - dependency missing
             raise RenderError(f"pyvista is not installed ({error}); run 'bash scripts/dev.sh setup'") from None
         self.pv = pv
+        self._matrix_class = vtkMatrix4x4
         self.render_spec = render
         self.geometry = geometry
         self.backend = backend
@@ -91,7 +179,9 @@ class FrameRenderer:
         self.plotter.set_background(render.background)
         self.camera = place_camera(render.camera, geometry.bounds, self.width / self.height)
         self._add_ground()
+        self._add_fluids()
         self._add_particles()
+        self._add_rigid_bodies()
         self._add_springs()
         self._add_anchors()
         self._add_time_label()
@@ -109,34 +199,63 @@ class FrameRenderer:
 
     def _add_particles(self) -> None:
         geometry, spec = self.geometry, self.render_spec
-        count = len(geometry.radius)
+        count = len(geometry.particle_radius)
+        colors = geometry.colors[:count]
         self.use_sprites = spec.particles == "sprite" or (spec.particles == "auto" and count > SPRITE_THRESHOLD)
         self._particle_actors = []
-        if self.use_sprites:
+        if count and self.use_sprites:
             cloud = self.pv.PolyData(np.zeros((count, 3)))
-            cloud.point_data["radius"] = geometry.radius
-            cloud.point_data["rgb"] = (np.array([hex_to_rgb(c) for c in geometry.colors]) * 255).astype(np.uint8)
+            cloud.point_data["radius"] = geometry.particle_radius
+            cloud.point_data["rgb"] = (np.array([hex_to_rgb(c) for c in colors]) * 255).astype(np.uint8)
             actor = self.plotter.add_mesh(cloud, style="points_gaussian", render_points_as_spheres=True,
                                           emissive=False, scalars="rgb", rgb=True, show_scalar_bar=False)
             actor.mapper.SetScaleArray("radius")
             actor.mapper.SetScaleFactor(1.0)
             self._cloud = cloud
-        else:
+        elif count:
             resolution = spec.sphere_resolution
-            for radius, color in zip(geometry.radius, geometry.colors):
+            for radius, color in zip(geometry.particle_radius, colors):
                 sphere = self.pv.Sphere(radius=float(radius), theta_resolution=resolution, phi_resolution=resolution)
                 self._particle_actors.append(self.plotter.add_mesh(sphere, color=color, smooth_shading=True,
                                                                    specular=0.3, specular_power=20))
 
+    def _add_rigid_bodies(self) -> None:
+        """One mesh per rigid body in its centre-of-mass frame; its actors share one transform matrix."""
+        geometry, spec = self.geometry, self.render_spec
+        first = len(geometry.particle_radius)
+        self._rigid_matrices = []
+        self._vector_actors = []
+        for b, shape in enumerate(geometry.rigid_shapes):
+            mesh = shape_mesh(shape, geometry.base_dir, spec.sphere_resolution).translate(-geometry.rigid_centre[b])
+            # split vertices at sharp edges so boxes stay crisp while spheres and cylinders look smooth
+            mesh = mesh.compute_normals(split_vertices=True, feature_angle=40.0)
+            matrix = self._matrix_class()
+            actor = self.plotter.add_mesh(mesh, color=geometry.colors[first + b], smooth_shading=True,
+                                          specular=0.3, specular_power=20)
+            actor.SetUserMatrix(matrix)
+            if spec.show_axes:
+                length = 1.3 * float(geometry.rigid_extent[b])
+                for axis, color in enumerate(AXIS_COLORS):
+                    direction = np.eye(3)[axis]
+                    arrow = self.pv.Arrow(start=(0, 0, 0), direction=direction, scale=length, tip_length=0.15,
+                                          tip_radius=0.04, shaft_radius=0.015)
+                    self.plotter.add_mesh(arrow, color=color).SetUserMatrix(matrix)
+            if spec.show_vectors != "none":
+                arrow = self.pv.Arrow(start=(0, 0, 0), direction=(1, 0, 0), scale=1.0, tip_length=0.2,
+                                      tip_radius=0.05, shaft_radius=0.02)
+                vector_matrix = self._matrix_class()
+                self.plotter.add_mesh(arrow, color="#ffbf00").SetUserMatrix(vector_matrix)
+                self._vector_actors.append(vector_matrix)
+            self._rigid_matrices.append(matrix)
+
     def _add_springs(self) -> None:
         geometry = self.geometry
         self._spring_mesh = None
-        if self.render_spec.springs == "hidden" or len(geometry.spring_ends) == 0:
+        count = len(geometry.spring_first)
+        if self.render_spec.springs == "hidden" or count == 0:
             return
-        count = len(geometry.radius)
-        points = np.zeros((count + len(geometry.anchor_positions), 3))
-        points[count:] = geometry.anchor_positions
-        cells = np.hstack([np.full((len(geometry.spring_ends), 1), 2), geometry.spring_ends]).ravel()
+        points = np.zeros((2 * count, 3))
+        cells = np.hstack([np.full((count, 1), 2), np.arange(2 * count).reshape(-1, 2)]).ravel()
         mesh = self.pv.PolyData(points, lines=cells)
         colors = np.array([hex_to_rgb(c) for c in geometry.spring_colors]) * 255
         mesh.cell_data["rgb"] = colors.astype(np.uint8)
@@ -149,26 +268,32 @@ class FrameRenderer:
         anchors = self.geometry.anchor_positions
         if not self.render_spec.show_anchors or len(anchors) == 0:
             return
-        size = 0.8 * float(np.median(self.geometry.radius)) if len(self.geometry.radius) else 0.05
+        sizes = np.concatenate([self.geometry.particle_radius, 0.3 * self.geometry.rigid_extent])
+        size = 0.8 * float(np.median(sizes)) if len(sizes) else 0.05
         for position in anchors:
             cube = self.pv.Cube(center=position, x_length=size, y_length=size, z_length=size)
             self.plotter.add_mesh(cube, color=ANCHOR_COLOR)
+
+    def _plane_square(self, level: float, up: np.ndarray, size: float | None) -> tuple[Any, np.ndarray, float]:
+        """A square plane at height ``level`` along ``up`` under the motion, its centre and side length."""
+        bounds = self.geometry.bounds
+        centre = bounds.mean(axis=0)
+        first, second = plane_axes(up)
+        corners = np.array([[bounds[i][0], bounds[j][1], bounds[k][2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+        extent = max(np.ptp(corners @ first), np.ptp(corners @ second))
+        side = size or max(1.4 * extent, 1.0)
+        origin = centre - np.dot(centre, up) * up + level * up  # the motion's centre projected onto the plane
+        return self.pv.Plane(center=origin, direction=up, i_size=side, j_size=side), origin, side
 
     def _add_ground(self) -> None:
         ground = self.render_spec.ground
         if ground is None:
             return
         up = self.camera.up
-        bounds = self.geometry.bounds
-        centre = bounds.mean(axis=0)
-        first, second = plane_axes(up)
-        corners = np.array([[bounds[i][0], bounds[j][1], bounds[k][2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
-        extent = max(np.ptp(corners @ first), np.ptp(corners @ second))
-        size = ground.size or max(1.4 * extent, 1.0)
-        origin = centre - np.dot(centre, up) * up + ground.level * up  # centre projected onto the ground plane
-        plane = self.pv.Plane(center=origin, direction=up, i_size=size, j_size=size)
+        plane, origin, size = self._plane_square(ground.level, up, ground.size)
         self.plotter.add_mesh(plane, color=ground.color, ambient=0.2)
         if ground.grid:
+            first, second = plane_axes(up)
             spacing = nice_spacing(size, 12)
             ticks = np.arange(-size / 2, size / 2 + 1e-9, spacing)
             lift = up * 1e-3 * size  # just above the plane, so the lines win the depth test
@@ -180,6 +305,11 @@ class FrameRenderer:
             points = np.array(segments).reshape(-1, 3)
             cells = np.hstack([np.full((len(segments), 1), 2), np.arange(len(points)).reshape(-1, 2)]).ravel()
             self.plotter.add_mesh(self.pv.PolyData(points, lines=cells), color="#a0a0a0", line_width=1)
+
+    def _add_fluids(self) -> None:
+        for level, up in self.geometry.fluids:
+            plane, _, _ = self._plane_square(level, np.asarray(up, float), None)
+            self.plotter.add_mesh(plane, color=self.render_spec.fluid_color, opacity=0.35, ambient=0.3)
 
     def _add_time_label(self) -> None:
         self._label = None
@@ -202,22 +332,64 @@ class FrameRenderer:
 
     # ------------------------------------------------------------------ per frame
 
-    def draw(self, t: float, positions: np.ndarray) -> np.ndarray:
-        """Render the bodies at ``positions`` (N, 3) [m] at time ``t`` [s]; return an RGB image (H, W, 3) uint8."""
-        if self.use_sprites:
-            self._cloud.points[:] = positions
+    def _set_matrix(self, matrix: Any, rotation: np.ndarray, position: np.ndarray) -> None:
+        values = np.eye(4)
+        values[:3, :3] = rotation
+        values[:3, 3] = position
+        matrix.DeepCopy(values.ravel())
+        matrix.Modified()
+
+    def draw(self, t: float, positions: np.ndarray, orientations: np.ndarray | None = None,
+             angular_velocities: np.ndarray | None = None) -> np.ndarray:
+        """Render the bodies at time ``t`` [s]: centre-of-mass ``positions`` (P, 3) [m], ``orientations`` (P, 4)
+        quaternions and ``angular_velocities`` (P, 3) [rad/s]. Returns an RGB image (H, W, 3) uint8."""
+        geometry = self.geometry
+        n = len(geometry.particle_radius)
+        if self.use_sprites and n:
+            self._cloud.points[:] = positions[:n]
             self._cloud.GetPoints().Modified()
         else:
-            for actor, position in zip(self._particle_actors, positions):
+            for actor, position in zip(self._particle_actors, positions[:n]):
                 actor.SetPosition(*position)
+        rotation = None
+        if orientations is not None and len(self._rigid_matrices):
+            rotation = quaternion.to_matrix(orientations[n:])
+            for b, matrix in enumerate(self._rigid_matrices):
+                self._set_matrix(matrix, rotation[b], positions[n + b])
+            if self._vector_actors and angular_velocities is not None:
+                vectors = angular_velocities[n:]
+                if self.render_spec.show_vectors == "angular_momentum":
+                    vectors = np.einsum("bij,bjk,blk,bl->bi", rotation, geometry.rigid_inertia, rotation, vectors)
+                bases = arrow_basis(vectors) * (geometry.vector_scale * np.linalg.norm(vectors, axis=1))[:, None, None]
+                for b, matrix in enumerate(self._vector_actors):
+                    self._set_matrix(matrix, bases[b], positions[n + b])
         if self._spring_mesh is not None:
-            self._spring_mesh.points[: len(positions)] = positions
+            self._spring_mesh.points[:] = self._spring_ends(positions, rotation)
             self._spring_mesh.GetPoints().Modified()
         if self._label is not None:
             self._label.SetInput(self.render_spec.time_label.format(t=t))
         # The window itself, not plotter.render(): PyVista skips rendering until the plotter was first shown.
         self.plotter.ren_win.Render()
         return self._read_pixels()
+
+    def _spring_ends(self, positions: np.ndarray, rigid_rotation: np.ndarray | None) -> np.ndarray:
+        """World positions of both ends of every spring, interleaved (2S, 3)."""
+        g = self.geometry
+        n = len(g.particle_radius)
+
+        def attached(points: np.ndarray, offset: np.ndarray) -> np.ndarray:
+            result = positions[points].copy()
+            rigid = points >= n
+            if rigid_rotation is not None and rigid.any():
+                result[rigid] += np.einsum("kij,kj->ki", rigid_rotation[points[rigid] - n], offset[rigid])
+            return result
+
+        ends = np.empty((len(g.spring_first), 2, 3))
+        ends[:, 0] = attached(g.spring_first, g.spring_first_offset)
+        to_body = ~g.spring_to_anchor
+        ends[g.spring_to_anchor, 1] = g.anchor_positions[g.spring_second[g.spring_to_anchor]]
+        ends[to_body, 1] = attached(g.spring_second[to_body], g.spring_second_offset[to_body])
+        return ends.reshape(-1, 3)
 
     def _read_pixels(self) -> np.ndarray:
         from vtkmodules.util.numpy_support import vtk_to_numpy

@@ -8,6 +8,7 @@ reports it. Rules that concern one item only (a drag law and its coefficient, sa
 from __future__ import annotations
 
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 from animbatch.scene.diagnostics import did_you_mean
@@ -20,8 +21,14 @@ def check_references(data: dict[str, Any]) -> list[Problem]:
     """Every cross-reference problem in raw scene data, as ``(key path, message)``."""
     bodies = _names(data, "bodies")
     anchors = _names(data, "anchors")
-    return [*_body_list(data), *_duplicate_names(data), *_springs(data, bodies, anchors),
-            *_fields(data, bodies, anchors)]
+    rigid = {name for index, item in _items(data, "bodies") if item.get("type") == "rigid"
+             for name in [item.get("name")] if isinstance(name, str)}
+    return [*_body_list(data), *_duplicate_names(data), *_springs(data, bodies, anchors, rigid),
+            *_fields(data, bodies, anchors, rigid)]
+
+
+#: Field types that act on rigid bodies only.
+RIGID_ONLY_FIELDS = ("torque", "angular_drag")
 
 
 def _items(data: dict[str, Any], section: str) -> list[tuple[int, dict[str, Any]]]:
@@ -43,7 +50,8 @@ def _body_list(data: dict[str, Any]) -> Iterator[Problem]:
         yield ("bodies",), "a scene needs at least one body (a list under 'bodies:')"
 
 
-def _springs(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath]) -> Iterator[Problem]:
+def _springs(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath],
+             rigid: set[str]) -> Iterator[Problem]:
     known = sorted(bodies.keys() | anchors.keys())
     for index, spring in _items(data, "springs"):
         ends = spring.get("between")
@@ -56,11 +64,28 @@ def _springs(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str
         if ends[0] != ends[1] and ends[0] in anchors and ends[1] in anchors:
             yield ("springs", index, "between"), (f"both ends ({ends[0]!r}, {ends[1]!r}) are anchors; "
                                                   "a spring needs at least one body")
+        attach = spring.get("attach")
+        if isinstance(attach, list) and len(attach) == 2:
+            for end, (name, point) in enumerate(zip(ends, attach)):
+                if point is not None and name not in rigid and (name in bodies or name in anchors):
+                    kind = "an anchor" if name in anchors else "a particle"
+                    yield ("springs", index, "attach", end), (
+                        f"{name!r} is {kind}, which has no body points; use null for this end (attachment points "
+                        "are for rigid bodies)")
 
 
-def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath]) -> Iterator[Problem]:
+def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath],
+            rigid: set[str]) -> Iterator[Problem]:
     for index, field in _items(data, "fields"):
         selection = field.get("bodies")
+        if field.get("type") in RIGID_ONLY_FIELDS:
+            if isinstance(selection, list):
+                for position, name in enumerate(selection):
+                    if name in bodies and name not in rigid:
+                        yield ("fields", index, "bodies", position), (
+                            f"{name!r} is a particle, which cannot turn: {field['type']} acts on rigid bodies only")
+            elif not rigid:
+                yield ("fields", index, "type"), f"{field['type']} acts on rigid bodies, and the scene has none"
         if isinstance(selection, list):
             for position, name in enumerate(selection):
                 if not isinstance(name, str) or name in bodies:
@@ -76,6 +101,29 @@ def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str,
             if count < 2:
                 yield ("fields", index, "bodies" if isinstance(selection, list) else "type"), (
                     f"gravitation acts between bodies and needs at least 2 (got {count})")
+
+
+def check_files(spec: Any, base_dir: Path) -> list[Problem]:
+    """Mesh files that are missing, unreadable or not closed, found from ``base_dir`` (the scene's folder)."""
+    from animbatch.rigid.shapes import load_mesh
+    from animbatch.scene.schema import CompoundShape, MeshShape, RigidBodySpec
+
+    problems: list[Problem] = []
+    for index, body in enumerate(spec.bodies):
+        if not isinstance(body, RigidBodySpec):
+            continue
+        shapes: list[tuple[KeyPath, Any]] = [(("bodies", index, "shape"), body.shape)]
+        if isinstance(body.shape, CompoundShape):
+            shapes = [(("bodies", index, "shape", "parts", k, "shape"), part.shape)
+                      for k, part in enumerate(body.shape.parts)]
+        for path, shape in shapes:
+            if isinstance(shape, MeshShape):
+                try:
+                    load_mesh(base_dir / shape.file, shape.scale)
+                except ValueError as error:
+                    problems.append(((*path, "file"), f"{error} (looked in {base_dir.resolve()})"
+                                     if "no such file" in str(error) else str(error)))
+    return problems
 
 
 def _duplicate_names(data: dict[str, Any]) -> Iterator[Problem]:

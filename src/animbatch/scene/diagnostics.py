@@ -21,7 +21,7 @@ from animbatch.scene.annotations import length_limits, model_members, strip_anno
 from animbatch.scene.yaml_source import KeyPath, SourceMap, format_path
 
 #: What one item of a top-level list is called in messages ("unknown field type 'gravty'").
-ITEM_WORDS = {"bodies": "body", "fields": "field", "springs": "spring", "anchors": "anchor"}
+ITEM_WORDS = {"bodies": "body", "fields": "field", "springs": "spring", "anchors": "anchor", "shape": "shape"}
 
 
 @dataclass(frozen=True)

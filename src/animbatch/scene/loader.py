@@ -18,7 +18,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from animbatch.errors import SceneError, SceneIssue
-from animbatch.scene.checks import check_references
+from animbatch.scene.checks import check_files, check_references
 from animbatch.scene.diagnostics import issues_from_validation, sort_issues
 from animbatch.scene.overrides import Override, apply_overrides
 from animbatch.scene.schema import PRESENTATION_KEYS, SceneSpec
@@ -62,6 +62,10 @@ def parse_scene(text: str, *, filename: str = "<scene>", overrides: Sequence[Ove
         issues.extend(issues_from_validation(error, SceneSpec, source))
     if issues:
         raise SceneError(sort_issues(issues))
+    file_problems = check_files(spec, path.parent if path is not None else Path("."))
+    if file_problems:
+        raise SceneError(sort_issues([SceneIssue(source.source_of(p), format_path(p), message)
+                                      for p, message in file_problems]))
     if spec.name is None:
         spec = spec.model_copy(update={"name": _as_name(default_name)})
     return LoadedScene(spec, source, path)
@@ -97,15 +101,36 @@ def _as_name(stem: str) -> str:
     return name if re.match(r"[A-Za-z_]", name) else f"scene-{name}"
 
 
-def physics_fingerprint(spec: SceneSpec) -> str:
+def physics_fingerprint(spec: SceneSpec, base_dir: str | Path = ".") -> str:
     """SHA-256 of everything that determines the motion, and of nothing that only changes how it looks.
 
+    Included: bodies, anchors, springs, fields, timeline, and the bytes of mesh files (found from ``base_dir``).
     Excluded: the name, description, solver settings (stored separately with a trajectory), render settings and
     colours. Two scenes with the same fingerprint describe the same physical system over the same frame times.
     """
     data = _without_colors(spec.model_dump(mode="json", exclude=set(PRESENTATION_KEYS)))
+    files = sorted(set(_mesh_files(data)))
+    if files:
+        data["mesh_file_digests"] = {name: _digest(Path(base_dir) / name) for name in files}
     canonical = json.dumps(data, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(canonical.encode()).hexdigest()
+
+
+def _mesh_files(value: Any) -> list[str]:
+    """File names of every mesh shape in dumped scene data."""
+    if isinstance(value, dict):
+        found = [value["file"]] if value.get("type") == "mesh" and isinstance(value.get("file"), str) else []
+        return found + [name for item in value.values() for name in _mesh_files(item)]
+    if isinstance(value, list):
+        return [name for item in value for name in _mesh_files(item)]
+    return []
+
+
+def _digest(path: Path) -> str:
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return "missing"
 
 
 def _without_colors(value: Any) -> Any:

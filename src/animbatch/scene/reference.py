@@ -21,7 +21,7 @@ from pydantic.fields import FieldInfo
 from pydantic_core import PydanticUndefined
 
 from animbatch.scene import schema
-from animbatch.scene.annotations import field_metadata, union_members
+from animbatch.scene.annotations import field_metadata, tag_of, union_members
 
 BEGIN = "<!-- BEGIN GENERATED REFERENCE (python -m animbatch.scene.reference docs/scene-format.md) -->"
 END = "<!-- END GENERATED REFERENCE -->"
@@ -30,7 +30,12 @@ END = "<!-- END GENERATED REFERENCE -->"
 SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
     ("Top level", "", schema.SceneSpec),
     ("`solver`", "solver.", schema.SolverSpec),
-    ("`bodies[]` — particle", "bodies[].", schema.ParticleSpec),
+    ("`bodies[]` — `type: particle` (the default)", "bodies[].", schema.ParticleSpec),
+    ("`bodies[]` — `type: rigid`", "bodies[].", schema.RigidBodySpec),
+    *[(f"`shape` — `type: {tag_of(shape)}`", "shape.", shape)
+      for shape in schema.SHAPES],
+    ("`shape.parts[]` (compound)", "shape.parts[].", schema.CompoundPart),
+    ("`orientation`", "orientation.", schema.OrientationSpec),
     ("`anchors[]`", "anchors[].", schema.AnchorSpec),
     ("`springs[]`", "springs[].", schema.SpringSpec),
     *[(f"`fields[]` — `type: {schema.field_type_names()[i]}`", "fields[].", spec)

@@ -14,8 +14,8 @@ import difflib
 from typing import Annotated, Any, Literal, Union
 
 import annotated_types as at
-from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, PlainValidator, WithJsonSchema, field_validator,
-                      model_validator)
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, PlainValidator, Tag,
+                      WithJsonSchema, field_validator, model_validator)
 from pydantic_core import PydanticCustomError, PydanticUndefined
 
 NAME_PATTERN = r"^[A-Za-z_][A-Za-z0-9_.\-]*$"
@@ -48,6 +48,7 @@ class SceneModel(BaseModel):
 
 
 Vec3 = Annotated[list[float], at.Len(3, 3)]
+PositiveVec3 = Annotated[list[Annotated[float, Field(gt=0)]], at.Len(3, 3)]
 Name = Annotated[str, Field(pattern=NAME_PATTERN, max_length=64)]
 
 
@@ -152,6 +153,170 @@ class AnchorSpec(SceneModel):
     color: Color | None = key(None, "Display colour (default dark grey).")
 
 
+# ----------------------------------------------------------------------------------------------------------------
+# Rigid bodies
+
+
+class SphereShape(SceneModel):
+    """Solid sphere, centred on the body origin: ``I = 2/5 m r²``."""
+
+    type: Literal["sphere"] = key(description="Shape type.")
+    radius: float = key(description="Radius.", unit="m", gt=0)
+
+
+class ShellShape(SceneModel):
+    """Spherical shell, centred on the body origin. Thin (``I = 2/3 m r²``, give a mass) unless a thickness is given
+    (hollow sphere, ``I = 2/5 m (R⁵ - r⁵)/(R³ - r³)``)."""
+
+    type: Literal["shell"] = key(description="Shape type.")
+    radius: float = key(description="Outer radius.", unit="m", gt=0)
+    thickness: float | None = key(None, "Wall thickness (default: infinitely thin, so the body needs a mass, not a "
+                                        "density).", "m", gt=0)
+
+
+class BoxShape(SceneModel):
+    """Cuboid centred on the body origin, edges along the body axes: ``I = m/12 diag(b² + c², a² + c², a² + b²)``."""
+
+    type: Literal["box"] = key(description="Shape type.")
+    size: PositiveVec3 = key(description="Side lengths [a, b, c] along the body x, y, z axes.", unit="m")
+
+
+class CylinderShape(SceneModel):
+    """Solid cylinder along the body z axis, centred on the origin: ``I_xx = I_yy = ¼ m r² + 1/12 m l²``,
+    ``I_zz = ½ m r²``."""
+
+    type: Literal["cylinder"] = key(description="Shape type.")
+    radius: float = key(description="Radius.", unit="m", gt=0)
+    length: float = key(description="Length along the body z axis.", unit="m", gt=0)
+
+
+class RodShape(SceneModel):
+    """Thin rod along the body z axis, centred on the origin: ``I_xx = I_yy ≈ 1/12 m l²``. It is a cylinder of small
+    radius, so that the moment about its own axis (``½ m r²``) is small but not zero."""
+
+    type: Literal["rod"] = key(description="Shape type.")
+    length: float = key(description="Length along the body z axis.", unit="m", gt=0)
+    radius: float | None = key(None, "Radius (default: length / 100).", "m", gt=0)
+
+
+class MeshShape(SceneModel):
+    """A closed triangle mesh from an STL, OBJ or PLY file; volume, centre of mass and inertia are computed exactly
+    from its surface (divergence theorem)."""
+
+    type: Literal["mesh"] = key(description="Shape type.")
+    file: str = key(description="Mesh file, relative to the scene file.", example="meshes/bunny.stl")
+    scale: float | PositiveVec3 = key(1.0, "Scale factor, or factors [sx, sy, sz], applied to the file's "
+                                           "coordinates (e.g. 0.001 for a file in millimetres).", "1")
+
+    @field_validator("scale")
+    @classmethod
+    def _positive(cls, scale: float | list[float]) -> float | list[float]:
+        if isinstance(scale, float | int) and scale <= 0:
+            raise rule_error(f"must be > 0 (got {scale})")
+        return scale
+
+
+class OrientationSpec(SceneModel):
+    """A rotation from body to world axes, given one way: axis and angle, a quaternion, or Euler angles."""
+
+    axis: Vec3 | None = key(None, "Rotation axis (with angle).", "1")
+    angle: float | None = key(None, "Rotation angle about the axis (with axis).", "deg")
+    quaternion: Annotated[list[float], at.Len(4, 4)] | None = key(None, "Unit quaternion [w, x, y, z] (normalised "
+                                                                        "if it is not).", "1")
+    euler: Vec3 | None = key(None, "Rotations about the world x, then y, then z axes (extrinsic xyz).", "deg")
+
+    @model_validator(mode="after")
+    def _one_way(self) -> "OrientationSpec":
+        given = [name for name in ("axis", "angle", "quaternion", "euler") if getattr(self, name) is not None]
+        ways = {"axis" in given or "angle" in given, "quaternion" in given, "euler" in given}
+        if sum(ways) > 1 or (("axis" in given) != ("angle" in given)):
+            raise rule_error("give the orientation one way: axis and angle together, or quaternion, or euler "
+                             f"(got {', '.join(given)})")
+        if self.axis is not None and not any(self.axis):
+            raise rule_error("must not be the zero vector", "axis")
+        if self.quaternion is not None and not any(self.quaternion):
+            raise rule_error("must not be zero", "quaternion")
+        return self
+
+
+PRIMITIVE_SHAPES: tuple[type[SceneModel], ...] = (SphereShape, ShellShape, BoxShape, CylinderShape, RodShape,
+                                                  MeshShape)
+PrimitiveShape = Annotated[Union[*PRIMITIVE_SHAPES], Field(discriminator="type")]  # type: ignore[valid-type]
+
+
+class CompoundPart(SceneModel):
+    """One primitive of a compound body, placed in the body's frame, with its own density or mass."""
+
+    shape: PrimitiveShape = key(description="The part's shape (any shape except compound).")  # type: ignore[valid-type]
+    offset: Vec3 = key([0.0, 0.0, 0.0], "Position of the part's origin in the body frame.", "m")
+    orientation: OrientationSpec | None = key(None, "Rotation of the part in the body frame (default none).")
+    density: float | None = key(None, "Density of this part (default: the body's density).", "kg/m³", gt=0)
+    mass: float | None = key(None, "Mass of this part, instead of a density.", "kg", gt=0)
+
+    @model_validator(mode="after")
+    def _not_both(self) -> "CompoundPart":
+        if self.density is not None and self.mass is not None:
+            raise rule_error("give density or mass, not both", "mass")
+        return self
+
+
+class CompoundShape(SceneModel):
+    """Several primitives joined rigidly: ``M = Σ mᵢ``, ``c = Σ mᵢ cᵢ / M``, inertia by parallel axes and rotations."""
+
+    type: Literal["compound"] = key(description="Shape type.")
+    parts: Annotated[list[CompoundPart], at.Len(1, 1000)] = key(description="The parts.")
+
+
+SHAPES: tuple[type[SceneModel], ...] = (*PRIMITIVE_SHAPES, CompoundShape)
+ShapeSpec = Annotated[Union[*SHAPES], Field(discriminator="type")]  # type: ignore[valid-type]
+
+
+class RigidBodySpec(SceneModel):
+    """A rigid body: a shape with mass properties from its density (or a given mass), state ``[x, q, P, L]``.
+
+    ``position`` places the shape's origin (the centre of primitives); the body moves about its centre of mass.
+    """
+
+    type: Literal["rigid"] = key(description="Body type.")
+    name: Name = key(description="Unique name.", example="crate")
+    shape: ShapeSpec = key(description="Shape; gives volume, centre of mass and inertia.")  # type: ignore[valid-type]
+    density: float | None = key(None, "Density: mass = density × volume.", "kg/m³", gt=0)
+    mass: float | None = key(None, "Mass, instead of a density (for a compound: the total, distributed as the "
+                                    "parts' densities say).", "kg", gt=0)
+    position: Vec3 = key([0.0, 0.0, 0.0], "Initial position of the shape's origin.", "m")
+    orientation: OrientationSpec | None = key(None, "Initial orientation (default: body axes = world axes).")
+    velocity: Vec3 = key([0.0, 0.0, 0.0], "Initial velocity of the centre of mass.", "m/s")
+    angular_velocity: Vec3 = key([0.0, 0.0, 0.0], "Initial angular velocity ω, world axes.", "rad/s")
+    color: Color | None = key(None, "Display colour (default: from a palette, by body index).")
+
+    @model_validator(mode="after")
+    def _mass_given_once(self) -> "RigidBodySpec":
+        if self.density is not None and self.mass is not None:
+            raise rule_error("give density or mass, not both", "mass")
+        if isinstance(self.shape, CompoundShape):
+            if self.density is None and any(p.density is None and p.mass is None for p in self.shape.parts):
+                raise rule_error("every part needs a density or mass, or the body a density", "density")
+        elif self.density is None and self.mass is None:
+            raise rule_error("required key missing: give density (kg/m³, mass = density × volume) or mass (kg)",
+                             "density")
+        thin = isinstance(self.shape, ShellShape) and self.shape.thickness is None
+        if thin and self.density is not None:
+            raise rule_error("a thin shell has no volume, so a density gives no mass: give mass, or shape.thickness",
+                             "density")
+        return self
+
+
+def _body_kind(value: Any) -> str | None:
+    """Bodies are particles unless they say otherwise."""
+    if isinstance(value, dict):
+        return value.get("type", "particle")
+    return getattr(value, "type", None)
+
+
+BodySpec = Annotated[Union[Annotated[ParticleSpec, Tag("particle")], Annotated[RigidBodySpec, Tag("rigid")]],
+                     Discriminator(_body_kind)]
+
+
 class SpringSpec(SceneModel):
     """A Hooke spring with a damper along its axis, between two bodies or a body and an anchor.
 
@@ -166,6 +331,10 @@ class SpringSpec(SceneModel):
     damping: float = key(0.0, "Damping constant kd along the spring axis.", "N·s/m", ge=0)
     rest_length: float | None = key(None, "Rest length r (default: the initial distance between the ends).",
                                     "m", ge=0)
+    attach: Annotated[list[Vec3 | None], at.Len(2, 2)] | None = key(
+        None, "Attachment points [first, second] in body coordinates (relative to the shape's origin) for rigid "
+              "bodies; null for an end at a centre of mass, particle or anchor.", "m",
+        example=[[0.5, 0.25, 0.5], None])
     color: Color | None = key(None, "Display colour (default grey).")
 
     @field_validator("between")
@@ -210,6 +379,10 @@ DragModel = Literal["linear", "quadratic", "stokes"]
 class _DragLaw(SceneModel):
     """The keys shared by drag and wind, and the rule tying the drag law to its parameters."""
 
+    at: Vec3 | None = key(None, "For rigid bodies: the point (body coordinates, relative to the shape's origin) "
+                                "whose velocity the drag opposes and where it acts, giving a torque (default: the "
+                                "centre of mass). Particles ignore it.", "m")
+
     coefficient: float | None = key(None, "C for the linear (N·s/m) or quadratic (kg/m) law; not used by stokes.",
                                     "N·s/m or kg/m", ge=0)
     viscosity: float | None = key(None, "Dynamic viscosity η of the fluid for the stokes law "
@@ -232,9 +405,10 @@ class _DragLaw(SceneModel):
 
 
 class DragSpec(_DragLaw):
-    """Fluid drag against the body's velocity.
+    """Fluid drag against the body's velocity, at its centre of mass or at a point ``at`` of rigid bodies.
 
-    ``linear``: ``f = -C v``; ``quadratic``: ``f = -C |v| v``; ``stokes``: ``f = -6 π η r v`` (r: body radius).
+    ``linear``: ``f = -C v``; ``quadratic``: ``f = -C |v| v``; ``stokes``: ``f = -6 π η r v`` (r: the particle's
+    radius, or for a rigid body the radius of the sphere of equal volume).
     """
 
     type: Literal["drag"] = key(description="Field type.")
@@ -251,7 +425,67 @@ class WindSpec(_DragLaw):
     bodies: BodySelection = key(None, _BODIES_DESCRIPTION)
 
 
-FIELD_SPECS: tuple[type[SceneModel], ...] = (GravitySpec, GravitationSpec, DragSpec, WindSpec)
+Frame = Literal["world", "body"]
+
+
+class ForceSpec(SceneModel):
+    """A constant force, applied at a point of each selected body; off the centre of mass it gives torque r × f."""
+
+    type: Literal["force"] = key(description="Field type.")
+    force: Vec3 = key(description="The force vector.", unit="N")
+    at: Vec3 | None = key(None, "Point of application in body coordinates (relative to the shape's origin; default: "
+                                "the centre of mass). Particles ignore it.", "m")
+    frame: Frame = key("world", "Axes of 'force': world (fixed direction) or body (turns with the body, like a "
+                                "thruster).")
+    bodies: BodySelection = key(None, _BODIES_DESCRIPTION)
+
+
+class TorqueSpec(SceneModel):
+    """A constant torque on each selected rigid body."""
+
+    type: Literal["torque"] = key(description="Field type.")
+    torque: Vec3 = key(description="The torque vector.", unit="N·m")
+    frame: Frame = key("world", "Axes of 'torque': world or body.")
+    bodies: BodySelection = key(None, "Names of the rigid bodies it acts on (default: all rigid bodies).")
+
+
+class AngularDragSpec(SceneModel):
+    """Rotational damping ``τ = -c ω`` on each selected rigid body (air resistance to spinning, bearing friction)."""
+
+    type: Literal["angular_drag"] = key(description="Field type.")
+    coefficient: float = key(description="Rotational damping coefficient c.", unit="N·m·s", ge=0)
+    bodies: BodySelection = key(None, "Names of the rigid bodies it acts on (default: all rigid bodies).")
+
+
+class BuoyancySpec(SceneModel):
+    """A fluid filling the half-space below a surface: each selected body is pushed up by ``ρ g V_submerged`` at the
+    centre of the submerged volume (so floating bodies right themselves), and optionally damped in proportion to how
+    much of it is submerged.
+
+    Submerged volumes are exact for spheres, particles (spheres of their radius), boxes and meshes (clipped exactly
+    at the surface); cylinders and rods use a 96-sided prism, within 0.1 % of their volume.
+    """
+
+    type: Literal["buoyancy"] = key(description="Field type.")
+    density: float = key(1000.0, "Density ρ of the fluid (water 1000, sea water 1025, air 1.2).", "kg/m³", gt=0)
+    level: float = key(0.0, "Height of the fluid surface along 'up'.", "m")
+    up: Vec3 = key([0.0, 1.0, 0.0], "Upward direction (opposite to gravity).", "1")
+    g: float = key(9.81, "Gravitational acceleration used for the buoyant force.", "m/s²", gt=0)
+    linear_damping: float = key(0.0, "Viscous damping of the fluid, -c v, at full submersion (scaled by the "
+                                     "submerged fraction).", "N·s/m", ge=0)
+    angular_damping: float = key(0.0, "Rotational damping -c ω at full submersion (scaled likewise).", "N·m·s", ge=0)
+    bodies: BodySelection = key(None, _BODIES_DESCRIPTION)
+
+    @field_validator("up")
+    @classmethod
+    def _nonzero(cls, up: list[float]) -> list[float]:
+        if not any(up):
+            raise rule_error("must not be the zero vector")
+        return up
+
+
+FIELD_SPECS: tuple[type[SceneModel], ...] = (GravitySpec, GravitationSpec, DragSpec, WindSpec, ForceSpec, TorqueSpec,
+                                             AngularDragSpec, BuoyancySpec)
 FieldSpec = Annotated[Union[*FIELD_SPECS], Field(discriminator="type")]  # type: ignore[valid-type]
 
 
@@ -328,6 +562,11 @@ class RenderSpec(SceneModel):
     springs: Literal["tube", "line", "hidden"] = key("tube", "How springs are drawn.")
     spring_width: float = key(3.0, "Width of spring lines and tubes on screen.", "px", gt=0, le=50)
     show_anchors: bool = key(True, "Draw anchors as small dark cubes.")
+    show_axes: bool = key(False, "Draw each rigid body's axes (x red, y green, z blue), turning with it.")
+    show_vectors: Literal["none", "angular_velocity", "angular_momentum"] = key(
+        "none", "Draw an arrow from each rigid body's centre of mass along ω or L, scaled so that the largest over "
+                "the animation is twice the body's size.")
+    fluid_color: Color = key("#3a7bd5", "Colour of the surfaces of buoyancy fluids (drawn translucent).")
     ground: GroundSpec | None = key(None, "Ground plane (omit for none; 'ground: {}' for the defaults).")
     show_time: bool = key(True, "Overlay the simulated time.")
     time_label: str = key("t = {t:.2f} s", "Format of the time overlay; {t} is the simulated time in s.")
@@ -369,7 +608,7 @@ class SceneSpec(SceneModel):
                           "s", gt=0, le=86400)
     fps: int = key(30, "Frames per second of the animation (and of the trajectory samples).", "Hz", ge=1, le=240)
     solver: SolverSpec = key(SolverSpec(), "Integrator settings.")
-    bodies: list[ParticleSpec] = key([], "Simulated bodies.")
+    bodies: list[BodySpec] = key([], "Simulated bodies: particles (the default type) and rigid bodies.")
     anchors: list[AnchorSpec] = key([], "Fixed points for springs.")
     springs: list[SpringSpec] = key([], "Springs and dampers.")
     fields: list[FieldSpec] = key([], "Force fields; only the declared ones are compiled.")  # type: ignore[valid-type]
