@@ -76,3 +76,21 @@ def test_info_lists_compiled_terms_layout_and_masses(tmp_path):
     assert "1. gravity" in out and "2. spring" in out and "1 spring (1 body–body, 0 body–anchor)" in out
     assert "not compiled (not declared): force, torque, angular_drag, buoyancy, drag, wind, gravitation" in out
     assert "a                         1        0.05" in out
+
+
+def test_info_shows_rigid_mass_properties(tmp_path):
+    """'animbatch info' lists each rigid body's mass, centre of mass, inertia tensor and principal moments."""
+    path = tmp_path / "r.yaml"
+    path.write_text("""
+bodies:
+  - name: bar
+    type: rigid
+    mass: 12
+    shape: {type: compound, parts: [{shape: {type: box, size: [1, 2, 3]}, offset: [0.5, 0, 0]}]}
+""")
+    result = CliRunner().invoke(cli, ["info", str(path)])
+    assert result.exit_code == 0, result.output
+    assert "rigid      bar: mass 12 kg, volume 6 m³, centre of mass (0.5, 0, 0) m from the shape origin" in result.output
+    assert "(13, 0, 0)  (0, 10, 0)  (0, 0, 5)" in result.output
+    assert "principal moments (5, 10, 13) kg·m²" in result.output
+    assert "y[0:3]  rigid_position  (1 × 3) [m]" in result.output and "rigid_orientation  (1 × 4)" in result.output

@@ -199,3 +199,68 @@ def test_fitted_camera_keeps_the_whole_motion_in_view():
         tan_half = math.tan(math.radians(placement.view_angle) / 2)
         assert np.all(np.abs(rel @ up) / depth <= tan_half + 1e-9)
         assert np.all(np.abs(rel @ right) / depth <= tan_half * aspect + 1e-9)
+
+
+ROTATING = f"""
+name: turning
+duration: 0.5
+fps: 4
+solver: {{method: DOP853, rtol: 1.0e-10}}
+bodies:
+  - {{name: bar, type: rigid, shape: {{type: box, size: [1.6, 0.3, 0.3]}}, density: 500,
+     angular_velocity: [0, 0, {np.pi}], color: "#ff0000"}}
+render:
+  resolution: [{WIDTH}, {WIDTH}]
+  background: white
+  show_time: false
+  anti_aliasing: none
+  camera: {{position: [0, 0, 5], focal_point: [0, 0, 0], view_angle: 40}}
+  formats: [png]
+"""
+
+
+def red_extent(image: np.ndarray) -> tuple[int, int]:
+    """Width and height in pixels of the red region."""
+    rgb = image.astype(int)
+    rows, cols = np.nonzero((rgb[..., 0] > 120) & (rgb[..., 1] < 100) & (rgb[..., 2] < 100))
+    return int(np.ptp(cols)), int(np.ptp(rows))
+
+
+def test_rigid_body_turns_by_its_transform_not_a_new_mesh(tmp_cwd, monkeypatch):
+    """A bar spinning at π rad/s about the view axis is wide at t = 0 and tall at t = 0.5 s (turned 90°); the
+    renderer only updates the actor's matrix: no mesh is built after the first frame."""
+    import pyvista as pv
+
+    (tmp_cwd / "turning.yaml").write_text(ROTATING)
+    built = []
+    original_box = pv.Box
+
+    def counting_box(*args, **kwargs):
+        built.append(1)
+        return original_box(*args, **kwargs)
+
+    monkeypatch.setattr(pv, "Box", counting_box)
+    api.run(tmp_cwd / "turning.yaml", out_dir="renders")
+    first = np.asarray(Image.open(tmp_cwd / "renders" / "turning" / "frames" / "frame_00000.png"))
+    last = np.asarray(Image.open(tmp_cwd / "renders" / "turning" / "frames" / "frame_00001.png"))
+    wide, _ = red_extent(first)
+    across, tall = red_extent(last)
+    pixels_per_metre = WIDTH / (2 * 5 * math.tan(math.radians(20)))
+    assert wide == pytest.approx((1.6 - 0.0) * pixels_per_metre, rel=0.1)
+    assert tall == pytest.approx(1.6 * pixels_per_metre * math.sin(math.pi / 4) + 0.3 * pixels_per_metre
+                                 * math.cos(math.pi / 4), rel=0.15)  # frame 1 is at t = 0.25 s: turned 45°
+    assert built == [1]  # the box mesh was made once
+
+
+def test_body_axes_are_drawn_in_their_colours(tmp_cwd):
+    """show_axes draws red, green and blue arrows along the body's axes."""
+    (tmp_cwd / "turning.yaml").write_text(ROTATING.replace("show_time: false", "show_time: false\n  show_axes: true")
+                                          .replace('color: "#ff0000"', 'color: "#cccccc"'))
+    api.run(tmp_cwd / "turning.yaml", out_dir="renders", overrides=["duration=0.1"])
+    image = np.asarray(Image.open(tmp_cwd / "renders" / "turning" / "frames" / "frame_00000.png")).astype(int)
+    r, g, b = image[..., 0], image[..., 1], image[..., 2]
+    red = (r > g + 60) & (r > b + 60)  # shading darkens the arrows, so test which channel dominates
+    green = (g > r + 40) & (g > b + 40)
+    assert red.sum() > 10 and green.sum() > 20
+    assert np.nonzero(red)[1].mean() > WIDTH / 2 + 10  # the x axis points right of the centre
+    assert np.nonzero(green)[0].mean() < WIDTH / 2 - 10  # the y axis points up

@@ -27,7 +27,7 @@ def one_line_summary(scene: LoadedScene) -> str:
 
 
 def _vector(values: object) -> str:
-    return "(" + ", ".join(f"{float(c):.4g}" for c in values) + ")"  # type: ignore[attr-defined]
+    return "(" + ", ".join(f"{float(c) + 0.0:.4g}" for c in values) + ")"  # type: ignore[attr-defined]  (+0.0: no "-0")
 
 
 def _rigid_lines(model: Model, x0: object, v0: object) -> list[str]:

@@ -12,8 +12,10 @@ from typing import Literal
 
 import numpy as np
 
+
 from animbatch.forces.base import (BodyTable, ForceTerm, Kinematics, field_term, rigid_selection, selection_text,
                                    vector_text)
+from animbatch.rigid.quaternion import cross
 from animbatch.scene.schema import AngularDragSpec, ForceSpec, TorqueSpec
 
 
@@ -52,7 +54,7 @@ class AppliedForce(ForceTerm):
             applied = _in_world(self.force, self.frame, state.rotation, self.rigid)
             force[self.rigid + self.first_rigid] += applied
             if np.any(self.offset):
-                torque[self.rigid] += np.cross(state.lever(self.rigid, self.offset), applied)
+                torque[self.rigid] += cross(state.lever(self.rigid, self.offset), applied)
 
     def describe(self) -> str:
         bodies = np.concatenate([self.particles, self.rigid + self.first_rigid])

@@ -20,8 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+
 from animbatch.forces.base import BodyTable, ForceTerm, Kinematics, field_term, selection_text, vector_text
 from animbatch.rigid.polyhedra import submerged_volume_and_moment
+from animbatch.rigid.quaternion import cross
 from animbatch.scene.schema import BuoyancySpec
 
 
@@ -107,7 +109,7 @@ class Buoyancy(ForceTerm):
         if torque is not None and state.omega is not None:
             rigid = self.bodies >= self.first_rigid
             points, which = self.bodies[rigid], self.bodies[rigid] - self.first_rigid
-            torque[which] += np.cross(centre[points] - state.x[points], lift[points])
+            torque[which] += cross(centre[points] - state.x[points], lift[points])
             if self.angular_damping:
                 torque[which] -= (self.angular_damping * fraction[rigid])[:, None] * state.omega[which]
 

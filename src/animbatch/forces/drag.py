@@ -18,8 +18,10 @@ from typing import Literal
 
 import numpy as np
 
+
 from animbatch.forces.base import (BodyTable, ForceTerm, Kinematics, add_at, field_term, rigid_selection,
                                    selection_text, vector_text)
+from animbatch.rigid.quaternion import cross
 from animbatch.scene.schema import DragSpec, WindSpec
 
 AIR_VISCOSITY = 1.81e-5  # Pa·s, dry air at 15 °C
@@ -101,12 +103,12 @@ class Drag(ForceTerm):
         if self.at_points is not None and len(self.at_points):
             assert torque is not None and state.omega is not None
             lever = state.lever(self.at_rigid, self.at_offset)
-            relative = state.v[self.at_points] + np.cross(state.omega[self.at_rigid], lever)
+            relative = state.v[self.at_points] + cross(state.omega[self.at_rigid], lever)
             if self.wind is not None:
                 relative = relative - self.wind
             pulled = drag_force(self.law, self.at_coefficient, relative)
             force[self.at_points] += pulled
-            torque[self.at_rigid] += np.cross(lever, pulled)
+            torque[self.at_rigid] += cross(lever, pulled)
 
     def describe(self) -> str:
         if self.law == "stokes":

@@ -21,6 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from animbatch.forces.base import ForceTerm, Kinematics
+from animbatch.rigid.quaternion import cross
 
 
 @dataclass(frozen=True, eq=False)
@@ -127,7 +128,7 @@ class SpringForces(ForceTerm):
                 assert attachment is not None and state.omega is not None
                 k = attachment.springs
                 p[k] = p[k] + lever[k]
-                v[k] = v[k] + np.cross(state.omega[attachment.rigid], lever[k])
+                v[k] = v[k] + cross(state.omega[attachment.rigid], lever[k])
         return p1, v1, p2, v2, lever1, lever2
 
     def spring_forces(self, state: Kinematics) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
@@ -148,7 +149,7 @@ class SpringForces(ForceTerm):
             if lever is not None:
                 assert torque is not None and attachment is not None
                 k = attachment.springs
-                torque += attachment.torque_scatter @ np.cross(lever[k], sign * f1[k])
+                torque += attachment.torque_scatter @ cross(lever[k], sign * f1[k])
 
     def potential_energy(self, state: Kinematics) -> float:
         """Elastic energy ½ ks (|L| - r)² summed over springs [J] (dampers store none)."""

@@ -88,9 +88,10 @@ class Dynamics:
     def motion_rate(self, t: float, config: np.ndarray, motion: np.ndarray,
                     out: np.ndarray | None = None) -> np.ndarray:
         """``dm/dt = [F_particles / m, F_rigid, τ]``, flat, written to ``out`` when given."""
-        state = self.kinematics(config, motion)
+        return self._motion_rate(t, self.kinematics(config, motion), np.empty(len(motion)) if out is None else out)
+
+    def _motion_rate(self, t: float, state: Kinematics, out: np.ndarray) -> np.ndarray:
         force, torque = self.loads(t, state)
-        out = np.empty(len(motion)) if out is None else out
         n = self.particles
         np.multiply(force[:n], self._inverse_mass, out=out[: 3 * n].reshape(n, 3))
         if self.rigid:
@@ -98,25 +99,24 @@ class Dynamics:
             out[3 * n + 3 * self.rigid:] = torque.ravel()  # type: ignore[union-attr]
         return out
 
-    def config_rate(self, config: np.ndarray, motion: np.ndarray, out: np.ndarray) -> np.ndarray:
+    def _config_rate(self, config: np.ndarray, motion: np.ndarray, state: Kinematics, out: np.ndarray) -> None:
         """``dc/dt = [v, P / M, ½ (0, ω) ⊗ q]``, flat, into ``out``."""
         n = self.particles
         out[: 3 * n] = motion[: 3 * n]
         if self.rigid:
-            position, orientation, momentum, angular_momentum = self._rigid_views(config, motion)
             b = self.rigid
-            rotation = quaternion.to_matrix(orientation)
-            omega = world_inverse_inertia_times(rotation, self._inverse_inertia, angular_momentum)
-            out[3 * n: 3 * n + 3 * b] = (momentum * self._rigid_inverse_mass).ravel()
-            out[3 * n + 3 * b:] = quaternion.rate(orientation, omega).ravel()
-        return out
+            assert state.omega is not None
+            orientation = config[3 * n + 3 * b:].reshape(b, 4)
+            out[3 * n: 3 * n + 3 * b] = state.v[n:].ravel()
+            out[3 * n + 3 * b:] = quaternion.rate(orientation, state.omega).ravel()
 
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         """``dy/dt`` as a new array (solve_ivp keeps references to the arrays it receives)."""
         config, motion = self.split(y)
+        state = self.kinematics(config, motion)  # rotations and ω once, for both halves
         dydt = np.empty_like(y)
-        self.config_rate(config, motion, dydt[: self._config_size])
-        self.motion_rate(t, config, motion, out=dydt[self._config_size:])
+        self._config_rate(config, motion, state, dydt[: self._config_size])
+        self._motion_rate(t, state, dydt[self._config_size:])
         return dydt
 
     def drift(self, config: np.ndarray, motion: np.ndarray, h: float) -> None:

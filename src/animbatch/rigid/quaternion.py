@@ -15,12 +15,23 @@ IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
 def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Hamilton product ``p ⊗ q``, shape (..., 4)."""
-    pw, px, py, pz = np.moveaxis(p, -1, 0)
-    qw, qx, qy, qz = np.moveaxis(q, -1, 0)
-    return np.stack([pw * qw - px * qx - py * qy - pz * qz,
-                     pw * qx + px * qw + py * qz - pz * qy,
-                     pw * qy - px * qz + py * qw + pz * qx,
-                     pw * qz + px * qy - py * qx + pz * qw], axis=-1)
+    pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
+    qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
+    out[..., 0] = pw * qw - px * qx - py * qy - pz * qz
+    out[..., 1] = pw * qx + px * qw + py * qz - pz * qy
+    out[..., 2] = pw * qy - px * qz + py * qw + pz * qx
+    out[..., 3] = pw * qz + px * qy - py * qx + pz * qw
+    return out
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a × b`` over the last axis; for small arrays several times cheaper than ``np.cross``."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
 
 
 def normalized(q: np.ndarray) -> np.ndarray:
@@ -29,12 +40,17 @@ def normalized(q: np.ndarray) -> np.ndarray:
 
 def to_matrix(q: np.ndarray) -> np.ndarray:
     """Rotation matrices (..., 3, 3) of quaternions (..., 4); ``q`` need not be exactly unit (it is normalised)."""
-    w, x, y, z = np.moveaxis(normalized(q), -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
-    ], axis=-2)
+    # dividing by |q|² instead of normalising q first gives the same matrix with fewer operations
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    scale = 2.0 / (w * w + x * x + y * y + z * z)
+    xx, yy, zz = scale * x * x, scale * y * y, scale * z * z
+    xy, xz, yz = scale * x * y, scale * x * z, scale * y * z
+    wx, wy, wz = scale * w * x, scale * w * y, scale * w * z
+    out = np.empty((*q.shape[:-1], 3, 3))
+    out[..., 0, 0], out[..., 0, 1], out[..., 0, 2] = 1 - yy - zz, xy - wz, xz + wy
+    out[..., 1, 0], out[..., 1, 1], out[..., 1, 2] = xy + wz, 1 - xx - zz, yz - wx
+    out[..., 2, 0], out[..., 2, 1], out[..., 2, 2] = xz - wy, yz + wx, 1 - xx - yy
+    return out
 
 
 def from_rotation_vector(v: np.ndarray) -> np.ndarray:
@@ -49,8 +65,14 @@ def from_rotation_vector(v: np.ndarray) -> np.ndarray:
 
 def rate(q: np.ndarray, omega: np.ndarray) -> np.ndarray:
     """``dq/dt = ½ (0, ω) ⊗ q`` for world angular velocity ω (..., 3)."""
-    pure = np.concatenate([np.zeros((*omega.shape[:-1], 1)), omega], axis=-1)
-    return 0.5 * multiply(pure, q)
+    wx, wy, wz = 0.5 * omega[..., 0], 0.5 * omega[..., 1], 0.5 * omega[..., 2]
+    qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    out = np.empty(q.shape)
+    out[..., 0] = -wx * qx - wy * qy - wz * qz
+    out[..., 1] = wx * qw + wy * qz - wz * qy
+    out[..., 2] = -wx * qz + wy * qw + wz * qx
+    out[..., 3] = wx * qy - wy * qx + wz * qw
+    return out
 
 
 def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -131,7 +131,8 @@ def body_geometry(spec: RigidBodySpec, base: Path = Path(".")) -> BodyGeometry:
     if isinstance(spec.shape, CompoundShape):
         parts, spheres, triangles = [], [], []
         for part in spec.shape.parts:
-            density = part.density if part.density is not None else spec.density
+            # a part without density uses the body's; with only a body mass, all such parts share one density
+            density = next(d for d in (part.density, spec.density, 1.0) if d is not None)
             properties, part_spheres, part_triangles = _primitive(part.shape, part.mass, density, base)
             rotation = orientation_matrix(part.orientation)
             offset = np.asarray(part.offset, float)

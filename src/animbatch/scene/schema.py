@@ -282,7 +282,7 @@ class RigidBodySpec(SceneModel):
     shape: ShapeSpec = key(description="Shape; gives volume, centre of mass and inertia.")  # type: ignore[valid-type]
     density: float | None = key(None, "Density: mass = density × volume.", "kg/m³", gt=0)
     mass: float | None = key(None, "Mass, instead of a density (for a compound: the total, distributed as the "
-                                    "parts' densities say).", "kg", gt=0)
+                                    "parts' densities say, or uniformly where they give none).", "kg", gt=0)
     position: Vec3 = key([0.0, 0.0, 0.0], "Initial position of the shape's origin.", "m")
     orientation: OrientationSpec | None = key(None, "Initial orientation (default: body axes = world axes).")
     velocity: Vec3 = key([0.0, 0.0, 0.0], "Initial velocity of the centre of mass.", "m/s")
@@ -294,8 +294,9 @@ class RigidBodySpec(SceneModel):
         if self.density is not None and self.mass is not None:
             raise rule_error("give density or mass, not both", "mass")
         if isinstance(self.shape, CompoundShape):
-            if self.density is None and any(p.density is None and p.mass is None for p in self.shape.parts):
-                raise rule_error("every part needs a density or mass, or the body a density", "density")
+            unspecified = any(p.density is None and p.mass is None for p in self.shape.parts)
+            if self.density is None and self.mass is None and unspecified:
+                raise rule_error("every part needs a density or mass, or the body a density or mass", "density")
         elif self.density is None and self.mass is None:
             raise rule_error("required key missing: give density (kg/m³, mass = density × volume) or mass (kg)",
                              "density")
