@@ -289,3 +289,30 @@ def test_bundled_floating_scene_settles_as_its_comment_says():
     assert trajectory.positions[-1, names.index("cube"), 1] == pytest.approx(0.2 - 0.15 * 0.4, abs=1e-3)
     up = axis_in_world(trajectory, names.index("cube"), 1)
     assert abs(up[-1, 1]) > np.cos(np.radians(1))
+
+
+def test_bundled_dumbbell_centre_follows_the_parabola_and_spins_steadily():
+    """Gravity has no torque about the centre of mass: it flies on the parabola of its launch and ω stays 14 ẑ."""
+    loaded = load_scene(ROOT / "scenes" / "dumbbell.yaml")
+    model = api.compile_model(loaded)
+    trajectory = api.simulate(loaded, model=model)
+    t = trajectory.times
+    start = trajectory.positions[0, 0]
+    expected = start + np.outer(t, [1.0, 4.6, 0]) + np.outer(0.5 * t**2, [0, -9.81, 0])
+    assert np.allclose(trajectory.positions[:, 0], expected, atol=1e-7)
+    assert np.allclose(trajectory.angular_velocities[:, 0], [0, 0, 14.0], atol=1e-7)
+    assert start[0] > 0.05  # the centre of mass sits towards the heavier ball (+x), not at the shape origin
+
+
+def test_bundled_hanging_box_settles_with_its_centre_under_the_hook():
+    """The box hung from a corner comes to rest with hook, corner and centre of mass on one vertical line (within
+    5 mm, for a 40 cm box, by the end of the 12 s scene)."""
+    loaded = load_scene(ROOT / "scenes" / "hanging_box.yaml", ["fps=2"])
+    model = api.compile_model(loaded)
+    trajectory = api.simulate(loaded, model=model)
+    centre = trajectory.positions[-1, 0]
+    corner = centre + Q.rotate(trajectory.orientations[-1, 0], np.array([0.2, 0.2, 0.2]))
+    hook = np.array([0.0, 2.5, 0.0])
+    assert np.allclose(centre[[0, 2]], 0.0, atol=5e-3) and np.allclose(corner[[0, 2]], 0.0, atol=5e-3)
+    assert hook[1] > corner[1] > centre[1]
+    assert np.abs(trajectory.velocities[-1]).max() < 1e-2
