@@ -94,3 +94,33 @@ bodies:
     assert "(13, 0, 0)  (0, 10, 0)  (0, 0, 5)" in result.output
     assert "principal moments (5, 10, 13) kg·m²" in result.output
     assert "y[0:3]  rigid_position  (1 × 3) [m]" in result.output and "rigid_orientation  (1 × 4)" in result.output
+
+
+def test_particle_scenes_do_no_rigid_body_work(monkeypatch):
+    """With quaternion maths sabotaged, a particle-only scene still runs with every kind of method."""
+    from animbatch.rigid import quaternion
+
+    def sabotaged(*args, **kwargs):
+        raise AssertionError("rigid-body code evaluated")
+
+    for name in ("to_matrix", "rate", "multiply", "from_rotation_vector"):
+        monkeypatch.setattr(quaternion, name, sabotaged)
+    for method in ("RK45", "verlet", "midpoint"):
+        run(WITH_SPRING, f"solver.method={method}")
+
+
+def test_buoyancy_is_computed_only_where_a_fluid_is_declared(monkeypatch):
+    """A rigid scene without a fluid never computes submerged volumes; one with a fluid does."""
+    from animbatch.forces import buoyancy
+
+    calls = []
+    monkeypatch.setattr(buoyancy, "submerged_volume_and_moment", lambda *a, **k: calls.append(1) or 1 / 0)
+    rigid = """
+        duration: 0.2
+        bodies: [{name: crate, type: rigid, shape: {type: box, size: [1, 1, 1]}, density: 500}]
+        fields: [{type: gravity}]
+    """
+    run(rigid)
+    assert calls == []
+    with pytest.raises(ZeroDivisionError):
+        run(rigid.replace("[{type: gravity}]", "[{type: gravity}, {type: buoyancy, level: 10}]"))

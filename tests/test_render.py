@@ -264,3 +264,17 @@ def test_body_axes_are_drawn_in_their_colours(tmp_cwd):
     assert red.sum() > 10 and green.sum() > 20
     assert np.nonzero(red)[1].mean() > WIDTH / 2 + 10  # the x axis points right of the centre
     assert np.nonzero(green)[0].mean() < WIDTH / 2 - 10  # the y axis points up
+
+
+def test_angular_momentum_arrow_is_drawn(tmp_cwd):
+    """show_vectors draws an amber arrow from the body's centre along L (the bar spins about x, so L ∥ +x and the
+    arrow points right, past the end of the bar)."""
+    scene_text = ROTATING.replace("show_time: false", "show_time: false\n  show_vectors: angular_momentum").replace(
+        f"angular_velocity: [0, 0, {np.pi}]", "angular_velocity: [3, 0, 0]").replace('color: "#ff0000"',
+                                                                                      'color: "#cccccc"')
+    (tmp_cwd / "turning.yaml").write_text(scene_text)
+    api.run(tmp_cwd / "turning.yaml", out_dir="renders", overrides=["duration=0.1"])
+    image = np.asarray(Image.open(tmp_cwd / "renders" / "turning" / "frames" / "frame_00000.png")).astype(int)
+    amber = (image[..., 0] > 150) & (image[..., 1] > 100) & (image[..., 2] < 60)
+    columns = np.nonzero(amber)[1]
+    assert amber.sum() > 30 and columns.max() > WIDTH / 2 + 40  # along +x (L = I ω ∥ x), past the bar's end
