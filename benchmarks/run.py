@@ -6,10 +6,12 @@ Prints one table. Measures:
    N = 1e3 … 1e6;
 2. the per-step cost of our solve_ivp path (stepping scipy's solver ourselves) next to bare ``solve_ivp`` on the same
    right-hand side, for RK45 and DOP853;
+   and the right-hand-side cost per rigid body (1, 100, 1000 floating boxes), which shows the rigid path is
+   vectorised over bodies;
 3. rendered frames per second at 1280×720 for one sphere and for 1e4 particles (sprites), with FXAA and without;
 4. encoding frames per second (H.264 at several presets, and PNG).
 
-Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, render, encode),
+Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, rigid, render, encode),
 ``--json FILE`` (also write the rows as JSON).
 """
 
@@ -118,6 +120,26 @@ def bench_ivp(quick: bool) -> list[Row]:
     return rows
 
 
+def bench_rigid(quick: bool) -> list[Row]:
+    """Cost of one right-hand-side evaluation per rigid body (boxes under gravity, floating in water)."""
+    from animbatch.model import compile_scene
+    from animbatch.scene import parse_scene
+
+    rows = []
+    for count in ([1, 100] if quick else [1, 100, 1000]):
+        bodies = "\n".join(f"  - {{name: b{i}, type: rigid, shape: {{type: box, size: [0.3, 0.2, 0.4]}}, "
+                           f"density: 500, position: [{i % 30}, {0.05 * (i % 7)}, {i // 30}], "
+                           f"angular_velocity: [0.1, 0.2, 0.3]}}" for i in range(count))
+        spec = parse_scene(f"bodies:\n{bodies}\nfields: [{{type: gravity}}, {{type: buoyancy}}]").spec
+        system = Dynamics(compile_scene(spec))
+        y = system.model.y0.copy()
+        calls = max(20, 4000 // count)
+        seconds = best_of(3, lambda: [system.rhs(0.0, y) for _ in range(calls)])
+        rows.append({"benchmark": "rigid bodies", "case": f"RHS, {count} floating boxes (gravity + buoyancy)",
+                     "value": seconds / calls / count * 1e6, "unit": "µs/body"})
+    return rows
+
+
 def render_frames(count: int, anti_aliasing: str, frames: int) -> tuple[float, list[np.ndarray]]:
     """Frames per second of drawing ``count`` particles at 1280×720, and a few of the images."""
     from animbatch.render.backend import select_backend
@@ -182,7 +204,8 @@ def bench_encode(quick: bool) -> list[Row]:
     return rows
 
 
-BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "render": bench_render, "encode": bench_encode}
+BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "rigid": bench_rigid, "render": bench_render,
+              "encode": bench_encode}
 
 
 def main() -> int:
