@@ -88,9 +88,9 @@ class FrameGeometry:
     @classmethod
     def from_scene(cls, spec: SceneSpec, model: Model, bounds: np.ndarray, largest_vector: float = 0.0
                    ) -> FrameGeometry:
-        by_name = {body.name: body for body in spec.bodies}
-        colors = [by_name[name].color or PALETTE[spec.bodies.index(by_name[name]) % len(PALETTE)]
-                  for name in model.body_names]
+        # palette colours follow the scene's order of bodies; the model orders them particles first
+        by_name = {body.name: (index, body) for index, body in enumerate(spec.bodies)}
+        colors = [by_name[name][1].color or PALETTE[by_name[name][0] % len(PALETTE)] for name in model.body_names]
         n, rigid, springs = model.particle_count, model.rigid, model.springs
         extents = body_extents(model)
         if springs is None:
