@@ -214,8 +214,9 @@ class FixedStepIntegrator(Integrator):
     def integrate(self, system: EquationsOfMotion, y0: np.ndarray, times: np.ndarray, *,
                   on_frame: FrameCallback | None = None) -> IntegrationResult:
         started = time.perf_counter()
-        layout = getattr(getattr(system, "model", None), "layout", None)
-        scheme = FIXED_STEP_SCHEMES[self.method](system)
+        model = getattr(system, "model", None)
+        layout = getattr(model, "layout", None)
+        scheme = self._scheme(system, model)
         stats = SolverStats(self.method)
         y = np.array(y0, dtype=float)
         states = np.empty((len(times), len(y)))
@@ -230,6 +231,16 @@ class FixedStepIntegrator(Integrator):
             stats.substeps_per_frame = substeps(float(times[1] - times[0]), self.dt)
         stats.wall_time = time.perf_counter() - started
         return IntegrationResult(states, stats)
+
+    def _scheme(self, system: EquationsOfMotion, model: Any) -> Scheme:
+        """The scheme for this method; scenes with contacts get its contact-resolving variant."""
+        if getattr(model, "contact_world", None) is None:
+            return FIXED_STEP_SCHEMES[self.method](system)
+        from animbatch.contact.stepping import CONTACT_SCHEMES  # contact code only for scenes with contacts
+
+        if self.method not in CONTACT_SCHEMES:
+            raise ValueError(f"{self.method} cannot keep contacts; use one of {', '.join(CONTACT_SCHEMES)}")
+        return CONTACT_SCHEMES[self.method](system)  # type: ignore[arg-type]
 
     def _run(self, scheme: Scheme, y: np.ndarray, states: np.ndarray, times: np.ndarray, stats: SolverStats,
              layout: Any, on_frame: FrameCallback | None) -> float:

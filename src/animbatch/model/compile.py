@@ -3,6 +3,7 @@ become force terms."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 from animbatch.model.builder import ModelBuilder
@@ -38,4 +39,12 @@ def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
                            first_point=first_point, second_point=second_point)
     for field in spec.fields:
         builder.add_field(field, None if field.bodies is None else [handle[name] for name in field.bodies])
-    return builder.finalize(duration=spec.duration, fps=spec.fps)
+    model = builder.finalize(duration=spec.duration, fps=spec.fps)
+    if not spec.has_contacts:
+        return model
+    from animbatch.contact.world import build_contact_world  # only scenes with contacts load contact code
+
+    rigid = model.rigid
+    centres = dict(zip(rigid.names, rigid.centre)) if rigid is not None else {}
+    world, settings = build_contact_world(spec, model.body_names, centres, Path(base_dir))
+    return replace(model, contact_world=world, contact_settings=settings)

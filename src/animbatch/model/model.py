@@ -11,6 +11,7 @@ mass. Per-body arrays (trajectory files included) use this order; ``body_names``
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -34,6 +35,8 @@ class Model:
         layout: the layout of the flat state vector.
         y0: initial state, shape (layout.size,).
         frame_times: times at which frames are sampled [s], ``k / fps``, shape (F,).
+        contact_world, contact_settings: collision geometry, materials and solver settings, or None when the scene
+            has no colliders and no ``contacts`` section (then no contact code runs).
     """
 
     bodies: BodyTable
@@ -44,6 +47,8 @@ class Model:
     layout: StateLayout
     y0: np.ndarray
     frame_times: np.ndarray
+    contact_world: Any = None  # ContactWorld, only when the scene has colliders or contacts
+    contact_settings: Any = None  # ContactSettings, likewise
 
     @property
     def rigid(self) -> RigidBodySet | None:

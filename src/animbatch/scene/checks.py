@@ -24,7 +24,7 @@ def check_references(data: dict[str, Any]) -> list[Problem]:
     rigid = {name for index, item in _items(data, "bodies") if item.get("type") == "rigid"
              for name in [item.get("name")] if isinstance(name, str)}
     return [*_body_list(data), *_duplicate_names(data), *_springs(data, bodies, anchors, rigid),
-            *_fields(data, bodies, anchors, rigid)]
+            *_fields(data, bodies, anchors, rigid), *_materials(data), *_contact_method(data)]
 
 
 #: Field types that act on rigid bodies only.
@@ -103,26 +103,66 @@ def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str,
                     f"gravitation acts between bodies and needs at least 2 (got {count})")
 
 
+def _materials(data: dict[str, Any]) -> Iterator[Problem]:
+    """Material names used by bodies, colliders and pairs must be built in or defined under 'materials'."""
+    from animbatch.contact.materials import BUILT_IN
+
+    custom = data.get("materials")
+    known = sorted(set(BUILT_IN) | (set(custom) if isinstance(custom, dict) else set()))
+
+    def unknown(path: KeyPath, name: Any) -> Iterator[Problem]:
+        if isinstance(name, str) and name not in known:
+            yield path, (f"unknown material {name!r}{did_you_mean(name, known)} Known: {', '.join(known)} "
+                         "(define it under 'materials')")
+
+    for section in ("bodies", "colliders"):
+        for index, item in _items(data, section):
+            yield from unknown((section, index, "material"), item.get("material"))
+    for index, pair in _items(data, "material_pairs"):
+        names = pair.get("materials")
+        if isinstance(names, list):
+            for position, name in enumerate(names):
+                yield from unknown(("material_pairs", index, "materials", position), name)
+
+
+def _contact_method(data: dict[str, Any]) -> Iterator[Problem]:
+    """Explicit Euler and midpoint move positions with the old velocities: they cannot keep contacts."""
+    solver = data.get("solver")
+    method = solver.get("method") if isinstance(solver, dict) else None
+    has_contacts = bool(data.get("colliders")) or "contacts" in data
+    if has_contacts and isinstance(method, str) and method.lower().replace("-", "_") in (
+            "euler", "explicit_euler", "forward_euler", "midpoint", "rk2"):
+        yield ("solver", "method"), (
+            f"{method} cannot keep contacts: it moves positions with the velocities from before the step, so bodies "
+            "would sink into colliders. Use symplectic_euler or verlet (fixed step), or an adaptive method such as "
+            "RK45")
+
+
 def check_files(spec: Any, base_dir: Path) -> list[Problem]:
     """Mesh files that are missing, unreadable or not closed, found from ``base_dir`` (the scene's folder)."""
     from animbatch.rigid.shapes import load_mesh
     from animbatch.scene.schema import CompoundShape, MeshShape, RigidBodySpec
 
+    from animbatch.scene.schema import MeshCollider
+
     problems: list[Problem] = []
+    shapes: list[tuple[KeyPath, Any]] = [(("colliders", index), collider) for index, collider in
+                                         enumerate(spec.colliders) if isinstance(collider, MeshCollider)]
     for index, body in enumerate(spec.bodies):
         if not isinstance(body, RigidBodySpec):
             continue
-        shapes: list[tuple[KeyPath, Any]] = [(("bodies", index, "shape"), body.shape)]
         if isinstance(body.shape, CompoundShape):
-            shapes = [(("bodies", index, "shape", "parts", k, "shape"), part.shape)
-                      for k, part in enumerate(body.shape.parts)]
-        for path, shape in shapes:
-            if isinstance(shape, MeshShape):
-                try:
-                    load_mesh(base_dir / shape.file, shape.scale)
-                except ValueError as error:
-                    problems.append(((*path, "file"), f"{error} (looked in {base_dir.resolve()})"
-                                     if "no such file" in str(error) else str(error)))
+            shapes += [(("bodies", index, "shape", "parts", k, "shape"), part.shape)
+                       for k, part in enumerate(body.shape.parts)]
+        else:
+            shapes.append((("bodies", index, "shape"), body.shape))
+    for path, shape in shapes:
+        if isinstance(shape, MeshShape | MeshCollider):
+            try:
+                load_mesh(base_dir / shape.file, shape.scale)
+            except ValueError as error:
+                problems.append(((*path, "file"), f"{error} (looked in {base_dir.resolve()})"
+                                 if "no such file" in str(error) else str(error)))
     return problems
 
 

@@ -40,6 +40,10 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
     ("`springs[]`", "springs[].", schema.SpringSpec),
     *[(f"`fields[]` — `type: {schema.field_type_names()[i]}`", "fields[].", spec)
       for i, spec in enumerate(schema.FIELD_SPECS)],
+    ("`materials.<name>`", "materials.<name>.", schema.MaterialSpec),
+    ("`material_pairs[]`", "material_pairs[].", schema.MaterialPairSpec),
+    *[(f"`colliders[]` — `type: {tag_of(spec)}`", "colliders[].", spec) for spec in schema.COLLIDER_SPECS],
+    ("`contacts`", "contacts.", schema.ContactSpec),
     ("`render`", "render.", schema.RenderSpec),
     ("`render.camera`", "render.camera.", schema.CameraSpec),
     ("`render.ground`", "render.ground.", schema.GroundSpec),
@@ -87,6 +91,9 @@ def _one_type(annotation: Any, field: FieldInfo) -> str:
             return f"list of {count}items, each {inner}"
         noun, _, qualifier = inner.partition(" (")
         return f"list of {count}{noun}s" + (f" ({qualifier}" if qualifier else "")
+    if typing.get_origin(base) is dict:
+        _, value = typing.get_args(base)
+        return f"mapping of name → {value.__name__.removesuffix('Spec').lower()}"
     if isinstance(base, type) and issubclass(base, BaseModel):
         return "mapping"
     if typing.get_origin(base) in (typing.Union, types.UnionType):

@@ -1,0 +1,154 @@
+"""Fixed-step integration with contacts (velocity-level time stepping, as in Box2D, Bullet or MuJoCo).
+
+A step of ``h``: forces change the velocities (kick), the contact solver changes them again so that every contact
+holds over the step (see :mod:`animbatch.contact.solver`), and positions move with the corrected velocities (drift).
+Contacts are looked for up to the distance bodies can travel in the step (speculative contacts), which is the swept
+test: a fast body stops at a thin wall instead of passing through it. Positions never move with velocities that would
+take them into a collider, so a body resting on the ground stays exactly still.
+
+* ``symplectic_euler``: kick h, contacts, drift h.
+* ``verlet``: kick h/2, contacts, drift h, kick h/2, and the end-of-step velocities re-projected onto the contacts
+  (without restitution), so that resting bodies end each step with zero velocity too.
+
+Explicit Euler and midpoint move positions with the velocities from before the step, so they cannot keep contacts;
+the loader refuses them for scenes with contacts.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from animbatch.contact.detection import detect
+from animbatch.contact.solver import BodyVelocities, solve
+from animbatch.forces import Kinematics
+from animbatch.integrators.fixed_step import SymplecticEuler, VelocityVerlet
+from animbatch.model.dynamics import Dynamics
+from animbatch.rigid import quaternion
+
+DEFAULT_REST_SPEED = 0.01  # m/s
+
+
+def gravity_magnitude(system: Dynamics) -> float:
+    """The largest uniform gravity the scene declares [m/s²] (0 without gravity)."""
+    sizes = [float(np.linalg.norm(term.g)) for term in system.terms if term.kind == "gravity"]
+    return max(sizes, default=0.0)
+
+
+class ContactResolver:
+    """Applies the contact solver to a state's velocities, for steps of a given length."""
+
+    def __init__(self, system: Dynamics) -> None:
+        model = system.model
+        assert model.contact_world is not None and model.contact_settings is not None
+        self.system = system
+        self.world = model.contact_world
+        self.settings = model.contact_settings
+        self.gravity = gravity_magnitude(system)
+        probes = self.world.probes
+        self.reach = float(np.max(np.linalg.norm(probes.offset, axis=1) + probes.radius)) if probes.count else 0.0
+        self.contacts_last_step = 0
+
+    def rest_speed(self, h: float) -> float:
+        """Impacts slower than this do not bounce; sticking is allowed below it (at least 3 g h)."""
+        if self.settings.rest_speed is not None:
+            return self.settings.rest_speed
+        return max(DEFAULT_REST_SPEED, 3 * self.gravity * h)
+
+    def _bodies(self, state: Kinematics) -> BodyVelocities:
+        """Velocities and inverse inertias, plus the fixed body at the end."""
+        system, model = self.system, self.system.model
+        count, n = model.body_count, model.particle_count
+        v = np.zeros((count + 1, 3))
+        omega = np.zeros((count + 1, 3))
+        inverse_mass = np.zeros(count + 1)
+        inverse_inertia = np.zeros((count + 1, 3, 3))
+        v[:count] = state.v
+        inverse_mass[:count] = 1.0 / model.bodies.mass
+        if state.rotation is not None:
+            omega[n:count] = state.omega
+            rotation = state.rotation
+            inverse_inertia[n:count] = rotation @ model.rigid.inverse_inertia @ np.transpose(rotation, (0, 2, 1))
+        return BodyVelocities(v, omega, inverse_mass, inverse_inertia)
+
+    def _write_back(self, motion: np.ndarray, state: Kinematics, bodies: BodyVelocities) -> None:
+        system, model = self.system, self.system.model
+        n, b = model.particle_count, model.rigid_count
+        motion[: 3 * n] = bodies.v[:n].ravel()
+        if b:
+            rigid = model.rigid
+            momentum = motion[3 * n: 3 * n + 3 * b].reshape(b, 3)
+            angular = motion[3 * n + 3 * b:].reshape(b, 3)
+            momentum[...] = bodies.v[n:n + b] * rigid.mass[:, None]
+            rotation = state.rotation
+            inertia_world = rotation @ rigid.inertia @ np.transpose(rotation, (0, 2, 1))
+            angular[...] = np.einsum("bij,bj->bi", inertia_world, bodies.omega[n:n + b])
+
+    def resolve(self, config: np.ndarray, motion: np.ndarray, h: float, *, bounce: bool = True) -> np.ndarray | None:
+        """Change the motion so that all contacts hold over a step of ``h`` [s].
+
+        Returns the motion to drift with when overlaps must also be pushed apart (the corrected motion plus the
+        split-impulse pseudo-velocities), or None to drift with the motion itself.
+        """
+        state = self.system.kinematics(config, motion)
+        speed = np.linalg.norm(state.v, axis=1)
+        if state.omega is not None:
+            speed[state.first_rigid:] += np.linalg.norm(state.omega, axis=1) * self.reach
+        margin = 1.5 * h * float(speed.max(initial=0.0)) + 2 * self.settings.slop + 1e-9
+        contacts = detect(self.world, state, margin)
+        self.contacts_last_step = contacts.count
+        if not contacts.count:
+            return None
+        bodies = self._bodies(state)
+        x = np.vstack([state.x, np.zeros((1, 3))])
+        result = solve(contacts, bodies, x, h, iterations=self.settings.iterations, rest_speed=self.rest_speed(h),
+                       slop=self.settings.slop, bounce=bounce)
+        self._write_back(motion, state, bodies)
+        if result.pseudo_v is None:
+            return None
+        bodies.v += result.pseudo_v
+        bodies.omega += result.pseudo_omega
+        drifting = motion.copy()
+        self._write_back(drifting, state, bodies)
+        return drifting
+
+
+class ContactSymplecticEuler(SymplecticEuler):
+    """Kick, contacts, drift."""
+
+    def __init__(self, system: Dynamics) -> None:
+        super().__init__(system)
+        self.contacts = ContactResolver(system)
+
+    def step(self, t: float, y: np.ndarray, h: float) -> None:
+        config, motion = self.system.split(y)
+        rate = self.system.motion_rate(t, config, motion, out=self._rate)
+        self.evaluations += 1
+        motion += np.multiply(rate, h, out=self._work)
+        drifting = self.contacts.resolve(config, motion, h)
+        self.system.drift(config, motion if drifting is None else drifting, h)
+        self.system.project(y)
+
+
+class ContactVerlet(VelocityVerlet):
+    """Half kick, contacts, drift, half kick, contacts again (no bounce)."""
+
+    def __init__(self, system: Dynamics) -> None:
+        super().__init__(system)
+        self.contacts = ContactResolver(system)
+
+    def step(self, t: float, y: np.ndarray, h: float) -> None:
+        config, motion = self.system.split(y)
+        rate, work = self._rate, self._work
+        motion += np.multiply(rate, 0.5 * h, out=work)
+        drifting = self.contacts.resolve(config, motion, h)
+        np.add(motion, np.multiply(rate, 0.5 * h, out=work), out=self._predicted)
+        self.system.drift(config, motion if drifting is None else drifting, h)
+        rate_next = self.system.motion_rate(t + h, config, self._predicted, out=self._rate_next)
+        self.evaluations += 1
+        motion += np.multiply(rate_next, 0.5 * h, out=work)
+        self.contacts.resolve(config, motion, h, bounce=False)
+        self.system.project(y)
+        self._rate, self._rate_next = rate_next, rate
+
+
+CONTACT_SCHEMES = {"symplectic_euler": ContactSymplecticEuler, "verlet": ContactVerlet}
