@@ -42,6 +42,9 @@ class ScipyIntegrator(Integrator):
     def integrate(self, system: EquationsOfMotion, y0: np.ndarray, times: np.ndarray, *,
                   on_frame: FrameCallback | None = None) -> IntegrationResult:
         started = time.perf_counter()
+        if getattr(getattr(system, "model", None), "contact_world", None) is not None:
+            raise SimulationError(f"{self.method} does not handle contacts yet; use a fixed-step method "
+                                  "(solver.method: symplectic_euler or verlet) for scenes with colliders")
         layout = getattr(getattr(system, "model", None), "layout", None)
         stats = SolverStats(self.method)
         states = np.empty((len(times), len(y0)))
