@@ -19,6 +19,9 @@ from animbatch.forces.base import Kinematics
 
 STATIC = -1  # "solid body" index of fixed colliders
 
+# What a contact's solid is (``Contacts.solid_kind``); ``solid_index`` numbers solids within their kind.
+PLANE, STATIC_SPHERE, STATIC_BOX, TRIANGLE, BODY_SPHERE, BODY_BOX = range(6)
+
 
 @dataclass(frozen=True, eq=False)
 class ContactWorld:
@@ -44,7 +47,8 @@ class ContactWorld:
 class Contacts:
     """K contacts: ``probe_body``/``solid_body`` (K,) body indices (``solid_body`` is -1 for fixed colliders),
     ``point`` (K, 3) [m], ``normal`` (K, 3) unit, from the solid towards the probe, ``gap`` (K,) [m] (negative when
-    overlapping), and the pair's ``restitution``, ``static_friction``, ``kinetic_friction`` (K,)."""
+    overlapping), the pair's ``restitution``, ``static_friction``, ``kinetic_friction`` (K,), and which features
+    touch: ``probe`` (K,) probe index, ``solid_kind`` and ``solid_index`` (K,) (see PLANE … BODY_BOX)."""
 
     probe_body: np.ndarray
     solid_body: np.ndarray
@@ -54,6 +58,12 @@ class Contacts:
     restitution: np.ndarray
     static_friction: np.ndarray
     kinetic_friction: np.ndarray
+    probe: np.ndarray
+    solid_kind: np.ndarray
+    solid_index: np.ndarray
+
+    FIELDS = ("probe_body", "solid_body", "point", "normal", "gap", "restitution", "static_friction",
+              "kinetic_friction", "probe", "solid_kind", "solid_index")
 
     @property
     def count(self) -> int:
@@ -62,11 +72,13 @@ class Contacts:
     @classmethod
     def concatenate(cls, parts: list[Contacts]) -> Contacts:
         if not parts:
-            z3, z = np.zeros((0, 3)), np.zeros(0)
-            return cls(np.zeros(0, np.intp), np.zeros(0, np.intp), z3, z3, z, z, z, z)
-        return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in
-                     ("probe_body", "solid_body", "point", "normal", "gap", "restitution", "static_friction",
-                      "kinetic_friction")))
+            z3, z, zi = np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.intp)
+            return cls(zi, zi, z3, z3, z, z, z, z, zi, zi, zi)
+        return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in cls.FIELDS))
+
+    def select(self, chosen: np.ndarray) -> Contacts:
+        """The contacts at indices or mask ``chosen``."""
+        return Contacts(*(getattr(self, name)[chosen] for name in self.FIELDS))
 
 
 def probe_centres(world: ContactWorld, state: Kinematics) -> np.ndarray:
@@ -80,7 +92,8 @@ def probe_centres(world: ContactWorld, state: Kinematics) -> np.ndarray:
 
 
 def _contacts(world: ContactWorld, probes: np.ndarray, centres: np.ndarray, distance: np.ndarray,
-              normal: np.ndarray, solid_body: np.ndarray, solid_material: np.ndarray, margin: float) -> Contacts:
+              normal: np.ndarray, solid_body: np.ndarray, solid_material: np.ndarray, margin: float,
+              kind: int | np.ndarray, solid_index: np.ndarray) -> Contacts:
     """Contacts from probe indices (K,), their centres, distances of the centres to the solids and normals."""
     radius = world.probes.radius[probes]
     gap = distance - radius
@@ -92,7 +105,9 @@ def _contacts(world: ContactWorld, probes: np.ndarray, centres: np.ndarray, dist
     a, b = world.body_material[owner], solid_material
     table = world.materials
     return Contacts(owner, solid_body, point, normal, gap, table.restitution[a, b], table.static_friction[a, b],
-                    table.kinetic_friction[a, b])
+                    table.kinetic_friction[a, b], probes,
+                    np.broadcast_to(np.asarray(kind, np.intp), keep.shape)[keep].copy(),
+                    np.broadcast_to(solid_index, keep.shape)[keep].astype(np.intp))
 
 
 def detect(world: ContactWorld, state: Kinematics, margin: float) -> Contacts:
@@ -111,20 +126,22 @@ def detect(world: ContactWorld, state: Kinematics, margin: float) -> Contacts:
     for k in range(len(statics.plane_point)):
         d, n = to_plane(centres[everywhere], statics.plane_point[k], statics.plane_normal[k])
         parts.append(_contacts(world, everywhere, centres[everywhere], d, np.array(n), np.full(len(d), STATIC),
-                               np.full(len(d), statics.plane_material[k]), margin))
+                               np.full(len(d), statics.plane_material[k]), margin, PLANE, np.full(len(d), k)))
     for k in range(len(statics.sphere_centre)):
         chosen = near(statics.sphere_centre[k], statics.sphere_radius[k])
         d, n = to_sphere(centres[chosen], np.broadcast_to(statics.sphere_centre[k], (len(chosen), 3)),
                          np.full(len(chosen), statics.sphere_radius[k]))
         parts.append(_contacts(world, chosen, centres[chosen], d, n, np.full(len(chosen), STATIC),
-                               np.full(len(chosen), statics.sphere_material[k]), margin))
+                               np.full(len(chosen), statics.sphere_material[k]), margin, STATIC_SPHERE,
+                               np.full(len(chosen), k)))
     for k in range(len(statics.box_centre)):
         chosen = near(statics.box_centre[k], float(np.linalg.norm(statics.box_half[k])))
         d, n = to_box(centres[chosen], np.broadcast_to(statics.box_centre[k], (len(chosen), 3)),
                       np.broadcast_to(statics.box_rotation[k], (len(chosen), 3, 3)),
                       np.broadcast_to(statics.box_half[k], (len(chosen), 3)))
         parts.append(_contacts(world, chosen, centres[chosen], d, n, np.full(len(chosen), STATIC),
-                               np.full(len(chosen), statics.box_material[k]), margin))
+                               np.full(len(chosen), statics.box_material[k]), margin, STATIC_BOX,
+                               np.full(len(chosen), k)))
     if world.triangle_tree is not None and len(everywhere):
         found = world.triangle_tree.query_ball_point(centres[everywhere], world.triangle_reach + reach)
         probes = np.repeat(everywhere, [len(f) for f in found])
@@ -132,7 +149,7 @@ def detect(world: ContactWorld, state: Kinematics, margin: float) -> Contacts:
         if len(probes):
             d, n = to_triangles(centres[probes], statics.triangles[triangles])
             parts.append(_contacts(world, probes, centres[probes], d, n, np.full(len(probes), STATIC),
-                                   statics.triangle_material[triangles], margin))
+                                   statics.triangle_material[triangles], margin, TRIANGLE, triangles))
     if world.bodies_collide and tree is not None:
         parts += _between_bodies(world, state, centres, tree, active, margin)
     return Contacts.concatenate(parts)
@@ -149,7 +166,8 @@ def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray,
         i, j = i[keep], j[keep]
         d, n = to_sphere(centres[i], centres[j], probes.radius[j])  # probe i against the sphere of probe j
         owner_j = probes.owner[j]
-        parts.append(_contacts(world, i, centres[i], d, n, owner_j, world.body_material[owner_j], margin))
+        parts.append(_contacts(world, i, centres[i], d, n, owner_j, world.body_material[owner_j], margin,
+                               BODY_SPHERE, j))
     boxes = world.boxes
     if boxes.count:
         owner = boxes.owner
@@ -169,5 +187,49 @@ def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray,
             d, n = to_box(centres[chosen], np.broadcast_to(box_centres[k], (count, 3)),
                           np.broadcast_to(box_rotations[k], (count, 3, 3)), np.broadcast_to(boxes.half[k], (count, 3)))
             parts.append(_contacts(world, chosen, centres[chosen], d, n, np.full(count, owner[k]),
-                                   np.full(count, world.body_material[owner[k]]), margin))
+                                   np.full(count, world.body_material[owner[k]]), margin, BODY_BOX,
+                                   np.full(count, k)))
     return parts
+
+
+def evaluate_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, kind: np.ndarray,
+                   index: np.ndarray) -> Contacts:
+    """The contacts of given probe–solid pairs (K,) at ``state``, whatever their distance (for tracking contacts
+    between events)."""
+    all_centres = probe_centres(world, state)
+    centres = all_centres[probe]
+    statics, probes = world.statics, world.probes
+    distance = np.zeros(len(probe))
+    normal = np.zeros((len(probe), 3))
+    solid_body = np.full(len(probe), STATIC)
+    material = np.zeros(len(probe), np.intp)
+    for code in np.unique(kind):
+        k = kind == code
+        i, c = index[k], centres[k]
+        if code == PLANE:
+            distance[k] = np.einsum("ij,ij->i", c - statics.plane_point[i], statics.plane_normal[i])
+            normal[k] = statics.plane_normal[i]
+            material[k] = statics.plane_material[i]
+        elif code == STATIC_SPHERE:
+            distance[k], normal[k] = to_sphere(c, statics.sphere_centre[i], statics.sphere_radius[i])
+            material[k] = statics.sphere_material[i]
+        elif code == STATIC_BOX:
+            distance[k], normal[k] = to_box(c, statics.box_centre[i], statics.box_rotation[i], statics.box_half[i])
+            material[k] = statics.box_material[i]
+        elif code == TRIANGLE:
+            distance[k], normal[k] = to_triangles(c, statics.triangles[i])
+            material[k] = statics.triangle_material[i]
+        elif code == BODY_SPHERE:
+            distance[k], normal[k] = to_sphere(c, all_centres[i], probes.radius[i])
+            solid_body[k] = probes.owner[i]
+            material[k] = world.body_material[probes.owner[i]]
+        else:  # BODY_BOX
+            boxes = world.boxes
+            owner = boxes.owner[i]
+            assert state.rotation is not None
+            rigid = owner - state.first_rigid
+            centre = state.x[owner] + state.lever(rigid, boxes.offset[i])
+            distance[k], normal[k] = to_box(c, centre, state.rotation[rigid] @ boxes.rotation[i], boxes.half[i])
+            solid_body[k] = owner
+            material[k] = world.body_material[owner]
+    return _contacts(world, probe, centres, distance, normal, solid_body, material, np.inf, kind, index)

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from animbatch.contact.detection import detect
-from animbatch.contact.solver import BodyVelocities, solve
+from animbatch.contact.solver import BodyVelocities, solve_impulses
 from animbatch.forces import Kinematics
 from animbatch.integrators.fixed_step import SymplecticEuler, VelocityVerlet
 from animbatch.model.dynamics import Dynamics
@@ -100,7 +100,7 @@ class ContactResolver:
             return None
         bodies = self._bodies(state)
         x = np.vstack([state.x, np.zeros((1, 3))])
-        result = solve(contacts, bodies, x, h, iterations=self.settings.iterations, rest_speed=self.rest_speed(h),
+        result = solve_impulses(contacts, bodies, x, h, iterations=self.settings.iterations, rest_speed=self.rest_speed(h),
                        slop=self.settings.slop, bounce=bounce)
         self._write_back(motion, state, bodies)
         if result.pseudo_v is None:

@@ -43,8 +43,11 @@ class ScipyIntegrator(Integrator):
                   on_frame: FrameCallback | None = None) -> IntegrationResult:
         started = time.perf_counter()
         if getattr(getattr(system, "model", None), "contact_world", None) is not None:
-            raise SimulationError(f"{self.method} does not handle contacts yet; use a fixed-step method "
-                                  "(solver.method: symplectic_euler or verlet) for scenes with colliders")
+            from animbatch.contact.events import integrate_with_events  # contact code only for scenes with contacts
+
+            options = {"rtol": self.rtol, "atol": self.atol, "max_step": self.max_step if self.max_step else np.inf}
+            return integrate_with_events(self.method, SCIPY_METHODS[self.method], options, system, y0, times,
+                                         on_frame)
         layout = getattr(getattr(system, "model", None), "layout", None)
         stats = SolverStats(self.method)
         states = np.empty((len(times), len(y0)))

@@ -1,0 +1,447 @@
+"""Adaptive (solve_ivp) integration with contacts: impacts at their exact time, resting contacts as forces.
+
+The scipy solver integrates free motion. After each accepted step, the step is searched for
+
+* **impacts**: a probe reaching a solid it was not resting on. The probe–solid pairs that the step's travel could
+  bring into touch are evaluated along the solver's dense output; between samples the gap along the straight segment
+  is minimised too, so that a thin wall cannot hide between two samples. The first crossing is refined by Brent's
+  method to the exact contact time;
+* **mode changes** of resting contacts (root finding on the dense output as well): a contact whose normal force
+  would turn into a pull separates; a sliding contact whose slip reverses starts to stick; a sticking one whose
+  friction would exceed ``μs f_n`` starts to slide.
+
+At the first such event the integration stops exactly there, impulses are applied (restitution and friction,
+:func:`~animbatch.contact.solver.solve_impulses`) or the contact's mode changes, and the solver restarts. Frames
+before the event come from the old dense output, frames after it from the new one: both sides of a contact are right.
+
+An impact slower than ``rest_speed`` does not bounce: the contact becomes *resting*, and from then on it exerts
+forces (:func:`~animbatch.contact.solver.solve_forces`) instead of impulses. So a bouncing ball comes to rest after
+finitely many bounces instead of stalling the solver on ever shorter ones (the Zeno problem), and a resting body
+stays exactly still.
+
+For stacks, piles and many simultaneous contacts, the fixed-step methods (:mod:`animbatch.contact.stepping`) are the
+robust choice; this path suits scenes with few contacts where exact impact times matter.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import brentq
+
+from animbatch.contact.detection import Contacts, detect, evaluate_pairs, probe_centres
+from animbatch.contact.solver import BodyVelocities, solve_forces, solve_impulses
+from animbatch.contact.stepping import DEFAULT_REST_SPEED
+from animbatch.errors import SimulationError
+from animbatch.forces import Kinematics
+from animbatch.integrators.base import CountingRhs, FrameCallback, IntegrationResult, SolverStats
+from animbatch.integrators.guard import divergence_error, first_non_finite
+from animbatch.model.dynamics import Dynamics
+from animbatch.rigid.quaternion import cross
+
+SAMPLES = 24  # points per step at which impact candidates are evaluated
+TOUCH = 1e-6  # m: contacts this close count as touching at an event
+STIFFNESS = 2500.0  # 1/s²: pulls a resting contact's gap back to zero (ω0 = 50 rad/s, critically damped)
+DAMPING = 100.0  # 1/s
+MAX_EVENTS_PER_FRAME = 10_000
+
+
+@dataclass
+class Resting:
+    """Resting contacts, by the features that touch: ``probe``, ``kind``, ``index`` (R,); ``sticking`` (R,);
+    ``slide_direction`` (R, 3), the unit slip direction of sliding contacts."""
+
+    probe: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intp))
+    kind: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intp))
+    index: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intp))
+    sticking: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    slide_direction: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    @property
+    def count(self) -> int:
+        return len(self.probe)
+
+    def keys(self) -> set[tuple[int, int, int]]:
+        return set(zip(self.probe.tolist(), self.kind.tolist(), self.index.tolist()))
+
+    def keep(self, chosen: np.ndarray) -> Resting:
+        return Resting(self.probe[chosen], self.kind[chosen], self.index[chosen], self.sticking[chosen],
+                       self.slide_direction[chosen])
+
+
+class ContactEvents:
+    """The event-driven contact handling of one run."""
+
+    def __init__(self, system: Dynamics) -> None:
+        model = system.model
+        self.system = system
+        self.world = model.contact_world
+        self.settings = model.contact_settings
+        self.rest_speed = self.settings.rest_speed or DEFAULT_REST_SPEED
+        self.resting = Resting()
+        probes = self.world.probes
+        self.reach = float(np.max(np.linalg.norm(probes.offset, axis=1) + probes.radius)) if probes.count else 0.0
+        self.events = 0
+
+    # ------------------------------------------------------------------------------------- bodies
+
+    def _state(self, y: np.ndarray) -> Kinematics:
+        return self.system.kinematics(*self.system.split(y))
+
+    def _inertia(self, state: Kinematics) -> BodyVelocities:
+        """Inverse masses and world inverse inertias, with zeros for velocities (filled by callers)."""
+        model = self.system.model
+        count, n = model.body_count, model.particle_count
+        inverse_mass = np.zeros(count + 1)
+        inverse_mass[:count] = 1.0 / model.bodies.mass
+        inverse_inertia = np.zeros((count + 1, 3, 3))
+        if state.rotation is not None:
+            r = state.rotation
+            inverse_inertia[n:count] = r @ model.rigid.inverse_inertia @ np.transpose(r, (0, 2, 1))
+        return BodyVelocities(np.zeros((count + 1, 3)), np.zeros((count + 1, 3)), inverse_mass, inverse_inertia)
+
+    def _write_velocities(self, y: np.ndarray, state: Kinematics, bodies: BodyVelocities) -> None:
+        """Store velocities (v, ω) back into a state's motion (P = M v, L = I ω for rigid bodies)."""
+        model = self.system.model
+        n, b = model.particle_count, model.rigid_count
+        _, motion = self.system.split(y)
+        motion[: 3 * n] = bodies.v[:n].ravel()
+        if b:
+            rigid, r = model.rigid, state.rotation
+            motion[3 * n: 3 * n + 3 * b] = (bodies.v[n:n + b] * rigid.mass[:, None]).ravel()
+            inertia_world = r @ rigid.inertia @ np.transpose(r, (0, 2, 1))
+            motion[3 * n + 3 * b:] = np.einsum("bij,bj->bi", inertia_world, bodies.omega[n:n + b]).ravel()
+
+    # ------------------------------------------------------------------------------------- resting forces
+
+    def _resting_contacts(self, state: Kinematics) -> Contacts:
+        r = self.resting
+        return evaluate_pairs(self.world, state, r.probe, r.kind, r.index)
+
+    def _contact_forces(self, t: float, y: np.ndarray, dydt: np.ndarray) -> tuple[Contacts, Any, BodyVelocities]:
+        """Add the resting contacts' forces to ``dydt``; return the contacts, the force solution and the
+        accelerations."""
+        model, system = self.system.model, self.system
+        n, b = model.particle_count, model.rigid_count
+        config, motion = system.split(y)
+        state = system.kinematics(config, motion)
+        contacts = self._resting_contacts(state)
+        bodies = self._inertia(state)
+        _, rate = system.split(dydt)
+        bodies.v[:n] = rate[: 3 * n].reshape(n, 3)
+        spin = None
+        if b:
+            force = rate[3 * n: 3 * n + 3 * b].reshape(b, 3)
+            torque = rate[3 * n + 3 * b:].reshape(b, 3)
+            angular = motion[3 * n + 3 * b:].reshape(b, 3)
+            bodies.v[n:n + b] = force / model.rigid.mass[:, None]
+            spin = cross(state.omega, angular)  # dL/dt = I ω̇ + ω × L
+            bodies.omega[n:n + b] = np.einsum("bij,bj->bi", bodies.inverse_inertia[n:n + b], torque - spin)
+        velocities = self._velocities(state)
+        x = np.vstack([state.x, np.zeros((1, 3))])
+        normal_bias, tangent_bias = self._biases(contacts, state, velocities, x)
+        result = solve_forces(contacts, bodies, x, normal_bias=normal_bias, tangent_bias=tangent_bias,
+                              sticking=self.resting.sticking, slide_direction=self.resting.slide_direction,
+                              iterations=self.settings.iterations)
+        rate[: 3 * n] = bodies.v[:n].ravel()
+        if b:
+            rate[3 * n: 3 * n + 3 * b] = (bodies.v[n:n + b] * model.rigid.mass[:, None]).ravel()
+            r = state.rotation
+            inertia_world = r @ model.rigid.inertia @ np.transpose(r, (0, 2, 1))
+            rate[3 * n + 3 * b:] = (np.einsum("bij,bj->bi", inertia_world, bodies.omega[n:n + b]) + spin).ravel()
+        return contacts, result, bodies
+
+    def _velocities(self, state: Kinematics) -> BodyVelocities:
+        bodies = self._inertia(state)
+        count, n = self.system.model.body_count, self.system.model.particle_count
+        bodies.v[:count] = state.v
+        if state.omega is not None:
+            bodies.omega[n:count] = state.omega
+        return bodies
+
+    def _biases(self, contacts: Contacts, state: Kinematics, velocities: BodyVelocities,
+                x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Velocity products and stabilisation terms of the resting contacts' gaps and tangential motion."""
+        from animbatch.contact.solver import ContactRows
+
+        rows = ContactRows(contacts, velocities, x)
+        w = velocities.omega
+        a, b = rows.a, rows.b
+        # The gap and the slip follow the probe's centre, a point of the body: a sphere's contact point slides over
+        # its surface and has no centripetal term of its own (a corner's centre is the corner itself).
+        centre = probe_centres(self.world, state)[contacts.probe] - x[a]
+        centripetal = cross(w[a], cross(w[a], centre)) - cross(w[b], cross(w[b], rows.r_b))
+        normal_velocity = rows.relative(rows.n)
+        normal_bias = (np.einsum("ki,ki->k", centripetal, rows.n) + STIFFNESS * contacts.gap
+                       + DAMPING * normal_velocity)
+        slip = rows.tangential()
+        tangent_bias = np.stack([np.einsum("ki,ki->k", centripetal, rows.t1),
+                                 np.einsum("ki,ki->k", centripetal, rows.t2)], axis=1) + DAMPING * slip
+        return normal_bias, tangent_bias
+
+    def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        dydt = self.system.rhs(t, y)
+        if self.resting.count:
+            self._contact_forces(t, y, dydt)
+        return dydt
+
+    # ------------------------------------------------------------------------------------- events
+
+    def _mode_functions(self, t: float, y: np.ndarray) -> np.ndarray:
+        """For each resting contact, a value that changes sign when its mode must change (R,)."""
+        dydt = self.system.rhs(t, y)
+        contacts, result, accelerations = self._contact_forces(t, y, dydt)
+        state = self._state(y)
+        velocities = self._velocities(state)
+        from animbatch.contact.solver import ContactRows
+
+        x = np.vstack([state.x, np.zeros((1, 3))])
+        rows = ContactRows(contacts, velocities, x)
+        separating = rows.relative(rows.n, accelerations.v, accelerations.omega)
+        # normal force per unit effective mass minus the separating acceleration: + pressing, - pulling apart
+        values = result.normal_impulse / rows.w_n - np.maximum(separating, 0.0)
+        slip = rows.tangential()
+        sticking = self.resting.sticking
+        direction = self.resting.slide_direction
+        along = slip[:, 0] * np.einsum("ki,ki->k", direction, rows.t1) + slip[:, 1] * np.einsum(
+            "ki,ki->k", direction, rows.t2)
+        friction = np.linalg.norm(result.tangent_impulse, axis=1)
+        grip = contacts.static_friction * result.normal_impulse - friction
+        mode = np.where(sticking, grip, along)  # stick: friction margin; slide: slip along its direction
+        return np.concatenate([values, mode])
+
+    def _impact_candidates(self, y0: np.ndarray, y1: np.ndarray) -> Contacts:
+        """Pairs that the step could bring into touch (excluding resting ones): every solid within the largest
+        distance any probe travelled during the step (translation, plus reach times the angle turned)."""
+        s0, s1 = self._state(y0), self._state(y1)
+        travel = np.linalg.norm(s1.x - s0.x, axis=1)
+        if s0.rotation is not None:
+            # angle between the two orientations: cos θ = (trace(R0ᵀ R1) - 1) / 2
+            trace = np.einsum("bij,bij->b", s0.rotation, s1.rotation)
+            angle = np.arccos(np.clip((trace - 1) / 2, -1.0, 1.0))
+            travel[s0.first_rigid:] += self.reach * angle
+        margin = float(travel.max(initial=0.0)) + TOUCH
+        found = detect(self.world, s1, margin)
+        if self.resting.count and found.count:
+            resting = self.resting.keys()
+            keep = np.array([key not in resting for key in zip(found.probe.tolist(), found.solid_kind.tolist(),
+                                                                  found.solid_index.tolist())])
+            found = found.select(keep)
+        return found
+
+    def _first_impact(self, solver: Any, candidates: Contacts) -> float | None:
+        """Time of the first impact among the candidates during the solver's last step, or None."""
+        if not candidates.count:
+            return None
+        t0, t1 = solver.t_old, solver.t
+        interpolant = solver.dense_output()
+        times = np.linspace(t0, t1, SAMPLES + 1)
+
+        def gaps(t: float, chosen: Any = slice(None)) -> np.ndarray:
+            return evaluate_pairs(self.world, self._state(interpolant(t)), candidates.probe[chosen],
+                                  candidates.solid_kind[chosen], candidates.solid_index[chosen]).gap
+
+        sampled = [self._state(interpolant(t)) for t in times]
+        values = np.array([evaluate_pairs(self.world, state, candidates.probe, candidates.solid_kind,
+                                          candidates.solid_index).gap for state in sampled])  # (S + 1, C)
+        centres = np.array([probe_centres(self.world, state)[candidates.probe] for state in sampled])  # (S+1, C, 3)
+        # a straight piece of path shorter than the gaps at its two ends cannot reach the solid (triangle
+        # inequality); rotating probes move on arcs, hence the allowance
+        travel = 1.6 * np.linalg.norm(np.diff(centres, axis=0), axis=2)  # (S, C)
+        approaching = values[0] > -TOUCH
+        first = None
+        for k in range(SAMPLES):
+            crossed = approaching & (values[k] > 0) & (values[k + 1] <= 0)
+            if not crossed.any():
+                # a thin solid may hide between samples: look for a dip below zero inside the interval
+                could = approaching & (values[k] > 0) & (values[k + 1] > 0) & (travel[k] > values[k] + values[k + 1])
+                dip = self._dip(gaps, times[k], times[k + 1], could)
+                if dip is None:
+                    continue
+                lower, upper, pair = dip
+            else:
+                pair = int(np.argmax(crossed))
+                lower, upper = times[k], times[k + 1]
+            first = brentq(lambda t: gaps(t, [pair])[0], lower, upper, xtol=1e-12, rtol=4 * np.finfo(float).eps)
+            break
+        return first
+
+    def _dip(self, gaps: Any, start: float, stop: float, candidates: np.ndarray
+             ) -> tuple[float, float, int] | None:
+        """A sub-interval of [start, stop] where some candidate's gap goes negative (ternary search on each
+        candidate's gap, which is close to convex over so short a piece of path)."""
+        for pair in np.flatnonzero(candidates):
+            low, high = start, stop
+            for _ in range(40):
+                left, right = low + (high - low) / 3, high - (high - low) / 3
+                if gaps(left, [pair])[0] > gaps(right, [pair])[0]:
+                    low = left
+                else:
+                    high = right
+            middle = 0.5 * (low + high)
+            if gaps(middle, [pair])[0] < 0:
+                return start, middle, int(pair)
+        return None
+
+    def _first_mode_change(self, solver: Any, before: np.ndarray, after: np.ndarray) -> float | None:
+        """Time of the first sign change of a resting contact's mode function in the last step, or None."""
+        changed = (before > 0) & (after <= 0)
+        if not changed.any():
+            return None
+        interpolant = solver.dense_output()
+        pairs = np.flatnonzero(changed)
+        times = [brentq(lambda t, k=k: self._mode_functions(t, interpolant(t))[k], solver.t_old, solver.t,
+                        xtol=1e-12) for k in pairs]
+        return float(min(times))
+
+    # ------------------------------------------------------------------------------------- handling events
+
+    def settle(self, y: np.ndarray) -> None:
+        """At an event (or the start): apply impacts at touching contacts and decide which contacts rest."""
+        state = self._state(y)
+        touching = detect(self.world, state, TOUCH + self.settings.slop)
+        if touching.count:
+            bodies = self._velocities(state)
+            x = np.vstack([state.x, np.zeros((1, 3))])
+            solve_impulses(touching, bodies, x, 0.0, iterations=self.settings.iterations,
+                           rest_speed=self.rest_speed, slop=self.settings.slop)
+            self._write_velocities(y, state, bodies)
+            state = self._state(y)
+        self._choose_resting(y, state, touching)
+
+    def _choose_resting(self, y: np.ndarray, state: Kinematics, touching: Contacts) -> None:
+        """Touching contacts that the impulses left at rest (not separating) become resting contacts; those that
+        bounced, however slowly, fly free until their next, slower impact."""
+        if not touching.count:
+            self.resting = Resting()
+            return
+        from animbatch.contact.solver import ContactRows
+
+        velocities = self._velocities(state)
+        x = np.vstack([state.x, np.zeros((1, 3))])
+        rows = ContactRows(touching, velocities, x)
+        normal = rows.relative(rows.n)
+        keep = normal < 1e-9 + 1e-9 * np.abs(normal).max(initial=0.0)
+        slip = rows.tangential()[keep]
+        speed = np.linalg.norm(slip, axis=1)
+        chosen = touching.select(keep)
+        t1, t2 = rows.t1[keep], rows.t2[keep]
+        direction = slip[:, [0]] * t1 + slip[:, [1]] * t2
+        direction = np.divide(direction, speed[:, None], out=np.zeros_like(direction), where=speed[:, None] > 0)
+        self.resting = Resting(chosen.probe, chosen.solid_kind, chosen.solid_index, speed <= self.rest_speed,
+                               direction)
+        if self.resting.count:  # a contact may only stick where static friction can hold it
+            self.change_modes(0.0, y)
+
+    def change_modes(self, t: float, y: np.ndarray) -> None:
+        """After a mode event: drop separating contacts, and switch sticking and sliding where their functions
+        changed sign."""
+        values = self._mode_functions(t, y)
+        count = self.resting.count
+        pressing, mode = values[:count], values[count:]
+        state = self._state(y)
+        keep = pressing > 1e-9
+        resting = self.resting
+        switch = (mode <= 1e-9) & keep
+        if switch.any():
+            contacts = evaluate_pairs(self.world, state, resting.probe, resting.kind, resting.index)
+            from animbatch.contact.solver import ContactRows
+
+            bodies = self._velocities(state)
+            x = np.vstack([state.x, np.zeros((1, 3))])
+            rows = ContactRows(contacts, bodies, x)
+            to_stick = switch & ~resting.sticking
+            to_slide = switch & resting.sticking
+            if to_stick.any():  # the slip has just reversed: stop it exactly
+                solve_impulses(contacts.select(to_stick), bodies, x, 0.0, iterations=self.settings.iterations,
+                               rest_speed=np.inf, slop=self.settings.slop, bounce=False)
+                self._write_velocities(y, state, bodies)
+            sticking = resting.sticking.copy()
+            sticking[to_stick] = True
+            sticking[to_slide] = False
+            direction = resting.slide_direction.copy()
+            if to_slide.any():  # slip starts along the tangential acceleration friction could no longer cancel
+                dydt = self.system.rhs(t, y)
+                _, rate = self.system.split(dydt)
+                free = self._inertia(state)
+                n, b = self.system.model.particle_count, self.system.model.rigid_count
+                free.v[:n] = rate[: 3 * n].reshape(n, 3)
+                if b:
+                    free.v[n:n + b] = rate[3 * n: 3 * n + 3 * b].reshape(b, 3) / self.system.model.rigid.mass[:, None]
+                tangential = rows.tangential(free.v, free.omega)[to_slide]
+                vector = tangential[:, [0]] * rows.t1[to_slide] + tangential[:, [1]] * rows.t2[to_slide]
+                direction[to_slide] = vector / np.maximum(np.linalg.norm(vector, axis=1, keepdims=True), 1e-300)
+            self.resting = Resting(resting.probe, resting.kind, resting.index, sticking, direction)
+        self.resting = self.resting.keep(keep)
+
+
+def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any], system: Dynamics,
+                          y0: np.ndarray, times: np.ndarray, on_frame: FrameCallback | None) -> IntegrationResult:
+    """Integrate ``system`` with a scipy solver class, stopping at every contact event (see the module notes)."""
+    started = time.perf_counter()
+    events = ContactEvents(system)
+    layout = system.model.layout
+    stats = SolverStats(method)
+    states = np.empty((len(times), len(y0)))
+    y = np.array(y0, dtype=float)
+    t = float(times[0])
+    fun = CountingRhs(events.rhs)
+    budget = MAX_EVENTS_PER_FRAME * len(times)
+    frame = 1
+    with np.errstate(all="ignore"):
+        events.settle(y)
+        states[0] = y
+        if on_frame is not None:
+            on_frame(0, t)
+        while frame < len(times):
+            solver = solver_class(fun, t, y.copy(), float(times[-1]), **options)
+            modes = events._mode_functions(t, y) if events.resting.count else None
+            while frame < len(times):
+                before = solver.y.copy()
+                message = solver.step()
+                if solver.status == "failed":
+                    raise SimulationError(f"{method} failed at t = {solver.t:.6g} s with contacts: {message}. A "
+                                          "fixed-step method (symplectic_euler) is more robust for scenes with many "
+                                          "contacts.", time=solver.t)
+                stats.steps += 1
+                bad = first_non_finite(solver.y)
+                if bad is not None:
+                    raise divergence_error(layout, solver.y, bad, solver.t, method=method, step=stats.steps)
+                impact = events._first_impact(solver, events._impact_candidates(before, solver.y))
+                after = events._mode_functions(solver.t, solver.y) if modes is not None else None
+                change = events._first_mode_change(solver, modes, after) if modes is not None else None
+                modes = after
+                event_time = min((e for e in (impact, change) if e is not None), default=None)
+                end = solver.t if event_time is None else event_time
+                interpolant = solver.dense_output()
+                while frame < len(times) and times[frame] <= end:
+                    exact = times[frame] == solver.t and event_time is None
+                    states[frame] = solver.y if exact else interpolant(times[frame])
+                    system.project(states[frame])
+                    if on_frame is not None:
+                        on_frame(frame, float(times[frame]))
+                    frame += 1
+                if event_time is not None:
+                    t, y = float(event_time), interpolant(event_time)
+                    system.project(y)
+                    if impact is not None and (change is None or impact <= change):
+                        events.settle(y)
+                    else:
+                        events.change_modes(t, y)
+                    events.events += 1
+                    if events.events > budget:
+                        raise SimulationError(f"more than {budget} contact events: the contacts do not settle. Use "
+                                              "a fixed-step method (symplectic_euler) for this scene.", time=t)
+                    break  # restart the solver from the event
+                if solver.status == "finished":
+                    break
+            stats.jacobian_evaluations += int(solver.njev)
+            stats.lu_decompositions += int(solver.nlu)
+            if event_time is None:
+                break
+    stats.rhs_evaluations = fun.count
+    stats.wall_time = time.perf_counter() - started
+    return IntegrationResult(states, stats)
