@@ -82,6 +82,7 @@ class ContactEvents:
         self.settings = model.contact_settings
         self.rest_speed = self.settings.rest_speed or DEFAULT_REST_SPEED
         self.resting = Resting()
+        self._warm_forces: tuple[np.ndarray, np.ndarray] | None = None  # last forces of the current resting set
         probes = self.world.probes
         self.reach = float(np.max(np.linalg.norm(probes.offset, axis=1) + probes.radius)) if probes.count else 0.0
         self.events = 0
@@ -89,7 +90,8 @@ class ContactEvents:
     # ------------------------------------------------------------------------------------- bodies
 
     def _state(self, y: np.ndarray) -> Kinematics:
-        return self.system.kinematics(*self.system.split(y))
+        """The kinematics of a state, in arrays of its own (events compare several states)."""
+        return self.system.kinematics(*self.system.split(y), copy=True)
 
     def _inertia(self, state: Kinematics) -> BodyVelocities:
         """Inverse masses and world inverse inertias, with zeros for velocities (filled by callers)."""
@@ -143,9 +145,14 @@ class ContactEvents:
         velocities = self._velocities(state)
         x = np.vstack([state.x, np.zeros((1, 3))])
         normal_bias, tangent_bias = self._biases(contacts, state, velocities, x)
+        warm = self._warm_forces
+        if warm is not None and len(warm[0]) != contacts.count:
+            warm = None
         result = solve_forces(contacts, bodies, x, normal_bias=normal_bias, tangent_bias=tangent_bias,
                               sticking=self.resting.sticking, slide_direction=self.resting.slide_direction,
-                              iterations=self.settings.iterations)
+                              iterations=self.settings.iterations, warm=warm)
+        # consecutive evaluations see nearly the same contacts: start the next solve from this one
+        self._warm_forces = (result.normal_impulse.copy(), result.tangent_impulse.copy())
         rate[: 3 * n] = bodies.v[:n].ravel()
         if b:
             rate[3 * n: 3 * n + 3 * b] = (bodies.v[n:n + b] * model.rigid.mass[:, None]).ravel()
@@ -317,6 +324,7 @@ class ContactEvents:
         bounced, however slowly, fly free until their next, slower impact."""
         if not touching.count:
             self.resting = Resting()
+            self._warm_forces = None
             return
         from animbatch.contact.solver import ContactRows
 
@@ -333,6 +341,7 @@ class ContactEvents:
         direction = np.divide(direction, speed[:, None], out=np.zeros_like(direction), where=speed[:, None] > 0)
         self.resting = Resting(chosen.probe, chosen.solid_kind, chosen.solid_index, speed <= self.rest_speed,
                                direction)
+        self._warm_forces = None
         if self.resting.count:  # a contact may only stick where static friction can hold it
             self.change_modes(0.0, y)
 
@@ -376,6 +385,7 @@ class ContactEvents:
                 direction[to_slide] = vector / np.maximum(np.linalg.norm(vector, axis=1, keepdims=True), 1e-300)
             self.resting = Resting(resting.probe, resting.kind, resting.index, sticking, direction)
         self.resting = self.resting.keep(keep)
+        self._warm_forces = None
 
 
 def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any], system: Dynamics,

@@ -38,6 +38,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from animbatch.contact.detection import Contacts
 from animbatch.rigid.quaternion import cross
@@ -68,9 +69,27 @@ def tangent_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return first, cross(normal, first)
 
 
+@dataclass(frozen=True)
+class _Direction:
+    """One row direction d for every contact, with its Jacobian and response precomputed.
+
+    ``ang_a = r_a × d`` (and b): the relative velocity along d is ``(v_a - v_b)·d + ω_a·ang_a - ω_b·ang_b``.
+    ``lin_a = d / m_a``, ``turn_a = I_a⁻¹ (r_a × d)`` (and b): what a unit impulse along d does to the bodies.
+    """
+
+    d: np.ndarray
+    ang_a: np.ndarray
+    ang_b: np.ndarray
+    lin_a: np.ndarray
+    lin_b: np.ndarray
+    turn_a: np.ndarray
+    turn_b: np.ndarray
+
+
 class ContactRows:
     """The rows of K contacts on the bodies of ``bodies``: directions, lever arms, effective masses, and how to read
-    relative motion along a row and apply impulses (or forces) to the bodies."""
+    relative motion along a row and apply impulses (or forces) to the bodies. Everything that does not change
+    between solver iterations is computed once here; an iteration is a few array products."""
 
     def __init__(self, contacts: Contacts, bodies: BodyVelocities, x: np.ndarray) -> None:
         self.bodies = bodies
@@ -81,59 +100,106 @@ class ContactRows:
         self.n = contacts.normal
         self.t1, self.t2 = tangent_basis(self.n)
         self.r_a, self.r_b = contacts.point - x[self.a], contacts.point - x[self.b]
+        # one sparse matrix scatters row impulses onto bodies: column k adds to body a_k, column K + k subtracts
+        # from body b_k
+        k = self.count
+        columns = np.arange(2 * k)
+        self._scatter = sp.csr_matrix((np.concatenate([np.ones(k), -np.ones(k)]),
+                                       (np.concatenate([self.a, self.b]), columns)), shape=(len(x), 2 * k))
         # mass splitting: each body is shared by the contacts touching it
         shares = np.bincount(np.concatenate([self.a, self.b]), minlength=len(x)).astype(float)
         shares[-1] = 1.0
-        self._split_mass = bodies.inverse_mass * shares
-        self._split_inertia = bodies.inverse_inertia * shares[:, None, None]
-        self.w_n, self.w_1, self.w_2 = self.weight(self.n), self.weight(self.t1), self.weight(self.t2)
+        self._shares = shares
+        self.normal_row, self.first_row, self.second_row = (self._direction(d) for d in (self.n, self.t1, self.t2))
+        self.w_n, self.w_1, self.w_2 = (self._weight(row) for row in (self.normal_row, self.first_row,
+                                                                     self.second_row))
+
+    def _direction(self, d: np.ndarray) -> _Direction:
+        a, b, inverse_mass, inverse_inertia = self.a, self.b, self.bodies.inverse_mass, self.bodies.inverse_inertia
+        ang_a, ang_b = cross(self.r_a, d), cross(self.r_b, d)
+        return _Direction(d, ang_a, ang_b, inverse_mass[a][:, None] * d, inverse_mass[b][:, None] * d,
+                          np.einsum("kij,kj->ki", inverse_inertia[a], ang_a),
+                          np.einsum("kij,kj->ki", inverse_inertia[b], ang_b))
+
+    def _weight(self, row: _Direction) -> np.ndarray:
+        """Effective mass along a row, with each body's inverse mass and inertia multiplied by its share."""
+        a, b = self.a, self.b
+        inverse = (self._shares[a] * (np.einsum("ki,ki->k", row.lin_a, row.d) + np.einsum("ki,ki->k", row.turn_a,
+                                                                                          row.ang_a))
+                   + self._shares[b] * (np.einsum("ki,ki->k", row.lin_b, row.d) + np.einsum("ki,ki->k", row.turn_b,
+                                                                                            row.ang_b)))
+        return 1.0 / inverse
 
     def weight(self, direction: np.ndarray) -> np.ndarray:
         """Effective mass of each row along ``direction`` (K, 3), with masses split among contacts."""
-        a, b = self.a, self.b
-        ra, rb = cross(self.r_a, direction), cross(self.r_b, direction)
-        angular = (np.einsum("ki,kij,kj->k", ra, self._split_inertia[a], ra)
-                   + np.einsum("ki,kij,kj->k", rb, self._split_inertia[b], rb))
-        return 1.0 / (self._split_mass[a] + self._split_mass[b] + angular)
+        return self._weight(self._direction(direction))
+
+    def _row(self, direction: np.ndarray) -> _Direction:
+        for row in (self.normal_row, self.first_row, self.second_row):
+            if row.d is direction:
+                return row
+        return self._direction(direction)
 
     def relative(self, direction: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> np.ndarray:
         """Relative velocity (or acceleration) of the contact points along ``direction``, (K,)."""
         v = self.bodies.v if v is None else v
         w = self.bodies.omega if w is None else w
+        row = self._row(direction)
         a, b = self.a, self.b
-        return np.einsum("ki,ki->k", v[a] + cross(w[a], self.r_a) - v[b] - cross(w[b], self.r_b), direction)
+        return (np.einsum("ki,ki->k", v[a] - v[b], row.d) + np.einsum("ki,ki->k", w[a], row.ang_a)
+                - np.einsum("ki,ki->k", w[b], row.ang_b))
+
+    def _apply_rows(self, amounts: list[tuple[_Direction, np.ndarray]], v: np.ndarray, w: np.ndarray) -> None:
+        """Add impulses ``amount`` (K,) along rows, for several rows at once."""
+        linear = sum(np.vstack([row.lin_a, row.lin_b]) * np.concatenate([amount, amount])[:, None]
+                     for row, amount in amounts)
+        turning = sum(np.vstack([row.turn_a, row.turn_b]) * np.concatenate([amount, amount])[:, None]
+                      for row, amount in amounts)
+        v += self._scatter @ linear
+        w += self._scatter @ turning
+        v[-1] = 0.0  # the fixed body never moves
+        w[-1] = 0.0
 
     def apply(self, impulse: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> None:
         """Add impulses (or forces) (K, 3) at the contacts: +impulse on a, -impulse on b."""
         v = self.bodies.v if v is None else v
         w = self.bodies.omega if w is None else w
-        for body, lever, sign in ((self.a, self.r_a, 1.0), (self.b, self.r_b, -1.0)):
-            linear = self.bodies.inverse_mass[body][:, None] * impulse * sign
-            angular = np.einsum("kij,kj->ki", self.bodies.inverse_inertia[body], cross(lever, impulse)) * sign
-            for axis in range(3):
-                v[:, axis] += np.bincount(body, weights=linear[:, axis], minlength=self.size)
-                w[:, axis] += np.bincount(body, weights=angular[:, axis], minlength=self.size)
-        v[-1] = 0.0  # the fixed body never moves
-        w[-1] = 0.0
+        rows = (self.normal_row, self.first_row, self.second_row)
+        self._apply_rows([(row, np.einsum("ki,ki->k", impulse, row.d)) for row in rows], v, w)
+
+    def apply_normal(self, amount: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> None:
+        self._apply_rows([(self.normal_row, amount)], self.bodies.v if v is None else v,
+                         self.bodies.omega if w is None else w)
+
+    def apply_tangential(self, amounts: np.ndarray) -> None:
+        """Add tangential impulses given in the (t1, t2) basis, (K, 2)."""
+        self._apply_rows([(self.first_row, amounts[:, 0]), (self.second_row, amounts[:, 1])], self.bodies.v,
+                         self.bodies.omega)
 
     def tangential(self, v: np.ndarray | None = None, w: np.ndarray | None = None) -> np.ndarray:
         """Relative tangential motion (K, 2) in the (t1, t2) basis."""
         return np.stack([self.relative(self.t1, v, w), self.relative(self.t2, v, w)], axis=1)
 
     def friction_step(self, tangent_impulse: np.ndarray, normal_impulse: np.ndarray, static: np.ndarray,
-                      sticking: np.ndarray, kinetic: np.ndarray) -> np.ndarray:
-        """One Coulomb projection: the tangential impulse that stops the relative tangential motion if the static
-        cone allows it (for contacts that may stick), else the kinetic limit against it. Returns the new total."""
-        current = self.tangential()
+                      sticking: np.ndarray, kinetic: np.ndarray, bias: np.ndarray | float = 0.0) -> np.ndarray:
+        """One Coulomb projection: the tangential impulse that stops the relative tangential motion (plus ``bias``)
+        if the static cone allows it (for contacts that may stick), else the kinetic limit against it. Returns the
+        new total."""
+        current = self.tangential() + bias
         wanted = tangent_impulse - np.stack([current[:, 0] * self.w_1, current[:, 1] * self.w_2], axis=1)
         size = np.linalg.norm(wanted, axis=1)
         holds = sticking & (size <= static * normal_impulse)
         limit = np.where(holds, size, kinetic * normal_impulse)
         scale = np.divide(np.minimum(size, limit), size, out=np.zeros(self.count), where=size > 0)
         updated = wanted * scale[:, None]
-        change = updated - tangent_impulse
-        self.apply(change[:, [0]] * self.t1 + change[:, [1]] * self.t2)
+        self.apply_tangential(updated - tangent_impulse)
         return updated
+
+
+#: Iterations stop early once no impulse changes by more than this fraction of the largest one.
+CONVERGED = 1e-12
+#: Resting-contact forces are converged when every contact's acceleration target is met to this [m/s²].
+ACCELERATION_TOLERANCE = 1e-9
 
 
 @dataclass
@@ -148,11 +214,14 @@ class SolveResult:
 
 
 def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h: float, *, iterations: int,
-                   rest_speed: float, slop: float, bounce: bool = True) -> SolveResult:
+                   rest_speed: float, slop: float, bounce: bool = True,
+                   warm: tuple[np.ndarray, np.ndarray] | None = None) -> SolveResult:
     """Change ``bodies.v`` and ``bodies.omega`` in place so that the contacts hold, over a step of ``h`` [s].
 
     ``x``: centres of mass (P + 1, 3) [m]. ``bounce``: apply restitution (off when re-projecting velocities that
     were already resolved in this step). ``h = 0`` means an instant: no speculative contacts, no pushing apart.
+    ``warm``: normal impulses (K,) and tangential impulse vectors (K, 3) to start from (warm starting: the last
+    step's impulses of the same contacts, so that resting contacts converge over steps).
     """
     count = contacts.count
     result = SolveResult(np.zeros(count), np.zeros((count, 2)))
@@ -173,12 +242,23 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         target = np.where(fast, bounce_target, 0.0)
     normal_impulse = np.zeros(count)
     tangent_impulse = np.zeros((count, 2))
+    if warm is not None:
+        normal_impulse = np.where(fast, 0.0, warm[0])  # impacts start afresh; resting contacts from last step
+        tangent_impulse = np.stack([np.einsum("ki,ki->k", warm[1], rows.t1),
+                                    np.einsum("ki,ki->k", warm[1], rows.t2)], axis=1) * (~fast)[:, None]
+        rows.apply_normal(normal_impulse)
+        rows.apply_tangential(tangent_impulse)
     for _ in range(iterations):
         updated = np.maximum(normal_impulse + (target - rows.relative(n)) * rows.w_n, 0.0)
-        rows.apply((updated - normal_impulse)[:, None] * n)
+        change = updated - normal_impulse
+        rows.apply_normal(change)
         normal_impulse = updated
+        before = tangent_impulse
         tangent_impulse = rows.friction_step(tangent_impulse, normal_impulse, contacts.static_friction, sticking,
                                              contacts.kinetic_friction)
+        scale = max(float(np.abs(normal_impulse).max()), 1e-300)
+        if max(float(np.abs(change).max()), float(np.abs(tangent_impulse - before).max())) <= CONVERGED * scale:
+            break
     result.normal_impulse[:] = normal_impulse
     result.tangent_impulse[:] = tangent_impulse
     overlap = np.maximum(-gap - slop, 0.0)
@@ -188,51 +268,101 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         push = np.zeros(count)
         for _ in range(iterations):
             updated = np.maximum(push + (push_target - rows.relative(n, pseudo_v, pseudo_w)) * rows.w_n, 0.0)
-            rows.apply((updated - push)[:, None] * n, pseudo_v, pseudo_w)
+            change = updated - push
+            rows.apply_normal(change, pseudo_v, pseudo_w)
             push = updated
+            if float(np.abs(change).max()) <= CONVERGED * max(float(push.max()), 1e-300):
+                break
         result.pseudo_v, result.pseudo_omega = pseudo_v, pseudo_w
     return result
 
 
+def _generalised(rows: ContactRows, body: np.ndarray, sign: float, linear: np.ndarray, lever: np.ndarray,
+                 columns: dict[int, int], size: int) -> np.ndarray:
+    """Rows (K, 6 B) that place ``sign · [linear, lever × linear]`` in each contact's body's six columns."""
+    matrix = np.zeros((len(body), size))
+    for k, (owner, vector, arm) in enumerate(zip(body, linear, lever)):
+        if owner in columns:
+            column = 6 * columns[owner]
+            matrix[k, column:column + 3] += sign * vector
+            matrix[k, column + 3:column + 6] += sign * cross(arm, vector)
+    return matrix
+
+
 def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarray, *, normal_bias: np.ndarray,
                  tangent_bias: np.ndarray, sticking: np.ndarray, slide_direction: np.ndarray,
-                 iterations: int) -> SolveResult:
+                 iterations: int, warm: tuple[np.ndarray, np.ndarray] | None = None) -> SolveResult:
     """Forces of resting contacts, changing the accelerations in ``accelerations`` (``v``: linear, ``omega``:
     angular) in place.
 
     ``normal_bias`` (K,): the part of each gap's second derivative not carried by the accelerations (velocity
     products, stabilisation); the normal rows make ``relative acceleration + normal_bias ≥ 0``. ``tangent_bias``
     (K, 2): the same for the contact points' tangential acceleration. ``sticking`` (K,) bool; ``slide_direction``
-    (K, 3): unit slip direction of sliding contacts (friction opposes it).
+    (K, 3): unit slip direction of sliding contacts (friction opposes it). ``warm``: normal (K,) and tangential
+    (K, 2) forces to start from.
+
+    Resting contacts are few, so this builds their small contact matrix ``A = J M⁻¹ Fᵀ`` (J: what each row measures,
+    F: the force each row applies; a sliding contact's normal row also carries its kinetic friction, ``n - μk d``)
+    and solves it by projected Gauss–Seidel, which converges in a few sweeps where Jacobi iteration crawls on
+    redundant contacts (a box resting on four corners). ``iterations`` bounds the sweeps.
     """
     count = contacts.count
     result = SolveResult(np.zeros(count), np.zeros((count, 2)))
     if count == 0:
         return result
     rows = ContactRows(contacts, accelerations, x)
-    n = rows.n
-    normal_force = np.zeros(count)
-    tangent_force = np.zeros((count, 2))
+    bodies = [int(i) for i in np.unique(np.concatenate([rows.a, rows.b])) if i != rows.size - 1]
+    columns = {body: k for k, body in enumerate(bodies)}
+    size = 6 * len(bodies)
+    inverse = np.zeros((size, size))
+    for body, k in columns.items():
+        inverse[6 * k:6 * k + 3, 6 * k:6 * k + 3] = accelerations.inverse_mass[body] * np.eye(3)
+        inverse[6 * k + 3:6 * k + 6, 6 * k + 3:6 * k + 6] = accelerations.inverse_inertia[body]
     sliding = ~sticking
-    kinetic_direction = -slide_direction
-    mu_k = contacts.kinetic_friction
+    normal_force_direction = rows.n - (contacts.kinetic_friction * sliding)[:, None] * slide_direction
+
+    def jacobian(direction: np.ndarray) -> np.ndarray:
+        return (_generalised(rows, rows.a, 1.0, direction, rows.r_a, columns, size)
+                + _generalised(rows, rows.b, -1.0, direction, rows.r_b, columns, size))
+
+    measure = np.vstack([jacobian(rows.n), jacobian(rows.t1), jacobian(rows.t2)])  # (3K, 6B)
+    force = np.vstack([jacobian(normal_force_direction), jacobian(rows.t1), jacobian(rows.t2)])
+    matrix = measure @ inverse @ force.T  # (3K, 3K): row i's acceleration per unit of force j
+    free = np.concatenate([rows.relative(rows.n) + normal_bias, rows.relative(rows.t1) + tangent_bias[:, 0],
+                           rows.relative(rows.t2) + tangent_bias[:, 1]])
+    solution = np.zeros(3 * count)
+    if warm is not None:
+        solution[:count] = warm[0]
+        solution[count:] = np.concatenate([warm[1][:, 0], warm[1][:, 1]]) * np.tile(sticking, 2)
+    diagonal = np.diag(matrix).copy()
+    diagonal[diagonal <= 0] = np.inf
+    limit = contacts.static_friction
     for _ in range(iterations):
-        updated = np.maximum(normal_force - (rows.relative(n) + normal_bias) * rows.w_n, 0.0)
-        change = updated - normal_force
-        rows.apply(change[:, None] * n)
-        if sliding.any():  # kinetic friction follows the normal force, against the slip
-            rows.apply((change * mu_k * sliding)[:, None] * kinetic_direction)
-        normal_force = updated
-        if sticking.any():
-            current = rows.tangential() + tangent_bias
-            wanted = tangent_force - np.stack([current[:, 0] * rows.w_1, current[:, 1] * rows.w_2], axis=1)
-            size = np.linalg.norm(wanted, axis=1)
-            limit = contacts.static_friction * normal_force
-            scale = np.divide(np.minimum(size, limit), size, out=np.zeros(count), where=size > 0)
-            updated_t = np.where(sticking[:, None], wanted * scale[:, None], 0.0)
-            delta = updated_t - tangent_force
-            rows.apply(delta[:, [0]] * rows.t1 + delta[:, [1]] * rows.t2)
-            tangent_force = updated_t
+        for k in range(count):
+            i = k
+            solution[i] = max(solution[i] - (free[i] + matrix[i] @ solution) / diagonal[i], 0.0)
+            if sticking[k]:
+                j1, j2 = count + k, 2 * count + k
+                t1 = solution[j1] - (free[j1] + matrix[j1] @ solution) / diagonal[j1]
+                solution[j1] = t1
+                t2 = solution[j2] - (free[j2] + matrix[j2] @ solution) / diagonal[j2]
+                size_t = np.hypot(t1, t2)
+                cap = limit[k] * solution[i]
+                scale = 1.0 if size_t <= cap else cap / size_t
+                solution[j1], solution[j2] = t1 * scale, t2 * scale
+        residual = free + matrix @ solution
+        normal_residual = np.where(solution[:count] > 0, np.abs(residual[:count]),
+                                   np.maximum(-residual[:count], 0.0))
+        tangential = np.hypot(residual[count:2 * count], residual[2 * count:]) * sticking
+        inside = np.hypot(solution[count:2 * count], solution[2 * count:]) < limit * solution[:count] * (1 - 1e-9)
+        if max(float(normal_residual.max()), float((tangential * inside).max())) <= ACCELERATION_TOLERANCE:
+            break
+    normal_force = solution[:count]
+    tangent_force = np.stack([solution[count:2 * count], solution[2 * count:]], axis=1)
+    change = inverse @ (force.T @ solution)  # (6B,): accelerations added by the forces
+    for body, k in columns.items():
+        accelerations.v[body] += change[6 * k:6 * k + 3]
+        accelerations.omega[body] += change[6 * k + 3:6 * k + 6]
     result.normal_impulse[:] = normal_force
     result.tangent_impulse[:] = tangent_force
     return result

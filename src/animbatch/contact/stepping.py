@@ -47,6 +47,8 @@ class ContactResolver:
         probes = self.world.probes
         self.reach = float(np.max(np.linalg.norm(probes.offset, axis=1) + probes.radius)) if probes.count else 0.0
         self.contacts_last_step = 0
+        # warm starting: last step's impulses per contact (probe, solid kind, solid index), scaled per unit time
+        self._warm: dict[tuple[int, int, int], tuple[float, np.ndarray]] = {}
 
     def rest_speed(self, h: float) -> float:
         """Impacts slower than this do not bounce; sticking is allowed below it (at least 3 g h)."""
@@ -83,6 +85,16 @@ class ContactResolver:
             inertia_world = rotation @ rigid.inertia @ np.transpose(rotation, (0, 2, 1))
             angular[...] = np.einsum("bij,bj->bi", inertia_world, bodies.omega[n:n + b])
 
+    def _warm_start(self, keys: list[tuple[int, int, int]], h: float) -> tuple[np.ndarray, np.ndarray]:
+        """Impulses to start from: last step's, for contacts that persist (zero for new ones)."""
+        normal = np.zeros(len(keys))
+        tangent = np.zeros((len(keys), 3))
+        for k, key in enumerate(keys):
+            if key in self._warm:
+                rate, vector = self._warm[key]
+                normal[k], tangent[k] = rate * h, vector * h
+        return normal, tangent
+
     def resolve(self, config: np.ndarray, motion: np.ndarray, h: float, *, bounce: bool = True) -> np.ndarray | None:
         """Change the motion so that all contacts hold over a step of ``h`` [s].
 
@@ -100,8 +112,17 @@ class ContactResolver:
             return None
         bodies = self._bodies(state)
         x = np.vstack([state.x, np.zeros((1, 3))])
-        result = solve_impulses(contacts, bodies, x, h, iterations=self.settings.iterations, rest_speed=self.rest_speed(h),
-                       slop=self.settings.slop, bounce=bounce)
+        keys = list(zip(contacts.probe.tolist(), contacts.solid_kind.tolist(), contacts.solid_index.tolist()))
+        warm = self._warm_start(keys, h)
+        result = solve_impulses(contacts, bodies, x, h, iterations=self.settings.iterations,
+                                rest_speed=self.rest_speed(h), slop=self.settings.slop, bounce=bounce, warm=warm)
+        if bounce:  # remember the impulses of the main solve (not of end-of-step re-projections)
+            from animbatch.contact.solver import tangent_basis
+
+            t1, t2 = tangent_basis(contacts.normal)
+            tangential = result.tangent_impulse[:, [0]] * t1 + result.tangent_impulse[:, [1]] * t2
+            self._warm = {key: (normal / h, tangent / h) for key, normal, tangent in
+                          zip(keys, result.normal_impulse, tangential)}
         self._write_back(motion, state, bodies)
         if result.pseudo_v is None:
             return None

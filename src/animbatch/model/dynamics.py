@@ -57,19 +57,25 @@ class Dynamics:
         return (config[3 * n: 3 * n + 3 * b].reshape(b, 3), config[3 * n + 3 * b:].reshape(b, 4),
                 motion[3 * n: 3 * n + 3 * b].reshape(b, 3), motion[3 * n + 3 * b:].reshape(b, 3))
 
-    def kinematics(self, config: np.ndarray, motion: np.ndarray) -> Kinematics:
-        """Positions, velocities, rotations and angular velocities of all bodies."""
+    def kinematics(self, config: np.ndarray, motion: np.ndarray, *, copy: bool = False) -> Kinematics:
+        """Positions, velocities, rotations and angular velocities of all bodies.
+
+        The position and velocity arrays are views of the state or buffers reused by the next call, which is what
+        the right-hand side wants; with ``copy`` they are the caller's own (to keep several states at once).
+        """
         n = self.particles
         x = config[: 3 * n].reshape(n, 3)
         v = motion[: 3 * n].reshape(n, 3)
         if not self.rigid:
-            return Kinematics(x, v, None, None, n)
+            return Kinematics(x.copy(), v.copy(), None, None, n) if copy else Kinematics(x, v, None, None, n)
         position, orientation, momentum, angular_momentum = self._rigid_views(config, motion)
         rotation = quaternion.to_matrix(orientation)
         omega = world_inverse_inertia_times(rotation, self._inverse_inertia, angular_momentum)
         self._x[:n], self._x[n:] = x, position
         self._v[:n] = v
         np.multiply(momentum, self._rigid_inverse_mass, out=self._v[n:])
+        if copy:
+            return Kinematics(self._x.copy(), self._v.copy(), rotation, omega, n)
         return Kinematics(self._x, self._v, rotation, omega, n)
 
     def loads(self, t: float, state: Kinematics) -> tuple[np.ndarray, np.ndarray | None]:
