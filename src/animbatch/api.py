@@ -121,7 +121,7 @@ def render(scene: LoadedScene, trajectory: Trajectory, *, model: Model | None = 
     from animbatch.encode import Mp4Writer, PngSequenceWriter
     from animbatch.render.backend import select_backend
     from animbatch.render.camera import motion_bounds
-    from animbatch.render.frames import FrameGeometry, FrameRenderer, body_extents
+    from animbatch.render.frames import FrameGeometry, FrameRenderer, body_extents, collider_points
 
     spec = scene.spec
     model = model if model is not None else compile_model(scene)
@@ -129,9 +129,11 @@ def render(scene: LoadedScene, trajectory: Trajectory, *, model: Model | None = 
     chosen = select_backend(backend)
     folder = Path(out_dir) / scene.name
     width, height = spec.render.resolution
-    bounds = motion_bounds(trajectory.positions, body_extents(model), model.anchor_position)
-    geometry = FrameGeometry.from_scene(spec, model, bounds, largest_vector(model, trajectory,
-                                                                            spec.render.show_vectors))
+    fixed = np.vstack([model.anchor_position, collider_points(spec, scene_folder(scene))])
+    bounds = motion_bounds(trajectory.positions, body_extents(model), fixed)
+    geometry = FrameGeometry.from_scene(spec, model, bounds,
+                                        largest_vector(model, trajectory, spec.render.show_vectors),
+                                        scene_folder(scene))
     video = Mp4Writer(folder / f"{scene.name}.mp4", (width, height), spec.fps, preset=spec.render.video.preset,
                       crf=spec.render.video.crf) if "mp4" in spec.render.formats else None
     frames = PngSequenceWriter(folder / "frames") if "png" in spec.render.formats else None

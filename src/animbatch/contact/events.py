@@ -47,6 +47,7 @@ TOUCH = 1e-6  # m: contacts this close count as touching at an event
 STIFFNESS = 2500.0  # 1/s²: pulls a resting contact's gap back to zero (ω0 = 50 rad/s, critically damped)
 DAMPING = 100.0  # 1/s
 MAX_EVENTS_PER_FRAME = 10_000
+SLIP_ONSET = 1e-6  # m/s²: tangential acceleration of a sticking contact point at which it starts to slide
 
 
 @dataclass
@@ -123,9 +124,10 @@ class ContactEvents:
         r = self.resting
         return evaluate_pairs(self.world, state, r.probe, r.kind, r.index)
 
-    def _contact_forces(self, t: float, y: np.ndarray, dydt: np.ndarray) -> tuple[Contacts, Any, BodyVelocities]:
-        """Add the resting contacts' forces to ``dydt``; return the contacts, the force solution and the
-        accelerations."""
+    def _contact_forces(self, t: float, y: np.ndarray, dydt: np.ndarray
+                        ) -> tuple[Contacts, Any, BodyVelocities, np.ndarray]:
+        """Add the resting contacts' forces to ``dydt``; return the contacts, the force solution, the accelerations
+        and the tangential biases (K, 2)."""
         model, system = self.system.model, self.system
         n, b = model.particle_count, model.rigid_count
         config, motion = system.split(y)
@@ -159,7 +161,7 @@ class ContactEvents:
             r = state.rotation
             inertia_world = r @ model.rigid.inertia @ np.transpose(r, (0, 2, 1))
             rate[3 * n + 3 * b:] = (np.einsum("bij,bj->bi", inertia_world, bodies.omega[n:n + b]) + spin).ravel()
-        return contacts, result, bodies
+        return contacts, result, bodies, tangent_bias
 
     def _velocities(self, state: Kinematics) -> BodyVelocities:
         bodies = self._inertia(state)
@@ -200,7 +202,7 @@ class ContactEvents:
     def _mode_functions(self, t: float, y: np.ndarray) -> np.ndarray:
         """For each resting contact, a value that changes sign when its mode must change (R,)."""
         dydt = self.system.rhs(t, y)
-        contacts, result, accelerations = self._contact_forces(t, y, dydt)
+        contacts, result, accelerations, tangent_bias = self._contact_forces(t, y, dydt)
         state = self._state(y)
         velocities = self._velocities(state)
         from animbatch.contact.solver import ContactRows
@@ -215,9 +217,12 @@ class ContactEvents:
         direction = self.resting.slide_direction
         along = slip[:, 0] * np.einsum("ki,ki->k", direction, rows.t1) + slip[:, 1] * np.einsum(
             "ki,ki->k", direction, rows.t2)
-        friction = np.linalg.norm(result.tangent_impulse, axis=1)
-        grip = contacts.static_friction * result.normal_impulse - friction
-        mode = np.where(sticking, grip, along)  # stick: friction margin; slide: slip along its direction
+        # A sticking contact starts to slide when static friction, even at its limit, no longer stops the contact
+        # point: its tangential acceleration leaves zero. (Friction at the limit of the cone alone is not slipping:
+        # with several contacts, some may sit at their limit while the body is held.)
+        slipping = np.linalg.norm(rows.tangential(accelerations.v, accelerations.omega) + tangent_bias, axis=1)
+        grip = SLIP_ONSET - slipping
+        mode = np.where(sticking, grip, along)  # stick: no slip acceleration; slide: slip along its direction
         return np.concatenate([values, mode])
 
     def _impact_candidates(self, y0: np.ndarray, y1: np.ndarray) -> Contacts:
@@ -245,6 +250,15 @@ class ContactEvents:
             return None
         t0, t1 = solver.t_old, solver.t
         interpolant = solver.dense_output()
+        # Quick exclusion: gaps positive at both ends and a probe path (chord, with an allowance for arcs) shorter
+        # than the two gaps together cannot touch anywhere in between (triangle inequality).
+        ends = [self._state(solver.y_start if hasattr(solver, "y_start") else interpolant(t0)), self._state(solver.y)]
+        end_gaps = [evaluate_pairs(self.world, state, candidates.probe, candidates.solid_kind,
+                                   candidates.solid_index).gap for state in ends]
+        chord = np.linalg.norm(probe_centres(self.world, ends[1])[candidates.probe]
+                               - probe_centres(self.world, ends[0])[candidates.probe], axis=1)
+        if np.all(end_gaps[1] > 0) and np.all(1.6 * chord < end_gaps[0] + end_gaps[1]):
+            return None
         times = np.linspace(t0, t1, SAMPLES + 1)
 
         def gaps(t: float, chosen: Any = slice(None)) -> np.ndarray:

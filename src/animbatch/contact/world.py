@@ -154,5 +154,5 @@ def build_contact_world(spec: SceneSpec, body_names: tuple[str, ...], centres: d
         statics, table, np.array([table.index(by_name[n].material) for n in body_names], np.intp),
         np.array([by_name[n].collide for n in body_names], bool),
         settings.bodies if settings is not None else True, tree, reach)
-    return world, ContactSettings(settings.iterations if settings else 30,
+    return world, ContactSettings(settings.iterations if settings else 300,
                                   settings.rest_speed if settings else None, settings.slop if settings else 1e-4)

@@ -27,8 +27,8 @@ from animbatch.model.model import Model
 from animbatch.render.backend import Backend, activate
 from animbatch.render.camera import CameraPlacement, nice_spacing, place_camera, plane_axes
 from animbatch.rigid import quaternion
-from animbatch.scene.schema import (BoxShape, CompoundShape, CylinderShape, MeshShape, RenderSpec, RodShape,
-                                    SceneSpec, ShellShape, SphereShape)
+from animbatch.scene.schema import (BoxShape, CompoundShape, CylinderShape, MeshCollider, MeshShape, RenderSpec,
+                                    RodShape, SceneSpec, ShellShape, SphereShape)
 
 #: Above this many particles, ``particles: auto`` draws point sprites instead of sphere meshes.
 SPRITE_THRESHOLD = 200
@@ -37,6 +37,7 @@ SPRITE_THRESHOLD = 200
 PALETTE = ("#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948", "#b07aa1", "#ff9da7", "#9c755f",
            "#bab0ac")
 ANCHOR_COLOR = "#333333"
+COLLIDER_COLOR = "#c8c8c8"
 SPRING_COLOR = "#808080"
 AXIS_COLORS = ("#d62728", "#2ca02c", "#1f77b4")
 
@@ -63,6 +64,29 @@ def body_extents(model: Model) -> np.ndarray:
     return extents
 
 
+def collider_points(spec: SceneSpec, scene_dir: Path = Path(".")) -> np.ndarray:
+    """Corner points (K, 3) of the finite colliders (boxes, spheres, meshes), for fitting the camera; planes are
+    infinite and left out."""
+    from animbatch.rigid.shapes import load_mesh, orientation_matrix
+    from animbatch.scene.schema import BoxCollider, SphereCollider
+
+    points = []
+    for collider in spec.colliders:
+        if not collider.visible:
+            continue
+        if isinstance(collider, SphereCollider):
+            points += [np.asarray(collider.position) + s * collider.radius for s in (-1, 1)]
+        elif isinstance(collider, BoxCollider):
+            half = np.asarray(collider.size) / 2
+            corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half
+            points += list(corners @ orientation_matrix(collider.orientation).T + collider.position)
+        elif isinstance(collider, MeshCollider):
+            vertices = load_mesh(scene_dir / collider.file, collider.scale).vertices
+            vertices = vertices @ orientation_matrix(collider.orientation).T + collider.position
+            points += [vertices.min(axis=0), vertices.max(axis=0)]
+    return np.array(points, float).reshape(-1, 3)
+
+
 @dataclass(frozen=True)
 class FrameGeometry:
     """What the renderer draws, independent of the scene file: sizes, shapes, colours, springs, fluids, bounds."""
@@ -84,10 +108,12 @@ class FrameGeometry:
     fluids: list[tuple[float, np.ndarray]]  # (level, up) of each buoyancy fluid
     bounds: np.ndarray  # (2, 3) [m], whole motion
     vector_scale: float = 0.0  # arrow length per unit of |ω| or |L| [m per unit]
+    colliders: tuple[Any, ...] = ()  # the scene's collider specs
+    scene_dir: Path = Path(".")  # where the scene's mesh files are
 
     @classmethod
-    def from_scene(cls, spec: SceneSpec, model: Model, bounds: np.ndarray, largest_vector: float = 0.0
-                   ) -> FrameGeometry:
+    def from_scene(cls, spec: SceneSpec, model: Model, bounds: np.ndarray, largest_vector: float = 0.0,
+                   scene_dir: Path = Path(".")) -> FrameGeometry:
         # palette colours follow the scene's order of bodies; the model orders them particles first
         by_name = {body.name: (index, body) for index, body in enumerate(spec.bodies)}
         colors = [by_name[name][1].color or PALETTE[by_name[name][0] % len(PALETTE)] for name in model.body_names]
@@ -107,7 +133,8 @@ class FrameGeometry:
                    rigid.centre if rigid is not None else np.zeros((0, 3)),
                    rigid.inertia if rigid is not None else np.zeros((0, 3, 3)), rigid_extent,
                    rigid.base_dir if rigid is not None else Path("."), np.asarray(model.anchor_position),
-                   *spring_parts, [s.color or SPRING_COLOR for s in spec.springs], fluids, bounds, scale)
+                   *spring_parts, [s.color or SPRING_COLOR for s in spec.springs], fluids, bounds, scale,
+                   tuple(c for c in spec.colliders if c.visible), scene_dir)
 
 
 def shape_mesh(shape: Any, base_dir: Path, resolution: int) -> Any:
@@ -123,7 +150,7 @@ def shape_mesh(shape: Any, base_dir: Path, resolution: int) -> Any:
         radius = shape.radius if shape.radius is not None else shape.length / 100
         return pv.Cylinder(center=(0, 0, 0), direction=(0, 0, 1), radius=radius, height=shape.length,
                            resolution=resolution).triangulate()
-    if isinstance(shape, MeshShape):
+    if isinstance(shape, MeshShape | MeshCollider):
         from animbatch.rigid.shapes import load_mesh
 
         mesh = load_mesh(base_dir / shape.file, shape.scale)
@@ -179,6 +206,7 @@ class FrameRenderer:
         self.plotter.set_background(render.background)
         self.camera = place_camera(render.camera, geometry.bounds, self.width / self.height)
         self._add_ground()
+        self._add_colliders()
         self._add_fluids()
         self._add_particles()
         self._add_rigid_bodies()
@@ -305,6 +333,38 @@ class FrameRenderer:
             points = np.array(segments).reshape(-1, 3)
             cells = np.hstack([np.full((len(segments), 1), 2), np.arange(len(points)).reshape(-1, 2)]).ravel()
             self.plotter.add_mesh(self.pv.PolyData(points, lines=cells), color="#a0a0a0", line_width=1)
+
+    def _add_colliders(self) -> None:
+        """Fixed colliders, built once: planes as squares around the motion, boxes, spheres and meshes."""
+        from animbatch.rigid.shapes import orientation_matrix
+        from animbatch.scene.schema import BoxCollider, MeshCollider, PlaneCollider, SphereCollider
+
+        for collider in self.geometry.colliders:
+            color = collider.color or COLLIDER_COLOR
+            if isinstance(collider, PlaneCollider):
+                normal = np.asarray(collider.normal, float) / np.linalg.norm(collider.normal)
+                level = float(np.dot(collider.point, normal))
+                mesh, _, _ = self._plane_square(level, normal, collider.size)
+            elif isinstance(collider, SphereCollider):
+                mesh = self.pv.Sphere(radius=collider.radius, center=collider.position,
+                                      theta_resolution=2 * self.render_spec.sphere_resolution,
+                                      phi_resolution=self.render_spec.sphere_resolution)
+            elif isinstance(collider, BoxCollider):
+                a, b, c = (x / 2 for x in collider.size)
+                transform = np.eye(4)
+                transform[:3, :3] = orientation_matrix(collider.orientation)
+                transform[:3, 3] = collider.position
+                mesh = self.pv.Box(bounds=(-a, a, -b, b, -c, c)).triangulate().transform(transform, inplace=False)
+            elif isinstance(collider, MeshCollider):
+                surface = shape_mesh(collider, self.geometry.scene_dir, self.render_spec.sphere_resolution)
+                transform = np.eye(4)
+                transform[:3, :3] = orientation_matrix(collider.orientation)
+                transform[:3, 3] = collider.position
+                mesh = surface.transform(transform, inplace=False)
+            else:  # pragma: no cover - every collider type is drawn above
+                continue
+            mesh = mesh.compute_normals(split_vertices=True, feature_angle=40.0)
+            self.plotter.add_mesh(mesh, color=color, smooth_shading=True, ambient=0.15)
 
     def _add_fluids(self) -> None:
         for level, up in self.geometry.fluids:
