@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -124,3 +125,36 @@ def test_buoyancy_is_computed_only_where_a_fluid_is_declared(monkeypatch):
     assert calls == []
     with pytest.raises(ZeroDivisionError):
         run(rigid.replace("[{type: gravity}]", "[{type: gravity}, {type: buoyancy, level: 10}]"))
+
+
+def test_info_lists_colliders_settings_and_material_pairs(tmp_path):
+    """'animbatch info' shows every collider, the contact settings, and the coefficients of each pair of materials
+    that can meet: by the combination rule (e = min, μ = geometric mean) unless material_pairs overrides it."""
+    path = tmp_path / "c.yaml"
+    path.write_text("""
+bodies:
+  - {name: ball, radius: 0.1, position: [0, 1, 0], material: steel}
+colliders:
+  - {type: plane, material: wood}
+  - {type: box, position: [2, 0.5, 0], size: [1, 1, 1], material: ice, visible: false}
+material_pairs:
+  - {materials: [steel, ice], static_friction: 0.2}
+contacts: {bodies: false, rest_speed: 0.02}
+""")
+    result = CliRunner().invoke(cli, ["info", str(path)])
+    assert result.exit_code == 0, result.output
+    out = result.output
+    assert "bodies collide with colliders only; rest speed 0.02 m/s; slop 0.1 mm" in out
+    assert "collider   1. plane  through (0, 0, 0) m, normal (0, 1, 0), wood" in out
+    assert "collider   2. box    centre (2, 0.5, 0) m, size (1, 1, 1) m, ice, hidden" in out
+    wood = [line for line in out.splitlines() if "steel – wood" in line][0].split()
+    assert [float(v) for v in wood[3:6]] == pytest.approx([0.5, np.sqrt(0.78 * 0.38), np.sqrt(0.42 * 0.20)], abs=1e-3)
+    ice = [line for line in out.splitlines() if "ice – steel" in line][0]
+    assert ice.split()[4] == "0.2" and ice.endswith("(material_pairs)")
+
+
+def test_info_says_when_no_contact_code_is_compiled(tmp_path):
+    path = tmp_path / "p.yaml"
+    path.write_text("bodies: [{name: a, position: [0, 1, 0]}]\n")
+    result = CliRunner().invoke(cli, ["info", str(path)])
+    assert "contacts   none compiled (no colliders and no 'contacts' section)" in result.output

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+from typing import Any
+
+from animbatch.contact.stepping import DEFAULT_REST_SPEED
 from animbatch.forces import FIELD_TERMS
 from animbatch.integrators import make_integrator
 from animbatch.model import Model
 from animbatch.scene import LoadedScene
+from animbatch.scene.schema import BoxCollider, PlaneCollider, SphereCollider
 
 
 def _plural(count: int, word: str, plural: str | None = None) -> str:
@@ -94,4 +98,46 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
         lines += _rigid_lines(model, x0, v0)
     for name, position in zip(model.anchor_names, model.anchor_position):
         lines.append(f"anchor     {name:<16} at {_vector(position)} m")
+    lines += _contact_lines(scene, model)
     return "\n".join(lines)
+
+
+def _collider_line(collider: Any) -> str:
+    if isinstance(collider, PlaneCollider):
+        where = f"through {_vector(collider.point)} m, normal {_vector(collider.normal)}"
+    elif isinstance(collider, SphereCollider):
+        where = f"centre {_vector(collider.position)} m, radius {collider.radius:g} m"
+    elif isinstance(collider, BoxCollider):
+        where = f"centre {_vector(collider.position)} m, size {_vector(collider.size)} m"
+    else:
+        where = f"{collider.file} at {_vector(collider.position)} m"
+    hidden = "" if collider.visible else ", hidden"
+    return f"{collider.type:<6} {where}, {collider.material}{hidden}"
+
+
+def _contact_lines(scene: LoadedScene, model: Model) -> list[str]:
+    """Colliders, contact settings, collision geometry and the coefficients of every material pair that can meet."""
+    spec, world = scene.spec, model.contact_world
+    if world is None:
+        return ["contacts   none compiled (no colliders and no 'contacts' section)"]
+    settings = model.contact_settings
+    rest = (f"{settings.rest_speed:g} m/s" if settings.rest_speed is not None
+            else f"automatic ({DEFAULT_REST_SPEED * 100:g} cm/s, or 3 g dt for fixed-step methods if more)")
+    collide = "with each other and with colliders" if world.bodies_collide else "with colliders only"
+    lines = [f"contacts   bodies collide {collide}; rest speed {rest}; slop {settings.slop * 1000:g} mm; "
+             f"at most {settings.iterations} solver iterations per step",
+             f"           geometry: {_plural(world.probes.count, 'probe')} (spheres and points) on the bodies, "
+             f"{_plural(world.boxes.count, 'box', 'boxes')} as solids"]
+    lines += [f"collider   {number}. {_collider_line(collider)}" for number, collider in enumerate(spec.colliders, 1)]
+    body_materials = {body.material for body in spec.bodies if body.collide}
+    others = body_materials | {collider.material for collider in spec.colliders}
+    pairs = sorted({tuple(sorted((a, b))) for a in body_materials for b in others})
+    custom = {frozenset(pair.materials) for pair in spec.material_pairs}
+    table = world.materials
+    lines.append(f"materials  {'pair':<26} {'e':>5} {'μs':>6} {'μk':>6}")
+    for a, b in pairs:
+        coefficients = table.pair(a, b)
+        note = "  (material_pairs)" if frozenset((a, b)) in custom else ""
+        lines.append(f"           {a + ' – ' + b:<26} {coefficients.restitution:>5.3g} "
+                     f"{coefficients.static_friction:>6.3g} {coefficients.kinetic_friction:>6.3g}{note}")
+    return lines

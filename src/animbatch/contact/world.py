@@ -26,7 +26,7 @@ from animbatch.contact.detection import ContactWorld
 from animbatch.contact.geometry import BodyBoxes, Probes, StaticColliders
 from animbatch.contact.materials import Coefficients, MaterialTable
 from animbatch.rigid.shapes import load_mesh, orientation_matrix
-from animbatch.scene.schema import (BoxCollider, BoxShape, CompoundShape, CylinderShape, MeshCollider, MeshShape,
+from animbatch.scene.schema import (BoxCollider, BoxShape, CompoundShape, ContactSpec, CylinderShape, MeshCollider, MeshShape,
                                     PlaneCollider, RigidBodySpec, RodShape, SceneSpec, ShellShape, SphereCollider,
                                     SphereShape)
 
@@ -146,13 +146,12 @@ def build_contact_world(spec: SceneSpec, body_names: tuple[str, ...], centres: d
         centroids = statics.triangles.mean(axis=1)
         tree = cKDTree(centroids)
         reach = float(np.max(np.linalg.norm(statics.triangles - centroids[:, None, :], axis=2)))
-    settings = spec.contacts
+    settings = spec.contacts if spec.contacts is not None else ContactSpec()
     world = ContactWorld(
         Probes(np.array(owners, np.intp), np.array(offsets, float).reshape(-1, 3), np.array(radii, float)),
         BodyBoxes(np.array(box_owner, np.intp), np.array(box_offset, float).reshape(-1, 3),
                   np.array(box_rotation, float).reshape(-1, 3, 3), np.array(box_half, float).reshape(-1, 3)),
         statics, table, np.array([table.index(by_name[n].material) for n in body_names], np.intp),
         np.array([by_name[n].collide for n in body_names], bool),
-        settings.bodies if settings is not None else True, tree, reach)
-    return world, ContactSettings(settings.iterations if settings else 300,
-                                  settings.rest_speed if settings else None, settings.slop if settings else 1e-4)
+        settings.bodies, tree, reach)
+    return world, ContactSettings(settings.iterations, settings.rest_speed, settings.slop)
