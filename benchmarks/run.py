@@ -8,10 +8,13 @@ Prints one table. Measures:
    right-hand side, for RK45 and DOP853;
    and the right-hand-side cost per rigid body (1, 100, 1000 floating boxes), which shows the rigid path is
    vectorised over bodies;
-3. rendered frames per second at 1280×720 for one sphere and for 1e4 particles (sprites), with FXAA and without;
-4. encoding frames per second (H.264 at several presets, and PNG).
+3. contacts: 1e3 and 1e4 steel balls poured into a box (symplectic Euler): wall time per simulated second,
+   the cost per step while the pile forms and once it rests, and the state at the end (speeds, overlaps);
+4. rendered frames per second at 1280×720 for one sphere and for 1e4 particles (sprites), with FXAA and without;
+5. encoding frames per second (H.264 at several presets, and PNG).
 
-Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, rigid, render, encode),
+Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, rigid, contacts, render,
+encode),
 ``--json FILE`` (also write the rows as JSON).
 """
 
@@ -140,6 +143,74 @@ def bench_rigid(quick: bool) -> list[Row]:
     return rows
 
 
+def pile_scene(count: int, iterations: int) -> str:
+    """``count`` steel balls (r = 2 cm) in a loose grid of 25 × 25 per layer, above a wooden box 1.2 m wide."""
+    radius, spacing, side = 0.02, 0.045, 25
+    index = np.arange(count)
+    rng = np.random.default_rng(0)
+    positions = np.stack([(index % side - (side - 1) / 2) * spacing, 0.05 + (index // side**2) * spacing,
+                          ((index // side) % side - (side - 1) / 2) * spacing], axis=1)
+    positions[:, [0, 2]] += rng.uniform(-0.003, 0.003, (count, 2))  # so that the columns topple
+    bodies = "\n".join(f"  - {{name: b{i}, radius: {radius}, mass: 0.03, material: steel, "
+                       f"position: [{x:.4f}, {y:.4f}, {z:.4f}]}}" for i, (x, y, z) in enumerate(positions))
+    wall = side * spacing / 2 + 0.06
+    return f"""
+duration: 1.0
+fps: 10
+solver: {{method: symplectic_euler, dt: 2.0e-3}}
+bodies:
+{bodies}
+colliders:
+  - {{type: plane, material: wood}}
+  - {{type: box, position: [{-wall - 0.05}, 0.5, 0], size: [0.1, 1, {2 * wall}], material: wood}}
+  - {{type: box, position: [{wall + 0.05}, 0.5, 0], size: [0.1, 1, {2 * wall}], material: wood}}
+  - {{type: box, position: [0, 0.5, {-wall - 0.05}], size: [{2 * wall + 0.2}, 1, 0.1], material: wood}}
+  - {{type: box, position: [0, 0.5, {wall + 0.05}], size: [{2 * wall + 0.2}, 1, 0.1], material: wood}}
+contacts: {{iterations: {iterations}}}
+fields: [{{type: gravity}}]
+"""
+
+
+def bench_contacts(quick: bool) -> list[Row]:
+    """Spheres poured into a box (symplectic Euler, dt = 2 ms, 1 s): wall time per simulated second, per step while
+    the pile forms and once it rests, and what is left at the end (speeds, overlaps: quality, not speed). With the
+    default iteration limit (300) and with 30, which shows what exactness costs while the pile forms."""
+    from scipy.spatial import cKDTree
+
+    from animbatch.integrators import make_integrator
+    from animbatch.model import compile_scene
+    from animbatch.scene import parse_scene
+
+    rows = []
+    for count, iterations in ([(1_000, 300)] if quick else [(1_000, 300), (10_000, 300), (10_000, 30)]):
+        loaded = parse_scene(pile_scene(count, iterations))
+        model = compile_scene(loaded.spec)
+        system = Dynamics(model)
+        integrator = make_integrator(loaded.spec.solver)
+        stamps: list[float] = []
+        result = integrator.integrate(system, model.y0, model.frame_times,
+                                      on_frame=lambda frame, t: stamps.append(time.perf_counter()))
+        steps_per_frame = result.stats.steps / (len(model.frame_times) - 1)
+        per_frame = np.diff(stamps)
+        positions = model.positions(result.states[-1])
+        pairs = cKDTree(positions).query_pairs(0.04, output_type="ndarray")
+        overlap = 0.04 - np.linalg.norm(positions[pairs[:, 0]] - positions[pairs[:, 1]], axis=1).min(initial=0.04)
+        case = f"{count:.0e} balls into a box, ≤ {iterations} iterations"
+        rows += [
+            {"benchmark": "contacts", "case": f"{case}, wall time per simulated s",
+             "value": float(np.sum(per_frame)) / loaded.spec.duration, "unit": "s"},
+            {"benchmark": "contacts", "case": f"{case}, step while the pile forms (worst)",
+             "value": float(per_frame.max()) / steps_per_frame * 1e3, "unit": "ms/step"},
+            {"benchmark": "contacts", "case": f"{case}, step at rest (last frame)",
+             "value": float(per_frame[-1]) / steps_per_frame * 1e3, "unit": "ms/step"},
+            {"benchmark": "contacts", "case": f"{case}, largest speed at end",
+             "value": float(np.abs(model.velocities(result.states[-1])).max()), "unit": "m/s"},
+            {"benchmark": "contacts", "case": f"{case}, deepest overlap at end (slop 0.1)",
+             "value": max(float(overlap), 0.0) * 1e3, "unit": "mm"},
+        ]
+    return rows
+
+
 def render_frames(count: int, anti_aliasing: str, frames: int) -> tuple[float, list[np.ndarray]]:
     """Frames per second of drawing ``count`` particles at 1280×720, and a few of the images."""
     from animbatch.render.backend import select_backend
@@ -204,8 +275,8 @@ def bench_encode(quick: bool) -> list[Row]:
     return rows
 
 
-BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "rigid": bench_rigid, "render": bench_render,
-              "encode": bench_encode}
+BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "rigid": bench_rigid, "contacts": bench_contacts,
+              "render": bench_render, "encode": bench_encode}
 
 
 def main() -> int:

@@ -45,6 +45,13 @@ from animbatch.rigid.quaternion import cross
 
 #: Fraction of an overlap (beyond the slop) removed per step.
 BAUMGARTE = 0.2
+#: Overlaps beyond the slop smaller than this fraction of the slop are left alone.
+OVERLAP_TOLERANCE = 1e-2
+#: Pseudo-velocities are converged when every push meets its target to this fraction of the largest target, or
+#: after this many iterations: they only correct positions, a fraction of the overlap per step, so a partly
+#: converged push (which pushes less, never the wrong way) is corrected in the next steps.
+PUSH_TOLERANCE = 1e-3
+PUSH_ITERATIONS = 50
 
 
 @dataclass
@@ -88,8 +95,14 @@ class _Direction:
 
 class ContactRows:
     """The rows of K contacts on the bodies of ``bodies``: directions, lever arms, effective masses, and how to read
-    relative motion along a row and apply impulses (or forces) to the bodies. Everything that does not change
-    between solver iterations is computed once here; an iteration is a few array products."""
+    relative motion along a row and apply impulses (or forces) to the bodies.
+
+    Everything that does not change between solver iterations is computed once here, as two sparse matrices over
+    the flat velocity vector ``V = [v.ravel(), ω.ravel()]`` (6 (P + 1),): the Jacobian ``J`` (3K rows: normals, then
+    first and second tangents), with ``J V`` the relative velocities along the rows, and the response
+    ``B = M⁻¹ Jᵀ``, with ``B λ`` the velocity change from row impulses λ. An iteration is then a few sparse
+    products, one C call each, whatever the number of contacts.
+    """
 
     def __init__(self, contacts: Contacts, bodies: BodyVelocities, x: np.ndarray) -> None:
         self.bodies = bodies
@@ -100,12 +113,6 @@ class ContactRows:
         self.n = contacts.normal
         self.t1, self.t2 = tangent_basis(self.n)
         self.r_a, self.r_b = contacts.point - x[self.a], contacts.point - x[self.b]
-        # one sparse matrix scatters row impulses onto bodies: column k adds to body a_k, column K + k subtracts
-        # from body b_k
-        k = self.count
-        columns = np.arange(2 * k)
-        self._scatter = sp.csr_matrix((np.concatenate([np.ones(k), -np.ones(k)]),
-                                       (np.concatenate([self.a, self.b]), columns)), shape=(len(x), 2 * k))
         # mass splitting: each body is shared by the contacts touching it
         shares = np.bincount(np.concatenate([self.a, self.b]), minlength=len(x)).astype(float)
         shares[-1] = 1.0
@@ -113,6 +120,33 @@ class ContactRows:
         self.normal_row, self.first_row, self.second_row = (self._direction(d) for d in (self.n, self.t1, self.t2))
         self.w_n, self.w_1, self.w_2 = (self._weight(row) for row in (self.normal_row, self.first_row,
                                                                      self.second_row))
+        rows = (self.normal_row, self.first_row, self.second_row)
+        self._jacobian_normal = self._sparse(rows[:1], response=False)
+        self._jacobian_tangent = self._sparse(rows[1:], response=False)
+        self._response_normal = self._sparse(rows[:1], response=True)
+        self._response_tangent = self._sparse(rows[1:], response=True)
+
+    def _sparse(self, rows: tuple[_Direction, ...], *, response: bool) -> sp.csr_matrix | sp.csc_matrix:
+        """``J`` (R K, 6 (P + 1)) for the given row directions, or the response ``B`` (6 (P + 1), R K).
+
+        Entries that can only ever meet zeros are left out: the fixed body's (its velocity is zero and its inverse
+        mass too) and the angular ones of bodies that do not turn (particles). For a pile of particles on the ground
+        that halves the work per iteration. Built directly in compressed form (no sorting): row k holds body a's
+        linear and angular entries, then body b's.
+        """
+        k, size, a, b = self.count, self.size, self.a, self.b
+        moving = self.bodies.inverse_mass > 0
+        turning = np.any(self.bodies.inverse_inertia != 0, axis=(1, 2))
+        keep = np.stack([moving[a], turning[a], moving[b], turning[b]], axis=1)  # (K, 4) blocks of 3 entries
+        columns = (np.stack([3 * a, 3 * (size + a), 3 * b, 3 * (size + b)], axis=1)[:, :, None] + np.arange(3))
+        per_row = 3 * keep.sum(axis=1)
+        data = np.concatenate([
+            np.stack([row.lin_a, row.turn_a, -row.lin_b, -row.turn_b] if response
+                     else [row.d, row.ang_a, -row.d, -row.ang_b], axis=1)[keep].ravel() for row in rows])
+        indices = np.tile(columns[keep].ravel(), len(rows))
+        indptr = np.concatenate([[0], np.cumsum(np.tile(per_row, len(rows)))])
+        matrix = sp.csr_matrix((data, indices, indptr), shape=(len(rows) * k, 6 * size))
+        return matrix.T if response else matrix
 
     def _direction(self, d: np.ndarray) -> _Direction:
         a, b, inverse_mass, inverse_inertia = self.a, self.b, self.bodies.inverse_mass, self.bodies.inverse_inertia
@@ -134,6 +168,40 @@ class ContactRows:
         """Effective mass of each row along ``direction`` (K, 3), with masses split among contacts."""
         return self._weight(self._direction(direction))
 
+    # -- flat velocity vectors: what the solver iterates on --------------------------------------------------------
+
+    def flat(self, v: np.ndarray | None = None, w: np.ndarray | None = None) -> np.ndarray:
+        """``V`` (6 (P + 1),) from linear and angular velocities (default: the bodies')."""
+        v = self.bodies.v if v is None else v
+        w = self.bodies.omega if w is None else w
+        return np.concatenate([v.ravel(), w.ravel()])
+
+    def unflat(self, velocity: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> None:
+        """Write ``V`` back into linear and angular velocity arrays (default: the bodies')."""
+        v = self.bodies.v if v is None else v
+        w = self.bodies.omega if w is None else w
+        half = 3 * self.size
+        v[:] = velocity[:half].reshape(-1, 3)
+        w[:] = velocity[half:].reshape(-1, 3)
+
+    def normal_velocity(self, velocity: np.ndarray) -> np.ndarray:
+        """Relative normal velocities (K,) for the flat velocity ``V``."""
+        return self._jacobian_normal @ velocity
+
+    def tangent_velocity(self, velocity: np.ndarray) -> np.ndarray:
+        """Relative tangential velocities (K, 2) in the (t1, t2) basis for the flat velocity ``V``."""
+        return (self._jacobian_tangent @ velocity).reshape(2, -1).T
+
+    def push_normal(self, velocity: np.ndarray, amount: np.ndarray) -> None:
+        """Add normal impulses (K,) to the flat velocity ``V`` in place."""
+        velocity += self._response_normal @ amount
+
+    def push_tangent(self, velocity: np.ndarray, amounts: np.ndarray) -> None:
+        """Add tangential impulses (K, 2), in the (t1, t2) basis, to the flat velocity ``V`` in place."""
+        velocity += self._response_tangent @ amounts.T.ravel()
+
+    # -- the same on (P + 1, 3) arrays, for callers that keep v and ω apart -----------------------------------------
+
     def _row(self, direction: np.ndarray) -> _Direction:
         for row in (self.normal_row, self.first_row, self.second_row):
             if row.d is direction:
@@ -142,6 +210,8 @@ class ContactRows:
 
     def relative(self, direction: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> np.ndarray:
         """Relative velocity (or acceleration) of the contact points along ``direction``, (K,)."""
+        if direction is self.n:
+            return self.normal_velocity(self.flat(v, w))
         v = self.bodies.v if v is None else v
         w = self.bodies.omega if w is None else w
         row = self._row(direction)
@@ -149,55 +219,46 @@ class ContactRows:
         return (np.einsum("ki,ki->k", v[a] - v[b], row.d) + np.einsum("ki,ki->k", w[a], row.ang_a)
                 - np.einsum("ki,ki->k", w[b], row.ang_b))
 
-    def _apply_rows(self, amounts: list[tuple[_Direction, np.ndarray]], v: np.ndarray, w: np.ndarray) -> None:
-        """Add impulses ``amount`` (K,) along rows, for several rows at once."""
-        linear = sum(np.vstack([row.lin_a, row.lin_b]) * np.concatenate([amount, amount])[:, None]
-                     for row, amount in amounts)
-        turning = sum(np.vstack([row.turn_a, row.turn_b]) * np.concatenate([amount, amount])[:, None]
-                      for row, amount in amounts)
-        v += self._scatter @ linear
-        w += self._scatter @ turning
-        v[-1] = 0.0  # the fixed body never moves
-        w[-1] = 0.0
+    def tangential(self, v: np.ndarray | None = None, w: np.ndarray | None = None) -> np.ndarray:
+        """Relative tangential motion (K, 2) in the (t1, t2) basis."""
+        return self.tangent_velocity(self.flat(v, w))
 
     def apply(self, impulse: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> None:
         """Add impulses (or forces) (K, 3) at the contacts: +impulse on a, -impulse on b."""
-        v = self.bodies.v if v is None else v
-        w = self.bodies.omega if w is None else w
-        rows = (self.normal_row, self.first_row, self.second_row)
-        self._apply_rows([(row, np.einsum("ki,ki->k", impulse, row.d)) for row in rows], v, w)
+        velocity = self.flat(v, w)
+        self.push_normal(velocity, np.einsum("ki,ki->k", impulse, self.n))
+        self.push_tangent(velocity, np.stack([np.einsum("ki,ki->k", impulse, self.t1),
+                                              np.einsum("ki,ki->k", impulse, self.t2)], axis=1))
+        self.unflat(velocity, v, w)
 
     def apply_normal(self, amount: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> None:
-        self._apply_rows([(self.normal_row, amount)], self.bodies.v if v is None else v,
-                         self.bodies.omega if w is None else w)
+        velocity = self.flat(v, w)
+        self.push_normal(velocity, amount)
+        self.unflat(velocity, v, w)
 
     def apply_tangential(self, amounts: np.ndarray) -> None:
         """Add tangential impulses given in the (t1, t2) basis, (K, 2)."""
-        self._apply_rows([(self.first_row, amounts[:, 0]), (self.second_row, amounts[:, 1])], self.bodies.v,
-                         self.bodies.omega)
+        velocity = self.flat()
+        self.push_tangent(velocity, amounts)
+        self.unflat(velocity)
 
-    def tangential(self, v: np.ndarray | None = None, w: np.ndarray | None = None) -> np.ndarray:
-        """Relative tangential motion (K, 2) in the (t1, t2) basis."""
-        return np.stack([self.relative(self.t1, v, w), self.relative(self.t2, v, w)], axis=1)
-
-    def friction_step(self, tangent_impulse: np.ndarray, normal_impulse: np.ndarray, static: np.ndarray,
-                      sticking: np.ndarray, kinetic: np.ndarray, bias: np.ndarray | float = 0.0) -> np.ndarray:
-        """One Coulomb projection: the tangential impulse that stops the relative tangential motion (plus ``bias``)
-        if the static cone allows it (for contacts that may stick), else the kinetic limit against it. Returns the
-        new total."""
-        current = self.tangential() + bias
+    def friction_step(self, velocity: np.ndarray, tangent_impulse: np.ndarray, normal_impulse: np.ndarray,
+                      static: np.ndarray, sticking: np.ndarray, kinetic: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        """One Coulomb projection on the flat velocity ``V`` (changed in place): the tangential impulse that stops
+        the relative tangential motion if the static cone allows it (for contacts that may stick), else the kinetic
+        limit against it. Returns the new total (K, 2) and which contacts hold (K,) bool."""
+        current = self.tangent_velocity(velocity)
         wanted = tangent_impulse - np.stack([current[:, 0] * self.w_1, current[:, 1] * self.w_2], axis=1)
         size = np.linalg.norm(wanted, axis=1)
         holds = sticking & (size <= static * normal_impulse)
         limit = np.where(holds, size, kinetic * normal_impulse)
         scale = np.divide(np.minimum(size, limit), size, out=np.zeros(self.count), where=size > 0)
         updated = wanted * scale[:, None]
-        self.apply_tangential(updated - tangent_impulse)
-        return updated
+        self.push_tangent(velocity, updated - tangent_impulse)
+        return updated, holds
 
 
-#: Iterations stop early once no impulse changes by more than this fraction of the largest one.
-CONVERGED = 1e-12
 #: Resting-contact forces are converged when every contact's acceleration target is met to this [m/s²].
 ACCELERATION_TOLERANCE = 1e-9
 #: Impulses are converged when every contact's velocity target is met to this, relative to the approach speeds.
@@ -244,43 +305,52 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         target = np.where(fast, bounce_target, 0.0)
     normal_impulse = np.zeros(count)
     tangent_impulse = np.zeros((count, 2))
+    velocity = rows.flat()
     if warm is not None:
         normal_impulse = np.where(fast, 0.0, warm[0])  # impacts start afresh; resting contacts from last step
         tangent_impulse = np.stack([np.einsum("ki,ki->k", warm[1], rows.t1),
                                     np.einsum("ki,ki->k", warm[1], rows.t2)], axis=1) * (~fast)[:, None]
-        rows.apply_normal(normal_impulse)
-        rows.apply_tangential(tangent_impulse)
+        rows.push_normal(velocity, normal_impulse)
+        rows.push_tangent(velocity, tangent_impulse)
     tolerance = VELOCITY_TOLERANCE * (1.0 + float(np.abs(approach).max(initial=0.0)))
-    for _ in range(iterations):
-        updated = np.maximum(normal_impulse + (target - rows.relative(n)) * rows.w_n, 0.0)
-        change = updated - normal_impulse
-        rows.apply_normal(change)
-        normal_impulse = updated
-        tangent_impulse = rows.friction_step(tangent_impulse, normal_impulse, contacts.static_friction, sticking,
-                                             contacts.kinetic_friction)
+    for iteration in range(iterations + 1):
+        normal_now = rows.normal_velocity(velocity) - target
         # Stop when every contact does what it must (not when impulses stop changing: with redundant contacts,
-        # a box on four corners, impulses may keep moving among corners after the motion has converged)
-        normal_now = rows.relative(n) - target
-        violation = np.where(normal_impulse > 0, np.abs(normal_now), np.maximum(-normal_now, 0.0))
-        slip = np.linalg.norm(rows.tangential(), axis=1)
-        gripping = sticking & (np.linalg.norm(tangent_impulse, axis=1) < contacts.static_friction * normal_impulse
-                               * (1 - 1e-9))
-        if max(float(violation.max()), float((slip * gripping).max(initial=0.0))) <= tolerance:
-            break
+        # a box on four corners, impulses may keep moving among corners after the motion has converged). At least
+        # one iteration, so that a warm start that is almost right is still polished, and resting bodies stay put.
+        if iteration > 0:
+            violation = np.where(normal_impulse > 0, np.abs(normal_now), np.maximum(-normal_now, 0.0))
+            slip = np.linalg.norm(rows.tangent_velocity(velocity), axis=1)
+            if (max(float(violation.max()), float((slip * gripping).max(initial=0.0))) <= tolerance
+                    or iteration == iterations):
+                break
+        updated = np.maximum(normal_impulse - normal_now * rows.w_n, 0.0)
+        rows.push_normal(velocity, updated - normal_impulse)
+        normal_impulse = updated
+        tangent_impulse, gripping = rows.friction_step(velocity, tangent_impulse, normal_impulse,
+                                                       contacts.static_friction, sticking, contacts.kinetic_friction)
+    rows.unflat(velocity)
     result.normal_impulse[:] = normal_impulse
     result.tangent_impulse[:] = tangent_impulse
+    # split impulse: push apart through positions only, the overlaps that exceed the slop by more than a trifle
+    # (pushing converges geometrically onto the slop; chasing the last nanometre would cost a solve every step)
     overlap = np.maximum(-gap - slop, 0.0)
-    if h > 0 and np.any(overlap > 0):  # split impulse: push apart through positions only
-        pseudo_v, pseudo_w = np.zeros_like(bodies.v), np.zeros_like(bodies.omega)
+    overlap[overlap < OVERLAP_TOLERANCE * max(slop, 1e-6)] = 0.0
+    if h > 0 and np.any(overlap > 0):
+        pseudo = np.zeros_like(velocity)
         push_target = BAUMGARTE * overlap / h
         push = np.zeros(count)
-        for _ in range(iterations):
-            updated = np.maximum(push + (push_target - rows.relative(n, pseudo_v, pseudo_w)) * rows.w_n, 0.0)
-            change = updated - push
-            rows.apply_normal(change, pseudo_v, pseudo_w)
-            push = updated
-            if float(np.abs(change).max()) <= CONVERGED * max(float(push.max()), 1e-300):
+        enough = PUSH_TOLERANCE * float(push_target.max())
+        for _ in range(min(iterations, PUSH_ITERATIONS)):
+            pushed = rows.normal_velocity(pseudo) - push_target
+            violation = np.where(push > 0, np.abs(pushed), np.maximum(-pushed, 0.0))
+            if float(violation.max()) <= enough:
                 break
+            updated = np.maximum(push - pushed * rows.w_n, 0.0)
+            rows.push_normal(pseudo, updated - push)
+            push = updated
+        pseudo_v, pseudo_w = np.zeros_like(bodies.v), np.zeros_like(bodies.omega)
+        rows.unflat(pseudo, pseudo_v, pseudo_w)
         result.pseudo_v, result.pseudo_omega = pseudo_v, pseudo_w
     return result
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from animbatch.contact.detection import detect
+from animbatch.contact.detection import Contacts, detect
 from animbatch.contact.solver import BodyVelocities, solve_impulses
 from animbatch.forces import Kinematics
 from animbatch.integrators.fixed_step import SymplecticEuler, VelocityVerlet
@@ -47,8 +47,11 @@ class ContactResolver:
         probes = self.world.probes
         self.reach = float(np.max(np.linalg.norm(probes.offset, axis=1) + probes.radius)) if probes.count else 0.0
         self.contacts_last_step = 0
-        # warm starting: last step's impulses per contact (probe, solid kind, solid index), scaled per unit time
-        self._warm: dict[tuple[int, int, int], tuple[float, np.ndarray]] = {}
+        # warm starting: last step's impulses per unit time, normal (K,) and tangential vectors (K, 3), for the
+        # contacts identified by sorted codes (K,) (see contact_codes)
+        self._warm_codes = np.zeros(0, np.int64)
+        self._warm_normal = np.zeros(0)
+        self._warm_tangent = np.zeros((0, 3))
 
     def rest_speed(self, h: float) -> float:
         """Impacts slower than this do not bounce; sticking is allowed below it (at least 3 g h)."""
@@ -85,15 +88,19 @@ class ContactResolver:
             inertia_world = rotation @ rigid.inertia @ np.transpose(rotation, (0, 2, 1))
             angular[...] = np.einsum("bij,bj->bi", inertia_world, bodies.omega[n:n + b])
 
-    def _warm_start(self, keys: list[tuple[int, int, int]], h: float) -> tuple[np.ndarray, np.ndarray]:
+    def _warm_start(self, codes: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
         """Impulses to start from: last step's, for contacts that persist (zero for new ones)."""
-        normal = np.zeros(len(keys))
-        tangent = np.zeros((len(keys), 3))
-        for k, key in enumerate(keys):
-            if key in self._warm:
-                rate, vector = self._warm[key]
-                normal[k], tangent[k] = rate * h, vector * h
-        return normal, tangent
+        known = self._warm_codes
+        if not len(known):
+            return np.zeros(len(codes)), np.zeros((len(codes), 3))
+        where = np.minimum(np.searchsorted(known, codes), len(known) - 1)
+        found = known[where] == codes
+        return (np.where(found, self._warm_normal[where] * h, 0.0),
+                np.where(found[:, None], self._warm_tangent[where] * h, 0.0))
+
+    def _remember(self, codes: np.ndarray, normal: np.ndarray, tangent: np.ndarray, h: float) -> None:
+        order = np.argsort(codes)
+        self._warm_codes, self._warm_normal, self._warm_tangent = codes[order], normal[order] / h, tangent[order] / h
 
     def resolve(self, config: np.ndarray, motion: np.ndarray, h: float, *, bounce: bool = True) -> np.ndarray | None:
         """Change the motion so that all contacts hold over a step of ``h`` [s].
@@ -112,8 +119,8 @@ class ContactResolver:
             return None
         bodies = self._bodies(state)
         x = np.vstack([state.x, np.zeros((1, 3))])
-        keys = list(zip(contacts.probe.tolist(), contacts.solid_kind.tolist(), contacts.solid_index.tolist()))
-        warm = self._warm_start(keys, h)
+        codes = contact_codes(contacts)
+        warm = self._warm_start(codes, h)
         result = solve_impulses(contacts, bodies, x, h, iterations=self.settings.iterations,
                                 rest_speed=self.rest_speed(h), slop=self.settings.slop, bounce=bounce, warm=warm)
         if bounce:  # remember the impulses of the main solve (not of end-of-step re-projections)
@@ -121,8 +128,7 @@ class ContactResolver:
 
             t1, t2 = tangent_basis(contacts.normal)
             tangential = result.tangent_impulse[:, [0]] * t1 + result.tangent_impulse[:, [1]] * t2
-            self._warm = {key: (normal / h, tangent / h) for key, normal, tangent in
-                          zip(keys, result.normal_impulse, tangential)}
+            self._remember(codes, result.normal_impulse, tangential, h)
         self._write_back(motion, state, bodies)
         if result.pseudo_v is None:
             return None
@@ -131,6 +137,12 @@ class ContactResolver:
         drifting = motion.copy()
         self._write_back(drifting, state, bodies)
         return drifting
+
+
+def contact_codes(contacts: Contacts) -> np.ndarray:
+    """One int64 per contact that names its probe and solid, to find the same contact in the next step."""
+    return ((contacts.probe.astype(np.int64) << 36) | (contacts.solid_kind.astype(np.int64) << 32)
+            | contacts.solid_index.astype(np.int64))
 
 
 class ContactSymplecticEuler(SymplecticEuler):
