@@ -306,6 +306,49 @@ def test_box_dropped_on_its_edge_tumbles_and_lands_flat(method):
     assert trajectory.positions[-1, 0, 1] == pytest.approx(0.1, abs=1e-3)
 
 
+def test_stacked_boxes_cylinders_and_a_compound_come_to_rest_at_their_shapes_heights():
+    """Box on box (a moving body's box as a solid for another's corners, here with flush side faces, where the
+    corners lie on the lower box's sides as much as on its top), a cylinder lying and one standing, and a dumbbell
+    (compound of two spheres and a rod) settle with their centres where their geometry puts them, and stay still.
+    The stacked box is placed at rest, off-centre: it must not move at all."""
+    _, trajectory = run(f"""
+        duration: 1.5
+        fps: 10
+        {solver("symplectic_euler")}
+        bodies:
+          - {{name: lower, type: rigid, shape: {{type: box, size: [0.2, 0.2, 0.2]}}, density: 500,
+             position: [0, 0.1, 0], material: wood}}
+          - {{name: upper, type: rigid, shape: {{type: box, size: [0.2, 0.2, 0.2]}}, density: 500,
+             position: [0.03, 0.3, 0], material: wood}}
+          - {{name: lying, type: rigid, shape: {{type: cylinder, radius: 0.05, length: 0.3}}, density: 500,
+             position: [1, 0.1, 0], material: wood}}
+          - {{name: standing, type: rigid, shape: {{type: cylinder, radius: 0.05, length: 0.3}}, density: 500,
+             position: [2, 0.2, 0], orientation: {{axis: [1, 0, 0], angle: 90}}, material: wood}}
+          - name: dumbbell
+            type: rigid
+            density: 500
+            material: wood
+            position: [3, 0.1, 0]
+            shape:
+              type: compound
+              parts:
+                - {{shape: {{type: sphere, radius: 0.05}}, offset: [-0.2, 0, 0]}}
+                - {{shape: {{type: sphere, radius: 0.05}}, offset: [0.2, 0, 0]}}
+                - {{shape: {{type: cylinder, radius: 0.01, length: 0.3}}, orientation: {{axis: [0, 1, 0], angle: 90}}}}
+        colliders: [{{type: plane, material: wood}}]
+        fields: [{{type: gravity}}]
+    """)
+    names = list(trajectory.body_names)
+    heights = {"lower": 0.1, "upper": 0.3, "lying": 0.05, "standing": 0.15, "dumbbell": 0.05}
+    for name, height in heights.items():
+        index = names.index(name)
+        assert trajectory.positions[-1, index, 1] == pytest.approx(height, abs=3e-4), name
+        assert np.abs(trajectory.velocities[-3:, index]).max() < 1e-6, name
+    for name in ("upper", "lower"):
+        index = names.index(name)
+        assert np.abs(trajectory.positions[:, index] - trajectory.positions[0, index]).max() < 1e-6, name
+
+
 def test_broad_phase_finds_exactly_the_pairs_a_brute_force_search_finds():
     """With 300 random spheres, the k-d tree broad phase reports the same touching pairs as checking all pairs."""
     rng = np.random.default_rng(1)

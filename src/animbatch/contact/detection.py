@@ -13,14 +13,16 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from animbatch.contact.geometry import BodyBoxes, Probes, StaticColliders, to_box, to_plane, to_sphere, to_triangles
+from animbatch.contact.geometry import (BodyBoxes, Probes, StaticColliders, separating_direction, to_box, to_box_face,
+                                       to_face_plane, to_plane, to_sphere, to_triangles)
 from animbatch.contact.materials import MaterialTable
 from animbatch.forces.base import Kinematics
 
 STATIC = -1  # "solid body" index of fixed colliders
 
-# What a contact's solid is (``Contacts.solid_kind``); ``solid_index`` numbers solids within their kind.
-PLANE, STATIC_SPHERE, STATIC_BOX, TRIANGLE, BODY_SPHERE, BODY_BOX = range(6)
+# What a contact's solid is (``Contacts.solid_kind``); ``solid_index`` numbers solids within their kind. A box corner
+# against a box touches one face of it (``*_BOX_FACE``, ``solid_index = 6 box + face``, see geometry.to_box_face).
+PLANE, STATIC_SPHERE, STATIC_BOX, TRIANGLE, BODY_SPHERE, BODY_BOX, STATIC_BOX_FACE, BODY_BOX_FACE = range(8)
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,14 +136,12 @@ def detect(world: ContactWorld, state: Kinematics, margin: float) -> Contacts:
         parts.append(_contacts(world, chosen, centres[chosen], d, n, np.full(len(chosen), STATIC),
                                np.full(len(chosen), statics.sphere_material[k]), margin, STATIC_SPHERE,
                                np.full(len(chosen), k)))
+    box_centres, box_rotations = body_box_poses(world, state)
     for k in range(len(statics.box_centre)):
         chosen = near(statics.box_centre[k], float(np.linalg.norm(statics.box_half[k])))
-        d, n = to_box(centres[chosen], np.broadcast_to(statics.box_centre[k], (len(chosen), 3)),
-                      np.broadcast_to(statics.box_rotation[k], (len(chosen), 3, 3)),
-                      np.broadcast_to(statics.box_half[k], (len(chosen), 3)))
-        parts.append(_contacts(world, chosen, centres[chosen], d, n, np.full(len(chosen), STATIC),
-                               np.full(len(chosen), statics.box_material[k]), margin, STATIC_BOX,
-                               np.full(len(chosen), k)))
+        parts.append(_box_contacts(world, chosen, centres, statics.box_centre[k], statics.box_rotation[k],
+                                   statics.box_half[k], STATIC, statics.box_material[k], margin,
+                                   (STATIC_BOX, STATIC_BOX_FACE), k, box_centres, box_rotations))
     if world.triangle_tree is not None and len(everywhere):
         found = world.triangle_tree.query_ball_point(centres[everywhere], world.triangle_reach + reach)
         probes = np.repeat(everywhere, [len(f) for f in found])
@@ -151,12 +151,48 @@ def detect(world: ContactWorld, state: Kinematics, margin: float) -> Contacts:
             parts.append(_contacts(world, probes, centres[probes], d, n, np.full(len(probes), STATIC),
                                    statics.triangle_material[triangles], margin, TRIANGLE, triangles))
     if world.bodies_collide and tree is not None:
-        parts += _between_bodies(world, state, centres, tree, active, margin)
+        parts += _between_bodies(world, centres, tree, active, margin, box_centres, box_rotations)
     return Contacts.concatenate(parts)
 
 
-def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray, tree: cKDTree, active: np.ndarray,
-                    margin: float) -> list[Contacts]:
+def body_box_poses(world: ContactWorld, state: Kinematics) -> tuple[np.ndarray, np.ndarray]:
+    """World centres (X, 3) and rotations (X, 3, 3) of the boxes moving with bodies."""
+    boxes = world.boxes
+    if not boxes.count:
+        return np.zeros((0, 3)), np.zeros((0, 3, 3))
+    assert state.rotation is not None
+    rigid = boxes.owner - state.first_rigid
+    return state.x[boxes.owner] + state.lever(rigid, boxes.offset), state.rotation[rigid] @ boxes.rotation
+
+
+def _box_contacts(world: ContactWorld, chosen: np.ndarray, centres: np.ndarray, box_centre: np.ndarray,
+                  box_rotation: np.ndarray, box_half: np.ndarray, solid_body: int, material: int, margin: float,
+                  kinds: tuple[int, int], box: int, box_centres: np.ndarray, box_rotations: np.ndarray) -> Contacts:
+    """Contacts of probes ``chosen`` with one box: corners of other boxes against the face their separating axis
+    picks, everything else against the box as a whole. ``kinds``: (whole box, face) contact kinds."""
+    count = len(chosen)
+    points = centres[chosen]
+    centre, rotation, half = (np.broadcast_to(a, (count, *np.shape(a))) for a in (box_centre, box_rotation,
+                                                                                    box_half))
+    distance, normal = to_box(points, centre, rotation, half)
+    kind, index = np.full(count, kinds[0]), np.full(count, box)
+    corner_of = world.probes.box[chosen]
+    corners = np.flatnonzero(corner_of >= 0)
+    if len(corners):
+        own = corner_of[corners]
+        direction = separating_direction(box_centres[own], box_rotations[own], world.boxes.half[own],
+                                         centre[corners], rotation[corners], half[corners])
+        face_distance, face_normal, face, on_face = to_box_face(points[corners], centre[corners], rotation[corners],
+                                                                half[corners], direction, margin)
+        use = corners[on_face]
+        distance[use], normal[use] = face_distance[on_face], face_normal[on_face]
+        kind[use], index[use] = kinds[1], 6 * box + face[on_face]
+    return _contacts(world, chosen, points, distance, normal, np.full(count, solid_body),
+                     np.full(count, material), margin, kind, index)
+
+
+def _between_bodies(world: ContactWorld, centres: np.ndarray, tree: cKDTree, active: np.ndarray, margin: float,
+                    box_centres: np.ndarray, box_rotations: np.ndarray) -> list[Contacts]:
     """Probe spheres against other bodies' probe spheres, and probes against other bodies' boxes."""
     probes, parts = world.probes, []
     pairs = tree.query_pairs(2 * float(probes.radius.max()) + margin, output_type="ndarray")
@@ -169,26 +205,17 @@ def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray,
         parts.append(_contacts(world, i, centres[i], d, n, owner_j, world.body_material[owner_j], margin,
                                BODY_SPHERE, j))
     boxes = world.boxes
-    if boxes.count:
-        owner = boxes.owner
-        rigid = owner - state.first_rigid
-        assert state.rotation is not None
-        box_centres = state.x[owner] + state.lever(rigid, boxes.offset)
-        box_rotations = state.rotation[rigid] @ boxes.rotation
-        for k in range(boxes.count):
-            if not world.collides[owner[k]]:
-                continue
-            found = np.asarray(tree.query_ball_point(box_centres[k], float(np.linalg.norm(boxes.half[k])) + margin
-                                                     + float(probes.radius.max())), dtype=np.intp)
-            chosen = found[(probes.owner[found] != owner[k]) & active[found]] if len(found) else found
-            if not len(chosen):
-                continue
-            count = len(chosen)
-            d, n = to_box(centres[chosen], np.broadcast_to(box_centres[k], (count, 3)),
-                          np.broadcast_to(box_rotations[k], (count, 3, 3)), np.broadcast_to(boxes.half[k], (count, 3)))
-            parts.append(_contacts(world, chosen, centres[chosen], d, n, np.full(count, owner[k]),
-                                   np.full(count, world.body_material[owner[k]]), margin, BODY_BOX,
-                                   np.full(count, k)))
+    for k in range(boxes.count):
+        owner = boxes.owner[k]
+        if not world.collides[owner]:
+            continue
+        found = np.asarray(tree.query_ball_point(box_centres[k], float(np.linalg.norm(boxes.half[k])) + margin
+                                                 + float(probes.radius.max())), dtype=np.intp)
+        chosen = found[(probes.owner[found] != owner) & active[found]] if len(found) else found
+        if len(chosen):
+            parts.append(_box_contacts(world, chosen, centres, box_centres[k], box_rotations[k], boxes.half[k],
+                                       owner, world.body_material[owner], margin, (BODY_BOX, BODY_BOX_FACE), k,
+                                       box_centres, box_rotations))
     return parts
 
 
@@ -216,6 +243,11 @@ def evaluate_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, ki
         elif code == STATIC_BOX:
             distance[k], normal[k] = to_box(c, statics.box_centre[i], statics.box_rotation[i], statics.box_half[i])
             material[k] = statics.box_material[i]
+        elif code == STATIC_BOX_FACE:
+            box = i // 6
+            distance[k], normal[k] = to_face_plane(c, statics.box_centre[box], statics.box_rotation[box],
+                                                   statics.box_half[box], i % 6)
+            material[k] = statics.box_material[box]
         elif code == TRIANGLE:
             distance[k], normal[k] = to_triangles(c, statics.triangles[i])
             material[k] = statics.triangle_material[i]
@@ -223,13 +255,15 @@ def evaluate_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, ki
             distance[k], normal[k] = to_sphere(c, all_centres[i], probes.radius[i])
             solid_body[k] = probes.owner[i]
             material[k] = world.body_material[probes.owner[i]]
-        else:  # BODY_BOX
-            boxes = world.boxes
-            owner = boxes.owner[i]
-            assert state.rotation is not None
-            rigid = owner - state.first_rigid
-            centre = state.x[owner] + state.lever(rigid, boxes.offset[i])
-            distance[k], normal[k] = to_box(c, centre, state.rotation[rigid] @ boxes.rotation[i], boxes.half[i])
+        else:  # BODY_BOX, BODY_BOX_FACE
+            box = i // 6 if code == BODY_BOX_FACE else i
+            box_centres, box_rotations = body_box_poses(world, state)
+            centre, rotation, half = box_centres[box], box_rotations[box], world.boxes.half[box]
+            if code == BODY_BOX_FACE:
+                distance[k], normal[k] = to_face_plane(c, centre, rotation, half, i % 6)
+            else:
+                distance[k], normal[k] = to_box(c, centre, rotation, half)
+            owner = world.boxes.owner[box]
             solid_body[k] = owner
             material[k] = world.body_material[owner]
     return _contacts(world, probe, centres, distance, normal, solid_body, material, np.inf, kind, index)

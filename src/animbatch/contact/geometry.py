@@ -5,6 +5,11 @@ a sample point on a cylinder's rims or a mesh's surface) and a *solid* (a plane,
 the world or moving with a body). Box against box is then corners against boxes both ways, and sphere against box is
 the sphere against the box; a handful of vectorised signed-distance functions covers every pair.
 
+A box corner against another box is measured to the face that the two boxes' separating axis picks (the face axis
+of least overlap, :func:`separating_direction`), not to the nearest face: when a box rests on another with edges
+flush, its corners lie on the other box's side faces as much as on its top, and the nearest face would push them
+sideways. Corners outside that face's extent fall back to the plain distance to the box.
+
 Edge-to-edge contact between two boxes (edges crossing, no corner inside the other box) is not detected: boxes
 resting on or tumbling onto other boxes touch corner-first, and that is what these contacts resolve.
 
@@ -53,6 +58,47 @@ def to_box(points: np.ndarray, centres: np.ndarray, rotations: np.ndarray, halve
     return signed, np.einsum("kij,kj->ki", rotations, normal_local)
 
 
+def separating_direction(centre_a: np.ndarray, rotation_a: np.ndarray, half_a: np.ndarray, centre_b: np.ndarray,
+                         rotation_b: np.ndarray, half_b: np.ndarray) -> np.ndarray:
+    """Unit directions (K, 3) from boxes b towards boxes a along the face axis (of either box) on which they overlap
+    least, or are farthest apart: the separating axis test over the six face normals. Boxes are given as centres
+    (K, 3), rotations (K, 3, 3) box-to-world and half sides (K, 3)."""
+    axes = np.concatenate([np.swapaxes(rotation_a, 1, 2), np.swapaxes(rotation_b, 1, 2)], axis=1)  # (K, 6, 3)
+    reach = (np.einsum("kmj,kj->km", np.abs(np.einsum("kmi,kij->kmj", axes, rotation_a)), half_a)
+             + np.einsum("kmj,kj->km", np.abs(np.einsum("kmi,kij->kmj", axes, rotation_b)), half_b))
+    along = np.einsum("kmi,ki->km", axes, centre_a - centre_b)
+    best = np.argmin(reach - np.abs(along), axis=1)
+    rows = np.arange(len(best))
+    return axes[rows, best] * np.where(along[rows, best] >= 0, 1.0, -1.0)[:, None]
+
+
+def to_box_face(points: np.ndarray, centres: np.ndarray, rotations: np.ndarray, halves: np.ndarray,
+                directions: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Signed distances (K,) of points to the face of each box whose outward normal is closest to ``directions``
+    (K, 3), those normals (K, 3), the faces (K,) numbered ``2 axis + (1 if the + face)``, and whether each point
+    lies within its face's extent, to ``tolerance`` [m] (elsewhere the face's plane is not the box)."""
+    local_direction = np.einsum("kji,kj->ki", rotations, directions)
+    axis = np.argmax(np.abs(local_direction), axis=1)
+    rows = np.arange(len(points))
+    positive = local_direction[rows, axis] >= 0
+    local = np.einsum("kji,kj->ki", rotations, points - centres)
+    distance = np.where(positive, local[rows, axis], -local[rows, axis]) - halves[rows, axis]
+    lateral = np.abs(local) - halves
+    lateral[rows, axis] = -np.inf
+    normal = rotations[rows, :, axis] * np.where(positive, 1.0, -1.0)[:, None]
+    return distance, normal, 2 * axis + positive, np.all(lateral <= tolerance, axis=1)
+
+
+def to_face_plane(points: np.ndarray, centres: np.ndarray, rotations: np.ndarray, halves: np.ndarray,
+                  faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distances (K,) of points to the planes of given box faces (numbered as in :func:`to_box_face`), and
+    their outward normals (K, 3): for following a face contact once it has been found."""
+    axis, sign = faces // 2, np.where(faces % 2 == 1, 1.0, -1.0)
+    rows = np.arange(len(points))
+    normal = rotations[rows, :, axis] * sign[:, None]
+    return np.einsum("ki,ki->k", points - centres, normal) - halves[rows, axis], normal
+
+
 def to_triangles(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unsigned distance of points (K, 3) to triangles (K, 3, 3) and the unit direction from the closest point to
     each point (the triangle's normal, oriented towards the point, when the point lies on it).
@@ -98,11 +144,13 @@ def to_triangles(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray,
 @dataclass(frozen=True, eq=False)
 class Probes:
     """Spheres attached to bodies: ``owner`` (Q,) body (point) index, ``offset`` (Q, 3) centre in body axes from the
-    centre of mass, ``radius`` (Q,) (0 for corner and surface points)."""
+    centre of mass, ``radius`` (Q,) (0 for corner and surface points), ``box`` (Q,) the body box (index into
+    :class:`BodyBoxes`) whose corner the probe is, or -1."""
 
     owner: np.ndarray
     offset: np.ndarray
     radius: np.ndarray
+    box: np.ndarray
 
     @property
     def count(self) -> int:

@@ -43,32 +43,33 @@ class ContactSettings:
     slop: float
 
 
-def _shape_features(shape: Any, base: Path) -> tuple[list[tuple[np.ndarray, float]], list[tuple]]:
-    """Probes [(centre, radius)] and boxes [(offset, rotation, half)] of one shape, in shape coordinates."""
+def _shape_features(shape: Any, base: Path) -> tuple[list[tuple[np.ndarray, float, int]], list[tuple]]:
+    """Probes [(centre, radius, box)] and boxes [(offset, rotation, half)] of one shape, in shape coordinates;
+    ``box`` numbers the shape's box whose corner the probe is (-1: not a box corner)."""
     if isinstance(shape, SphereShape | ShellShape):
-        return [(np.zeros(3), shape.radius)], []
+        return [(np.zeros(3), shape.radius, -1)], []
     if isinstance(shape, BoxShape):
         half = np.asarray(shape.size, float) / 2
         corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
-        return [(c, 0.0) for c in corners], [(np.zeros(3), np.eye(3), half)]
+        return [(c, 0.0, 0) for c in corners], [(np.zeros(3), np.eye(3), half)]
     if isinstance(shape, CylinderShape | RodShape):
         radius = shape.radius if shape.radius is not None else shape.length / 100
         angles = 2 * np.pi * np.arange(RIM_PROBES) / RIM_PROBES
         ring = np.stack([radius * np.cos(angles), radius * np.sin(angles), np.zeros(RIM_PROBES)], axis=1)
         ends = [np.array([0.0, 0.0, -shape.length / 2]), np.array([0.0, 0.0, shape.length / 2])]
-        return [(p + end, 0.0) for end in ends for p in ring] + [(end, 0.0) for end in ends], []
+        return [(p + end, 0.0, -1) for end in ends for p in ring] + [(end, 0.0, -1) for end in ends], []
     if isinstance(shape, MeshShape):
         vertices = load_mesh(base / shape.file, shape.scale).vertices
         if len(vertices) > MESH_PROBES:
             vertices = vertices[np.linspace(0, len(vertices) - 1, MESH_PROBES).astype(int)]
-        return [(v, 0.0) for v in vertices], []
+        return [(v, 0.0, -1) for v in vertices], []
     if isinstance(shape, CompoundShape):
         probes, boxes = [], []
         for part in shape.parts:
             rotation = orientation_matrix(part.orientation)
             offset = np.asarray(part.offset, float)
             part_probes, part_boxes = _shape_features(part.shape, base)
-            probes += [(rotation @ c + offset, r) for c, r in part_probes]
+            probes += [(rotation @ c + offset, r, box + len(boxes) if box >= 0 else -1) for c, r, box in part_probes]
             boxes += [(rotation @ o + offset, rotation @ rot, half) for o, rot, half in part_boxes]
         return probes, boxes
     raise TypeError(f"no collision geometry for shape {shape!r}")
@@ -120,17 +121,19 @@ def build_contact_world(spec: SceneSpec, body_names: tuple[str, ...], centres: d
     body's centre of mass in shape coordinates."""
     table = material_table(spec)
     by_name = {body.name: body for body in spec.bodies}
-    owners, offsets, radii = [], [], []
+    owners, offsets, radii, corner_of = [], [], [], []
     box_owner, box_offset, box_rotation, box_half = [], [], [], []
     for point, name in enumerate(body_names):
         body = by_name[name]
         if isinstance(body, RigidBodySpec):
             probes, boxes = _shape_features(body.shape, base)
             centre = centres[name]
-            for c, r in probes:
+            first_box = len(box_owner)
+            for c, r, box in probes:
                 owners.append(point)
                 offsets.append(c - centre)
                 radii.append(r)
+                corner_of.append(first_box + box if box >= 0 else -1)
             for offset, rotation, half in boxes:
                 box_owner.append(point)
                 box_offset.append(offset - centre)
@@ -140,6 +143,7 @@ def build_contact_world(spec: SceneSpec, body_names: tuple[str, ...], centres: d
             owners.append(point)
             offsets.append(np.zeros(3))
             radii.append(body.radius)
+            corner_of.append(-1)
     statics = _statics(spec, table, base)
     tree, reach = None, 0.0
     if len(statics.triangles):
@@ -148,7 +152,8 @@ def build_contact_world(spec: SceneSpec, body_names: tuple[str, ...], centres: d
         reach = float(np.max(np.linalg.norm(statics.triangles - centroids[:, None, :], axis=2)))
     settings = spec.contacts if spec.contacts is not None else ContactSpec()
     world = ContactWorld(
-        Probes(np.array(owners, np.intp), np.array(offsets, float).reshape(-1, 3), np.array(radii, float)),
+        Probes(np.array(owners, np.intp), np.array(offsets, float).reshape(-1, 3), np.array(radii, float),
+               np.array(corner_of, np.intp)),
         BodyBoxes(np.array(box_owner, np.intp), np.array(box_offset, float).reshape(-1, 3),
                   np.array(box_rotation, float).reshape(-1, 3, 3), np.array(box_half, float).reshape(-1, 3)),
         statics, table, np.array([table.index(by_name[n].material) for n in body_names], np.intp),
