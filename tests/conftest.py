@@ -38,7 +38,7 @@ def body(trajectory: Trajectory, name: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 ADAPTIVE = ["RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA"]
-FIXED_STEP = ["euler", "midpoint", "symplectic_euler", "verlet"]
+FIXED_STEP = ["euler", "midpoint", "symplectic_euler", "verlet", "backward_euler"]
 
 
 @pytest.fixture

@@ -75,7 +75,8 @@ def test_info_lists_compiled_terms_layout_and_masses(tmp_path):
     assert "state      18 values" in out
     assert "y[0:9]  particle_position  (3 × 3) [m]" in out and "y[9:18]  particle_velocity  (3 × 3) [m/s]" in out
     assert "1. gravity" in out and "2. spring" in out and "1 spring (1 body–body, 0 body–anchor)" in out
-    assert "not compiled (not declared): force, torque, angular_drag, buoyancy, drag, wind, gravitation" in out
+    assert ("not compiled (not declared): aerodynamics, force, torque, angular_drag, buoyancy, drag, wind, "
+            "gravitation, controller, dihedral") in out
     assert "a                         1        0.05" in out
 
 

@@ -9,7 +9,7 @@ from animbatch.integrators import FIXED_STEP_SCHEMES
 from conftest import ADAPTIVE, body, run
 from test_closed_forms import oscillator_exact, oscillator_scene
 
-EXPECTED_ORDER = {"euler": 1, "midpoint": 2, "symplectic_euler": 1, "verlet": 2}
+EXPECTED_ORDER = {"euler": 1, "midpoint": 2, "symplectic_euler": 1, "verlet": 2, "backward_euler": 1}
 
 
 def final_error(method: str, dt: float) -> float:

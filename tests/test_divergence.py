@@ -8,11 +8,11 @@ from click.testing import CliRunner
 
 from animbatch.cli import cli
 from animbatch.errors import SimulationError
-from animbatch.integrators import ScipyIntegrator
+from animbatch.integrators import FixedStepIntegrator, ScipyIntegrator
 from animbatch.model import ModelBuilder, Dynamics
 from conftest import run
 
-# ω = sqrt(k/m) = 1e4 rad/s, so explicit Euler at h = 1e-3 (ω h = 10) multiplies the energy by ~100 per step.
+# ω = sqrt(k/m) = 1e4 rad/s, so explicit Euler at h = 1e-3 (ω h = 10) multiplies the amplitude by ~10 per step.
 STIFF = """
     name: stiff
     duration: 2
@@ -20,31 +20,61 @@ STIFF = """
     solver: {method: euler, dt: 1.0e-3}
     anchors: [{name: pin, position: [0, 0, 0]}]
     bodies: [{name: calm, position: [5, 5, 5]}, {name: wobbly, mass: 0.01, position: [1.1, 0, 0]}]
-    springs: [{between: [pin, wobbly], stiffness: 1.0e6, rest_length: 1.0}]
+    springs: [{name: piano-wire, between: [pin, wobbly], stiffness: 1.0e6, rest_length: 1.0}]
 """
 
 
-def test_fixed_step_divergence_names_time_step_body_and_fix():
-    """The error gives the exact step where the state became non-finite, the body, dt and what to change."""
+def test_a_step_that_cannot_hold_the_springs_is_refused_before_the_run_naming_the_stiffest_spring():
+    """The pre-flight check predicts the blow-up (amplification sqrt(1 + (ω h)²) ≈ 10 per step), names the spring,
+    its ks and ω, and gives a step that works for a stable method, before anything is simulated."""
     with pytest.raises(SimulationError) as caught:
         run(STIFF)
+    message = str(caught.value)
+    assert "euler at dt = 0.001 s cannot hold this scene's springs" in message
+    assert "the stiffest spring 'piano-wire' (ks = 1e+06 N/m, between 0.01 kg and an anchor)" in message
+    assert "vibrates at ω = 1e+04 rad/s" in message and "multiplies that vibration by 10.05 per step" in message
+    assert "backward_euler (stable at any dt)" in message and "symplectic_euler: dt ≤ 0.00018 s" in message
+    assert caught.value.body == "wobbly" and caught.value.details["spring"] == "piano-wire"
+
+
+def test_the_pre_flight_limit_is_the_real_stability_limit():
+    """Symplectic Euler just under the limit it names runs and stays bounded (its ellipse stretches to
+    0.1 / sqrt(1 - (ω h / 2)²) = 0.32 m at ω h = 1.9, and no further); a step 5 % over it is refused (the exact
+    limit for an undamped spring is ω h = 2)."""
+    _, trajectory = run(STIFF, "solver.method=symplectic_euler", "solver.dt=1.9e-4", "duration=0.5")
+    assert np.abs(trajectory.positions[:, 1, 0] - 1.0).max() < 0.1 / np.sqrt(1 - 0.95**2) + 1e-6
+    with pytest.raises(SimulationError, match="symplectic_euler at dt = 0.00021 s cannot hold"):
+        run(STIFF, "solver.method=symplectic_euler", "solver.dt=2.1e-4", "duration=0.5")
+
+
+def test_fixed_step_divergence_names_time_step_body_and_fix():
+    """When the state becomes non-finite during a fixed-step run (here forces sabotaged from t = 0.2345 s), the
+    error gives the exact step, the body, dt and what to change."""
+    model = two_particles("runaway")
+
+    class Exploding(Dynamics):
+        def motion_rate(self, t, config, motion, out=None):
+            rate = super().motion_rate(t, config, motion, out)
+            if t > 0.2345:
+                rate[4] = np.inf  # body 1, velocity y
+            return rate
+
+    with pytest.raises(SimulationError) as caught:
+        FixedStepIntegrator("symplectic_euler", dt=1e-3).integrate(Exploding(model), model.y0, model.frame_times)
     error = caught.value
-    assert error.body == "wobbly"
+    assert error.body == "runaway"
     message = str(error)
-    assert "the simulation diverged at t = " in message and "body 'wobbly'" in message
-    assert "euler is unstable at dt = 0.001 s" in message and "reduce solver.dt (try 0.0001)" in message
-    # |growth| per step is |1 + i ω h| = sqrt(101), so doubles overflow (1e308) after about 300 steps
-    assert 0.1 < error.time < 0.5
-    step = int(message.split("(step ")[1].split(")")[0])
-    assert error.time == pytest.approx(step * 1e-3)
+    assert "the simulation diverged at t = 0.236 s (step 236)" in message and "body 'runaway'" in message
+    assert "symplectic_euler is unstable at dt = 0.001 s" in message and "reduce solver.dt (try 0.0001)" in message
 
 
-def test_divergence_writes_no_frames(tmp_cwd):
-    """'animbatch render' on a diverging scene exits 3 and leaves no video, frame or report behind."""
+def test_refused_run_writes_no_frames(tmp_cwd):
+    """'animbatch render' on a scene whose step cannot hold its springs exits 3 and leaves no video, frame or
+    report behind."""
     (tmp_cwd / "stiff.yaml").write_text(STIFF)
     result = CliRunner().invoke(cli, ["render", "stiff.yaml", "--formats", "mp4,png"])
     assert result.exit_code == 3
-    assert result.output.startswith("error: the simulation diverged at t = ") and "Traceback" not in result.output
+    assert result.output.startswith("error: euler at dt = 0.001 s cannot hold") and "Traceback" not in result.output
     assert not (tmp_cwd / "renders").exists()
 
 

@@ -69,7 +69,7 @@ def test_unknown_field_type(tmp_path):
     """A misspelt field type suggests the right one and lists all of them."""
     line = first_error(tmp_path, GOOD.replace("type: gravity", "type: gravty"))
     assert line == ("scene.yaml:8:11: fields[0].type: unknown field type 'gravty'; did you mean 'gravity'? "
-                    "Allowed: gravity, gravitation, drag, wind, force, torque, angular_drag, buoyancy")
+                    "Allowed: gravity, gravitation, drag, wind, force, torque, angular_drag, buoyancy, aerodynamics")
 
 
 def test_malformed_yaml(tmp_path):

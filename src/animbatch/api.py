@@ -129,7 +129,9 @@ def render(scene: LoadedScene, trajectory: Trajectory, *, model: Model | None = 
     chosen = select_backend(backend)
     folder = Path(out_dir) / scene.name
     width, height = spec.render.resolution
-    fixed = np.vstack([model.anchor_position, collider_points(spec, scene_folder(scene))])
+    anchors = (np.vstack([model.anchors.positions(float(t)) for t in trajectory.times]) if model.anchors.moving
+               else model.anchor_position)
+    fixed = np.vstack([anchors, collider_points(spec, scene_folder(scene))])
     bounds = motion_bounds(trajectory.positions, body_extents(model), fixed)
     geometry = FrameGeometry.from_scene(spec, model, bounds,
                                         largest_vector(model, trajectory, spec.render.show_vectors),

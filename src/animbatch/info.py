@@ -76,8 +76,8 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
     lines.append(f"terms      {_plural(len(model.force_terms), 'force term')} compiled, evaluated in this order:")
     for number, term in enumerate(model.force_terms, 1):
         lines.append(f"           {number}. {term.label:<12} {term.describe()}")
-    declared = {field.type for field in spec.fields} | ({"spring"} if model.springs is not None else set())
-    absent = [name for name in (*FIELD_TERMS, "spring") if name not in declared]
+    declared = {field.type for field in spec.fields} | {term.kind for term in model.force_terms}
+    absent = [name for name in (*FIELD_TERMS, "spring", "controller", "dihedral") if name not in declared]
     if absent:
         lines.append(f"           not compiled (not declared): {', '.join(absent)}")
     bodies = model.bodies

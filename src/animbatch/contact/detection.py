@@ -31,7 +31,8 @@ class ContactWorld:
 
     ``body_material`` (P,) material index per body; ``collides`` (P,) bool; ``bodies_collide``: whether bodies touch
     each other (not only colliders); ``triangle_tree``: k-d tree of static triangle centroids (or None) with the
-    largest triangle's circumradius ``triangle_reach``.
+    largest triangle's circumradius ``triangle_reach``; ``group`` (P,): bodies of one group ≥ 0 (the vertices of one
+    cloth or lattice) never collide with each other.
     """
 
     probes: Probes
@@ -43,6 +44,7 @@ class ContactWorld:
     bodies_collide: bool
     triangle_tree: cKDTree | None
     triangle_reach: float
+    group: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -199,6 +201,9 @@ def _between_bodies(world: ContactWorld, centres: np.ndarray, tree: cKDTree, act
     if len(pairs):
         i, j = pairs[:, 0], pairs[:, 1]
         keep = (probes.owner[i] != probes.owner[j]) & active[i] & active[j] & (probes.radius[j] > 0)
+        if world.group is not None:
+            group_i, group_j = world.group[probes.owner[i]], world.group[probes.owner[j]]
+            keep &= (group_i < 0) | (group_i != group_j)
         i, j = i[keep], j[keep]
         d, n = to_sphere(centres[i], centres[j], probes.radius[j])  # probe i against the sphere of probe j
         owner_j = probes.owner[j]

@@ -22,6 +22,7 @@ from animbatch.contact.detection import Contacts, detect
 from animbatch.contact.solver import BodyVelocities, solve_impulses
 from animbatch.forces import Kinematics
 from animbatch.integrators.fixed_step import SymplecticEuler, VelocityVerlet
+from animbatch.integrators.implicit import BackwardEuler
 from animbatch.model.dynamics import Dynamics
 from animbatch.rigid import quaternion
 
@@ -145,21 +146,29 @@ def contact_codes(contacts: Contacts) -> np.ndarray:
             | contacts.solid_index.astype(np.int64))
 
 
-class ContactSymplecticEuler(SymplecticEuler):
-    """Kick, contacts, drift."""
+class _KickContactsDrift:
+    """Kick (the scheme's own), contacts, drift: for the one-kick schemes, symplectic and backward Euler."""
+
+    system: Dynamics
 
     def __init__(self, system: Dynamics) -> None:
-        super().__init__(system)
+        super().__init__(system)  # type: ignore[call-arg]
         self.contacts = ContactResolver(system)
 
     def step(self, t: float, y: np.ndarray, h: float) -> None:
         config, motion = self.system.split(y)
-        rate = self.system.motion_rate(t, config, motion, out=self._rate)
-        self.evaluations += 1
-        motion += np.multiply(rate, h, out=self._work)
+        self.kick(t, config, motion, h)  # type: ignore[attr-defined]
         drifting = self.contacts.resolve(config, motion, h)
         self.system.drift(config, motion if drifting is None else drifting, h)
         self.system.project(y)
+
+
+class ContactSymplecticEuler(_KickContactsDrift, SymplecticEuler):
+    """Kick, contacts, drift."""
+
+
+class ContactBackwardEuler(_KickContactsDrift, BackwardEuler):
+    """Implicit kick, contacts, drift."""
 
 
 class ContactVerlet(VelocityVerlet):
@@ -184,4 +193,5 @@ class ContactVerlet(VelocityVerlet):
         self._rate, self._rate_next = rate_next, rate
 
 
-CONTACT_SCHEMES = {"symplectic_euler": ContactSymplecticEuler, "verlet": ContactVerlet}
+CONTACT_SCHEMES = {"symplectic_euler": ContactSymplecticEuler, "verlet": ContactVerlet,
+                   "backward_euler": ContactBackwardEuler}

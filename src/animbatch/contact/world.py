@@ -26,7 +26,7 @@ from animbatch.contact.detection import ContactWorld
 from animbatch.contact.geometry import BodyBoxes, Probes, StaticColliders
 from animbatch.contact.materials import Coefficients, MaterialTable
 from animbatch.rigid.shapes import load_mesh, orientation_matrix
-from animbatch.scene.schema import (BoxCollider, BoxShape, CompoundShape, ContactSpec, CylinderShape, MeshCollider, MeshShape,
+from animbatch.scene.schema import (DEFORMABLE_SPECS, BoxCollider, BoxShape, CompoundShape, ContactSpec, CylinderShape, MeshCollider, MeshShape,
                                     PlaneCollider, RigidBodySpec, RodShape, SceneSpec, ShellShape, SphereCollider,
                                     SphereShape)
 
@@ -115,15 +115,17 @@ def material_table(spec: SceneSpec) -> MaterialTable:
     return MaterialTable.build(custom, pairs)
 
 
-def build_contact_world(spec: SceneSpec, body_names: tuple[str, ...], centres: dict[str, np.ndarray],
+def build_contact_world(spec: SceneSpec, model: Any, centres: dict[str, np.ndarray],
                         base: Path) -> tuple[ContactWorld, ContactSettings]:
-    """The contact world for a scene whose bodies are ``body_names`` in model order; ``centres`` gives each rigid
-    body's centre of mass in shape coordinates."""
+    """The contact world for a scene and its model (bodies in model order; the vertices of cloth and lattices are
+    particles of the model); ``centres`` gives each rigid body's centre of mass in shape coordinates."""
     table = material_table(spec)
     by_name = {body.name: body for body in spec.bodies}
+    owner_names = model.owners
+    deformable_names = [body.name for body in spec.bodies if isinstance(body, DEFORMABLE_SPECS)]
     owners, offsets, radii, corner_of = [], [], [], []
     box_owner, box_offset, box_rotation, box_half = [], [], [], []
-    for point, name in enumerate(body_names):
+    for point, name in enumerate(owner_names):
         body = by_name[name]
         if isinstance(body, RigidBodySpec):
             probes, boxes = _shape_features(body.shape, base)
@@ -139,10 +141,10 @@ def build_contact_world(spec: SceneSpec, body_names: tuple[str, ...], centres: d
                 box_offset.append(offset - centre)
                 box_rotation.append(rotation)
                 box_half.append(half)
-        else:
+        else:  # a particle, or a vertex of a cloth or lattice (a particle with the body's vertex radius)
             owners.append(point)
             offsets.append(np.zeros(3))
-            radii.append(body.radius)
+            radii.append(float(model.bodies.radius[point]))
             corner_of.append(-1)
     statics = _statics(spec, table, base)
     tree, reach = None, 0.0
@@ -156,7 +158,8 @@ def build_contact_world(spec: SceneSpec, body_names: tuple[str, ...], centres: d
                np.array(corner_of, np.intp)),
         BodyBoxes(np.array(box_owner, np.intp), np.array(box_offset, float).reshape(-1, 3),
                   np.array(box_rotation, float).reshape(-1, 3, 3), np.array(box_half, float).reshape(-1, 3)),
-        statics, table, np.array([table.index(by_name[n].material) for n in body_names], np.intp),
-        np.array([by_name[n].collide for n in body_names], bool),
-        settings.bodies, tree, reach)
+        statics, table, np.array([table.index(by_name[n].material) for n in owner_names], np.intp),
+        np.array([by_name[n].collide for n in owner_names], bool),
+        settings.bodies, tree, reach,
+        np.array([deformable_names.index(n) if n in deformable_names else -1 for n in owner_names], np.intp))
     return world, ContactSettings(settings.iterations, settings.rest_speed, settings.slop)

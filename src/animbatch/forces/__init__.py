@@ -4,7 +4,8 @@ Importing this package registers every field type in :data:`FIELD_TERMS`. Spring
 list rather than from ``fields``, so :class:`SpringForces` is built directly by the model builder.
 """
 
-from animbatch.forces import applied, buoyancy, drag, gravitation, gravity  # noqa: F401  (registers the field types)
+from animbatch.forces import (aerodynamics, applied, buoyancy, drag, gravitation,  # noqa: F401  (registers the field types)
+                              gravity)
 from animbatch.forces.base import FIELD_TERMS, BodyTable, ForceTerm, Kinematics
 from animbatch.forces.buoyancy import Buoyancy
 from animbatch.forces.drag import Drag

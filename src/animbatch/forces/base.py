@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
+import scipy.sparse as sp
 
 
 @dataclass(frozen=True, eq=False)
@@ -23,7 +24,9 @@ class BodyTable:
 
     ``names``, ``mass`` [kg], ``radius`` [m]: per point, shape (P,); a rigid body's radius is that of the sphere of its
     volume. ``first_rigid``: index of the first rigid body (= number of particles). ``rigid``: the rigid bodies'
-    inertia and geometry (a :class:`~animbatch.model.rigid_set.RigidBodySet`), or None.
+    inertia and geometry (a :class:`~animbatch.model.rigid_set.RigidBodySet`), or None. ``deformables``: cloth and
+    lattices, their triangles and where their vertices are (a
+    :class:`~animbatch.deformable.vertices.DeformableSet`), or None.
     """
 
     names: tuple[str, ...]
@@ -31,6 +34,7 @@ class BodyTable:
     radius: np.ndarray
     first_rigid: int
     rigid: Any = None
+    deformables: Any = None
 
     @property
     def count(self) -> int:
@@ -46,11 +50,11 @@ class BodyTable:
 
 @dataclass(frozen=True, eq=False)
 class Kinematics:
-    """Where the bodies are and how they move, at one instant.
+    """Where the bodies are and how they move, at one instant ``t`` [s].
 
     ``x``, ``v``: centre-of-mass positions [m] and velocities [m/s] of all points, shape (P, 3). For the B rigid bodies
     (points ``first_rigid …``): ``rotation`` (B, 3, 3) body-to-world matrices and ``omega`` (B, 3) angular velocities
-    [rad/s], world axes; both None when there are no rigid bodies.
+    [rad/s], world axes; both None when there are no rigid bodies. ``t`` places moving anchors.
     """
 
     x: np.ndarray
@@ -58,12 +62,48 @@ class Kinematics:
     rotation: np.ndarray | None
     omega: np.ndarray | None
     first_rigid: int
+    t: float = 0.0
 
     def lever(self, rigid_index: np.ndarray, offset: np.ndarray) -> np.ndarray:
         """World vectors from the centres of mass of rigid bodies ``rigid_index`` (K,) to their body points
         ``offset`` (K, 3), given in body axes relative to the centre of mass."""
         assert self.rotation is not None
         return np.einsum("kij,kj->ki", self.rotation[rigid_index], offset)
+
+
+class ForceJacobian:
+    """The derivatives of the forces on the N particles: ``∂f/∂x`` and ``∂f/∂v``, (3N, 3N) each, gathered from the
+    terms as 3×3 blocks ``(i, j)`` = the derivative of the force on particle i with respect to particle j.
+
+    Implicit integration (backward Euler, Radau, BDF) needs them: a stiff spring's force changes a lot when its ends
+    move, and an implicit step takes that change into account. Rigid bodies are not part of this matrix (they are
+    stepped explicitly by the implicit methods, see :mod:`animbatch.integrators.implicit`).
+    """
+
+    def __init__(self, particles: int) -> None:
+        self.particles = particles
+        self._blocks: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {"x": [], "v": []}
+
+    def add(self, i: np.ndarray, j: np.ndarray, dfdx: np.ndarray | None = None, dfdv: np.ndarray | None = None) -> None:
+        """Add blocks (K, 3, 3) at particle pairs ``(i, j)`` (K,) (repeated pairs add up)."""
+        for name, blocks in (("x", dfdx), ("v", dfdv)):
+            if blocks is not None and len(i):
+                self._blocks[name].append((np.asarray(i, np.intp), np.asarray(j, np.intp), blocks))
+
+    def matrix(self, which: str) -> sp.csr_matrix:
+        """``∂f/∂x`` (``which='x'``) or ``∂f/∂v`` (``'v'``) as a sparse (3N, 3N) matrix."""
+        size = 3 * self.particles
+        parts = self._blocks[which]
+        if not parts:
+            return sp.csr_matrix((size, size))
+        axis = np.arange(3)
+        # entry [k, a, b] of block k sits at row 3 i_k + a, column 3 j_k + b
+        rows = np.concatenate([np.broadcast_to(3 * i[:, None, None] + axis[None, :, None], (len(i), 3, 3)).ravel()
+                               for i, _, _ in parts])
+        cols = np.concatenate([np.broadcast_to(3 * j[:, None, None] + axis[None, None, :], (len(j), 3, 3)).ravel()
+                               for _, j, _ in parts])
+        data = np.concatenate([blocks.ravel() for _, _, blocks in parts])
+        return sp.coo_matrix((data, (rows, cols)), shape=(size, size)).tocsr()
 
 
 class ForceTerm(ABC):
@@ -95,6 +135,11 @@ class ForceTerm(ABC):
     def potential_energy(self, state: Kinematics) -> float:
         """Potential energy [J]; only for terms with ``has_potential``."""
         raise NotImplementedError(f"{self.kind} has no potential energy")
+
+    def jacobian(self, t: float, state: Kinematics, out: ForceJacobian) -> bool:
+        """Add this term's ``∂f/∂x`` and ``∂f/∂v`` on particles to ``out``; return False when the term gives none
+        (implicit methods then treat its force explicitly, as evaluated at the start of the step)."""
+        return False
 
 
 #: Field ``type`` (as in the scene file) -> function building its term from (spec, bodies, selection index).

@@ -19,8 +19,8 @@ from typing import Literal
 import numpy as np
 
 
-from animbatch.forces.base import (BodyTable, ForceTerm, Kinematics, add_at, field_term, rigid_selection,
-                                   selection_text, vector_text)
+from animbatch.forces.base import (BodyTable, ForceJacobian, ForceTerm, Kinematics, add_at, field_term,
+                                   rigid_selection, selection_text, vector_text)
 from animbatch.rigid.quaternion import cross
 from animbatch.scene.schema import DragSpec, WindSpec
 
@@ -109,6 +109,26 @@ class Drag(ForceTerm):
             pulled = drag_force(self.law, self.at_coefficient, relative)
             force[self.at_points] += pulled
             torque[self.at_rigid] += cross(lever, pulled)
+
+    def jacobian(self, t: float, state: Kinematics, out: ForceJacobian) -> bool:
+        """``∂f/∂v`` on particles: ``-C I`` (linear, stokes), ``-C (|u| I + u uᵀ / |u|)`` (quadratic)."""
+        points = np.arange(len(state.x)) if self.index is None else np.asarray(self.index)
+        coefficient = np.broadcast_to(np.ravel(self.coefficient), (len(points),)) if np.ndim(self.coefficient) \
+            else np.full(len(points), float(self.coefficient))
+        particles = points < state.first_rigid
+        points, coefficient = points[particles], coefficient[particles]
+        if not len(points):
+            return True
+        if self.law != "quadratic":
+            blocks = -coefficient[:, None, None] * np.eye(3)
+        else:
+            relative = state.v[points] - (self.wind if self.wind is not None else 0.0)
+            speed = np.sqrt(np.einsum("ij,ij->i", relative, relative))
+            unit = np.divide(relative, speed[:, None], out=np.zeros_like(relative), where=speed[:, None] > 0)
+            # ∂(|u| u)/∂u = |u| (I + û ûᵀ)
+            blocks = -(coefficient * speed)[:, None, None] * (np.eye(3) + unit[:, :, None] * unit[:, None, :])
+        out.add(points, points, dfdv=blocks)
+        return True
 
     def describe(self) -> str:
         if self.law == "stokes":

@@ -6,7 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from animbatch.forces.base import BodyTable, ForceTerm, Kinematics, add_at, field_term, selection_text, vector_text
+from animbatch.forces.base import (BodyTable, ForceJacobian, ForceTerm, Kinematics, add_at, field_term, selection_text,
+                                   vector_text)
 from animbatch.scene.schema import GravitySpec
 
 
@@ -32,6 +33,9 @@ class UniformGravity(ForceTerm):
 
     def accumulate(self, t: float, state: Kinematics, force: np.ndarray, torque: np.ndarray | None) -> None:
         add_at(force, self.index, self.weight)
+
+    def jacobian(self, t: float, state: Kinematics, out: ForceJacobian) -> bool:
+        return True  # a constant force: both derivatives are zero
 
     def potential_energy(self, state: Kinematics) -> float:
         selected = state.x if self.index is None else state.x[self.index]

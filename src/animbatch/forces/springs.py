@@ -20,7 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from animbatch.forces.base import ForceTerm, Kinematics
+from animbatch.forces.base import ForceJacobian, ForceTerm, Kinematics
+from animbatch.motion import AnchorMotion
 from animbatch.rigid.quaternion import cross
 
 
@@ -30,7 +31,8 @@ class SpringSet:
 
     ``first`` indexes bodies (points: particles, then rigid bodies). ``second`` indexes bodies, or anchors where
     ``second_is_anchor`` is true. ``first_offset``/``second_offset`` (S, 3): attachment points in body axes from the
-    centre of mass (zero for particles, anchors and ends at a centre of mass).
+    centre of mass (zero for particles, anchors and ends at a centre of mass). ``mesh`` (S,): springs of a cloth or
+    lattice (not drawn by default) rather than the scene's own.
     """
 
     names: tuple[str, ...]
@@ -42,6 +44,7 @@ class SpringSet:
     rest_length: np.ndarray  # r [m]
     first_offset: np.ndarray
     second_offset: np.ndarray
+    mesh: np.ndarray | None = None
 
     @property
     def count(self) -> int:
@@ -80,21 +83,20 @@ class SpringForces(ForceTerm):
     has_potential = True
 
     springs: SpringSet
-    anchor_position: np.ndarray  # (A, 3) [m]
+    anchors: AnchorMotion
     scatter: sp.csr_matrix  # (P, S): +1 at (first, s), -1 at (second, s) for springs between two bodies
     first_attachment: _Attachment | None
     second_attachment: _Attachment | None
 
     @classmethod
-    def build(cls, springs: SpringSet, anchor_position: np.ndarray, point_count: int, first_rigid: int
-              ) -> SpringForces:
+    def build(cls, springs: SpringSet, anchors: AnchorMotion, point_count: int, first_rigid: int) -> SpringForces:
         s = np.arange(springs.count)
         to_body = ~springs.second_is_anchor
         rows = np.concatenate([springs.first, springs.second[to_body]])
         cols = np.concatenate([s, s[to_body]])
         signs = np.concatenate([np.ones(springs.count), -np.ones(int(to_body.sum()))])
         rigid_count = point_count - first_rigid
-        return cls(springs, np.asarray(anchor_position, float).reshape(-1, 3),
+        return cls(springs, anchors,
                    _incidence(rows, signs, cols, (point_count, springs.count)),
                    _attachment(springs.first, springs.first_offset, np.ones(springs.count, bool), first_rigid,
                                rigid_count),
@@ -115,8 +117,10 @@ class SpringForces(ForceTerm):
         on_anchor = springs.second_is_anchor
         if on_anchor.any():
             p2 = np.empty((springs.count, 3))
-            v2 = np.zeros((springs.count, 3))  # anchors are at rest
-            p2[on_anchor] = self.anchor_position[springs.second[on_anchor]]
+            v2 = np.zeros((springs.count, 3))
+            p2[on_anchor] = self.anchors.positions(state.t)[springs.second[on_anchor]]
+            if self.anchors.moving:
+                v2[on_anchor] = self.anchors.velocities(state.t)[springs.second[on_anchor]]
             p2[~on_anchor] = state.x[springs.second[~on_anchor]]
             v2[~on_anchor] = state.v[springs.second[~on_anchor]]
         else:
@@ -150,6 +154,45 @@ class SpringForces(ForceTerm):
                 assert torque is not None and attachment is not None
                 k = attachment.springs
                 torque += attachment.torque_scatter @ cross(lever[k], sign * f1[k])
+
+    def jacobian(self, t: float, state: Kinematics, out: ForceJacobian) -> bool:
+        """Exact derivatives of the spring-damper forces on particle ends. With ``u = L/l``, ``P = I - u uᵀ``,
+        ``w = ṗ1 - ṗ2`` and ``m = ks (l - r) + kd w·u`` (so ``f1 = -m u``)::
+
+            ∂f1/∂p1 = -ks u uᵀ - (kd / l) u (P w)ᵀ - (m / l) P,      ∂f1/∂ṗ1 = -kd u uᵀ
+
+        and ``∂f1/∂p2 = -∂f1/∂p1``, ``∂f2/∂p2 = ∂f1/∂p1`` (likewise for velocities). Ends on rigid bodies and
+        anchors have no particle columns; a particle end still gets its own block.
+        """
+        springs = self.springs
+        p1, v1, p2, v2, _, _ = self._ends(state)
+        axis = p1 - p2
+        length = np.sqrt(np.einsum("ij,ij->i", axis, axis))
+        safe = np.maximum(length, 1e-12)
+        unit = axis / safe[:, None]
+        relative = v1 - v2
+        along = np.einsum("ij,ij->i", relative, unit)
+        magnitude = springs.stiffness * (length - springs.rest_length) + springs.damping * along
+        outer = unit[:, :, None] * unit[:, None, :]
+        across = np.eye(3) - outer  # P
+        across_relative = relative - along[:, None] * unit  # P w
+        dfdx = (-springs.stiffness[:, None, None] * outer
+                - (springs.damping / safe)[:, None, None] * unit[:, :, None] * across_relative[:, None, :]
+                - (magnitude / safe)[:, None, None] * across)
+        dfdv = -springs.damping[:, None, None] * outer
+        degenerate = length < 1e-12  # no direction: treat as a zero-length spring, f = -ks L - kd L̇
+        dfdx[degenerate] = -springs.stiffness[degenerate, None, None] * np.eye(3)
+        dfdv[degenerate] = -springs.damping[degenerate, None, None] * np.eye(3)
+        n = state.first_rigid
+        first, second = springs.first, springs.second
+        first_particle = first < n
+        second_particle = ~springs.second_is_anchor & (second < n)
+        out.add(first[first_particle], first[first_particle], dfdx[first_particle], dfdv[first_particle])
+        out.add(second[second_particle], second[second_particle], dfdx[second_particle], dfdv[second_particle])
+        both = first_particle & second_particle
+        out.add(first[both], second[both], -dfdx[both], -dfdv[both])
+        out.add(second[both], first[both], -dfdx[both], -dfdv[both])
+        return True
 
     def potential_energy(self, state: Kinematics) -> float:
         """Elastic energy ½ ks (|L| - r)² summed over springs [J] (dampers store none)."""

@@ -1,4 +1,5 @@
-"""Fixed-step methods: explicit Euler, midpoint (RK2), semi-implicit (symplectic) Euler and velocity Verlet.
+"""Fixed-step methods: explicit Euler, midpoint (RK2), semi-implicit (symplectic) Euler, velocity Verlet, and
+linearised backward Euler (in :mod:`animbatch.integrators.implicit`).
 
 Step size: ``solver.dt`` is an upper bound. Each frame interval ``1/fps`` is split into ``n = ceil(interval / dt)``
 equal steps, so frames fall exactly on steps and no interpolation is needed; the step used is recorded in the run's
@@ -143,11 +144,14 @@ class SymplecticEuler(PartitionedScheme):
     order = 1
     evaluations_per_step = 1
 
-    def step(self, t: float, y: np.ndarray, h: float) -> None:
-        config, motion = self.system.split(y)
+    def kick(self, t: float, config: np.ndarray, motion: np.ndarray, h: float) -> None:
         rate = self.system.motion_rate(t, config, motion, out=self._rate)
         self.evaluations += 1
         motion += np.multiply(rate, h, out=self._work)
+
+    def step(self, t: float, y: np.ndarray, h: float) -> None:
+        config, motion = self.system.split(y)
+        self.kick(t, config, motion, h)
         self.system.drift(config, motion, h)
         self.system.project(y)
 
@@ -196,6 +200,10 @@ FIXED_STEP_SCHEMES: dict[str, type[Scheme]] = {
     "verlet": VelocityVerlet,
 }
 
+from animbatch.integrators.implicit import BackwardEuler  # noqa: E402  (built on PartitionedScheme, above)
+
+FIXED_STEP_SCHEMES["backward_euler"] = BackwardEuler
+
 
 class FixedStepIntegrator(Integrator):
     """A fixed-step scheme with step at most ``dt`` [s], aligned to the frame times."""
@@ -216,6 +224,11 @@ class FixedStepIntegrator(Integrator):
         started = time.perf_counter()
         model = getattr(system, "model", None)
         layout = getattr(model, "layout", None)
+        if model is not None and len(times) > 1:  # refuse a step that cannot hold the springs, before any work
+            from animbatch.integrators.stability import check_fixed_step
+
+            count = substeps(float(times[1] - times[0]), self.dt)
+            check_fixed_step(model, self.method, float(times[1] - times[0]) / count, count * (len(times) - 1))
         scheme = self._scheme(system, model)
         stats = SolverStats(self.method)
         y = np.array(y0, dtype=float)

@@ -4,6 +4,10 @@ The solver object is stepped directly (as ``solve_ivp`` does internally) rather 
 each accepted step can be checked for a finite state, progress can be reported per frame, and a failure can name the
 time and body. Frames are evaluated from the solver's dense output at exactly the requested times, independent of
 where its steps fall.
+
+Radau and BDF get the model's analytic sparse Jacobian (:meth:`Dynamics.jacobian`) when the model has only particles:
+without it scipy estimates a dense one by finite differences, one right-hand side per state component, which for a
+cloth costs thousands of evaluations per Jacobian and a dense LU.
 """
 
 from __future__ import annotations
@@ -22,6 +26,9 @@ from animbatch.integrators.guard import divergence_error, fastest_body, first_no
 SCIPY_METHODS: dict[str, type[OdeSolver]] = {
     "RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA,
 }
+
+#: Implicit methods given the analytic sparse Jacobian (models of particles; LSODA only takes dense ones).
+JACOBIAN_METHODS = ("Radau", "BDF")
 
 
 class ScipyIntegrator(Integrator):
@@ -64,9 +71,12 @@ class ScipyIntegrator(Integrator):
     def _run(self, system: EquationsOfMotion, fun: CountingRhs, y0: np.ndarray, times: np.ndarray,
              states: np.ndarray, stats: SolverStats, layout: Any, on_frame: FrameCallback | None) -> None:
         if len(times) > 1:
+            options = {}
+            if self.method in JACOBIAN_METHODS and getattr(system, "has_jacobian", False):
+                options["jac"] = system.jacobian  # analytic and sparse: no finite differences, sparse LU
             solver = SCIPY_METHODS[self.method](fun, float(times[0]), np.array(y0, dtype=float), float(times[-1]),
                                                 rtol=self.rtol, atol=self.atol,
-                                                max_step=self.max_step if self.max_step else np.inf)
+                                                max_step=self.max_step if self.max_step else np.inf, **options)
             frame = 1
             while frame < len(times):
                 message = solver.step()

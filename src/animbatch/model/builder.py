@@ -23,10 +23,13 @@ from typing import Any
 import numpy as np
 from pydantic import TypeAdapter
 
+from animbatch.deformable.topology import Topology
+from animbatch.deformable.vertices import ANCHOR, BODY_POINT, PARTICLE, DeformableBody, DeformableSet, VertexMap
 from animbatch.forces import FIELD_TERMS, BodyTable, ForceTerm, SpringForces, SpringSet
 from animbatch.model.layout import StateLayout
 from animbatch.model.model import Model
 from animbatch.model.rigid_set import RigidBodySet
+from animbatch.motion import AnchorMotion, KeyframePath
 from animbatch.rigid import quaternion
 from animbatch.rigid.shapes import BodyGeometry
 from animbatch.scene.schema import FieldSpec
@@ -57,16 +60,43 @@ class _Rigid:
 
 
 @dataclass
-class _Spring:
+class _SpringChunk:
+    """K springs added together. ``first`` are body handles; ``second`` body handles or anchor indices
+    (``second_is_anchor``); ``rest_length`` NaN: the initial length; ``first_point``/``second_point`` (K, 3) shape
+    coordinates of rigid-body ends, NaN rows for ends at a centre of mass."""
+
+    names: list[str]
+    first: np.ndarray
+    second: np.ndarray
+    second_is_anchor: np.ndarray
+    stiffness: np.ndarray
+    damping: np.ndarray
+    rest_length: np.ndarray
+    first_point: np.ndarray
+    second_point: np.ndarray
+    mesh: bool = False
+
+
+@dataclass
+class Pin:
+    """Vertices of a deformable body held by a pin: fixed (no ``path``, no ``body``), moved by ``path`` (offsets from
+    their start over time), or attached to the rigid body with handle ``body``."""
+
+    vertices: np.ndarray
+    path: KeyframePath | None = None
+    body: int | None = None
+
+
+@dataclass
+class _Deformable:
     name: str
-    first: int
-    second: int
-    second_is_anchor: bool
-    stiffness: float
-    damping: float
-    rest_length: float | None
-    first_point: np.ndarray | None  # shape coordinates of a rigid body
-    second_point: np.ndarray | None
+    kind: str
+    topology: Topology
+    world: np.ndarray  # (V, 3) initial vertex positions [m]
+    vertex_kind: np.ndarray  # (V,) PARTICLE / ANCHOR / BODY_POINT
+    vertex_ref: np.ndarray  # (V,) particle handle, anchor index or rigid handle
+    radius: float
+    dihedral: tuple[float, float] | None
 
 
 class ModelBuilder:
@@ -75,14 +105,19 @@ class ModelBuilder:
     def __init__(self, base_dir: str | Path = ".") -> None:
         self.base_dir = Path(base_dir)
         self._particle_names: list[str] = []
+        self._particle_owners: list[str] = []  # the scene body each particle belongs to (a cloth, for its vertices)
         self._chunks: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []  # mass, radius, x, v
         self._rigid: list[_Rigid] = []
         self._segments: list[tuple[int, int, bool, int]] = []  # (first handle, count, is rigid, first local index)
         self._handles = 0
         self._anchor_names: list[str] = []
         self._anchor_position: list[np.ndarray] = []
-        self._springs: list[_Spring] = []
+        self._anchor_paths: dict[int, KeyframePath] = {}
+        self._anchor_visible: list[bool] = []
+        self._springs: list[_SpringChunk] = []
         self._fields: list[tuple[Any, np.ndarray | None]] = []
+        self._deformables: list[_Deformable] = []
+        self._controllers: list[tuple[int, Any]] = []  # (body handle, controller spec)
 
     @property
     def particle_count(self) -> int:
@@ -101,10 +136,11 @@ class ModelBuilder:
 
     def add_particles(self, positions: np.ndarray, *, velocities: np.ndarray | None = None,
                       mass: float | np.ndarray = 1.0, radius: float | np.ndarray = 0.05,
-                      names: Sequence[str] | None = None) -> np.ndarray:
+                      names: Sequence[str] | None = None, owner: str | None = None) -> np.ndarray:
         """Add many particles at once. ``positions``/``velocities``: (K, 3); mass, radius: scalar or (K,).
 
-        Returns the new particles' body handles, shape (K,). Unnamed particles are called ``p<index>``.
+        Returns the new particles' body handles, shape (K,). Unnamed particles are called ``p<index>``. ``owner``:
+        the scene body they make up (default: each is its own).
         """
         positions = np.asarray(positions, float).reshape(-1, 3)
         count = len(positions)
@@ -114,7 +150,9 @@ class ModelBuilder:
         if np.any(masses <= 0) or np.any(radii <= 0):
             raise ValueError("particle masses and radii must be > 0")
         start = self.particle_count
-        self._particle_names.extend(names if names is not None else (f"p{start + i}" for i in range(count)))
+        new_names = list(names) if names is not None else [f"p{start + i}" for i in range(count)]
+        self._particle_names.extend(new_names)
+        self._particle_owners.extend(new_names if owner is None else [owner] * count)
         self._chunks.append((masses, radii, positions, velocities))
         return self._new_handles(count, False, start)
 
@@ -130,10 +168,14 @@ class ModelBuilder:
                                   np.asarray(angular_velocity, float), shape))
         return int(self._new_handles(1, True, len(self._rigid) - 1)[0])
 
-    def add_anchor(self, name: str, position: Sequence[float]) -> int:
-        """Add a fixed point [m] that springs can attach to; return its anchor index."""
+    def add_anchor(self, name: str, position: Sequence[float], *, path: KeyframePath | None = None,
+                   visible: bool = True) -> int:
+        """Add a point [m] that springs can attach to, fixed or following ``path``; return its anchor index."""
         self._anchor_names.append(name)
-        self._anchor_position.append(np.asarray(position, float).reshape(3))
+        self._anchor_position.append(np.asarray(position if path is None else path.position(0.0), float).reshape(3))
+        self._anchor_visible.append(visible)
+        if path is not None:
+            self._anchor_paths[len(self._anchor_names) - 1] = path
         return len(self._anchor_names) - 1
 
     def add_spring(self, first: int, second: int, *, stiffness: float, damping: float = 0.0,
@@ -144,11 +186,116 @@ class ModelBuilder:
         ``first_point``/``second_point``: attachment points of rigid bodies in shape coordinates [m] (default: the
         centre of mass). Without ``rest_length`` the spring rests at its initial length.
         """
-        label = name or f"spring{len(self._springs)}"
-        self._springs.append(_Spring(label, first, second, second_is_anchor, stiffness, damping, rest_length,
-                                     None if first_point is None else np.asarray(first_point, float),
-                                     None if second_point is None else np.asarray(second_point, float)))
-        return len(self._springs) - 1
+        label = name or f"spring{self.spring_count}"
+        point = (lambda given: np.full((1, 3), np.nan) if given is None else np.asarray(given, float).reshape(1, 3))
+        self.add_springs(np.array([first]), np.array([second]), stiffness=stiffness, damping=damping,
+                         rest_length=np.nan if rest_length is None else rest_length,
+                         second_is_anchor=np.array([second_is_anchor]), names=[label],
+                         first_point=point(first_point), second_point=point(second_point))
+        return self.spring_count - 1
+
+    @property
+    def spring_count(self) -> int:
+        return sum(len(chunk.names) for chunk in self._springs)
+
+    def add_springs(self, first: np.ndarray, second: np.ndarray, *, stiffness: float | np.ndarray,
+                    damping: float | np.ndarray = 0.0, rest_length: float | np.ndarray = np.nan,
+                    second_is_anchor: np.ndarray | None = None, names: Sequence[str],
+                    first_point: np.ndarray | None = None, second_point: np.ndarray | None = None,
+                    mesh: bool = False) -> None:
+        """Many springs at once, as in :meth:`add_spring`, with per-spring arrays (K,) (points (K, 3)); a NaN rest
+        length means the initial length, NaN points the centre of mass; ``mesh``: springs of a cloth or lattice."""
+        count = len(first)
+        nan_points = np.full((count, 3), np.nan)
+
+        def each(value: float | np.ndarray) -> np.ndarray:
+            return np.broadcast_to(np.asarray(value, float), (count,)).copy()
+
+        self._springs.append(_SpringChunk(
+            list(names), np.asarray(first, np.intp), np.asarray(second, np.intp),
+            np.zeros(count, bool) if second_is_anchor is None else np.asarray(second_is_anchor, bool),
+            each(stiffness), each(damping), each(rest_length),
+            nan_points if first_point is None else np.asarray(first_point, float),
+            nan_points if second_point is None else np.asarray(second_point, float), mesh))
+
+    def add_deformable(self, name: str, kind: str, topology: Topology, *, masses: np.ndarray,
+                       position: Sequence[float] = (0.0, 0.0, 0.0), rotation: np.ndarray | None = None,
+                       velocity: Sequence[float] = (0.0, 0.0, 0.0), radius: float | None = None,
+                       springs: dict[str, tuple[float, float]] | None = None, pins: Sequence[Pin] = (),
+                       dihedral: tuple[float, float] | None = None) -> np.ndarray:
+        """Add a cloth or lattice (``kind``) from its ``topology``, placed by ``rotation`` (3, 3) and ``position``
+        [m]; ``masses`` (V,) [kg]; ``springs``: family -> (ks [N/m], kd [N·s/m]); ``dihedral``: (k [N·m/rad],
+        c [N·m·s/rad]). Pinned vertices become anchors or body points; the others particles ``name[k]``.
+
+        Returns the handles of its free vertices (the particles), for fields and selections. Rigid bodies that pins
+        attach to must be added first.
+        """
+        rotation = np.eye(3) if rotation is None else np.asarray(rotation, float)
+        world = topology.vertices @ rotation.T + np.asarray(position, float)
+        count = topology.vertex_count
+        vertex_kind = np.full(count, PARTICLE)
+        vertex_ref = np.zeros(count, np.intp)
+        for pin in pins:
+            chosen = np.asarray(pin.vertices, np.intp)
+            if pin.body is not None:
+                vertex_kind[chosen], vertex_ref[chosen] = BODY_POINT, pin.body
+                continue
+            vertex_kind[chosen] = ANCHOR
+            for vertex in chosen:
+                path = None if pin.path is None else KeyframePath(pin.path.times, pin.path.positions + world[vertex],
+                                                                  pin.path.interpolation)
+                vertex_ref[vertex] = self.add_anchor(f"{name}[{vertex}]", world[vertex], path=path, visible=False)
+        free = np.flatnonzero(vertex_kind == PARTICLE)
+        spacing = topology.spacing
+        radius = radius if radius is not None else max(0.25 * spacing, 1e-6)
+        if not len(free):
+            raise ValueError(f"every vertex of {name!r} is pinned: nothing is left to simulate")
+        handles = self.add_particles(world[free], velocities=np.tile(np.asarray(velocity, float), (len(free), 1)),
+                                     mass=np.asarray(masses, float)[free], radius=radius,
+                                     names=[f"{name}[{k}]" for k in free], owner=name)
+        vertex_ref[free] = handles
+        self._deformables.append(_Deformable(name, kind, topology, world, vertex_kind, vertex_ref, radius, dihedral))
+        for family, (stiffness, damping) in (springs or {}).items():
+            self._add_mesh_springs(self._deformables[-1], family, topology.springs[family], stiffness, damping)
+        return handles
+
+    def _add_mesh_springs(self, body: _Deformable, family: str, pairs: np.ndarray, stiffness: float,
+                          damping: float) -> None:
+        """The springs of one family between vertices: particle, anchor or body-point ends; springs that could
+        never move anything (both ends pinned, or both on one rigid body) are left out."""
+        kind, ref = body.vertex_kind, body.vertex_ref
+        a, b = pairs[:, 0], pairs[:, 1]
+        # the first end must be a body: swap pairs whose first end is pinned to an anchor
+        swap = kind[a] == ANCHOR
+        a, b = np.where(swap, b, a), np.where(swap, a, b)
+        same_body = (kind[a] == BODY_POINT) & (kind[b] == BODY_POINT) & (ref[a] == ref[b])
+        keep = (kind[a] != ANCHOR) & ~same_body
+        a, b = a[keep], b[keep]
+        if not len(a):
+            return
+        first_point = np.full((len(a), 3), np.nan)
+        second_point = np.full((len(a), 3), np.nan)
+        for end, points in ((a, first_point), (b, second_point)):
+            on_body = kind[end] == BODY_POINT
+            if on_body.any():
+                points[on_body] = self._shape_coordinates(ref[end[on_body]], body.world[end[on_body]])
+        indices = np.flatnonzero(keep)
+        self.add_springs(ref[a], ref[b], stiffness=stiffness, damping=damping, second_is_anchor=kind[b] == ANCHOR,
+                         names=[f"{body.name}.{family}[{k}]" for k in indices],
+                         first_point=first_point, second_point=second_point, mesh=True)
+
+    def _shape_coordinates(self, handles: np.ndarray, world: np.ndarray) -> np.ndarray:
+        """Shape coordinates (K, 3) of world points (K, 3) on the rigid bodies with ``handles``, at their start."""
+        result = np.empty_like(world)
+        for k, (handle, point) in enumerate(zip(handles, world)):
+            body = self._rigid[self._points(np.array([handle]))[0] - self.particle_count]
+            rotation = quaternion.to_matrix(body.orientation)
+            result[k] = rotation.T @ (point - body.centre_position) + body.geometry.properties.centre
+        return result
+
+    def add_controller(self, body: int, spec: Any) -> None:
+        """Add a PD controller (a scene ``controllers`` entry, or an equivalent object) pulling body ``body``."""
+        self._controllers.append((body, spec))
 
     def add_field(self, spec: Any, bodies: Sequence[int] | np.ndarray | None = None) -> None:
         """Add a force field from its scene spec (a dict is validated), acting on ``bodies`` (handles; default all)."""
@@ -185,8 +332,10 @@ class ModelBuilder:
             mass = np.concatenate([mass, rigid.mass])
             radius = np.concatenate([radius, equivalent_radius])
         names = tuple(self._particle_names) + tuple(body.name for body in self._rigid)
-        bodies = BodyTable(names, _readonly(mass), _readonly(radius), n, rigid)
-        anchors = _readonly(np.array(self._anchor_position, float).reshape(-1, 3))
+        anchors = AnchorMotion(_readonly(np.array(self._anchor_position, float).reshape(-1, 3)),
+                               dict(self._anchor_paths))
+        deformables = self._deformable_set(anchors, len(names))
+        bodies = BodyTable(names, _readonly(mass), _readonly(radius), n, rigid, deformables)
 
         terms: list[ForceTerm] = []
         for spec, handles in self._fields:
@@ -194,9 +343,24 @@ class ModelBuilder:
             if index is not None and len(index) == len(names):
                 index = None  # every body selected: use the faster unindexed path
             terms.append(FIELD_TERMS[spec.type](spec, bodies, index))
-        springs = self._spring_set(x0, anchors)
+        springs = self._spring_set(x0, anchors.rest)
         if springs is not None:
             terms.append(SpringForces.build(springs, anchors, len(names), n))
+        if self._controllers:
+            from animbatch.forces.controllers import controllers_term
+
+            records = []
+            for handle, spec in self._controllers:
+                point = int(self._points(np.array([handle]))[0])
+                offset = np.zeros(3)
+                if point >= n and spec.point is not None:
+                    offset = np.asarray(spec.point, float) - self._rigid[point - n].geometry.properties.centre
+                records.append((point, spec, offset, names[point]))
+            terms.append(controllers_term(records, n))
+        if deformables is not None and any(d.dihedral for d in self._deformables):
+            from animbatch.forces.dihedral import DihedralSprings
+
+            terms.append(DihedralSprings.build(deformables, [d.dihedral for d in self._deformables]))
 
         layout = StateLayout.for_bodies(tuple(self._particle_names), tuple(body.name for body in self._rigid))
         parts = [x0.ravel()]
@@ -208,8 +372,41 @@ class ModelBuilder:
             parts += [np.ravel([b.centre_position for b in self._rigid]), np.ravel([b.orientation for b in self._rigid])]
             motion += [np.ravel([b.velocity * m for b, m in zip(self._rigid, rigid.mass)]), angular_momentum.ravel()]
         y0 = _readonly(np.concatenate(parts + motion))
-        return Model(bodies, tuple(self._anchor_names), anchors, springs, tuple(terms), layout, y0,
-                     _readonly(frame_times(duration, fps)))
+        owners = tuple(self._particle_owners) + tuple(body.name for body in self._rigid)
+        return Model(bodies, tuple(self._anchor_names), anchors.rest, springs, tuple(terms), layout, y0,
+                     _readonly(frame_times(duration, fps)), anchors=anchors,
+                     anchor_visible=_readonly(np.array(self._anchor_visible, bool)), owners=owners)
+
+    def _deformable_set(self, anchors: AnchorMotion, point_count: int) -> DeformableSet | None:
+        """The vertex map of all deformable bodies (model point numbers, anchors, body points)."""
+        if not self._deformables:
+            return None
+        kinds, indices, offsets, records = [], [], [], []
+        start = 0
+        n = self.particle_count
+        for body in self._deformables:
+            count = body.topology.vertex_count
+            index = body.vertex_ref.copy()
+            offset = np.zeros((count, 3))
+            free = body.vertex_kind == PARTICLE
+            index[free] = self._points(body.vertex_ref[free])
+            attached = np.flatnonzero(body.vertex_kind == BODY_POINT)
+            if len(attached):
+                points = self._points(body.vertex_ref[attached])
+                index[attached] = points - n
+                shape = self._shape_coordinates(body.vertex_ref[attached], body.world[attached])
+                offset[attached] = shape - np.array([self._rigid[p - n].geometry.properties.centre for p in points])
+            kinds.append(body.vertex_kind)
+            indices.append(index)
+            offsets.append(offset)
+            records.append(DeformableBody(body.name, body.kind, slice(start, start + count),
+                                          body.topology.triangles + start, body.topology.hinges + start,
+                                          body.radius))
+            start += count
+        vertex_map = VertexMap(np.concatenate(kinds), np.concatenate(indices), np.concatenate(offsets),
+                               point_count, n)
+        return DeformableSet(tuple(records), vertex_map, anchors,
+                             _readonly(np.concatenate([body.world for body in self._deformables])))
 
     def _rigid_set(self) -> RigidBodySet | None:
         if not self._rigid:
@@ -224,42 +421,46 @@ class ModelBuilder:
     def _spring_set(self, x0: np.ndarray, anchors: np.ndarray) -> SpringSet | None:
         if not self._springs:
             return None
-        springs = self._springs
-        on_anchor = np.array([s.second_is_anchor for s in springs], bool)
-        first = self._points(np.array([s.first for s in springs], np.intp))
-        second = np.array([s.second for s in springs], np.intp)
+        chunks = self._springs
+        on_anchor = np.concatenate([c.second_is_anchor for c in chunks])
+        first = self._points(np.concatenate([c.first for c in chunks]))
+        second = np.concatenate([c.second for c in chunks])
         second[~on_anchor] = self._points(second[~on_anchor])
+        first_point = np.concatenate([c.first_point for c in chunks])
+        second_point = np.concatenate([c.second_point for c in chunks])
         n = self.particle_count
+        centres = np.array([b.centre_position for b in self._rigid]).reshape(-1, 3)
+        rotations = (quaternion.to_matrix(np.array([b.orientation for b in self._rigid])) if self._rigid
+                     else np.zeros((0, 3, 3)))
+        shape_centres = np.array([b.geometry.properties.centre for b in self._rigid]).reshape(-1, 3)
 
-        def offsets(points: np.ndarray, attach: list[np.ndarray | None]) -> np.ndarray:
+        def offsets(points: np.ndarray, given: np.ndarray) -> np.ndarray:
             """Attachment points in body axes from the centre of mass (zero for particles and anchors)."""
             result = np.zeros((len(points), 3))
-            for k, (point, given) in enumerate(zip(points, attach)):
-                if given is not None and point >= n:
-                    result[k] = given - self._rigid[point - n].geometry.properties.centre
+            chosen = (points >= n) & ~np.isnan(given).any(axis=1)
+            result[chosen] = given[chosen] - shape_centres[points[chosen] - n]
             return result
-
-        first_offset = offsets(first, [s.first_point for s in springs])
-        second_offset = offsets(np.where(on_anchor, -1, second), [s.second_point for s in springs])
 
         def world(points: np.ndarray, offset: np.ndarray) -> np.ndarray:
             """Initial world positions of attachment points."""
             result = np.empty((len(points), 3))
-            for k, point in enumerate(points):
-                if point < n:
-                    result[k] = x0[point]
-                else:
-                    body = self._rigid[point - n]
-                    result[k] = body.centre_position + quaternion.rotate(body.orientation, offset[k])
+            particle = points < n
+            result[particle] = x0[points[particle]]
+            rigid = points[~particle] - n
+            result[~particle] = centres[rigid] + np.einsum("kij,kj->ki", rotations[rigid], offset[~particle])
             return result
 
+        first_offset = offsets(first, first_point)
+        second_offset = offsets(np.where(on_anchor, -1, second), second_point)
         start = world(first, first_offset)
-        end = np.empty((len(springs), 3))
+        end = np.empty((len(first), 3))
         end[on_anchor] = anchors[second[on_anchor]]
         end[~on_anchor] = world(second[~on_anchor], second_offset[~on_anchor])
         initial = np.linalg.norm(start - end, axis=1)
-        rest = np.array([initial[k] if s.rest_length is None else s.rest_length for k, s in enumerate(springs)])
-        return SpringSet(tuple(s.name for s in springs), _readonly(first), _readonly(second), _readonly(on_anchor),
-                         _readonly(np.array([s.stiffness for s in springs], float)),
-                         _readonly(np.array([s.damping for s in springs], float)), _readonly(rest),
-                         _readonly(first_offset), _readonly(second_offset))
+        given = np.concatenate([c.rest_length for c in chunks])
+        rest = np.where(np.isnan(given), initial, given)
+        return SpringSet(tuple(name for c in chunks for name in c.names), _readonly(first), _readonly(second),
+                         _readonly(on_anchor), _readonly(np.concatenate([c.stiffness for c in chunks])),
+                         _readonly(np.concatenate([c.damping for c in chunks])), _readonly(rest),
+                         _readonly(first_offset), _readonly(second_offset),
+                         _readonly(np.concatenate([np.full(len(c.names), c.mesh) for c in chunks])))

@@ -6,39 +6,48 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from animbatch.model.builder import ModelBuilder
+import numpy as np
+
+from animbatch.model.builder import ModelBuilder, Pin
 from animbatch.model.model import Model
-from animbatch.rigid.shapes import body_geometry, orientation_quaternion
-from animbatch.scene.schema import RigidBodySpec, SceneSpec
+from animbatch.motion import KeyframePath
+from animbatch.rigid.shapes import body_geometry, orientation_matrix, orientation_quaternion
+from animbatch.scene.schema import DEFORMABLE_SPECS, ClothSpec, RigidBodySpec, SceneSpec
 
 
 def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
     """The Model for a validated scene (cross-references were checked by the loader); ``base_dir`` resolves the
     scene's relative file names (mesh files), normally the scene file's folder."""
     builder = ModelBuilder(base_dir)
-    handle: dict[str, int] = {}
+    handles: dict[str, list[int]] = {}
     for body in spec.bodies:
         if isinstance(body, RigidBodySpec):
-            handle[body.name] = builder.add_rigid_body(
+            handles[body.name] = [builder.add_rigid_body(
                 body.name, body_geometry(body, Path(base_dir)), position=body.position,
                 orientation=orientation_quaternion(body.orientation), velocity=body.velocity,
-                angular_velocity=body.angular_velocity, shape=body.shape)
-        else:
-            handle[body.name] = builder.add_particle(body.name, mass=body.mass, radius=body.radius,
-                                                     position=body.position, velocity=body.velocity)
-    anchor = {a.name: builder.add_anchor(a.name, a.position) for a in spec.anchors}
+                angular_velocity=body.angular_velocity, shape=body.shape)]
+        elif not isinstance(body, DEFORMABLE_SPECS):
+            handles[body.name] = [builder.add_particle(body.name, mass=body.mass, radius=body.radius,
+                                                       position=body.position, velocity=body.velocity)]
+    for body in spec.bodies:  # after the rigid bodies, which pins may attach to
+        if isinstance(body, DEFORMABLE_SPECS):
+            handles[body.name] = list(_add_deformable(builder, body, handles, Path(base_dir)))
+    anchor = {a.name: builder.add_anchor(a.name, a.start, path=_anchor_path(a)) for a in spec.anchors}
     for spring in spec.springs:
         first, second = spring.between
         first_point, second_point = spring.attach or (None, None)
         if first in anchor:  # the first end is always a body
             first, second = second, first
             first_point, second_point = second_point, first_point
-        builder.add_spring(handle[first], anchor[second] if second in anchor else handle[second],
+        builder.add_spring(handles[first][0], anchor[second] if second in anchor else handles[second][0],
                            stiffness=spring.stiffness, damping=spring.damping, rest_length=spring.rest_length,
                            second_is_anchor=second in anchor, name=spring.name or "--".join(spring.between),
                            first_point=first_point, second_point=second_point)
+    for controller in spec.controllers:
+        builder.add_controller(handles[controller.body][0], controller)
     for field in spec.fields:
-        builder.add_field(field, None if field.bodies is None else [handle[name] for name in field.bodies])
+        builder.add_field(field, None if field.bodies is None else
+                          [handle for name in field.bodies for handle in handles[name]])
     model = builder.finalize(duration=spec.duration, fps=spec.fps)
     if not spec.has_contacts:
         return model
@@ -46,5 +55,33 @@ def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
 
     rigid = model.rigid
     centres = dict(zip(rigid.names, rigid.centre)) if rigid is not None else {}
-    world, settings = build_contact_world(spec, model.body_names, centres, Path(base_dir))
+    world, settings = build_contact_world(spec, model, centres, Path(base_dir))
     return replace(model, contact_world=world, contact_settings=settings)
+
+
+def _anchor_path(anchor: object) -> KeyframePath | None:
+    keyframes = anchor.keyframes  # type: ignore[attr-defined]
+    if keyframes is None:
+        return None
+    return KeyframePath(np.array([k.time for k in keyframes], float), np.array([k.position for k in keyframes], float),
+                        anchor.interpolation)  # type: ignore[attr-defined]
+
+
+def _add_deformable(builder: ModelBuilder, body: object, handles: dict[str, list[int]], base_dir: Path) -> object:
+    """Add a cloth or lattice: its topology, vertex masses, pins and spring families."""
+    from animbatch.deformable import build
+
+    topology = build.body_topology(body, base_dir)  # type: ignore[arg-type]
+    world = build.world_vertices(body, topology)  # type: ignore[arg-type]
+    pins = []
+    for pin in body.pin:  # type: ignore[attr-defined]
+        vertices, problems = build.pin_vertices(pin, topology, world)
+        if problems:  # the loader reports these with file positions; reaching here means a Python caller
+            raise ValueError(f"{body.name}: {'; '.join(problems)}")  # type: ignore[attr-defined]
+        pins.append(Pin(vertices, build.pin_path(pin), handles[pin.to][0] if pin.to is not None else None))
+    dihedral = body.dihedral if isinstance(body, ClothSpec) else None
+    return builder.add_deformable(
+        body.name, body.type, topology, masses=build.vertex_masses(body, topology),  # type: ignore[attr-defined]
+        position=body.position, rotation=orientation_matrix(body.orientation),  # type: ignore[attr-defined]
+        velocity=body.velocity, radius=body.radius, springs=build.spring_families(body),  # type: ignore[attr-defined]
+        pins=pins, dihedral=(dihedral.stiffness, dihedral.damping) if dihedral is not None else None)

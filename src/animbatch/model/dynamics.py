@@ -18,8 +18,10 @@ fixed). A scene of particles only takes exactly the particle path: no rigid-body
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from animbatch.forces import Kinematics
+from animbatch.forces.base import ForceJacobian
 from animbatch.model.model import Model, world_inverse_inertia_times
 from animbatch.rigid import quaternion
 
@@ -57,8 +59,8 @@ class Dynamics:
         return (config[3 * n: 3 * n + 3 * b].reshape(b, 3), config[3 * n + 3 * b:].reshape(b, 4),
                 motion[3 * n: 3 * n + 3 * b].reshape(b, 3), motion[3 * n + 3 * b:].reshape(b, 3))
 
-    def kinematics(self, config: np.ndarray, motion: np.ndarray, *, copy: bool = False) -> Kinematics:
-        """Positions, velocities, rotations and angular velocities of all bodies.
+    def kinematics(self, config: np.ndarray, motion: np.ndarray, *, t: float = 0.0, copy: bool = False) -> Kinematics:
+        """Positions, velocities, rotations and angular velocities of all bodies at time ``t`` [s].
 
         The position and velocity arrays are views of the state or buffers reused by the next call, which is what
         the right-hand side wants; with ``copy`` they are the caller's own (to keep several states at once).
@@ -67,7 +69,7 @@ class Dynamics:
         x = config[: 3 * n].reshape(n, 3)
         v = motion[: 3 * n].reshape(n, 3)
         if not self.rigid:
-            return Kinematics(x.copy(), v.copy(), None, None, n) if copy else Kinematics(x, v, None, None, n)
+            return Kinematics(x.copy(), v.copy(), None, None, n, t) if copy else Kinematics(x, v, None, None, n, t)
         position, orientation, momentum, angular_momentum = self._rigid_views(config, motion)
         rotation = quaternion.to_matrix(orientation)
         omega = world_inverse_inertia_times(rotation, self._inverse_inertia, angular_momentum)
@@ -75,8 +77,8 @@ class Dynamics:
         self._v[:n] = v
         np.multiply(momentum, self._rigid_inverse_mass, out=self._v[n:])
         if copy:
-            return Kinematics(self._x.copy(), self._v.copy(), rotation, omega, n)
-        return Kinematics(self._x, self._v, rotation, omega, n)
+            return Kinematics(self._x.copy(), self._v.copy(), rotation, omega, n, t)
+        return Kinematics(self._x, self._v, rotation, omega, n, t)
 
     def loads(self, t: float, state: Kinematics) -> tuple[np.ndarray, np.ndarray | None]:
         """Total force [N] (P, 3) on every body and torque [N·m] (B, 3) on every rigid body (buffers, overwritten by
@@ -94,7 +96,8 @@ class Dynamics:
     def motion_rate(self, t: float, config: np.ndarray, motion: np.ndarray,
                     out: np.ndarray | None = None) -> np.ndarray:
         """``dm/dt = [F_particles / m, F_rigid, τ]``, flat, written to ``out`` when given."""
-        return self._motion_rate(t, self.kinematics(config, motion), np.empty(len(motion)) if out is None else out)
+        return self._motion_rate(t, self.kinematics(config, motion, t=t),
+                                 np.empty(len(motion)) if out is None else out)
 
     def _motion_rate(self, t: float, state: Kinematics, out: np.ndarray) -> np.ndarray:
         force, torque = self.loads(t, state)
@@ -119,7 +122,7 @@ class Dynamics:
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         """``dy/dt`` as a new array (solve_ivp keeps references to the arrays it receives)."""
         config, motion = self.split(y)
-        state = self.kinematics(config, motion)  # rotations and ω once, for both halves
+        state = self.kinematics(config, motion, t=t)  # rotations and ω once, for both halves
         dydt = np.empty_like(y)
         self._config_rate(config, motion, state, dydt[: self._config_size])
         self._motion_rate(t, state, dydt[self._config_size:])
@@ -142,6 +145,38 @@ class Dynamics:
             omega = world_inverse_inertia_times(quaternion.to_matrix(halfway), self._inverse_inertia,
                                                 angular_momentum)
             orientation[...] = quaternion.multiply(quaternion.from_rotation_vector(h * omega), orientation)
+
+    # ------------------------------------------------------------------------------------------ derivatives
+
+    def force_jacobian(self, t: float, config: np.ndarray, motion: np.ndarray) -> tuple[ForceJacobian, list[str]]:
+        """``∂f/∂x`` and ``∂f/∂v`` of the forces on the particles (see :class:`ForceJacobian`), and the labels of
+        the terms that give none (they are explicit in implicit steps)."""
+        state = self.kinematics(config, motion, t=t)
+        jacobian = ForceJacobian(self.particles)
+        explicit = [term.label for term in self.terms if not term.jacobian(t, state, jacobian)]
+        return jacobian, explicit
+
+    @property
+    def has_jacobian(self) -> bool:
+        """Whether :meth:`jacobian` can give ``∂(dy/dt)/∂y``: for models of particles only."""
+        return self.rigid == 0
+
+    def jacobian(self, t: float, y: np.ndarray) -> sp.csr_matrix:
+        """``∂(dy/dt)/∂y`` for a model of particles (for Radau, BDF and LSODA)::
+
+            [[0,          I        ],
+             [M⁻¹ ∂f/∂x,  M⁻¹ ∂f/∂v]]
+
+        sparse, (6N, 6N). Terms without derivatives (aerodynamics, buoyancy, gravitation) are left out; Newton's
+        method in the solver still converges, only a little slower, as long as they are not stiff.
+        """
+        config, motion = self.split(y)
+        derivatives, _ = self.force_jacobian(t, config, motion)
+        inverse_mass = sp.diags(np.repeat(self._inverse_mass[:, 0], 3))
+        size = 3 * self.particles
+        return sp.bmat([[None, sp.identity(size, format="csr")],
+                        [inverse_mass @ derivatives.matrix("x"), inverse_mass @ derivatives.matrix("v")]],
+                       format="csr")
 
     def project(self, y: np.ndarray) -> None:
         """Re-normalise the quaternions of a state (…, n) in place (nothing to do without rigid bodies)."""

@@ -15,8 +15,10 @@ from typing import Any
 
 import numpy as np
 
+from animbatch.deformable.vertices import DeformableSet
 from animbatch.forces import BodyTable, ForceTerm, SpringSet
 from animbatch.model.layout import StateLayout
+from animbatch.motion import AnchorMotion
 from animbatch.model.rigid_set import RigidBodySet
 from animbatch.rigid import quaternion
 
@@ -37,6 +39,9 @@ class Model:
         frame_times: times at which frames are sampled [s], ``k / fps``, shape (F,).
         contact_world, contact_settings: collision geometry, materials and solver settings, or None when the scene
             has no colliders and no ``contacts`` section (then no contact code runs).
+        anchors: where the anchors are at any time (fixed or following keyframes); ``anchor_position`` is where they
+            start. ``anchor_visible`` (A,): drawn (cloth pins are anchors too, and are not).
+        owners: (P,) the scene body each point belongs to: its own name, or the cloth or lattice of a vertex.
     """
 
     bodies: BodyTable
@@ -49,6 +54,21 @@ class Model:
     frame_times: np.ndarray
     contact_world: Any = None  # ContactWorld, only when the scene has colliders or contacts
     contact_settings: Any = None  # ContactSettings, likewise
+    anchors: AnchorMotion | None = None
+    anchor_visible: np.ndarray | None = None
+    owners: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.anchors is None:
+            object.__setattr__(self, "anchors", AnchorMotion(self.anchor_position, {}))
+        if self.anchor_visible is None:
+            object.__setattr__(self, "anchor_visible", np.ones(len(self.anchor_position), bool))
+        if self.owners is None:
+            object.__setattr__(self, "owners", self.bodies.names)
+
+    @property
+    def deformables(self) -> DeformableSet | None:
+        return self.bodies.deformables
 
     @property
     def rigid(self) -> RigidBodySet | None:

@@ -39,6 +39,7 @@ PALETTE = ("#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948", "#b
 ANCHOR_COLOR = "#333333"
 COLLIDER_COLOR = "#c8c8c8"
 SPRING_COLOR = "#808080"
+MESH_SPRING_COLOR = "#505050"
 AXIS_COLORS = ("#d62728", "#2ca02c", "#1f77b4")
 
 
@@ -110,31 +111,70 @@ class FrameGeometry:
     vector_scale: float = 0.0  # arrow length per unit of |ω| or |L| [m per unit]
     colliders: tuple[Any, ...] = ()  # the scene's collider specs
     scene_dir: Path = Path(".")  # where the scene's mesh files are
+    anchors: Any = None  # AnchorMotion: where anchors are at a frame's time
+    anchor_visible: np.ndarray | None = None  # (A,) bool
+    drawn_particles: np.ndarray | None = None  # (N,) bool: particles drawn as themselves (not cloth vertices)
+    deformables: Any = None  # DeformableSet, or None
+    surface_colors: tuple[tuple[str, str], ...] = ()  # (front, back) per deformable body
 
     @classmethod
     def from_scene(cls, spec: SceneSpec, model: Model, bounds: np.ndarray, largest_vector: float = 0.0,
                    scene_dir: Path = Path(".")) -> FrameGeometry:
         # palette colours follow the scene's order of bodies; the model orders them particles first
         by_name = {body.name: (index, body) for index, body in enumerate(spec.bodies)}
-        colors = [by_name[name][1].color or PALETTE[by_name[name][0] % len(PALETTE)] for name in model.body_names]
+        colors = [by_name[name][1].color or PALETTE[by_name[name][0] % len(PALETTE)] for name in model.owners]
         n, rigid, springs = model.particle_count, model.rigid, model.springs
         extents = body_extents(model)
-        if springs is None:
-            none = np.zeros(0, np.intp)
-            spring_parts = (none, none, np.zeros(0, bool), np.zeros((0, 3)), np.zeros((0, 3)))
-        else:
-            spring_parts = (springs.first, springs.second, springs.second_is_anchor, springs.first_offset,
-                            springs.second_offset)
+        none = np.zeros(0, np.intp)
+        spring_parts: tuple[np.ndarray, ...] = (none, none, np.zeros(0, bool), np.zeros((0, 3)), np.zeros((0, 3)))
+        spring_colors: list[str] = []
+        if springs is not None:
+            mesh = springs.mesh if springs.mesh is not None else np.zeros(springs.count, bool)
+            drawn = ~mesh | (spec.render.mesh_springs == "line")
+            spring_parts = tuple(np.asarray(a)[drawn] for a in (springs.first, springs.second,
+                                                                 springs.second_is_anchor, springs.first_offset,
+                                                                 springs.second_offset))
+            scene_colors = iter([s.color or SPRING_COLOR for s in spec.springs])
+            spring_colors = [MESH_SPRING_COLOR if is_mesh else next(scene_colors) for is_mesh in mesh[drawn]]
         fluids = [(term.level, term.up) for term in model.force_terms if term.kind == "buoyancy"]
         rigid_extent = extents[n:]
         scale = 2 * float(np.max(rigid_extent)) / largest_vector if largest_vector > 0 and len(rigid_extent) else 0.0
+        deformables = model.deformables
+        owners = np.array(model.owners[:n], dtype=object)
+        drawn_particles = np.ones(n, bool)
+        surface_colors = []
+        if deformables is not None:
+            names = {body.name for body in deformables.bodies}
+            drawn_particles = np.array([owner not in names for owner in owners], bool)
+            for body in deformables.bodies:
+                index, body_spec = by_name[body.name]
+                front = body_spec.color or PALETTE[index % len(PALETTE)]
+                back = getattr(body_spec, "back_color", None) or darker(front)
+                surface_colors.append((front, back))
         return cls(np.asarray(model.bodies.radius[:n]), colors,
                    rigid.shapes if rigid is not None else (),
                    rigid.centre if rigid is not None else np.zeros((0, 3)),
                    rigid.inertia if rigid is not None else np.zeros((0, 3, 3)), rigid_extent,
                    rigid.base_dir if rigid is not None else Path("."), np.asarray(model.anchor_position),
-                   *spring_parts, [s.color or SPRING_COLOR for s in spec.springs], fluids, bounds, scale,
-                   tuple(c for c in spec.colliders if c.visible), scene_dir)
+                   *spring_parts, spring_colors, fluids, bounds, scale,
+                   tuple(c for c in spec.colliders if c.visible), scene_dir, model.anchors,
+                   np.asarray(model.anchor_visible), drawn_particles, deformables, tuple(surface_colors))
+
+
+def darker(color: str, factor: float = 0.7) -> str:
+    """The same hue, darker (for the back of a cloth)."""
+    return "#{:02x}{:02x}{:02x}".format(*(round(255 * factor * c) for c in hex_to_rgb(color)))
+
+
+def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Area-weighted unit normals (V, 3) of a triangle surface, for smooth shading of a moving cloth."""
+    a, b, c = points[triangles[:, 0]], points[triangles[:, 1]], points[triangles[:, 2]]
+    face = np.cross(b - a, c - a)  # length = twice the area: weights larger faces more
+    normals = np.zeros_like(points)
+    for k in range(3):
+        np.add.at(normals, triangles[:, k], face)
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    return np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
 
 
 def shape_mesh(shape: Any, base_dir: Path, resolution: int) -> Any:
@@ -209,6 +249,7 @@ class FrameRenderer:
         self._add_colliders()
         self._add_fluids()
         self._add_particles()
+        self._add_surfaces()
         self._add_rigid_bodies()
         self._add_springs()
         self._add_anchors()
@@ -227,13 +268,16 @@ class FrameRenderer:
 
     def _add_particles(self) -> None:
         geometry, spec = self.geometry, self.render_spec
-        count = len(geometry.particle_radius)
-        colors = geometry.colors[:count]
+        total = len(geometry.particle_radius)
+        self._drawn = (np.flatnonzero(geometry.drawn_particles) if geometry.drawn_particles is not None
+                       else np.arange(total))
+        count = len(self._drawn)
+        colors = [geometry.colors[k] for k in self._drawn]
         self.use_sprites = spec.particles == "sprite" or (spec.particles == "auto" and count > SPRITE_THRESHOLD)
         self._particle_actors = []
         if count and self.use_sprites:
             cloud = self.pv.PolyData(np.zeros((count, 3)))
-            cloud.point_data["radius"] = geometry.particle_radius
+            cloud.point_data["radius"] = geometry.particle_radius[self._drawn]
             cloud.point_data["rgb"] = (np.array([hex_to_rgb(c) for c in colors]) * 255).astype(np.uint8)
             actor = self.plotter.add_mesh(cloud, style="points_gaussian", render_points_as_spheres=True,
                                           emissive=False, scalars="rgb", rgb=True, show_scalar_bar=False)
@@ -242,10 +286,32 @@ class FrameRenderer:
             self._cloud = cloud
         elif count:
             resolution = spec.sphere_resolution
-            for radius, color in zip(geometry.particle_radius, colors):
+            for radius, color in zip(geometry.particle_radius[self._drawn], colors):
                 sphere = self.pv.Sphere(radius=float(radius), theta_resolution=resolution, phi_resolution=resolution)
                 self._particle_actors.append(self.plotter.add_mesh(sphere, color=color, smooth_shading=True,
                                                                    specular=0.3, specular_power=20))
+
+    def _add_surfaces(self) -> None:
+        """One smooth, two-sided surface per cloth or lattice; a frame rewrites its points and normals in place."""
+        geometry = self.geometry
+        self._surfaces = []
+        if geometry.deformables is None:
+            return
+        for body, (front, back) in zip(geometry.deformables.bodies, geometry.surface_colors):
+            start = body.vertices.start
+            triangles = body.triangles - start
+            points = np.zeros((body.vertices.stop - start, 3))
+            faces = np.hstack([np.full((len(triangles), 1), 3), triangles]).ravel()
+            mesh = self.pv.PolyData(points, faces)
+            mesh.point_data["Normals"] = np.zeros_like(points)
+            mesh.point_data.active_normals_name = "Normals"
+            actor = self.plotter.add_mesh(mesh, color=front, smooth_shading=False, specular=0.15,
+                                          opacity=self.render_spec.surface_opacity)
+            actor.prop.interpolation = "gouraud"  # shade with our normals, smoothly
+            back_side = actor.prop.copy()
+            back_side.color = back
+            actor.SetBackfaceProperty(back_side)
+            self._surfaces.append((body, triangles, mesh))
 
     def _add_rigid_bodies(self) -> None:
         """One mesh per rigid body in its centre-of-mass frame; its actors share one transform matrix."""
@@ -293,14 +359,19 @@ class FrameRenderer:
         self._spring_mesh = mesh
 
     def _add_anchors(self) -> None:
-        anchors = self.geometry.anchor_positions
-        if not self.render_spec.show_anchors or len(anchors) == 0:
+        geometry = self.geometry
+        anchors = geometry.anchor_positions
+        self._anchor_actors: list[tuple[int, Any]] = []
+        visible = geometry.anchor_visible if geometry.anchor_visible is not None else np.ones(len(anchors), bool)
+        if not self.render_spec.show_anchors or not visible.any():
             return
-        sizes = np.concatenate([self.geometry.particle_radius, 0.3 * self.geometry.rigid_extent])
+        sizes = np.concatenate([geometry.particle_radius, 0.3 * geometry.rigid_extent])
         size = 0.8 * float(np.median(sizes)) if len(sizes) else 0.05
-        for position in anchors:
-            cube = self.pv.Cube(center=position, x_length=size, y_length=size, z_length=size)
-            self.plotter.add_mesh(cube, color=ANCHOR_COLOR)
+        for index in np.flatnonzero(visible):
+            cube = self.pv.Cube(center=(0, 0, 0), x_length=size, y_length=size, z_length=size)
+            actor = self.plotter.add_mesh(cube, color=ANCHOR_COLOR)
+            actor.SetPosition(*anchors[index])
+            self._anchor_actors.append((int(index), actor))
 
     def _plane_square(self, level: float, up: np.ndarray, size: float | None) -> tuple[Any, np.ndarray, float]:
         """A square plane at height ``level`` along ``up`` under the motion, its centre and side length."""
@@ -405,12 +476,17 @@ class FrameRenderer:
         quaternions and ``angular_velocities`` (P, 3) [rad/s]. Returns an RGB image (H, W, 3) uint8."""
         geometry = self.geometry
         n = len(geometry.particle_radius)
-        if self.use_sprites and n:
-            self._cloud.points[:] = positions[:n]
+        drawn = positions[self._drawn]
+        if self.use_sprites and len(drawn):
+            self._cloud.points[:] = drawn
             self._cloud.GetPoints().Modified()
         else:
-            for actor, position in zip(self._particle_actors, positions[:n]):
+            for actor, position in zip(self._particle_actors, drawn):
                 actor.SetPosition(*position)
+        anchor_positions = geometry.anchors.positions(t) if geometry.anchors is not None else geometry.anchor_positions
+        if geometry.anchors is not None and geometry.anchors.moving:
+            for index, actor in self._anchor_actors:
+                actor.SetPosition(*anchor_positions[index])
         rotation = None
         if orientations is not None and len(self._rigid_matrices):
             rotation = quaternion.to_matrix(orientations[n:])
@@ -423,8 +499,17 @@ class FrameRenderer:
                 bases = arrow_basis(vectors) * (geometry.vector_scale * np.linalg.norm(vectors, axis=1))[:, None, None]
                 for b, matrix in enumerate(self._vector_actors):
                     self._set_matrix(matrix, bases[b], positions[n + b])
+        if self._surfaces:
+            rigid_rotation = rotation if rotation is not None or orientations is None else quaternion.to_matrix(orientations[n:])
+            vertices = geometry.deformables.vertex_map.place(positions, rigid_rotation, anchor_positions)
+            for body, triangles, mesh in self._surfaces:
+                points = vertices[body.vertices]
+                mesh.points[:] = points
+                mesh.point_data["Normals"][:] = vertex_normals(points, triangles)
+                mesh.GetPoints().Modified()
+                mesh.GetPointData().GetNormals().Modified()
         if self._spring_mesh is not None:
-            self._spring_mesh.points[:] = self._spring_ends(positions, rotation)
+            self._spring_mesh.points[:] = self._spring_ends(positions, rotation, anchor_positions)
             self._spring_mesh.GetPoints().Modified()
         if self._label is not None:
             self._label.SetInput(self.render_spec.time_label.format(t=t))
@@ -432,7 +517,8 @@ class FrameRenderer:
         self.plotter.ren_win.Render()
         return self._read_pixels()
 
-    def _spring_ends(self, positions: np.ndarray, rigid_rotation: np.ndarray | None) -> np.ndarray:
+    def _spring_ends(self, positions: np.ndarray, rigid_rotation: np.ndarray | None,
+                     anchor_positions: np.ndarray) -> np.ndarray:
         """World positions of both ends of every spring, interleaved (2S, 3)."""
         g = self.geometry
         n = len(g.particle_radius)
@@ -447,7 +533,7 @@ class FrameRenderer:
         ends = np.empty((len(g.spring_first), 2, 3))
         ends[:, 0] = attached(g.spring_first, g.spring_first_offset)
         to_body = ~g.spring_to_anchor
-        ends[g.spring_to_anchor, 1] = g.anchor_positions[g.spring_second[g.spring_to_anchor]]
+        ends[g.spring_to_anchor, 1] = anchor_positions[g.spring_second[g.spring_to_anchor]]
         ends[to_body, 1] = attached(g.spring_second[to_body], g.spring_second_offset[to_body])
         return ends.reshape(-1, 3)
 

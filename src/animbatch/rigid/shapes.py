@@ -94,6 +94,26 @@ def load_mesh(path: Path, scale: float | list[float] = 1.0) -> TriangleMesh:
     return _read_mesh(str(path.resolve()), path.stat().st_mtime).scaled(np.asarray(scale, float))
 
 
+@functools.lru_cache(maxsize=32)
+def _read_surface(path: str, modified: float) -> TriangleMesh:
+    import trimesh
+
+    try:
+        loaded = trimesh.load(path, force="mesh", process=True)  # process: merge the duplicated vertices of STL
+    except Exception as error:  # trimesh raises many kinds for unreadable files
+        raise ValueError(f"cannot read the mesh: {error}") from None
+    if len(loaded.faces) == 0:
+        raise ValueError("the file holds no triangles")
+    return TriangleMesh(np.asarray(loaded.vertices, float), np.asarray(loaded.faces, np.intp))
+
+
+def load_surface(path: Path, scale: float | list[float] = 1.0) -> TriangleMesh:
+    """A triangle surface (open or closed, as wound in the file) from an STL/OBJ/PLY file, scaled; for cloth."""
+    if not path.is_file():
+        raise ValueError(f"no such file: {path}")
+    return _read_surface(str(path.resolve()), path.stat().st_mtime).scaled(np.asarray(scale, float))
+
+
 def _primitive(shape: object, mass: float | None, density: float | None, base: Path
                ) -> tuple[mp.MassProperties, list[np.ndarray], list[np.ndarray]]:
     """Properties of one primitive with a given mass or density, and its buoyancy spheres and triangles."""

@@ -21,10 +21,20 @@ def check_references(data: dict[str, Any]) -> list[Problem]:
     """Every cross-reference problem in raw scene data, as ``(key path, message)``."""
     bodies = _names(data, "bodies")
     anchors = _names(data, "anchors")
-    rigid = {name for index, item in _items(data, "bodies") if item.get("type") == "rigid"
-             for name in [item.get("name")] if isinstance(name, str)}
-    return [*_body_list(data), *_duplicate_names(data), *_springs(data, bodies, anchors, rigid),
-            *_fields(data, bodies, anchors, rigid), *_materials(data), *_contact_method(data)]
+    rigid = _of_type(data, ("rigid",))
+    deformable = _of_type(data, DEFORMABLE_TYPES)
+    return [*_body_list(data), *_duplicate_names(data), *_springs(data, bodies, anchors, rigid, deformable),
+            *_fields(data, bodies, anchors, rigid, deformable), *_pins(data, bodies, rigid),
+            *_controllers(data, bodies, rigid, deformable), *_materials(data), *_contact_method(data)]
+
+
+#: Body types made of many vertices (each a particle in the model).
+DEFORMABLE_TYPES = ("cloth", "lattice")
+
+
+def _of_type(data: dict[str, Any], types: tuple[str, ...]) -> set[str]:
+    return {name for _, item in _items(data, "bodies") if item.get("type") in types
+            for name in [item.get("name")] if isinstance(name, str)}
 
 
 #: Field types that act on rigid bodies only.
@@ -51,7 +61,7 @@ def _body_list(data: dict[str, Any]) -> Iterator[Problem]:
 
 
 def _springs(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath],
-             rigid: set[str]) -> Iterator[Problem]:
+             rigid: set[str], deformable: set[str]) -> Iterator[Problem]:
     known = sorted(bodies.keys() | anchors.keys())
     for index, spring in _items(data, "springs"):
         ends = spring.get("between")
@@ -61,6 +71,10 @@ def _springs(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str
             if name not in bodies and name not in anchors:
                 yield ("springs", index, "between", end), (
                     f"unknown body or anchor {name!r}{did_you_mean(name, known)} Known: {', '.join(known) or '(none)'}")
+            elif name in deformable:
+                yield ("springs", index, "between", end), (
+                    f"{name!r} is a cloth or lattice, made of many vertices; a spring joins one point to another. "
+                    "Attach its vertices to a body or anchor with its 'pin' key instead")
         if ends[0] != ends[1] and ends[0] in anchors and ends[1] in anchors:
             yield ("springs", index, "between"), (f"both ends ({ends[0]!r}, {ends[1]!r}) are anchors; "
                                                   "a spring needs at least one body")
@@ -75,15 +89,26 @@ def _springs(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str
 
 
 def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath],
-            rigid: set[str]) -> Iterator[Problem]:
+            rigid: set[str], deformable: set[str]) -> Iterator[Problem]:
+    cloths = _of_type(data, ("cloth",))
     for index, field in _items(data, "fields"):
         selection = field.get("bodies")
+        if field.get("type") == "aerodynamics":
+            if isinstance(selection, list):
+                for position, name in enumerate(selection):
+                    if name in bodies and name not in cloths:
+                        yield ("fields", index, "bodies", position), (
+                            f"{name!r} is not a cloth: aerodynamics acts on the faces of cloths (use a wind or drag "
+                            "field for other bodies)")
+            elif not cloths:
+                yield ("fields", index, "type"), "aerodynamics acts on cloths, and the scene has none"
         if field.get("type") in RIGID_ONLY_FIELDS:
             if isinstance(selection, list):
                 for position, name in enumerate(selection):
                     if name in bodies and name not in rigid:
+                        kind = "a cloth or lattice" if name in deformable else "a particle"
                         yield ("fields", index, "bodies", position), (
-                            f"{name!r} is a particle, which cannot turn: {field['type']} acts on rigid bodies only")
+                            f"{name!r} is {kind}, which cannot turn: {field['type']} acts on rigid bodies only")
             elif not rigid:
                 yield ("fields", index, "type"), f"{field['type']} acts on rigid bodies, and the scene has none"
         if isinstance(selection, list):
@@ -101,6 +126,41 @@ def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str,
             if count < 2:
                 yield ("fields", index, "bodies" if isinstance(selection, list) else "type"), (
                     f"gravitation acts between bodies and needs at least 2 (got {count})")
+
+
+def _pins(data: dict[str, Any], bodies: dict[str, KeyPath], rigid: set[str]) -> Iterator[Problem]:
+    """A pin's ``to`` names a rigid body."""
+    for index, body in _items(data, "bodies"):
+        pins = body.get("pin")
+        if body.get("type") not in DEFORMABLE_TYPES or not isinstance(pins, list):
+            continue
+        for number, pin in enumerate(pins):
+            target = pin.get("to") if isinstance(pin, dict) else None
+            if isinstance(target, str) and target not in rigid:
+                reason = (" (it is not a rigid body; pin to a rigid body, or use keyframes to move the vertices)"
+                          if target in bodies else did_you_mean(target, sorted(rigid)))
+                yield ("bodies", index, "pin", number, "to"), (
+                    f"unknown rigid body {target!r}{reason} Rigid bodies: {', '.join(sorted(rigid)) or '(none)'}")
+
+
+def _controllers(data: dict[str, Any], bodies: dict[str, KeyPath], rigid: set[str],
+                 deformable: set[str]) -> Iterator[Problem]:
+    """A controller pulls a particle or a rigid body (a point of it only for rigid bodies)."""
+    pullable = sorted(set(bodies) - deformable)
+    for index, controller in _items(data, "controllers"):
+        name = controller.get("body")
+        if not isinstance(name, str):
+            continue
+        if name not in bodies:
+            yield ("controllers", index, "body"), (
+                f"unknown body {name!r}{did_you_mean(name, pullable)} Bodies: {', '.join(pullable) or '(none)'}")
+        elif name in deformable:
+            yield ("controllers", index, "body"), (
+                f"{name!r} is a cloth or lattice; a controller pulls one particle or rigid body (pin cloth vertices "
+                "with keyframes to move them along a path)")
+        elif controller.get("point") is not None and name not in rigid:
+            yield ("controllers", index, "point"), (f"{name!r} is a particle, which has no body points; remove "
+                                                    "'point' (it is for rigid bodies)")
 
 
 def _materials(data: dict[str, Any]) -> Iterator[Problem]:
@@ -140,15 +200,16 @@ def _contact_method(data: dict[str, Any]) -> Iterator[Problem]:
 
 def check_files(spec: Any, base_dir: Path) -> list[Problem]:
     """Mesh files that are missing, unreadable or not closed, found from ``base_dir`` (the scene's folder)."""
-    from animbatch.rigid.shapes import load_mesh
-    from animbatch.scene.schema import CompoundShape, MeshShape, RigidBodySpec
-
-    from animbatch.scene.schema import MeshCollider
+    from animbatch.rigid.shapes import load_mesh, load_surface
+    from animbatch.scene.schema import (ClothMeshSpec, ClothSpec, CompoundShape, MeshCollider, MeshShape,
+                                        RigidBodySpec)
 
     problems: list[Problem] = []
     shapes: list[tuple[KeyPath, Any]] = [(("colliders", index), collider) for index, collider in
                                          enumerate(spec.colliders) if isinstance(collider, MeshCollider)]
     for index, body in enumerate(spec.bodies):
+        if isinstance(body, ClothSpec) and body.mesh is not None:
+            shapes.append((("bodies", index, "mesh"), body.mesh))
         if not isinstance(body, RigidBodySpec):
             continue
         if isinstance(body.shape, CompoundShape):
@@ -157,9 +218,9 @@ def check_files(spec: Any, base_dir: Path) -> list[Problem]:
         else:
             shapes.append((("bodies", index, "shape"), body.shape))
     for path, shape in shapes:
-        if isinstance(shape, MeshShape | MeshCollider):
+        if isinstance(shape, MeshShape | MeshCollider | ClothMeshSpec):
             try:
-                load_mesh(base_dir / shape.file, shape.scale)
+                (load_surface if isinstance(shape, ClothMeshSpec) else load_mesh)(base_dir / shape.file, shape.scale)
             except ValueError as error:
                 problems.append(((*path, "file"), f"{error} (looked in {base_dir.resolve()})"
                                  if "no such file" in str(error) else str(error)))

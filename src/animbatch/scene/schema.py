@@ -14,8 +14,8 @@ import difflib
 from typing import Annotated, Any, Literal, Union
 
 import annotated_types as at
-from pydantic import (BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, PlainValidator, Tag,
-                      WithJsonSchema, field_validator, model_validator)
+from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, PlainValidator,
+                      Tag, WithJsonSchema, field_validator, model_validator)
 from pydantic_core import PydanticCustomError, PydanticUndefined
 
 NAME_PATTERN = r"^[A-Za-z_][A-Za-z0-9_.\-]*$"
@@ -80,13 +80,14 @@ Color = Annotated[
 ]
 
 ADAPTIVE_METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
-FIXED_STEP_METHODS = ("euler", "midpoint", "symplectic_euler", "verlet")
+FIXED_STEP_METHODS = ("euler", "midpoint", "symplectic_euler", "verlet", "backward_euler")
 METHOD_ALIASES = {
     "explicit_euler": "euler",
     "forward_euler": "euler",
     "rk2": "midpoint",
     "semi_implicit_euler": "symplectic_euler",
     "velocity_verlet": "verlet",
+    "implicit_euler": "backward_euler",
 }
 
 
@@ -112,7 +113,7 @@ class SolverSpec(SceneModel):
     """How the equations of motion are integrated."""
 
     method: Method = key("RK45", "Integrator: an adaptive solve_ivp method (RK23, RK45, DOP853, Radau, BDF, LSODA) "
-                                 "or a fixed-step one (euler, midpoint, symplectic_euler, verlet).",
+                                 "or a fixed-step one (euler, midpoint, symplectic_euler, verlet, backward_euler).",
                          example="DOP853")
     rtol: float = key(1e-6, "Relative tolerance of adaptive methods (ignored by fixed-step ones).", "1",
                       gt=0, lt=1)
@@ -148,12 +149,57 @@ class ParticleSpec(SceneModel):
                                     "(default: from a palette, by body index).", example="tomato")
 
 
+Interpolation = Literal["linear", "cubic"]
+
+
+class KeyframeSpec(SceneModel):
+    """A position at a time, for anchors and targets that follow a path."""
+
+    time: float = key(description="Time of the key.", unit="s", ge=0)
+    position: Vec3 = key(description="Position at that time [x, y, z].", unit="m")
+
+
+def _increasing_times(keys: list[Any]) -> list[Any]:
+    times = [k.time for k in keys]
+    for index in range(1, len(times)):
+        if times[index] <= times[index - 1]:
+            raise rule_error(f"key times must increase (key {index} at {times[index]:g} s follows "
+                             f"{times[index - 1]:g} s)", index)
+    return keys
+
+
+def _keyframe_list(item: type) -> Any:
+    """A list of 1 … 100000 keyframes of type ``item`` whose times increase."""
+    return Annotated[list[item], at.Len(1, 100000), AfterValidator(_increasing_times)]  # type: ignore[valid-type]
+
+
 class AnchorSpec(SceneModel):
-    """A fixed point in space that springs can attach to. It is not simulated."""
+    """A point in space that springs can attach to. It is not simulated: it stays put, or follows keyframes.
+
+    With ``keyframes`` it moves along them (``linear``: constant speed between keys; ``cubic``: a smooth spline that
+    starts and ends at rest) and holds its first and last positions before and after them.
+    """
 
     name: Name = key(description="Unique name (shared namespace with bodies).", example="ceiling")
-    position: Vec3 = key(description="Position [x, y, z].", unit="m")
+    position: Vec3 | None = key(None, "Position [x, y, z] (required unless keyframes are given).", "m")
+    keyframes: _keyframe_list(KeyframeSpec) | None = key(  # type: ignore[valid-type]
+        None, "Positions over time, instead of a fixed position.", example=[{"time": 0, "position": [0, 1, 0]},
+                                                                            {"time": 2, "position": [1, 1, 0]}])
+    interpolation: Interpolation = key("linear", "Between keyframes: linear or cubic.")
     color: Color | None = key(None, "Display colour (default dark grey).")
+
+    @model_validator(mode="after")
+    def _placed_once(self) -> "AnchorSpec":
+        if (self.position is None) == (self.keyframes is None):
+            raise rule_error("give position (a fixed anchor) or keyframes (a moving one), not both"
+                             if self.position is not None else "required key missing: give position or keyframes",
+                             "position")
+        return self
+
+    @property
+    def start(self) -> list[float]:
+        """Where the anchor is at t = 0 [m]."""
+        return self.position if self.position is not None else self.keyframes[0].position  # type: ignore[index]
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -312,6 +358,167 @@ class RigidBodySpec(SceneModel):
         return self
 
 
+# ----------------------------------------------------------------------------------------------------------------
+# Deformable bodies: cloth and spring lattices
+
+
+class SpringFamilySpec(SceneModel):
+    """Stiffness and damping of one family of a mesh's springs (each spring: ``f1 = -(ks (|L| - r) + kd L̇·u) u``,
+    at rest at its initial length)."""
+
+    stiffness: float = key(description="Spring constant ks of each spring.", unit="N/m", ge=0)
+    damping: float = key(0.0, "Damping constant kd of each spring, along its axis.", "N·s/m", ge=0)
+
+
+class AngleSpringSpec(SceneModel):
+    """Dihedral angle springs: each interior edge resists bending by ``τ = -k (θ - θ₀) - c θ̇``, θ the angle between
+    its two triangles (θ₀ at the start)."""
+
+    stiffness: float = key(description="Angular stiffness k per edge.", unit="N·m/rad", ge=0)
+    damping: float = key(0.0, "Angular damping c per edge.", "N·m·s/rad", ge=0)
+
+
+class OffsetKeyframeSpec(SceneModel):
+    """How far pinned vertices have moved from where they started, at a time."""
+
+    time: float = key(description="Time of the key.", unit="s", ge=0)
+    offset: Vec3 = key(description="Displacement from the start [dx, dy, dz].", unit="m")
+
+
+class RegionSpec(SceneModel):
+    """An axis-aligned box in world coordinates; it selects the vertices inside it at the start."""
+
+    min: Vec3 = key(description="Lower corner [x, y, z].", unit="m")
+    max: Vec3 = key(description="Upper corner [x, y, z].", unit="m")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "RegionSpec":
+        if any(low > high for low, high in zip(self.min, self.max)):
+            raise rule_error(f"min must not exceed max in any coordinate (got min {self.min}, max {self.max})",
+                             "max")
+        return self
+
+
+GridCorner = Literal["bottom-left", "bottom-right", "top-left", "top-right"]
+
+
+class PinSpec(SceneModel):
+    """Vertices held in place: fixed where they start, moved along keyframes, or attached to a rigid body.
+
+    Select vertices by ``vertices`` (indices), ``corners`` (of a grid cloth) or ``region`` (a box, at the start); a
+    pin may combine them. Pinned vertices are not simulated: they are constraints, so they never drift.
+    """
+
+    vertices: list[Annotated[int, Field(ge=0)]] = key([], "Vertex indices (grid: j·nx + i, vertex 0 at the "
+                                                          "bottom-left corner).", example=[0, 31])
+    corners: list[GridCorner] = key([], "Corners of a grid cloth (its local x to the right, y up).",
+                                    example=["top-left", "top-right"])
+    region: RegionSpec | None = key(None, "Every vertex inside this box at the start.")
+    to: Name | None = key(None, "A rigid body the vertices are attached to (they move with it and pull on it).")
+    keyframes: _keyframe_list(OffsetKeyframeSpec) | None = key(  # type: ignore[valid-type]
+        None, "Move the pinned vertices by these offsets over time.")
+    interpolation: Interpolation = key("linear", "Between keyframes: linear or cubic.")
+
+    @model_validator(mode="after")
+    def _selects_something(self) -> "PinSpec":
+        if not self.vertices and not self.corners and self.region is None:
+            raise rule_error("a pin selects vertices: give vertices, corners or region", "vertices")
+        if self.to is not None and self.keyframes is not None:
+            raise rule_error("a pin either moves with a rigid body ('to') or along keyframes, not both", "keyframes")
+        return self
+
+
+class GridSpec(SceneModel):
+    """A rectangular sheet of vertices in the cloth's local x–y plane, centred on its position."""
+
+    size: Annotated[list[Annotated[float, Field(gt=0)]], at.Len(2, 2)] = key(
+        description="Width (local x) and height (local y).", unit="m", example=[1.5, 1.0])
+    resolution: Annotated[list[Annotated[int, Field(ge=2, le=1024)]], at.Len(2, 2)] = key(
+        description="Vertices along x and along y.", example=[32, 24])
+
+
+class ClothMeshSpec(SceneModel):
+    """A cloth from a triangle mesh file (open or closed); its vertices are the point masses."""
+
+    file: str = key(description="Mesh file (STL, OBJ, PLY), relative to the scene file.")
+    scale: float | PositiveVec3 = key(1.0, "Scale factor(s) applied to the file's coordinates.", "1")
+
+
+class _DeformableBase(SceneModel):
+    """Keys shared by cloth and lattices."""
+
+    name: Name = key(description="Unique name; vertex k is the particle '<name>[k]' in trajectories.")
+    position: Vec3 = key([0.0, 0.0, 0.0], "Where the body's local origin goes (a grid's or lattice's centre).", "m")
+    orientation: OrientationSpec | None = key(None, "Rotation of the body from its local axes.")
+    velocity: Vec3 = key([0.0, 0.0, 0.0], "Initial velocity of every vertex.", "m/s")
+    mass: float | None = key(None, "Total mass, spread over the vertices by the area (or volume) each stands "
+                                   "for.", "kg", gt=0)
+    structural: SpringFamilySpec | None = key(None, "Springs along the edges (none if not given).")
+    shear: SpringFamilySpec | None = key(None, "Diagonal springs (none if not given).")
+    bend: SpringFamilySpec | None = key(None, "Springs to the vertex after next (none if not given).")
+    pin: list[PinSpec] = key([], "Vertices held fixed, moved by keyframes, or attached to rigid bodies.")
+    radius: float | None = key(None, "Radius of each vertex for collisions (default: a quarter of the mean edge "
+                                     "length).", "m", gt=0)
+    material: Name = key("default", "Material, for collisions and friction.")
+    collide: bool = key(True, "Take part in collisions (its vertices never collide with each other).")
+    color: Color | None = key(None, "Display colour (default: from a palette, by body index).")
+
+
+class ClothSpec(_DeformableBase):
+    """A cloth: a sheet of point masses joined by structural, shear and bend springs, optionally with dihedral angle
+    springs; drawn as a smooth two-sided surface. Give ``grid`` or ``mesh``."""
+
+    type: Literal["cloth"] = key(description="Body type.")
+    grid: GridSpec | None = key(None, "A rectangular sheet.")
+    mesh: ClothMeshSpec | None = key(None, "A sheet from a triangle mesh file.")
+    density: float | None = key(None, "Mass per area (cotton about 0.15, canvas 0.4), instead of mass.", "kg/m²",
+                                gt=0)
+    dihedral: AngleSpringSpec | None = key(None, "Dihedral angle springs on every interior edge (bending).")
+    back_color: Color | None = key(None, "Colour of the back side (default: the front colour, darker).")
+
+    @model_validator(mode="after")
+    def _one_source(self) -> "ClothSpec":
+        if (self.grid is None) == (self.mesh is None):
+            raise rule_error("give grid (a rectangular sheet) or mesh (a file), not both" if self.grid is not None
+                             else "required key missing: give grid or mesh", "grid")
+        if self.mesh is not None and self.shear is not None:
+            raise rule_error("shear springs are for grid cloths; a triangle mesh's edges already resist shear",
+                             "shear")
+        if self.mesh is not None and any(pin.corners for pin in self.pin):
+            raise rule_error("corners name the corners of a grid cloth; pin mesh vertices by index or region", "pin")
+        _mass_or_density(self)
+        return self
+
+
+class LatticeSpec(_DeformableBase):
+    """A soft block ("jelly"): a 3D grid of point masses joined by springs along its edges (structural), across its
+    faces and cells (shear) and to the vertex after next (bend); drawn as its outer surface."""
+
+    type: Literal["lattice"] = key(description="Body type.")
+    size: PositiveVec3 = key(description="Side lengths along local x, y, z.", unit="m")
+    resolution: Annotated[list[Annotated[int, Field(ge=2, le=64)]], at.Len(3, 3)] = key(
+        description="Vertices along x, y and z.", example=[6, 6, 6])
+    density: float | None = key(None, "Mass per volume, instead of mass.", "kg/m³", gt=0)
+
+    @model_validator(mode="after")
+    def _mass_given(self) -> "LatticeSpec":
+        if any(pin.corners for pin in self.pin):
+            raise rule_error("corners name the corners of a grid cloth; pin lattice vertices by index or region",
+                             "pin")
+        _mass_or_density(self)
+        return self
+
+
+def _mass_or_density(body: Any) -> None:
+    if body.mass is not None and body.density is not None:
+        raise rule_error("give density or mass, not both", "mass")
+    if body.mass is None and body.density is None:
+        raise rule_error("required key missing: give density or mass (kg)", "density")
+
+
+DEFORMABLE_SPECS = (ClothSpec, LatticeSpec)
+
+
 def _body_kind(value: Any) -> str | None:
     """Bodies are particles unless they say otherwise."""
     if isinstance(value, dict):
@@ -319,7 +526,8 @@ def _body_kind(value: Any) -> str | None:
     return getattr(value, "type", None)
 
 
-BodySpec = Annotated[Union[Annotated[ParticleSpec, Tag("particle")], Annotated[RigidBodySpec, Tag("rigid")]],
+BodySpec = Annotated[Union[Annotated[ParticleSpec, Tag("particle")], Annotated[RigidBodySpec, Tag("rigid")],
+                           Annotated[ClothSpec, Tag("cloth")], Annotated[LatticeSpec, Tag("lattice")]],
                      Discriminator(_body_kind)]
 
 
@@ -490,8 +698,30 @@ class BuoyancySpec(SceneModel):
         return up
 
 
+class GustSpec(SceneModel):
+    """Gusts on top of the steady wind: ``w(t) = wind + amplitude · g(t)``, with g a smooth, repeatable signal in
+    [-1, 1] (three sine waves at incommensurate frequencies, the slowest of period ``period``)."""
+
+    amplitude: Vec3 = key(description="Largest change of the wind velocity.", unit="m/s")
+    period: float = key(2.0, "Period of the slowest gust component.", "s", gt=0)
+
+
+class AerodynamicsSpec(SceneModel):
+    """Air acting on each triangle of a cloth, through its face normal n: with ``u = v_face - w`` the face's velocity
+    relative to the wind, the face feels ``f = -½ ρ A |u| (C_n (u·n) n + C_t (u - (u·n) n))``, shared equally by its
+    three vertices. A sheet facing the wind catches it; one edge-on barely does, so a flag billows and flutters."""
+
+    type: Literal["aerodynamics"] = key(description="Field type.")
+    wind: Vec3 = key([0.0, 0.0, 0.0], "Steady wind velocity w.", "m/s")
+    gust: GustSpec | None = key(None, "Gusts added to the steady wind.")
+    density: float = key(1.2, "Density ρ of the air.", "kg/m³", gt=0)
+    drag: float = key(1.0, "Coefficient C_n of the force along the face normal.", "1", ge=0)
+    friction: float = key(0.02, "Coefficient C_t of the force along the face (skin friction).", "1", ge=0)
+    bodies: BodySelection = key(None, "Names of the cloths it acts on (default: all cloths).")
+
+
 FIELD_SPECS: tuple[type[SceneModel], ...] = (GravitySpec, GravitationSpec, DragSpec, WindSpec, ForceSpec, TorqueSpec,
-                                             AngularDragSpec, BuoyancySpec)
+                                             AngularDragSpec, BuoyancySpec, AerodynamicsSpec)
 FieldSpec = Annotated[Union[*FIELD_SPECS], Field(discriminator="type")]  # type: ignore[valid-type]
 
 
@@ -601,6 +831,88 @@ class ContactSpec(SceneModel):
 
 
 # ----------------------------------------------------------------------------------------------------------------
+# Controllers: virtual springs that pull a body towards a target
+
+
+class PointTarget(SceneModel):
+    """A fixed point."""
+
+    type: Literal["point"] = key(description="Target type.")
+    position: Vec3 = key(description="The point.", unit="m")
+
+
+class KeyframeTarget(SceneModel):
+    """A point moving along keyframes."""
+
+    type: Literal["keyframes"] = key(description="Target type.")
+    keyframes: _keyframe_list(KeyframeSpec) = key(description="Positions over time.")  # type: ignore[valid-type]
+    interpolation: Interpolation = key("linear", "Between keyframes: linear or cubic.")
+
+
+class PolylineTarget(SceneModel):
+    """The closest point on a polyline (a wire through the given points)."""
+
+    type: Literal["polyline"] = key(description="Target type.")
+    points: Annotated[list[Vec3], at.Len(2, 1000000)] = key(description="The polyline's points, in order.", unit="m")
+    closed: bool = key(False, "Join the last point back to the first.")
+
+
+class ParametricTarget(SceneModel):
+    """The closest point on a curve ``(x(s), y(s), z(s))`` for s in ``range``, sampled finely into a polyline.
+    Expressions use ``s``, numbers, + - * / **, pi, e, and sin, cos, tan, asin, acos, atan, atan2, sinh, cosh,
+    tanh, exp, log, sqrt, abs."""
+
+    type: Literal["parametric"] = key(description="Target type.")
+    x: str = key(description="x(s).", unit="m", example="0.5 * cos(s)")
+    y: str = key(description="y(s).", unit="m", example="0.5 * sin(s)")
+    z: str = key("0", "z(s).", "m")
+    range: Annotated[list[float], at.Len(2, 2)] = key(description="[start, end] of the parameter s.",
+                                                      example=[0, 6.283185307179586])
+    closed: bool = key(False, "The curve ends where it starts (join the samples into a loop).")
+    samples: int = key(4096, "Points sampled along the curve (the polyline's error falls as 1/samples²).", "1",
+                       ge=8, le=1000000)
+
+    @field_validator("x", "y", "z")
+    @classmethod
+    def _expression(cls, text: str) -> str:
+        from animbatch.curves import ExpressionError, compile_expression
+
+        try:
+            compile_expression(text)
+        except ExpressionError as error:
+            raise rule_error(str(error)) from None
+        return text
+
+    @field_validator("range")
+    @classmethod
+    def _increasing(cls, bounds: list[float]) -> list[float]:
+        if not bounds[1] > bounds[0]:
+            raise rule_error(f"the end must be greater than the start (got {bounds})")
+        return bounds
+
+
+TARGET_SPECS: tuple[type[SceneModel], ...] = (PointTarget, KeyframeTarget, PolylineTarget, ParametricTarget)
+TargetSpec = Annotated[Union[*TARGET_SPECS], Field(discriminator="type")]  # type: ignore[valid-type]
+
+
+class ControllerSpec(SceneModel):
+    """A proportional–derivative controller (a virtual spring, a soft constraint): ``F = ks d - kd v_rel``, with
+    ``d`` from the body (or its point) to the target and ``v_rel`` its velocity relative to the target's.
+
+    On a curve the target is the closest point, and only the velocity across the curve is damped, so the body
+    slides freely along it (a bead on a wire)."""
+
+    name: Name | None = key(None, "Name used in messages (default: '<body>-controller').")
+    body: Name = key(description="The particle or rigid body it pulls.", example="bead")
+    point: Vec3 | None = key(None, "For rigid bodies: the body point (shape coordinates) pulled towards the target "
+                                   "(default: the centre of mass).", "m")
+    target: TargetSpec = key(description="Where it pulls: a point, keyframes, a polyline or a parametric "  # type: ignore[valid-type]
+                                         "curve.")
+    stiffness: float = key(description="Proportional gain ks.", unit="N/m", ge=0)
+    damping: float = key(0.0, "Derivative gain kd.", "N·s/m", ge=0)
+
+
+# ----------------------------------------------------------------------------------------------------------------
 # Rendering
 
 
@@ -665,6 +977,11 @@ class RenderSpec(SceneModel):
     sphere_resolution: int = key(32, "Segments around a sphere mesh.", "1", ge=8, le=256)
     springs: Literal["tube", "line", "hidden"] = key("tube", "How springs are drawn.")
     spring_width: float = key(3.0, "Width of spring lines and tubes on screen.", "px", gt=0, le=50)
+    mesh_springs: Literal["hidden", "line"] = key(
+        "hidden", "The springs of cloth and lattices: hidden (their surface shows them) or line (every spring, "
+                  "drawn over the surface).")
+    surface_opacity: float = key(1.0, "Opacity of cloth and lattice surfaces (lower it to see springs inside).", "1",
+                                 gt=0, le=1)
     show_anchors: bool = key(True, "Draw anchors as small dark cubes.")
     show_axes: bool = key(False, "Draw each rigid body's axes (x red, y green, z blue), turning with it.")
     show_vectors: Literal["none", "angular_velocity", "angular_momentum"] = key(
@@ -715,6 +1032,7 @@ class SceneSpec(SceneModel):
     bodies: list[BodySpec] = key([], "Simulated bodies: particles (the default type) and rigid bodies.")
     anchors: list[AnchorSpec] = key([], "Fixed points for springs.")
     springs: list[SpringSpec] = key([], "Springs and dampers.")
+    controllers: list[ControllerSpec] = key([], "PD controllers (virtual springs) pulling bodies towards targets.")
     fields: list[FieldSpec] = key([], "Force fields; only the declared ones are compiled.")  # type: ignore[valid-type]
     materials: dict[Name, MaterialSpec] = key({}, "Materials of your own, by name (added to the built-in ones).")
     material_pairs: list[MaterialPairSpec] = key([], "Coefficients for particular pairs of materials.")

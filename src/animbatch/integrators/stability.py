@@ -1,0 +1,137 @@
+"""Before a fixed-step run: will this step size hold the scene's springs? If not, stop and say which spring.
+
+An explicit method is stable on a spring only while ``ω h`` is small enough, ω being the spring's angular frequency.
+A mesh of springs vibrates faster than any one of its springs: its highest mode is bounded (Gershgorin's theorem on
+``M⁻¹ K``, with each spring's stiffness ``ks`` along its axis) by::
+
+    ω_max² ≤ max over particles i of  Σ_springs at i  ks (1 + [other end is a particle]) / m_i
+
+(exact for a chain of equal masses, ``2 √(k/m)``), and damped at a rate ``α`` bounded the same way by the dampers.
+For that mode each method multiplies the amplitude per step by the spectral radius ρ of its one-step matrix on
+``x'' = -ω² x - 2 α x'``. If ``ρ`` to the power of the run's steps exceeds ``GROWTH_LIMIT``, the run would blow up
+(or fill the frames with garbage long before), so it is refused before it starts, naming the stiffest spring and a
+step or method that works. Backward Euler is stable for any step and is never refused.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from animbatch.errors import SimulationError
+
+#: Largest amplitude growth of the stiffest mode tolerated over a whole run.
+GROWTH_LIMIT = 1e6
+
+
+@dataclass(frozen=True)
+class StiffestMode:
+    """The bound on the fastest spring vibration: ``omega`` [rad/s] and its damping rate ``decay`` [1/s], at the
+    particle ``body``; and the single stiffest spring (highest ``√(ks (1/m1 + 1/m2))``)."""
+
+    omega: float
+    decay: float
+    body: str
+    spring: str
+    spring_omega: float
+    spring_stiffness: float
+    spring_masses: tuple[float, float]
+
+
+def stiffest_mode(model: object) -> StiffestMode | None:
+    """The stiffest spring vibration of a model (None without springs)."""
+    springs = model.springs  # type: ignore[attr-defined]
+    if springs is None or springs.count == 0:
+        return None
+    bodies = model.bodies  # type: ignore[attr-defined]
+    mass = np.asarray(bodies.mass, float)
+    first, second, anchored = springs.first, springs.second, springs.second_is_anchor
+    mass_first = mass[first]
+    mass_second = np.where(anchored, np.inf, mass[np.where(anchored, 0, second)])
+    spring_omega = np.sqrt(springs.stiffness * (1 / mass_first + 1 / mass_second))
+    stiffest = int(np.argmax(spring_omega))
+    both = ~anchored
+    share = np.where(both, 2.0, 1.0)  # a spring to another body adds its coupling to the row sum too
+    stiffness_sum = np.bincount(first, springs.stiffness * share, minlength=len(mass))
+    damping_sum = np.bincount(first, springs.damping * share, minlength=len(mass))
+    stiffness_sum += np.bincount(second[both], (springs.stiffness * share)[both], minlength=len(mass))
+    damping_sum += np.bincount(second[both], (springs.damping * share)[both], minlength=len(mass))
+    omega2 = stiffness_sum / mass
+    fastest = int(np.argmax(omega2))
+    return StiffestMode(float(np.sqrt(omega2[fastest])), float(damping_sum[fastest] / (2 * mass[fastest])),
+                        bodies.names[fastest], springs.names[stiffest], float(spring_omega[stiffest]),
+                        float(springs.stiffness[stiffest]), (float(mass_first[stiffest]), float(mass_second[stiffest])))
+
+
+def step_matrix(method: str, h: float, omega: float, decay: float) -> np.ndarray:
+    """The (2, 2) matrix taking (x, v) over one step of ``method`` on ``x'' = -ω² x - 2 α x'``."""
+    rate = np.array([[0.0, 1.0], [-omega**2, -2 * decay]])
+    identity = np.eye(2)
+    if method == "euler":
+        return identity + h * rate
+    if method == "midpoint":
+        return identity + h * rate + 0.5 * (h * rate) @ (h * rate)
+    if method == "symplectic_euler":  # v' = v + h a(x, v); x' = x + h v'
+        kick = identity + h * np.array([[0.0, 0.0], rate[1]])
+        return np.array([[1.0, h], [0.0, 1.0]]) @ kick
+    if method == "verlet":  # x' = x + h v + h²/2 a; v' = v + h/2 (a + a(x', v + h a))
+        acceleration = rate[1]
+        position = np.array([1.0, h]) + 0.5 * h * h * acceleration
+        predicted = np.array([0.0, 1.0]) + h * acceleration
+        new_acceleration = -omega**2 * position - 2 * decay * predicted
+        velocity = np.array([0.0, 1.0]) + 0.5 * h * (acceleration + new_acceleration)
+        return np.array([position, velocity])
+    if method == "backward_euler":
+        return np.linalg.inv(identity - h * rate)
+    raise ValueError(f"no stability model for {method!r}")
+
+
+def amplification(method: str, h: float, omega: float, decay: float) -> float:
+    """Spectral radius of one step: how much the mode's amplitude grows per step (≤ 1: stable)."""
+    return float(np.max(np.abs(np.linalg.eigvals(step_matrix(method, h, omega, decay)))))
+
+
+def largest_stable_step(method: str, omega: float, decay: float) -> float | None:
+    """The largest h with amplification ≤ 1 + 1e-9 (found by bisection), or None when no step is stable."""
+    tolerance = 1e-9
+    low, high = 0.0, 10.0 / max(omega, 1e-12)
+    if amplification(method, high * 1e-6, omega, decay) > 1 + tolerance:
+        return None
+    low = high * 1e-6
+    for _ in range(100):
+        middle = 0.5 * (low + high)
+        if amplification(method, middle, omega, decay) <= 1 + tolerance:
+            low = middle
+        else:
+            high = middle
+    return low
+
+
+def check_fixed_step(model: object, method: str, h: float, steps: int) -> None:
+    """Raise SimulationError before the run when ``method`` at step ``h`` [s] would let the stiffest spring
+    vibration grow by more than GROWTH_LIMIT over ``steps`` steps."""
+    if method == "backward_euler":
+        return
+    mode = stiffest_mode(model)
+    if mode is None:
+        return
+    growth_per_step = amplification(method, h, mode.omega, mode.decay)
+    if growth_per_step <= 1.0 or steps * np.log(growth_per_step) <= np.log(GROWTH_LIMIT):
+        return
+    limit = largest_stable_step(method, mode.omega, mode.decay)
+    fix = (f"reduce solver.dt to at most {0.9 * limit:.3g} s" if limit is not None
+           else f"{method} is unstable at any step for these springs (too little damping)")
+    other = largest_stable_step("symplectic_euler", mode.omega, mode.decay)
+    first, second = mode.spring_masses
+    masses = f"{first:.3g} kg and {'an anchor' if np.isinf(second) else f'{second:.3g} kg'}"
+    raise SimulationError(
+        f"{method} at dt = {h:.3g} s cannot hold this scene's springs: the stiffest spring {mode.spring!r} "
+        f"(ks = {mode.spring_stiffness:g} N/m, between {masses}) vibrates at ω = {mode.spring_omega:.4g} rad/s, and "
+        f"the springs around {mode.body!r} at up to {mode.omega:.4g} rad/s (ω dt = {mode.omega * h:.3g}). "
+        f"{method} multiplies that vibration by {growth_per_step:.4g} per step, so it would blow up within the first "
+        f"{int(np.log(GROWTH_LIMIT) / np.log(growth_per_step)) + 1} of the run's {steps} steps. Use solver.method: "
+        f"backward_euler (stable at any dt), or {fix}"
+        + (f" (symplectic_euler: dt ≤ {0.9 * other:.3g} s)" if other is not None and method != "symplectic_euler"
+           else "") + ". Nothing was simulated.",
+        time=0.0, body=mode.body, details={"spring": mode.spring, "omega": mode.omega, "dt": h, "method": method})
