@@ -39,6 +39,10 @@ SCENE = """
     controllers:
       - {body: bead, stiffness: 50, damping: 0.7, target: {type: polyline, points: [[0, 0, 0], [1, 0, 0], [1, 1, 0]]}}
       - {body: a, stiffness: 20, damping: 0.2, target: {type: point, position: [0, 1.5, 0]}}
+      - {body: b, stiffness: 30, damping: 0.9, target: {type: parametric, x: "0.5 * cos(s)", y: "0.8 + 0.3 * sin(s)",
+         z: "0.1 * s", range: [0, 3]}}
+      - {body: b, stiffness: 10, damping: 0.4, target: {type: keyframes, keyframes: [{time: 0, position: [0, 0, 0]},
+         {time: 1, position: [1, 1, 1]}], interpolation: cubic}}
     fields:
       - {type: gravity}
       - {type: drag, model: quadratic, coefficient: 0.05, bodies: [a, b]}
@@ -75,7 +79,7 @@ def finite_difference(dynamics: Dynamics, term, t: float, y: np.ndarray, which: 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_every_analytic_jacobian_matches_finite_differences(seed):
     """Springs (to particles, anchors, moving anchors and body points), dampers, quadratic and linear drag, wind, PD
-    controllers (point and polyline) and dihedral springs: ∂f/∂x and ∂f/∂v agree with central differences at a
+    controllers (point, keyframes, polyline and parametric curve) and dihedral springs: ∂f/∂x and ∂f/∂v agree with central differences at a
     random state (positions moved by up to 10 cm, random velocities)."""
     model = compile_scene(scene(SCENE).spec)
     dynamics = Dynamics(model)

@@ -85,21 +85,54 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
     counts += [_plural(model.rigid_count, "rigid body", "rigid bodies")] if model.rigid_count else []
     lines.append(f"bodies     {', '.join(counts)}, total mass {float(bodies.mass.sum()):.6g} kg")
     x0, v0 = model.positions(model.y0), model.velocities(model.y0)
-    if model.particle_count:
+    plain = [i for i in range(model.particle_count) if model.owners[i] == bodies.names[i]]
+    if plain:
         lines.append(f"           {'particle':<16} {'mass [kg]':>10} {'radius [m]':>11}  {'position [m]':<26} "
                      "velocity [m/s]")
-        shown = min(model.particle_count, 50)
-        for i in range(shown):
+        for i in plain[:50]:
             lines.append(f"           {bodies.names[i]:<16} {bodies.mass[i]:>10.4g} {bodies.radius[i]:>11.4g}  "
                          f"{_vector(x0[i]):<26} {_vector(v0[i])}")
-        if model.particle_count > shown:
-            lines.append(f"           … and {model.particle_count - shown} more")
+        if len(plain) > 50:
+            lines.append(f"           … and {len(plain) - 50} more")
+    lines += _deformable_lines(model)
     if model.rigid is not None:
         lines += _rigid_lines(model, x0, v0)
-    for name, position in zip(model.anchor_names, model.anchor_position):
-        lines.append(f"anchor     {name:<16} at {_vector(position)} m")
+    for index, (name, position) in enumerate(zip(model.anchor_names, model.anchor_position)):
+        path = model.anchors.paths.get(index)
+        moving = (f", then along {len(path.times)} keyframes ({path.interpolation}) to t = {path.times[-1]:g} s"
+                  if path is not None else "")
+        pinned = "  (a pinned vertex)" if not model.anchor_visible[index] else ""
+        lines.append(f"anchor     {name:<16} at {_vector(position)} m{moving}{pinned}")
     lines += _contact_lines(scene, model)
     return "\n".join(lines)
+
+
+def _deformable_lines(model: Model) -> list[str]:
+    """Each cloth or lattice: vertices (free, pinned, attached), triangles, mass, springs by family, hinges."""
+    deformables = model.deformables
+    if deformables is None:
+        return []
+    from animbatch.deformable.vertices import ANCHOR, BODY_POINT, PARTICLE
+
+    springs = model.springs
+    lines = []
+    for body in deformables.bodies:
+        kinds = deformables.vertex_map.kind[body.vertices]
+        free = deformables.vertex_map.index[body.vertices][kinds == PARTICLE]
+        mass = float(model.bodies.mass[free].sum())
+        counts = {}
+        if springs is not None:
+            for name in springs.names:
+                if name.startswith(body.name + "."):
+                    family = name[len(body.name) + 1:].split("[", 1)[0]
+                    counts[family] = counts.get(family, 0) + 1
+        families = ", ".join(f"{count} {family}" for family, count in counts.items()) or "no springs"
+        lines.append(f"{body.kind:<10} {body.name}: {len(kinds)} vertices ({int((kinds == PARTICLE).sum())} free, "
+                     f"{int((kinds == ANCHOR).sum())} pinned, {int((kinds == BODY_POINT).sum())} on rigid bodies), "
+                     f"{len(body.triangles)} triangles, {mass:.6g} kg on the free vertices, vertex radius "
+                     f"{body.radius:.4g} m")
+        lines.append(f"           springs: {families}; {len(body.hinges)} interior edges (hinges)")
+    return lines
 
 
 def _collider_line(collider: Any) -> str:

@@ -32,7 +32,8 @@ class ContactWorld:
     ``body_material`` (P,) material index per body; ``collides`` (P,) bool; ``bodies_collide``: whether bodies touch
     each other (not only colliders); ``triangle_tree``: k-d tree of static triangle centroids (or None) with the
     largest triangle's circumradius ``triangle_reach``; ``group`` (P,): bodies of one group ≥ 0 (the vertices of one
-    cloth or lattice) never collide with each other.
+    cloth or lattice) never collide with each other, and do not bounce (restitution 0: a point of a sheet has no
+    elastic rebound of its own; a lattice bounces through its springs).
     """
 
     probes: Probes
@@ -108,7 +109,10 @@ def _contacts(world: ContactWorld, probes: np.ndarray, centres: np.ndarray, dist
     point = centres - normal * (radius + 0.5 * gap)[:, None]  # midway between the two surfaces
     a, b = world.body_material[owner], solid_material
     table = world.materials
-    return Contacts(owner, solid_body, point, normal, gap, table.restitution[a, b], table.static_friction[a, b],
+    restitution = table.restitution[a, b]
+    if world.group is not None:
+        restitution = np.where(world.group[owner] >= 0, 0.0, restitution)
+    return Contacts(owner, solid_body, point, normal, gap, restitution, table.static_friction[a, b],
                     table.kinetic_friction[a, b], probes,
                     np.broadcast_to(np.asarray(kind, np.intp), keep.shape)[keep].copy(),
                     np.broadcast_to(solid_index, keep.shape)[keep].astype(np.intp))

@@ -55,6 +55,10 @@ class Aerodynamics(ForceTerm):
     def dissipative(self) -> bool:
         return True
 
+    @property
+    def adds_energy(self) -> bool:
+        return bool(self.wind.any() or self.gust_amplitude.any())  # in still air it only takes energy
+
     def wind_at(self, t: float) -> np.ndarray:
         """Wind velocity [m/s] at time ``t`` [s]."""
         if not self.gust_amplitude.any():

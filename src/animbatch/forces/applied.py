@@ -126,6 +126,10 @@ class AngularDrag(_RigidLoad):
             assert state.omega is not None
             torque[self.rigid] -= self.coefficient * state.omega[self.rigid]
 
+    @property
+    def adds_energy(self) -> bool:
+        return False  # τ = -c ω only takes energy
+
     def describe(self) -> str:
         return f"c = {self.coefficient:g} N·m·s on {self.on_bodies()}"
 

@@ -124,6 +124,13 @@ class ForceTerm(ABC):
         """True when the term can change the total mechanical energy (drag, dampers, applied forces)."""
         return False
 
+    @property
+    def adds_energy(self) -> bool:
+        """True when the term can put mechanical energy in (applied forces, wind, moving anchors and targets, forces
+        whose potential is not tracked); False when its energy is accounted for by ``potential_energy`` or it only
+        ever removes energy (drag, dampers). Backward Euler keeps a scene without inputs from gaining energy."""
+        return not self.has_potential
+
     @abstractmethod
     def accumulate(self, t: float, state: Kinematics, force: np.ndarray, torque: np.ndarray | None) -> None:
         """Add this term's forces [N] (P, 3) and, for rigid bodies, torques [N·m] (B, 3) at time ``t`` [s]."""

@@ -21,10 +21,26 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.curves import Polyline, sample_parametric
+from animbatch.curves import ParametricCurve, Polyline
 from animbatch.forces.base import ForceJacobian, ForceTerm, Kinematics
 from animbatch.motion import KeyframePath
 from animbatch.rigid.quaternion import cross
+
+
+@dataclass(frozen=True, eq=False)
+class Goal:
+    """Where a controller pulls a body point ``p`` at one instant.
+
+    ``position`` (3,) [m] and ``velocity`` (3,) [m/s] of the target; on a curve, its unit ``tangent`` (3,), and
+    ``position_gradient`` = ∂target/∂p and ``tangent_gradient`` = ∂tangent/∂p, (3, 3) each (None off curves,
+    where the target does not depend on p).
+    """
+
+    position: np.ndarray
+    velocity: np.ndarray
+    tangent: np.ndarray | None = None
+    position_gradient: np.ndarray | None = None
+    tangent_gradient: np.ndarray | None = None
 
 
 class Target:
@@ -33,8 +49,7 @@ class Target:
     #: A human-readable description for ``animbatch info``.
     text: str = ""
 
-    def locate(self, t: float, position: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """Target position (3,) [m], its velocity (3,) [m/s], and the curve's unit tangent there (or None)."""
+    def locate(self, t: float, position: np.ndarray) -> Goal:
         raise NotImplementedError
 
 
@@ -42,8 +57,8 @@ class Target:
 class FixedTarget(Target):
     position: np.ndarray
 
-    def locate(self, t: float, position: np.ndarray) -> tuple[np.ndarray, np.ndarray, None]:
-        return self.position, np.zeros(3), None
+    def locate(self, t: float, position: np.ndarray) -> Goal:
+        return Goal(self.position, np.zeros(3))
 
     @property
     def text(self) -> str:  # type: ignore[override]
@@ -54,8 +69,8 @@ class FixedTarget(Target):
 class PathTarget(Target):
     path: KeyframePath
 
-    def locate(self, t: float, position: np.ndarray) -> tuple[np.ndarray, np.ndarray, None]:
-        return self.path.position(t), self.path.velocity(t), None
+    def locate(self, t: float, position: np.ndarray) -> Goal:
+        return Goal(self.path.position(t), self.path.velocity(t))
 
     @property
     def text(self) -> str:  # type: ignore[override]
@@ -64,16 +79,19 @@ class PathTarget(Target):
 
 @dataclass(frozen=True, eq=False)
 class CurveTarget(Target):
-    curve: Polyline
+    """The closest point on a curve (a :class:`Polyline` or a :class:`ParametricCurve`); it does not move."""
+
+    curve: Polyline | ParametricCurve
     label: str
 
-    def locate(self, t: float, position: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        closest, tangent = self.curve.closest(position[None])
-        return closest[0], np.zeros(3), tangent[0]
+    def locate(self, t: float, position: np.ndarray) -> Goal:
+        found = self.curve.closest(position[None])
+        return Goal(found.position[0], np.zeros(3), found.tangent[0], found.position_gradient[0],
+                    found.tangent_gradient[0])
 
     @property
     def text(self) -> str:  # type: ignore[override]
-        return f"{self.label} ({len(self.curve.start)} segments, {self.curve.length:.4g} m)"
+        return f"{self.label} ({self.curve.length:.4g} m long)"
 
 
 def make_target(spec: Any) -> Target:
@@ -86,8 +104,8 @@ def make_target(spec: Any) -> Target:
     if spec.type == "polyline":
         return CurveTarget(Polyline.through(np.asarray(spec.points, float), spec.closed),
                            "closed polyline" if spec.closed else "polyline")
-    points = sample_parametric(spec.x, spec.y, spec.z, spec.range[0], spec.range[1], spec.samples, spec.closed)
-    return CurveTarget(Polyline.through(points, spec.closed), f"curve ({spec.x}, {spec.y}, {spec.z})")
+    curve = ParametricCurve((spec.x, spec.y, spec.z), spec.range[0], spec.range[1], spec.closed, spec.samples)
+    return CurveTarget(curve, f"curve ({spec.x}, {spec.y}, {spec.z}), s in [{spec.range[0]:g}, {spec.range[1]:g}]")
 
 
 @dataclass(frozen=True, eq=False)
@@ -115,47 +133,54 @@ class Controllers(ForceTerm):
         lever = state.lever(rigid, self.offset[k][None])[0]
         return state.x[point] + lever, state.v[point] + np.cross(state.omega[rigid[0]], lever), lever  # type: ignore[index]
 
-    def pulls(self, t: float, state: Kinematics) -> list[tuple[np.ndarray, np.ndarray | None, np.ndarray | None]]:
-        """Per controller: the force [N], its lever (or None), and the curve tangent at the target (or None)."""
+    def pulls(self, t: float, state: Kinematics) -> list[tuple[np.ndarray, np.ndarray | None]]:
+        """Per controller: the force [N] and its lever (or None)."""
         result = []
         for k, target in enumerate(self.targets):
             position, velocity, lever = self._state_of(k, state)
-            goal, goal_velocity, tangent = target.locate(t, position)
-            relative = velocity - goal_velocity
-            if tangent is not None:
-                relative = relative - np.dot(relative, tangent) * tangent
-            result.append((self.stiffness[k] * (goal - position) - self.damping[k] * relative, lever, tangent))
+            goal = target.locate(t, position)
+            relative = velocity - goal.velocity
+            if goal.tangent is not None:
+                relative = relative - np.dot(relative, goal.tangent) * goal.tangent
+            result.append((self.stiffness[k] * (goal.position - position) - self.damping[k] * relative, lever))
         return result
 
     def accumulate(self, t: float, state: Kinematics, force: np.ndarray, torque: np.ndarray | None) -> None:
-        for k, (pull, lever, _) in enumerate(self.pulls(t, state)):
+        for k, (pull, lever) in enumerate(self.pulls(t, state)):
             force[self.point[k]] += pull
             if lever is not None:
                 assert torque is not None
                 torque[self.point[k] - self.first_rigid] += cross(lever[None], pull[None])[0]
 
     def jacobian(self, t: float, state: Kinematics, out: ForceJacobian) -> bool:
-        """On particles: ``∂F/∂x = -ks Q``, ``∂F/∂v = -kd Q``, with ``Q = I`` for point and keyframe targets and
-        ``Q = I - t tᵀ`` on a curve (exact along a straight piece of it)."""
-        rows, across = [], []
+        """On particles, with ``G = ∂target/∂x``: ``∂F/∂x = ks (G - I)``, plus on a curve the turn of the damped
+        direction, ``kd ((v·t) I + t vᵀ) ∂t/∂x``; ``∂F/∂v = -kd Q`` with ``Q = I - t tᵀ`` on a curve, else I."""
+        rows, stiffness_blocks, damping_blocks = [], [], []
+        identity = np.eye(3)
         for k, target in enumerate(self.targets):
             point = self.point[k]
             if point >= self.first_rigid:
                 continue
-            _, _, tangent = target.locate(t, state.x[point])
+            goal = target.locate(t, state.x[point])
+            ks, kd = self.stiffness[k], self.damping[k]
+            if goal.tangent is None:
+                stiffness_blocks.append(-ks * identity)
+                damping_blocks.append(-kd * identity)
+            else:
+                tangent, velocity = goal.tangent, state.v[point]
+                turn = (np.dot(velocity, tangent) * identity + np.outer(tangent, velocity)) @ goal.tangent_gradient
+                stiffness_blocks.append(ks * (goal.position_gradient - identity) + kd * turn)
+                damping_blocks.append(-kd * (identity - np.outer(tangent, tangent)))
             rows.append(point)
-            across.append(np.eye(3) if tangent is None else np.eye(3) - np.outer(tangent, tangent))
         if rows:
-            particles = np.flatnonzero(self.point < self.first_rigid)
-            projector = np.array(across)
-            out.add(np.array(rows), np.array(rows), -self.stiffness[particles, None, None] * projector,
-                    -self.damping[particles, None, None] * projector)
+            out.add(np.array(rows), np.array(rows), np.array(stiffness_blocks), np.array(damping_blocks))
         return True
 
     def distances(self, t: float, state: Kinematics) -> np.ndarray:
         """Distance [m] of each controlled point from its target, (K,)."""
-        return np.array([np.linalg.norm(target.locate(t, self._state_of(k, state)[0])[0] - self._state_of(k, state)[0])
-                         for k, target in enumerate(self.targets)])
+        positions = [self._state_of(k, state)[0] for k in range(len(self.targets))]
+        return np.array([np.linalg.norm(target.locate(t, position).position - position)
+                         for target, position in zip(self.targets, positions)])
 
     def potential_energy(self, state: Kinematics) -> float:
         return float(0.5 * np.sum(self.stiffness * self.distances(state.t, state) ** 2))
@@ -163,6 +188,10 @@ class Controllers(ForceTerm):
     @property
     def dissipative(self) -> bool:  # moving targets put energy in; dampers take it out
         return True
+
+    @property
+    def adds_energy(self) -> bool:
+        return any(isinstance(target, PathTarget) for target in self.targets)
 
     def describe(self) -> str:
         return "; ".join(f"{name}: ks {ks:g} N/m, kd {kd:g} N·s/m → {target.text}"

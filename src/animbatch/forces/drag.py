@@ -94,6 +94,10 @@ class Drag(ForceTerm):
     def dissipative(self) -> bool:
         return True
 
+    @property
+    def adds_energy(self) -> bool:
+        return self.wind is not None  # still air only takes energy; wind can give it
+
     def accumulate(self, t: float, state: Kinematics, force: np.ndarray, torque: np.ndarray | None) -> None:
         if self.index is None or len(self.index):
             relative = state.v if self.index is None else state.v[self.index]

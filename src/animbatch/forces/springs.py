@@ -204,6 +204,12 @@ class SpringForces(ForceTerm):
     def dissipative(self) -> bool:
         return bool(np.any(self.springs.damping))
 
+    @property
+    def adds_energy(self) -> bool:
+        """Springs to moving anchors can pump energy in."""
+        springs = self.springs
+        return any(int(a) in self.anchors.paths for a in springs.second[springs.second_is_anchor])
+
     def describe(self) -> str:
         springs = self.springs
         anchored = int(springs.second_is_anchor.sum())

@@ -146,6 +146,23 @@ class Dynamics:
                                                 angular_momentum)
             orientation[...] = quaternion.multiply(quaternion.from_rotation_vector(h * omega), orientation)
 
+    def energy(self, t: float, config: np.ndarray, motion: np.ndarray) -> tuple[float, float]:
+        """Total mechanical energy [J] (kinetic, plus the potentials of the terms that have one) at time ``t``, and
+        its scale (the sum of the magnitudes of its parts), against which rounding is judged."""
+        state = self.kinematics(config, motion, t=t)
+        n = self.particles
+        parts = [0.5 * float(np.sum(self.model.bodies.mass[:n, None] * state.v[:n] ** 2))]
+        if self.rigid:
+            _, _, momentum, angular_momentum = self._rigid_views(config, motion)
+            parts.append(0.5 * float(np.sum(momentum * state.v[n:]) + np.sum(state.omega * angular_momentum)))
+        parts += [term.potential_energy(state) for term in self.terms if term.has_potential]
+        return float(sum(parts)), float(sum(abs(p) for p in parts))
+
+    @property
+    def adds_energy(self) -> bool:
+        """Whether any term can put energy in (see :attr:`ForceTerm.adds_energy`)."""
+        return any(term.adds_energy for term in self.terms)
+
     # ------------------------------------------------------------------------------------------ derivatives
 
     def force_jacobian(self, t: float, config: np.ndarray, motion: np.ndarray) -> tuple[ForceJacobian, list[str]]:

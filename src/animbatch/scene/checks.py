@@ -224,6 +224,32 @@ def check_files(spec: Any, base_dir: Path) -> list[Problem]:
             except ValueError as error:
                 problems.append(((*path, "file"), f"{error} (looked in {base_dir.resolve()})"
                                  if "no such file" in str(error) else str(error)))
+    if not problems:
+        problems += _pin_selections(spec, base_dir)
+    return problems
+
+
+def _pin_selections(spec: Any, base_dir: Path) -> list[Problem]:
+    """Pins of cloth and lattices select existing vertices, and not all of them (needs the bodies' topology)."""
+    from animbatch.deformable import build
+    from animbatch.scene.schema import DEFORMABLE_SPECS
+
+    problems: list[Problem] = []
+    for index, body in enumerate(spec.bodies):
+        if not isinstance(body, DEFORMABLE_SPECS) or not body.pin:
+            continue
+        topology = build.body_topology(body, base_dir)
+        world = build.world_vertices(body, topology)
+        pinned = set()
+        for number, pin in enumerate(body.pin):
+            vertices, messages = build.pin_vertices(pin, topology, world)
+            pinned.update(vertices.tolist())
+            for message in messages:
+                key = "region" if message.startswith("the region") else "vertices"
+                problems.append((("bodies", index, "pin", number, key), message))
+        if len(pinned) == topology.vertex_count:
+            problems.append((("bodies", index, "pin"), f"the pins hold all {topology.vertex_count} vertices of "
+                                                       f"{body.name!r}, so nothing is left to simulate"))
     return problems
 
 

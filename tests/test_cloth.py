@@ -1,0 +1,294 @@
+"""Cloth, spring lattices and their implicit integration, against equilibrium, invariants and closed forms."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from animbatch.deformable import topology
+from animbatch.errors import SimulationError
+from animbatch.forces.dihedral import hinge_angles, hinge_gradients
+from animbatch.invariants import kinetic_energy, linear_momentum, total_energy
+from animbatch.model import Dynamics, compile_scene
+from conftest import run, scene, states
+
+G = 9.81
+
+
+def cloth(solver: str, *, stiffness: float = 400.0, damping: float = 0.05, extra: str = "", size: str = "[8, 6]",
+          pin: str = "[{corners: [top-left, top-right]}]", duration: float = 2.0, fps: int = 30) -> str:
+    """A 0.8 × 0.6 m cloth of 0.2 kg/m² hanging from two corners, with all three spring families."""
+    return f"""
+        duration: {duration}
+        fps: {fps}
+        solver: {solver}
+        bodies:
+          - name: sheet
+            type: cloth
+            grid: {{size: [0.8, 0.6], resolution: {size}}}
+            position: [0, 1, 0]
+            density: 0.2
+            structural: {{stiffness: {stiffness}, damping: {damping}}}
+            shear: {{stiffness: {stiffness / 4}, damping: {damping / 4}}}
+            bend: {{stiffness: {stiffness / 40}, damping: {damping / 40}}}
+            pin: {pin}
+        fields: [{{type: gravity}}]
+        {extra}
+    """
+
+
+# ------------------------------------------------------------------------------------------------ topology
+
+
+def test_grid_topology_counts_and_masses():
+    """An nx × ny grid has (nx-1) ny + nx (ny-1) edges, 2 (nx-1)(ny-1) diagonals and triangles, bend springs two
+    apart, one hinge per interior edge; the lumped areas add up to the sheet's area."""
+    grid = topology.grid((2.0, 1.0), (5, 3))
+    assert len(grid.springs["structural"]) == 4 * 3 + 5 * 2
+    assert len(grid.springs["shear"]) == 2 * 4 * 2 == len(grid.triangles)
+    assert len(grid.springs["bend"]) == 3 * 3 + 5 * 1
+    edges = topology.unique_edges(grid.triangles)
+    boundary = 2 * (4 + 2)
+    assert len(grid.hinges) == len(edges) - boundary
+    assert grid.weights.sum() == pytest.approx(2.0)
+    assert np.all(np.cross(*(grid.vertices[grid.triangles[:, k]] - grid.vertices[grid.triangles[:, 0]]
+                             for k in (1, 2)))[:, 2] > 0)  # every triangle faces +z
+
+
+def test_lattice_topology_faces_outward_and_weighs_its_volume():
+    """A lattice's boundary triangles face outwards, its vertex volumes add up to the block's, and every vertex
+    has its axis neighbours as structural springs."""
+    block = topology.lattice((0.4, 0.2, 0.3), (3, 4, 5))
+    v, t = block.vertices, block.triangles
+    normals = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
+    assert np.all(np.einsum("ij,ij->i", normals, v[t].mean(axis=1)) > 0)
+    assert block.weights.sum() == pytest.approx(0.4 * 0.2 * 0.3)
+    assert len(block.springs["structural"]) == 2 * 4 * 5 + 3 * 3 * 5 + 3 * 4 * 4
+    lengths = np.linalg.norm(v[block.springs["structural"][:, 0]] - v[block.springs["structural"][:, 1]], axis=1)
+    assert np.allclose(np.sort(np.unique(np.round(lengths, 12))), [0.2 / 3, 0.075, 0.2])
+
+
+def test_mesh_cloth_has_edge_and_flip_springs():
+    """From a triangle mesh: structural springs on its edges and a bend spring across each interior edge."""
+    square = topology.triangle_mesh(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.0]]),
+                                    np.array([[0, 1, 2], [0, 2, 3]]))
+    assert len(square.springs["structural"]) == 5 and len(square.springs["shear"]) == 0
+    assert sorted(square.springs["bend"][0].tolist()) == [1, 3]
+    assert square.hinges.tolist() == [[2, 0, 1, 3]]
+
+
+# ------------------------------------------------------------------------------------------------ dihedral
+
+
+def test_dihedral_angle_of_a_known_fold_and_its_balanced_forces():
+    """Two unit right triangles folded by 30° about their shared edge measure θ = ±30°; the bending forces
+    -k (θ - θ₀) ∂θ/∂x sum to zero and exert no torque."""
+    fold = np.radians(30)
+    a, b = np.array([0.0, 0, 0]), np.array([1.0, 0, 0])
+    c = np.array([0.5, 1.0, 0])
+    d = np.array([0.5, -np.cos(fold), np.sin(fold)])
+    x = np.array([[a, b, c, d]])
+    assert abs(hinge_angles(x)[0]) == pytest.approx(fold, abs=1e-12)
+    forces = -0.3 * hinge_angles(x)[:, None, None] * hinge_gradients(x)
+    assert np.allclose(forces.sum(axis=1), 0, atol=1e-14)
+    assert np.allclose(np.cross(x[0], forces[0]).sum(axis=0), 0, atol=1e-14)
+
+
+def test_dihedral_springs_unfold_a_folded_cloth_and_conserve_energy_undamped():
+    """A free 3 × 3 cloth with structural and dihedral springs, its top row folded up by 40° about the middle row
+    (a rigid fold: no spring is stretched, only the hinges bend): it unfolds and swings through flat, with total
+    energy constant (DOP853 at tight tolerance) and momentum zero."""
+    from animbatch.integrators import ScipyIntegrator
+
+    model = compile_scene(scene("""
+        duration: 0.5
+        fps: 50
+        bodies:
+          - {name: sheet, type: cloth, grid: {size: [0.2, 0.2], resolution: [3, 3]}, mass: 0.09,
+             structural: {stiffness: 500}, dihedral: {stiffness: 0.05}}
+    """).spec)
+    y0 = model.y0.copy()
+    fold = np.radians(40)
+    y0[3 * 6 + 1: 3 * 9: 3] = 0.1 * np.cos(fold)  # y and z of the top row, 0.1 m from the middle row
+    y0[3 * 6 + 2: 3 * 9: 3] = 0.1 * np.sin(fold)
+    result = ScipyIntegrator("DOP853", rtol=1e-10, atol=1e-12).integrate(Dynamics(model), y0, model.frame_times)
+    energy = total_energy(model, result.states)
+    bending = next(term for term in model.force_terms if term.kind == "dihedral")
+    dynamics = Dynamics(model)
+    assert bending.potential_energy(dynamics.kinematics(*dynamics.split(y0))) > 1e-4  # really folded at the start
+    assert np.abs(energy - energy[0]).max() < 1e-9
+    assert np.allclose(linear_momentum(model, result.states), 0, atol=1e-12)
+    angles = np.array([hinge_angles(model.positions(y)[bending.hinges]) for y in result.states])
+    folded = np.abs(angles[0]) > np.radians(30)  # the hinges along the middle row
+    assert folded.sum() >= 2
+    assert np.all(np.sign(angles[:, folded]).min(axis=0) != np.sign(angles[:, folded]).max(axis=0))  # through flat
+
+
+# ------------------------------------------------------------------------------------------------ statics
+
+
+def test_hanging_cloth_settles_where_the_net_force_on_every_free_vertex_is_zero():
+    """After 8 s of backward Euler at one step per frame, every free vertex is in equilibrium: the sum of spring,
+    damper and gravity forces is below 0.1 % of the vertex's weight, while the springs alone pull with forces of
+    the order of the whole cloth's weight."""
+    model, trajectory = run(cloth("{method: backward_euler, dt: 0.0333333}", damping=0.5, duration=8))
+    dynamics = Dynamics(model)
+    y = states(model, trajectory)[-1].copy()
+    config, motion = dynamics.split(y)
+    motion[:] = 0.0  # the forces of the resting shape, without the last tiny velocities
+    state = dynamics.kinematics(config, motion)
+    force, _ = dynamics.loads(8.0, state)
+    weight = model.bodies.mass * G
+    assert np.abs(kinetic_energy(model, states(model, trajectory)[-1])) < 1e-6
+    assert np.max(np.linalg.norm(force, axis=1) / weight) < 1e-3
+    spring = next(term for term in model.force_terms if term.kind == "spring")
+    tension = np.linalg.norm(spring.spring_forces(state)[0], axis=1)
+    assert tension.max() > 0.1 * weight.sum()
+
+
+# ------------------------------------------------------------------------------------------------ stiffness
+
+
+STIFF_CLOTH = dict(stiffness=2.0e4, damping=0.0, size="[12, 9]", duration=3.0, fps=60)
+
+
+def test_stiff_cloth_under_backward_euler_is_bounded_and_never_gains_energy():
+    """A stiff undamped cloth (ω dt ≈ 60 for its fastest mode) dropped from horizontal, pinned at two corners:
+    backward Euler at dt = 1/60 keeps it bounded, its total energy (kinetic, elastic, gravitational) never rises
+    from one frame to the next, and no spring stretches by more than 5 %."""
+    model, trajectory = run(cloth("{method: backward_euler, dt: 0.0166667}", **STIFF_CLOTH),
+                            "bodies[sheet].orientation={axis: [1, 0, 0], angle: -90}")
+    y = states(model, trajectory)
+    energy = total_energy(model, y)
+    assert np.all(np.diff(energy) <= 1e-9 * np.abs(energy).max())
+    assert energy[-1] < energy[0]
+    assert np.isfinite(trajectory.positions).all() and np.abs(trajectory.positions).max() < 3
+    springs = model.springs
+    ends = trajectory.positions[:, springs.first]
+    anchored = springs.second_is_anchor
+    other = np.where(anchored[None, :, None], model.anchor_position[np.where(anchored, springs.second, 0)][None],
+                     trajectory.positions[:, np.where(anchored, 0, springs.second)])
+    stretch = np.linalg.norm(ends - other, axis=2) / springs.rest_length - 1
+    assert stretch.max() < 0.05
+
+
+def test_explicit_euler_at_the_same_step_is_refused_naming_the_stiffest_spring():
+    """The same cloth with explicit Euler at dt = 1/60 is stopped before any step, naming the stiffest spring
+    (a structural spring at a pinned corner, where the masses are smallest)."""
+    with pytest.raises(SimulationError) as caught:
+        run(cloth("{method: euler, dt: 0.0166667}", **STIFF_CLOTH))
+    message = str(caught.value)
+    assert "euler at dt = 0.0167 s cannot hold this scene's springs: the stiffest spring 'sheet.structural[" in message
+    assert "backward_euler (stable at any dt)" in message
+    spring = caught.value.details["spring"]
+    model = compile_scene(scene(cloth("{method: backward_euler}", **STIFF_CLOTH)).spec)
+    index = model.springs.names.index(spring)
+    mass = model.bodies.mass
+    other = np.inf if model.springs.second_is_anchor[index] else mass[model.springs.second[index]]
+    omega = np.sqrt(model.springs.stiffness * (1 / mass[model.springs.first]
+                                                + 1 / np.where(model.springs.second_is_anchor, np.inf,
+                                                               mass[np.where(model.springs.second_is_anchor, 0,
+                                                                             model.springs.second)])))
+    assert np.sqrt(2.0e4 * (1 / mass[model.springs.first[index]] + 1 / other)) == pytest.approx(omega.max())
+
+
+# ------------------------------------------------------------------------------------------------ pins
+
+
+def test_fixed_pins_never_move_and_keyframed_pins_follow_their_path():
+    """Pinned corners are anchors: exactly where they started, or where their linear keyframes put them."""
+    model, trajectory = run(cloth("{method: backward_euler, dt: 0.0333333}",
+                                  pin="[{corners: [top-left]}, {corners: [top-right], keyframes: "
+                                      "[{time: 0, offset: [0, 0, 0]}, {time: 1, offset: [0.3, 0, 0]}]}]"))
+    anchors = model.anchors
+    left, right = model.anchor_names.index("sheet[40]"), model.anchor_names.index("sheet[47]")
+    for t in trajectory.times:
+        assert np.array_equal(anchors.positions(t)[left], [-0.4, 1.3, 0])
+        assert anchors.positions(t)[right] == pytest.approx([0.4 + 0.3 * min(t, 1.0), 1.3, 0])
+    assert anchors.velocities(0.5)[right] == pytest.approx([0.3, 0, 0])
+    assert np.array_equal(anchors.velocities(1.5)[right], [0, 0, 0])
+
+
+def test_vertices_pinned_to_a_rigid_body_move_with_it_and_pull_on_it():
+    """A cloth hanging from a spinning, thrown box: the attached corners stay at their body points, and the whole
+    system's momentum changes at exactly (M_box + m_free_vertices) g, so the cloth's springs pull on the box."""
+    from animbatch.rigid import quaternion
+
+    model, trajectory = run("""
+        duration: 0.5
+        fps: 20
+        solver: {method: RK45, rtol: 1.0e-9, atol: 1.0e-11}
+        bodies:
+          - {name: box, type: rigid, shape: {type: box, size: [1, 0.1, 0.1]}, density: 200, position: [0, 1.35, 0],
+             velocity: [0, 1, 0], angular_velocity: [0, 0, 2]}
+          - {name: sheet, type: cloth, grid: {size: [0.8, 0.6], resolution: [5, 4]}, position: [0, 1, 0],
+             density: 0.2, structural: {stiffness: 400, damping: 0.05}, shear: {stiffness: 100},
+             pin: [{corners: [top-left, top-right], to: box}]}
+        fields: [{type: gravity}]
+    """)
+    y = states(model, trajectory)
+    momentum = linear_momentum(model, y)
+    t = trajectory.times
+    assert np.allclose(momentum - momentum[0], np.outer(t, [0, -G * model.bodies.mass.sum(), 0]), atol=1e-7)
+    box = model.body_names.index("box")
+    start_offset = np.array([-0.4, -0.05, 0.0])  # the top-left corner from the box's centre, in its axes
+    for frame in range(len(t)):
+        rotation = quaternion.to_matrix(trajectory.orientations[frame, model.particle_count:])
+        vertices = model.deformables.vertex_map.place(trajectory.positions[frame], rotation,
+                                                      model.anchors.positions(t[frame]))
+        assert vertices[15] == pytest.approx(trajectory.positions[frame, box] + rotation[0] @ start_offset,
+                                             abs=1e-12)
+    assert trajectory.angular_velocities[-1, box, 2] != pytest.approx(2.0, abs=1e-3)  # the cloth turns it too
+
+
+# ------------------------------------------------------------------------------------------------ air
+
+
+def test_aerodynamic_force_on_a_plate_facing_and_edge_on_to_the_wind():
+    """A resting 0.5 × 0.4 m sheet in the x–y plane: wind along its normal pushes with ½ ρ C_n A |w|², wind along
+    the sheet drags with ½ ρ C_t A |w|² only."""
+    for wind, coefficient in (([0, 0, 6.0], 1.3), ([6.0, 0, 0], 0.05)):
+        model = compile_scene(scene(f"""
+            bodies: [{{name: plate, type: cloth, grid: {{size: [0.5, 0.4], resolution: [6, 5]}}, mass: 0.1}}]
+            fields: [{{type: aerodynamics, wind: {wind}, density: 1.2, drag: 1.3, friction: 0.05}}]
+        """).spec)
+        dynamics = Dynamics(model)
+        force, _ = dynamics.loads(0.0, dynamics.kinematics(*dynamics.split(model.y0.copy())))
+        expected = 0.5 * 1.2 * coefficient * 0.5 * 0.4 * 36.0
+        assert force.sum(axis=0) == pytest.approx(np.array(wind) / 6.0 * expected, abs=1e-12)
+
+
+def test_gusts_stay_within_their_amplitude_and_repeat():
+    """The gust signal is bounded by its amplitude and the same at the same time in every run."""
+    from animbatch.forces.aerodynamics import gust_signal
+
+    t = np.linspace(0, 60, 6001)
+    signal = np.array([gust_signal(x, 2.0) for x in t])
+    assert np.abs(signal).max() <= 1.0 and np.abs(signal).max() > 0.8
+    assert gust_signal(12.34, 2.0) == gust_signal(12.34, 2.0)
+
+
+# ------------------------------------------------------------------------------------------------ contact
+
+
+def test_cloth_draped_over_a_sphere_never_passes_through_it():
+    """A cloth dropped on a sphere collider: no vertex ever comes closer to the centre than R + its radius (less
+    the slop), and the part of the cloth lying on the sphere comes to rest there (its hanging corners still
+    swing). Cloth vertices do not bounce, whatever their material's restitution (rubber: 0.8)."""
+    model, trajectory = run("""
+        duration: 1.5
+        fps: 30
+        solver: {method: backward_euler, dt: 0.0041666667}
+        bodies:
+          - {name: sheet, type: cloth, grid: {size: [1.0, 1.0], resolution: [11, 11]}, position: [0, 0.6, 0],
+             orientation: {axis: [1, 0, 0], angle: -90}, density: 0.2, radius: 0.02,
+             structural: {stiffness: 300, damping: 0.1}, shear: {stiffness: 50}, bend: {stiffness: 5},
+             material: rubber}
+        colliders: [{type: sphere, position: [0, 0, 0], radius: 0.4, material: rubber}]
+        fields: [{type: gravity}]
+    """)
+    distance = np.linalg.norm(trajectory.positions, axis=2)
+    assert distance.min() > 0.4 + 0.02 - 2e-4
+    lying = distance[-1] < 0.42 + 1e-3
+    assert lying.sum() > 20
+    assert np.linalg.norm(trajectory.velocities[-1][lying], axis=1).max() < 0.02
