@@ -154,7 +154,8 @@ class Controllers(ForceTerm):
 
     def jacobian(self, t: float, state: Kinematics, out: ForceJacobian) -> bool:
         """On particles, with ``G = ∂target/∂x``: ``∂F/∂x = ks (G - I)``, plus on a curve the turn of the damped
-        direction, ``kd ((v·t) I + t vᵀ) ∂t/∂x``; ``∂F/∂v = -kd Q`` with ``Q = I - t tᵀ`` on a curve, else I."""
+        direction, ``kd ((v·t) I + t vᵀ) ∂t/∂x``; ``∂F/∂v = -kd Q`` with ``Q = I - t tᵀ`` on a curve, else I.
+        Definite form (``out.definite``): ``∂F/∂x = -ks Q`` (G's curvature part can be indefinite)."""
         rows, stiffness_blocks, damping_blocks = [], [], []
         identity = np.eye(3)
         for k, target in enumerate(self.targets):
@@ -166,6 +167,10 @@ class Controllers(ForceTerm):
             if goal.tangent is None:
                 stiffness_blocks.append(-ks * identity)
                 damping_blocks.append(-kd * identity)
+            elif out.definite:
+                across = identity - np.outer(goal.tangent, goal.tangent)
+                stiffness_blocks.append(-ks * across)
+                damping_blocks.append(-kd * across)
             else:
                 tangent, velocity = goal.tangent, state.v[point]
                 turn = (np.dot(velocity, tangent) * identity + np.outer(tangent, velocity)) @ goal.tangent_gradient

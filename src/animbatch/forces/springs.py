@@ -163,6 +163,9 @@ class SpringForces(ForceTerm):
 
         and ``∂f1/∂p2 = -∂f1/∂p1``, ``∂f2/∂p2 = ∂f1/∂p1`` (likewise for velocities). Ends on rigid bodies and
         anchors have no particle columns; a particle end still gets its own block.
+
+        Definite form (``out.definite``, Choi & Ko 2002): ``∂f1/∂p1 = -ks (u uᵀ + max(0, 1 - r / l) P)``, without the
+        damper's dependence on position: a compressed spring then stiffens nothing sideways (it would buckle).
         """
         springs = self.springs
         p1, v1, p2, v2, _, _ = self._ends(state)
@@ -176,9 +179,13 @@ class SpringForces(ForceTerm):
         outer = unit[:, :, None] * unit[:, None, :]
         across = np.eye(3) - outer  # P
         across_relative = relative - along[:, None] * unit  # P w
-        dfdx = (-springs.stiffness[:, None, None] * outer
-                - (springs.damping / safe)[:, None, None] * unit[:, :, None] * across_relative[:, None, :]
-                - (magnitude / safe)[:, None, None] * across)
+        if out.definite:
+            stretch = np.maximum(0.0, 1.0 - springs.rest_length / safe)
+            dfdx = -springs.stiffness[:, None, None] * (outer + stretch[:, None, None] * across)
+        else:
+            dfdx = (-springs.stiffness[:, None, None] * outer
+                    - (springs.damping / safe)[:, None, None] * unit[:, :, None] * across_relative[:, None, :]
+                    - (magnitude / safe)[:, None, None] * across)
         dfdv = -springs.damping[:, None, None] * outer
         degenerate = length < 1e-12  # no direction: treat as a zero-length spring, f = -ks L - kd L̇
         dfdx[degenerate] = -springs.stiffness[degenerate, None, None] * np.eye(3)

@@ -9,33 +9,35 @@ then ``v₁ = v₀ + Δv`` and ``x₁ = x₀ + h v₁``. For a spring of stiffne
 amplifying, whatever ``h √(k/m)``: stiff cloth runs at one step per frame where explicit methods need hundreds.
 The price is numerical damping (energy is lost at a rate that grows with ``h ω``), and one sparse solve per step.
 
-* The derivatives come from the force terms (:meth:`ForceTerm.jacobian`): springs and dampers, controllers, drag
-  and dihedral springs give them; terms that give none (aerodynamics, buoyancy, gravitation, applied forces) enter
-  with their value at the start of the step only.
+* The derivatives come from the force terms (:meth:`ForceTerm.jacobian`) in their *definite* form (see
+  :class:`~animbatch.forces.base.ForceJacobian`): springs and dampers, controllers, drag and dihedral springs give
+  them; terms that give none (aerodynamics, buoyancy, gravitation, applied forces) enter with their value at the
+  start of the step only. With the exact derivatives a compressed spring or a bent hinge makes the matrix
+  indefinite, and a falling cloth's energy grew ten-thousandfold in forty steps; with the definite ones (a
+  compressed spring adds no sideways stiffness, Choi & Ko 2002) the matrix is symmetric positive definite.
+* It is solved directly (:func:`~animbatch.integrators.linear_algebra.factor_symmetric`; on a 64×64 cloth 0.25 s
+  per solve, where Jacobi-preconditioned conjugate gradients needed 900+ iterations at h = 1/30 s, ``h² k / m``
+  being 10⁴–10⁵).
 * Pinned vertices are not unknowns at all (they are anchors), which is the exact constraint; vertices attached to a
   rigid body move with it.
 * Rigid bodies take a semi-implicit Euler step (kick, then drift) beside the particles: their inertia is not in the
   linear system.
-* The system matrix is sparse and, for springs without dampers, symmetric positive definite; with dampers the
-  ``∂(damping)/∂x`` term makes it slightly unsymmetric, so it is solved directly (SuperLU), which is robust and, for
-  cloth-sized systems, fast.
-* Energy guard: exact backward Euler only ever removes energy from a spring system, but the linearised step can
-  add a little when springs turn fast (its derivatives are those at the start of the step). In a scene without
-  energy inputs (no applied forces, wind, moving anchors or targets, untracked potentials; see
-  :attr:`ForceTerm.adds_energy`) a step after which the total mechanical energy is higher than before is redone as
-  two half steps, down to ``h / 2^MAX_HALVINGS``; so such a scene never gains energy. Frames still fall on steps.
-  Only for models of particles: rigid bodies take an explicit kick whose energy wobbles a little every step (it
-  stays bounded, but is not monotone), and halving could never satisfy the guard. Not in scenes with contacts
-  either, whose position corrections do not keep energy accounts.
+* Energy guard: in a scene without energy inputs (no applied forces, wind, moving anchors or targets, untracked
+  potentials; see :attr:`ForceTerm.adds_energy`) a step after which the total mechanical energy is higher than
+  before is redone as two half steps, down to ``h / 2^MAX_HALVINGS``; so such a scene never gains energy (the
+  linearisation can, rarely, where springs turn fast within a step). Frames still fall on steps. Only for models of
+  particles: rigid bodies take an explicit kick whose energy wobbles a little every step (it stays bounded, but is
+  not monotone), and halving could never satisfy the guard. Not in scenes with contacts either, whose position
+  corrections do not keep energy accounts.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import spsolve
 
 from animbatch.integrators.fixed_step import PartitionedScheme
+from animbatch.integrators.linear_algebra import factor_symmetric
 
 #: How many times a step may be halved to keep a scene without inputs from gaining energy.
 MAX_HALVINGS = 10
@@ -65,13 +67,12 @@ class BackwardEuler(PartitionedScheme):
         self.evaluations += 1
         size = self._particle_dofs
         if size:
-            derivatives, self.explicit_terms = system.force_jacobian(t, config, motion)
+            derivatives, self.explicit_terms = system.force_jacobian(t, config, motion, definite=True)
             stiffness, damping = derivatives.matrix("x"), derivatives.matrix("v")
             velocity = motion[:size]
             force = self._mass @ rate[:size]
-            matrix = (self._mass - h * damping - (h * h) * stiffness).tocsc()
-            change = spsolve(matrix, h * (force + h * (stiffness @ velocity)))
-            motion[:size] += change
+            matrix = self._mass - h * damping - (h * h) * stiffness  # symmetric positive definite
+            motion[:size] += factor_symmetric(matrix).solve(h * (force + h * (stiffness @ velocity)))
         motion[size:] += h * rate[size:]
 
     def step(self, t: float, y: np.ndarray, h: float) -> None:

@@ -7,7 +7,8 @@ where its steps fall.
 
 Radau and BDF get the model's analytic sparse Jacobian (:meth:`Dynamics.jacobian`) when the model has only particles:
 without it scipy estimates a dense one by finite differences, one right-hand side per state component, which for a
-cloth costs thousands of evaluations per Jacobian and a dense LU.
+cloth costs thousands of evaluations per Jacobian and a dense LU. Their Newton matrices are then factored through the
+half-size velocity system (:mod:`animbatch.integrators.linear_algebra`), not as 6N × 6N general sparse matrices.
 """
 
 from __future__ import annotations
@@ -77,6 +78,11 @@ class ScipyIntegrator(Integrator):
             solver = SCIPY_METHODS[self.method](fun, float(times[0]), np.array(y0, dtype=float), float(times[-1]),
                                                 rtol=self.rtol, atol=self.atol,
                                                 max_step=self.max_step if self.max_step else np.inf, **options)
+            if "jac" in options:
+                from animbatch.integrators.linear_algebra import use_second_order_factors
+
+                mass = np.repeat(np.asarray(system.model.bodies.mass[: system.particles], float), 3)
+                use_second_order_factors(solver, mass)
             frame = 1
             while frame < len(times):
                 message = solver.step()

@@ -40,6 +40,7 @@ class Dynamics:
         self._inverse_mass = (1.0 / model.bodies.mass[:n])[:, None]
         self._force = np.zeros((n + b, 3))
         self._torque = np.zeros((b, 3)) if b else None
+        self._patterns: dict[bool, dict] = {}  # sparsity patterns of the force Jacobians, reused between steps
         if b:
             rigid = model.rigid
             assert rigid is not None
@@ -165,11 +166,13 @@ class Dynamics:
 
     # ------------------------------------------------------------------------------------------ derivatives
 
-    def force_jacobian(self, t: float, config: np.ndarray, motion: np.ndarray) -> tuple[ForceJacobian, list[str]]:
-        """``∂f/∂x`` and ``∂f/∂v`` of the forces on the particles (see :class:`ForceJacobian`), and the labels of
-        the terms that give none (they are explicit in implicit steps)."""
+    def force_jacobian(self, t: float, config: np.ndarray, motion: np.ndarray, *,
+                       definite: bool = False) -> tuple[ForceJacobian, list[str]]:
+        """``∂f/∂x`` and ``∂f/∂v`` of the forces on the particles (exact, or ``definite``: see
+        :class:`ForceJacobian`), and the labels of the terms that give none (they are explicit in implicit steps)."""
         state = self.kinematics(config, motion, t=t)
-        jacobian = ForceJacobian(self.particles)
+        jacobian = ForceJacobian(self.particles, definite=definite,
+                                 patterns=self._patterns.setdefault(definite, {}))
         explicit = [term.label for term in self.terms if not term.jacobian(t, state, jacobian)]
         return jacobian, explicit
 
