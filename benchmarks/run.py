@@ -11,11 +11,15 @@ Prints one table. Measures:
 3. contacts: 1e3 and 1e4 steel balls poured into a box (symplectic Euler): wall time per simulated second,
    the cost per step while the pile forms and once it rests, and the state at the end (speeds, overlaps);
 4. rendered frames per second at 1280×720 for one sphere and for 1e4 particles (sprites), with FXAA and without;
-5. encoding frames per second (H.264 at several presets, and PNG).
+5. encoding frames per second (H.264 at several presets, and PNG);
+6. a stiff 64×64 cloth over 5 s at 30 fps, falling from horizontal, pinned at two corners: wall time, RHS
+   evaluations, steps, Jacobians and factorisations for backward Euler at one step per frame, BDF and Radau with the
+   analytic sparse Jacobian, semi-implicit Euler at its largest stable step, and RK45; each method gets a wall-time
+   budget (``--budget``), and one that runs out is reported with the simulated time it reached.
 
 Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, rigid, contacts, render,
-encode),
-``--json FILE`` (also write the rows as JSON).
+encode, cloth), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick), ``--json FILE`` (also write
+the rows as JSON).
 """
 
 from __future__ import annotations
@@ -211,6 +215,90 @@ def bench_contacts(quick: bool) -> list[Row]:
     return rows
 
 
+def cloth_scene(resolution: int, duration: float, solver: str) -> str:
+    """A 1 × 1 m cloth of 0.2 kg/m² with stiff springs (structural 2000 N/m, shear 500, bend 50; damping ratio about
+    0.5 on the stiffest spring), horizontal at the start and pinned at its two far corners."""
+    return f"""
+duration: {duration}
+fps: 30
+solver: {solver}
+bodies:
+  - name: sheet
+    type: cloth
+    grid: {{size: [1.0, 1.0], resolution: [{resolution}, {resolution}]}}
+    position: [0, 1, 0]
+    orientation: {{axis: [1, 0, 0], angle: -90}}
+    density: 0.2
+    structural: {{stiffness: 2000, damping: 0.3}}
+    shear: {{stiffness: 500, damping: 0.075}}
+    bend: {{stiffness: 50, damping: 0.0075}}
+    pin: [{{corners: [top-left, top-right]}}]
+fields: [{{type: gravity}}]
+"""
+
+
+class OutOfBudget(Exception):
+    """A benchmark run used up its wall-time budget."""
+
+
+def bench_cloth(quick: bool, budget: float | None = None) -> list[Row]:
+    """The stiff cloth with each method, each within a wall-time budget."""
+    from animbatch.integrators import make_integrator
+    from animbatch.integrators.stability import largest_stable_step, stiffest_mode
+    from animbatch.model import compile_scene
+    from animbatch.scene import parse_scene
+
+    resolution, duration = (24, 1.0) if quick else (64, 5.0)
+    budget = budget if budget is not None else (60.0 if quick else 900.0)
+    mode = stiffest_mode(compile_scene(parse_scene(cloth_scene(resolution, duration, "{}")).spec))
+    assert mode is not None
+    stable = largest_stable_step("symplectic_euler", mode.omega, mode.decay)
+    assert stable is not None
+    methods = [
+        ("backward_euler, one step per frame", "{method: backward_euler, dt: 0.0333334}"),
+        ("BDF, analytic sparse Jacobian, rtol 1e-3, atol 1e-4", "{method: BDF, rtol: 1.0e-3, atol: 1.0e-4}"),
+        ("Radau, analytic sparse Jacobian, rtol 1e-3, atol 1e-4", "{method: Radau, rtol: 1.0e-3, atol: 1.0e-4}"),
+        (f"symplectic_euler at 0.95 × its largest stable step ({0.95 * stable:.3g} s)",
+         f"{{method: symplectic_euler, dt: {0.95 * stable!r}}}"),
+        ("RK45, rtol 1e-3, atol 1e-4", "{method: RK45, rtol: 1.0e-3, atol: 1.0e-4}"),
+    ]
+    label = f"cloth {resolution}×{resolution}, {duration:g} s"
+    rows: list[Row] = [{"benchmark": label, "case": f"fastest spring mode ω (explicit methods need ω dt ≲ 2)",
+                        "value": mode.omega, "unit": "rad/s"}]
+    for name, solver in methods:
+        loaded = parse_scene(cloth_scene(resolution, duration, solver))
+        model = compile_scene(loaded.spec)
+        system = Dynamics(model)
+        started = time.perf_counter()
+        reached = [0.0]
+
+        def on_frame(frame: int, t: float) -> None:
+            reached[0] = t
+            if time.perf_counter() - started > budget:
+                raise OutOfBudget
+
+        print(f"  cloth: {name} …", file=sys.stderr, flush=True)
+        try:
+            stats = make_integrator(loaded.spec.solver).integrate(system, model.y0, model.frame_times,
+                                                                  on_frame=on_frame).stats
+        except OutOfBudget:
+            seconds = time.perf_counter() - started
+            rows.append({"benchmark": label, "case": f"{name}: out of {budget:g} s budget, simulated time reached",
+                         "value": reached[0], "unit": "s"})
+            if reached[0] > 0:
+                rows.append({"benchmark": label, "case": f"{name}: wall time per simulated second so far",
+                             "value": seconds / reached[0], "unit": "s"})
+            continue
+        rows.append({"benchmark": label, "case": f"{name}: wall time", "value": stats.wall_time, "unit": "s"})
+        rows.append({"benchmark": label, "case": f"{name}: RHS evaluations", "value": stats.rhs_evaluations,
+                     "unit": "calls"})
+        rows.append({"benchmark": label, "case": f"{name}: steps", "value": stats.steps, "unit": "steps"})
+        if stats.jacobian_evaluations or stats.lu_decompositions:
+            rows.append({"benchmark": label, "case": f"{name}: Jacobians / factorisations",
+                         "value": f"{stats.jacobian_evaluations} / {stats.lu_decompositions}", "unit": ""})
+    return rows
+
+
 def render_frames(count: int, anti_aliasing: str, frames: int) -> tuple[float, list[np.ndarray]]:
     """Frames per second of drawing ``count`` particles at 1280×720, and a few of the images."""
     from animbatch.render.backend import select_backend
@@ -276,13 +364,14 @@ def bench_encode(quick: bool) -> list[Row]:
 
 
 BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "rigid": bench_rigid, "contacts": bench_contacts,
-              "render": bench_render, "encode": bench_encode}
+              "render": bench_render, "encode": bench_encode, "cloth": bench_cloth}
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="smaller sizes, for a smoke run")
     parser.add_argument("--only", choices=sorted(BENCHMARKS), action="append", help="run only these")
+    parser.add_argument("--budget", type=float, help="wall-time budget per cloth method [s]")
     parser.add_argument("--json", type=Path, help="also write the rows to this JSON file")
     args = parser.parse_args()
     print(f"animbatch benchmarks on {platform.node()}: {os.cpu_count()} CPUs, Python {platform.python_version()}, "
@@ -290,12 +379,14 @@ def main() -> int:
     rows: list[Row] = []
     for name in args.only or list(BENCHMARKS):
         print(f"running {name} …", file=sys.stderr, flush=True)
-        rows += BENCHMARKS[name](args.quick)
+        rows += BENCHMARKS[name](args.quick, args.budget) if name == "cloth" else BENCHMARKS[name](args.quick)
     width = max(len(str(row["case"])) for row in rows)
     print(f"\n{'benchmark':<22} {'case':<{width}} {'result':>12}  unit")
     print("-" * (22 + width + 24))
     for row in rows:
-        print(f"{row['benchmark']:<22} {row['case']:<{width}} {row['value']:>12.3g}  {row['unit']}")
+        value = row["value"]
+        shown = f"{value:>12.3g}" if isinstance(value, float) else f"{value!s:>12}"
+        print(f"{row['benchmark']:<22} {row['case']:<{width}} {shown}  {row['unit']}")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=2))
     return 0

@@ -1,4 +1,5 @@
-"""PD controllers (virtual springs), the curves they follow, and keyframed anchors."""
+"""PD controllers (virtual springs), the curves they follow, and keyframed anchors (the bead on its wire is tested
+with the bundled scene, in test_cloth_scenes.py)."""
 
 from __future__ import annotations
 
@@ -11,35 +12,6 @@ from animbatch.motion import KeyframePath
 from conftest import body, run, scene
 
 G = 9.81
-
-
-def test_bead_on_a_circular_wire_stays_within_the_stated_distance_and_loops():
-    """A 0.1 kg bead on a vertical circle of radius 0.5 m (a parametric curve), pulled by ks = 2000 N/m and
-    critically damped across the wire only (kd = 2 √(ks m)), launched at 5 m/s from the bottom: it stays within
-    (m g + m v₀²/r) / ks = 3.0 mm of the circle (the largest pull it needs, at the bottom; critical damping does not
-    overshoot), loops freely (no damping along the wire), and is back at the bottom with 5 m/s."""
-    _, trajectory = run("""
-        duration: 2
-        fps: 200
-        solver: {method: DOP853, rtol: 1.0e-9, atol: 1.0e-11}
-        bodies: [{name: bead, mass: 0.1, radius: 0.02, position: [0, -0.5, 0], velocity: [5, 0, 0]}]
-        controllers:
-          - body: bead
-            stiffness: 2000
-            damping: 28.28
-            target: {type: parametric, x: "0.5 * cos(s)", y: "0.5 * sin(s)", range: [0, 6.283185307179586],
-                     closed: true}
-        fields: [{type: gravity}]
-    """)
-    x, v = body(trajectory, "bead")
-    distance = np.hypot(np.hypot(x[:, 0], x[:, 1]) - 0.5, x[:, 2])
-    bound = (0.1 * G + 0.1 * 25 / 0.5) / 2000
-    assert distance.max() < bound and distance.max() > 0.3 * bound  # the bound is tight, not vacuous
-    angle = np.unwrap(np.arctan2(x[:, 1], x[:, 0]))
-    assert angle[-1] - angle[0] > 2 * np.pi  # at least one full loop
-    bottom = np.flatnonzero(np.diff(np.floor((angle + np.pi / 2) / (2 * np.pi))) > 0)  # passes through the bottom
-    speed = np.linalg.norm(v[bottom + 1], axis=1)
-    assert speed == pytest.approx(5.0, rel=0.02)
 
 
 def test_keyframed_target_is_followed_without_lag_and_sags_by_mg_over_ks():

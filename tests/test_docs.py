@@ -27,6 +27,16 @@ def test_generated_reference_is_up_to_date():
     assert section == generate()
 
 
+def test_every_model_of_the_schema_has_a_reference_section():
+    """Every kind of mapping a scene can contain (found by walking the schema from the top) has its own section in
+    the key reference, so no key can be left out by forgetting a section."""
+    from animbatch.scene.reference import SECTIONS, reachable_models
+
+    documented = {model for _, _, model in SECTIONS}
+    missing = sorted(model.__name__ for model in reachable_models() - documented)
+    assert not missing, f"no reference section for {missing}"
+
+
 def test_every_key_is_documented():
     """Each key path of the schema appears in the docs, and every model and field has a description."""
     text = DOC.read_text(encoding="utf-8")

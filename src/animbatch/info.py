@@ -97,12 +97,21 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
     lines += _deformable_lines(model)
     if model.rigid is not None:
         lines += _rigid_lines(model, x0, v0)
+    pinned: dict[str, list[int]] = {}
     for index, (name, position) in enumerate(zip(model.anchor_names, model.anchor_position)):
         path = model.anchors.paths.get(index)
         moving = (f", then along {len(path.times)} keyframes ({path.interpolation}) to t = {path.times[-1]:g} s"
                   if path is not None else "")
-        pinned = "  (a pinned vertex)" if not model.anchor_visible[index] else ""
-        lines.append(f"anchor     {name:<16} at {_vector(position)} m{moving}{pinned}")
+        if not model.anchor_visible[index]:  # a pinned vertex: summed up per body below, unless it moves
+            if path is None:
+                pinned.setdefault(name.split("[", 1)[0], []).append(index)
+                continue
+            moving += "  (a pinned vertex)"
+        lines.append(f"anchor     {name:<16} at {_vector(position)} m{moving}")
+    for body, indices in pinned.items():
+        lines.append(f"pinned     {len(indices)} vertices of {body!r} held where they start, from "
+                     f"{_vector(model.anchor_position[indices].min(axis=0))} to "
+                     f"{_vector(model.anchor_position[indices].max(axis=0))} m")
     lines += _contact_lines(scene, model)
     return "\n".join(lines)
 
@@ -152,7 +161,9 @@ def _contact_lines(scene: LoadedScene, model: Model) -> list[str]:
     """Colliders, contact settings, collision geometry and the coefficients of every material pair that can meet."""
     spec, world = scene.spec, model.contact_world
     if world is None:
-        return ["contacts   none compiled (no colliders and no 'contacts' section)"]
+        reason = ("every body has collide: false; the colliders are only drawn" if spec.colliders or spec.contacts
+                  else "no colliders and no 'contacts' section")
+        return [f"contacts   none compiled ({reason})"]
     settings = model.contact_settings
     rest = (f"{settings.rest_speed:g} m/s" if settings.rest_speed is not None
             else f"automatic ({DEFAULT_REST_SPEED * 100:g} cm/s, or 3 g dt for fixed-step methods if more)")

@@ -1,6 +1,7 @@
 """Build the contact world of a scene: probes and boxes of every colliding body, the fixed colliders, materials.
 
-Only scenes with colliders or a ``contacts`` section get one (see :attr:`SceneSpec.has_contacts`).
+Only scenes with colliders or a ``contacts`` section, and a body that collides, get one (see
+:attr:`SceneSpec.has_contacts`).
 
 What each body contributes (all in body axes from its centre of mass):
 

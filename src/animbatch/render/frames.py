@@ -40,6 +40,7 @@ ANCHOR_COLOR = "#333333"
 COLLIDER_COLOR = "#c8c8c8"
 SPRING_COLOR = "#808080"
 MESH_SPRING_COLOR = "#505050"
+TARGET_COLOR = "#6b6b6b"
 AXIS_COLORS = ("#d62728", "#2ca02c", "#1f77b4")
 
 
@@ -116,6 +117,8 @@ class FrameGeometry:
     drawn_particles: np.ndarray | None = None  # (N,) bool: particles drawn as themselves (not cloth vertices)
     deformables: Any = None  # DeformableSet, or None
     surface_colors: tuple[tuple[str, str], ...] = ()  # (front, back) per deformable body
+    target_segments: np.ndarray | None = None  # (S, 2, 3) [m]: the curves PD controllers keep bodies on
+    target_points: tuple[Any, ...] = ()  # point and keyframe targets (forces.controllers.Target), drawn as markers
 
     @classmethod
     def from_scene(cls, spec: SceneSpec, model: Model, bounds: np.ndarray, largest_vector: float = 0.0,
@@ -151,6 +154,7 @@ class FrameGeometry:
                 front = body_spec.color or PALETTE[index % len(PALETTE)]
                 back = getattr(body_spec, "back_color", None) or darker(front)
                 surface_colors.append((front, back))
+        segments, points = controller_targets(model)
         return cls(np.asarray(model.bodies.radius[:n]), colors,
                    rigid.shapes if rigid is not None else (),
                    rigid.centre if rigid is not None else np.zeros((0, 3)),
@@ -158,7 +162,26 @@ class FrameGeometry:
                    rigid.base_dir if rigid is not None else Path("."), np.asarray(model.anchor_position),
                    *spring_parts, spring_colors, fluids, bounds, scale,
                    tuple(c for c in spec.colliders if c.visible), scene_dir, model.anchors,
-                   np.asarray(model.anchor_visible), drawn_particles, deformables, tuple(surface_colors))
+                   np.asarray(model.anchor_visible), drawn_particles, deformables, tuple(surface_colors),
+                   segments, points)
+
+
+def controller_targets(model: Model) -> tuple[np.ndarray | None, tuple[Any, ...]]:
+    """The segments (S, 2, 3) of the curves that the model's PD controllers pull towards (or None), and their point
+    and keyframe targets."""
+    from animbatch.forces.controllers import CurveTarget
+
+    term = next((term for term in model.force_terms if term.kind == "controller"), None)
+    if term is None:
+        return None, ()
+    segments, points = [], []
+    for target in term.targets:
+        if isinstance(target, CurveTarget):
+            line = getattr(target.curve, "polyline", target.curve)  # a parametric curve's samples
+            segments.append(np.stack([line.start, line.start + line.direction], axis=1))
+        else:
+            points.append(target)
+    return (np.concatenate(segments) if segments else None), tuple(points)
 
 
 def darker(color: str, factor: float = 0.7) -> str:
@@ -253,6 +276,7 @@ class FrameRenderer:
         self._add_rigid_bodies()
         self._add_springs()
         self._add_anchors()
+        self._add_targets()
         self._add_time_label()
         self._apply_camera(self.camera)
         self._pixels = None
@@ -372,6 +396,25 @@ class FrameRenderer:
             actor = self.plotter.add_mesh(cube, color=ANCHOR_COLOR)
             actor.SetPosition(*anchors[index])
             self._anchor_actors.append((int(index), actor))
+
+    def _add_targets(self) -> None:
+        """The curves controllers keep bodies on, as thin lines; their point targets as small spheres."""
+        geometry = self.geometry
+        self._target_actors: list[tuple[Any, Any]] = []
+        if not self.render_spec.show_targets:
+            return
+        segments = geometry.target_segments
+        if segments is not None:
+            points = segments.reshape(-1, 3)
+            cells = np.hstack([np.full((len(segments), 1), 2), np.arange(len(points)).reshape(-1, 2)]).ravel()
+            self.plotter.add_mesh(self.pv.PolyData(points, lines=cells), color=TARGET_COLOR,
+                                  line_width=max(1.0, 0.5 * self.render_spec.spring_width))
+        radius = 0.4 * float(np.median(geometry.particle_radius)) if len(geometry.particle_radius) else 0.02
+        for target in geometry.target_points:
+            marker = self.pv.Sphere(radius=radius, theta_resolution=12, phi_resolution=12)
+            actor = self.plotter.add_mesh(marker, color=TARGET_COLOR)
+            actor.SetPosition(*target.locate(0.0, np.zeros(3)).position)
+            self._target_actors.append((target, actor))
 
     def _plane_square(self, level: float, up: np.ndarray, size: float | None) -> tuple[Any, np.ndarray, float]:
         """A square plane at height ``level`` along ``up`` under the motion, its centre and side length."""
@@ -508,6 +551,8 @@ class FrameRenderer:
                 mesh.point_data["Normals"][:] = vertex_normals(points, triangles)
                 mesh.GetPoints().Modified()
                 mesh.GetPointData().GetNormals().Modified()
+        for target, actor in self._target_actors:
+            actor.SetPosition(*target.locate(t, np.zeros(3)).position)  # keyframed targets move
         if self._spring_mesh is not None:
             self._spring_mesh.points[:] = self._spring_ends(positions, rotation, anchor_positions)
             self._spring_mesh.GetPoints().Modified()

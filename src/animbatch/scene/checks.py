@@ -189,7 +189,9 @@ def _contact_method(data: dict[str, Any]) -> Iterator[Problem]:
     """Explicit Euler and midpoint move positions with the old velocities: they cannot keep contacts."""
     solver = data.get("solver")
     method = solver.get("method") if isinstance(solver, dict) else None
-    has_contacts = bool(data.get("colliders")) or "contacts" in data
+    bodies = data.get("bodies") if isinstance(data.get("bodies"), list) else []
+    colliding = any(not isinstance(body, dict) or body.get("collide", True) is not False for body in bodies)
+    has_contacts = (bool(data.get("colliders")) or "contacts" in data) and colliding
     if has_contacts and isinstance(method, str) and method.lower().replace("-", "_") in (
             "euler", "explicit_euler", "forward_euler", "midpoint", "rk2"):
         yield ("solver", "method"), (

@@ -36,10 +36,23 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
       for shape in schema.SHAPES],
     ("`shape.parts[]` (compound)", "shape.parts[].", schema.CompoundPart),
     ("`orientation`", "orientation.", schema.OrientationSpec),
+    ("`bodies[]` — `type: cloth`", "bodies[].", schema.ClothSpec),
+    ("`bodies[]` — `type: lattice`", "bodies[].", schema.LatticeSpec),
+    ("`grid` (cloth)", "grid.", schema.GridSpec),
+    ("`mesh` (cloth)", "mesh.", schema.ClothMeshSpec),
+    ("`structural`, `shear`, `bend` (cloth and lattices)", "structural.", schema.SpringFamilySpec),
+    ("`dihedral` (cloth)", "dihedral.", schema.AngleSpringSpec),
+    ("`pin[]` (cloth and lattices)", "pin[].", schema.PinSpec),
+    ("`pin[].region`", "pin[].region.", schema.RegionSpec),
+    ("`pin[].keyframes[]`", "pin[].keyframes[].", schema.OffsetKeyframeSpec),
     ("`anchors[]`", "anchors[].", schema.AnchorSpec),
+    ("`anchors[].keyframes[]`, `target.keyframes[]`", "keyframes[].", schema.KeyframeSpec),
     ("`springs[]`", "springs[].", schema.SpringSpec),
+    ("`controllers[]`", "controllers[].", schema.ControllerSpec),
+    *[(f"`controllers[].target` — `type: {tag_of(spec)}`", "target.", spec) for spec in schema.TARGET_SPECS],
     *[(f"`fields[]` — `type: {schema.field_type_names()[i]}`", "fields[].", spec)
       for i, spec in enumerate(schema.FIELD_SPECS)],
+    ("`fields[].gust` (aerodynamics)", "gust.", schema.GustSpec),
     ("`materials.<name>`", "materials.<name>.", schema.MaterialSpec),
     ("`material_pairs[]`", "material_pairs[].", schema.MaterialPairSpec),
     *[(f"`colliders[]` — `type: {tag_of(spec)}`", "colliders[].", spec) for spec in schema.COLLIDER_SPECS],
@@ -141,6 +154,31 @@ def unit_text(field: FieldInfo) -> str:
     extra = field.json_schema_extra if isinstance(field.json_schema_extra, dict) else {}
     unit = extra.get("unit")
     return "—" if unit in (None, "1") else str(unit)
+
+
+def reachable_models(root: type[BaseModel] = schema.SceneSpec) -> set[type[BaseModel]]:
+    """Every schema model a scene file can contain, found by walking the field annotations from ``root``."""
+    found: set[type[BaseModel]] = set()
+    pending = [root]
+    while pending:
+        model = pending.pop()
+        if model in found:
+            continue
+        found.add(model)
+        for field in model.model_fields.values():
+            pending += [member for member in _nested_types(field.annotation)
+                        if isinstance(member, type) and issubclass(member, BaseModel)]
+    return found
+
+
+def _nested_types(annotation: Any) -> Iterator[Any]:
+    """The annotation and every type inside it (Annotated, unions, lists, dicts)."""
+    yield annotation
+    for argument in typing.get_args(annotation):
+        yield from _nested_types(argument)
+    for item in getattr(annotation, "__metadata__", ()):
+        if isinstance(item, type):
+            yield item
 
 
 def key_paths() -> Iterator[str]:

@@ -983,6 +983,8 @@ class RenderSpec(SceneModel):
     surface_opacity: float = key(1.0, "Opacity of cloth and lattice surfaces (lower it to see springs inside).", "1",
                                  gt=0, le=1)
     show_anchors: bool = key(True, "Draw anchors as small dark cubes.")
+    show_targets: bool = key(True, "Draw what PD controllers pull towards: curves as thin lines (the wire of a "
+                                   "bead), point and keyframed targets as small grey spheres.")
     show_axes: bool = key(False, "Draw each rigid body's axes (x red, y green, z blue), turning with it.")
     show_vectors: Literal["none", "angular_velocity", "angular_momentum"] = key(
         "none", "Draw an arrow from each rigid body's centre of mass along ω or L, scaled so that the largest over "
@@ -1042,8 +1044,9 @@ class SceneSpec(SceneModel):
 
     @property
     def has_contacts(self) -> bool:
-        """Whether collisions are simulated at all (only when the scene asks for them)."""
-        return bool(self.colliders) or self.contacts is not None
+        """Whether collisions are simulated at all: only when the scene asks for them (colliders or a ``contacts``
+        section) and some body takes part (colliders that nothing touches are scenery, and cost no contact pass)."""
+        return (bool(self.colliders) or self.contacts is not None) and any(body.collide for body in self.bodies)
 
     @property
     def frame_count(self) -> int:
