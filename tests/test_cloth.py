@@ -292,3 +292,32 @@ def test_cloth_draped_over_a_sphere_never_passes_through_it():
     lying = distance[-1] < 0.42 + 1e-3
     assert lying.sum() > 20
     assert np.linalg.norm(trajectory.velocities[-1][lying], axis=1).max() < 0.02
+
+
+@pytest.mark.parametrize("friction", [0.5, 0.1])
+def test_cloth_on_a_box_sticks_or_slides_as_its_friction_says(friction):
+    """A small sheet lying on a box collider, with gravity tilted 20° along x: with μs = 0.5 > tan 20° it stays put;
+    with μs = μk = 0.1 it slides with a = g (sin 20° - μk cos 20°), never sinking into the box."""
+    angle = np.radians(20)
+    model, trajectory = run(f"""
+        duration: 0.5
+        fps: 20
+        solver: {{method: backward_euler, dt: 0.0041667}}
+        materials:
+          felt: {{restitution: 0, static_friction: {friction}, kinetic_friction: {friction}}}
+        bodies:
+          - {{name: mat, type: cloth, grid: {{size: [0.4, 0.4], resolution: [5, 5]}}, position: [0, 0.025, 0],
+             orientation: {{axis: [1, 0, 0], angle: -90}}, density: 0.3, radius: 0.025, material: felt,
+             structural: {{stiffness: 200, damping: 0.05}}, shear: {{stiffness: 50}}}}
+        colliders:
+          - {{type: box, size: [2, 0.2, 1], position: [0, -0.1, 0], material: felt}}
+        fields: [{{type: gravity, g: [{G * np.sin(angle)}, {-G * np.cos(angle)}, 0]}}]
+    """)
+    shift = trajectory.positions[:, :, 0].mean(axis=1) - trajectory.positions[0, :, 0].mean()
+    assert trajectory.positions[..., 1].min() > 0.025 - 1.5e-4  # the vertex spheres stay on the top face
+    if friction > np.tan(angle):
+        assert np.abs(shift).max() < 1e-3
+    else:
+        t = trajectory.times
+        expected = 0.5 * G * (np.sin(angle) - friction * np.cos(angle)) * t**2
+        assert shift[-1] == pytest.approx(expected[-1], rel=0.05)

@@ -151,3 +151,30 @@ def test_spring_to_a_moving_anchor_drags_its_body_along():
     assert v[-1] == pytest.approx([0, 1, 0], abs=1e-6)
     hand = 1 + trajectory.times[-1]
     assert x[-1] == pytest.approx([0, hand - 0.5 - 0.2 * G / 200, 0], abs=1e-6)
+
+
+def test_controller_on_a_rigid_body_point_holds_it_like_a_pendulum_pivot():
+    """A 1 kg box held at a corner by a damped PD controller to a fixed point, with some air drag on its turning:
+    it comes to rest with the corner m g / ks below the target and its centre of mass straight below the corner
+    (no torque), whatever way it started."""
+    model, trajectory = run("""
+        duration: 12
+        fps: 10
+        solver: {method: RK45, rtol: 1.0e-8, atol: 1.0e-10}
+        bodies:
+          - {name: crate, type: rigid, shape: {type: box, size: [0.2, 0.2, 0.2]}, mass: 1, position: [0.2, 1, 0],
+             angular_velocity: [0, 0, 1]}
+        controllers:
+          - {body: crate, point: [0.1, 0.1, 0.1], stiffness: 400, damping: 40,
+             target: {type: point, position: [0.3, 1.1, 0.1]}}
+        fields: [{type: gravity}, {type: angular_drag, coefficient: 0.2, bodies: [crate]}]
+    """)
+    from animbatch.rigid import quaternion
+
+    x, v = body(trajectory, "crate")
+    rotation = quaternion.to_matrix(trajectory.orientations[-1, 0])
+    corner = x[-1] + rotation @ np.array([0.1, 0.1, 0.1])
+    assert corner == pytest.approx([0.3, 1.1 - G / 400, 0.1], abs=1e-5)
+    hanging = x[-1] - corner
+    assert hanging[[0, 2]] == pytest.approx([0, 0], abs=1e-5) and hanging[1] == pytest.approx(-0.1 * np.sqrt(3))
+    assert np.abs(v[-1]).max() < 1e-4
