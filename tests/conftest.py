@@ -46,3 +46,20 @@ def tmp_cwd(tmp_path, monkeypatch):
     """Run in an empty temporary folder (so relative outputs like renders/ land there)."""
     monkeypatch.chdir(tmp_path)
     return tmp_path
+
+
+@pytest.fixture
+def polydata_built(monkeypatch) -> list[int]:
+    """A list that grows by one for every pyvista.PolyData built (to check that frames update meshes in place)."""
+    import pyvista as pv
+
+    built: list[int] = []
+    original = pv.PolyData
+
+    class CountingPolyData(original):  # type: ignore[misc, valid-type]
+        def __init__(self, *args, **kwargs):
+            built.append(1)
+            super().__init__(*args, **kwargs)
+
+    monkeypatch.setattr(pv, "PolyData", CountingPolyData)
+    return built

@@ -306,21 +306,11 @@ def dominant(image: np.ndarray, channel: int) -> np.ndarray:
     return (rgb[..., channel] > others[0] + 60) & (rgb[..., channel] > others[1] + 60)
 
 
-def test_cloth_is_a_two_sided_surface_moved_in_place(tmp_cwd, monkeypatch):
+def test_cloth_is_a_two_sided_surface_moved_in_place(tmp_cwd, polydata_built):
     """From the front the cloth shows its front colour, from behind its back colour; its picture moves with the
     simulated vertices (0.6 m/s to the right), and no mesh is built after the first frame."""
-    import pyvista as pv
-
     (tmp_cwd / "sheet.yaml").write_text(CLOTH)
-    built = []
-    original = pv.PolyData
-
-    class CountingPolyData(original):  # type: ignore[misc, valid-type]
-        def __init__(self, *args, **kwargs):
-            built.append(1)
-            super().__init__(*args, **kwargs)
-
-    monkeypatch.setattr(pv, "PolyData", CountingPolyData)
+    built = polydata_built
     api.run(tmp_cwd / "sheet.yaml", out_dir="renders", overrides=["duration=0.25"])
     one_frame = len(built)
     built.clear()

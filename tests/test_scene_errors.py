@@ -135,7 +135,7 @@ def test_all_errors_of_a_file_are_reported_at_once(tmp_path):
     ("bodies: [{name: a}]\nfields: [{type: gravitation}]", "gravitation acts between bodies and needs at least 2"),
     ("bodies: [{name: a}]\nanchors: [{name: p, position: [0,0,0]}, {name: q, position: [1,0,0]}]\n"
      "springs: [{between: [p, q], stiffness: 1}]", "springs[0].between: both ends ('p', 'q') are anchors"),
-    ("bodies: [{name: a}]\nfields: [{type: gravity, bodies: [b]}]", "fields[0].bodies[0]: unknown body 'b'"),
+    ("bodies: [{name: a}]\nfields: [{type: gravity, bodies: [b]}]", "fields[0].bodies[0]: unknown body or emitter 'b'"),
     ("bodies: []", "bodies: a scene needs at least one body"),
     ("bodies: [{name: a, mass: .inf}]", "bodies[0].mass: must be a finite number"),
     ("bodies: [{name: a, mass: true}]", "bodies[0].mass: must be a number in kg (got true)"),

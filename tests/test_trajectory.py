@@ -30,7 +30,7 @@ def test_trajectory_file_is_plain_numpy(tmp_path):
     _, trajectory = run(SCENE)
     path = trajectory.save(tmp_path / "run.npz")
     with np.load(path, allow_pickle=False) as data:
-        assert str(data["format"]) == "animbatch-trajectory" and int(data["format_version"]) == 2
+        assert str(data["format"]) == "animbatch-trajectory" and int(data["format_version"]) == 3
         assert np.array_equal(data["times"], np.arange(10) / 10)
         names = list(data["body_names"])
         assert names == ["ball", "bob"]

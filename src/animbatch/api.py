@@ -26,7 +26,7 @@ import numpy as np
 from animbatch import __version__
 from animbatch.errors import TrajectoryError
 from animbatch.files import write_json_atomic
-from animbatch.integrators import make_integrator
+from animbatch.integrators import IntegrationResult, SolverStats, make_integrator
 from animbatch.model import Dynamics, Model, compile_scene
 from animbatch.progress import Progress
 from animbatch.scene import LoadedScene, load_scene, physics_fingerprint
@@ -44,10 +44,14 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
     model = model if model is not None else compile_model(scene)
     integrator = make_integrator(spec.solver)
     progress = progress or Progress(enabled=False)
-    with progress.task("simulate", len(model.frame_times)) as on_frame:
-        result = integrator.integrate(Dynamics(model), model.y0, model.frame_times, on_frame=on_frame)
+    if model.layout.size:
+        with progress.task("simulate", len(model.frame_times)) as on_frame:
+            result = integrator.integrate(Dynamics(model), model.y0, model.frame_times, on_frame=on_frame)
+    else:  # a scene of emitters only: no body to integrate
+        result = IntegrationResult(np.zeros((len(model.frame_times), 0)), SolverStats(spec.solver.method))
     states = result.states
     kinds = ("particle",) * model.particle_count + ("rigid",) * model.rigid_count
+    particles, particle_stats = simulate_emitters(scene, model, states, progress)
     return Trajectory(
         times=model.frame_times.copy(), body_names=model.body_names, positions=model.positions(states),
         velocities=model.velocities(states), orientations=model.orientations(states),
@@ -55,7 +59,29 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
         anchor_names=model.anchor_names, anchor_positions=model.anchor_position.copy(),
         physics_hash=scene_fingerprint(scene), scene_name=scene.name, package_version=__version__,
         solver={**spec.solver.model_dump(), "description": integrator.describe()},
-        solver_stats=result.stats.as_dict())
+        solver_stats=result.stats.as_dict(), particles=tuple(particles), particle_stats=particle_stats)
+
+
+def simulate_emitters(scene: LoadedScene, model: Model, states: np.ndarray, progress: Progress
+                      ) -> tuple[list, dict[str, Any]]:
+    """The scene's emitted particles at the frame times (after its bodies, whose motion ``states`` (F, n) moves
+    emitters attached to them), and the statistics of their simulation; nothing when it has no emitters."""
+    spec = scene.spec
+    if not spec.emitters:
+        return [], {}
+    from animbatch.integrators import DEFAULT_DT
+    from animbatch.particles.body_motion import BodyMotion
+    from animbatch.particles.compile import compile_particles
+    from animbatch.particles.simulate import simulate_particles
+
+    systems = compile_particles(spec, model, scene_folder(scene))
+    assert systems is not None
+    motion = BodyMotion(model.frame_times, model.positions(states), model.velocities(states),
+                        model.orientations(states), model.angular_velocities(states))
+    with progress.task("particles", len(model.frame_times)) as on_frame:
+        records, stats = simulate_particles(systems.emitters, systems.colliders, model.frame_times, spec.solver,
+                                            motion, dt=spec.solver.dt or DEFAULT_DT, on_frame=on_frame)
+    return records, stats.as_dict()
 
 
 def scene_folder(scene: LoadedScene) -> Path:
@@ -98,6 +124,37 @@ def largest_vector(model: Model, trajectory: Trajectory, kind: str) -> float:
     return float(np.max(np.linalg.norm(momentum, axis=-1), initial=0.0))
 
 
+def frame_geometry(scene: LoadedScene, model: Model, trajectory: Trajectory) -> Any:
+    """What the renderer draws for this scene and trajectory (a :class:`~animbatch.render.frames.FrameGeometry`),
+    with the camera fitted to the whole motion: bodies, anchors, colliders and emitted particles."""
+    from animbatch.render.camera import motion_bounds
+    from animbatch.render.frames import FrameGeometry, body_extents, collider_points
+
+    spec = scene.spec
+    anchors = (np.vstack([model.anchors.positions(float(t)) for t in trajectory.times]) if model.anchors.moving
+               else model.anchor_position)
+    fixed = np.vstack([anchors, collider_points(spec, scene_folder(scene)), particle_extent(trajectory)])
+    bounds = motion_bounds(trajectory.positions, body_extents(model), fixed)
+    emitters = ()
+    if spec.emitters:
+        from animbatch.particles.compile import compile_particles
+
+        emitters = compile_particles(spec, model, scene_folder(scene)).emitters  # type: ignore[union-attr]
+    return FrameGeometry.from_scene(spec, model, bounds, largest_vector(model, trajectory, spec.render.show_vectors),
+                                    scene_folder(scene), emitters)
+
+
+def particle_extent(trajectory: Trajectory) -> np.ndarray:
+    """Two corners (2, 3) of the box around every emitted particle at every frame (a 1st–99th percentile box, so
+    that a few strays do not shrink the view), or none (0, 3)."""
+    corners = []
+    for frames in trajectory.particles:
+        live = frames.positions[frames.serials >= 0]
+        if len(live):
+            corners += [np.percentile(live, 1, axis=0), np.percentile(live, 99, axis=0)]
+    return np.array(corners, float).reshape(-1, 3)
+
+
 @dataclass
 class RenderResult:
     """What a render wrote, and how long drawing and encoding took [s]."""
@@ -120,8 +177,7 @@ def render(scene: LoadedScene, trajectory: Trajectory, *, model: Model | None = 
     """
     from animbatch.encode import Mp4Writer, PngSequenceWriter
     from animbatch.render.backend import select_backend
-    from animbatch.render.camera import motion_bounds
-    from animbatch.render.frames import FrameGeometry, FrameRenderer, body_extents, collider_points
+    from animbatch.render.frames import FrameRenderer
 
     spec = scene.spec
     model = model if model is not None else compile_model(scene)
@@ -129,13 +185,7 @@ def render(scene: LoadedScene, trajectory: Trajectory, *, model: Model | None = 
     chosen = select_backend(backend)
     folder = Path(out_dir) / scene.name
     width, height = spec.render.resolution
-    anchors = (np.vstack([model.anchors.positions(float(t)) for t in trajectory.times]) if model.anchors.moving
-               else model.anchor_position)
-    fixed = np.vstack([anchors, collider_points(spec, scene_folder(scene))])
-    bounds = motion_bounds(trajectory.positions, body_extents(model), fixed)
-    geometry = FrameGeometry.from_scene(spec, model, bounds,
-                                        largest_vector(model, trajectory, spec.render.show_vectors),
-                                        scene_folder(scene))
+    geometry = frame_geometry(scene, model, trajectory)
     video = Mp4Writer(folder / f"{scene.name}.mp4", (width, height), spec.fps, preset=spec.render.video.preset,
                       crf=spec.render.video.crf) if "mp4" in spec.render.formats else None
     frames = PngSequenceWriter(folder / "frames") if "png" in spec.render.formats else None
@@ -149,7 +199,8 @@ def render(scene: LoadedScene, trajectory: Trajectory, *, model: Model | None = 
         for index, t in enumerate(trajectory.times):
             started = time.perf_counter()
             image = renderer.draw(float(t), trajectory.positions[index], trajectory.orientations[index],
-                                  trajectory.angular_velocities[index])
+                                  trajectory.angular_velocities[index],
+                                  (trajectory.particles, index) if trajectory.particles else None)
             drawn = time.perf_counter()
             if video is not None:
                 video.write(image)
@@ -187,6 +238,7 @@ class RunReport:
     backend: str
     outputs: list[str]
     trajectory_file: str | None = None
+    particle_stats: dict[str, Any] = field(default_factory=dict)
     created: str = field(default_factory=lambda: _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
     host: str = field(default_factory=platform.node)
 
@@ -194,6 +246,10 @@ class RunReport:
         """One line for logs: outputs, frames, timings and solver work."""
         stats = self.solver_stats
         solver = f"{stats.get('method')}: {stats.get('steps')} steps, {stats.get('rhs_evaluations')} RHS"
+        if self.particle_stats:
+            particles = self.particle_stats
+            solver += (f"; particles: {particles.get('born')} born, peak {particles.get('peak_live')} live, "
+                       f"{particles.get('steps')} steps")
         if self.trajectory_file:
             solver = f"from {self.trajectory_file} ({solver})"
         timings = ", ".join(f"{stage} {seconds:.2f} s" for stage, seconds in self.stages.items())
@@ -225,6 +281,6 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
     report = RunReport(scene.name, str(scene.path) if scene.path else None, trajectory.physics_hash, __version__,
                        dict(watch.seconds), trajectory.solver, trajectory.solver_stats, result.frame_count,
                        result.resolution, result.fps, result.backend, [str(p) for p in result.outputs],
-                       str(trajectory_path) if trajectory_path else None)
+                       str(trajectory_path) if trajectory_path else None, trajectory.particle_stats)
     write_json_atomic(Path(out_dir) / scene.name / "report.json", report.__dict__)
     return report

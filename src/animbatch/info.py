@@ -20,6 +20,8 @@ def one_line_summary(scene: LoadedScene) -> str:
     """``scenes/x.yaml: OK - 'x': 3 bodies, 2 springs; fields gravity, drag; 4 s at 30 fps (120 frames); RK45 …``."""
     spec = scene.spec
     parts = [_plural(len(spec.bodies), "body", "bodies")]
+    if spec.emitters:
+        parts.append(_plural(len(spec.emitters), "emitter"))
     if spec.anchors:
         parts.append(_plural(len(spec.anchors), "anchor"))
     if spec.springs:
@@ -83,7 +85,8 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
     bodies = model.bodies
     counts = [_plural(model.particle_count, "particle")] if model.particle_count else []
     counts += [_plural(model.rigid_count, "rigid body", "rigid bodies")] if model.rigid_count else []
-    lines.append(f"bodies     {', '.join(counts)}, total mass {float(bodies.mass.sum()):.6g} kg")
+    lines.append(f"bodies     {', '.join(counts)}, total mass {float(bodies.mass.sum()):.6g} kg" if counts
+                 else "bodies     none (a scene of emitters only)")
     x0, v0 = model.positions(model.y0), model.velocities(model.y0)
     plain = [i for i in range(model.particle_count) if model.owners[i] == bodies.names[i]]
     if plain:
@@ -113,7 +116,41 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
                      f"{_vector(model.anchor_position[indices].min(axis=0))} to "
                      f"{_vector(model.anchor_position[indices].max(axis=0))} m")
     lines += _contact_lines(scene, model)
+    lines += _emitter_lines(scene, model)
     return "\n".join(lines)
+
+
+def _emitter_lines(scene: LoadedScene, model: Model) -> list[str]:
+    """Each emitter: its pool, schedule, attribute bounds, the fields its particles feel, what they collide with."""
+    from animbatch.particles.compile import compile_particles
+    from animbatch.scene.schema import random_bounds
+
+    spec = scene.spec
+    systems = compile_particles(spec, model, scene.path.parent if scene.path is not None else ".")  # type: ignore[arg-type]
+    if systems is None:
+        return []
+    lines = []
+    for item, emitter in zip(spec.emitters, systems.emitters):
+        schedule = emitter.schedule
+        rate = (f"{item.rate:g}/s" if isinstance(item.rate, int | float)
+                else f"keyframed {min(k.rate for k in item.rate):g}…{max(k.rate for k in item.rate):g}/s")
+        bursts = f" + {_plural(sum(b.count for b in item.bursts), 'particle')} in bursts" if item.bursts else ""
+        attached = f" on rigid body {item.body!r}" if item.body else ""
+        lines.append(f"emitter    {emitter.name}: {item.source.type} source{attached}, rate {rate}{bursts}; "
+                     f"{schedule.born_by(spec.duration)} born by {spec.duration:g} s; pool of {emitter.capacity} "
+                     f"slots{' (automatic)' if item.capacity is None else ''}")
+        bounds = "; ".join(f"{name} {low:.4g}…{high:.4g} {unit}" for name, unit in
+                           (("lifetime", "s"), ("speed", "m/s"), ("radius", "m"), ("mass", "kg"))
+                           for low, high in [random_bounds(getattr(item, name))])
+        lines.append(f"           {bounds}; cone {item.direction.cone:g}° around "
+                     f"{'the source normal' if emitter.axis is None else _vector(emitter.axis)}")
+        felt = ", ".join(f.describe() for f in emitter.fields) or "none (straight lines)"
+        lines.append(f"           fields on its particles: {felt}")
+        colliders = systems.colliders.get(emitter.name)
+        meets = ("no colliders" if colliders is None else
+                 f"{item.collision} on {_plural(len(spec.colliders), 'collider')} (planes, spheres and boxes)")
+        lines.append(f"           collisions: {meets}; never with each other")
+    return lines
 
 
 def _deformable_lines(model: Model) -> list[str]:
@@ -161,8 +198,12 @@ def _contact_lines(scene: LoadedScene, model: Model) -> list[str]:
     """Colliders, contact settings, collision geometry and the coefficients of every material pair that can meet."""
     spec, world = scene.spec, model.contact_world
     if world is None:
-        reason = ("every body has collide: false; the colliders are only drawn" if spec.colliders or spec.contacts
-                  else "no colliders and no 'contacts' section")
+        if not spec.bodies:
+            reason = "no bodies; emitted particles have their own collision pass, below"
+        elif spec.colliders or spec.contacts:
+            reason = "every body has collide: false; the colliders are only drawn"
+        else:
+            reason = "no colliders and no 'contacts' section"
         return [f"contacts   none compiled ({reason})"]
     settings = model.contact_settings
     rest = (f"{settings.rest_speed:g} m/s" if settings.rest_speed is not None

@@ -6,7 +6,7 @@ File format (``.npz``, version 1), readable with numpy alone (``np.load(path)``;
 key                    shape / type    meaning
 =====================  ==============  =================================================================
 ``format``             str             ``"animbatch-trajectory"``
-``format_version``     int             ``2``
+``format_version``     int             ``3``
 ``times``              (F,) float64    frame times ``k / fps`` [s]
 ``body_names``         (N,) str        body names: particles first, then rigid bodies, each in scene order
 ``body_kinds``         (N,) str        ``particle`` or ``rigid``
@@ -21,7 +21,14 @@ key                    shape / type    meaning
 ``package_version``    str             animbatch version that wrote the file
 ``solver``             str (JSON)      solver settings used
 ``solver_stats``       str (JSON)      RHS evaluations, steps, Jacobian evaluations, wall time, …
+``emitter_names``      (E,) str        emitters, in scene order (version 3; absent or empty without emitters)
+``particles_K_positions`` (F, C, 3)    emitter K's slots at each frame [m], float32 (C: its capacity)
+``particles_K_serials``   (F, C)       int32 serial of the particle in each slot, -1 where the slot is free
+``particles_K_ages``      (F, C)       float32 age of each particle [s]
+``particle_stats``     str (JSON)      births, deaths, drops, collisions, steps of the particle simulation
 =====================  ==============  =================================================================
+
+Version 2 files (without particles) are still read.
 
 Example::
 
@@ -41,9 +48,11 @@ import numpy as np
 
 from animbatch.errors import TrajectoryError
 from animbatch.files import atomic_path
+from animbatch.particles.records import ParticleFrames
 
 FORMAT = "animbatch-trajectory"
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
+READABLE_VERSIONS = (2, 3)
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,6 +74,8 @@ class Trajectory:
     package_version: str
     solver: dict[str, Any] = field(default_factory=dict)
     solver_stats: dict[str, Any] = field(default_factory=dict)
+    particles: tuple[ParticleFrames, ...] = ()
+    particle_stats: dict[str, Any] = field(default_factory=dict)
 
     @property
     def frame_count(self) -> int:
@@ -82,8 +93,18 @@ class Trajectory:
                      angular_velocities=self.angular_velocities, anchor_names=np.array(self.anchor_names, dtype=str),
                      anchor_positions=self.anchor_positions.reshape(-1, 3), physics_hash=np.str_(self.physics_hash),
                      scene_name=np.str_(self.scene_name), package_version=np.str_(self.package_version),
-                     solver=np.str_(json.dumps(self.solver)), solver_stats=np.str_(json.dumps(self.solver_stats)))
+                     solver=np.str_(json.dumps(self.solver)), solver_stats=np.str_(json.dumps(self.solver_stats)),
+                     emitter_names=np.array([p.name for p in self.particles], dtype=str),
+                     particle_stats=np.str_(json.dumps(self.particle_stats)), **self._particle_arrays())
         return path
+
+    def _particle_arrays(self) -> dict[str, np.ndarray]:
+        arrays = {}
+        for k, frames in enumerate(self.particles):
+            arrays[f"particles_{k}_positions"] = frames.positions
+            arrays[f"particles_{k}_serials"] = frames.serials
+            arrays[f"particles_{k}_ages"] = frames.ages
+        return arrays
 
     @classmethod
     def load(cls, path: str | Path) -> Trajectory:
@@ -99,7 +120,7 @@ class Trajectory:
         if str(arrays.get("format", "")) != FORMAT:
             raise TrajectoryError(f"{path}: not an animbatch trajectory (missing format marker)")
         version = int(arrays.get("format_version", -1))
-        if version != FORMAT_VERSION:
+        if version not in READABLE_VERSIONS:
             raise TrajectoryError(f"{path}: trajectory format version {version}; this animbatch reads version "
                                   f"{FORMAT_VERSION}. Re-run 'animbatch simulate'.")
         required = {"times", "body_names", "body_kinds", "positions", "velocities", "orientations",
@@ -113,10 +134,20 @@ class Trajectory:
             expected = (len(times), len(names), width)
             if arrays[key].shape != expected:
                 raise TrajectoryError(f"{path}: {key} has shape {arrays[key].shape}, expected {expected}")
+        particles = []
+        for k, name in enumerate(arrays.get("emitter_names", ())):
+            keys = [f"particles_{k}_{part}" for part in ("positions", "serials", "ages")]
+            if any(key not in arrays for key in keys):
+                raise TrajectoryError(f"{path}: incomplete trajectory, the particles of emitter {name!r} are missing")
+            positions, serials, ages = (arrays[key] for key in keys)
+            if positions.shape[:2] != serials.shape or serials.shape != ages.shape or len(serials) != len(times):
+                raise TrajectoryError(f"{path}: the particle arrays of emitter {name!r} disagree in shape")
+            particles.append(ParticleFrames(str(name), positions, serials, ages))
         return cls(times, names, arrays["positions"], arrays["velocities"], arrays["orientations"],
                    arrays["angular_velocities"], tuple(str(k) for k in arrays["body_kinds"]),
                    tuple(str(n) for n in arrays.get("anchor_names", ())),
                    arrays.get("anchor_positions", np.zeros((0, 3))).reshape(-1, 3),
                    str(arrays["physics_hash"]), str(arrays.get("scene_name", "")),
                    str(arrays.get("package_version", "")),
-                   json.loads(str(arrays.get("solver", "{}"))), json.loads(str(arrays.get("solver_stats", "{}"))))
+                   json.loads(str(arrays.get("solver", "{}"))), json.loads(str(arrays.get("solver_stats", "{}"))),
+                   tuple(particles), json.loads(str(arrays.get("particle_stats", "{}"))))

@@ -319,9 +319,7 @@ class ModelBuilder:
 
     def finalize(self, *, duration: float, fps: float) -> Model:
         """Freeze everything into a Model whose frames are sampled at ``k / fps`` over ``duration`` [s]."""
-        if not self._segments:
-            raise ValueError("a model needs at least one body")
-        n = self.particle_count
+        n = self.particle_count  # no bodies at all is allowed: a scene of emitters only
         if self._chunks:
             mass, radius, x0, v0 = (np.concatenate(parts) for parts in zip(*self._chunks))
         else:

@@ -45,9 +45,13 @@ def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
                            first_point=first_point, second_point=second_point)
     for controller in spec.controllers:
         builder.add_controller(handles[controller.body][0], controller)
-    for field in spec.fields:
-        builder.add_field(field, None if field.bodies is None else
-                          [handle for name in field.bodies for handle in handles[name]])
+    for field in spec.fields if handles else ():  # a scene of emitters only has no body to act on
+        if field.bodies is None:
+            builder.add_field(field)
+            continue
+        chosen = [name for name in field.bodies if name in handles]  # the others are emitters
+        if chosen:
+            builder.add_field(field, [handle for name in chosen for handle in handles[name]])
     model = builder.finalize(duration=spec.duration, fps=spec.fps)
     if not spec.has_contacts:
         return model

@@ -107,6 +107,8 @@ class Model:
         if self.layout.has(rigid):
             block = self.layout.view(y, rigid)
             parts.append(transform(block) if transform is not None else block)
+        if not parts:  # no bodies (a scene of emitters only)
+            return np.zeros((*y.shape[:-1], 0, 3))
         return np.concatenate(parts, axis=-2) if len(parts) > 1 else np.array(parts[0])
 
     def positions(self, y: np.ndarray) -> np.ndarray:

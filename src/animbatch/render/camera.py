@@ -29,12 +29,16 @@ def motion_bounds(positions: np.ndarray, radius: np.ndarray, extra_points: np.nd
 
     ``positions``: (F, N, 3); ``radius``: (N,); ``extra_points``: (K, 3) such as anchors.
     """
-    finite = np.where(np.isfinite(positions), positions, np.nan)
-    low = np.nanmin(finite - radius[None, :, None], axis=(0, 1))
-    high = np.nanmax(finite + radius[None, :, None], axis=(0, 1))
+    low, high = np.full(3, np.inf), np.full(3, -np.inf)
+    if positions.size:
+        finite = np.where(np.isfinite(positions), positions, np.nan)
+        low = np.nanmin(finite - radius[None, :, None], axis=(0, 1))
+        high = np.nanmax(finite + radius[None, :, None], axis=(0, 1))
     if extra_points is not None and len(extra_points):
         low = np.minimum(low, extra_points.min(axis=0))
         high = np.maximum(high, extra_points.max(axis=0))
+    if not np.all(np.isfinite(low)):  # nothing to frame
+        low, high = -np.ones(3), np.ones(3)
     return np.stack([low, high])
 
 

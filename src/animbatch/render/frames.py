@@ -119,10 +119,11 @@ class FrameGeometry:
     surface_colors: tuple[tuple[str, str], ...] = ()  # (front, back) per deformable body
     target_segments: np.ndarray | None = None  # (S, 2, 3) [m]: the curves PD controllers keep bodies on
     target_points: tuple[Any, ...] = ()  # point and keyframe targets (forces.controllers.Target), drawn as markers
+    emitters: tuple[Any, ...] = ()  # compiled emitters (particles.emitter.Emitter), whose particles are drawn
 
     @classmethod
     def from_scene(cls, spec: SceneSpec, model: Model, bounds: np.ndarray, largest_vector: float = 0.0,
-                   scene_dir: Path = Path(".")) -> FrameGeometry:
+                   scene_dir: Path = Path("."), emitters: tuple[Any, ...] = ()) -> FrameGeometry:
         # palette colours follow the scene's order of bodies; the model orders them particles first
         by_name = {body.name: (index, body) for index, body in enumerate(spec.bodies)}
         colors = [by_name[name][1].color or PALETTE[by_name[name][0] % len(PALETTE)] for name in model.owners]
@@ -163,7 +164,7 @@ class FrameGeometry:
                    *spring_parts, spring_colors, fluids, bounds, scale,
                    tuple(c for c in spec.colliders if c.visible), scene_dir, model.anchors,
                    np.asarray(model.anchor_visible), drawn_particles, deformables, tuple(surface_colors),
-                   segments, points)
+                   segments, points, emitters)
 
 
 def controller_targets(model: Model) -> tuple[np.ndarray | None, tuple[Any, ...]]:
@@ -272,6 +273,7 @@ class FrameRenderer:
         self._add_colliders()
         self._add_fluids()
         self._add_particles()
+        self._add_emitted()
         self._add_surfaces()
         self._add_rigid_bodies()
         self._add_springs()
@@ -314,6 +316,12 @@ class FrameRenderer:
                 sphere = self.pv.Sphere(radius=float(radius), theta_resolution=resolution, phi_resolution=resolution)
                 self._particle_actors.append(self.plotter.add_mesh(sphere, color=color, smooth_shading=True,
                                                                    specular=0.3, specular_power=20))
+
+    def _add_emitted(self) -> None:
+        """One point cloud per emitter (see :mod:`animbatch.render.emitted`)."""
+        from animbatch.render.emitted import EmitterLayer
+
+        self._emitter_layers = [EmitterLayer(self.pv, self.plotter, emitter) for emitter in self.geometry.emitters]
 
     def _add_surfaces(self) -> None:
         """One smooth, two-sided surface per cloth or lattice; a frame rewrites its points and normals in place."""
@@ -514,10 +522,16 @@ class FrameRenderer:
         matrix.Modified()
 
     def draw(self, t: float, positions: np.ndarray, orientations: np.ndarray | None = None,
-             angular_velocities: np.ndarray | None = None) -> np.ndarray:
+             angular_velocities: np.ndarray | None = None, emitted: tuple[Any, int] | None = None) -> np.ndarray:
         """Render the bodies at time ``t`` [s]: centre-of-mass ``positions`` (P, 3) [m], ``orientations`` (P, 4)
-        quaternions and ``angular_velocities`` (P, 3) [rad/s]. Returns an RGB image (H, W, 3) uint8."""
+        quaternions and ``angular_velocities`` (P, 3) [rad/s]; ``emitted``: the trajectory's particle frames (one
+        :class:`~animbatch.particles.records.ParticleFrames` per emitter) and the index of this frame. Returns an
+        RGB image (H, W, 3) uint8."""
         geometry = self.geometry
+        if emitted is not None:
+            records, frame = emitted
+            for layer, frames in zip(self._emitter_layers, records):
+                layer.update(frames, frame)
         n = len(geometry.particle_radius)
         drawn = positions[self._drawn]
         if self.use_sprites and len(drawn):

@@ -21,11 +21,13 @@ def check_references(data: dict[str, Any]) -> list[Problem]:
     """Every cross-reference problem in raw scene data, as ``(key path, message)``."""
     bodies = _names(data, "bodies")
     anchors = _names(data, "anchors")
+    emitters = _names(data, "emitters")
     rigid = _of_type(data, ("rigid",))
     deformable = _of_type(data, DEFORMABLE_TYPES)
     return [*_body_list(data), *_duplicate_names(data), *_springs(data, bodies, anchors, rigid, deformable),
-            *_fields(data, bodies, anchors, rigid, deformable), *_pins(data, bodies, rigid),
-            *_controllers(data, bodies, rigid, deformable), *_materials(data), *_contact_method(data)]
+            *_fields(data, bodies, anchors, rigid, deformable, emitters), *_pins(data, bodies, rigid),
+            *_controllers(data, bodies, rigid, deformable), *_emitters(data, bodies, rigid), *_materials(data),
+            *_contact_method(data)]
 
 
 #: Body types made of many vertices (each a particle in the model).
@@ -56,8 +58,8 @@ def _names(data: dict[str, Any], section: str) -> dict[str, KeyPath]:
 
 
 def _body_list(data: dict[str, Any]) -> Iterator[Problem]:
-    if data.get("bodies") in (None, []):
-        yield ("bodies",), "a scene needs at least one body (a list under 'bodies:')"
+    if data.get("bodies") in (None, []) and data.get("emitters") in (None, []):
+        yield ("bodies",), "a scene needs at least one body (a list under 'bodies:') or emitter ('emitters:')"
 
 
 def _springs(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath],
@@ -89,10 +91,18 @@ def _springs(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str
 
 
 def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath],
-            rigid: set[str], deformable: set[str]) -> Iterator[Problem]:
+            rigid: set[str], deformable: set[str], emitters: dict[str, KeyPath]) -> Iterator[Problem]:
+    from animbatch.particles.fields import PARTICLE_FIELD_TYPES
+
     cloths = _of_type(data, ("cloth",))
     for index, field in _items(data, "fields"):
         selection = field.get("bodies")
+        if isinstance(selection, list):
+            for position, name in enumerate(selection):
+                if name in emitters and name not in bodies and field.get("type") not in PARTICLE_FIELD_TYPES:
+                    yield ("fields", index, "bodies", position), (
+                        f"{name!r} is an emitter; {field.get('type')} does not act on emitted particles (only "
+                        f"{', '.join(PARTICLE_FIELD_TYPES)} do)")
         if field.get("type") == "aerodynamics":
             if isinstance(selection, list):
                 for position, name in enumerate(selection):
@@ -113,19 +123,31 @@ def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str,
                 yield ("fields", index, "type"), f"{field['type']} acts on rigid bodies, and the scene has none"
         if isinstance(selection, list):
             for position, name in enumerate(selection):
-                if not isinstance(name, str) or name in bodies:
+                if not isinstance(name, str) or name in bodies or name in emitters:
                     continue
+                known = [*bodies, *emitters]
                 if name in anchors:
                     reason = " (it is an anchor; fields act on bodies only)"
                 else:
-                    reason = did_you_mean(name, bodies)
+                    reason = did_you_mean(name, known)
                 yield ("fields", index, "bodies", position), (
-                    f"unknown body {name!r}{reason} Bodies: {', '.join(bodies) or '(none)'}")
+                    f"unknown body or emitter {name!r}{reason} Bodies and emitters: {', '.join(known) or '(none)'}")
         if field.get("type") == "gravitation":
             count = len(selection) if isinstance(selection, list) else len(bodies)
             if count < 2:
                 yield ("fields", index, "bodies" if isinstance(selection, list) else "type"), (
                     f"gravitation acts between bodies and needs at least 2 (got {count})")
+
+
+def _emitters(data: dict[str, Any], bodies: dict[str, KeyPath], rigid: set[str]) -> Iterator[Problem]:
+    """An emitter moves with a rigid body, if any."""
+    for index, emitter in _items(data, "emitters"):
+        name = emitter.get("body")
+        if isinstance(name, str) and name not in rigid:
+            reason = (" (it is not a rigid body: emitters move with rigid bodies, whose surface and turning they "
+                      "follow)" if name in bodies else did_you_mean(name, sorted(rigid)))
+            yield ("emitters", index, "body"), (
+                f"unknown rigid body {name!r}{reason} Rigid bodies: {', '.join(sorted(rigid)) or '(none)'}")
 
 
 def _pins(data: dict[str, Any], bodies: dict[str, KeyPath], rigid: set[str]) -> Iterator[Problem]:
@@ -175,7 +197,7 @@ def _materials(data: dict[str, Any]) -> Iterator[Problem]:
             yield path, (f"unknown material {name!r}{did_you_mean(name, known)} Known: {', '.join(known)} "
                          "(define it under 'materials')")
 
-    for section in ("bodies", "colliders"):
+    for section in ("bodies", "colliders", "emitters"):
         for index, item in _items(data, section):
             yield from unknown((section, index, "material"), item.get("material"))
     for index, pair in _items(data, "material_pairs"):
@@ -256,8 +278,8 @@ def _pin_selections(spec: Any, base_dir: Path) -> list[Problem]:
 
 
 def _duplicate_names(data: dict[str, Any]) -> Iterator[Problem]:
-    """Bodies and anchors share one namespace; springs have their own."""
-    for sections in (("bodies", "anchors"), ("springs",)):
+    """Bodies, anchors and emitters share one namespace; springs have their own."""
+    for sections in (("bodies", "anchors", "emitters"), ("springs",)):
         first: dict[str, KeyPath] = {}
         for section in sections:
             for index, item in _items(data, section):

@@ -105,8 +105,8 @@ def physics_fingerprint(spec: SceneSpec, base_dir: str | Path = ".") -> str:
     """SHA-256 of everything that determines the motion, and of nothing that only changes how it looks.
 
     Included: bodies, anchors, springs, fields, timeline, and the bytes of mesh files (found from ``base_dir``).
-    Excluded: the name, description, solver settings (stored separately with a trajectory), render settings and
-    colours. Two scenes with the same fingerprint describe the same physical system over the same frame times.
+    Excluded: the name, description, solver settings (stored separately with a trajectory), render settings,
+    colours, and how emitted particles look (their colours are drawn again from their serials when frames are drawn). Two scenes with the same fingerprint describe the same physical system over the same frame times.
     """
     data = _without_colors(spec.model_dump(mode="json", exclude=set(PRESENTATION_KEYS)))
     files = sorted(set(_mesh_files(data)))
@@ -135,7 +135,7 @@ def _digest(path: Path) -> str:
 
 def _without_colors(value: Any) -> Any:
     if isinstance(value, dict):
-        return {k: _without_colors(v) for k, v in value.items() if k != "color"}
+        return {k: _without_colors(v) for k, v in value.items() if k not in ("color", "look")}  # emitters' look
     if isinstance(value, list):
         return [_without_colors(v) for v in value]
     return value
