@@ -12,13 +12,15 @@ Prints one table. Measures:
    the cost per step while the pile forms and once it rests, and the state at the end (speeds, overlaps);
 4. rendered frames per second at 1280×720 for one sphere and for 1e4 particles (sprites), with FXAA and without;
 5. encoding frames per second (H.264 at several presets, and PNG);
+7. the fountain scene at 100 000 live particles: simulation steps per second in steady state, and rendered frames
+   per second at 1280×720;
 6. a stiff 64×64 cloth over 5 s at 30 fps, falling from horizontal, pinned at two corners: wall time, RHS
    evaluations, steps, Jacobians and factorisations for backward Euler at one step per frame, BDF and Radau with the
    analytic sparse Jacobian, semi-implicit Euler at its largest stable step, and RK45; each method gets a wall-time
    budget (``--budget``), and one that runs out is reported with the simulated time it reached.
 
 Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, rigid, contacts, render,
-encode, cloth), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick), ``--json FILE`` (also write
+encode, cloth, fountain), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick), ``--json FILE`` (also write
 the rows as JSON).
 """
 
@@ -43,6 +45,8 @@ from scipy.integrate import solve_ivp  # noqa: E402
 from animbatch.integrators import ScipyIntegrator  # noqa: E402
 from animbatch.integrators.fixed_step import SymplecticEuler, VelocityVerlet  # noqa: E402
 from animbatch.model import ModelBuilder, Dynamics  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
 
 Row = dict[str, object]
 
@@ -363,8 +367,58 @@ def bench_encode(quick: bool) -> list[Row]:
     return rows
 
 
+def bench_fountain(quick: bool) -> list[Row]:
+    """scenes/fountain.yaml with its rate raised to keep 100 000 drops alive (1e4 with --quick): simulation steps per
+    second once the pool is full, and rendered frames per second at 1280×720 (sphere sprites, with and without the
+    scene's 2-frame trails)."""
+    from animbatch import api
+    from animbatch.particles.compile import compile_particles
+    from animbatch.particles.simulate import simulate_particles
+    from animbatch.render.backend import select_backend
+    from animbatch.render.frames import FrameRenderer
+    from animbatch.scene import load_scene
+
+    live = 10_000 if quick else 100_000
+    overrides = [f"emitters[jet].rate={live / 2.2!r}", "duration=3.0"]  # mean lifetime 2.2 s
+    loaded = load_scene(ROOT / "scenes" / "fountain.yaml", overrides)
+    model = api.compile_model(loaded)
+    systems = compile_particles(loaded.spec, model)
+    stamps: dict[int, float] = {}
+    times = model.frame_times
+    _, stats = simulate_particles(systems.emitters, systems.colliders, times, loaded.spec.solver, None,
+                                  dt=loaded.spec.solver.dt, record=False,
+                                  on_frame=lambda frame, t: stamps.__setitem__(frame, time.perf_counter()))
+    steady = [k for k in range(len(times)) if times[k] >= 2.3]  # every drop of the first has died by then
+    steps_per_frame = stats.steps / (len(times) - 1)
+    rate = steps_per_frame * (steady[-1] - steady[0]) / (stamps[steady[-1]] - stamps[steady[0]])
+    label = f"fountain, {live:.0e} live drops"
+    rows: list[Row] = [
+        {"benchmark": label, "case": f"live drops at the end (pool of {systems.emitters[0].capacity})",
+         "value": stats.per_emitter["jet"]["live_at_end"], "unit": "particles"},
+        {"benchmark": label, "case": "simulation (verlet, gravity + drag + bouncing on the basin), steady state",
+         "value": rate, "unit": "steps/s"},
+        {"benchmark": label, "case": "simulation, per particle-step", "value": 1e9 / (rate * live), "unit": "ns"}]
+    for trail in (2, 0):
+        scene = load_scene(ROOT / "scenes" / "fountain.yaml", [*overrides, f"emitters[jet].look.trail={trail}"])
+        trajectory = api.simulate(scene, model=model)
+        geometry = api.frame_geometry(scene, model, trajectory)
+        chosen = select_backend("auto")
+        frames = [k for k in steady][-20:]
+        with FrameRenderer(scene.spec.render, geometry, chosen) as renderer:
+            draw = lambda k: renderer.draw(float(times[k]), trajectory.positions[k], trajectory.orientations[k],  # noqa: E731
+                                           trajectory.angular_velocities[k], (trajectory.particles, k))
+            draw(frames[0])  # warm-up: shaders compiled, attributes of the first particles looked up
+            started = time.perf_counter()
+            for k in frames:
+                draw(k)
+            fps = len(frames) / (time.perf_counter() - started)
+        rows.append({"benchmark": label, "case": f"render 1280×720, {'trails of 2 frames' if trail else 'no trails'}, "
+                                                 f"{chosen.name}", "value": fps, "unit": "frames/s"})
+    return rows
+
+
 BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "rigid": bench_rigid, "contacts": bench_contacts,
-              "render": bench_render, "encode": bench_encode, "cloth": bench_cloth}
+              "render": bench_render, "encode": bench_encode, "cloth": bench_cloth, "fountain": bench_fountain}
 
 
 def main() -> int:
