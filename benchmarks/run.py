@@ -20,7 +20,8 @@ Prints one table. Measures:
    budget (``--budget``), and one that runs out is reported with the simulated time it reached.
 
 Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, rigid, contacts, render,
-encode, cloth, fountain), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick), ``--json FILE`` (also write
+encode, cloth, fountain), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick), ``--cloth-method NAME`` (only
+the cloth methods whose label starts with NAME, e.g. ``BDF``; repeatable), ``--json FILE`` (also write
 the rows as JSON).
 """
 
@@ -245,8 +246,9 @@ class OutOfBudget(Exception):
     """A benchmark run used up its wall-time budget."""
 
 
-def bench_cloth(quick: bool, budget: float | None = None) -> list[Row]:
-    """The stiff cloth with each method, each within a wall-time budget."""
+def bench_cloth(quick: bool, budget: float | None = None, only: list[str] | None = None) -> list[Row]:
+    """The stiff cloth with each method (or those whose label starts with one of ``only``), each within a wall-time
+    budget."""
     from animbatch.integrators import make_integrator
     from animbatch.integrators.stability import largest_stable_step, stiffest_mode
     from animbatch.model import compile_scene
@@ -266,6 +268,7 @@ def bench_cloth(quick: bool, budget: float | None = None) -> list[Row]:
          f"{{method: symplectic_euler, dt: {0.95 * stable!r}}}"),
         ("RK45, rtol 1e-3, atol 1e-4", "{method: RK45, rtol: 1.0e-3, atol: 1.0e-4}"),
     ]
+    methods = [(name, solver) for name, solver in methods if not only or name.startswith(tuple(only))]
     label = f"cloth {resolution}×{resolution}, {duration:g} s"
     rows: list[Row] = [{"benchmark": label, "case": f"fastest spring mode ω (explicit methods need ω dt ≲ 2)",
                         "value": mode.omega, "unit": "rad/s"}]
@@ -426,6 +429,8 @@ def main() -> int:
     parser.add_argument("--quick", action="store_true", help="smaller sizes, for a smoke run")
     parser.add_argument("--only", choices=sorted(BENCHMARKS), action="append", help="run only these")
     parser.add_argument("--budget", type=float, help="wall-time budget per cloth method [s]")
+    parser.add_argument("--cloth-method", action="append", metavar="NAME",
+                        help="run only the cloth methods whose label starts with NAME (e.g. BDF)")
     parser.add_argument("--json", type=Path, help="also write the rows to this JSON file")
     args = parser.parse_args()
     print(f"animbatch benchmarks on {platform.node()}: {os.cpu_count()} CPUs, Python {platform.python_version()}, "
@@ -433,7 +438,7 @@ def main() -> int:
     rows: list[Row] = []
     for name in args.only or list(BENCHMARKS):
         print(f"running {name} …", file=sys.stderr, flush=True)
-        rows += BENCHMARKS[name](args.quick, args.budget) if name == "cloth" else BENCHMARKS[name](args.quick)
+        rows += BENCHMARKS[name](args.quick, args.budget, args.cloth_method) if name == "cloth" else BENCHMARKS[name](args.quick)
     width = max(len(str(row["case"])) for row in rows)
     print(f"\n{'benchmark':<22} {'case':<{width}} {'result':>12}  unit")
     print("-" * (22 + width + 24))

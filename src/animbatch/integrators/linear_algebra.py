@@ -61,14 +61,36 @@ class SecondOrderFactor:
         return np.concatenate([(first + self.q * velocity) / self.p, velocity])
 
 
+#: Reuse a Newton matrix's factors while the step coefficient has changed by less than this fraction (CVODE's
+#: ``dgmax``, 0.3) and the Jacobian is the same; Newton then converges a little slower instead of refactoring.
+FACTOR_REUSE_CHANGE = 0.3
+
+
 def use_second_order_factors(solver: Any, mass: np.ndarray) -> None:
     """Make a scipy ``Radau`` or ``BDF`` solver, created with our sparse particle Jacobian, factor its Newton matrices
     through :class:`SecondOrderFactor`. Both solvers call only ``self.lu(matrix)`` and ``self.solve_lu(factors, b)``
-    with such matrices (scipy ≥ 1.0), and count factorisations in ``nlu``."""
+    with such matrices (scipy ≥ 1.0), and count factorisations in ``nlu``.
+
+    scipy asks for new factors after every change of step size, which on BDF is every ``order + 1`` steps, so on a
+    cloth most of the time went into factorisations of nearly the same matrix. Here, as in CVODE, factors are reused
+    while the Jacobian is unchanged and the step coefficient ``q / p`` (h/α for BDF, h/μ for Radau) is within
+    :data:`FACTOR_REUSE_CHANGE` of the one they were made for: the Newton iteration is then a modified Newton one with
+    a slightly stale matrix, whose convergence scipy checks as it always does (and on failure it evaluates a fresh
+    Jacobian, which forces new factors).
+    """
+    made: dict[complex, tuple[int, complex, SecondOrderFactor]] = {}  # by p's phase (Radau has two): njev, q/p, factors
 
     def lu(matrix: sp.spmatrix) -> SecondOrderFactor:
+        size = matrix.shape[0] // 2
+        p, q = matrix[0, 0], -matrix[0, size]
+        kind = complex(p / abs(p))
+        cached = made.get(kind)
+        if cached is not None and cached[0] == solver.njev and abs(q / p / cached[1] - 1) < FACTOR_REUSE_CHANGE:
+            return cached[2]
         solver.nlu += 1
-        return SecondOrderFactor(matrix, mass)
+        factors = SecondOrderFactor(matrix, mass)
+        made[kind] = (solver.njev, q / p, factors)
+        return factors
 
     solver.lu = lu
     solver.solve_lu = lambda factors, right_hand_side: factors.solve(right_hand_side)
