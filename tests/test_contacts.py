@@ -156,6 +156,31 @@ def test_apex_heights_follow_e_to_the_2n_and_bouncing_ends_at_the_series_time():
     assert np.abs(height[t > at_rest]).max() < 1e-12 and np.abs(velocity[t > at_rest]).max() < 1e-9
 
 
+@pytest.mark.parametrize("method, accuracy", [("RK45", 1e-8), ("symplectic_euler", 3e-3), ("verlet", 3e-3),
+                                              ("backward_euler", 3e-3)])
+def test_impact_times_are_logged_and_follow_the_bounce_series(method, accuracy):
+    """Every path logs its bounces (time, body) in the run's statistics: for e = 0.5 from 1 m, impact k is at
+    t₀ (1 + 2 Σ_{j≤k} e^j); events find them to the tolerance, fixed steps (1 ms) to a few steps per bounce (a
+    speculative contact bounces up to a step early).
+    Verlet bounces too (its end-of-step re-projection must not stop an arriving ball dead)."""
+    e = 0.5
+    _, trajectory = run(f"""
+        duration: 1.4
+        fps: 50
+        {solver(method)}
+        {materials(e)}
+        bodies: [{{name: ball, radius: 0.1, position: [0, 1.1, 0], material: m}}]
+        colliders: [{{type: plane, material: m}}]
+        fields: [{{type: gravity}}]
+    """)
+    t0 = np.sqrt(2 / G)
+    exact = [t0 * (1 + 2 * sum(e**j for j in range(1, k + 1))) for k in range(4)]
+    impacts = trajectory.solver_stats["impacts"]
+    assert [body for _, body in impacts[:4]] == [0, 0, 0, 0]
+    for k, (time, _) in enumerate(impacts[:4]):
+        assert time == pytest.approx(exact[k], abs=accuracy * (k + 1))
+
+
 @pytest.mark.parametrize("method", BOTH)
 def test_resting_contact_is_still(method):
     """A ball and a box placed on the ground stay where they are, with zero velocity, frame after frame. (With

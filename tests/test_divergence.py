@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -69,13 +71,17 @@ def test_fixed_step_divergence_names_time_step_body_and_fix():
 
 
 def test_refused_run_writes_no_frames(tmp_cwd):
-    """'animbatch render' on a scene whose step cannot hold its springs exits 3 and leaves no video, frame or
-    report behind."""
+    """'animbatch render' on a scene whose step cannot hold its springs exits 3 and leaves no video or frame
+    behind: only a report that says why, with the same message."""
     (tmp_cwd / "stiff.yaml").write_text(STIFF)
     result = CliRunner().invoke(cli, ["render", "stiff.yaml", "--formats", "mp4,png"])
     assert result.exit_code == 3
     assert result.output.startswith("error: euler at dt = 0.001 s cannot hold") and "Traceback" not in result.output
-    assert not (tmp_cwd / "renders").exists()
+    written = sorted(p.relative_to(tmp_cwd).as_posix() for p in (tmp_cwd / "renders").rglob("*") if p.is_file())
+    assert written == ["renders/stiff/report.json"]
+    report = json.loads((tmp_cwd / "renders/stiff/report.json").read_text())
+    assert report["status"] == "failed" and report["exit_code"] == 3 and report["outputs"] == []
+    assert report["error"] == result.output.removeprefix("error: ").strip()
 
 
 def two_particles(second: str):

@@ -108,7 +108,7 @@ def test_dampers_only_remove_energy():
 
 def energy_drift(method: str, dt: float) -> np.ndarray:
     model, trajectory = run("""
-        duration: 20
+        duration: 10
         fps: 10
         anchors: [{name: wall, position: [0, 0, 0]}]
         bodies: [{name: mass, mass: 1, position: [1.5, 0, 0]}]
@@ -122,8 +122,8 @@ def test_explicit_euler_gains_energy_while_symplectic_methods_stay_bounded():
     """On an undamped oscillator, explicit Euler's energy grows every step; symplectic Euler and Verlet oscillate
     within O(h) and O(h²) bands without drifting."""
     euler = energy_drift("euler", 0.01)
-    assert np.all(np.diff(euler) > 0) and euler[-1] > 0.3  # (1 + ω²h²)^n - 1 = 0.49 for ω = 2, n = 2000
-    assert euler[-1] == pytest.approx((1 + 4 * 0.01**2) ** 2000 - 1, rel=1e-2)
+    assert np.all(np.diff(euler) > 0) and euler[-1] > 0.3  # (1 + ω²h²)^n - 1 = 0.49 for ω = 2, n = 990
+    assert euler[-1] == pytest.approx((1 + 4 * 0.01**2) ** 990 - 1, rel=1e-3)  # last frame at t = 9.9 s
     symplectic = energy_drift("symplectic_euler", 0.01)
     verlet = energy_drift("verlet", 0.01)
     assert np.abs(symplectic).max() < 0.02  # ~ω h

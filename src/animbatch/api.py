@@ -24,9 +24,11 @@ from typing import Any
 import numpy as np
 
 from animbatch import __version__
-from animbatch.errors import TrajectoryError
+from animbatch.errors import SimulationError, TrajectoryError
 from animbatch.files import write_json_atomic
 from animbatch.integrators import IntegrationResult, SolverStats, make_integrator
+from animbatch.integrators.guard import check_energy_growth
+from animbatch.integrators.preflight import preflight
 from animbatch.model import Dynamics, Model, compile_scene
 from animbatch.progress import Progress
 from animbatch.scene import LoadedScene, load_scene, physics_fingerprint
@@ -44,9 +46,11 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
     model = model if model is not None else compile_model(scene)
     integrator = make_integrator(spec.solver)
     progress = progress or Progress(enabled=False)
+    warnings = preflight(spec, model)  # risky settings, with numbers (what is certain to fail is refused)
     if model.layout.size:
         with progress.task("simulate", len(model.frame_times)) as on_frame:
             result = integrator.integrate(Dynamics(model), model.y0, model.frame_times, on_frame=on_frame)
+        check_energy_growth(model, result.states, spec.solver.method, result.stats.dt)
     else:  # a scene of emitters only: no body to integrate
         result = IntegrationResult(np.zeros((len(model.frame_times), 0)), SolverStats(spec.solver.method))
     states = result.states
@@ -59,7 +63,7 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
         anchor_names=model.anchor_names, anchor_positions=model.anchor_position.copy(),
         physics_hash=scene_fingerprint(scene), scene_name=scene.name, package_version=__version__,
         solver={**spec.solver.model_dump(), "description": integrator.describe()},
-        solver_stats=result.stats.as_dict(), particles=tuple(particles), particle_stats=particle_stats)
+        solver_stats={**result.stats.as_dict(), "warnings": warnings}, particles=tuple(particles), particle_stats=particle_stats)
 
 
 def simulate_emitters(scene: LoadedScene, model: Model, states: np.ndarray, progress: Progress
@@ -241,6 +245,7 @@ class RunReport:
     particle_stats: dict[str, Any] = field(default_factory=dict)
     created: str = field(default_factory=lambda: _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
     host: str = field(default_factory=platform.node)
+    status: str = "ok"
 
     def summary(self) -> str:
         """One line for logs: outputs, frames, timings and solver work."""
@@ -259,6 +264,15 @@ class RunReport:
                 f"{timings} | {solver} | {self.backend}")
 
 
+def failure_report(scene: LoadedScene, error: SimulationError, watch: Stopwatch) -> dict[str, Any]:
+    """The report of a run whose simulation failed: what failed, when, which body, and the message."""
+    return {"scene": scene.name, "scene_file": str(scene.path) if scene.path else None, "status": "failed",
+            "exit_code": error.exit_code, "error": str(error), "time": error.time, "body": error.body,
+            "details": error.details, "solver": scene.spec.solver.model_dump(), "stages": dict(watch.seconds),
+            "package_version": __version__, "outputs": [],
+            "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"), "host": platform.node()}
+
+
 def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: str | Path = "renders",
         backend: str = "auto", trajectory_path: str | Path | None = None,
         progress: Progress | None = None) -> RunReport:
@@ -274,7 +288,11 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
             check_trajectory(scene, model, trajectory, trajectory_path)  # before rendering, naming the file
     else:
         with watch.stage("simulate"):
-            trajectory = simulate(scene, model=model, progress=progress)
+            try:
+                trajectory = simulate(scene, model=model, progress=progress)
+            except SimulationError as error:  # the reason goes in the report too, where batch tools look for it
+                write_json_atomic(Path(out_dir) / scene.name / "report.json", failure_report(scene, error, watch))
+                raise
     result = render(scene, trajectory, model=model, out_dir=out_dir, backend=backend, progress=progress)
     watch.add("render", result.render_seconds)
     watch.add("encode", result.encode_seconds)

@@ -33,6 +33,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from animbatch.contact.detection import Contacts, detect, evaluate_pairs, probe_centres
+from animbatch.contact.impacts import ImpactLog
 from animbatch.contact.solver import BodyVelocities, solve_forces, solve_impulses
 from animbatch.contact.stepping import DEFAULT_REST_SPEED
 from animbatch.errors import SimulationError
@@ -87,6 +88,7 @@ class ContactEvents:
         probes = self.world.probes
         self.reach = float(np.max(np.linalg.norm(probes.offset, axis=1) + probes.radius)) if probes.count else 0.0
         self.events = 0
+        self.impacts = ImpactLog()
 
     # ------------------------------------------------------------------------------------- bodies
 
@@ -320,15 +322,17 @@ class ContactEvents:
 
     # ------------------------------------------------------------------------------------- handling events
 
-    def settle(self, y: np.ndarray) -> None:
-        """At an event (or the start): apply impacts at touching contacts and decide which contacts rest."""
+    def settle(self, y: np.ndarray, t: float) -> None:
+        """At an event (or the start) at time ``t`` [s]: apply impacts at touching contacts (and log them) and decide
+        which contacts rest."""
         state = self._state(y)
         touching = detect(self.world, state, TOUCH + self.settings.slop)
         if touching.count:
             bodies = self._velocities(state)
             x = np.vstack([state.x, np.zeros((1, 3))])
-            solve_impulses(touching, bodies, x, 0.0, iterations=self.settings.iterations,
-                           rest_speed=self.rest_speed, slop=self.settings.slop)
+            result = solve_impulses(touching, bodies, x, 0.0, iterations=self.settings.iterations,
+                                    rest_speed=self.rest_speed, slop=self.settings.slop)
+            self.impacts.record(np.full(touching.count, t), touching.probe_body, result.impact)
             self._write_velocities(y, state, bodies)
             state = self._state(y)
         self._choose_resting(y, state, touching)
@@ -416,7 +420,7 @@ def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any
     budget = MAX_EVENTS_PER_FRAME * len(times)
     frame = 1
     with np.errstate(all="ignore"):
-        events.settle(y)
+        events.settle(y, t)
         states[0] = y
         if on_frame is not None:
             on_frame(0, t)
@@ -452,7 +456,7 @@ def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any
                     t, y = float(event_time), interpolant(event_time)
                     system.project(y)
                     if impact is not None and (change is None or impact <= change):
-                        events.settle(y)
+                        events.settle(y, t)
                     else:
                         events.change_modes(t, y)
                     events.events += 1
@@ -467,5 +471,6 @@ def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any
             if event_time is None:
                 break
     stats.rhs_evaluations = fun.count
+    stats.impacts = events.impacts.as_list()
     stats.wall_time = time.perf_counter() - started
     return IntegrationResult(states, stats)

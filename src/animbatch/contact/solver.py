@@ -274,6 +274,8 @@ class SolveResult:
     tangent_impulse: np.ndarray
     pseudo_v: np.ndarray | None = None
     pseudo_omega: np.ndarray | None = None
+    impact: np.ndarray | None = None  # (K,) bool: contacts arriving faster than the rest speed (they bounce)
+    arrival: np.ndarray | None = None  # (K,) fraction of the step at which each gap closes (straight-line motion)
 
 
 def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h: float, *, iterations: int,
@@ -299,10 +301,17 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
     bounce_target = -contacts.restitution * approach if bounce else np.zeros(count)
     if h > 0:
         arrives = approach * h < -gap  # reaches the surface within this step
-        target = np.where(gap > 0, np.where(arrives & fast, bounce_target, -gap / h),
+        # without bounce (re-projecting after a step's second half kick), a fast contact still in the air is an
+        # impact the next bouncing solve must see at full speed: leave it alone rather than stop it dead
+        arriving = bounce_target if bounce else approach
+        target = np.where(gap > 0, np.where(arrives & fast, arriving, -gap / h),
                           np.where(fast, bounce_target, 0.0))
+        result.impact = fast & ((gap <= 0) | arrives) if bounce else np.zeros(count, bool)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            result.arrival = np.clip(np.where(approach < 0, gap / (-approach * h), 0.0), 0.0, 1.0)
     else:
         target = np.where(fast, bounce_target, 0.0)
+        result.impact, result.arrival = fast & bounce, np.zeros(count)
     normal_impulse = np.zeros(count)
     tangent_impulse = np.zeros((count, 2))
     velocity = rows.flat()

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from animbatch.contact.detection import Contacts, detect
+from animbatch.contact.impacts import ImpactLog
 from animbatch.contact.solver import BodyVelocities, solve_impulses
 from animbatch.forces import Kinematics
 from animbatch.integrators.fixed_step import SymplecticEuler, VelocityVerlet
@@ -48,6 +49,7 @@ class ContactResolver:
         probes = self.world.probes
         self.reach = float(np.max(np.linalg.norm(probes.offset, axis=1) + probes.radius)) if probes.count else 0.0
         self.contacts_last_step = 0
+        self.impacts = ImpactLog()
         # warm starting: last step's impulses per unit time, normal (K,) and tangential vectors (K, 3), for the
         # contacts identified by sorted codes (K,) (see contact_codes)
         self._warm_codes = np.zeros(0, np.int64)
@@ -103,8 +105,10 @@ class ContactResolver:
         order = np.argsort(codes)
         self._warm_codes, self._warm_normal, self._warm_tangent = codes[order], normal[order] / h, tangent[order] / h
 
-    def resolve(self, config: np.ndarray, motion: np.ndarray, h: float, *, bounce: bool = True) -> np.ndarray | None:
-        """Change the motion so that all contacts hold over a step of ``h`` [s].
+    def resolve(self, config: np.ndarray, motion: np.ndarray, h: float, *, bounce: bool = True,
+                t: float = 0.0) -> np.ndarray | None:
+        """Change the motion so that all contacts hold over the step of ``h`` [s] from time ``t``; impacts are
+        logged at the time within the step where their gap closes.
 
         Returns the motion to drift with when overlaps must also be pushed apart (the corrected motion plus the
         split-impulse pseudo-velocities), or None to drift with the motion itself.
@@ -125,6 +129,7 @@ class ContactResolver:
         result = solve_impulses(contacts, bodies, x, h, iterations=self.settings.iterations,
                                 rest_speed=self.rest_speed(h), slop=self.settings.slop, bounce=bounce, warm=warm)
         if bounce:  # remember the impulses of the main solve (not of end-of-step re-projections)
+            self.impacts.record(t + result.arrival * h, contacts.probe_body, result.impact)
             from animbatch.contact.solver import tangent_basis
 
             t1, t2 = tangent_basis(contacts.normal)
@@ -158,7 +163,7 @@ class _KickContactsDrift:
     def step(self, t: float, y: np.ndarray, h: float) -> None:
         config, motion = self.system.split(y)
         self.kick(t, config, motion, h)  # type: ignore[attr-defined]
-        drifting = self.contacts.resolve(config, motion, h)
+        drifting = self.contacts.resolve(config, motion, h, t=t)
         self.system.drift(config, motion if drifting is None else drifting, h)
         self.system.project(y)
 
@@ -182,7 +187,7 @@ class ContactVerlet(VelocityVerlet):
         config, motion = self.system.split(y)
         rate, work = self._rate, self._work
         motion += np.multiply(rate, 0.5 * h, out=work)
-        drifting = self.contacts.resolve(config, motion, h)
+        drifting = self.contacts.resolve(config, motion, h, t=t)
         np.add(motion, np.multiply(rate, 0.5 * h, out=work), out=self._predicted)
         self.system.drift(config, motion if drifting is None else drifting, h)
         rate_next = self.system.motion_rate(t + h, config, self._predicted, out=self._rate_next)

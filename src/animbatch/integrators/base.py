@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
@@ -52,6 +52,7 @@ class SolverStats:
     dt: float | None = None  # fixed-step methods: the step actually used [s]
     substeps_per_frame: int | None = None
     wall_time: float = 0.0  # [s]
+    impacts: list[tuple[float, int]] = field(default_factory=list)  # (time [s], body index) of bounces, in order
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)

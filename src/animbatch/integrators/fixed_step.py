@@ -239,6 +239,8 @@ class FixedStepIntegrator(Integrator):
         with np.errstate(all="ignore"):  # overflow is detected once per frame and reported, not warned about
             largest_step = self._run(scheme, y, states, times, stats, layout, on_frame)
         stats.rhs_evaluations = scheme.evaluations
+        if hasattr(scheme, "contacts"):  # contact schemes log their impacts
+            stats.impacts = scheme.contacts.impacts.as_list()
         stats.dt = largest_step or None
         if len(times) > 1:
             stats.substeps_per_frame = substeps(float(times[1] - times[0]), self.dt)

@@ -40,3 +40,94 @@ def fastest_body(layout: StateLayout | None, rate: np.ndarray, y: np.ndarray, at
     scaled = np.where(np.isfinite(scaled), scaled, np.inf)
     body, _ = layout.describe_index(int(np.argmax(scaled)))
     return body
+
+
+#: Largest sustained rise of the total energy tolerated in a scene without energy input, as a multiple of its
+#: energy scale (see :func:`check_energy_growth`): far above what any stable method's error gives, and reached soon
+#: by an unstable one, whose energy grows geometrically.
+ENERGY_GROWTH_LIMIT = 1.0
+#: Methods that conserve a modified energy on springs (their energy error oscillates and does not drift).
+SYMPLECTIC = ("symplectic_euler", "verlet")
+#: The rise must hold over this long [s] (every frame in it), so that a stable symplectic method, whose energy
+#: oscillates (widely near its step limit) but always comes back, is never stopped.
+ENERGY_WINDOW = 0.5
+
+
+def energy_scale(model: object) -> float:
+    """The energy a scene has to play with [J], from its initial state: the largest of |E₀|, the kinetic energy and
+    ``M |g| L`` (total mass, strongest uniform gravity, size of the initial configuration or the largest body)."""
+    from animbatch.invariants import kinetic_energy, total_energy
+
+    y0 = model.y0  # type: ignore[attr-defined]
+    x0 = model.positions(y0[None])[0]  # type: ignore[attr-defined]
+    size = max(float(np.linalg.norm(np.ptp(x0, axis=0))) if len(x0) else 0.0,
+               float(np.max(model.bodies.radius, initial=0.0)))  # type: ignore[attr-defined]
+    gravity = max((float(np.linalg.norm(term.g)) for term in model.force_terms  # type: ignore[attr-defined]
+                   if term.kind == "gravity"), default=0.0)
+    return max(abs(float(total_energy(model, y0))), float(kinetic_energy(model, y0)),  # type: ignore[arg-type]
+               float(np.sum(model.bodies.mass)) * gravity * size, 1e-12)  # type: ignore[attr-defined]
+
+
+def check_energy_growth(model: object, states: np.ndarray, method: str, dt: float | None,
+                        limit: float = ENERGY_GROWTH_LIMIT) -> None:
+    """Raise SimulationError when the total energy of a scene that has no energy input (no wind, applied forces,
+    moving anchors or targets) stays above ``E₀ + limit × scale`` (:func:`energy_scale`) at every frame of a window
+    of :data:`ENERGY_WINDOW` seconds, in ``states`` (F, n).
+
+    Such a rise can only be numerical: an unstable step, or a near collision under gravitation resolved too coarsely.
+    The error names the frame time, the body that gained the most kinetic energy, the stiffest spring and the largest
+    stable step, and what to change.
+    """
+    from animbatch.forces import Gravitation
+    from animbatch.integrators.stability import largest_stable_step, stiffest_mode
+    from animbatch.invariants import total_energy
+
+    if len(states) < 2 or any(term.adds_energy for term in model.force_terms):  # type: ignore[attr-defined]
+        return
+    if getattr(model.anchors, "moving", False):  # type: ignore[attr-defined]
+        return
+    times = model.frame_times  # type: ignore[attr-defined]
+    energy = total_energy(model, states)  # type: ignore[arg-type]
+    scale = energy_scale(model)
+    # a run shorter than the window is judged on all its frames after the first
+    window = min(max(2, int(round(ENERGY_WINDOW / float(times[1] - times[0])))), len(energy) - 1)
+    sustained = np.lib.stride_tricks.sliding_window_view(energy[1:], window).min(axis=1)  # min over each window
+    mode = stiffest_mode(model)
+    if dt and mode is not None and method in SYMPLECTIC and mode.omega * dt < 2:
+        # a stable symplectic step keeps a modified energy; the true one swings within 1 / (1 - (ω h / 2)²) of it
+        limit = max(limit, 2 / (1 - (mode.omega * dt / 2) ** 2))
+    over = np.flatnonzero(sustained - energy[0] > limit * scale)
+    if not len(over):
+        return
+    over = over + window  # the last frame of the first window that stayed high
+    frame = int(over[0])
+    t = float(times[frame])
+    velocities = model.velocities(states[[0, frame]])  # type: ignore[attr-defined]
+    speed2 = np.sum(velocities**2, axis=2)  # (2, P)
+    gained = 0.5 * model.bodies.mass * (speed2[1] - speed2[0])  # type: ignore[attr-defined]
+    body = model.bodies.names[int(np.argmax(gained))]  # type: ignore[attr-defined]
+    rise = energy[frame] - energy[0]
+    message = (f"the total energy rose by {rise:.4g} J ({rise / scale:.3g} × its scale {scale:.4g} J, and stayed "
+               f"that high for {window * float(times[1] - times[0]):.3g} s) by t = {t:.4g} s, in a scene that has "
+               f"no energy input: the integration ({method}"
+               + (f" at dt = {dt:.3g} s" if dt else "") + f") is adding energy. Body {body!r} gained the most "
+               f"kinetic energy ({gained.max():.4g} J).")
+    remedies = []
+    if mode is not None:
+        stable = largest_stable_step(method, mode.omega, mode.decay) if dt else None
+        first, second = mode.spring_masses
+        between = f"{first:.3g} kg and " + ("an anchor" if np.isinf(second) else f"{second:.3g} kg")
+        message += (f" The stiffest spring is {mode.spring!r} (ks = {mode.spring_stiffness:g} N/m, between "
+                    f"{between}, ω = {mode.spring_omega:.4g} "
+                    f"rad/s; up to {mode.omega:.4g} rad/s around {mode.body!r})"
+                    + (f"; the largest stable step of {method} for it is {stable:.3g} s" if stable else "") + ".")
+        remedies.append(f"a smaller solver.dt (≤ {0.9 * stable:.3g} s)" if stable else "a smaller solver.dt")
+    else:
+        remedies.append("a smaller solver.dt" if dt else "tighter solver.rtol and solver.atol")
+    remedies += ["solver.method Radau or BDF", "backward_euler"]
+    terms = model.force_terms  # type: ignore[attr-defined]
+    if any(isinstance(term, Gravitation) and term.softening == 0 for term in terms):
+        remedies.append("softening on the gravitation field (bodies pass very close)")
+    raise SimulationError(message + " Try " + ", ".join(remedies) + ". No frame was written.", time=t, body=body,
+                          details={"energy_rise": float(rise), "method": method, "dt": dt,
+                                   "spring": mode.spring if mode else None})

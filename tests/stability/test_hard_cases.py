@@ -1,0 +1,324 @@
+"""Hard cases: each either stays inside bounds that physics or the method's theory gives, or stops early with the
+precise error (naming the culprit and the fix), never just "does not crash"."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from animbatch.errors import SimulationError
+from animbatch.integrators.preflight import StabilityWarning, preflight
+from animbatch.integrators.stability import largest_stable_step, step_matrix
+from animbatch.invariants import angular_momentum, kinetic_energy, total_energy
+from animbatch.model import compile_scene
+from conftest import run, scene, states
+
+G = 9.81
+
+# ------------------------------------------------------------------------------------------------ springs at the limit
+
+
+def spring(method: str, dt: float, zeta: float, duration: float, stiffness: float = 1e4, fps: int = 20) -> str:
+    """A 10 g bead on a spring (1e4 N/m: ω = 1000 rad/s) to an anchor, pulled 1 cm, with damping ratio ζ."""
+    damping = float(2 * zeta * np.sqrt(stiffness * 0.01))
+    return f"""
+        duration: {duration}
+        fps: {fps}
+        solver: {{method: {method}, dt: {dt!r}}}
+        anchors: [{{name: pin, position: [0, 0, 0]}}]
+        bodies: [{{name: bead, mass: 0.01, position: [1.01, 0, 0]}}]
+        springs: [{{name: wire, between: [pin, bead], stiffness: {stiffness!r}, damping: {damping!r},
+                    rest_length: 1.0}}]
+    """
+
+
+@pytest.mark.parametrize("zeta", [0.0, 0.3], ids=["undamped", "damped"])
+@pytest.mark.parametrize("method", ["symplectic_euler", "verlet"])
+def test_spring_just_inside_the_limit_stays_within_the_methods_own_bound(method, zeta):
+    """At 0.95 of the largest stable step the amplitude never exceeds what the method's own one-step matrix
+    predicts (the ellipse a symplectic method keeps, stretched near its limit: up to several times the initial
+    pull), and with damping it decays."""
+    omega, decay = 1000.0, zeta * 1000.0
+    limit = largest_stable_step(method, omega, decay)
+    h = 0.95 * limit
+    steps_per_frame = int(np.ceil(0.05 / h))
+    h = 0.05 / steps_per_frame  # the step the integrator takes (frames fall on steps)
+    model, trajectory = run(spring(method, h, zeta, 1.0))
+    displacement = np.abs(trajectory.positions[:, 0, 0] - 1.0)
+    matrix = step_matrix(method, h, omega, decay)
+    state = np.array([0.01, 0.0, -omega**2 * 0.01])[: len(matrix)]  # (x, v[, carried rate]) at the start
+    bound = 0.01
+    for _ in range(steps_per_frame * 20):
+        state = matrix @ state
+        bound = max(bound, abs(state[0]))
+    assert displacement.max() <= bound * (1 + 1e-6)
+    assert displacement.max() > 0.005  # the frames do see the vibration (the bound is not vacuous)
+    if zeta:
+        assert displacement[-1] < 1e-3 * 0.01
+
+
+@pytest.mark.parametrize("zeta", [0.0, 0.3], ids=["undamped", "damped"])
+@pytest.mark.parametrize("method", ["symplectic_euler", "verlet", "euler"])
+def test_spring_past_the_limit_is_refused_with_the_numbers(method, zeta):
+    """At 1.5 × the largest stable step (or any step, for undamped explicit Euler) the run is refused before it
+    starts, naming the spring, its ks, ω and masses, and a step that works."""
+    omega, decay = 1000.0, zeta * 1000.0
+    limit = largest_stable_step(method, omega, decay)
+    h = 1.5 * limit if limit is not None else 1e-4
+    with pytest.raises(SimulationError) as caught:
+        run(spring(method, h, zeta, 1.0))
+    h = 0.05 / np.ceil(0.05 / h)  # the step taken: frames (every 0.05 s) fall on steps
+    message = str(caught.value)
+    assert f"{method} at dt = {h:.3g} s cannot hold this scene's springs: the stiffest spring 'wire' " in message
+    assert "(ks = 10000 N/m, between 0.01 kg and an anchor) vibrates at ω = 1000 rad/s" in message
+    fix = (f"reduce solver.dt to at most {0.9 * limit:.3g} s" if limit is not None
+           else "euler is unstable at any step for these springs")
+    assert fix in message and "Nothing was simulated." in message
+    assert caught.value.details["spring"] == "wire"
+
+
+def test_a_step_slightly_past_the_limit_on_a_short_run_is_warned_about_with_its_growth():
+    """Verlet 2 % over its limit (ω = 490 rad/s, one step per frame at 240 fps: ω dt = 2.04) for 10 steps, too few
+    to blow up a millionfold: a StabilityWarning gives the growth per step and over the run, and the run goes on."""
+    limit = largest_stable_step("verlet", 490.0, 0.0)
+    h = 1 / 240
+    assert 1.01 * limit < h < 1.03 * limit
+    text = spring("verlet", h, 0.0, 10 * h, stiffness=490.0**2 * 0.01, fps=240)
+    half_trace = 1 - (490.0 * h) ** 2 / 2  # Verlet's step matrix has trace 2 - (ω h)² and determinant 1
+    growth = abs(half_trace) + np.sqrt(half_trace**2 - 1)
+    with pytest.warns(StabilityWarning) as caught:
+        _, trajectory = run(text)
+    steps = len(trajectory.times) - 1
+    assert str(caught[0].message).startswith(
+        f"verlet at dt = 0.00417 s is above the stable step of the stiffest spring mode (around 'bead': ω = 490 "
+        f"rad/s, damping ratio ζ = 0, ω dt = 2.04); that vibration grows ×{growth:.4g} per step, "
+        f"×{growth**steps:.3g} over the run. Use solver.dt ≤ {0.9 * limit:.3g} s")
+    assert 5 < growth**steps < 1e6
+
+
+# ------------------------------------------------------------------------------------------------ orbits
+
+
+def orbit(method: str, settings: str, orbits: float) -> str:
+    """A light planet on a circular orbit of radius 1 about a heavy star (G M = 1, period 2π)."""
+    return f"""
+        duration: {orbits * 2 * np.pi}
+        fps: 10
+        solver: {{method: {method}, {settings}}}
+        bodies:
+          - {{name: star, mass: 1.0, position: [0, 0, 0], velocity: [0, -1.0e-6, 0]}}
+          - {{name: planet, mass: 1.0e-6, position: [1, 0, 0], velocity: [0, 1, 0]}}
+        fields: [{{type: gravitation, G: 1.0}}]
+    """
+
+
+def relative_energy(model, trajectory) -> np.ndarray:
+    energy = total_energy(model, states(model, trajectory))
+    return energy / abs(energy[0]) - np.sign(energy[0])
+
+
+def test_symplectic_orbit_energy_stays_bounded_while_explicit_rk_drifts():
+    """Over 30 orbits Verlet's energy error oscillates in a band and does not grow; RK45's error accumulates
+    (secular drift); its angular momentum drifts too while Verlet keeps it to round-off (central forces)."""
+    model, verlet = run(orbit("verlet", "dt: 0.01", 30))
+    energy = relative_energy(model, verlet)
+    assert np.abs(energy).max() < 1e-4
+    band = len(energy) // 10
+    assert abs(np.abs(energy[-band:]).max() - np.abs(energy[:band]).max()) < 2e-5  # no secular growth
+    spin = angular_momentum(model, states(model, verlet))
+    assert np.abs(spin - spin[0]).max() < 1e-13
+
+    model, rk45 = run(orbit("RK45", "rtol: 1.0e-5, atol: 1.0e-8", 30))
+    drift = np.abs(relative_energy(model, rk45))
+    assert drift[-band:].mean() > 5 * drift[:band].mean()  # accumulates
+    assert drift[-1] > 1e-5
+
+
+@pytest.mark.parametrize("dt", [0.002, 0.001])
+def test_explicit_euler_spirals_out_at_the_rate_its_error_analysis_gives(dt):
+    """Explicit Euler on a circular orbit (G M = 1, r = v = 1) adds h²/2 to v²/2 and, through r² → r² + h² v²,
+    h²/2 to -1/r at every step: energy rises at every frame, by 2π h per orbit, i.e. 4π h of |E₀| = 1/2 (first
+    order:
+    halving dt halves it). Not a blow-up (the energy only creeps toward escape), so the guard lets it run; the study
+    command is where such drift shows."""
+    model, trajectory = run(orbit("euler", f"dt: {dt}", 1))
+    energy = relative_energy(model, trajectory)
+    assert np.all(np.diff(energy) > 0)
+    assert energy[-1] == pytest.approx(4 * np.pi * dt, rel=0.06)
+
+
+# ------------------------------------------------------------------------------------------------ rigid rotation
+
+
+def test_spin_about_the_intermediate_axis_flips_while_energy_and_angular_momentum_hold():
+    """A box (sides 1, 2, 3) spun about its intermediate axis with a tiny wobble flips over and back (Dzhanibekov);
+    through the flips the kinetic energy and the world angular momentum stay within 1e-8 (DOP853)."""
+    model, trajectory = run("""
+        duration: 30
+        fps: 20
+        solver: {method: DOP853, rtol: 1.0e-11, atol: 1.0e-12}
+        bodies:
+          - {name: wingnut, type: rigid, shape: {type: box, size: [1, 2, 3]}, mass: 12,
+             angular_velocity: [0.001, 2.0, 0.001]}
+    """)
+    y = states(model, trajectory)
+    energy = kinetic_energy(model, y)
+    spin = angular_momentum(model, y)
+    assert np.abs(energy / energy[0] - 1).max() < 1e-8
+    assert np.abs(spin - spin[0]).max() < 1e-8 * np.linalg.norm(spin[0])
+    # the body's own y axis, in world coordinates, along the angular momentum: +1, then flipped to -1, then back
+    q = trajectory.orientations[:, 0]
+    w, x, yq, z = q.T
+    body_y = np.stack([2 * (x * yq - w * z), 1 - 2 * (x * x + z * z), 2 * (yq * z + w * x)], axis=1)
+    alignment = body_y @ (spin[0] / np.linalg.norm(spin[0]))
+    assert alignment[0] > 0.999 and alignment.min() < -0.99
+    flips = np.flatnonzero(np.diff(np.sign(alignment)))
+    assert len(flips) >= 2
+
+
+# ------------------------------------------------------------------------------------------------ near collisions
+
+
+def flyby(method: str, settings: str, softening: float) -> str:
+    """Two unit masses (G = 1) meeting nearly head-on at a relative speed of 0.6 m/s with an impact parameter of
+    1 mm: gravitational focusing takes them to within r_min ≈ 9e-8 m of each other (see :func:`closest_approach`)."""
+    return f"""
+        duration: 4
+        fps: 25
+        solver: {{method: {method}, {settings}}}
+        bodies:
+          - {{name: a, mass: 1, position: [-1, 0.0005, 0], velocity: [0.3, 0, 0]}}
+          - {{name: b, mass: 1, position: [1, -0.0005, 0], velocity: [-0.3, 0, 0]}}
+        fields: [{{type: gravitation, G: 1.0, softening: {softening}}}]
+    """
+
+
+def closest_approach() -> float:
+    """r_min of the flyby's relative orbit [m], from energy and angular momentum per unit reduced mass:
+    ε = v²/2 − G M / r and ℓ = b v give ε r² + G M r − ℓ²/2 = 0 at the turning point."""
+    v, b, gm = 0.6, 0.001, 2.0
+    epsilon, ell = 0.5 * v * v - gm / np.hypot(2.0, b), b * v
+    return float((-gm + np.sqrt(gm * gm + 2 * epsilon * ell * ell)) / (2 * epsilon))
+
+
+def test_near_collision_with_an_adaptive_method_conserves_energy_and_momentum():
+    """DOP853 resolves the pass (relative speed ≈ √(2 G M / r_min) ≈ 7 km/s for a microsecond): energy to 1e-9 of
+    the peak kinetic energy, momentum exactly (equal and opposite forces)."""
+    model, trajectory = run(flyby("DOP853", "rtol: 1.0e-10, atol: 1.0e-12", 0.0))
+    energy = total_energy(model, states(model, trajectory))
+    peak_kinetic = 1.0 * 1.0 / closest_approach()  # G m_a m_b / r_min, the potential energy turned into motion
+    assert peak_kinetic > 1e6
+    assert np.abs(energy - energy[0]).max() < 1e-9 * peak_kinetic
+    assert np.abs(trajectory.velocities.sum(axis=1)).max() < 1e-12
+
+
+def test_near_collision_at_a_fixed_step_is_stopped_unless_softened():
+    """Verlet at dt = 1 ms cannot follow the unsoftened pass: the two bodies leave with hundreds of times the
+    scene's energy, and the energy guard stops the run, naming the body and suggesting softening. Softened by 5 cm,
+    the same step keeps the energy within 2 % of |E₀| during the pass (second order: a quarter of that at half the
+    step) and returns to it afterwards (to 1e-6), as a symplectic method does."""
+    with pytest.raises(SimulationError) as caught:
+        run(flyby("verlet", "dt: 0.001", 0.0))
+    message = str(caught.value)
+    assert "in a scene that has no energy input" in message and "(verlet at dt = 0.001 s) is adding energy" in message
+    assert "softening on the gravitation field (bodies pass very close)" in message
+    assert "No frame was written." in message and caught.value.body in ("a", "b") and 1.0 < caught.value.time < 4
+
+    errors = []
+    for dt in (0.001, 0.0005):
+        model, trajectory = run(flyby("verlet", f"dt: {dt}", 0.05))
+        energy = total_energy(model, states(model, trajectory))
+        error = np.abs(energy / energy[0] - 1)
+        assert error[trajectory.times > 2.5].max() < 1e-6
+        errors.append(error.max())
+    assert errors[0] < 0.02 and errors[1] == pytest.approx(errors[0] / 4, rel=0.05)
+
+
+# ------------------------------------------------------------------------------------------------ contact
+
+
+def test_zeno_bouncing_ends_at_rest_without_gaining_energy():
+    """A ball with e = 0.5: infinitely many bounces in finite time (t₀ (1 + 2e / (1 - e)) = 3 t₀). The event-driven
+    path ends them all by then, puts the ball to rest exactly on the ground, and its energy never rises."""
+    model, trajectory = run("""
+        duration: 3
+        fps: 100
+        solver: {method: RK45, rtol: 1.0e-10, atol: 1.0e-12}
+        materials: {m: {restitution: 0.5, static_friction: 0.5, kinetic_friction: 0.3}}
+        bodies: [{name: ball, radius: 0.1, position: [0, 1.1, 0], material: m}]
+        colliders: [{type: plane, material: m}]
+        fields: [{type: gravity}]
+    """)
+    energy = total_energy(model, states(model, trajectory))
+    assert np.all(np.diff(energy) <= 1e-9)
+    t0 = np.sqrt(2 / G)
+    rest = trajectory.times > 3 * t0
+    assert np.abs(trajectory.positions[rest, 0, 1] - 0.1).max() < 1e-9
+    assert np.abs(trajectory.velocities[rest]).max() < 1e-8
+
+
+def test_fast_body_against_a_thin_wall_is_warned_about_and_still_stopped():
+    """A ball at 100 m/s moves 10 cm per 1 ms step toward a 1 cm wall: the pre-flight warning gives the speed, the
+    distance per step, the wall's thickness and a step that resolves it; the ball still never crosses the wall."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        _, trajectory = run("""
+            duration: 0.1
+            fps: 100
+            solver: {method: symplectic_euler, dt: 0.001}
+            bodies: [{name: bullet, radius: 0.01, velocity: [100, 0, 0], material: steel}]
+            colliders: [{type: box, position: [1.005, 0, 0], size: [0.01, 1, 1], material: steel}]
+        """)
+    messages = [str(w.message) for w in caught if issubclass(w.category, StabilityWarning)]
+    assert messages == [
+        "body 'bullet' may reach 100 m/s and so move 0.1 m in one step of 0.001 s, more than the 0.01 m thickness "
+        "of colliders[0] (box). Speculative contacts still stop it, to the accuracy of one step; solver.dt ≤ "
+        "9e-05 s resolves the wall."]
+    assert np.all(trajectory.positions[:, 0, 0] < 0.99 + 1e-9) and trajectory.velocities[-1, 0, 0] < 0
+
+
+# ------------------------------------------------------------------------------------------------ stiff cloth
+
+
+STIFF_CLOTH = """
+    duration: 0.5
+    fps: 30
+    solver: {method: BDF, rtol: 1.0e-4, atol: 1.0e-6}
+    bodies:
+      - name: sheet
+        type: cloth
+        grid: {size: [0.6, 0.4], resolution: [8, 6]}
+        position: [0, 1, 0]
+        orientation: {axis: [1, 0, 0], angle: -90}
+        density: 0.2
+        structural: {stiffness: 2.0e4, damping: 0.5}
+        shear: {stiffness: 5.0e3, damping: 0.1}
+        bend: {stiffness: 500, damping: 0.01}
+        pin: [{corners: [top-left, top-right]}]
+    fields: [{type: gravity}]
+"""
+
+
+def test_stiff_cloth_with_bdf_and_its_jacobian_loses_energy_and_never_gains_it():
+    """A stiff damped cloth (ω ≈ 2·10⁴ rad/s) falling from horizontal with BDF and the analytic Jacobian: bounded,
+    its total energy non-increasing (to the tolerance), no spring stretched by more than 1 %."""
+    model, trajectory = run(STIFF_CLOTH)
+    energy = total_energy(model, states(model, trajectory))
+    assert np.all(np.diff(energy) <= 1e-4 * np.abs(energy).max())
+    assert energy[-1] < energy[0]
+    springs = model.springs
+    free = ~springs.second_is_anchor
+    length = np.linalg.norm(trajectory.positions[:, springs.first[free]]
+                            - trajectory.positions[:, springs.second[free]], axis=2)
+    assert (length / springs.rest_length[free]).max() < 1.01
+
+
+def test_stiff_cloth_with_an_explicit_adaptive_method_is_warned_about():
+    """RK45 on the same cloth would need millions of steps for stability alone over a long run: the warning says so
+    and points to Radau, BDF or backward Euler."""
+    loaded = scene(STIFF_CLOTH, "solver.method=RK45", "duration=200")
+    with pytest.warns(StabilityWarning, match=r"RK45 will need about .* steps for stability alone.*Radau or BDF"):
+        messages = preflight(loaded.spec, compile_scene(loaded.spec))
+    assert len(messages) == 1 and "ζ = " in messages[0]
