@@ -19,8 +19,11 @@ Prints one table. Measures:
    analytic sparse Jacobian, semi-implicit Euler at its largest stable step, and RK45; each method gets a wall-time
    budget (``--budget``), and one that runs out is reported with the simulated time it reached.
 
+8. only what is declared: the right-hand-side cost of a cloth alone and with things of other kinds that act on
+   nothing in it (unused anchors, fixed and keyframed, a material, an emitter, study settings).
+
 Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, rigid, contacts, render,
-encode, cloth, fountain), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick), ``--cloth-method NAME`` (only
+encode, cloth, fountain, lean), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick), ``--cloth-method NAME`` (only
 the cloth methods whose label starts with NAME, e.g. ``BDF``; repeatable), ``--json FILE`` (also write
 the rows as JSON).
 """
@@ -420,8 +423,57 @@ def bench_fountain(quick: bool) -> list[Row]:
     return rows
 
 
+LEAN_BASE = """
+duration: 1.0
+bodies:
+  - name: sheet
+    type: cloth
+    grid: {size: [1, 1], resolution: [32, 32]}
+    density: 0.2
+    position: [0, 1, 0]
+    structural: {stiffness: 500, damping: 0.1}
+    pin: [{corners: [top-left, top-right]}]
+fields: [{type: gravity}]
+"""
+LEAN_UNUSED = """
+anchors:
+  - {name: spare, position: [3, 0, 0]}
+  - {name: drone, keyframes: [{time: 0, position: [0, 2, 0]}, {time: 1, position: [1, 2, 0]}]}
+materials: {rubbery: {restitution: 0.9, static_friction: 1.0, kinetic_friction: 0.8}}
+emitters: [{name: mist, rate: 50, source: {type: point, position: [5, 0, 0]}, lifetime: 1.0}]
+study: {rtols: [1.0e-6]}
+"""
+
+
+def bench_lean(quick: bool) -> list[Row]:
+    """Right-hand-side cost of a 32×32 cloth, alone and with things of other kinds that act on nothing in it (an
+    unused fixed and keyframed anchor, a material, an emitter, study settings): only what the scene calls for is
+    evaluated, so the two should cost the same. Measured interleaved, best of many rounds."""
+    systems = {label: Dynamics(compile_scene_text(text)) for label, text in
+               (("cloth 32×32", LEAN_BASE), ("same + unused anchors, material, emitter, study", LEAN_BASE + LEAN_UNUSED))}
+    calls = 50 if quick else 200
+    best = {label: np.inf for label in systems}
+    for _ in range(5 if quick else 20):
+        for label, system in systems.items():
+            y = system.model.y0.copy()
+            started = time.perf_counter()
+            for _ in range(calls):
+                system.rhs(0.5, y)
+            best[label] = min(best[label], (time.perf_counter() - started) / calls)
+    return [{"benchmark": "only what is declared", "case": f"{label}: RHS", "value": seconds * 1e6, "unit": "µs/call"}
+            for label, seconds in best.items()]
+
+
+def compile_scene_text(text: str):  # type: ignore[no-untyped-def]
+    from animbatch.model import compile_scene
+    from animbatch.scene import parse_scene
+
+    return compile_scene(parse_scene(text, filename="benchmark.yaml").spec)
+
+
 BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "rigid": bench_rigid, "contacts": bench_contacts,
-              "render": bench_render, "encode": bench_encode, "cloth": bench_cloth, "fountain": bench_fountain}
+              "render": bench_render, "encode": bench_encode, "cloth": bench_cloth, "fountain": bench_fountain,
+              "lean": bench_lean}
 
 
 def main() -> int:

@@ -159,3 +159,50 @@ def test_info_says_when_no_contact_code_is_compiled(tmp_path):
     path.write_text("bodies: [{name: a, position: [0, 1, 0]}]\n")
     result = CliRunner().invoke(cli, ["info", str(path)])
     assert "contacts   none compiled (no colliders and no 'contacts' section)" in result.output
+
+
+CLOTH = """
+    duration: 1.0
+    bodies:
+      - name: sheet
+        type: cloth
+        grid: {size: [1, 1], resolution: [6, 6]}
+        density: 0.2
+        position: [0, 1, 0]
+        structural: {stiffness: 500, damping: 0.1}
+        pin: [{corners: [top-left, top-right]}]
+    fields: [{type: gravity}]
+"""
+UNUSED = """
+    anchors:
+      - {name: spare, position: [3, 0, 0]}
+      - {name: drone, keyframes: [{time: 0, position: [0, 2, 0]}, {time: 1, position: [1, 2, 0]}]}
+    materials: {rubbery: {restitution: 0.9, static_friction: 1.0, kinetic_friction: 0.8}}
+    emitters: [{name: mist, rate: 50, source: {type: point, position: [5, 0, 0]}, lifetime: 1.0}]
+    study: {rtols: [1.0e-6]}
+"""
+
+
+def test_declared_but_unused_kinds_add_nothing_to_the_right_hand_side(monkeypatch):
+    """The same cloth plus things of other kinds that act on nothing in it (a fixed and a keyframed anchor no
+    spring uses, a material nobody wears, a particle emitter, study settings): the same compiled terms and state,
+    the same derivative, and not one keyframe evaluated per right-hand side (a moving anchor used to be evaluated
+    by every spring term whether attached or not). benchmarks/run.py --only lean times both."""
+    from animbatch.model import Dynamics
+    from animbatch.motion import KeyframePath
+
+    plain, extended = (compile_scene(scene(text).spec) for text in (CLOTH, CLOTH + UNUSED))
+    assert [term.describe() for term in extended.force_terms] == [term.describe() for term in plain.force_terms]
+    assert extended.layout == plain.layout and np.array_equal(extended.y0, plain.y0)
+    evaluated = []
+    for name in ("position", "velocity"):
+        original = getattr(KeyframePath, name)
+        monkeypatch.setattr(KeyframePath, name, lambda self, t, _f=original: evaluated.append(1) or _f(self, t))
+    y = plain.y0 + np.random.default_rng(1).normal(scale=1e-3, size=plain.y0.shape)
+    assert np.array_equal(Dynamics(extended).rhs(0.5, y), Dynamics(plain).rhs(0.5, y))
+    assert evaluated == []
+    moved = compile_scene(scene(CLOTH.replace("pin: [{corners: [top-left, top-right]}]",
+                                              "pin: [{corners: [top-left], keyframes: [{time: 0, offset: [0, 0, 0]}, "
+                                              "{time: 1, offset: [0.5, 0, 0]}]}]") + UNUSED).spec)
+    Dynamics(moved).rhs(0.5, moved.y0)
+    assert evaluated  # once a vertex is moved by keyframes, its path is evaluated

@@ -64,6 +64,12 @@ class AnchorMotion:
     def moving(self) -> bool:
         return bool(self.paths)
 
+    def only(self, used: np.ndarray) -> AnchorMotion:
+        """The same anchors, with keyframes kept only for the ``used`` (indices): what one force term needs, so
+        that a moving anchor nothing is attached to costs no evaluation."""
+        wanted = {int(i) for i in np.asarray(used).ravel()}
+        return AnchorMotion(self.rest, {i: path for i, path in self.paths.items() if i in wanted})
+
     def positions(self, t: float) -> np.ndarray:
         """Anchor positions (A, 3) [m] at time ``t`` [s] (the fixed array itself when nothing moves)."""
         if not self.paths:

@@ -343,7 +343,8 @@ class ModelBuilder:
             terms.append(FIELD_TERMS[spec.type](spec, bodies, index))
         springs = self._spring_set(x0, anchors.rest)
         if springs is not None:
-            terms.append(SpringForces.build(springs, anchors, len(names), n))
+            used = springs.second[springs.second_is_anchor]
+            terms.append(SpringForces.build(springs, anchors.only(used), len(names), n))
         if self._controllers:
             from animbatch.forces.controllers import controllers_term
 
@@ -403,7 +404,8 @@ class ModelBuilder:
             start += count
         vertex_map = VertexMap(np.concatenate(kinds), np.concatenate(indices), np.concatenate(offsets),
                                point_count, n)
-        return DeformableSet(tuple(records), vertex_map, anchors,
+        pinned_to = vertex_map.index[vertex_map.kind == ANCHOR]
+        return DeformableSet(tuple(records), vertex_map, anchors.only(pinned_to),
                              _readonly(np.concatenate([body.world for body in self._deformables])))
 
     def _rigid_set(self) -> RigidBodySet | None:
