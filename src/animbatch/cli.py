@@ -9,6 +9,7 @@ from __future__ import annotations
 import functools
 import json
 import sys
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
@@ -169,6 +170,38 @@ def simulate(scene: Path, output: Path | None, settings: tuple[str, ...], progre
 
 @cli.command()
 @click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Folder for study.csv/.json/.png/.txt; default renders/<scene>/.")
+@click.option("--methods", metavar="LIST", help="Comma-separated integrators (study.methods; default: all).")
+@click.option("--repeats", type=click.IntRange(1, 20), help="Timed repeats per run (study.repeats).")
+@click.option("--timeout", type=click.FloatRange(min=0, min_open=True), help="Seconds per run (study.timeout).")
+@click.option("--closed-form", is_flag=True, default=None, help="Measure against closed forms (study.closed_form).")
+@click.option("--set", "settings", multiple=True, metavar="KEY.PATH=VALUE", help="Override a scene value.")
+@_reports_errors
+def study(scene: Path, out_dir: Path | None, methods: str | None, repeats: int | None, timeout: float | None,
+          closed_form: bool | None, settings: tuple[str, ...]) -> None:
+    """What accuracy costs in time: run the scene with every integrator over a sweep of tolerances and steps, and
+    report each run's error against a reference next to its wall time (table, CSV, JSON and a log-log plot)."""
+    from animbatch import api
+    from animbatch.study import run_study, table, write_outputs
+
+    extra = [(f"study.methods=[{methods}]", f"--methods {methods}") if methods else None,
+             (f"study.repeats={repeats}", f"--repeats {repeats}") if repeats else None,
+             (f"study.timeout={timeout}", f"--timeout {timeout}") if timeout else None,
+             ("study.closed_form=true", "--closed-form") if closed_form else None]
+    overrides = _overrides(settings) + [item for item in extra if item]
+    loaded = api.load_scene(scene, overrides)
+    result = run_study(loaded, progress=lambda line: click.echo(line, err=True))
+    click.echo(table(result))
+    paths = write_outputs(result, out_dir or Path("renders") / loaded.name)
+    click.echo(f"\nwrote {', '.join(str(p) for p in paths.values())}")
+    failed = [row for row in result.rows if row.status != "ok"]
+    if failed:
+        click.echo(f"{len(failed)} of {len(result.rows)} runs failed (listed above with their reasons).")
+
+
+@cli.command()
+@click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--trajectory", type=click.Path(dir_okay=False, path_type=Path),
               help="Render this trajectory (from 'animbatch simulate') instead of simulating.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("renders"),
@@ -191,7 +224,21 @@ def render(scene: Path, trajectory: Path | None, out_dir: Path, backend: str, se
     click.echo(report.summary())
 
 
+def _show_warning(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:
+    """Our own warnings as one plain line on stderr (others as Python formats them)."""
+    from animbatch.integrators.preflight import StabilityWarning
+
+    if issubclass(category, StabilityWarning):
+        click.echo(f"warning: {message}", err=True)
+    else:
+        _python_showwarning(message, category, *args, **kwargs)
+
+
+_python_showwarning = warnings.showwarning
+
+
 def main() -> None:
+    warnings.showwarning = _show_warning
     cli(prog_name="animbatch")
 
 

@@ -33,9 +33,11 @@ JACOBIAN_METHODS = ("Radau", "BDF")
 
 
 class ScipyIntegrator(Integrator):
-    """An adaptive scipy method with tolerances ``rtol``, ``atol`` and an optional ``max_step`` [s]."""
+    """An adaptive scipy method with tolerances ``rtol``, ``atol`` (a number, or one per state component) and an
+    optional ``max_step`` [s]."""
 
-    def __init__(self, method: str, *, rtol: float = 1e-6, atol: float = 1e-9, max_step: float | None = None) -> None:
+    def __init__(self, method: str, *, rtol: float = 1e-6, atol: float | np.ndarray = 1e-9,
+                 max_step: float | None = None) -> None:
         if method not in SCIPY_METHODS:
             raise ValueError(f"unknown adaptive method {method!r}; choose from {', '.join(SCIPY_METHODS)}")
         self.method = method
@@ -45,7 +47,8 @@ class ScipyIntegrator(Integrator):
 
     def describe(self) -> str:
         limit = f", max_step {self.max_step:g} s" if self.max_step else ""
-        return f"{self.method} (adaptive, rtol {self.rtol:g}, atol {self.atol:g}{limit})"
+        atol = f"{self.atol:g}" if np.ndim(self.atol) == 0 else "per component"
+        return f"{self.method} (adaptive, rtol {self.rtol:g}, atol {atol}{limit})"
 
     def integrate(self, system: EquationsOfMotion, y0: np.ndarray, times: np.ndarray, *,
                   on_frame: FrameCallback | None = None) -> IntegrationResult:

@@ -69,6 +69,7 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
     ("`render.camera`", "render.camera.", schema.CameraSpec),
     ("`render.ground`", "render.ground.", schema.GroundSpec),
     ("`render.video`", "render.video.", schema.VideoSpec),
+    ("`study`", "study.", schema.StudySpec),
 ]
 
 

@@ -1198,6 +1198,27 @@ class RenderSpec(SceneModel):
 # The scene
 
 
+class StudySpec(SceneModel):
+    """Settings of ``animbatch study``: the work-precision study of this scene (no effect on a render)."""
+
+    closed_form: bool = key(False, "Measure errors against closed-form solutions instead of a tight reference run. "
+                                   "Every body must have one: a projectile (uniform gravity only), a fall with "
+                                   "linear drag (and gravity, optionally wind), a mass on one spring to a fixed "
+                                   "anchor moving along the spring (gravity allowed along it), or one of a pair "
+                                   "attracting each other by gravitation alone (Kepler orbit).")
+    methods: list[Method] | None = key(None, "Integrators to study (default: every one that applies to the scene).",
+                                       example=["RK45", "DOP853", "verlet"])
+    rtols: list[Annotated[float, Field(gt=0, lt=1)]] = key(
+        [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10],
+        "Relative tolerances swept for adaptive methods; atol is rtol times each component's scale (the scene's "
+        "length for positions, its speed for velocities).", "1", min_length=1)
+    dt_levels: int = key(6, "Steps swept for fixed-step methods: dt = frame interval / 2^k for k = 0 … dt_levels-1.",
+                         "1", ge=1, le=16)
+    repeats: int = key(3, "Timed repeats per run after an untimed one that measures the errors; the minimum wall "
+                          "time is reported.", "1", ge=1, le=20)
+    timeout: float = key(60.0, "Wall-time limit per run; a run that exceeds it is reported as a timeout.", "s", gt=0)
+
+
 class SceneSpec(SceneModel):
     """A whole scene: what exists, what acts on it, how to integrate it and how to draw it."""
 
@@ -1220,6 +1241,7 @@ class SceneSpec(SceneModel):
     colliders: list[ColliderSpec] = key([], "Fixed obstacles: planes, boxes, spheres, meshes.")  # type: ignore[valid-type]
     contacts: ContactSpec | None = key(None, "Contact settings; collisions are on when this or colliders exist.")
     render: RenderSpec = key(RenderSpec(), "Rendering and output settings.")
+    study: StudySpec = key(StudySpec(), "Settings of 'animbatch study' (error against work per integrator).")
 
     @property
     def has_contacts(self) -> bool:
@@ -1236,4 +1258,4 @@ class SceneSpec(SceneModel):
 
 
 #: Top-level keys that do not change the physics (excluded from the physics hash).
-PRESENTATION_KEYS = frozenset({"name", "description", "render", "solver"})
+PRESENTATION_KEYS = frozenset({"name", "description", "render", "solver", "study"})

@@ -1,0 +1,101 @@
+"""The reference a study measures errors against, and how accurate that reference itself is.
+
+* With ``study.closed_form``, the exact motion (:mod:`animbatch.study.closed_forms`); its accuracy is that of
+  floating point (:data:`ROUND_OFF`).
+* Otherwise two tight runs: DOP853 at the tightest tolerance that succeeds (1e-12, else 1e-11, 1e-10), checked
+  against DOP853 one decade looser, or, for a stiff scene (springs faster than ten radians per frame), against
+  Radau at 1e-9 (an independent, implicit method; tighter Radau runs take minutes on a long stiff scene). Their
+  difference, measured like any run's error, is the reference's accuracy ``floor``: a run
+  whose error is not clearly above it (below twice the floor) is marked as limited by the reference.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from animbatch.integrators.stability import stiffest_mode
+from animbatch.model import Model
+from animbatch.study.closed_forms import exact_motion
+from animbatch.study.measure import Motion, Scales, final_error, position_error
+from animbatch.study.runs import RunSetting, execute
+
+#: A run's error below this many times the reference's own accuracy is not trusted.
+REFERENCE_MARGIN = 2.0
+#: The accuracy of a closed form as evaluated in floating point, relative to the scene's scales: errors below it are
+#: round-off, not the method's.
+ROUND_OFF = 1e-13
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The reference motion, what it is (``description``), the scene's scales taken from it, and its accuracy
+    (``floor`` of the position error and ``final_floor`` of the final-state error)."""
+
+    motion: Motion
+    description: str
+    scales: Scales
+    floor: float
+    final_floor: float
+
+    def limits(self, error: float, final: float) -> bool:
+        """Whether a run's errors are too close to the reference's own accuracy to be measured."""
+        return error <= REFERENCE_MARGIN * self.floor and final <= REFERENCE_MARGIN * max(self.final_floor, 0.0)
+
+
+def is_stiff(model: Model) -> bool:
+    """Springs vibrating faster than ten radians per frame interval: explicit methods need many steps per frame."""
+    mode = stiffest_mode(model)
+    interval = float(model.frame_times[1] - model.frame_times[0]) if len(model.frame_times) > 1 else 1.0
+    return mode is not None and mode.omega * interval > 10
+
+
+def _first_scales(model: Model) -> np.ndarray:
+    """A rough per-component scale before any motion is known: from the initial state alone."""
+    x = model.positions(model.y0[None])[0]
+    v = model.velocities(model.y0[None])[0]
+    guess = Scales.of_motion(model, np.stack([x, x + v * float(model.frame_times[-1])])[:, :, :],
+                             np.stack([v, v]))
+    return guess.tolerance_scale(model)
+
+
+def find_reference(model: Model, *, closed_form: bool, timeout: float, progress=print) -> Reference:  # type: ignore[no-untyped-def]
+    """The study's reference for ``model``; ``timeout`` [s] per reference run (raises RuntimeError when no tight
+    run succeeds in time)."""
+    if closed_form:
+        exact = exact_motion(model)
+        orientations = np.zeros((*exact.positions.shape[:2], 4))
+        orientations[..., 0] = 1.0
+        motion = Motion(exact.positions, exact.velocities, orientations)
+        forms = ", ".join(f"{name}: {form}" for name, form in exact.forms.items())
+        return Reference(motion, f"closed form ({forms})", Scales.of_motion(model, motion.positions,
+                                                                             motion.velocities), ROUND_OFF, ROUND_OFF)
+    scale = _first_scales(model)
+    primary = None
+    for rtol in (1e-12, 1e-11, 1e-10):
+        progress(f"reference: DOP853 at rtol {rtol:.0e} …")
+        primary = execute(model, RunSetting("DOP853", rtol=rtol), scale, repeats=0, timeout=timeout)
+        if primary.status == "ok":
+            break
+    stiff = is_stiff(model)
+    if primary is None or primary.status != "ok":
+        if not stiff:
+            raise RuntimeError(f"no tight reference run succeeded: {primary.reason if primary else ''}")
+        primary = execute(model, RunSetting("Radau", rtol=1e-11), scale, repeats=0, timeout=timeout)
+        if primary.status != "ok":
+            raise RuntimeError(f"no tight reference run succeeded: {primary.reason}")
+    assert primary.setting.rtol is not None and primary.states is not None
+    check_setting = (RunSetting("Radau", rtol=max(1e-9, 10 * primary.setting.rtol)) if stiff or
+                     primary.setting.method == "Radau" else RunSetting("DOP853", rtol=10 * primary.setting.rtol))
+    progress(f"reference check: {check_setting.method} at {check_setting.label} …")
+    check = execute(model, check_setting, scale, repeats=0, timeout=timeout)
+    motion = Motion.of_states(model, primary.states, primary.impacts)
+    scales = Scales.of_motion(model, motion.positions, motion.velocities)
+    description = f"{primary.setting.method} at {primary.setting.label}"
+    if check.status != "ok" or check.states is None:
+        return Reference(motion, f"{description} (unchecked: {check.setting.method} {check.status})", scales,
+                         np.inf, np.inf)
+    checked = Motion.of_states(model, check.states, check.impacts)
+    return Reference(motion, f"{description}, checked against {check_setting.method} at {check_setting.label}",
+                     scales, position_error(model, checked, motion, scales), final_error(checked, motion, scales))

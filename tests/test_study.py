@@ -1,0 +1,275 @@
+"""The work-precision study: closed forms, the reference and its accuracy, errors, figures of merit, failures and
+outputs."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from animbatch.cli import cli
+from animbatch.errors import SceneError
+from animbatch.invariants import angular_momentum, total_energy
+from animbatch.model import compile_scene
+from animbatch.study import run_study, write_outputs
+from animbatch.study.report import csv_text, table
+from animbatch.study.closed_forms import exact_motion
+from animbatch.study.merit import Point, observed_order, time_to
+from conftest import body, run, scene
+
+G = 9.81
+
+LINEAR_DRAG_WITH_WIND = """
+    duration: 3
+    fps: 20
+    solver: {method: DOP853, rtol: 1.0e-12, atol: 1.0e-13}
+    bodies: [{name: leaf, mass: 0.05, position: [0, 10, 0], velocity: [1, 4, -2]}]
+    fields:
+      - {type: gravity}
+      - {type: wind, model: linear, velocity: [3, 0, 1], coefficient: 0.02}
+"""
+KEPLER_FALLING = """
+    duration: 8
+    fps: 10
+    solver: {method: DOP853, rtol: 1.0e-12, atol: 1.0e-13}
+    bodies:
+      - {name: star, mass: 3.0, position: [-0.25, 0, 0], velocity: [0, -0.4, 0.1]}
+      - {name: planet, mass: 1.0, position: [0.75, 0, 0], velocity: [0, 1.2, 0.1]}
+    fields: [{type: gravitation, G: 1.0}, {type: gravity, g: [0, 0, -1]}]
+"""
+OSCILLATOR_HANGING = """
+    duration: 4
+    fps: 25
+    solver: {method: DOP853, rtol: 1.0e-12, atol: 1.0e-13}
+    anchors: [{name: top, position: [0, 3, 0]}]
+    bodies: [{name: bob, mass: 0.5, position: [0, 1.6, 0], velocity: [0, 0.3, 0]}]
+    springs: [{between: [top, bob], stiffness: 20, damping: 0.4, rest_length: 1.0}]
+    fields: [{type: gravity}]
+"""
+
+
+# ------------------------------------------------------------------------------------------------ closed forms
+
+
+def test_linear_drag_closed_form_reaches_the_terminal_velocity_and_matches_a_tight_run():
+    """u = v - w relaxes to m g / c with time constant m / c; the tight DOP853 run agrees to 1e-9 m."""
+    model, trajectory = run(LINEAR_DRAG_WITH_WIND)
+    exact = exact_motion(model)
+    assert exact.forms == {"leaf": "linear drag"}
+    tau, wind = 0.05 / 0.02, np.array([3.0, 0.0, 1.0])
+    late = exact.velocities[-1, 0]
+    terminal = wind + np.array([0, -G, 0]) * tau
+    assert np.allclose(late - terminal, (np.array([1, 4, -2]) - terminal) * np.exp(-model.frame_times[-1] / tau))
+    x, v = body(trajectory, "leaf")
+    assert np.abs(exact.positions[:, 0] - x).max() < 1e-9
+    assert np.abs(exact.velocities[:, 0] - v).max() < 1e-9
+
+
+def test_oscillator_closed_form_of_a_hanging_damped_mass():
+    """A mass on a vertical spring with gravity and damping: the closed form agrees with a tight run and settles
+    toward rest length + m g / k below the anchor."""
+    model, trajectory = run(OSCILLATOR_HANGING)
+    exact = exact_motion(model)
+    assert exact.forms == {"bob": "oscillator"}
+    x, v = body(trajectory, "bob")
+    assert np.abs(exact.positions[:, 0] - x).max() < 1e-9 and np.abs(exact.velocities[:, 0] - v).max() < 1e-9
+    assert np.allclose(exact.positions[:, 0, [0, 2]], 0.0)
+    equilibrium = 3 - 1.0 - 0.5 * G / 20
+    amplitude = np.abs(exact.positions[:, 0, 1] - equilibrium)
+    assert amplitude[-10:].max() < amplitude[:10].max() * np.exp(-0.4 / (2 * 0.5) * 3.0)
+
+
+def test_kepler_closed_form_conserves_energy_and_angular_momentum_and_matches_a_tight_run():
+    """The f and g solution of a bound pair (whose centre of mass also falls): relative energy and angular momentum
+    are exactly those of the start, and a tight run agrees to 1e-8."""
+    model, trajectory = run(KEPLER_FALLING)
+    exact = exact_motion(model)
+    assert exact.forms == {"star": "kepler", "planet": "kepler"}
+    assert np.abs(exact.positions - trajectory.positions).max() < 1e-8
+    separation = exact.positions[:, 1] - exact.positions[:, 0]
+    rate = exact.velocities[:, 1] - exact.velocities[:, 0]
+    energy = 0.5 * np.sum(rate**2, axis=1) - 4.0 / np.linalg.norm(separation, axis=1)
+    spin = np.cross(separation, rate)
+    assert np.ptp(energy) < 1e-12 and np.abs(spin - spin[0]).max() < 1e-12
+
+
+def test_a_body_without_a_closed_form_is_named_with_the_key_location():
+    """Quadratic drag has no closed form: the error points at study.closed_form in the file and names the body."""
+    loaded = scene("""
+        duration: 1
+        bodies: [{name: a}, {name: b}]
+        fields: [{type: gravity}, {type: drag, model: quadratic, coefficient: 0.1, bodies: [b]}]
+        study:
+          closed_form: true
+    """)
+    with pytest.raises(SceneError) as caught:
+        run_study(loaded)
+    message = str(caught.value)
+    assert message.startswith("test.yaml:6:16: study.closed_form: body 'b' has no closed form: it feels quadratic")
+
+
+# ------------------------------------------------------------------------------------------------ figures of merit
+
+
+def test_time_to_an_error_interpolates_between_bracketing_points_and_never_extrapolates():
+    points = [Point(1e-2, 1.0, 10, None, 1e-3, False), Point(1e-4, 10.0, 100, None, 1e-5, False)]
+    assert time_to(points, 1e-3).seconds == pytest.approx(10**0.5)  # halfway in log-log
+    assert time_to(points, 1e-6).seconds is None  # beyond the most accurate point: not reached
+    bound = time_to(points, 1e-1)
+    assert bound.bound and bound.seconds == 1.0  # even the fastest is below: only a bound
+    limited = [points[0], Point(1e-15, 20.0, 200, None, 1e-7, True)]
+    assert time_to(limited, 1e-6, floor=1e-12).seconds is not None  # a limited point counts as "below the floor"
+
+
+def test_observed_order_from_fixed_steps_and_from_work():
+    fixed = [Point(0.02 * dt, 1 / dt, 0, dt, None, False) for dt in (0.1, 0.05, 0.025)]
+    assert observed_order(fixed) == pytest.approx(1.0)
+    adaptive = [Point(n**-4.0, n, n, None, 1e-3, False) for n in (10, 20, 40)]
+    assert observed_order(adaptive) == pytest.approx(4.0)
+    assert observed_order(adaptive[:1]) is None
+
+
+# ------------------------------------------------------------------------------------------------ whole studies
+
+PROJECTILE = """
+    duration: 1.0
+    fps: 10
+    bodies: [{name: ball, position: [0, 1, 0], velocity: [3, 5, 0]}]
+    fields: [{type: gravity}]
+    study: {closed_form: true, rtols: [1.0e-3, 1.0e-6, 1.0e-9], dt_levels: 4, repeats: 1}
+"""
+
+
+@pytest.fixture(scope="module")
+def projectile_study():
+    return run_study(scene(PROJECTILE), methods=["RK45", "euler", "symplectic_euler", "verlet"])
+
+
+def test_projectile_study_against_its_closed_form(projectile_study):
+    """Euler and symplectic Euler converge at order 1, with error h g T / 2 … scaled; Verlet is exact (round-off,
+    marked as limited by the reference); RK45 meets its tolerance; energy drift is reported (gravity only)."""
+    result = projectile_study
+    assert result.reference.startswith("closed form (ball: projectile)")
+    merits = {m.method: m for m in result.merits}
+    assert merits["euler"].order == pytest.approx(1.0, abs=0.05)
+    assert merits["symplectic_euler"].order == pytest.approx(1.0, abs=0.05)
+    verlet = [row for row in result.rows if row.method == "verlet"]
+    assert all(row.limited_by_reference and row.position_error < 1e-12 for row in verlet)
+    rk45 = [row for row in result.rows if row.method == "RK45"]
+    assert [row.rtol for row in rk45] == [1e-3, 1e-6, 1e-9]
+    assert all(row.error_over_tolerance < 10 for row in rk45)
+    euler = [row for row in result.rows if row.method == "euler"]
+    assert [row.dt for row in euler] == pytest.approx([0.1 / 2**k for k in range(4)])
+    assert all(row.energy_drift is not None for row in euler)
+    assert result.conserved == {"energy": True, "momentum": False, "angular_momentum": False}
+    for row in euler:  # explicit Euler lags the parabola by g h t / 2 at time t
+        t = np.arange(10) / 10
+        expected = np.sqrt(np.mean((G * row.dt * t / 2) ** 2)) / result.length_scale
+        assert row.position_error == pytest.approx(expected, rel=1e-6)
+
+
+def test_study_without_closed_form_checks_its_reference_and_marks_points_it_cannot_resolve():
+    """Quadratic drag: the reference is DOP853 at 1e-12 checked against 1e-11; its accuracy is far below every
+    run's error except the tightest, which are marked as limited by it."""
+    loaded = scene("""
+        duration: 1.0
+        fps: 10
+        bodies: [{name: ball, velocity: [8, 8, 0]}]
+        fields: [{type: gravity}, {type: drag, model: quadratic, coefficient: 0.05}]
+        study: {rtols: [1.0e-3, 1.0e-6, 1.0e-10], repeats: 1}
+    """)
+    result = run_study(loaded, methods=["RK23"])
+    assert result.reference.startswith("DOP853 at rtol 1e-12, checked against DOP853 at rtol 1e-11")
+    assert 0 < result.reference_floor < 1e-9
+    rows = result.rows
+    assert rows[0].position_error > 1e3 * result.reference_floor and not rows[0].limited_by_reference
+    assert all(row.limited_by_reference == (row.position_error <= 2 * result.reference_floor) for row in rows)
+
+
+def test_failed_runs_are_kept_with_their_reason():
+    """A step the stability check refuses and a run over its time limit are rows with status and reason, and count
+    as failures of their method."""
+    loaded = scene("""
+        duration: 0.3
+        fps: 10
+        anchors: [{name: wall, position: [0, 0, 0]}]
+        bodies: [{name: bob, mass: 0.01, position: [1.1, 0, 0]}]
+        springs: [{between: [wall, bob], stiffness: 1.0e3, damping: 0.0, rest_length: 1.0}]
+        study: {dt_levels: 2, rtols: [1.0e-6], repeats: 1}
+    """)
+    result = run_study(loaded, methods=["symplectic_euler"])
+    assert result.reference.endswith("checked against Radau at rtol 1e-09")  # a stiff scene: ω = 316 rad/s
+    refused = [row for row in result.rows if row.method == "symplectic_euler"]
+    # dt = 0.1 s: two steps grow the vibration a millionfold, just under the refusal limit, and the energy guard
+    # stops it; dt = 0.05 s is refused before it starts
+    assert [row.status for row in refused] == ["failed", "failed"]
+    assert "the total energy rose by" in refused[0].reason and "cannot hold this scene's springs" in refused[1].reason
+    assert {m.method: m.failures for m in result.merits}["symplectic_euler"] == 2
+    timed_out = run_study(scene(PROJECTILE, "study.timeout=1.0e-9"), methods=["RK45"])
+    assert [row.status for row in timed_out.rows] == ["timeout"] * 3
+    assert timed_out.rows[0].reason == "took longer than 1e-09 s"
+
+
+def test_outputs_table_csv_json_and_plot(projectile_study, tmp_path):
+    paths = write_outputs(projectile_study, tmp_path)
+    rows = list(csv.DictReader(paths["csv"].open()))
+    assert len(rows) == len(projectile_study.rows) == 3 + 3 * 4
+    assert {row["method"] for row in rows} == {"RK45", "euler", "symplectic_euler", "verlet"}
+    data = json.loads(paths["json"].read_text())
+    assert [m["method"] for m in data["figures_of_merit"]] == ["RK45", "euler", "symplectic_euler", "verlet"]
+    image = np.asarray(Image.open(paths["png"]).convert("L"))
+    assert image.shape == (605, 880) and image.std() > 10  # a drawn figure, not a blank one
+    text = paths["txt"].read_text()
+    assert "time to 0.001 [s]" in text and "limited by reference" in text
+    assert not list(tmp_path.glob(".*partial*"))
+
+
+def test_study_command(tmp_cwd):
+    (tmp_cwd / "ball.yaml").write_text(PROJECTILE)
+    result = CliRunner().invoke(cli, ["study", "ball.yaml", "--methods", "RK45,verlet", "--repeats", "1"])
+    assert result.exit_code == 0, result.output
+    assert "study of ball: reference closed form" in result.output
+    assert sorted(p.name for p in (tmp_cwd / "renders/ball").iterdir()) == ["study.csv", "study.json", "study.png",
+                                                                           "study.txt"]
+
+
+def test_energy_drift_is_only_reported_where_energy_is_conserved():
+    loaded = scene(PROJECTILE.replace("fields: [{type: gravity}]",
+                                      "fields: [{type: gravity}, {type: drag, model: linear, coefficient: 0.1}]"))
+    result = run_study(loaded, methods=["RK45"])
+    assert result.conserved["energy"] is False and all(row.energy_drift is None for row in result.rows)
+    model = compile_scene(loaded.spec)
+    assert total_energy(model, model.y0) != 0 and angular_momentum(model, model.y0).shape == (3,)
+
+
+def test_a_study_with_collisions_measures_bounce_time_errors():
+    """A ball bouncing (e = 0.5) from 1 m: the reference (DOP853 with impacts located on its dense output) bounces
+    at t₀ and 2 t₀ in the first second; a tight RK45 run's bounce times agree to 1e-7 s, symplectic Euler's are off
+    by at most a step per bounce, and the error shrinks with the step (first order: speculative contacts bounce
+    within the step)."""
+    loaded = scene("""
+        duration: 1.0
+        fps: 20
+        materials: {m: {restitution: 0.5, static_friction: 0.5, kinetic_friction: 0.3}}
+        bodies: [{name: ball, radius: 0.1, position: [0, 1.1, 0], material: m}]
+        colliders: [{type: plane, material: m}]
+        fields: [{type: gravity}]
+        study: {rtols: [1.0e-8], dt_levels: 3, repeats: 1}
+    """)
+    result = run_study(loaded, methods=["RK45", "symplectic_euler"])
+    t0 = np.sqrt(2 / G)
+    assert result.reference_impacts == 2 and 2 * t0 < 1.0 < 2.5 * t0
+    rk45 = next(row for row in result.rows if row.method == "RK45")
+    assert rk45.impacts == 2 and rk45.contact_time_error < 1e-7
+    euler = [row for row in result.rows if row.method == "symplectic_euler"]
+    assert [row.dt for row in euler] == pytest.approx([0.05, 0.025, 0.0125])
+    assert [row.impacts for row in euler] == [2, 2, 2]
+    errors = [row.contact_time_error for row in euler]
+    assert errors[0] > errors[1] > errors[2] > 0
+    assert all(error < 2 * row.dt for error, row in zip(errors, euler))  # at most a step per bounce
+    assert errors[0] / errors[2] == pytest.approx(4, rel=0.3)  # first order: dt / 4 gives a quarter
+    assert "contact" in table(result) and "contact_time_error" in csv_text(result).splitlines()[0]
