@@ -273,3 +273,43 @@ def test_a_study_with_collisions_measures_bounce_time_errors():
     assert all(error < 2 * row.dt for error, row in zip(errors, euler))  # at most a step per bounce
     assert errors[0] / errors[2] == pytest.approx(4, rel=0.3)  # first order: dt / 4 gives a quarter
     assert "contact" in table(result) and "contact_time_error" in csv_text(result).splitlines()[0]
+
+
+def test_bundled_scenes_that_declare_closed_forms_have_them_and_a_tight_run_agrees():
+    """Every scene in scenes/ with study.closed_form gets its exact motion, and a DOP853 run at 1e-11 matches it to
+    1e-7 of the scene's length scale (so the study measures against the right thing)."""
+    from pathlib import Path
+
+    from animbatch import api
+    from animbatch.study.measure import Motion, Scales, position_error
+
+    root = Path(__file__).resolve().parents[1]
+    declared = []
+    for path in sorted((root / "scenes").glob("*.yaml")):
+        loaded = api.load_scene(path, ["solver.method=DOP853", "solver.rtol=1.0e-11", "solver.atol=1.0e-13"])
+        if not loaded.spec.study.closed_form:
+            continue
+        declared.append(path.stem)
+        model = compile_scene(loaded.spec)
+        exact = exact_motion(model)
+        trajectory = api.simulate(loaded, model=model)
+        scales = Scales.of_motion(model, exact.positions, exact.velocities)
+        identity = np.zeros((*exact.positions.shape[:2], 4))
+        identity[..., 0] = 1
+        error = position_error(model, Motion(trajectory.positions, trajectory.velocities, identity),
+                               Motion(exact.positions, exact.velocities, identity), scales)
+        assert error < 1e-7, path.name
+    assert set(declared) >= {"projectile", "damped_oscillator", "two_body_orbit"}
+
+
+def test_accuracy_page_sections_link_the_plot_and_list_every_method(projectile_study):
+    """docs/accuracy.md is generated: each scene's section links its plot and files and has one row per method."""
+    from animbatch.study.document import GUIDE, page, section
+
+    text = section("projectile", "a ball", projectile_study, "accuracy/projectile")
+    assert "![work-precision plot of projectile](accuracy/projectile/study.png)" in text
+    assert "[CSV](accuracy/projectile/study.csv)" in text
+    for method in ("RK45", "euler", "symplectic_euler", "verlet"):
+        assert f"| {method} | " in text
+    assert "Fastest to 1e-3: **" in text
+    assert page([text], 1.0).endswith(GUIDE)
