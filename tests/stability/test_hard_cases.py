@@ -149,6 +149,19 @@ def test_explicit_euler_spirals_out_at_the_rate_its_error_analysis_gives(dt):
     assert energy[-1] == pytest.approx(4 * np.pi * dt, rel=0.06)
 
 
+def test_backward_euler_on_an_orbit_takes_its_steps_without_halving():
+    """Gravitation has no derivatives in the implicit solve, so it enters explicitly and the orbit is stepped like
+    symplectic Euler: energy oscillates within O(h) and never drifts. The energy guard of backward Euler (halve a
+    step that raises energy) must stay off here; it used to halve every other step ten times (a 30 s timeout)."""
+    model, trajectory = run(orbit("backward_euler", "dt: 0.01", 5))
+    stats = trajectory.solver_stats
+    assert stats["rhs_evaluations"] <= stats["steps"] + 1  # one evaluation per step: no step was redone
+    energy = relative_energy(model, trajectory)
+    assert np.abs(energy).max() < 0.03  # O(h) band of a first-order symplectic step (2 h here)
+    band = len(energy) // 5
+    assert abs(np.abs(energy[-band:]).max() - np.abs(energy[:band]).max()) < 2e-3  # no drift over 5 orbits
+
+
 # ------------------------------------------------------------------------------------------------ rigid rotation
 
 
