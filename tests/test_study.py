@@ -126,11 +126,19 @@ def test_time_to_an_error_interpolates_between_bracketing_points_and_never_extra
 
 
 def test_observed_order_from_fixed_steps_and_from_work():
+    """Error ∝ dt^p or ∝ steps^-p gives p; loose tolerances that take the same few steps for very different errors
+    (a floor on the step count) do not skew it; points without a factor 1.5 in work between them give no order."""
     fixed = [Point(0.02 * dt, 1 / dt, 0, dt, None, False) for dt in (0.1, 0.05, 0.025)]
     assert observed_order(fixed) == pytest.approx(1.0)
-    adaptive = [Point(n**-4.0, n, n, None, 1e-3, False) for n in (10, 20, 40)]
-    assert observed_order(adaptive) == pytest.approx(4.0)
+    adaptive = [Point(n**-5.0, n, 15 * n, None, 1e-3, False, steps=n) for n in (20, 40, 80, 160)]
+    assert observed_order(adaptive) == pytest.approx(5.0)
+    # DOP853 on the damped oscillators: the two loosest tolerances both take 20 steps
+    measured = [(20, 1.06e-3), (20, 2.26e-4), (22, 2.18e-6), (26, 2.46e-7), (33, 2.74e-8), (43, 3.17e-9),
+                (56, 3.7e-10), (73, 5.44e-11)]
+    floored = [Point(error, 1.0, 15 * steps, None, 1e-3, False, steps=steps) for steps, error in measured]
+    assert 8 <= observed_order(floored) <= 10  # a least-squares fit over the same points gives 11.6
     assert observed_order(adaptive[:1]) is None
+    assert observed_order(floored[:2]) is None
 
 
 # ------------------------------------------------------------------------------------------------ whole studies

@@ -5,10 +5,12 @@ observed order of convergence.
   target, interpolated in log–log. Never extrapolated: when even the fastest point is below the target the answer is
   a bound ("at most the fastest time"), and when no point reaches it, None. A point limited by the reference counts
   with the error it is known to be below (the reference's floor times its margin).
-* ``observed_order``: for a fixed-step method, the least-squares slope of log error against log dt; for an adaptive
-  one, minus the slope of log error against log RHS evaluations (work ∝ steps, error ∝ h^p ∝ steps^-p). Only points
-  in the asymptotic range are used (error below 10 % of the scale and not limited by the reference); None with fewer
-  than two, or when the work varies by less than a factor of two among them.
+* ``observed_order``: for a fixed-step method, the slope of log error against log dt; for an adaptive one, minus
+  the slope of log error against log steps (mean step ∝ 1/steps, error ∝ h^p ∝ steps^-p). The slope is the median
+  of the slopes between pairs of points whose step counts differ by at least half (Theil–Sen): the loosest
+  tolerances often take nearly the same few steps for very different errors, which would skew a least-squares fit.
+  Only points in the asymptotic range are used (error below 10 % of the scale and not limited by the reference);
+  None without such a pair. For BDF and LSODA, which change order as they go, it is an effective order.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ class Point:
     dt: float | None
     rtol: float | None
     limited: bool
+    steps: int | None = None
 
 
 @dataclass(frozen=True)
@@ -73,9 +76,11 @@ def observed_order(points: list[Point]) -> float | None:
         work = np.log([p.dt for p in usable])  # type: ignore[misc]
         sign = 1.0
     else:
-        work = np.log([p.rhs_evaluations for p in usable])
+        work = np.log([p.steps or p.rhs_evaluations for p in usable])
         sign = -1.0
-    if np.ptp(work) < np.log(2):  # the work hardly changed (a problem the method solves exactly): no order to see
+    first, second = np.triu_indices(len(usable), k=1)
+    apart = np.abs(work[first] - work[second]) >= np.log(1.5)
+    if not apart.any():  # the work hardly changed (a problem the method solves exactly): no order to see
         return None
-    slope = np.polyfit(work, error, 1)[0]
-    return float(sign * slope)
+    slopes = (error[first] - error[second])[apart] / (work[first] - work[second])[apart]
+    return float(sign * np.median(slopes))

@@ -134,7 +134,7 @@ def merits(rows: list[StudyRow], floor: float) -> list[MethodMerit]:
     for method in dict.fromkeys(row.method for row in rows):
         mine = [row for row in rows if row.method == method]
         points = [Point(row.position_error, row.wall_time, row.rhs_evaluations or 0, row.dt, row.rtol,
-                        row.limited_by_reference)
+                        row.limited_by_reference, row.steps)
                   for row in mine if row.status == "ok" and row.position_error is not None
                   and row.wall_time is not None]
         result.append(MethodMerit(method, {target: time_to(points, target, REFERENCE_MARGIN * floor)
