@@ -69,6 +69,12 @@ class Resting:
     def keys(self) -> set[tuple[int, int, int]]:
         return set(zip(self.probe.tolist(), self.kind.tolist(), self.index.tolist()))
 
+    def holds(self, contacts: Contacts) -> np.ndarray:
+        """Which of the contacts (K,) bool are among these resting ones (same probe and solid)."""
+        keys = self.keys()
+        return np.array([key in keys for key in zip(contacts.probe.tolist(), contacts.solid_kind.tolist(),
+                                                     contacts.solid_index.tolist())], dtype=bool)
+
     def keep(self, chosen: np.ndarray) -> Resting:
         return Resting(self.probe[chosen], self.kind[chosen], self.index[chosen], self.sticking[chosen],
                        self.slide_direction[chosen])
@@ -240,10 +246,7 @@ class ContactEvents:
         margin = float(travel.max(initial=0.0)) + TOUCH
         found = detect(self.world, s1, margin)
         if self.resting.count and found.count:
-            resting = self.resting.keys()
-            keep = np.array([key not in resting for key in zip(found.probe.tolist(), found.solid_kind.tolist(),
-                                                                  found.solid_index.tolist())])
-            found = found.select(keep)
+            found = found.select(~self.resting.holds(found))
         return found
 
     def _first_impact(self, solver: Any, candidates: Contacts) -> float | None:
@@ -338,8 +341,15 @@ class ContactEvents:
         self._choose_resting(y, state, touching)
 
     def _choose_resting(self, y: np.ndarray, state: Kinematics, touching: Contacts) -> None:
-        """Touching contacts that the impulses left at rest (not separating) become resting contacts; those that
-        bounced, however slowly, fly free until their next, slower impact."""
+        """Touching contacts that the impulses left at rest become resting contacts; those that bounced fly free
+        until their next, slower impact.
+
+        A contact that was already resting before this event (another body's impact, say) stays resting unless it
+        separates at the rest speed or faster: its normal velocity carries the integration's error (1e-8 m/s at a
+        loose tolerance, either sign), and let fly it would start its flight touching or a hair inside the solid,
+        where no gap can cross zero to report its next impact: it would sink through. (Lift-off from rest is a mode
+        change, found by the mode functions.)
+        """
         if not touching.count:
             self.resting = Resting()
             self._warm_forces = None
@@ -351,6 +361,8 @@ class ContactEvents:
         rows = ContactRows(touching, velocities, x)
         normal = rows.relative(rows.n)
         keep = normal < 1e-9 + 1e-9 * np.abs(normal).max(initial=0.0)
+        if self.resting.count:
+            keep |= self.resting.holds(touching) & (normal < self.rest_speed)
         slip = rows.tangential()[keep]
         speed = np.linalg.norm(slip, axis=1)
         chosen = touching.select(keep)
