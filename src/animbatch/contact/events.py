@@ -277,13 +277,18 @@ class ContactEvents:
         # a straight piece of path shorter than the gaps at its two ends cannot reach the solid (triangle
         # inequality); rotating probes move on arcs, hence the allowance
         travel = 1.6 * np.linalg.norm(np.diff(centres, axis=0), axis=2)  # (S, C)
-        approaching = values[0] > -TOUCH
+        # A probe that starts the step a hair inside a solid (the integration's error at a loose tolerance, or an
+        # event's slop) impacts when it comes back to that depth, not to zero depth, which it may never reach again;
+        # if it is already sinking deeper, the impact is now.
+        level = np.minimum(values[0], 0.0)
+        if np.any((values[0] <= 0) & (values[1] < values[0])):
+            return float(t0)
         first = None
         for k in range(SAMPLES):
-            crossed = approaching & (values[k] > 0) & (values[k + 1] <= 0)
+            crossed = (values[k] > level) & (values[k + 1] <= level)
             if not crossed.any():
                 # a thin solid may hide between samples: look for a dip below zero inside the interval
-                could = approaching & (values[k] > 0) & (values[k + 1] > 0) & (travel[k] > values[k] + values[k + 1])
+                could = (values[k] > 0) & (values[k + 1] > 0) & (travel[k] > values[k] + values[k + 1])
                 dip = self._dip(gaps, times[k], times[k + 1], could)
                 if dip is None:
                     continue
@@ -291,7 +296,8 @@ class ContactEvents:
             else:
                 pair = int(np.argmax(crossed))
                 lower, upper = times[k], times[k + 1]
-            first = brentq(lambda t: gaps(t, [pair])[0], lower, upper, xtol=1e-12, rtol=4 * np.finfo(float).eps)
+            first = brentq(lambda t: gaps(t, [pair])[0] - level[pair], lower, upper, xtol=1e-12,
+                           rtol=4 * np.finfo(float).eps)
             break
         return first
 
