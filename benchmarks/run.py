@@ -22,8 +22,10 @@ Prints one table. Measures:
 8. only what is declared: the right-hand-side cost of a cloth alone and with things of other kinds that act on
    nothing in it (unused anchors, fixed and keyframed, a material, an emitter, study settings).
 
+9. farm: 'animbatch render' of a 300-frame scene at 1280×720 with one render process and with one per core.
+
 Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, rigid, contacts, render,
-encode, cloth, fountain, lean), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick), ``--cloth-method NAME`` (only
+encode, cloth, fountain, lean, farm), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick), ``--cloth-method NAME`` (only
 the cloth methods whose label starts with NAME, e.g. ``BDF``; repeatable), ``--json FILE`` (also write
 the rows as JSON).
 """
@@ -471,9 +473,37 @@ def compile_scene_text(text: str):  # type: ignore[no-untyped-def]
     return compile_scene(parse_scene(text, filename="benchmark.yaml").spec)
 
 
+def bench_farm(quick: bool) -> list[Row]:
+    """Wall time of 'animbatch render' on a 300-frame scene (bouncing balls, 1280×720, from a warm cache) with one
+    render process and with one per core; frames are deleted between runs so that every frame is drawn."""
+    import shutil
+    import subprocess
+
+    frames = 60 if quick else 300
+    out = Path(tempfile.mkdtemp(prefix="animbatch-farm-"))
+    command = [sys.executable, "-m", "animbatch", "render", str(ROOT / "scenes" / "bouncing_balls.yaml"),
+               "--out", str(out), "--no-progress", "--set", f"duration={frames / 30}", "--set", "fps=30"]
+    subprocess.run(command + ["--frames", "0"], check=True, capture_output=True)  # bake, warm caches
+    rows = []
+    seconds = {}
+    for jobs in (1, os.cpu_count() or 1):
+        shutil.rmtree(out / "bouncing-balls" / "frames", ignore_errors=True)
+        started = time.perf_counter()
+        subprocess.run(command + ["--jobs", str(jobs)], check=True, capture_output=True)
+        seconds[jobs] = time.perf_counter() - started
+        rows.append({"benchmark": "farm render", "case": f"{frames} frames 1280×720, --jobs {jobs}: wall time",
+                     "value": seconds[jobs], "unit": "s"})
+    cores = os.cpu_count() or 1
+    if cores > 1:
+        rows.append({"benchmark": "farm render", "case": f"speed-up of --jobs {cores} over --jobs 1",
+                     "value": seconds[1] / seconds[cores], "unit": "×"})
+    shutil.rmtree(out, ignore_errors=True)
+    return rows
+
+
 BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "rigid": bench_rigid, "contacts": bench_contacts,
               "render": bench_render, "encode": bench_encode, "cloth": bench_cloth, "fountain": bench_fountain,
-              "lean": bench_lean}
+              "lean": bench_lean, "farm": bench_farm}
 
 
 def main() -> int:

@@ -107,23 +107,40 @@ def test_camera_change_renders_from_trajectory_without_simulating(slide_scene, t
     assert Image.open(tmp_cwd / "renders" / "slide" / "frames" / "frame_00000.png").size == (96, 54)
 
 
-def test_interrupted_render_leaves_no_video_or_partial_file(slide_scene, tmp_cwd, monkeypatch):
-    """An error mid-render removes the partial MP4; no file under the final name exists."""
+def test_interrupted_render_leaves_no_video_or_partial_file_and_resumes(slide_scene, tmp_cwd, monkeypatch):
+    """Interrupted while drawing frame 7: no video and no partial file of any kind exist, the frames drawn before are
+    complete PNGs. The next run reuses the cache, draws only frames 7 … 11, and encodes all 12."""
+    from animbatch.farm.frames import frame_is_complete
     from animbatch.render.frames import FrameRenderer
 
     original = FrameRenderer.draw
+    drawn = []
 
     def failing(self, t, *state):
         if t > 0.2:
             raise KeyboardInterrupt
+        drawn.append(round(t * 30))
         return original(self, t, *state)
 
     monkeypatch.setattr(FrameRenderer, "draw", failing)
     result = CliRunner().invoke(cli, ["render", str(slide_scene), "--formats", "mp4"])
     assert result.exit_code == 130 and "interrupted" in result.output
     folder = tmp_cwd / "renders" / "slide"
-    leftovers = list(folder.iterdir()) if folder.exists() else []
-    assert leftovers == []  # neither slide.mp4 nor its hidden partial file
+    assert not list(folder.rglob("*.mp4")) and not list(folder.rglob(".*"))  # no video, no hidden partial file
+    frames = sorted(path.name for path in (folder / "frames").glob("frame_*"))
+    assert frames == [f"frame_{i:05d}.png" for i in range(7)]
+    assert all(frame_is_complete(folder / "frames" / name, (WIDTH, HEIGHT)) for name in frames)
+
+    monkeypatch.setattr(api, "simulate", lambda *a, **k: pytest.fail("simulated again"))
+    drawn.clear()
+    monkeypatch.setattr(FrameRenderer, "draw", lambda self, t, *state: drawn.append(round(t * 30)) or original(
+        self, t, *state))
+    result = CliRunner().invoke(cli, ["render", str(slide_scene), "--formats", "mp4"])
+    assert result.exit_code == 0, result.output
+    assert drawn == list(range(7, 12))
+    reader = imageio_ffmpeg.read_frames(str(folder / "slide.mp4"))
+    assert next(reader)["size"] == (WIDTH, HEIGHT) and sum(1 for _ in reader) == 12
+    assert not (folder / "frames").exists()  # mp4 only: the frames go once the video is encoded
 
 
 def test_no_backend_gives_one_clear_message(slide_scene, monkeypatch):

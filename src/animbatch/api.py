@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import platform
+import shutil
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -246,6 +247,12 @@ class RunReport:
     created: str = field(default_factory=lambda: _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
     host: str = field(default_factory=platform.node)
     status: str = "ok"
+    frames: str = ""  # the range rendered, "0-299"
+    frames_drawn: int = 0  # frames drawn by this run (the others were complete on disk)
+    frames_skipped: int = 0
+    workers: int = 1  # render processes
+    cache: str | None = None  # the baked trajectory file
+    cache_reused: bool = False
 
     def summary(self) -> str:
         """One line for logs: outputs, frames, timings and solver work."""
@@ -274,31 +281,82 @@ def failure_report(scene: LoadedScene, error: SimulationError, watch: Stopwatch)
 
 
 def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: str | Path = "renders",
-        backend: str = "auto", trajectory_path: str | Path | None = None,
-        progress: Progress | None = None) -> RunReport:
-    """Load, compile, simulate (or read ``trajectory_path``), render and encode one scene; write its report."""
+        backend: str = "auto", trajectory_path: str | Path | None = None, progress: Progress | None = None,
+        jobs: int | None = None, frames: str | None = None) -> RunReport:
+    """Bake, render and encode one scene, as a render farm does, on this machine; write its report.
+
+    * **bake**: the trajectory from the cache (``renders/<scene>/cache/``) when the physics, solver settings and
+      package version match, else simulated and cached (or read from ``trajectory_path``);
+    * **render**: the frames not yet complete on disk, in ``jobs`` worker processes (default: one per core, fewer
+      for short animations), into ``renders/<scene>/frames/``;
+    * **encode**: every video format the scene asks for; the frame files are then deleted unless ``png`` is one of
+      the formats.
+
+    With ``frames`` (``"120-239"``) only that range is rendered, and nothing is encoded (``animbatch encode`` does
+    that once every range is done); the report is written for whole runs only.
+    """
+    from animbatch.farm import bake, parse_frames, render_frames
+    from animbatch.farm.encode import encode
+    from animbatch.farm.frames import frames_folder, prepare_frames
+    from animbatch.farm.parallel import render_in_parallel, worker_count
+
     watch = Stopwatch()
+    progress = progress or Progress(enabled=False)
     with watch.stage("load"):
         scene = load_scene(scene_path, overrides)
     with watch.stage("compile"):
         model = compile_model(scene)
+    cache = None
     if trajectory_path is not None:
         with watch.stage("load_trajectory"):
             trajectory = Trajectory.load(trajectory_path)
             check_trajectory(scene, model, trajectory, trajectory_path)  # before rendering, naming the file
+        source = Path(trajectory_path)
     else:
-        with watch.stage("simulate"):
-            try:
-                trajectory = simulate(scene, model=model, progress=progress)
-            except SimulationError as error:  # the reason goes in the report too, where batch tools look for it
-                write_json_atomic(Path(out_dir) / scene.name / "report.json", failure_report(scene, error, watch))
-                raise
-    result = render(scene, trajectory, model=model, out_dir=out_dir, backend=backend, progress=progress)
-    watch.add("render", result.render_seconds)
-    watch.add("encode", result.encode_seconds)
+        try:
+            baked = bake(scene, out_dir=out_dir, model=model, progress=progress)
+        except SimulationError as error:  # the reason goes in the report too, where batch tools look for it
+            write_json_atomic(Path(out_dir) / scene.name / "report.json", failure_report(scene, error, watch))
+            raise
+        watch.add("load_cache" if baked.reused else "simulate", baked.seconds)
+        trajectory, source, cache = baked.trajectory, baked.path, baked
+    span = parse_frames(frames, trajectory.frame_count)
+    prepare_frames(scene, trajectory, out_dir)  # before any worker starts: stale frames of another picture go
+    workers = worker_count(jobs, len(span))
+    with progress.task("render", len(span)) as on_frame:
+        if workers > 1:
+            rendered = render_in_parallel(scene_path, overrides, source, span, workers=workers, out_dir=out_dir,
+                                          backend=backend, on_chunk=lambda chunk: [
+                                              on_frame(i, float(trajectory.times[i])) for i in chunk.drawn])
+        else:
+            rendered = render_frames(scene, trajectory, span, out_dir=out_dir, backend=backend, model=model,
+                                     on_frame=lambda i: on_frame(i, float(trajectory.times[i])))
+    watch.add("render", rendered.render_seconds + rendered.write_seconds)
+    folder = frames_folder(scene, out_dir)
+    spec = scene.spec
+    outputs: list[Path] = []
+    if frames is None:
+        videos = tuple(kind for kind in spec.render.formats if kind != "png")
+        if videos:
+            encoded = encode(scene, trajectory.frame_count, out_dir=out_dir, kinds=videos)
+            watch.add("encode", encoded.seconds)
+            outputs += encoded.outputs
+        if "png" in spec.render.formats:
+            from animbatch.encode import PngSequenceWriter
+
+            PngSequenceWriter(folder).remove_beyond(trajectory.frame_count)  # from a longer run of the same picture
+            outputs.append(folder)
+        else:
+            shutil.rmtree(folder, ignore_errors=True)
+    else:
+        outputs.append(folder)
     report = RunReport(scene.name, str(scene.path) if scene.path else None, trajectory.physics_hash, __version__,
-                       dict(watch.seconds), trajectory.solver, trajectory.solver_stats, result.frame_count,
-                       result.resolution, result.fps, result.backend, [str(p) for p in result.outputs],
-                       str(trajectory_path) if trajectory_path else None, trajectory.particle_stats)
-    write_json_atomic(Path(out_dir) / scene.name / "report.json", report.__dict__)
+                       dict(watch.seconds), trajectory.solver, trajectory.solver_stats, trajectory.frame_count,
+                       tuple(spec.render.resolution), spec.fps, rendered.backend or "(none: frames were complete)",
+                       [str(p) for p in outputs], str(trajectory_path) if trajectory_path else None,
+                       trajectory.particle_stats, frames=str(span), frames_drawn=len(rendered.drawn),
+                       frames_skipped=len(rendered.skipped), workers=workers,
+                       cache=str(cache.path) if cache else None, cache_reused=bool(cache and cache.reused))
+    if frames is None:
+        write_json_atomic(Path(out_dir) / scene.name / "report.json", report.__dict__)
     return report

@@ -209,19 +209,71 @@ def study(scene: Path, out_dir: Path | None, methods: str | None, repeats: int |
 @click.option("--backend", type=click.Choice(["auto", "egl", "osmesa"]), default="auto", show_default=True,
               help="Off-screen OpenGL backend.")
 @click.option("--resolution", metavar="WxH", help="Frame size, e.g. 1920x1080 (render.resolution).")
-@click.option("--formats", metavar="LIST", help="Outputs: mp4, png or mp4,png (render.formats).")
+@click.option("--formats", metavar="LIST", help="Outputs: mp4, webm, gif, png, comma-separated (render.formats).")
+@click.option("--frames", metavar="FIRST-LAST", help="Render only these frames (e.g. 120-239) from the cache, and "
+              "encode nothing; complete frames are skipped.")
+@click.option("--jobs", type=click.IntRange(min=1), help="Render processes (default: one per core; fewer for short "
+              "animations).")
 @_scene_options
 @click.option("--progress/--no-progress", default=None, help="Progress bars (default: on a terminal).")
 @_reports_errors
 def render(scene: Path, trajectory: Path | None, out_dir: Path, backend: str, settings: tuple[str, ...],
-           progress: bool | None, **shortcuts: str | None) -> None:
-    """Simulate (or read a trajectory), render frames off-screen and write MP4/PNG into renders/<scene>/."""
+           progress: bool | None, frames: str | None, jobs: int | None, **shortcuts: str | None) -> None:
+    """Bake (or reuse the cached simulation), render the frames off-screen in parallel, and encode the videos into
+    renders/<scene>/. Frames already complete on disk are not drawn again."""
     from animbatch import api
     from animbatch.progress import Progress
 
-    report = api.run(scene, overrides=_overrides(settings, **shortcuts), out_dir=out_dir, backend=backend,
-                     trajectory_path=trajectory, progress=Progress(enabled=progress))
+    try:
+        report = api.run(scene, overrides=_overrides(settings, **shortcuts), out_dir=out_dir, backend=backend,
+                         trajectory_path=trajectory, progress=Progress(enabled=progress), jobs=jobs, frames=frames)
+    except ValueError as error:  # a --frames range the scene does not have
+        raise click.BadParameter(str(error), param_hint="--frames") from None
     click.echo(report.summary())
+
+
+@cli.command()
+@click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("renders"),
+              show_default=True, help="Output folder; the cache goes to OUT/<scene name>/cache/.")
+@click.option("--force", is_flag=True, help="Simulate even when a matching cache exists.")
+@_scene_options
+@click.option("--progress/--no-progress", default=None, help="Progress bar (default: on a terminal).")
+@_reports_errors
+def bake(scene: Path, out_dir: Path, force: bool, settings: tuple[str, ...], progress: bool | None,
+         **shortcuts: str | None) -> None:
+    """Simulate the scene into its trajectory cache (keyed by physics, solver settings and package version), or
+    say that the cache is already up to date."""
+    from animbatch import api
+    from animbatch.farm import bake as bake_scene
+    from animbatch.progress import Progress
+
+    loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
+    result = bake_scene(loaded, out_dir=out_dir, progress=Progress(enabled=progress), force=force)
+    what = "up to date" if result.reused else f"baked in {result.seconds:.2f} s"
+    click.echo(f"{loaded.name}: {result.trajectory.frame_count} frames, cache {what} -> {result.path}")
+
+
+@cli.command()
+@click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("renders"),
+              show_default=True, help="Output folder (frames are read from OUT/<scene name>/frames/).")
+@click.option("--formats", metavar="LIST", help="Videos: mp4, webm, gif, comma-separated (default: the scene's).")
+@click.option("--set", "settings", multiple=True, metavar="KEY.PATH=VALUE", help="Override a scene value.")
+@_reports_errors
+def encode(scene: Path, out_dir: Path, formats: str | None, settings: tuple[str, ...]) -> None:
+    """Encode the rendered frames into videos (every frame must be complete: the error lists missing ones)."""
+    from animbatch import api
+    from animbatch.farm.encode import encode as encode_frames
+
+    loaded = api.load_scene(scene, _overrides(settings, formats=formats))
+    kinds = tuple(kind for kind in loaded.spec.render.formats if kind != "png")
+    if not kinds:
+        raise click.BadParameter("no video format chosen (png frames are already on disk)", param_hint="--formats")
+    frame_count = len(api.compile_model(loaded).frame_times)
+    result = encode_frames(loaded, frame_count, out_dir=out_dir, kinds=kinds)
+    click.echo(f"{loaded.name}: {result.frame_count} frames -> {', '.join(map(str, result.outputs))} "
+               f"({result.seconds:.2f} s)")
 
 
 def _show_warning(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:

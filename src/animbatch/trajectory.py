@@ -40,6 +40,7 @@ Example::
 from __future__ import annotations
 
 import json
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -115,7 +116,7 @@ class Trajectory:
         try:
             with np.load(path, allow_pickle=False) as data:
                 arrays = {key: data[key] for key in data.files}
-        except (OSError, ValueError, EOFError) as error:
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as error:  # truncated files raise the last
             raise TrajectoryError(f"{path}: not a readable .npz trajectory ({error})") from None
         if str(arrays.get("format", "")) != FORMAT:
             raise TrajectoryError(f"{path}: not an animbatch trajectory (missing format marker)")

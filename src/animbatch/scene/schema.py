@@ -1170,8 +1170,10 @@ class RenderSpec(SceneModel):
     show_time: bool = key(True, "Overlay the simulated time.")
     time_label: str = key("t = {t:.2f} s", "Format of the time overlay; {t} is the simulated time in s.")
     camera: CameraSpec = key(CameraSpec(), "Camera.")
-    formats: Annotated[list[Literal["mp4", "png"]], at.Len(1, 2)] = key(
-        ["mp4"], "Outputs: mp4 (one video) and/or png (one file per frame).")
+    formats: Annotated[list[Literal["mp4", "png", "webm", "gif"]], at.Len(1, 4)] = key(
+        ["mp4"], "Outputs: mp4 (H.264), webm (VP9), gif (256 colours; GIF times are in 1/100 s, so 30 fps plays "
+        "at 33.3), and png (keep the frame files; they are the render's resumable state and are otherwise deleted "
+        "once every video is encoded).")
     video: VideoSpec = key(VideoSpec(), "MP4 encoding settings.")
 
     @field_validator("resolution")

@@ -1,0 +1,86 @@
+"""The trajectory cache: ``renders/<scene>/cache/trajectory-<key>.npz``.
+
+The key is a content hash of what determines the motion: the scene's physics fingerprint (bodies, springs, fields,
+timeline, mesh-file bytes; see :func:`~animbatch.scene.loader.physics_fingerprint`), the solver settings and the
+package version. Camera, resolution, colours and every other render setting are not in it, so changing them never
+re-simulates; changing a mass, a step size or upgrading animbatch always does. A cache file whose key or contents do
+not match is never used: it is replaced (and other keys' files in the folder are removed once a new bake lands).
+Files are written atomically, so an interrupted bake leaves no cache that a later run could mistake for done.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from animbatch import __version__
+from animbatch.errors import TrajectoryError
+from animbatch.scene import LoadedScene
+from animbatch.trajectory import Trajectory
+
+
+def bake_key(scene: LoadedScene) -> str:
+    """16 hex digits naming the simulation a scene asks for (physics, solver settings, package version)."""
+    from animbatch.api import scene_fingerprint
+
+    content = {"physics": scene_fingerprint(scene), "solver": scene.spec.solver.model_dump(mode="json"),
+               "version": __version__}
+    return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def cache_file(scene: LoadedScene, out_dir: str | Path = "renders") -> Path:
+    """Where the scene's baked trajectory lives."""
+    return Path(out_dir) / scene.name / "cache" / f"trajectory-{bake_key(scene)}.npz"
+
+
+@dataclass
+class BakeResult:
+    """The baked trajectory, its cache file, and whether it was reused rather than simulated [``seconds``]."""
+
+    trajectory: Trajectory
+    path: Path
+    reused: bool
+    seconds: float = 0.0
+
+
+def load_cached(scene: LoadedScene, path: Path) -> Trajectory | None:
+    """The trajectory in ``path`` when it is a readable bake of exactly this scene's physics and solver settings
+    with this package version; None otherwise (missing, truncated, or stale)."""
+    if not path.is_file():
+        return None
+    try:
+        trajectory = Trajectory.load(path)
+    except TrajectoryError:
+        return None
+    from animbatch.api import scene_fingerprint
+
+    solver = {key: value for key, value in trajectory.solver.items() if key != "description"}
+    wanted = json.loads(json.dumps(scene.spec.solver.model_dump(), default=str))  # as stored: through JSON
+    if (trajectory.physics_hash != scene_fingerprint(scene) or trajectory.package_version != __version__
+            or solver != wanted):
+        return None
+    return trajectory
+
+
+def bake(scene: LoadedScene, *, out_dir: str | Path = "renders", model: object = None, progress: object = None,
+         force: bool = False) -> BakeResult:
+    """The scene's trajectory from the cache, or simulated and cached (raises SimulationError as simulate does)."""
+    import time
+
+    from animbatch.api import simulate
+
+    path = cache_file(scene, out_dir)
+    started = time.perf_counter()
+    cached = None if force else load_cached(scene, path)
+    if cached is not None:
+        return BakeResult(cached, path, True, time.perf_counter() - started)
+    trajectory = simulate(scene, model=model, progress=progress)  # type: ignore[arg-type]
+    trajectory.save(path)
+    for stale in path.parent.glob("trajectory-*.npz"):  # other keys: older physics, solver or version
+        if stale != path:
+            with contextlib.suppress(FileNotFoundError):
+                stale.unlink()
+    return BakeResult(trajectory, path, False, time.perf_counter() - started)

@@ -1,0 +1,166 @@
+"""Rendering a range of frames from a baked trajectory into ``renders/<scene>/frames/frame_00000.png`` …
+
+Idempotent: a frame whose PNG is complete (it decodes, and has the scene's resolution) is skipped; a missing,
+truncated or corrupt one is drawn again. Each PNG is written atomically, so a frame file either does not exist or is
+complete, whatever interrupts the run. The camera is fitted to the whole trajectory, never to the range, so any
+chunking of the frames draws the same pixels.
+
+Frames on disk are only reused for the same picture: ``frames/render-key.txt`` holds a hash of everything that
+decides the pixels (the trajectory's physics and solver, every render setting but the output formats and video
+encoding, colours, the package version). When it differs, the old frames are deleted before any is drawn.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from animbatch.encode.images import PngSequenceWriter
+from animbatch.scene import LoadedScene
+from animbatch.trajectory import Trajectory
+
+
+@dataclass(frozen=True)
+class FrameRange:
+    """Frames ``start`` … ``stop - 1`` (0-based, like ``range``)."""
+
+    start: int
+    stop: int
+
+    def __iter__(self):  # type: ignore[no-untyped-def]
+        return iter(range(self.start, self.stop))
+
+    def __len__(self) -> int:
+        return max(0, self.stop - self.start)
+
+    def __str__(self) -> str:
+        return f"{self.start}-{self.stop - 1}"
+
+    def chunks(self, size: int) -> list[FrameRange]:
+        """Consecutive ranges of at most ``size`` frames covering this one."""
+        return [FrameRange(start, min(start + size, self.stop)) for start in range(self.start, self.stop, size)]
+
+
+def parse_frames(text: str | None, frame_count: int) -> FrameRange:
+    """``"120-239"`` (inclusive), ``"120-"`` (to the end), ``"7"`` (one frame), or None (all frames)."""
+    if text is None:
+        return FrameRange(0, frame_count)
+    match = re.fullmatch(r"\s*(\d+)\s*(?:-\s*(\d*)\s*)?", text)
+    if match is None:
+        raise ValueError(f"--frames {text!r}: expected FIRST-LAST (e.g. 120-239), FIRST- or one frame number")
+    first = int(match.group(1))
+    last = first if match.group(2) is None and "-" not in text else (
+        int(match.group(2)) if match.group(2) else frame_count - 1)
+    if last < first:
+        raise ValueError(f"--frames {text!r}: the last frame comes before the first")
+    if first >= frame_count:
+        raise ValueError(f"--frames {text!r}: the scene has {frame_count} frames (0-{frame_count - 1})")
+    return FrameRange(first, min(last, frame_count - 1) + 1)
+
+
+def frame_is_complete(path: Path, size: tuple[int, int]) -> bool:
+    """Whether ``path`` is a whole PNG of ``size`` (width, height): it exists, decodes to the end, and has that
+    size. A truncated file (a copy cut short, a disk that filled up) fails the decode."""
+    from PIL import Image
+
+    try:
+        with Image.open(path) as image:
+            if image.format != "PNG" or image.size != tuple(size):
+                return False
+            image.load()  # decodes every row: catches truncation that verify() alone may miss
+        return True
+    except (OSError, SyntaxError, ValueError):
+        return False
+
+
+@dataclass
+class RangeResult:
+    """Frames of a range that were drawn and that were already complete, and the time spent drawing [s]."""
+
+    drawn: list[int] = field(default_factory=list)
+    skipped: list[int] = field(default_factory=list)
+    render_seconds: float = 0.0
+    write_seconds: float = 0.0
+    backend: str = ""
+
+
+def frames_folder(scene: LoadedScene, out_dir: str | Path) -> Path:
+    return Path(out_dir) / scene.name / "frames"
+
+
+KEY_FILE = "render-key.txt"
+
+
+def render_key(scene: LoadedScene, trajectory: Trajectory) -> str:
+    """A hash of everything that decides a frame's pixels (see the module notes)."""
+    import hashlib
+    import json
+
+    from animbatch import __version__
+
+    spec = scene.spec.model_dump(mode="json", exclude={"study", "description"})
+    spec["render"].pop("formats", None)
+    spec["render"].pop("video", None)
+    content = {"scene": spec, "physics": trajectory.physics_hash, "solver": trajectory.solver.get("description"),
+               "version": __version__}
+    return hashlib.sha256(json.dumps(content, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def prepare_frames(scene: LoadedScene, trajectory: Trajectory, out_dir: str | Path) -> Path:
+    """Make the frames folder hold only frames of this picture: when its key differs (or is missing), delete the
+    frames in it and write the new key. Returns the folder."""
+    from animbatch.files import write_text_atomic
+
+    folder = frames_folder(scene, out_dir)
+    key = render_key(scene, trajectory)
+    stamp = folder / KEY_FILE
+    if stamp.is_file() and stamp.read_text().strip() == key:
+        return folder
+    for stale in folder.glob("frame_*.png"):
+        with contextlib.suppress(FileNotFoundError):
+            stale.unlink()
+    write_text_atomic(stamp, key + "\n")
+    return folder
+
+
+def render_frames(scene: LoadedScene, trajectory: Trajectory, frames: FrameRange, *, out_dir: str | Path = "renders",
+                  backend: str = "auto", model: object = None, on_frame=None) -> RangeResult:  # type: ignore[no-untyped-def]
+    """Draw the frames of ``frames`` that are not complete on disk; ``on_frame(index)`` after each frame."""
+    from animbatch.api import check_trajectory, compile_model, frame_geometry
+    from animbatch.render.backend import select_backend
+    from animbatch.render.frames import FrameRenderer
+
+    if frames.stop > trajectory.frame_count:
+        raise ValueError(f"frames {frames} asked for; the trajectory has {trajectory.frame_count} (0-"
+                         f"{trajectory.frame_count - 1})")
+    model = model if model is not None else compile_model(scene)
+    check_trajectory(scene, model, trajectory)  # type: ignore[arg-type]
+    writer = PngSequenceWriter(prepare_frames(scene, trajectory, out_dir))
+    size = tuple(scene.spec.render.resolution)
+    result = RangeResult()
+    todo = []
+    for index in frames:
+        (result.skipped if frame_is_complete(writer.path_of(index), size) else todo).append(index)
+    if not todo:
+        return result
+    chosen = select_backend(backend)
+    result.backend = chosen.name
+    geometry = frame_geometry(scene, model, trajectory)  # type: ignore[arg-type]
+    with contextlib.ExitStack() as stack:
+        renderer = stack.enter_context(FrameRenderer(scene.spec.render, geometry, chosen))
+        for index in todo:
+            started = time.perf_counter()
+            image = renderer.draw(float(trajectory.times[index]), trajectory.positions[index],
+                                  trajectory.orientations[index], trajectory.angular_velocities[index],
+                                  (trajectory.particles, index) if trajectory.particles else None)
+            drawn = time.perf_counter()
+            writer.write(index, image)
+            result.render_seconds += drawn - started
+            result.write_seconds += time.perf_counter() - drawn
+            result.drawn.append(index)
+            if on_frame is not None:
+                on_frame(index)
+    return result

@@ -1,0 +1,170 @@
+"""Farm stages on one machine: bake into a keyed cache, render frame ranges idempotently (in parallel too), encode.
+Checked by what is (not) simulated or drawn again, pixels and video metadata."""
+
+from __future__ import annotations
+
+import imageio_ffmpeg
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from animbatch import api
+from animbatch.cli import cli
+from animbatch.farm import FrameRange, bake, frame_is_complete, parse_frames, render_frames
+
+pytestmark = pytest.mark.render
+
+WIDTH, HEIGHT = 96, 64
+# Two balls thrown across the view: 50 frames at 25 fps.
+THROW = f"""
+name: throw
+duration: 2
+fps: 25
+solver: {{method: RK45, rtol: 1.0e-8, atol: 1.0e-10}}
+bodies:
+  - {{name: red, radius: 0.1, position: [-1, 0, 0], velocity: [1, 3, 0], color: "#ff0000"}}
+  - {{name: blue, mass: 2, radius: 0.1, position: [1, 0, 0], velocity: [-1, 3, 0], color: "#0000ff"}}
+fields: [{{type: gravity}}]
+render:
+  resolution: [{WIDTH}, {HEIGHT}]
+  show_time: true
+  formats: [mp4, png]
+"""
+
+
+@pytest.fixture
+def throw(tmp_cwd):
+    (tmp_cwd / "throw.yaml").write_text(THROW)
+    return tmp_cwd / "throw.yaml"
+
+
+def pixels(path) -> np.ndarray:
+    return np.asarray(Image.open(path).convert("RGB"))
+
+
+def counting(monkeypatch, module, name):
+    """Patch ``module.name`` to count its calls (and still do its work)."""
+    calls = []
+    original = getattr(module, name)
+    monkeypatch.setattr(module, name, lambda *a, **k: calls.append(1) or original(*a, **k))
+    return calls
+
+
+def test_cache_is_reused_for_a_new_camera_and_redone_for_new_physics_or_solver(throw, monkeypatch):
+    """The cache key covers physics, solver settings and version, not the picture: a camera or resolution change
+    reuses it; a mass or a tolerance change simulates again; a truncated cache file is never used."""
+    simulated = counting(monkeypatch, api, "simulate")
+    first = bake(api.load_scene(throw))
+    assert not first.reused and len(simulated) == 1 and first.path.is_file()
+    for overrides in (["render.camera.direction=[1, 1, 1]"], ["render.resolution=[160, 90]"], []):
+        again = bake(api.load_scene(throw, overrides))
+        assert again.reused and again.path == first.path and len(simulated) == 1
+        assert np.array_equal(again.trajectory.positions, first.trajectory.positions)
+    heavier = bake(api.load_scene(throw, ["bodies[red].mass=3"]))
+    assert not heavier.reused and heavier.path != first.path and len(simulated) == 2
+    assert not first.path.exists()  # the stale key's file is gone once the new bake landed
+    looser = bake(api.load_scene(throw, ["bodies[red].mass=3", "solver.rtol=1.0e-6"]))
+    assert not looser.reused and len(simulated) == 3
+    looser.path.write_bytes(looser.path.read_bytes()[:200])  # cut short, as by a full disk
+    assert not bake(api.load_scene(throw, ["bodies[red].mass=3", "solver.rtol=1.0e-6"])).reused
+    assert len(simulated) == 4
+
+
+def test_chunked_rendering_gives_the_pixels_of_a_single_pass(throw, tmp_cwd):
+    """Three chunks (0-16, 17-33, 34-49) in three renderers draw exactly the pixels of one pass over all frames: the
+    camera is fitted to the whole trajectory, never to a chunk."""
+    scene = api.load_scene(throw)
+    trajectory = bake(scene).trajectory
+    render_frames(scene, trajectory, FrameRange(0, 50), out_dir="single")
+    for chunk in FrameRange(0, 50).chunks(17):
+        render_frames(scene, trajectory, chunk, out_dir="chunked")
+    for index in range(50):
+        name = f"throw/frames/frame_{index:05d}.png"
+        assert np.array_equal(pixels(tmp_cwd / "single" / name), pixels(tmp_cwd / "chunked" / name)), index
+    assert pixels(tmp_cwd / "single/throw/frames/frame_00000.png").std() > 0  # frames are not blank
+
+
+def test_a_truncated_frame_is_detected_and_drawn_again(throw, tmp_cwd, monkeypatch):
+    """Rendering a range twice draws nothing the second time; a frame cut short (a copy interrupted, a full disk) or
+    replaced by garbage is found and drawn again, and only it."""
+    from animbatch.render.frames import FrameRenderer
+
+    runner = CliRunner()
+    assert runner.invoke(cli, ["render", str(throw), "--frames", "10-19"]).exit_code == 0
+    folder = tmp_cwd / "renders" / "throw" / "frames"
+    assert sorted(p.name for p in folder.glob("frame_*.png")) == [f"frame_{i:05d}.png" for i in range(10, 20)]
+    drawn = counting(monkeypatch, FrameRenderer, "draw")
+    result = runner.invoke(cli, ["render", str(throw), "--frames", "10-19"])
+    assert result.exit_code == 0, result.output
+    assert drawn == []
+    good = pixels(folder / "frame_00013.png")
+    data = (folder / "frame_00013.png").read_bytes()
+    (folder / "frame_00013.png").write_bytes(data[: len(data) // 2])
+    (folder / "frame_00017.png").write_bytes(b"\x89PNG not really")
+    assert not frame_is_complete(folder / "frame_00013.png", (WIDTH, HEIGHT))
+    assert runner.invoke(cli, ["render", str(throw), "--frames", "10-19"]).exit_code == 0
+    assert len(drawn) == 2
+    assert np.array_equal(pixels(folder / "frame_00013.png"), good)
+
+
+def test_frames_of_another_picture_are_never_reused(throw, tmp_cwd, monkeypatch):
+    """After a camera change, frames on disk from the old camera (same size, complete) are deleted and drawn again."""
+    from animbatch.render.frames import FrameRenderer
+
+    runner = CliRunner()
+    assert runner.invoke(cli, ["render", str(throw), "--frames", "0-4"]).exit_code == 0
+    old = pixels(tmp_cwd / "renders/throw/frames/frame_00002.png")
+    drawn = counting(monkeypatch, FrameRenderer, "draw")
+    result = runner.invoke(cli, ["render", str(throw), "--frames", "0-4", "--set", "render.background=black"])
+    assert result.exit_code == 0, result.output
+    assert len(drawn) == 5
+    new = pixels(tmp_cwd / "renders/throw/frames/frame_00002.png")
+    assert old.mean() > 200 > 60 > new.mean()  # white background, then black
+
+
+def test_encode_needs_every_frame_and_writes_mp4_webm_and_gif(throw, tmp_cwd):
+    """'animbatch encode' names the missing frames and the command to render them; once all are there it writes
+    every format asked for, with the scene's frame count, size and frame rate (GIF: 1/100 s ticks, so 25 fps)."""
+    runner = CliRunner()
+    assert runner.invoke(cli, ["render", str(throw), "--frames", "0-29"]).exit_code == 0
+    result = runner.invoke(cli, ["encode", str(throw)])
+    assert result.exit_code != 0
+    assert "20 of 50 frames are missing or incomplete" in result.output and "(30-49)" in result.output
+    assert f"animbatch render {throw} --frames 30-49" in result.output
+    assert runner.invoke(cli, ["render", str(throw), "--frames", "30-"]).exit_code == 0
+    result = runner.invoke(cli, ["encode", str(throw), "--formats", "mp4,webm,gif"])
+    assert result.exit_code == 0, result.output
+    for kind in ("mp4", "webm", "gif"):
+        reader = imageio_ffmpeg.read_frames(str(tmp_cwd / "renders" / "throw" / f"throw.{kind}"))
+        meta = next(reader)
+        assert meta["size"] == (WIDTH, HEIGHT) and meta["fps"] == pytest.approx(25)
+        assert sum(1 for _ in reader) == 50
+
+
+def test_parallel_workers_draw_the_same_frames_as_one_process(throw, tmp_cwd):
+    """--jobs 2 renders the 50 frames in two worker processes (spawned, each with its own renderer): the frames are
+    identical to those of one process, and the report says two workers drew all 50."""
+    import json
+
+    runner = CliRunner()
+    assert runner.invoke(cli, ["render", str(throw), "--jobs", "1", "--out", "one"]).exit_code == 0
+    result = runner.invoke(cli, ["render", str(throw), "--jobs", "2", "--out", "two"])
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_cwd / "two/throw/report.json").read_text())
+    assert report["workers"] == 2 and report["frames_drawn"] == 50 and report["frames"] == "0-49"
+    for index in range(50):
+        name = f"throw/frames/frame_{index:05d}.png"
+        assert np.array_equal(pixels(tmp_cwd / "one" / name), pixels(tmp_cwd / "two" / name)), index
+
+
+def test_frame_ranges_parse_like_a_farm_manager_writes_them():
+    assert parse_frames("120-239", 300) == FrameRange(120, 240)
+    assert parse_frames("120-", 300) == FrameRange(120, 300)
+    assert parse_frames("7", 300) == FrameRange(7, 8)
+    assert parse_frames(None, 300) == FrameRange(0, 300)
+    assert parse_frames("250-400", 300) == FrameRange(250, 300)
+    for bad in ("300-310", "20-10", "a-b", "-5"):
+        with pytest.raises(ValueError):
+            parse_frames(bad, 300)
+    assert FrameRange(0, 50).chunks(17) == [FrameRange(0, 17), FrameRange(17, 34), FrameRange(34, 50)]
