@@ -272,28 +272,32 @@ def test_zeno_bouncing_ends_at_rest_without_gaining_energy():
     assert np.abs(trajectory.velocities[rest]).max() < 1e-8
 
 
-@pytest.mark.parametrize("rtol, atol", [(1.0e-5, 1.0e-7), (1.0e-3, 5.0e-3)])
-def test_balls_at_rest_stay_on_the_floor_while_others_bounce_at_loose_tolerances(rtol, atol):
+@pytest.mark.parametrize("method, rtol, atol", [("RK23", 1.0e-5, 1.0e-7), ("RK23", 1.0e-3, 5.0e-3),
+                                                ("RK45", 1.0e-3, 5.0e-3)])
+def test_balls_at_rest_stay_on_the_floor_while_others_bounce_at_loose_tolerances(method, rtol, atol):
     """scenes/bouncing_balls.yaml with RK23: balls come to rest one by one (Zeno times t₀ (1 + 2e/(1-e)): 1.05 s for
     e = 0.3, 1.66 s for e = 0.5, 3.2 s for e = 0.7) while the others keep bouncing. Every bounce of another ball is
     an event at which the resting ones must be kept at rest: none may sink below the floor (it used to, at rtol
     1e-5: a resting ball with a 1e-8 m/s separating velocity was let fly from inside the floor and fell through).
     With atol = 5 mm, as the study's loosest runs use, a resting ball may drift a fraction of a millimetre and leave
-    rest from inside the floor; its next impact is then where it comes back to that depth (it used to be missed)."""
+    rest from inside the floor; its next impact is then where it comes back to that depth (it used to be missed).
+    RK45 at that tolerance takes steps longer than a small hop: the hop's landing is found between its apex and the
+    first sample (the run used to loop on the same event)."""
     from pathlib import Path
 
     from animbatch import api
 
     loaded = api.load_scene(Path(__file__).resolve().parents[2] / "scenes" / "bouncing_balls.yaml",
-                            ["solver.method=RK23", f"solver.rtol={rtol}", f"solver.atol={atol}"])
+                            [f"solver.method={method}", f"solver.rtol={rtol}", f"solver.atol={atol}"])
     trajectory = api.simulate(loaded)
     height = trajectory.positions[:, :, 1]
-    assert height.min() > 0.1 - max(1e-3, 0.5 * atol)  # radius 0.1 m: into the floor by at most the tolerance
+    assert height.min() > 0.1 - max(1e-3, atol)  # radius 0.1 m: into the floor by at most the tolerance
     t0 = np.sqrt(2 * 1.5 / G)
     for column, e in ((1, 0.7), (2, 0.5), (3, 0.3)):
         resting = trajectory.times > t0 * (1 + 2 * e / (1 - e)) + 0.05
-        assert np.abs(height[resting, column] - 0.1).max() < max(1e-4, 0.5 * atol)
-        assert np.abs(trajectory.velocities[resting, column]).max() < max(1e-3, 20 * atol)
+        assert np.abs(height[resting, column] - 0.1).max() < max(1e-4, atol)
+        # any hop left is no higher than the position tolerance: v ≤ √(2 g atol)
+        assert np.abs(trajectory.velocities[resting, column]).max() < np.sqrt(2 * G * atol)
 
 
 def test_fast_body_against_a_thin_wall_is_warned_about_and_still_stopped():

@@ -277,13 +277,21 @@ class ContactEvents:
         # a straight piece of path shorter than the gaps at its two ends cannot reach the solid (triangle
         # inequality); rotating probes move on arcs, hence the allowance
         travel = 1.6 * np.linalg.norm(np.diff(centres, axis=0), axis=2)  # (S, C)
-        # A probe that starts the step a hair inside a solid (the integration's error at a loose tolerance, or an
-        # event's slop) impacts when it comes back to that depth, not to zero depth, which it may never reach again;
-        # if it is already sinking deeper, the impact is now.
+        # A probe that starts the step touching the solid (it bounced off at the event that began the step, or left
+        # rest a hair inside the solid at a loose tolerance) impacts when it comes back to its starting depth, not
+        # to zero depth, which it may never reach again. A short hop can rise and come back within the first
+        # sample interval: then the impact lies between the hop's apex and the first sample.
         level = np.minimum(values[0], 0.0)
-        if np.any((values[0] <= 0) & (values[1] < values[0])):
-            return float(t0)
         first = None
+        hops = np.flatnonzero((values[0] <= TOUCH) & (values[1] <= level))
+        for pair in hops:
+            apex = self._apex(gaps, t0, times[1], int(pair))
+            if gaps(apex, [pair])[0] > level[pair]:
+                hop = brentq(lambda t, k=int(pair): gaps(t, [k])[0] - level[k], apex, times[1], xtol=1e-12,
+                             rtol=4 * np.finfo(float).eps)
+                first = hop if first is None else min(first, hop)
+        if first is not None:
+            return first
         for k in range(SAMPLES):
             crossed = (values[k] > level) & (values[k + 1] <= level)
             if not crossed.any():
@@ -300,6 +308,18 @@ class ContactEvents:
                            rtol=4 * np.finfo(float).eps)
             break
         return first
+
+    @staticmethod
+    def _apex(gaps: Any, start: float, stop: float, pair: int) -> float:
+        """Where one candidate's gap is largest in [start, stop] (ternary search; a hop's gap is concave)."""
+        low, high = start, stop
+        for _ in range(60):
+            left, right = low + (high - low) / 3, high - (high - low) / 3
+            if gaps(left, [pair])[0] < gaps(right, [pair])[0]:
+                low = left
+            else:
+                high = right
+        return 0.5 * (low + high)
 
     def _dip(self, gaps: Any, start: float, stop: float, candidates: np.ndarray
              ) -> tuple[float, float, int] | None:
