@@ -436,3 +436,22 @@ def test_contact_code_runs_only_when_declared(monkeypatch):
         fields: [{type: gravity}]
     """, "solver.method=symplectic_euler")
     assert calls == []
+
+
+def test_an_event_loop_that_stops_advancing_is_stopped_with_a_clear_error(monkeypatch):
+    """A safety net: should impact location ever keep reporting an impact at the step's start (no progress), the
+    run stops after MAX_STALLED_EVENTS events at that instant, naming the time and a method that copes, instead of
+    spinning forever."""
+    from animbatch.contact import events
+    from animbatch.errors import SimulationError
+
+    monkeypatch.setattr(events.ContactEvents, "_first_impact", lambda self, solver, candidates: solver.t_old)
+    with pytest.raises(SimulationError, match=r"contact events stopped advancing at t = 0 s \(101 events at that "
+                                              r"time\).*symplectic_euler"):
+        run(f"""
+            duration: 0.5
+            {solver("RK45")}
+            bodies: [{{name: ball, radius: 0.1, position: [0, 0.5, 0]}}]
+            colliders: [{{type: plane}}]
+            fields: [{{type: gravity}}]
+        """)

@@ -48,6 +48,8 @@ TOUCH = 1e-6  # m: contacts this close count as touching at an event
 STIFFNESS = 2500.0  # 1/s²: pulls a resting contact's gap back to zero (ω0 = 50 rad/s, critically damped)
 DAMPING = 100.0  # 1/s
 MAX_EVENTS_PER_FRAME = 10_000
+#: Consecutive events at one instant after which the event loop gives up (it would otherwise spin forever).
+MAX_STALLED_EVENTS = 100
 SLIP_ONSET = 1e-6  # m/s²: tangential acceleration of a sticking contact point at which it starts to slide
 
 
@@ -456,6 +458,7 @@ def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any
     t = float(times[0])
     fun = CountingRhs(events.rhs)
     budget = MAX_EVENTS_PER_FRAME * len(times)
+    stalled = 0  # consecutive events that did not move time forward
     frame = 1
     with np.errstate(all="ignore"):
         events.settle(y, t)
@@ -491,6 +494,12 @@ def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any
                         on_frame(frame, float(times[frame]))
                     frame += 1
                 if event_time is not None:
+                    stalled = stalled + 1 if event_time <= t else 0
+                    if stalled > MAX_STALLED_EVENTS:  # a safety net: the same event again and again, no progress
+                        raise SimulationError(
+                            f"contact events stopped advancing at t = {t:.9g} s ({stalled} events at that time): "
+                            f"{method} cannot resolve these contacts. Use a fixed-step method (solver.method: "
+                            "symplectic_euler), or tighter solver.rtol and solver.atol.", time=t)
                     t, y = float(event_time), interpolant(event_time)
                     system.project(y)
                     if impact is not None and (change is None or impact <= change):
