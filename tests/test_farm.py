@@ -168,3 +168,51 @@ def test_frame_ranges_parse_like_a_farm_manager_writes_them():
         with pytest.raises(ValueError):
             parse_frames(bad, 300)
     assert FrameRange(0, 50).chunks(17) == [FrameRange(0, 17), FrameRange(17, 34), FrameRange(34, 50)]
+
+
+FAKE_SBATCH = r"""#!/usr/bin/env bash
+# A stand-in for SLURM's sbatch: records the call, runs the job (each array task in turn) at once, prints an id.
+echo "$*" >> "$SBATCH_LOG"
+array=""; wrap=""
+for argument in "$@"; do
+    case "$argument" in
+        --array=*) array="${argument#--array=}" ;;
+        --wrap=*) wrap="${argument#--wrap=}" ;;
+    esac
+done
+if [ -n "$array" ]; then
+    for task in $(seq "${array%-*}" "${array#*-}"); do SLURM_ARRAY_TASK_ID=$task bash -c "$wrap" >&2; done
+else
+    bash -c "$wrap" >&2
+fi
+echo $((RANDOM + 1000))
+"""
+
+
+def test_slurm_script_submits_bake_then_an_array_of_render_chunks_then_encode(throw, tmp_cwd):
+    """'animbatch farm slurm' writes a script whose three sbatch calls chain by afterok; run against a stand-in
+    sbatch that executes each job (array tasks in turn), it produces the complete video: 50 frames in 3 tasks."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    result = CliRunner().invoke(cli, ["farm", "slurm", str(throw), "--chunk-size", "20", "--sbatch-option",
+                                      "--time=00:10:00"])
+    assert result.exit_code == 0, result.output
+    script = tmp_cwd / "renders" / "throw" / "submit-slurm.sh"
+    text = script.read_text()
+    assert "--array=0-2" in text and text.count("--dependency=afterok:") == 2
+    bin_dir = tmp_cwd / "bin"
+    bin_dir.mkdir()
+    (bin_dir / "sbatch").write_text(FAKE_SBATCH)
+    (bin_dir / "sbatch").chmod(0o755)
+    env = {**os.environ, "PATH": f"{bin_dir}:{Path(sys.executable).parent}:{os.environ['PATH']}",
+           "SBATCH_LOG": str(tmp_cwd / "sbatch.log")}
+    done = subprocess.run(["bash", str(script)], env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    calls = (tmp_cwd / "sbatch.log").read_text().splitlines()
+    assert len(calls) == 3 and all("--time=00:10:00" in call for call in calls)
+    assert "--job-name=throw-bake" in calls[0] and "--array=0-2" in calls[1] and "afterok" in calls[2]
+    reader = imageio_ffmpeg.read_frames(str(tmp_cwd / "renders" / "throw" / "throw.mp4"))
+    assert next(reader)["size"] == (WIDTH, HEIGHT) and sum(1 for _ in reader) == 50

@@ -248,8 +248,11 @@ def bake(scene: Path, out_dir: Path, force: bool, settings: tuple[str, ...], pro
     from animbatch.farm import bake as bake_scene
     from animbatch.progress import Progress
 
+    from animbatch.farm.frames import prepare_frames
+
     loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
     result = bake_scene(loaded, out_dir=out_dir, progress=Progress(enabled=progress), force=force)
+    prepare_frames(loaded, result.trajectory, out_dir)  # before any render task: frames of another picture go
     what = "up to date" if result.reused else f"baked in {result.seconds:.2f} s"
     click.echo(f"{loaded.name}: {result.trajectory.frame_count} frames, cache {what} -> {result.path}")
 
@@ -274,6 +277,67 @@ def encode(scene: Path, out_dir: Path, formats: str | None, settings: tuple[str,
     result = encode_frames(loaded, frame_count, out_dir=out_dir, kinds=kinds)
     click.echo(f"{loaded.name}: {result.frame_count} frames -> {', '.join(map(str, result.outputs))} "
                f"({result.seconds:.2f} s)")
+
+
+@cli.command()
+@click.argument("scenes", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("renders"),
+              show_default=True, help="Output folder; each scene goes to OUT/<scene name>/.")
+@click.option("--workers", type=click.IntRange(min=1), help="Worker processes of the local Dask cluster (default: "
+              "one per core).")
+@click.option("--scheduler", metavar="ADDRESS", help="Use an existing Dask cluster (tcp://host:8786) instead.")
+@click.option("--chunk-size", type=click.IntRange(min=1), default=48, show_default=True,
+              help="Frames per render task.")
+@click.option("--backend", type=click.Choice(["auto", "egl", "osmesa"]), default="auto", show_default=True)
+@click.option("--set", "settings", multiple=True, metavar="KEY.PATH=VALUE", help="Override a value in every scene.")
+def batch(scenes: tuple[Path, ...], out_dir: Path, workers: int | None, scheduler: str | None, chunk_size: int,
+          backend: str, settings: tuple[str, ...]) -> None:
+    """Render many scenes on Dask: each is baked, rendered in chunks in parallel, then encoded. Every job runs to
+    its end; a summary table follows, and the exit code is 1 if any job failed."""
+    from animbatch.farm.batch import Job, run_batch, summary
+
+    jobs = [Job(str(path), tuple(settings)) for path in scenes]
+    results = run_batch(jobs, out_dir=out_dir, workers=workers, scheduler=scheduler, chunk_size=chunk_size,
+                        backend=backend, on_result=lambda r: click.echo(f"{r.label}: {r.status}", err=True))
+    click.echo(summary(results))
+    if any(result.status != "ok" for result in results):
+        sys.exit(1)
+
+
+@cli.group()
+def farm() -> None:
+    """Job scripts for farm managers, for sites without Dask."""
+
+
+@farm.command("slurm")
+@click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), help="Script file (default: "
+              "renders/<scene>/submit-slurm.sh).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("renders"),
+              show_default=True, help="Output folder the jobs write to (must be shared by the nodes).")
+@click.option("--chunk-size", type=click.IntRange(min=1), default=48, show_default=True,
+              help="Frames per render task.")
+@click.option("--sbatch-option", "options", multiple=True, metavar="OPTION",
+              help="Passed to every sbatch call, e.g. --sbatch-option=--partition=short (repeatable).")
+@click.option("--set", "settings", multiple=True, metavar="KEY.PATH=VALUE", help="Override a scene value.")
+@_reports_errors
+def farm_slurm(scene: Path, output: Path | None, out_dir: Path, chunk_size: int, options: tuple[str, ...],
+               settings: tuple[str, ...]) -> None:
+    """Write a script that submits the scene as a SLURM bake job, an array of render jobs (afterok) and an encode
+    job (afterok)."""
+    from animbatch import api
+    from animbatch.farm.slurm import slurm_script
+    from animbatch.files import write_text_atomic
+    from animbatch.model.builder import frame_times
+
+    loaded = api.load_scene(scene, list(settings))
+    target = output or out_dir / loaded.name / "submit-slurm.sh"
+    frames = len(frame_times(loaded.spec.duration, loaded.spec.fps))
+    write_text_atomic(target, slurm_script(scene, frames=frames, name=loaded.name, out_dir=out_dir, chunk=chunk_size,
+                                           overrides=settings, options=options, script=str(target)))
+    target.chmod(0o755)
+    click.echo(f"{loaded.name}: {frames} frames in {-(-frames // chunk_size)} render tasks -> {target}; "
+               f"submit with: bash {target}")
 
 
 def _show_warning(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:
