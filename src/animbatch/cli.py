@@ -290,16 +290,50 @@ def encode(scene: Path, out_dir: Path, formats: str | None, settings: tuple[str,
               help="Frames per render task.")
 @click.option("--backend", type=click.Choice(["auto", "egl", "osmesa"]), default="auto", show_default=True)
 @click.option("--set", "settings", multiple=True, metavar="KEY.PATH=VALUE", help="Override a value in every scene.")
+@click.option("--sweep", "sweeps", multiple=True, metavar="KEY.PATH=V1,V2,…", help="Render one variant per value "
+              "(repeat for every combination of several keys); one scene only. Writes sweep.csv and "
+              "contact-sheet.png into OUT/<scene>-sweep/.")
+@_reports_errors
 def batch(scenes: tuple[Path, ...], out_dir: Path, workers: int | None, scheduler: str | None, chunk_size: int,
-          backend: str, settings: tuple[str, ...]) -> None:
+          backend: str, settings: tuple[str, ...], sweeps: tuple[str, ...]) -> None:
     """Render many scenes on Dask: each is baked, rendered in chunks in parallel, then encoded. Every job runs to
     its end; a summary table follows, and the exit code is 1 if any job failed."""
     from animbatch.farm.batch import Job, run_batch, summary
 
-    jobs = [Job(str(path), tuple(settings)) for path in scenes]
+    chosen: list[dict[str, str]] = []
+    if sweeps:
+        from animbatch import api
+        from animbatch.farm.sweep import parse_sweep, variants
+
+        if len(scenes) != 1:
+            raise click.BadParameter("a sweep takes exactly one scene", param_hint="--sweep")
+        try:
+            parsed = [parse_sweep(text) for text in sweeps]
+        except ValueError as error:
+            raise click.BadParameter(str(error), param_hint="--sweep") from None
+        base = api.load_scene(scenes[0], list(settings))
+        planned = variants(str(scenes[0]), base.name, parsed, settings)
+        for job, values in planned:
+            api.load_scene(job.scene_path, list(job.overrides))  # every variant valid before any work starts
+        jobs = [job for job, _ in planned]
+        chosen = [values for _, values in planned]
+    else:
+        jobs = [Job(str(path), tuple(settings)) for path in scenes]
     results = run_batch(jobs, out_dir=out_dir, workers=workers, scheduler=scheduler, chunk_size=chunk_size,
                         backend=backend, on_result=lambda r: click.echo(f"{r.label}: {r.status}", err=True))
     click.echo(summary(results))
+    if sweeps:
+        from animbatch.farm.sweep import contact_sheet, energy_drift, metrics_csv
+        from animbatch.files import write_text_atomic
+
+        for job, result in zip(jobs, results):
+            if result.status == "ok":
+                result.metrics["energy_drift"] = energy_drift(job, result.metrics["cache"])
+        folder = out_dir / f"{base.name}-sweep"
+        rows = list(zip(results, chosen))
+        write_text_atomic(folder / "sweep.csv", metrics_csv(rows))
+        contact_sheet(rows, folder / "contact-sheet.png")
+        click.echo(f"sweep: {folder / 'sweep.csv'}, {folder / 'contact-sheet.png'}")
     if any(result.status != "ok" for result in results):
         sys.exit(1)
 

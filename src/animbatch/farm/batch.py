@@ -201,7 +201,8 @@ def run_batch(jobs: Sequence[Job], *, out_dir: str | Path = "renders", workers: 
                 report = future.result()
                 results[number] = JobResult(label, "ok", report["frames"], time.perf_counter() - started,
                                             outputs=report["outputs"], report=report["report"],
-                                            metrics={"solver_stats": report["solver_stats"]})
+                                            metrics={"solver_stats": report["solver_stats"],
+                                                     "cache": report["cache"]})
             except Exception as error:
                 results[number] = JobResult(label, "failed", wall_time=time.perf_counter() - started,
                                             error=f"{type(error).__name__}: {error}")
