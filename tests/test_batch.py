@@ -142,3 +142,28 @@ def test_sweep_values_split_on_top_level_commas_and_name_each_variant():
     assert [job.label for job, _ in jobs] == ["s-k-1-m-x", "s-k-2-m-x"]
     assert jobs[1][0].overrides == ("fps=10", "a.k=2", "b.m=x", "name=s-k-2-m-x")
     assert jobs[1][1] == {"a.k": "2", "b.m": "x"}
+
+
+def test_a_sweep_block_in_the_scene_stands_for_sweep_options(tmp_cwd, monkeypatch):
+    """sweep: {springs[0].stiffness: [20, 80], bodies[bob].velocity: [[0, 0, 0], [1, 0, 0]]} plans the four
+    combinations, each variant with the block itself removed (a variant is not swept again)."""
+    from animbatch.farm import batch as batch_module
+
+    planned = []
+    monkeypatch.setattr(batch_module, "run_batch", lambda jobs, **kwargs: planned.extend(jobs) or [])
+    monkeypatch.setattr("animbatch.farm.sweep.contact_sheet", lambda rows, target: target)
+    (tmp_cwd / "bob.yaml").write_text("""
+name: bob
+anchors: [{name: pin, position: [0, 1, 0]}]
+bodies: [{name: bob, mass: 0.5, position: [0.3, 0.2, 0]}]
+springs: [{between: [pin, bob], stiffness: 50}]
+sweep:
+  springs[0].stiffness: [20, 80]
+  bodies[bob].velocity: [[0, 0, 0], [1, 0, 0]]
+""")
+    result = CliRunner().invoke(cli, ["batch", "bob.yaml"])
+    assert result.exit_code == 0, result.output
+    assert [job.label for job in planned] == ["bob-stiffness-20-velocity-0_0_0", "bob-stiffness-20-velocity-1_0_0",
+                                              "bob-stiffness-80-velocity-0_0_0", "bob-stiffness-80-velocity-1_0_0"]
+    assert planned[3].overrides == ("sweep={}", "springs[0].stiffness=80", "bodies[bob].velocity=[1, 0, 0]",
+                                    "name=bob-stiffness-80-velocity-1_0_0")

@@ -300,9 +300,13 @@ def batch(scenes: tuple[Path, ...], out_dir: Path, workers: int | None, schedule
     its end; a summary table follows, and the exit code is 1 if any job failed."""
     from animbatch.farm.batch import Job, run_batch, summary
 
+    from animbatch import api
+
     chosen: list[dict[str, str]] = []
+    if not sweeps and len(scenes) == 1:  # a sweep: block in the scene stands for --sweep options
+        block = api.load_scene(scenes[0], list(settings)).spec.sweep
+        sweeps = tuple(f"{key}=" + ",".join(json.dumps(value) for value in values) for key, values in block.items())
     if sweeps:
-        from animbatch import api
         from animbatch.farm.sweep import parse_sweep, variants
 
         if len(scenes) != 1:
@@ -312,7 +316,7 @@ def batch(scenes: tuple[Path, ...], out_dir: Path, workers: int | None, schedule
         except ValueError as error:
             raise click.BadParameter(str(error), param_hint="--sweep") from None
         base = api.load_scene(scenes[0], list(settings))
-        planned = variants(str(scenes[0]), base.name, parsed, settings)
+        planned = variants(str(scenes[0]), base.name, parsed, tuple(settings) + ("sweep={}",))
         for job, values in planned:
             api.load_scene(job.scene_path, list(job.overrides))  # every variant valid before any work starts
         jobs = [job for job, _ in planned]

@@ -1244,6 +1244,9 @@ class SceneSpec(SceneModel):
     contacts: ContactSpec | None = key(None, "Contact settings; collisions are on when this or colliders exist.")
     render: RenderSpec = key(RenderSpec(), "Rendering and output settings.")
     study: StudySpec = key(StudySpec(), "Settings of 'animbatch study' (error against work per integrator).")
+    sweep: dict[str, list[Any]] = key(
+        {}, "Values to sweep with 'animbatch batch' (key path -> list of values): one variant per combination, as "
+        "with --sweep; ignored by the other commands.", example={"springs[0].stiffness": [100, 1000, 10000]})
 
     @property
     def has_contacts(self) -> bool:
@@ -1260,4 +1263,4 @@ class SceneSpec(SceneModel):
 
 
 #: Top-level keys that do not change the physics (excluded from the physics hash).
-PRESENTATION_KEYS = frozenset({"name", "description", "render", "solver", "study"})
+PRESENTATION_KEYS = frozenset({"name", "description", "render", "solver", "study", "sweep"})
