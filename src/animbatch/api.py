@@ -41,8 +41,12 @@ __all__ = ["RenderResult", "RunReport", "check_trajectory", "compile_model", "co
            "run", "scene_fingerprint", "simulate"]
 
 
-def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progress | None = None) -> Trajectory:
-    """Integrate the scene and sample it at the frame times. Raises SimulationError on divergence or failure."""
+def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progress | None = None,
+             checkpoint: tuple[int, Path] | None = None) -> Trajectory:
+    """Integrate the scene and sample it at the frame times. Raises SimulationError on divergence or failure.
+
+    ``checkpoint``: (every N frames, file): integrate in segments, saving the states after each and resuming from
+    the file when it exists (see :mod:`animbatch.farm.checkpoint`)."""
     spec = scene.spec
     model = model if model is not None else compile_model(scene)
     integrator = make_integrator(spec.solver)
@@ -50,7 +54,14 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
     warnings = preflight(spec, model)  # risky settings, with numbers (what is certain to fail is refused)
     if model.layout.size:
         with progress.task("simulate", len(model.frame_times)) as on_frame:
-            result = integrator.integrate(Dynamics(model), model.y0, model.frame_times, on_frame=on_frame)
+            if checkpoint is None:
+                result = integrator.integrate(Dynamics(model), model.y0, model.frame_times, on_frame=on_frame)
+            else:
+                from animbatch.farm.checkpoint import integrate_with_checkpoints
+
+                every, path = checkpoint
+                result = integrate_with_checkpoints(integrator, Dynamics(model), model.y0, model.frame_times,
+                                                    every=every, path=Path(path), on_frame=on_frame)
         check_energy_growth(model, result.states, spec.solver.method, result.stats.dt)
     else:  # a scene of emitters only: no body to integrate
         result = IntegrationResult(np.zeros((len(model.frame_times), 0)), SolverStats(spec.solver.method))

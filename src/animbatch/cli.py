@@ -237,11 +237,13 @@ def render(scene: Path, trajectory: Path | None, out_dir: Path, backend: str, se
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("renders"),
               show_default=True, help="Output folder; the cache goes to OUT/<scene name>/cache/.")
 @click.option("--force", is_flag=True, help="Simulate even when a matching cache exists.")
+@click.option("--checkpoint-every", type=click.IntRange(min=1), metavar="N",
+              help="Save the states every N frames; an interrupted bake resumes from the last checkpoint.")
 @_scene_options
 @click.option("--progress/--no-progress", default=None, help="Progress bar (default: on a terminal).")
 @_reports_errors
-def bake(scene: Path, out_dir: Path, force: bool, settings: tuple[str, ...], progress: bool | None,
-         **shortcuts: str | None) -> None:
+def bake(scene: Path, out_dir: Path, force: bool, checkpoint_every: int | None, settings: tuple[str, ...],
+         progress: bool | None, **shortcuts: str | None) -> None:
     """Simulate the scene into its trajectory cache (keyed by physics, solver settings and package version), or
     say that the cache is already up to date."""
     from animbatch import api
@@ -251,7 +253,8 @@ def bake(scene: Path, out_dir: Path, force: bool, settings: tuple[str, ...], pro
     from animbatch.farm.frames import prepare_frames
 
     loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
-    result = bake_scene(loaded, out_dir=out_dir, progress=Progress(enabled=progress), force=force)
+    result = bake_scene(loaded, out_dir=out_dir, progress=Progress(enabled=progress), force=force,
+                        checkpoint_every=checkpoint_every)
     prepare_frames(loaded, result.trajectory, out_dir)  # before any render task: frames of another picture go
     what = "up to date" if result.reused else f"baked in {result.seconds:.2f} s"
     click.echo(f"{loaded.name}: {result.trajectory.frame_count} frames, cache {what} -> {result.path}")

@@ -66,8 +66,10 @@ def load_cached(scene: LoadedScene, path: Path) -> Trajectory | None:
 
 
 def bake(scene: LoadedScene, *, out_dir: str | Path = "renders", model: object = None, progress: object = None,
-         force: bool = False) -> BakeResult:
-    """The scene's trajectory from the cache, or simulated and cached (raises SimulationError as simulate does)."""
+         force: bool = False, checkpoint_every: int | None = None) -> BakeResult:
+    """The scene's trajectory from the cache, or simulated and cached (raises SimulationError as simulate does).
+    With ``checkpoint_every`` N, the states are saved every N frames to ``cache/checkpoint-<key>.npz``, and an
+    interrupted bake resumes from there."""
     import time
 
     from animbatch.api import simulate
@@ -77,9 +79,11 @@ def bake(scene: LoadedScene, *, out_dir: str | Path = "renders", model: object =
     cached = None if force else load_cached(scene, path)
     if cached is not None:
         return BakeResult(cached, path, True, time.perf_counter() - started)
-    trajectory = simulate(scene, model=model, progress=progress)  # type: ignore[arg-type]
+    checkpoint = (checkpoint_every, path.with_name(f"checkpoint-{bake_key(scene)}.npz")) if checkpoint_every else None
+    trajectory = simulate(scene, model=model, progress=progress, checkpoint=checkpoint)  # type: ignore[arg-type]
     trajectory.save(path)
-    for stale in path.parent.glob("trajectory-*.npz"):  # other keys: older physics, solver or version
+    stale_files = [*path.parent.glob("trajectory-*.npz"), *path.parent.glob("checkpoint-*.npz")]
+    for stale in stale_files:  # other keys: older physics, solver or version
         if stale != path:
             with contextlib.suppress(FileNotFoundError):
                 stale.unlink()
