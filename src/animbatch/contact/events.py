@@ -45,8 +45,12 @@ from animbatch.rigid.quaternion import cross
 
 SAMPLES = 24  # points per step at which impact candidates are evaluated
 TOUCH = 1e-6  # m: contacts this close count as touching at an event
+HOP_RESOLUTION = 1e-12  # m: a hop must rise this far above its starting depth to be followed (rounding is far below)
 STIFFNESS = 2500.0  # 1/s²: pulls a resting contact's gap back to zero (ω0 = 50 rad/s, critically damped)
 DAMPING = 100.0  # 1/s
+#: Longest step [s] while contacts rest: the gap's stabilisation (rate √STIFFNESS) must stay within an explicit
+#: method's stability region. Unbounded, a loose tolerance let resting balls sink 8 mm and jump out of rest.
+RESTING_MAX_STEP = 2.0 / np.sqrt(STIFFNESS)
 MAX_EVENTS_PER_FRAME = 10_000
 #: Consecutive events at one instant after which the event loop gives up (it would otherwise spin forever).
 MAX_STALLED_EVENTS = 100
@@ -97,6 +101,8 @@ class ContactEvents:
         self.reach = float(np.max(np.linalg.norm(probes.offset, axis=1) + probes.radius)) if probes.count else 0.0
         self.events = 0
         self.impacts = ImpactLog()
+        #: Probe–solid pairs whose rebound was too small for the solver to follow; the next settle lands them.
+        self.landing: Contacts | None = None
 
     # ------------------------------------------------------------------------------------- bodies
 
@@ -286,29 +292,38 @@ class ContactEvents:
         level = np.minimum(values[0], 0.0)
         first = None
         hops = np.flatnonzero((values[0] <= TOUCH) & (values[1] <= level))
+        unresolved = []
         for pair in hops:
             apex = self._apex(gaps, t0, times[1], int(pair))
-            if gaps(apex, [pair])[0] > level[pair]:
+            if gaps(apex, [pair])[0] > level[pair] + HOP_RESOLUTION:
                 hop = brentq(lambda t, k=int(pair): gaps(t, [k])[0] - level[k], apex, times[1], xtol=1e-12,
                              rtol=4 * np.finfo(float).eps)
                 first = hop if first is None else min(first, hop)
+            else:
+                unresolved.append(int(pair))
+        if unresolved:
+            # The probe touched the solid at the step's start (it had just bounced) yet never rises above its
+            # depth on the solver's path: a hop too small for the step (a slow rebound under a low-order or loose
+            # solver; its first step after a restart is often of order one) that would otherwise sink into the
+            # solid unnoticed, or bounce again and again at the same instant. It lands where it is.
+            self.landing = candidates.select(np.array(unresolved))
+            return t0
         if first is not None:
             return first
         for k in range(SAMPLES):
-            crossed = (values[k] > level) & (values[k + 1] <= level)
-            if not crossed.any():
-                # a thin solid may hide between samples: look for a dip below zero inside the interval
-                could = (values[k] > 0) & (values[k + 1] > 0) & (travel[k] > values[k] + values[k + 1])
-                dip = self._dip(gaps, times[k], times[k + 1], could)
-                if dip is None:
-                    continue
-                lower, upper, pair = dip
-            else:
-                pair = int(np.argmax(crossed))
-                lower, upper = times[k], times[k + 1]
-            first = brentq(lambda t: gaps(t, [pair])[0] - level[pair], lower, upper, xtol=1e-12,
-                           rtol=4 * np.finfo(float).eps)
-            break
+            # Several pairs can reach their solids within one sample interval (a long step of free flight carries
+            # every ball to the floor): the impact is the earliest of their crossings, not the first pair's.
+            brackets = [(times[k], times[k + 1], int(pair))
+                        for pair in np.flatnonzero((values[k] > level) & (values[k + 1] <= level))]
+            # a thin solid may hide between samples: look for a dip below zero inside the interval
+            could = (values[k] > 0) & (values[k + 1] > 0) & (travel[k] > values[k] + values[k + 1])
+            brackets += self._dips(gaps, times[k], times[k + 1], could, level)
+            for lower, upper, pair in brackets:
+                crossing = brentq(lambda t, p=pair: gaps(t, [p])[0] - level[p], lower, upper, xtol=1e-12,
+                                  rtol=4 * np.finfo(float).eps)
+                first = crossing if first is None else min(first, crossing)
+            if first is not None:
+                break
         return first
 
     @staticmethod
@@ -323,10 +338,12 @@ class ContactEvents:
                 high = right
         return 0.5 * (low + high)
 
-    def _dip(self, gaps: Any, start: float, stop: float, candidates: np.ndarray
-             ) -> tuple[float, float, int] | None:
-        """A sub-interval of [start, stop] where some candidate's gap goes negative (ternary search on each
-        candidate's gap, which is close to convex over so short a piece of path)."""
+    @staticmethod
+    def _dips(gaps: Any, start: float, stop: float, candidates: np.ndarray, level: np.ndarray
+              ) -> list[tuple[float, float, int]]:
+        """For each candidate whose gap dips below its ``level`` inside [start, stop], a sub-interval that brackets
+        its first crossing (ternary search on the gap, which is close to convex over so short a piece of path)."""
+        found = []
         for pair in np.flatnonzero(candidates):
             low, high = start, stop
             for _ in range(40):
@@ -336,9 +353,9 @@ class ContactEvents:
                 else:
                     high = right
             middle = 0.5 * (low + high)
-            if gaps(middle, [pair])[0] < 0:
-                return start, middle, int(pair)
-        return None
+            if gaps(middle, [pair])[0] <= level[pair]:
+                found.append((start, middle, int(pair)))
+        return found
 
     def _first_mode_change(self, solver: Any, before: np.ndarray, after: np.ndarray) -> float | None:
         """Time of the first sign change of a resting contact's mode function in the last step, or None."""
@@ -364,9 +381,31 @@ class ContactEvents:
             result = solve_impulses(touching, bodies, x, 0.0, iterations=self.settings.iterations,
                                     rest_speed=self.rest_speed, slop=self.settings.slop)
             self.impacts.record(np.full(touching.count, t), touching.probe_body, result.impact)
+            if self.landing is not None:
+                self._land(touching, bodies, x)
             self._write_velocities(y, state, bodies)
             state = self._state(y)
+        self.landing = None
         self._choose_resting(y, state, touching)
+
+    def _land(self, touching: Contacts, bodies: BodyVelocities, x: np.ndarray) -> None:
+        """Take away the separating normal velocity of the landing contacts among ``touching``, so that they rest
+        (the kinetic energy of a hop the solver could not resolve, ½ m v² for v below what its step can show)."""
+        from animbatch.contact.solver import ContactRows
+
+        landing = self.landing
+        assert landing is not None
+        keys = set(zip(landing.probe.tolist(), landing.solid_kind.tolist(), landing.solid_index.tolist()))
+        chosen = np.array([key in keys for key in zip(touching.probe.tolist(), touching.solid_kind.tolist(),
+                                                       touching.solid_index.tolist())], dtype=bool)
+        if not chosen.any():
+            return
+        rows = ContactRows(touching.select(chosen), bodies, x)
+        for _ in range(self.settings.iterations):  # contacts on one body share it: a few sweeps
+            separating = np.maximum(rows.relative(rows.n), 0.0)
+            if separating.max(initial=0.0) <= 1e-12:
+                break
+            rows.apply_normal(-separating / rows.w_n)
 
     def _choose_resting(self, y: np.ndarray, state: Kinematics, touching: Contacts) -> None:
         """Touching contacts that the impulses left at rest become resting contacts; those that bounced fly free
@@ -466,7 +505,10 @@ def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any
         if on_frame is not None:
             on_frame(0, t)
         while frame < len(times):
-            solver = solver_class(fun, t, y.copy(), float(times[-1]), **options)
+            settings = dict(options)
+            if events.resting.count:
+                settings["max_step"] = min(options.get("max_step", np.inf), RESTING_MAX_STEP)
+            solver = solver_class(fun, t, y.copy(), float(times[-1]), **settings)
             modes = events._mode_functions(t, y) if events.resting.count else None
             while frame < len(times):
                 before = solver.y.copy()
@@ -494,7 +536,8 @@ def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any
                         on_frame(frame, float(times[frame]))
                     frame += 1
                 if event_time is not None:
-                    stalled = stalled + 1 if event_time <= t else 0
+                    # events a few ulps apart are the same instant: count them as no progress
+                    stalled = stalled + 1 if event_time <= t + 1e-12 * max(1.0, abs(t)) else 0
                     if stalled > MAX_STALLED_EVENTS:  # a safety net: the same event again and again, no progress
                         raise SimulationError(
                             f"contact events stopped advancing at t = {t:.9g} s ({stalled} events at that time): "
