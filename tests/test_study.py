@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import types
 
 import numpy as np
 import pytest
@@ -220,6 +221,30 @@ def test_failed_runs_are_kept_with_their_reason():
     timed_out = run_study(scene(PROJECTILE, "study.timeout=1.0e-9"), methods=["RK45"])
     assert [row.status for row in timed_out.rows] == ["timeout"] * 3
     assert timed_out.rows[0].reason == "took longer than 1e-09 s"
+
+
+def test_a_run_that_crawls_inside_one_frame_times_out_there(monkeypatch):
+    """The time limit is checked at every force evaluation, not only between frames: a run whose first frame takes
+    thousands of steps stops within a few evaluations of its deadline (a clock that ticks 1 s per reading)."""
+    from animbatch.study import runs
+
+    clock = iter(range(10**9))
+    monkeypatch.setattr(runs, "time", types.SimpleNamespace(perf_counter=lambda: float(next(clock))))
+    loaded = scene("""
+        duration: 1
+        fps: 2
+        anchors: [{name: wall, position: [0, 0, 0]}]
+        bodies: [{name: bob, mass: 0.01, position: [1.1, 0, 0]}]
+        springs: [{between: [wall, bob], stiffness: 1.0e3, damping: 0.0, rest_length: 1.0}]
+    """)
+    model = compile_scene(loaded.spec)
+    evaluations = []
+    model_rhs = runs.Dynamics.rhs
+    monkeypatch.setattr(runs.Dynamics, "rhs", lambda self, t, y: evaluations.append(t) or model_rhs(self, t, y))
+    outcome = runs.execute(model, runs.RunSetting("RK45", rtol=1e-10), np.ones(model.layout.size), repeats=0,
+                           timeout=20)
+    assert outcome.status == "timeout" and outcome.reason == "took longer than 20 s"
+    assert len(evaluations) < 25  # ω = 316 rad/s for 0.5 s at rtol 1e-10 needs thousands
 
 
 def test_outputs_table_csv_json_and_plot(projectile_study, tmp_path):

@@ -92,13 +92,30 @@ def plan_settings(methods: list[str], rtols: list[float], frame_interval: float,
 
 
 def _integrate(model: Model, integrator: Integrator, timeout: float):  # type: ignore[no-untyped-def]
-    started = time.perf_counter()
+    deadline = time.perf_counter() + timeout
 
     def on_frame(frame: int, t: float) -> None:
-        if time.perf_counter() - started > timeout:
+        if time.perf_counter() > deadline:
             raise RunTimeout
 
-    return integrator.integrate(Dynamics(model), model.y0, model.frame_times, on_frame=on_frame)
+    return integrator.integrate(_with_deadline(Dynamics(model), deadline), model.y0, model.frame_times,
+                                on_frame=on_frame)
+
+
+def _with_deadline(system: Dynamics, deadline: float) -> Dynamics:
+    """``system`` whose force evaluations raise :class:`RunTimeout` after ``deadline`` (``time.perf_counter``): a
+    run that crawls inside one frame (thousands of contact events, or steps shrinking to nothing) must time out
+    too, not only between frames."""
+    for name in ("rhs", "motion_rate"):
+        evaluate = getattr(system, name)
+
+        def checked(*args, _evaluate=evaluate, **kwargs):  # type: ignore[no-untyped-def]
+            if time.perf_counter() > deadline:
+                raise RunTimeout
+            return _evaluate(*args, **kwargs)
+
+        setattr(system, name, checked)
+    return system
 
 
 def execute(model: Model, setting: RunSetting, tolerance_scale: np.ndarray, *, repeats: int, timeout: float,
