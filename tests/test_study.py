@@ -142,6 +142,18 @@ def test_observed_order_from_fixed_steps_and_from_work():
     assert observed_order(floored[:2]) is None
 
 
+def test_no_order_where_the_step_does_not_set_the_error():
+    """Measured runs whose error is not a power of the step give no order: BDF on a projectile (its order-one start
+    sets an error ∝ rtol while the steps only go from 11 to 23: a slope of 21), and LSODA on it (five tolerances
+    at 3 steps and errors over 4 decades, then 5 to 9 steps: the line explains too little, R² = 0.74)."""
+    bdf = [(11, 2.87e-3), (13, 2.86e-4), (15, 2.83e-5), (17, 2.83e-6), (18, 2.83e-7), (20, 2.84e-8), (22, 2.85e-9),
+           (23, 2.85e-10)]
+    assert observed_order([Point(error, 1.0, 2 * n, None, 1e-3, False, steps=n) for n, error in bdf]) is None
+    scattered = [(3, 6.95e-4), (3, 6.95e-5), (3, 6.95e-6), (3, 6.95e-7), (3, 6.95e-8), (5, 6.95e-9), (6, 6.95e-10),
+                 (9, 6.95e-11)]
+    assert observed_order([Point(error, 1.0, 4 * n, None, 1e-3, False, steps=n) for n, error in scattered]) is None
+
+
 # ------------------------------------------------------------------------------------------------ whole studies
 
 PROJECTILE = """

@@ -120,7 +120,9 @@ How to read it:
 - **time**: the best of several timed runs after an untimed one, with BLAS pinned to one thread. "Time to 1e-3" is
   interpolated in log–log between the runs either side of the target and never extrapolated ("≤" marks a bound:
   even the fastest run was more accurate).
-- **observed order**: the slope of log error against log dt (fixed steps) or against log work (adaptive).
+- **observed order**: the slope of log error against log dt (fixed steps) or against log steps (adaptive), read
+  only where the runs span a factor 3 in work and lie on a line; "—" where the error is not set by the step
+  (exact to round-off, limited by the reference, set by a startup step or by chaos).
 
 Measured on {platform.node()} ({os.cpu_count()} CPUs, Python {platform.python_version()}) in {seconds:.0f} s.
 

@@ -9,8 +9,11 @@ observed order of convergence.
   the slope of log error against log steps (mean step ∝ 1/steps, error ∝ h^p ∝ steps^-p). The slope is the median
   of the slopes between pairs of points whose step counts differ by at least half (Theil–Sen): the loosest
   tolerances often take nearly the same few steps for very different errors, which would skew a least-squares fit.
-  Only points in the asymptotic range are used (error below 10 % of the scale and not limited by the reference);
-  None without such a pair. For BDF and LSODA, which change order as they go, it is an effective order.
+  Only points in the asymptotic range are used (error below 10 % of the scale and not limited by the reference).
+  None (no order to see) unless those points span a factor of :data:`ORDER_SPAN` in work and lie on the fitted line
+  (R² of at least :data:`ORDER_FIT`): where the error is not set by the step (round-off, a startup step, contact
+  detection, a chaotic scene) a slope through scattered points reads as orders like 21 or -39. For BDF and LSODA,
+  which change order as they go, it is an effective order.
 """
 
 from __future__ import annotations
@@ -21,6 +24,10 @@ import numpy as np
 
 #: Errors above this fraction of the length scale are not in the asymptotic range of any method.
 ASYMPTOTIC = 0.1
+#: An order is read only from points whose work (steps, or 1/dt) spans at least this factor …
+ORDER_SPAN = 3.0
+#: … and whose log error the fitted line explains to at least this R².
+ORDER_FIT = 0.8
 
 
 @dataclass(frozen=True)
@@ -78,9 +85,11 @@ def observed_order(points: list[Point]) -> float | None:
     else:
         work = np.log([p.steps or p.rhs_evaluations for p in usable])
         sign = -1.0
+    if np.ptp(work) < np.log(ORDER_SPAN):  # the work hardly changed (a problem the method solves exactly)
+        return None
     first, second = np.triu_indices(len(usable), k=1)
     apart = np.abs(work[first] - work[second]) >= np.log(1.5)
-    if not apart.any():  # the work hardly changed (a problem the method solves exactly): no order to see
-        return None
-    slopes = (error[first] - error[second])[apart] / (work[first] - work[second])[apart]
-    return float(sign * np.median(slopes))
+    slope = float(np.median((error[first] - error[second])[apart] / (work[first] - work[second])[apart]))
+    residual = error - np.median(error - slope * work) - slope * work
+    explained = 1.0 - np.sum(residual**2) / max(np.sum((error - error.mean()) ** 2), 1e-300)
+    return sign * slope if explained >= ORDER_FIT else None
