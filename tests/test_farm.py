@@ -110,6 +110,36 @@ def test_a_truncated_frame_is_detected_and_drawn_again(throw, tmp_cwd, monkeypat
     assert np.array_equal(pixels(folder / "frame_00013.png"), good)
 
 
+def test_an_interrupted_render_resumes_without_redrawing_finished_frames(throw, tmp_cwd, monkeypatch):
+    """Ctrl-C while frame 6 of 0-19 is drawn: the command exits 130 with frames 0-5 complete and nothing partial
+    on disk; the next run draws exactly frames 6-19 and leaves the finished ones as they were."""
+    from animbatch.render.frames import FrameRenderer
+
+    original = FrameRenderer.draw
+    calls = []
+
+    def interrupted(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        if len(calls) == 7:
+            raise KeyboardInterrupt
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(FrameRenderer, "draw", interrupted)
+    runner = CliRunner()
+    assert runner.invoke(cli, ["render", str(throw), "--frames", "0-19", "--jobs", "1"]).exit_code == 130
+    folder = tmp_cwd / "renders" / "throw" / "frames"
+    assert sorted(p.name for p in folder.iterdir() if p.name != "render-key.txt") == [
+        f"frame_{i:05d}.png" for i in range(6)]  # no partial file either
+    finished = {path.name: path.stat().st_mtime_ns for path in folder.glob("frame_*.png")}
+    assert all(frame_is_complete(folder / name, (WIDTH, HEIGHT)) for name in finished)
+    monkeypatch.setattr(FrameRenderer, "draw", original)
+    drawn = counting(monkeypatch, FrameRenderer, "draw")
+    assert runner.invoke(cli, ["render", str(throw), "--frames", "0-19", "--jobs", "1"]).exit_code == 0
+    assert len(drawn) == 14
+    assert {name: (folder / name).stat().st_mtime_ns for name in finished} == finished
+    assert sorted(p.name for p in folder.glob("frame_*.png")) == [f"frame_{i:05d}.png" for i in range(20)]
+
+
 def test_frames_of_another_picture_are_never_reused(throw, tmp_cwd, monkeypatch):
     """After a camera change, frames on disk from the old camera (same size, complete) are deleted and drawn again."""
     from animbatch.render.frames import FrameRenderer
