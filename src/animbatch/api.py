@@ -334,7 +334,8 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
     span = parse_frames(frames, trajectory.frame_count)
     prepare_frames(scene, trajectory, out_dir)  # before any worker starts: stale frames of another picture go
     workers = worker_count(jobs, len(span))
-    with progress.task("render", len(span)) as on_frame:
+    # the stage's wall time: with worker processes the frames' own times add up to more than the stage took
+    with watch.stage("render"), progress.task("render", len(span)) as on_frame:
         if workers > 1:
             rendered = render_in_parallel(scene_path, overrides, source, span, workers=workers, out_dir=out_dir,
                                           backend=backend, on_chunk=lambda chunk: [
@@ -342,7 +343,6 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
         else:
             rendered = render_frames(scene, trajectory, span, out_dir=out_dir, backend=backend, model=model,
                                      on_frame=lambda i: on_frame(i, float(trajectory.times[i])))
-    watch.add("render", rendered.render_seconds + rendered.write_seconds)
     folder = frames_folder(scene, out_dir)
     spec = scene.spec
     outputs: list[Path] = []
