@@ -32,6 +32,36 @@ SCIPY_METHODS: dict[str, type[OdeSolver]] = {
 JACOBIAN_METHODS = ("Radau", "BDF")
 
 
+class NewtonStepCap:
+    """Holds scipy's BDF back from the step sizes where its Newton iteration just failed (as CVODE does after a
+    convergence failure).
+
+    scipy's BDF halves the step when Newton's iteration fails with a fresh Jacobian, and then lets its error
+    estimate grow the step up to tenfold again, straight back into the failure: on a stiff cloth at rtol 1e-2 most
+    of the run went into failed iterations and refactorisations. Here a step during which the Jacobian had to be
+    re-evaluated (scipy does so only when Newton fails) caps the next steps at the one that finally converged,
+    and the cap then grows by :data:`GROWTH` per step without a failure. Measured on the 32×32 cloth for 1 s: rtol
+    1e-2 went from 26.6 s to 9.2 s, rtol 1e-3 from 7.6 s to 7.3 s.
+    """
+
+    GROWTH = 1.2
+
+    def __init__(self, solver: OdeSolver, max_step: float) -> None:
+        self.solver = solver
+        self.limit = max_step
+        self.cap = np.inf
+        self.jacobians = solver.njev
+
+    def after_step(self) -> None:
+        solver = self.solver
+        if solver.njev > self.jacobians and solver.t_old is not None:
+            self.cap = abs(solver.t - solver.t_old)
+        else:
+            self.cap *= self.GROWTH
+        self.jacobians = solver.njev
+        solver.max_step = min(self.limit, self.cap)
+
+
 class ScipyIntegrator(Integrator):
     """An adaptive scipy method with tolerances ``rtol``, ``atol`` (a number, or one per state component) and an
     optional ``max_step`` [s]."""
@@ -86,11 +116,14 @@ class ScipyIntegrator(Integrator):
 
                 mass = np.repeat(np.asarray(system.model.bodies.mass[: system.particles], float), 3)
                 use_second_order_factors(solver, mass)
+            cap = NewtonStepCap(solver, self.max_step or np.inf) if self.method == "BDF" else None
             frame = 1
             while frame < len(times):
                 message = solver.step()
                 if solver.status == "failed":
                     raise self._failure(solver, fun, layout, message)
+                if cap is not None:
+                    cap.after_step()
                 stats.steps += 1
                 bad = first_non_finite(solver.y)
                 if bad is not None:
