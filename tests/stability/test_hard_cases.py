@@ -74,10 +74,26 @@ def test_spring_past_the_limit_is_refused_with_the_numbers(method, zeta):
     message = str(caught.value)
     assert f"{method} at dt = {h:.3g} s cannot hold this scene's springs: the stiffest spring 'wire' " in message
     assert "(ks = 10000 N/m, between 0.01 kg and an anchor) vibrates at ω = 1000 rad/s" in message
+    assert f"(damping ratio ζ = {zeta:.2g}, ω dt = " in message
     fix = (f"reduce solver.dt to at most {0.9 * limit:.3g} s" if limit is not None
            else "euler is unstable at any step for these springs")
     assert fix in message and "Nothing was simulated." in message
     assert caught.value.details["spring"] == "wire"
+
+
+def test_a_step_limited_by_the_dampers_says_so():
+    """Velocity Verlet takes the damper force at a predicted velocity, so a strong damper (ζ = 0.85) limits its
+    step as a stiff spring does: here to under half the undamped limit 2/ω. The refusal says the dampers set it."""
+    limit = largest_stable_step("verlet", 1000.0, 850.0)
+    undamped = largest_stable_step("verlet", 1000.0, 0.0)
+    assert undamped == pytest.approx(2 / 1000.0, rel=1e-6) and limit < 0.5 * undamped
+    h = float(0.05 / np.ceil(0.05 / (1.5 * limit)))
+    assert h < undamped  # stable without the dampers
+    with pytest.raises(SimulationError) as caught:
+        run(spring("verlet", h, 0.85, 1.0))
+    message = str(caught.value)
+    assert "(damping ratio ζ = 0.85, ω dt = " in message
+    assert f"The dampers set this limit (without them it would be {0.9 * undamped:.3g} s)." in message
 
 
 def test_a_step_slightly_past_the_limit_on_a_short_run_is_warned_about_with_its_growth():

@@ -128,15 +128,20 @@ def check_fixed_step(model: object, method: str, h: float, steps: int) -> None:
     fix = (f"reduce solver.dt to at most {0.9 * limit:.3g} s" if limit is not None
            else f"{method} is unstable at any step for these springs (too little damping)")
     other = largest_stable_step("symplectic_euler", mode.omega, mode.decay)
+    undamped = largest_stable_step(method, mode.omega, 0.0)
+    # an explicit damper term is limited by its rate as a spring by its frequency: say so when dampers set the step
+    damper_note = (f" The dampers set this limit (without them it would be {0.9 * undamped:.3g} s)."
+                   if limit is not None and undamped is not None and limit < 0.8 * undamped else "")
     first, second = mode.spring_masses
     masses = f"{first:.3g} kg and {'an anchor' if np.isinf(second) else f'{second:.3g} kg'}"
     raise SimulationError(
         f"{method} at dt = {h:.3g} s cannot hold this scene's springs: the stiffest spring {mode.spring!r} "
         f"(ks = {mode.spring_stiffness:g} N/m, between {masses}) vibrates at ω = {mode.spring_omega:.4g} rad/s, and "
-        f"the springs around {mode.body!r} at up to {mode.omega:.4g} rad/s (ω dt = {mode.omega * h:.3g}). "
+        f"the springs around {mode.body!r} at up to {mode.omega:.4g} rad/s (damping ratio ζ = "
+        f"{mode.decay / mode.omega:.2g}, ω dt = {mode.omega * h:.3g}). "
         f"{method} multiplies that vibration by {growth_per_step:.4g} per step, so it would blow up within the first "
         f"{int(np.log(GROWTH_LIMIT) / np.log(growth_per_step)) + 1} of the run's {steps} steps. Use solver.method: "
         f"backward_euler (stable at any dt), or {fix}"
         + (f" (symplectic_euler: dt ≤ {0.9 * other:.3g} s)" if other is not None and method != "symplectic_euler"
-           else "") + ". Nothing was simulated.",
+           else "") + f".{damper_note} Nothing was simulated.",
         time=0.0, body=mode.body, details={"spring": mode.spring, "omega": mode.omega, "dt": h, "method": method})
