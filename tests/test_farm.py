@@ -250,6 +250,65 @@ def test_slurm_script_submits_bake_then_an_array_of_render_chunks_then_encode(th
     assert next(reader)["size"] == (WIDTH, HEIGHT) and sum(1 for _ in reader) == 50
 
 
+def run_openjd_job(template: dict, parameters: dict[str, str]) -> list[list[str]]:
+    """A minimal stand-in for an OpenJD render manager: runs each step after the steps it depends on, one task per
+    value of its task parameters, with ``{{Param.X}}`` and ``{{Task.Param.X}}`` filled in. Returns the commands."""
+    import re
+    import subprocess
+
+    values = {f"Param.{d['name']}": parameters.get(d["name"], d.get("default")) for d in
+              template["parameterDefinitions"]}
+    done: set[str] = set()
+    commands = []
+    steps = list(template["steps"])
+    while steps:
+        step = next(s for s in steps if {d["dependsOn"] for d in s.get("dependencies", [])} <= done)
+        definitions = step.get("parameterSpace", {}).get("taskParameterDefinitions", [])
+        assert len(definitions) <= 1 and all(isinstance(d["range"], list) for d in definitions)
+        tasks = [{}] if not definitions else [{f"Task.Param.{definitions[0]['name']}": v}
+                                               for v in definitions[0]["range"]]
+        for task in tasks:
+            run = step["script"]["actions"]["onRun"]
+            command = [re.sub(r"\{\{(.+?)\}\}", lambda m: str({**values, **task}[m.group(1)]), part)
+                       for part in [run["command"], *run["args"]]]
+            commands.append(command)
+            subprocess.run(command, check=True, capture_output=True, timeout=300)
+        done.add(step["name"])
+        steps.remove(step)
+    return commands
+
+
+def test_openjd_template_bakes_then_renders_frame_chunks_then_encodes(throw, tmp_cwd):
+    """'animbatch farm openjd' writes a job template of three steps (Bake; Render, one task per chunk of at most 20
+    frames, after Bake; Encode after Render). Run step by step with its parameters, it gives the complete video."""
+    import yaml
+
+    result = CliRunner().invoke(cli, ["farm", "openjd", str(throw), "--chunk-size", "20"])
+    assert result.exit_code == 0, result.output
+    template = yaml.safe_load((tmp_cwd / "renders" / "throw" / "openjd-job.yaml").read_text())
+    assert template["specificationVersion"] == "jobtemplate-2023-09"
+    assert [step["name"] for step in template["steps"]] == ["Bake", "Render", "Encode"]
+    render, encode = template["steps"][1:]
+    assert render["dependencies"] == [{"dependsOn": "Bake"}] and encode["dependencies"] == [{"dependsOn": "Render"}]
+    assert render["parameterSpace"]["taskParameterDefinitions"][0]["range"] == ["0-19", "20-39", "40-49"]
+    elsewhere = tmp_cwd / "shared"  # the output folder is a job parameter: a render manager may map it
+    commands = run_openjd_job(template, {"OutputDir": str(elsewhere)})
+    assert [c[c.index("--frames") + 1] for c in commands if "--frames" in c] == ["0-19", "20-39", "40-49"]
+    reader = imageio_ffmpeg.read_frames(str(elsewhere / "throw" / "throw.mp4"))
+    assert next(reader)["size"] == (WIDTH, HEIGHT) and sum(1 for _ in reader) == 50
+    assert len(list((elsewhere / "throw" / "frames").glob("*.png"))) == 50
+
+
+def test_openjd_template_passes_the_reference_validator(throw, tmp_cwd):
+    """Where the reference implementation (openjd-model) is installed, it accepts the template."""
+    model = pytest.importorskip("openjd.model")
+    import yaml
+
+    CliRunner().invoke(cli, ["farm", "openjd", str(throw), "--set", "bodies[red].mass=2"])
+    template = yaml.safe_load((tmp_cwd / "renders" / "throw" / "openjd-job.yaml").read_text())
+    assert model.decode_job_template(template=template).name == "animbatch throw"
+
+
 def test_an_interrupted_checkpointed_bake_resumes_from_its_last_checkpoint(throw, monkeypatch):
     """bake --checkpoint-every 10 on the 50-frame scene, interrupted during its third segment: the checkpoint holds
     frames 0-20 and no cache exists. The next bake integrates only the remaining segments (frames 20-49) and, with

@@ -350,35 +350,70 @@ def farm() -> None:
     """Job scripts for farm managers, for sites without Dask."""
 
 
+def _farm_job_options(function: Callable[..., Any]) -> Callable[..., Any]:
+    """The options every farm job writer takes: the scene, the shared output folder, the chunk size and --set."""
+    for option in reversed([
+            click.argument("scene", type=click.Path(dir_okay=False, path_type=Path)),
+            click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
+                         default=Path("renders"), show_default=True,
+                         help="Output folder the jobs write to (must be shared by the nodes)."),
+            click.option("--chunk-size", type=click.IntRange(min=1), default=48, show_default=True,
+                         help="Frames per render task."),
+            click.option("--set", "settings", multiple=True, metavar="KEY.PATH=VALUE",
+                         help="Override a scene value.")]):
+        function = option(function)
+    return function
+
+
+def _scene_frames(scene: Path, settings: tuple[str, ...]) -> tuple[Any, int]:
+    """The loaded scene and its number of frames."""
+    from animbatch import api
+    from animbatch.model.builder import frame_times
+
+    loaded = api.load_scene(scene, list(settings))
+    return loaded, len(frame_times(loaded.spec.duration, loaded.spec.fps))
+
+
 @farm.command("slurm")
-@click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
+@_farm_job_options
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), help="Script file (default: "
               "renders/<scene>/submit-slurm.sh).")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("renders"),
-              show_default=True, help="Output folder the jobs write to (must be shared by the nodes).")
-@click.option("--chunk-size", type=click.IntRange(min=1), default=48, show_default=True,
-              help="Frames per render task.")
 @click.option("--sbatch-option", "options", multiple=True, metavar="OPTION",
               help="Passed to every sbatch call, e.g. --sbatch-option=--partition=short (repeatable).")
-@click.option("--set", "settings", multiple=True, metavar="KEY.PATH=VALUE", help="Override a scene value.")
 @_reports_errors
 def farm_slurm(scene: Path, output: Path | None, out_dir: Path, chunk_size: int, options: tuple[str, ...],
                settings: tuple[str, ...]) -> None:
     """Write a script that submits the scene as a SLURM bake job, an array of render jobs (afterok) and an encode
     job (afterok)."""
-    from animbatch import api
     from animbatch.farm.slurm import slurm_script
     from animbatch.files import write_text_atomic
-    from animbatch.model.builder import frame_times
 
-    loaded = api.load_scene(scene, list(settings))
+    loaded, frames = _scene_frames(scene, settings)
     target = output or out_dir / loaded.name / "submit-slurm.sh"
-    frames = len(frame_times(loaded.spec.duration, loaded.spec.fps))
     write_text_atomic(target, slurm_script(scene, frames=frames, name=loaded.name, out_dir=out_dir, chunk=chunk_size,
                                            overrides=settings, options=options, script=str(target)))
     target.chmod(0o755)
     click.echo(f"{loaded.name}: {frames} frames in {-(-frames // chunk_size)} render tasks -> {target}; "
                f"submit with: bash {target}")
+
+
+@farm.command("openjd")
+@_farm_job_options
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), help="Template file (default: "
+              "renders/<scene>/openjd-job.yaml).")
+@_reports_errors
+def farm_openjd(scene: Path, output: Path | None, out_dir: Path, chunk_size: int, settings: tuple[str, ...]) -> None:
+    """Write an Open Job Description job template (Bake -> Render tasks of frame chunks -> Encode), for render
+    managers that take OpenJD, such as AWS Deadline Cloud."""
+    from animbatch.farm.openjd import openjd_template, openjd_yaml
+    from animbatch.files import write_text_atomic
+
+    loaded, frames = _scene_frames(scene, settings)
+    target = output or out_dir / loaded.name / "openjd-job.yaml"
+    write_text_atomic(target, openjd_yaml(openjd_template(scene, frames=frames, name=loaded.name, out_dir=out_dir,
+                                                          chunk=chunk_size, overrides=settings)))
+    click.echo(f"{loaded.name}: {frames} frames in {-(-frames // chunk_size)} render tasks -> {target}; "
+               f"check with: openjd check {target}")
 
 
 def _show_warning(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:

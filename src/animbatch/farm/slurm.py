@@ -34,11 +34,17 @@ echo "{name}: bake job $bake, render array $render ({tasks} tasks of {chunk} fra
 """
 
 
+def animbatch_command() -> list[str]:
+    """How a job runs animbatch: the installed command, or this Python with ``-m animbatch``."""
+    installed = shutil.which("animbatch")
+    return [installed] if installed else [sys.executable, "-m", "animbatch"]
+
+
 def slurm_script(scene_path: str | Path, *, frames: int, name: str, out_dir: str | Path, chunk: int,
                  overrides: Sequence[str] = (), options: Sequence[str] = (), script: str = "submit.sh",
                  animbatch: str | None = None) -> str:
     """The submission script's text for a scene of ``frames`` frames."""
-    executable = animbatch or shutil.which("animbatch") or f"{sys.executable} -m animbatch"
+    executable = animbatch or shlex.join(animbatch_command())
     tasks = math.ceil(frames / chunk)
     sets = "".join(f" --set {shlex.quote(item)}" for item in overrides)
     return TEMPLATE.format(name=name, tasks=tasks, chunk=chunk, last_task=tasks - 1, script=script,
