@@ -53,23 +53,23 @@ What the studies above show, as a rule of thumb (the tables give the numbers):
 - **Fixed steps**: explicit **euler** and **midpoint** are for teaching; euler is first order and gains energy on
   every orbit and spring (the stability guard stops it when the gain runs away). **symplectic_euler** is first order
   but stable up to ω dt = 2 on springs and the most robust with many contacts.
-- **Stiff springs and cloth** (ω dt ≫ 1 at the frame rate): **backward_euler** at one step per frame for a
-  render: stable at any step, it damps every vibration it cannot resolve, and costs a fraction of any other method
-  (the curtain's 1.5 s in 0.6 s, the motion plausible but 3.5 % of the scene's size away from the exact one; the
-  error shrinks only slowly with dt, 1.7× per halving, because the damping is what it trades for stability). For an
-  *accurate* cloth the adaptive explicit methods are as fast as anything here: their steps are held at the
-  stability limit whatever the tolerance (hence their flat lines), and at that step DOP853 is already accurate to
-  2·10⁻⁵ at rtol 1e-3. **BDF** and **Radau** get the analytic sparse Jacobian, but a cloth's fast vibrations are
-  lightly damped and real, so their steps are limited by accuracy and each costs sparse factorisations and solves:
-  BDF takes about as long as DOP853 (3–7 s), but its errors stay between 4·10⁻⁵ and 7·10⁻³ where DOP853's reach
-  10⁻⁷, and Radau is 3–5× slower than either. Implicit adaptive methods pay off where the fast modes are strongly damped (truly stiff:
-  they decay instead of ringing); on the 64×64 cloth of the scene format's "Stiff springs" benchmark too, BDF and
-  RK45 take about as long, and backward Euler 12× less. Fixed-step explicit methods are refused outright
-  where their step is unstable: on the curtain every step down to frame/64 (frame/128 for symplectic_euler, all
-  nine for verlet, whose dampers limit it to 1·10⁻⁴ s; explicit euler at frame/128 passes the check and is
-  stopped where it diverges); at frame/256 symplectic_euler reaches 4·10⁻⁵ in 4.8 s. The pre-flight check
-  warns when an adaptive explicit method would need millions of steps. **LSODA** gets no analytic Jacobian (it
-  takes only dense ones) and timed out on the curtain.
+- **Stiff springs and cloth** (ω dt ≫ 1 at the frame rate): **backward_euler** at one step per frame for a render:
+  stable at any step, it damps every vibration it cannot resolve, and costs a fraction of any other method (the
+  curtain's 1.5 s in 0.6 s, the motion plausible but 3.5 % of the scene's size away from the exact one; the error
+  shrinks only slowly with dt, 1.7× per halving, because the damping is what it trades for stability). For an
+  *accurate* cloth the adaptive explicit methods are as fast as anything here: their steps are held at the stability
+  limit whatever the tolerance (hence their flat lines), and at that step DOP853 is already accurate to 2·10⁻⁵ at
+  rtol 1e-3. **BDF** and **Radau** get the analytic sparse Jacobian, but a cloth's fast vibrations are lightly
+  damped and real, so their steps are limited by accuracy and each costs sparse factorisations and solves: BDF takes
+  about as long as DOP853 (3–7 s), but its errors stay between 4·10⁻⁵ and 7·10⁻³ where DOP853's reach 10⁻⁷, and
+  Radau is 2.5–5× slower than either. Implicit adaptive methods pay off where the fast modes are strongly damped
+  (truly stiff: they decay instead of ringing); on the 64×64 cloth of the scene format's "Stiff springs" benchmark
+  too, BDF and RK45 take about as long, and backward Euler 12× less. Fixed-step explicit methods are refused
+  outright where their step is unstable: on the curtain every step down to frame/64 (frame/128 for symplectic_euler,
+  all nine for verlet, whose dampers limit it to 1·10⁻⁴ s; explicit euler at frame/128 passes the check and is
+  stopped where it diverges); at frame/256 symplectic_euler reaches 4·10⁻⁵ in 4.8 s. The pre-flight check warns when
+  an adaptive explicit method would need millions of steps. **LSODA** gets no analytic Jacobian (it takes only dense
+  ones) and timed out on the curtain.
 - **Contacts**: the adaptive path locates every impact on the solver's dense output, so its bounce times are as
   accurate as its tolerance; fixed-step methods bounce within one step (a first-order error in contact times, see
   the contact column) and are the robust choice for piles and resting stacks. Explicit euler and midpoint are not
