@@ -25,9 +25,9 @@ Prints one table. Measures:
 9. farm: 'animbatch render' of a 300-frame scene at 1280×720 with one render process and with one per core.
 
 Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, rigid, contacts, render,
-encode, cloth, fountain, lean, farm), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick), ``--cloth-method NAME`` (only
-the cloth methods whose label starts with NAME, e.g. ``BDF``; repeatable), ``--json FILE`` (also write
-the rows as JSON).
+encode, cloth, fountain, lean, farm), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick),
+``--cloth-method NAME`` (only the cloth methods whose label starts with NAME, e.g. ``BDF``; repeatable),
+``--json FILE`` (also write the rows as JSON).
 """
 
 from __future__ import annotations
@@ -421,8 +421,10 @@ def bench_fountain(quick: bool) -> list[Row]:
         chosen = select_backend("auto")
         frames = [k for k in steady][-20:]
         with FrameRenderer(scene.spec.render, geometry, chosen) as renderer:
-            draw = lambda k: renderer.draw(float(times[k]), trajectory.positions[k], trajectory.orientations[k],  # noqa: E731
-                                           trajectory.angular_velocities[k], (trajectory.particles, k))
+            def draw(k: int) -> None:
+                renderer.draw(float(times[k]), trajectory.positions[k], trajectory.orientations[k],
+                              trajectory.angular_velocities[k], (trajectory.particles, k))
+
             draw(frames[0])  # warm-up: shaders compiled, attributes of the first particles looked up
             started = time.perf_counter()
             for k in frames:
@@ -459,8 +461,8 @@ def bench_lean(quick: bool) -> list[Row]:
     """Right-hand-side cost of a 32×32 cloth, alone and with things of other kinds that act on nothing in it (an
     unused fixed and keyframed anchor, a material, an emitter, study settings): only what the scene calls for is
     evaluated, so the two should cost the same. Measured interleaved, best of many rounds."""
-    systems = {label: Dynamics(compile_scene_text(text)) for label, text in
-               (("cloth 32×32", LEAN_BASE), ("same + unused anchors, material, emitter, study", LEAN_BASE + LEAN_UNUSED))}
+    variants = (("cloth 32×32", LEAN_BASE), ("same + unused anchors, material, emitter, study", LEAN_BASE + LEAN_UNUSED))
+    systems = {label: Dynamics(compile_scene_text(text)) for label, text in variants}
     calls = 50 if quick else 200
     best = {label: np.inf for label in systems}
     for _ in range(5 if quick else 20):
@@ -539,7 +541,10 @@ def main() -> int:
     rows: list[Row] = []
     for name in args.only or list(BENCHMARKS):
         print(f"running {name} …", file=sys.stderr, flush=True)
-        rows += BENCHMARKS[name](args.quick, args.budget, args.cloth_method) if name == "cloth" else BENCHMARKS[name](args.quick)
+        if name == "cloth":
+            rows += bench_cloth(args.quick, args.budget, args.cloth_method)
+        else:
+            rows += BENCHMARKS[name](args.quick)
     width = max(len(str(row["case"])) for row in rows)
     print(f"\n{'benchmark':<22} {'case':<{width}} {'result':>12}  unit")
     print("-" * (22 + width + 24))
