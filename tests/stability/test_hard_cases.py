@@ -428,3 +428,19 @@ def test_stiff_cloth_with_an_explicit_adaptive_method_is_warned_about():
     with pytest.warns(StabilityWarning, match=r"RK45 will need about .* steps for stability alone.*Radau or BDF"):
         messages = preflight(loaded.spec, compile_scene(loaded.spec))
     assert len(messages) == 1 and "ζ = " in messages[0]
+
+
+def test_lsoda_on_a_large_spring_system_is_warned_about_and_a_small_one_is_not():
+    """LSODA takes no analytic Jacobian. On the 16×16 cloth (1524 state variables once two corners are pinned) its
+    stiff mode would estimate each Jacobian with 1524 right-hand sides and factor it densely: a warning with those
+    numbers and the alternatives. The 8×6 cloth (276 variables) is small enough for that to be cheap: no warning."""
+    large = scene(BENCHMARK_CLOTH, "solver.method=LSODA")
+    with pytest.warns(StabilityWarning) as caught:
+        preflight(large.spec, compile_scene(large.spec))
+    (message,) = [str(w.message) for w in caught]
+    assert message.startswith("LSODA gets no analytic Jacobian") and "costs 1524 right-hand sides" in message
+    assert "dense 1524×1524 factorisation" in message and "Use BDF or Radau" in message
+    small = scene(STIFF_CLOTH, "solver.method=LSODA")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert preflight(small.spec, compile_scene(small.spec)) == []

@@ -6,6 +6,8 @@ What certainly fails is refused earlier (:func:`~animbatch.integrators.stability
   ``WARN_GROWTH`` but below the refusal limit (a slow, visible wobble that grows);
 * an explicit adaptive method (RK23, RK45, DOP853) on springs so stiff that stability alone will force more than
   ``STIFF_STEPS`` steps: Radau, BDF or LSODA would take far fewer;
+* LSODA on a large spring system: it takes no analytic Jacobian, so once it turns to its stiff mode each Jacobian
+  costs one right-hand side per state variable and a dense factorisation;
 * fixed-step contact where a body may move further in one step than the thinnest box or sphere collider is thick:
   speculative contacts catch it, but only to the accuracy of one step.
 
@@ -25,6 +27,8 @@ from animbatch.integrators.stability import GROWTH_LIMIT, amplification, largest
 STIFF_STEPS = 1e6
 #: Growth of the stiffest spring vibration over a run above which a fixed step gets a warning.
 WARN_GROWTH = 2.0
+#: State variables above which LSODA's finite-difference, dense Jacobians make it slow on springs (a 10×10 cloth).
+LSODA_DENSE_STATES = 600
 #: Stability limit ``|h λ|`` along the negative real axis of each explicit Runge–Kutta pair.
 EXPLICIT_LIMITS = {"RK23": 2.5, "RK45": 3.3, "DOP853": 6.0}
 
@@ -57,6 +61,12 @@ def _spring_warnings(model: object, solver: object, steps: int, h: float | None)
             return [f"{method} will need about {forced:.2g} steps for stability alone: the springs around "
                     f"{mode.body!r} vibrate at ω = {mode.omega:.4g} rad/s (ζ = {zeta:.3g}) over {duration:g} s. "
                     "Radau or BDF (with the analytic Jacobian) or backward_euler take far fewer."]
+    states = int(np.size(model.y0))  # type: ignore[attr-defined]
+    if method == "LSODA" and states > LSODA_DENSE_STATES:
+        return [f"LSODA gets no analytic Jacobian: when the springs around {mode.body!r} (ω = {mode.omega:.4g} rad/s) "
+                f"make it switch to its stiff mode, each Jacobian costs {states} right-hand sides (finite "
+                f"differences) and a dense {states}×{states} factorisation. Use BDF or Radau (analytic sparse "
+                "Jacobian in scenes of particles and cloth), backward_euler, or DOP853."]
     return []
 
 

@@ -69,7 +69,7 @@ What the studies above show, as a rule of thumb (the tables give the numbers):
   all nine for verlet, whose dampers limit it to 1·10⁻⁴ s; explicit euler at frame/128 passes the check and is
   stopped where it diverges); at frame/256 symplectic_euler reaches 4·10⁻⁵ in 4.8 s. The pre-flight check warns when
   an adaptive explicit method would need millions of steps. **LSODA** gets no analytic Jacobian (it takes only dense
-  ones) and timed out on the curtain.
+  ones) and timed out on the curtain; the pre-flight check warns about it on large spring systems.
 - **Contacts**: the adaptive path locates every impact on the solver's dense output, so its bounce times are as
   accurate as its tolerance; fixed-step methods bounce within one step (a first-order error in contact times, see
   the contact column) and are the robust choice for piles and resting stacks. Explicit euler and midpoint are not
