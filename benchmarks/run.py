@@ -486,8 +486,8 @@ def compile_scene_text(text: str):  # type: ignore[no-untyped-def]
 def bench_farm(quick: bool) -> list[Row]:
     """'animbatch render' of a 300-frame scene (bouncing balls, 1280×720, from a warm cache): wall time and the render
     stage's time (drawing and writing the frames; the rest is start-up and encoding) with one process, one process
-    whose rasteriser may use one core only (``LP_NUM_THREADS=1``, as each worker of ``--jobs N`` and each farm task
-    is), and one process per core. Frames are deleted between runs so that every frame is drawn."""
+    held to one core (``taskset -c 0`` and ``LP_NUM_THREADS=1``: a farm slot of one core), and one process per
+    core. Frames are deleted between runs so that every frame is drawn."""
     import shutil
     import subprocess
 
@@ -497,15 +497,16 @@ def bench_farm(quick: bool) -> list[Row]:
                "--out", str(out), "--no-progress", "--set", f"duration={frames / 30}", "--set", "fps=30"]
     subprocess.run(command + ["--frames", "0"], check=True, capture_output=True)  # bake, warm caches
     cores = os.cpu_count() or 1
-    runs = {"--jobs 1": (1, {}), "--jobs 1, rasteriser on one core": (1, {"LP_NUM_THREADS": "1"}),
-            f"--jobs {cores}": (cores, {})}
+    one_core = ["taskset", "-c", "0"] if shutil.which("taskset") else []
+    held = "--jobs 1 on one core" if one_core else "--jobs 1, rasteriser on one thread"
+    runs = {"--jobs 1": (1, [], {}), held: (1, one_core, {"LP_NUM_THREADS": "1"}), f"--jobs {cores}": (cores, [], {})}
     rows, wall, stage = [], {}, {}
-    for label, (jobs, environment) in runs.items():
+    for label, (jobs, prefix, environment) in runs.items():
         if jobs == 1 and label != "--jobs 1" and cores == 1:
             continue
         shutil.rmtree(out / "bouncing-balls" / "frames", ignore_errors=True)
         started = time.perf_counter()
-        subprocess.run(command + ["--jobs", str(jobs)], check=True, capture_output=True,
+        subprocess.run(prefix + command + ["--jobs", str(jobs)], check=True, capture_output=True,
                        env={**os.environ, **environment})
         wall[label] = time.perf_counter() - started
         stage[label] = json.loads((out / "bouncing-balls" / "report.json").read_text())["stages"]["render"]
@@ -514,7 +515,7 @@ def bench_farm(quick: bool) -> list[Row]:
                  {"benchmark": "farm render", "case": f"{frames} frames 1280×720, {label}: render stage",
                   "value": stage[label], "unit": "s"}]
     if cores > 1:
-        for baseline in ("--jobs 1", "--jobs 1, rasteriser on one core"):
+        for baseline in ("--jobs 1", held):
             rows.append({"benchmark": "farm render", "case": f"speed-up of --jobs {cores} over {baseline} (wall / "
                          "render stage)", "value": f"{wall[baseline] / wall[f'--jobs {cores}']:.2f} / "
                          f"{stage[baseline] / stage[f'--jobs {cores}']:.2f}", "unit": "×"})

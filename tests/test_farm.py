@@ -340,3 +340,42 @@ def test_an_interrupted_checkpointed_bake_resumes_from_its_last_checkpoint(throw
     assert np.array_equal(resumed.trajectory.positions, plain.positions)
     assert np.array_equal(resumed.trajectory.velocities, plain.velocities)
     assert [p.name.split("-")[0] for p in folder.iterdir()] == ["trajectory"]  # the checkpoint went with success
+
+
+def test_background_png_writer_reports_frames_in_order_once_on_disk(tmp_path):
+    """Frames handed to the background writer are reported in order, each only once its file is a whole PNG, and
+    never more than ``depth`` wait at once."""
+    from animbatch.encode.images import BackgroundPngWriter, PngSequenceWriter
+
+    writer = PngSequenceWriter(tmp_path)
+    reported = []
+
+    def written(index, seconds):
+        assert frame_is_complete(writer.path_of(index), (WIDTH, HEIGHT)) and seconds >= 0
+        reported.append(index)
+
+    with BackgroundPngWriter(writer, written, depth=2) as background:
+        for index in range(7):
+            background.submit(index, np.full((HEIGHT, WIDTH, 3), 30 * index, np.uint8))
+            assert len(reported) >= index - 1  # at most two frames waiting
+    assert reported == list(range(7))
+    assert pixels(writer.path_of(6))[0, 0].tolist() == [180, 180, 180]
+
+
+def test_background_png_writer_finishes_handed_frames_when_interrupted_and_raises_write_errors(tmp_path):
+    """Ctrl-C while frames wait to be written: they are still finished whole, and the interrupt goes on. A frame
+    that cannot be written raises its error from the writer, not silently."""
+    from animbatch.encode.images import BackgroundPngWriter, PngSequenceWriter
+
+    writer = PngSequenceWriter(tmp_path / "frames")
+    with pytest.raises(KeyboardInterrupt):
+        with BackgroundPngWriter(writer, lambda index, seconds: None, depth=3) as background:
+            for index in range(3):
+                background.submit(index, np.zeros((HEIGHT, WIDTH, 3), np.uint8))
+            raise KeyboardInterrupt
+    assert all(frame_is_complete(writer.path_of(index), (WIDTH, HEIGHT)) for index in range(3))
+    blocked = tmp_path / "not-a-folder"
+    blocked.write_text("a file where the frames folder should be")
+    with pytest.raises(OSError):
+        with BackgroundPngWriter(PngSequenceWriter(blocked), lambda index, seconds: None) as background:
+            background.submit(0, np.zeros((HEIGHT, WIDTH, 3), np.uint8))

@@ -5,7 +5,11 @@ PNG compression level 1 is used: several times faster than the default 6, for fi
 
 from __future__ import annotations
 
+import collections
 import contextlib
+import time
+from collections.abc import Callable
+from concurrent.futures import Future
 from pathlib import Path
 
 import numpy as np
@@ -41,3 +45,49 @@ class PngSequenceWriter:
             if stem.isdigit() and int(stem) >= count:
                 with contextlib.suppress(FileNotFoundError):
                     path.unlink()
+
+
+class BackgroundPngWriter:
+    """Writes frames with a :class:`PngSequenceWriter` on one background thread while the caller draws the next.
+
+    PNG compression is a quarter of a frame's time at 720p, and Pillow releases the GIL while it compresses, so the
+    two overlap. At most ``depth`` frames wait to be written (bounded memory). ``on_written(index, seconds)`` is
+    called on the caller's thread, in frame order, once a frame is complete on disk. Leaving the ``with`` block,
+    even on an error or Ctrl-C, first finishes the frames already handed over, so every frame drawn is either whole
+    on disk or absent, and an error from a write is raised.
+    """
+
+    def __init__(self, writer: PngSequenceWriter, on_written: Callable[[int, float], None], depth: int = 2) -> None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.writer, self.on_written, self.depth = writer, on_written, depth
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="png-writer")
+        self._pending: collections.deque[tuple[int, Future[float]]] = collections.deque()
+
+    def _write(self, index: int, image: np.ndarray) -> float:
+        started = time.perf_counter()
+        self.writer.write(index, image)
+        return time.perf_counter() - started
+
+    def submit(self, index: int, image: np.ndarray) -> None:
+        """Queue frame ``index`` (the array must not change afterwards), first waiting while ``depth`` are queued."""
+        while len(self._pending) >= self.depth:
+            self._finish_oldest()
+        self._pending.append((index, self._pool.submit(self._write, index, image)))
+
+    def _finish_oldest(self) -> None:
+        index, future = self._pending.popleft()
+        self.on_written(index, future.result())
+
+    def __enter__(self) -> BackgroundPngWriter:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, *exc: object) -> None:
+        try:
+            while self._pending:
+                if kind is None:
+                    self._finish_oldest()
+                else:  # already failing: finish the files, report nothing more
+                    self._pending.popleft()[1].exception()
+        finally:
+            self._pool.shutdown(wait=True)

@@ -18,7 +18,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from animbatch.encode.images import PngSequenceWriter
+from animbatch.encode.images import BackgroundPngWriter, PngSequenceWriter
 from animbatch.scene import LoadedScene
 from animbatch.trajectory import Trajectory
 
@@ -78,7 +78,8 @@ def frame_is_complete(path: Path, size: tuple[int, int]) -> bool:
 
 @dataclass
 class RangeResult:
-    """Frames of a range that were drawn and that were already complete, and the time spent drawing [s]."""
+    """Frames of a range that were drawn (in order, once on disk) and that were already complete; the time spent
+    drawing and, overlapping it on a background thread, writing PNGs [s]."""
 
     drawn: list[int] = field(default_factory=list)
     skipped: list[int] = field(default_factory=list)
@@ -149,18 +150,21 @@ def render_frames(scene: LoadedScene, trajectory: Trajectory, frames: FrameRange
     chosen = select_backend(backend)
     result.backend = chosen.name
     geometry = frame_geometry(scene, model, trajectory)  # type: ignore[arg-type]
+
+    def written(index: int, seconds: float) -> None:
+        result.write_seconds += seconds
+        result.drawn.append(index)
+        if on_frame is not None:
+            on_frame(index)
+
     with contextlib.ExitStack() as stack:
         renderer = stack.enter_context(FrameRenderer(scene.spec.render, geometry, chosen))
+        background = stack.enter_context(BackgroundPngWriter(writer, written))  # closed first: frames finished
         for index in todo:
             started = time.perf_counter()
             image = renderer.draw(float(trajectory.times[index]), trajectory.positions[index],
                                   trajectory.orientations[index], trajectory.angular_velocities[index],
                                   (trajectory.particles, index) if trajectory.particles else None)
-            drawn = time.perf_counter()
-            writer.write(index, image)
-            result.render_seconds += drawn - started
-            result.write_seconds += time.perf_counter() - drawn
-            result.drawn.append(index)
-            if on_frame is not None:
-                on_frame(index)
+            result.render_seconds += time.perf_counter() - started
+            background.submit(index, image)
     return result
