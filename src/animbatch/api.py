@@ -12,11 +12,9 @@ Simulation and rendering meet only at the :class:`~animbatch.trajectory.Trajecto
 
 from __future__ import annotations
 
-import contextlib
 import datetime as _dt
 import platform
 import shutil
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -186,55 +184,52 @@ class RenderResult:
 
 def render(scene: LoadedScene, trajectory: Trajectory, *, model: Model | None = None,
            out_dir: str | Path = "renders", backend: str = "auto", progress: Progress | None = None) -> RenderResult:
-    """Draw every frame of ``trajectory`` and write the scene's outputs into ``out_dir/<scene name>/``.
+    """Draw every frame of ``trajectory`` and write the scene's outputs into ``out_dir/<scene name>/``, in this
+    process: ``run`` without the bake (the same frames, videos and file rules, see :func:`run`).
 
-    The trajectory must come from this scene's physics (TrajectoryError otherwise). The MP4 is encoded while
-    frames are rendered; every file is written atomically.
+    The trajectory must come from this scene's physics (TrajectoryError otherwise); frames already complete on disk
+    for this picture are not drawn again; every file is written atomically.
     """
-    from animbatch.encode import Mp4Writer, PngSequenceWriter
-    from animbatch.render.backend import select_backend
-    from animbatch.render.frames import FrameRenderer
+    from animbatch.farm import render_frames
+    from animbatch.farm.frames import FrameRange, prepare_frames
 
-    spec = scene.spec
     model = model if model is not None else compile_model(scene)
     check_trajectory(scene, model, trajectory)
-    chosen = select_backend(backend)
-    folder = Path(out_dir) / scene.name
-    width, height = spec.render.resolution
-    geometry = frame_geometry(scene, model, trajectory)
-    video = Mp4Writer(folder / f"{scene.name}.mp4", (width, height), spec.fps, preset=spec.render.video.preset,
-                      crf=spec.render.video.crf) if "mp4" in spec.render.formats else None
-    frames = PngSequenceWriter(folder / "frames") if "png" in spec.render.formats else None
-    render_seconds = encode_seconds = 0.0
+    prepare_frames(scene, trajectory, out_dir)
     progress = progress or Progress(enabled=False)
-    with contextlib.ExitStack() as stack:
-        renderer = stack.enter_context(FrameRenderer(spec.render, geometry, chosen))
-        if video is not None:
-            stack.enter_context(video)
-        on_frame = stack.enter_context(progress.task("render", trajectory.frame_count))
-        for index, t in enumerate(trajectory.times):
-            started = time.perf_counter()
-            image = renderer.draw(float(t), trajectory.positions[index], trajectory.orientations[index],
-                                  trajectory.angular_velocities[index],
-                                  (trajectory.particles, index) if trajectory.particles else None)
-            drawn = time.perf_counter()
-            if video is not None:
-                video.write(image)
-            if frames is not None:
-                frames.write(index, image)
-            encode_seconds += time.perf_counter() - drawn
-            render_seconds += drawn - started
-            on_frame(index, float(t))
-        outputs = []
-        started = time.perf_counter()
-        if video is not None:
-            outputs.append(video.commit())
-        encode_seconds += time.perf_counter() - started
-    if frames is not None:
-        frames.remove_beyond(trajectory.frame_count)
-        outputs.append(frames.folder)
-    return RenderResult(outputs, trajectory.frame_count, chosen.name, render_seconds, encode_seconds,
-                        (width, height), spec.fps)
+    with progress.task("render", trajectory.frame_count) as on_frame:
+        rendered = render_frames(scene, trajectory, FrameRange(0, trajectory.frame_count), out_dir=out_dir,
+                                 backend=backend, model=model,
+                                 on_frame=lambda i: on_frame(i, float(trajectory.times[i])))
+    outputs, encode_seconds = finish_outputs(scene, trajectory.frame_count, out_dir)
+    return RenderResult(outputs, trajectory.frame_count, rendered.backend or "(none: frames were complete)",
+                        rendered.render_seconds, encode_seconds, tuple(scene.spec.render.resolution),  # type: ignore[arg-type]
+                        scene.spec.fps)
+
+
+def finish_outputs(scene: LoadedScene, frame_count: int, out_dir: str | Path) -> tuple[list[Path], float]:
+    """Once every frame is on disk: encode each video format the scene asks for, then keep the frames if ``png`` is
+    one of its formats (without frames left over from a longer run) or delete them. Returns the outputs and the
+    encoding time [s]."""
+    from animbatch.encode import PngSequenceWriter
+    from animbatch.farm.encode import encode
+    from animbatch.farm.frames import frames_folder
+
+    formats = scene.spec.render.formats
+    folder = frames_folder(scene, out_dir)
+    outputs: list[Path] = []
+    seconds = 0.0
+    videos = tuple(kind for kind in formats if kind != "png")
+    if videos:
+        encoded = encode(scene, frame_count, out_dir=out_dir, kinds=videos)
+        seconds = encoded.seconds
+        outputs += encoded.outputs
+    if "png" in formats:
+        PngSequenceWriter(folder).remove_beyond(frame_count)
+        outputs.append(folder)
+    else:
+        shutil.rmtree(folder, ignore_errors=True)
+    return outputs, seconds
 
 
 @dataclass
@@ -307,7 +302,6 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
     that once every range is done); the report is written for whole runs only.
     """
     from animbatch.farm import bake, parse_frames, render_frames
-    from animbatch.farm.encode import encode
     from animbatch.farm.frames import frames_folder, prepare_frames
     from animbatch.farm.parallel import render_in_parallel, worker_count
 
@@ -343,24 +337,13 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
         else:
             rendered = render_frames(scene, trajectory, span, out_dir=out_dir, backend=backend, model=model,
                                      on_frame=lambda i: on_frame(i, float(trajectory.times[i])))
-    folder = frames_folder(scene, out_dir)
     spec = scene.spec
-    outputs: list[Path] = []
     if frames is None:
-        videos = tuple(kind for kind in spec.render.formats if kind != "png")
-        if videos:
-            encoded = encode(scene, trajectory.frame_count, out_dir=out_dir, kinds=videos)
-            watch.add("encode", encoded.seconds)
-            outputs += encoded.outputs
-        if "png" in spec.render.formats:
-            from animbatch.encode import PngSequenceWriter
-
-            PngSequenceWriter(folder).remove_beyond(trajectory.frame_count)  # from a longer run of the same picture
-            outputs.append(folder)
-        else:
-            shutil.rmtree(folder, ignore_errors=True)
+        outputs, encode_seconds = finish_outputs(scene, trajectory.frame_count, out_dir)
+        if any(kind != "png" for kind in spec.render.formats):
+            watch.add("encode", encode_seconds)
     else:
-        outputs.append(folder)
+        outputs = [frames_folder(scene, out_dir)]
     report = RunReport(scene.name, str(scene.path) if scene.path else None, trajectory.physics_hash, __version__,
                        dict(watch.seconds), trajectory.solver, trajectory.solver_stats, trajectory.frame_count,
                        tuple(spec.render.resolution), spec.fps, rendered.backend or "(none: frames were complete)",
