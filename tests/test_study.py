@@ -259,6 +259,29 @@ def test_a_run_that_crawls_inside_one_frame_times_out_there(monkeypatch):
     assert len(evaluations) < 25  # ω = 316 rad/s for 0.5 s at rtol 1e-10 needs thousands
 
 
+def test_a_study_without_a_reference_says_which_runs_failed_and_what_to_do(monkeypatch, tmp_cwd):
+    """When no tight reference run finishes in time (a clock that ticks 1 s per reading), 'animbatch study' exits 3
+    with one message, no traceback: the runs tried (DOP853 at 1e-12, then straight to 1e-10 after the timeout, then
+    Radau since the spring is stiff) with their reasons, and the remedies."""
+    from animbatch.study import runs
+
+    clock = iter(range(10**9))
+    monkeypatch.setattr(runs, "time", types.SimpleNamespace(perf_counter=lambda: float(next(clock))))
+    (tmp_cwd / "bob.yaml").write_text("""
+        duration: 1
+        fps: 2
+        anchors: [{name: wall, position: [0, 0, 0]}]
+        bodies: [{name: bob, mass: 0.01, position: [1.1, 0, 0]}]
+        springs: [{between: [wall, bob], stiffness: 1.0e3, damping: 0.0, rest_length: 1.0}]
+    """)
+    result = CliRunner().invoke(cli, ["study", "bob.yaml", "--methods", "RK45"])
+    assert result.exit_code == 3 and "Traceback" not in result.output
+    assert ("error: no reference for the study: every tight run failed (DOP853 at rtol 1e-12: took longer than "
+            "600 s; DOP853 at rtol 1e-10: took longer than 600 s; Radau at rtol 1e-11: took longer than 600 s). "
+            in result.output)
+    assert "--set duration=" in result.output and "--timeout T" in result.output and "--closed-form" in result.output
+
+
 def test_outputs_table_csv_json_and_plot(projectile_study, tmp_path):
     paths = write_outputs(projectile_study, tmp_path)
     rows = list(csv.DictReader(paths["csv"].open()))

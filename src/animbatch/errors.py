@@ -75,3 +75,9 @@ class RenderError(AnimbatchError):
     """Rendering or encoding failed, or no off-screen OpenGL backend is available."""
 
     exit_code = 4
+
+
+class StudyError(AnimbatchError):
+    """A study could not measure errors: no reference run (a tight, trusted run) succeeded."""
+
+    exit_code = 3

@@ -15,12 +15,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from animbatch.errors import StudyError
 from animbatch.integrators.stability import stiffest_mode
 from animbatch.model import Model
 from animbatch.study.closed_forms import exact_motion
 from animbatch.study.measure import Motion, Scales, final_error, position_error
-from animbatch.study.runs import RunSetting, execute
+from animbatch.study.runs import RunOutcome, RunSetting, execute
 
+#: Tolerances tried, tightest first, for the DOP853 reference run.
+REFERENCE_RTOLS = (1e-12, 1e-11, 1e-10)
 #: A run's error below this many times the reference's own accuracy is not trusted.
 REFERENCE_MARGIN = 2.0
 #: The accuracy of a closed form as evaluated in floating point, relative to the scene's scales: errors below it are
@@ -61,8 +64,8 @@ def _first_scales(model: Model) -> np.ndarray:
 
 
 def find_reference(model: Model, *, closed_form: bool, timeout: float, progress=print) -> Reference:  # type: ignore[no-untyped-def]
-    """The study's reference for ``model``; ``timeout`` [s] per reference run (raises RuntimeError when no tight
-    run succeeds in time)."""
+    """The study's reference for ``model``; ``timeout`` [s] per reference run (raises StudyError, naming every run
+    tried and why it failed, when no tight run succeeds in time)."""
     if closed_form:
         exact = exact_motion(model)
         orientations = np.zeros((*exact.positions.shape[:2], 4))
@@ -72,19 +75,25 @@ def find_reference(model: Model, *, closed_form: bool, timeout: float, progress=
         return Reference(motion, f"closed form ({forms})", Scales.of_motion(model, motion.positions,
                                                                              motion.velocities), ROUND_OFF, ROUND_OFF)
     scale = _first_scales(model)
-    primary = None
-    for rtol in (1e-12, 1e-11, 1e-10):
-        progress(f"reference: DOP853 at rtol {rtol:.0e} …")
-        primary = execute(model, RunSetting("DOP853", rtol=rtol), scale, repeats=0, timeout=timeout)
-        if primary.status == "ok":
-            break
     stiff = is_stiff(model)
-    if primary is None or primary.status != "ok":
-        if not stiff:
-            raise RuntimeError(f"no tight reference run succeeded: {primary.reason if primary else ''}")
-        primary = execute(model, RunSetting("Radau", rtol=1e-11), scale, repeats=0, timeout=timeout)
-        if primary.status != "ok":
-            raise RuntimeError(f"no tight reference run succeeded: {primary.reason}")
+    attempts: list[RunOutcome] = []
+    for rtol in REFERENCE_RTOLS:
+        if attempts and attempts[-1].status == "timeout" and rtol != REFERENCE_RTOLS[-1]:
+            continue  # a decade looser saves only a quarter of DOP853's steps: after a timeout try the loosest
+        progress(f"reference: DOP853 at rtol {rtol:.0e} …")
+        attempts.append(execute(model, RunSetting("DOP853", rtol=rtol), scale, repeats=0, timeout=timeout))
+        if attempts[-1].status == "ok":
+            break
+    if attempts[-1].status != "ok" and stiff:
+        progress("reference: Radau at rtol 1e-11 …")
+        attempts.append(execute(model, RunSetting("Radau", rtol=1e-11), scale, repeats=0, timeout=timeout))
+    primary = attempts[-1]
+    if primary.status != "ok":
+        tried = "; ".join(f"{run.setting.method} at {run.setting.label}: {run.reason}" for run in attempts)
+        raise StudyError(
+            f"no reference for the study: every tight run failed ({tried}). Errors are measured against a tight "
+            f"run, so it has to succeed: shorten the scene (--set duration=…), give it more time (--timeout T: "
+            f"reference runs get 10 T, at least 120 s), or use --closed-form where every body has one.")
     assert primary.setting.rtol is not None and primary.states is not None
     check_setting = (RunSetting("Radau", rtol=max(1e-9, 10 * primary.setting.rtol)) if stiff or
                      primary.setting.method == "Radau" else RunSetting("DOP853", rtol=10 * primary.setting.rtol))
