@@ -167,6 +167,14 @@ class ForceTerm(ABC):
         ever removes energy (drag, dampers). Backward Euler keeps a scene without inputs from gaining energy."""
         return not self.has_potential
 
+    @property
+    def steps_lose_energy(self) -> bool:
+        """True when a backward Euler step linearised with this term's definite derivatives loses energy unless the
+        step is too long (so halving a step that gained energy cures it); False when those derivatives leave out a
+        part of the force's change that makes every step's energy error O(h²) of either sign, so that halving
+        shrinks a gain but does not end it (backward Euler then halves only a few times)."""
+        return True
+
     @abstractmethod
     def accumulate(self, t: float, state: Kinematics, force: np.ndarray, torque: np.ndarray | None) -> None:
         """Add this term's forces [N] (P, 3) and, for rigid bodies, torques [N·m] (B, 3) at time ``t`` [s]."""

@@ -198,6 +198,10 @@ class Controllers(ForceTerm):
     def adds_energy(self) -> bool:
         return any(isinstance(target, PathTarget) for target in self.targets)
 
+    @property
+    def steps_lose_energy(self) -> bool:  # the definite derivative on a curve leaves out the curve's turn
+        return not any(isinstance(target, CurveTarget) for target in self.targets)
+
     def describe(self) -> str:
         return "; ".join(f"{name}: ks {ks:g} N/m, kd {kd:g} N·s/m → {target.text}"
                          for name, ks, kd, target in zip(self.names, self.stiffness, self.damping, self.targets))
