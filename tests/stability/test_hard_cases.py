@@ -444,3 +444,27 @@ def test_lsoda_on_a_large_spring_system_is_warned_about_and_a_small_one_is_not()
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert preflight(small.spec, compile_scene(small.spec)) == []
+
+
+def test_a_stiff_pd_controller_counts_as_a_spring_for_the_pre_flight_check():
+    """A controller is a virtual spring to its target: verlet at one step per frame on the bead (ks = 2000 N/m on
+    0.1 kg: ω = 141 rad/s, critically damped) is refused before it starts, naming the controller, instead of blowing
+    up and being caught only after the whole run; at a fifth of the stable step it runs and stays on the wire."""
+    from pathlib import Path
+
+    from animbatch import api
+
+    path = Path(__file__).resolve().parents[2] / "scenes" / "bead_on_wire.yaml"
+    loaded = api.load_scene(path, ["solver.method=verlet", "solver.dt=0.0166667"])
+    model = compile_scene(loaded.spec)
+    limit = largest_stable_step("verlet", np.sqrt(2000 / 0.1), 28.28 / (2 * 0.1))
+    with pytest.raises(SimulationError) as caught:
+        api.simulate(loaded, model=model)
+    message = str(caught.value)
+    assert ("the stiffest controller 'wire' (ks = 2000 N/m, between 0.1 kg and its target) vibrates at ω = 141.4 "
+            "rad/s" in message and "(damping ratio ζ = 1, " in message)
+    assert f"reduce solver.dt to at most {0.9 * limit:.3g} s" in message and "Nothing was simulated." in message
+    fine = api.load_scene(path, ["solver.method=verlet", f"solver.dt={float(0.2 * limit)!r}", "duration=1"])
+    trajectory = api.simulate(fine)
+    radius = np.hypot(trajectory.positions[:, 0, 0], trajectory.positions[:, 0, 1])
+    assert np.abs(radius - 0.5).max() < 0.004  # within (m g + m v²/r) / ks = 3 mm of the wire, and a margin

@@ -115,11 +115,8 @@ def check_energy_growth(model: object, states: np.ndarray, method: str, dt: floa
     remedies = []
     if mode is not None:
         stable = largest_stable_step(method, mode.omega, mode.decay) if dt else None
-        first, second = mode.spring_masses
-        between = f"{first:.3g} kg and " + ("an anchor" if np.isinf(second) else f"{second:.3g} kg")
-        message += (f" The stiffest spring is {mode.spring!r} (ks = {mode.spring_stiffness:g} N/m, between "
-                    f"{between}, ω = {mode.spring_omega:.4g} "
-                    f"rad/s; up to {mode.omega:.4g} rad/s around {mode.body!r})"
+        message += (f" The stiffest is the {mode.stiffest()}, ω = {mode.spring_omega:.4g} rad/s "
+                    f"(up to {mode.omega:.4g} rad/s around {mode.body!r})"
                     + (f"; the largest stable step of {method} for it is {stable:.3g} s" if stable else "") + ".")
         remedies.append(f"a smaller solver.dt (≤ {0.9 * stable:.3g} s)" if stable else "a smaller solver.dt")
     else:

@@ -28,7 +28,8 @@ GROWTH_LIMIT = 1e6
 @dataclass(frozen=True)
 class StiffestMode:
     """The bound on the fastest spring vibration: ``omega`` [rad/s] and its damping rate ``decay`` [1/s], at the
-    particle ``body``; and the single stiffest spring (highest ``√(ks (1/m1 + 1/m2))``)."""
+    particle ``body``; and the single stiffest spring or controller (a virtual spring to its target), the one with
+    the highest ``√(ks (1/m1 + 1/m2))``: its ``spring_kind`` ("spring" or "controller") and name."""
 
     omega: float
     decay: float
@@ -37,31 +38,57 @@ class StiffestMode:
     spring_omega: float
     spring_stiffness: float
     spring_masses: tuple[float, float]
+    spring_kind: str = "spring"
+
+    def stiffest(self) -> str:
+        """``spring 'name' (ks = … N/m, between … kg and …)`` for messages."""
+        first, second = self.spring_masses
+        other = ("its target" if self.spring_kind == "controller" else "an anchor") if np.isinf(second) else \
+            f"{second:.3g} kg"
+        return (f"{self.spring_kind} {self.spring!r} (ks = {self.spring_stiffness:g} N/m, between {first:.3g} kg "
+                f"and {other})")
 
 
 def stiffest_mode(model: object) -> StiffestMode | None:
-    """The stiffest spring vibration of a model (None without springs)."""
+    """The stiffest spring vibration of a model, counting PD controllers as springs to their targets (None without
+    either)."""
     springs = model.springs  # type: ignore[attr-defined]
-    if springs is None or springs.count == 0:
+    controllers = next((term for term in model.force_terms if term.kind == "controller"), None)  # type: ignore[attr-defined]
+    has_springs = springs is not None and springs.count > 0
+    if not has_springs and controllers is None:
         return None
     bodies = model.bodies  # type: ignore[attr-defined]
     mass = np.asarray(bodies.mass, float)
-    first, second, anchored = springs.first, springs.second, springs.second_is_anchor
-    mass_first = mass[first]
-    mass_second = np.where(anchored, np.inf, mass[np.where(anchored, 0, second)])
-    spring_omega = np.sqrt(springs.stiffness * (1 / mass_first + 1 / mass_second))
-    stiffest = int(np.argmax(spring_omega))
-    both = ~anchored
-    share = np.where(both, 2.0, 1.0)  # a spring to another body adds its coupling to the row sum too
-    stiffness_sum = np.bincount(first, springs.stiffness * share, minlength=len(mass))
-    damping_sum = np.bincount(first, springs.damping * share, minlength=len(mass))
-    stiffness_sum += np.bincount(second[both], (springs.stiffness * share)[both], minlength=len(mass))
-    damping_sum += np.bincount(second[both], (springs.damping * share)[both], minlength=len(mass))
+    stiffness_sum = np.zeros(len(mass))
+    damping_sum = np.zeros(len(mass))
+    candidates = []  # (ω, name, ks, masses, kind) of the stiffest spring and of the stiffest controller
+    if has_springs:
+        first, second, anchored = springs.first, springs.second, springs.second_is_anchor
+        mass_first = mass[first]
+        mass_second = np.where(anchored, np.inf, mass[np.where(anchored, 0, second)])
+        spring_omega = np.sqrt(springs.stiffness * (1 / mass_first + 1 / mass_second))
+        k = int(np.argmax(spring_omega))
+        candidates.append((float(spring_omega[k]), springs.names[k], float(springs.stiffness[k]),
+                           (float(mass_first[k]), float(mass_second[k])), "spring"))
+        both = ~anchored
+        share = np.where(both, 2.0, 1.0)  # a spring to another body adds its coupling to the row sum too
+        stiffness_sum += np.bincount(first, springs.stiffness * share, minlength=len(mass))
+        damping_sum += np.bincount(first, springs.damping * share, minlength=len(mass))
+        stiffness_sum += np.bincount(second[both], (springs.stiffness * share)[both], minlength=len(mass))
+        damping_sum += np.bincount(second[both], (springs.damping * share)[both], minlength=len(mass))
+    if controllers is not None:
+        points = np.asarray(controllers.point, np.intp)
+        np.add.at(stiffness_sum, points, controllers.stiffness)
+        np.add.at(damping_sum, points, controllers.damping)
+        controller_omega = np.sqrt(controllers.stiffness / mass[points])
+        k = int(np.argmax(controller_omega))
+        candidates.append((float(controller_omega[k]), controllers.names[k], float(controllers.stiffness[k]),
+                           (float(mass[points[k]]), np.inf), "controller"))
     omega2 = stiffness_sum / mass
     fastest = int(np.argmax(omega2))
+    spring_omega_max, name, stiffness, masses, kind = max(candidates, key=lambda candidate: candidate[0])
     return StiffestMode(float(np.sqrt(omega2[fastest])), float(damping_sum[fastest] / (2 * mass[fastest])),
-                        bodies.names[fastest], springs.names[stiffest], float(spring_omega[stiffest]),
-                        float(springs.stiffness[stiffest]), (float(mass_first[stiffest]), float(mass_second[stiffest])))
+                        bodies.names[fastest], name, spring_omega_max, stiffness, masses, kind)
 
 
 def step_matrix(method: str, h: float, omega: float, decay: float) -> np.ndarray:
@@ -132,11 +159,9 @@ def check_fixed_step(model: object, method: str, h: float, steps: int) -> None:
     # an explicit damper term is limited by its rate as a spring by its frequency: say so when dampers set the step
     damper_note = (f" The dampers set this limit (without them it would be {0.9 * undamped:.3g} s)."
                    if limit is not None and undamped is not None and limit < 0.8 * undamped else "")
-    first, second = mode.spring_masses
-    masses = f"{first:.3g} kg and {'an anchor' if np.isinf(second) else f'{second:.3g} kg'}"
     raise SimulationError(
-        f"{method} at dt = {h:.3g} s cannot hold this scene's springs: the stiffest spring {mode.spring!r} "
-        f"(ks = {mode.spring_stiffness:g} N/m, between {masses}) vibrates at ω = {mode.spring_omega:.4g} rad/s, and "
+        f"{method} at dt = {h:.3g} s cannot hold this scene's springs: the stiffest {mode.stiffest()} vibrates at "
+        f"ω = {mode.spring_omega:.4g} rad/s, and "
         f"the springs around {mode.body!r} at up to {mode.omega:.4g} rad/s (damping ratio ζ = "
         f"{mode.decay / mode.omega:.2g}, ω dt = {mode.omega * h:.3g}). "
         f"{method} multiplies that vibration by {growth_per_step:.4g} per step, so it would blow up within the first "
