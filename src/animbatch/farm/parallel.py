@@ -6,9 +6,8 @@ trajectory from the cache. Each worker's software rasteriser (Mesa llvmpipe) is 
 do not fight over cores. A worker costs about a second to start, so small jobs stay in the calling process: at
 least :data:`MIN_FRAMES_PER_WORKER` frames per worker.
 
-Measured on 2 cores without a GPU (docs/farm.md): two workers draw 300 frames 1.76× faster than one process held to
-one core, but only 1.09× faster than one free process, since llvmpipe already rasterises with a thread per core and
-only the PNG writing is left serial.
+Measured on 2 cores without a GPU (docs/farm.md): two workers draw 300 frames 1.81× faster than one process held to
+one core, but only 1.07× faster than one free process, since llvmpipe already rasterises with a thread per core.
 """
 
 from __future__ import annotations

@@ -84,31 +84,34 @@ class SpringForces(ForceTerm):
 
     springs: SpringSet
     anchors: AnchorMotion
-    scatter: sp.csr_matrix  # (P, S): +1 at (first, s), -1 at (second, s) for springs between two bodies
+    #: (S, P): +1 at (s, first), -1 at (s, second) for the second ends on points, so that one sparse product gives
+    #: every spring's ``p1 - p2`` (a pinned 64×64 cloth: 0.2 ms, against 0.9 ms for gathering ends)
+    difference: sp.csr_matrix
+    #: (S, A): -1 at (s, anchor) for the springs whose second end is an anchor
+    anchor_difference: sp.csr_matrix
+    #: the anchors' share of ``p1 - p2`` (S, 3) [m] when they never move (computed once), else None
+    fixed_anchor_difference: np.ndarray | None
+    scatter: sp.csr_matrix  # (P, S) = differenceᵀ: +1 at (first, s), -1 at (second, s), spring forces onto points
     first_attachment: _Attachment | None
     second_attachment: _Attachment | None
-    #: (S, P + A): +1 at (s, first), -1 at (s, second) over the points followed by the anchors, so that one sparse
-    #: product gives every spring's ``p1 - p2`` (a pinned 64×64 cloth: 0.2 ms, against 0.9 ms for gathering ends)
-    difference: sp.csr_matrix
 
     @classmethod
     def build(cls, springs: SpringSet, anchors: AnchorMotion, point_count: int, first_rigid: int) -> SpringForces:
         s = np.arange(springs.count)
         to_body = ~springs.second_is_anchor
-        rows = np.concatenate([springs.first, springs.second[to_body]])
-        cols = np.concatenate([s, s[to_body]])
-        signs = np.concatenate([np.ones(springs.count), -np.ones(int(to_body.sum()))])
         rigid_count = point_count - first_rigid
-        second = np.where(springs.second_is_anchor, point_count + springs.second, springs.second)
-        ones = np.ones(springs.count)
-        difference = _incidence(np.concatenate([s, s]), np.concatenate([ones, -ones]),
-                                np.concatenate([springs.first, second]), (springs.count, point_count + anchors.count))
-        return cls(springs, anchors,
-                   _incidence(rows, signs, cols, (point_count, springs.count)),
+        difference = _incidence(np.concatenate([s, s[to_body]]),
+                                np.concatenate([np.ones(springs.count), -np.ones(int(to_body.sum()))]),
+                                np.concatenate([springs.first, springs.second[to_body]]),
+                                (springs.count, point_count))
+        anchored = np.flatnonzero(springs.second_is_anchor)
+        anchor_difference = _incidence(anchored, -np.ones(len(anchored)), springs.second[anchored],
+                                       (springs.count, anchors.count))
+        fixed = (anchor_difference @ anchors.positions(0.0) if anchors.count and not anchors.moving else None)
+        return cls(springs, anchors, difference, anchor_difference, fixed, difference.T.tocsr(),
                    _attachment(springs.first, springs.first_offset, np.ones(springs.count, bool), first_rigid,
                                rigid_count),
-                   _attachment(springs.second, springs.second_offset, to_body, first_rigid, rigid_count),
-                   difference)
+                   _attachment(springs.second, springs.second_offset, to_body, first_rigid, rigid_count))
 
     def _levers(self, state: Kinematics, attachment: _Attachment | None) -> np.ndarray | None:
         """World vectors from each spring end's centre of mass to its attachment point, (S, 3), or None."""
@@ -121,12 +124,12 @@ class SpringForces(ForceTerm):
     def _differences(self, state: Kinematics) -> tuple[np.ndarray, ...]:
         """``L = p1 - p2`` and ``ṗ1 - ṗ2`` between the attachment points of every spring (S, 3) each, and the levers
         of both ends (or None)."""
-        x, v = state.x, state.v
-        anchors = self.anchors
-        if anchors.count:
-            x = np.concatenate([x, anchors.positions(state.t)])
-            v = np.concatenate([v, anchors.velocities(state.t) if anchors.moving else np.zeros((anchors.count, 3))])
-        axis, relative = self.difference @ x, self.difference @ v
+        axis, relative = self.difference @ state.x, self.difference @ state.v
+        if self.fixed_anchor_difference is not None:
+            axis += self.fixed_anchor_difference
+        elif self.anchors.count:  # moving anchors: where they are now, and how fast
+            axis += self.anchor_difference @ self.anchors.positions(state.t)
+            relative += self.anchor_difference @ self.anchors.velocities(state.t)
         lever1, lever2 = self._levers(state, self.first_attachment), self._levers(state, self.second_attachment)
         for lever, attachment, sign in ((lever1, self.first_attachment, 1.0), (lever2, self.second_attachment, -1.0)):
             if lever is not None:
