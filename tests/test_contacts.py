@@ -456,7 +456,7 @@ def test_an_event_loop_that_stops_advancing_is_stopped_with_a_clear_error(monkey
     from animbatch.contact import events
     from animbatch.errors import SimulationError
 
-    monkeypatch.setattr(events.ContactEvents, "_first_impact", lambda self, solver, candidates: solver.t_old)
+    monkeypatch.setattr(events.ContactEvents, "_first_impact", lambda self, solver, candidates, closing: solver.t_old)
     with pytest.raises(SimulationError, match=r"contact events stopped advancing at t = 0 s \(101 events at that "
                                               r"time\).*symplectic_euler"):
         run(f"""

@@ -1,9 +1,15 @@
 """Finding contacts: which probes are near which solids (broad phase), and how far apart they are (narrow phase).
 
 Broad phase: a k-d tree (``scipy.spatial.cKDTree``) over the probes' centres, queried once per solid, plus one
-tree over mesh triangles built once; so N bodies cost O(N log N), not O(N²). Contacts closer than ``margin`` are kept
-("speculative" contacts): with ``margin`` at least the distance a body moves in a step, the solver sees every
+tree over mesh triangles built once; so N bodies cost O(N log N), not O(N²). Contacts closer than a margin are kept
+("speculative" contacts): with the margin at least the distance a pair can close in a step, the solver sees every
 obstacle a fast body could reach during the step, however thin (a swept test: no tunnelling).
+
+The distance a pair can close is the sum of what *both* its sides travel: a probe moving at v towards a fixed wall
+closes v h, but two bodies moving towards each other at v each close 2 v h. So :func:`detect` takes each body's
+``travel`` over the step and keeps a pair while its gap is below ``margin + travel[probe body] + travel[solid body]``
+(fixed colliders travel nothing). With only the larger of the two travels, two bodies approaching each other were
+looked for at half the distance they close, and passed through each other.
 """
 
 from __future__ import annotations
@@ -86,6 +92,16 @@ class Contacts:
         return Contacts(*(getattr(self, name)[chosen] for name in self.FIELDS))
 
 
+def body_reach(world: ContactWorld, body_count: int) -> np.ndarray:
+    """For each body (P,), how far its collision geometry reaches from its centre of mass [m]: the largest
+    ``|offset| + radius`` of its probes (box faces lie within their corners). A turn by θ moves no point of the body
+    further than ``reach θ``."""
+    probes = world.probes
+    reach = np.zeros(body_count)
+    np.maximum.at(reach, probes.owner, np.linalg.norm(probes.offset, axis=1) + probes.radius)
+    return reach
+
+
 def probe_centres(world: ContactWorld, state: Kinematics) -> np.ndarray:
     """World positions (Q, 3) of all probes."""
     probes = world.probes
@@ -96,13 +112,24 @@ def probe_centres(world: ContactWorld, state: Kinematics) -> np.ndarray:
     return centres
 
 
+def closing_margin(world: ContactWorld, probes: np.ndarray, solid_body: np.ndarray, margin: float,
+                   travel: np.ndarray | None) -> float | np.ndarray:
+    """How close (gap [m]) probe–solid pairs (K,) must be to be kept: ``margin`` plus the distance both sides can
+    travel (``travel`` (P,) per body, None: no travel; fixed solids, body -1, travel nothing)."""
+    if travel is None:
+        return margin
+    solid = np.where(solid_body >= 0, travel[np.maximum(solid_body, 0)], 0.0)
+    return margin + travel[world.probes.owner[probes]] + solid
+
+
 def _contacts(world: ContactWorld, probes: np.ndarray, centres: np.ndarray, distance: np.ndarray,
               normal: np.ndarray, solid_body: np.ndarray, solid_material: np.ndarray, margin: float,
-              kind: int | np.ndarray, solid_index: np.ndarray) -> Contacts:
-    """Contacts from probe indices (K,), their centres, distances of the centres to the solids and normals."""
+              kind: int | np.ndarray, solid_index: np.ndarray, travel: np.ndarray | None = None) -> Contacts:
+    """Contacts from probe indices (K,), their centres, distances of the centres to the solids and normals; those
+    with a gap under the pair's :func:`closing_margin` are kept."""
     radius = world.probes.radius[probes]
     gap = distance - radius
-    keep = gap < margin
+    keep = gap < closing_margin(world, probes, solid_body, margin, travel)
     probes, gap, normal, radius = probes[keep], gap[keep], normal[keep], radius[keep]
     centres, solid_body, solid_material = centres[keep], solid_body[keep], solid_material[keep]
     owner = world.probes.owner[probes]
@@ -118,13 +145,15 @@ def _contacts(world: ContactWorld, probes: np.ndarray, centres: np.ndarray, dist
                     np.broadcast_to(solid_index, keep.shape)[keep].astype(np.intp))
 
 
-def detect(world: ContactWorld, state: Kinematics, margin: float) -> Contacts:
-    """Every probe–solid pair closer than ``margin`` [m] (gap < margin), as contacts."""
+def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.ndarray | None = None) -> Contacts:
+    """Every probe–solid pair whose gap is below ``margin`` [m] plus how far both sides can travel (``travel`` (P,)
+    [m] per body, the most any of its points moves in the coming step; None: nothing moves), as contacts."""
     centres = probe_centres(world, state)
     active = world.collides[world.probes.owner]
     statics, parts = world.statics, []
     everywhere = np.flatnonzero(active)
-    reach = margin + (float(world.probes.radius.max()) if world.probes.count else 0.0)
+    largest_travel = float(travel.max(initial=0.0)) if travel is not None else 0.0
+    reach = margin + largest_travel + (float(world.probes.radius.max()) if world.probes.count else 0.0)
     tree = cKDTree(centres) if world.probes.count else None
 
     def near(centre: np.ndarray, radius: float) -> np.ndarray:
@@ -134,20 +163,20 @@ def detect(world: ContactWorld, state: Kinematics, margin: float) -> Contacts:
     for k in range(len(statics.plane_point)):
         d, n = to_plane(centres[everywhere], statics.plane_point[k], statics.plane_normal[k])
         parts.append(_contacts(world, everywhere, centres[everywhere], d, np.array(n), np.full(len(d), STATIC),
-                               np.full(len(d), statics.plane_material[k]), margin, PLANE, np.full(len(d), k)))
+                               np.full(len(d), statics.plane_material[k]), margin, PLANE, np.full(len(d), k), travel))
     for k in range(len(statics.sphere_centre)):
         chosen = near(statics.sphere_centre[k], statics.sphere_radius[k])
         d, n = to_sphere(centres[chosen], np.broadcast_to(statics.sphere_centre[k], (len(chosen), 3)),
                          np.full(len(chosen), statics.sphere_radius[k]))
         parts.append(_contacts(world, chosen, centres[chosen], d, n, np.full(len(chosen), STATIC),
                                np.full(len(chosen), statics.sphere_material[k]), margin, STATIC_SPHERE,
-                               np.full(len(chosen), k)))
+                               np.full(len(chosen), k), travel))
     box_centres, box_rotations = body_box_poses(world, state)
     for k in range(len(statics.box_centre)):
         chosen = near(statics.box_centre[k], float(np.linalg.norm(statics.box_half[k])))
         parts.append(_box_contacts(world, chosen, centres, statics.box_centre[k], statics.box_rotation[k],
                                    statics.box_half[k], STATIC, statics.box_material[k], margin,
-                                   (STATIC_BOX, STATIC_BOX_FACE), k, box_centres, box_rotations))
+                                   (STATIC_BOX, STATIC_BOX_FACE), k, box_centres, box_rotations, travel))
     if world.triangle_tree is not None and len(everywhere):
         found = world.triangle_tree.query_ball_point(centres[everywhere], world.triangle_reach + reach)
         probes = np.repeat(everywhere, [len(f) for f in found])
@@ -155,9 +184,9 @@ def detect(world: ContactWorld, state: Kinematics, margin: float) -> Contacts:
         if len(probes):
             d, n = to_triangles(centres[probes], statics.triangles[triangles])
             parts.append(_contacts(world, probes, centres[probes], d, n, np.full(len(probes), STATIC),
-                                   statics.triangle_material[triangles], margin, TRIANGLE, triangles))
+                                   statics.triangle_material[triangles], margin, TRIANGLE, triangles, travel))
     if world.bodies_collide and tree is not None:
-        parts += _between_bodies(world, centres, tree, active, margin, box_centres, box_rotations)
+        parts += _between_bodies(world, centres, tree, active, margin, box_centres, box_rotations, travel)
     return Contacts.concatenate(parts)
 
 
@@ -173,7 +202,8 @@ def body_box_poses(world: ContactWorld, state: Kinematics) -> tuple[np.ndarray, 
 
 def _box_contacts(world: ContactWorld, chosen: np.ndarray, centres: np.ndarray, box_centre: np.ndarray,
                   box_rotation: np.ndarray, box_half: np.ndarray, solid_body: int, material: int, margin: float,
-                  kinds: tuple[int, int], box: int, box_centres: np.ndarray, box_rotations: np.ndarray) -> Contacts:
+                  kinds: tuple[int, int], box: int, box_centres: np.ndarray, box_rotations: np.ndarray,
+                  travel: np.ndarray | None = None) -> Contacts:
     """Contacts of probes ``chosen`` with one box: corners of other boxes against the face their separating axis
     picks, everything else against the box as a whole. ``kinds``: (whole box, face) contact kinds."""
     count = len(chosen)
@@ -188,20 +218,23 @@ def _box_contacts(world: ContactWorld, chosen: np.ndarray, centres: np.ndarray, 
         own = corner_of[corners]
         direction = separating_direction(box_centres[own], box_rotations[own], world.boxes.half[own],
                                          centre[corners], rotation[corners], half[corners])
+        tolerance = margin + (2 * float(travel.max(initial=0.0)) if travel is not None else 0.0)
         face_distance, face_normal, face, on_face = to_box_face(points[corners], centre[corners], rotation[corners],
-                                                                half[corners], direction, margin)
+                                                                half[corners], direction, tolerance)
         use = corners[on_face]
         distance[use], normal[use] = face_distance[on_face], face_normal[on_face]
         kind[use], index[use] = kinds[1], 6 * box + face[on_face]
     return _contacts(world, chosen, points, distance, normal, np.full(count, solid_body),
-                     np.full(count, material), margin, kind, index)
+                     np.full(count, material), margin, kind, index, travel)
 
 
 def _between_bodies(world: ContactWorld, centres: np.ndarray, tree: cKDTree, active: np.ndarray, margin: float,
-                    box_centres: np.ndarray, box_rotations: np.ndarray) -> list[Contacts]:
+                    box_centres: np.ndarray, box_rotations: np.ndarray,
+                    travel: np.ndarray | None) -> list[Contacts]:
     """Probe spheres against other bodies' probe spheres, and probes against other bodies' boxes."""
     probes, parts = world.probes, []
-    pairs = tree.query_pairs(2 * float(probes.radius.max()) + margin, output_type="ndarray")
+    closing = margin + 2 * (float(travel.max(initial=0.0)) if travel is not None else 0.0)  # both sides move
+    pairs = tree.query_pairs(2 * float(probes.radius.max()) + closing, output_type="ndarray")
     if len(pairs):
         i, j = pairs[:, 0], pairs[:, 1]
         keep = (probes.owner[i] != probes.owner[j]) & active[i] & active[j] & (probes.radius[j] > 0)
@@ -212,19 +245,19 @@ def _between_bodies(world: ContactWorld, centres: np.ndarray, tree: cKDTree, act
         d, n = to_sphere(centres[i], centres[j], probes.radius[j])  # probe i against the sphere of probe j
         owner_j = probes.owner[j]
         parts.append(_contacts(world, i, centres[i], d, n, owner_j, world.body_material[owner_j], margin,
-                               BODY_SPHERE, j))
+                               BODY_SPHERE, j, travel))
     boxes = world.boxes
     for k in range(boxes.count):
         owner = boxes.owner[k]
         if not world.collides[owner]:
             continue
-        found = np.asarray(tree.query_ball_point(box_centres[k], float(np.linalg.norm(boxes.half[k])) + margin
+        found = np.asarray(tree.query_ball_point(box_centres[k], float(np.linalg.norm(boxes.half[k])) + closing
                                                  + float(probes.radius.max())), dtype=np.intp)
         chosen = found[(probes.owner[found] != owner) & active[found]] if len(found) else found
         if len(chosen):
             parts.append(_box_contacts(world, chosen, centres, box_centres[k], box_rotations[k], boxes.half[k],
                                        owner, world.body_material[owner], margin, (BODY_BOX, BODY_BOX_FACE), k,
-                                       box_centres, box_rotations))
+                                       box_centres, box_rotations, travel))
     return parts
 
 

@@ -32,7 +32,8 @@ from typing import Any
 import numpy as np
 from scipy.optimize import brentq
 
-from animbatch.contact.detection import Contacts, detect, evaluate_pairs, probe_centres
+from animbatch.contact.detection import (Contacts, body_reach, closing_margin, detect, evaluate_pairs,
+                                        probe_centres)
 from animbatch.contact.impacts import ImpactLog
 from animbatch.contact.solver import BodyVelocities, solve_forces, solve_impulses
 from animbatch.contact.stepping import DEFAULT_REST_SPEED
@@ -51,10 +52,21 @@ DAMPING = 100.0  # 1/s
 #: Longest step [s] while contacts rest: the gap's stabilisation (rate √STIFFNESS) must stay within an explicit
 #: method's stability region. Unbounded, a loose tolerance let resting balls sink 8 mm and jump out of rest.
 RESTING_MAX_STEP = 2.0 / np.sqrt(STIFFNESS)
+#: Safety factor on a body's travel over a step (:meth:`ContactEvents._travel`), for paths that bend more than a
+#: parabola's within one step.
+PATH_ALLOWANCE = 1.25
+#: Arcs between two samples are longer than their chords (by π/2 at most for a half turn).
+ARC_ALLOWANCE = 1.6
 MAX_EVENTS_PER_FRAME = 10_000
 #: Consecutive events at one instant after which the event loop gives up (it would otherwise spin forever).
 MAX_STALLED_EVENTS = 100
 SLIP_ONSET = 1e-6  # m/s²: tangential acceleration of a sticking contact point at which it starts to slide
+
+
+def _turn(r0: np.ndarray, r1: np.ndarray) -> np.ndarray:
+    """The angle [rad] between rotation matrices (..., 3, 3): cos θ = (trace(R0ᵀ R1) - 1) / 2."""
+    trace = np.einsum("...ij,...ij->...", r0, r1)
+    return np.arccos(np.clip((trace - 1) / 2, -1.0, 1.0))
 
 
 @dataclass
@@ -97,8 +109,7 @@ class ContactEvents:
         self.rest_speed = self.settings.rest_speed or DEFAULT_REST_SPEED
         self.resting = Resting()
         self._warm_forces: tuple[np.ndarray, np.ndarray] | None = None  # last forces of the current resting set
-        probes = self.world.probes
-        self.reach = float(np.max(np.linalg.norm(probes.offset, axis=1) + probes.radius)) if probes.count else 0.0
+        self.reach = body_reach(self.world, model.body_count)
         self.events = 0
         self.impacts = ImpactLog()
         #: Probe–solid pairs whose rebound was too small for the solver to follow; the next settle lands them.
@@ -241,36 +252,47 @@ class ContactEvents:
         mode = np.where(sticking, grip, along)  # stick: no slip acceleration; slide: slip along its direction
         return np.concatenate([values, mode])
 
-    def _impact_candidates(self, y0: np.ndarray, y1: np.ndarray) -> Contacts:
-        """Pairs that the step could bring into touch (excluding resting ones): every solid within the largest
-        distance any probe travelled during the step (translation, plus reach times the angle turned)."""
-        s0, s1 = self._state(y0), self._state(y1)
-        travel = np.linalg.norm(s1.x - s0.x, axis=1)
+    def _travel(self, s0: Kinematics, s1: Kinematics, h: float) -> np.ndarray:
+        """How far any point of each body (P,) [m] can have moved during a step of ``h`` [s] from ``s0`` to ``s1``.
+
+        The chord alone misses curved paths (a ball thrown up and caught again in one long step has a chord of
+        zero), so the path is taken as at least ``h`` times the larger end speed: exact for a parabola, whose speed
+        is largest at an end. Rotation moves a point by at most its reach times the angle turned, likewise bounded
+        by ``h`` times the larger end spin."""
+        chord = np.linalg.norm(s1.x - s0.x, axis=1)
+        speed = np.maximum(np.linalg.norm(s0.v, axis=1), np.linalg.norm(s1.v, axis=1))
+        travel = np.maximum(chord, h * speed)
         if s0.rotation is not None:
-            # angle between the two orientations: cos θ = (trace(R0ᵀ R1) - 1) / 2
-            trace = np.einsum("bij,bij->b", s0.rotation, s1.rotation)
-            angle = np.arccos(np.clip((trace - 1) / 2, -1.0, 1.0))
-            travel[s0.first_rigid:] += self.reach * angle
-        margin = float(travel.max(initial=0.0)) + TOUCH
-        found = detect(self.world, s1, margin)
+            assert s1.rotation is not None and s0.omega is not None and s1.omega is not None
+            travel[s0.first_rigid:] += self.reach[s0.first_rigid:] * np.maximum(
+                _turn(s0.rotation, s1.rotation),
+                h * np.maximum(np.linalg.norm(s0.omega, axis=1), np.linalg.norm(s1.omega, axis=1)))
+        return PATH_ALLOWANCE * travel
+
+    def _impact_candidates(self, y0: np.ndarray, y1: np.ndarray, h: float) -> tuple[Contacts, np.ndarray]:
+        """Pairs that the step of ``h`` [s] could bring into touch (excluding resting ones): every probe–solid pair
+        whose gap at the step's end is less than what its two sides travelled (:meth:`_travel`; a fixed solid
+        travels nothing), and that travel (K,) [m]."""
+        s0, s1 = self._state(y0), self._state(y1)
+        travel = self._travel(s0, s1, h)
+        found = detect(self.world, s1, TOUCH, travel=travel)
         if self.resting.count and found.count:
             found = found.select(~self.resting.holds(found))
-        return found
+        return found, closing_margin(self.world, found.probe, found.solid_body, 0.0, travel)
 
-    def _first_impact(self, solver: Any, candidates: Contacts) -> float | None:
-        """Time of the first impact among the candidates during the solver's last step, or None."""
+    def _first_impact(self, solver: Any, candidates: Contacts, closing: np.ndarray) -> float | None:
+        """Time of the first impact among the candidates during the solver's last step, or None; ``closing`` (K,)
+        [m] bounds how far each candidate's gap can change over the step."""
         if not candidates.count:
             return None
         t0, t1 = solver.t_old, solver.t
         interpolant = solver.dense_output()
-        # Quick exclusion: gaps positive at both ends and a probe path (chord, with an allowance for arcs) shorter
-        # than the two gaps together cannot touch anywhere in between (triangle inequality).
+        # Quick exclusion: a gap that changes by at most ``closing`` and is positive at both ends, with the two
+        # ends' gaps together larger than ``closing``, stays positive in between (triangle inequality).
         ends = [self._state(solver.y_start if hasattr(solver, "y_start") else interpolant(t0)), self._state(solver.y)]
         end_gaps = [evaluate_pairs(self.world, state, candidates.probe, candidates.solid_kind,
                                    candidates.solid_index).gap for state in ends]
-        chord = np.linalg.norm(probe_centres(self.world, ends[1])[candidates.probe]
-                               - probe_centres(self.world, ends[0])[candidates.probe], axis=1)
-        if np.all(end_gaps[1] > 0) and np.all(1.6 * chord < end_gaps[0] + end_gaps[1]):
+        if np.all(end_gaps[1] > 0) and np.all(closing < end_gaps[0] + end_gaps[1]):
             return None
         times = np.linspace(t0, t1, SAMPLES + 1)
 
@@ -281,10 +303,7 @@ class ContactEvents:
         sampled = [self._state(interpolant(t)) for t in times]
         values = np.array([evaluate_pairs(self.world, state, candidates.probe, candidates.solid_kind,
                                           candidates.solid_index).gap for state in sampled])  # (S + 1, C)
-        centres = np.array([probe_centres(self.world, state)[candidates.probe] for state in sampled])  # (S+1, C, 3)
-        # a straight piece of path shorter than the gaps at its two ends cannot reach the solid (triangle
-        # inequality); rotating probes move on arcs, hence the allowance
-        travel = 1.6 * np.linalg.norm(np.diff(centres, axis=0), axis=2)  # (S, C)
+        travel = self._sample_travel(sampled, candidates)  # (S, C)
         # A probe that starts the step touching the solid (it bounced off at the event that began the step, or left
         # rest a hair inside the solid at a loose tolerance) impacts when it comes back to its starting depth, not
         # to zero depth, which it may never reach again. A short hop can rise and come back within the first
@@ -325,6 +344,26 @@ class ContactEvents:
             if first is not None:
                 break
         return first
+
+    def _sample_travel(self, sampled: list[Kinematics], candidates: Contacts) -> np.ndarray:
+        """For each interval between consecutive samples (S) and candidate (C), a bound [m] on how much its gap can
+        change: the probe's move plus, for a solid that is a body, that body's (translation plus reach times the
+        angle turned). A straight piece of path shorter than the gaps at its two ends cannot reach the solid
+        (triangle inequality); probes and solids move on arcs, hence the allowance."""
+        centres = np.array([probe_centres(self.world, state)[candidates.probe] for state in sampled])  # (S+1, C, 3)
+        travel = np.linalg.norm(np.diff(centres, axis=0), axis=2)
+        moving = candidates.solid_body >= 0
+        if moving.any():
+            solid = candidates.solid_body[moving]
+            x = np.array([state.x[solid] for state in sampled])  # (S+1, M, 3)
+            solid_travel = np.linalg.norm(np.diff(x, axis=0), axis=2)
+            first = sampled[0].first_rigid
+            rigid = solid >= first
+            if rigid.any():
+                rotations = np.array([state.rotation[solid[rigid] - first] for state in sampled])  # type: ignore[index]
+                solid_travel[:, rigid] += self.reach[solid[rigid]] * _turn(rotations[:-1], rotations[1:])
+            travel[:, moving] += solid_travel
+        return ARC_ALLOWANCE * travel
 
     @staticmethod
     def _apex(gaps: Any, start: float, stop: float, pair: int) -> float:
@@ -521,7 +560,8 @@ def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any
                 bad = first_non_finite(solver.y)
                 if bad is not None:
                     raise divergence_error(layout, solver.y, bad, solver.t, method=method, step=stats.steps)
-                impact = events._first_impact(solver, events._impact_candidates(before, solver.y))
+                impact = events._first_impact(solver, *events._impact_candidates(before, solver.y,
+                                                                                 solver.t - solver.t_old))
                 after = events._mode_functions(solver.t, solver.y) if modes is not None else None
                 change = events._first_mode_change(solver, modes, after) if modes is not None else None
                 modes = after

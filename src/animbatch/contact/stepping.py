@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from animbatch.contact.detection import Contacts, detect
+from animbatch.contact.detection import Contacts, body_reach, detect
 from animbatch.contact.impacts import ImpactLog
 from animbatch.contact.solver import BodyVelocities, solve_impulses
 from animbatch.forces import Kinematics
@@ -46,8 +46,7 @@ class ContactResolver:
         self.world = model.contact_world
         self.settings = model.contact_settings
         self.gravity = gravity_magnitude(system)
-        probes = self.world.probes
-        self.reach = float(np.max(np.linalg.norm(probes.offset, axis=1) + probes.radius)) if probes.count else 0.0
+        self.reach = body_reach(self.world, model.body_count)
         self.contacts_last_step = 0
         self.impacts = ImpactLog()
         # warm starting: last step's impulses per unit time, normal (K,) and tangential vectors (K, 3), for the
@@ -116,9 +115,9 @@ class ContactResolver:
         state = self.system.kinematics(config, motion)
         speed = np.linalg.norm(state.v, axis=1)
         if state.omega is not None:
-            speed[state.first_rigid:] += np.linalg.norm(state.omega, axis=1) * self.reach
-        margin = 1.5 * h * float(speed.max(initial=0.0)) + 2 * self.settings.slop + 1e-9
-        contacts = detect(self.world, state, margin)
+            speed[state.first_rigid:] += np.linalg.norm(state.omega, axis=1) * self.reach[state.first_rigid:]
+        # each body's reach in the step, with room for the velocity to grow; a pair closes the sum of its two
+        contacts = detect(self.world, state, 2 * self.settings.slop + 1e-9, travel=1.5 * h * speed)
         self.contacts_last_step = contacts.count
         if not contacts.count:
             return None
