@@ -39,7 +39,9 @@ class ContactWorld:
     each other (not only colliders); ``triangle_tree``: k-d tree of static triangle centroids (or None) with the
     largest triangle's circumradius ``triangle_reach``; ``group`` (P,): bodies of one group ≥ 0 (the vertices of one
     cloth or lattice) never collide with each other, and do not bounce (restitution 0: a point of a sheet has no
-    elastic rebound of its own; a lattice bounces through its springs).
+    elastic rebound of its own; a lattice bounces through its springs). ``collider_source``: for the fixed solids of
+    each kind (PLANE, STATIC_SPHERE, STATIC_BOX, TRIANGLE), the number of the scene collider each came from, to name
+    it in messages.
     """
 
     probes: Probes
@@ -52,6 +54,7 @@ class ContactWorld:
     triangle_tree: cKDTree | None
     triangle_reach: float
     group: np.ndarray | None = None
+    collider_source: dict[int, np.ndarray] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,6 +103,12 @@ def body_reach(world: ContactWorld, body_count: int) -> np.ndarray:
     reach = np.zeros(body_count)
     np.maximum.at(reach, probes.owner, np.linalg.norm(probes.offset, axis=1) + probes.radius)
     return reach
+
+
+def contact_codes(contacts: Contacts) -> np.ndarray:
+    """One int64 per contact that names its probe and solid, to find the same contact in another state."""
+    return ((contacts.probe.astype(np.int64) << 36) | (contacts.solid_kind.astype(np.int64) << 32)
+            | contacts.solid_index.astype(np.int64))
 
 
 def probe_centres(world: ContactWorld, state: Kinematics) -> np.ndarray:

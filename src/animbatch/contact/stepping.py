@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from animbatch.contact.detection import Contacts, body_reach, detect
+from animbatch.contact.detection import body_reach, contact_codes, detect
 from animbatch.contact.impacts import ImpactLog
 from animbatch.contact.solver import BodyVelocities, solve_impulses
 from animbatch.forces import Kinematics
@@ -142,12 +142,6 @@ class ContactResolver:
         drifting = motion.copy()
         self._write_back(drifting, state, bodies)
         return drifting
-
-
-def contact_codes(contacts: Contacts) -> np.ndarray:
-    """One int64 per contact that names its probe and solid, to find the same contact in the next step."""
-    return ((contacts.probe.astype(np.int64) << 36) | (contacts.solid_kind.astype(np.int64) << 32)
-            | contacts.solid_index.astype(np.int64))
 
 
 class _KickContactsDrift:

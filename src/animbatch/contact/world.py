@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from animbatch.contact.detection import ContactWorld
+from animbatch.contact.detection import PLANE, STATIC_BOX, STATIC_SPHERE, TRIANGLE, ContactWorld
 from animbatch.contact.geometry import BodyBoxes, Probes, StaticColliders
 from animbatch.contact.materials import Coefficients, MaterialTable
 from animbatch.rigid.shapes import load_mesh, orientation_matrix
@@ -76,28 +76,34 @@ def _shape_features(shape: Any, base: Path) -> tuple[list[tuple[np.ndarray, floa
     raise TypeError(f"no collision geometry for shape {shape!r}")
 
 
-def _statics(spec: SceneSpec, table: MaterialTable, base: Path) -> StaticColliders:
+def _statics(spec: SceneSpec, table: MaterialTable, base: Path) -> tuple[StaticColliders, dict[int, np.ndarray]]:
+    """The fixed colliders, and for each kind of solid the scene collider (its number) each one came from."""
     planes, spheres, boxes, meshes = [], [], [], []
-    for collider in spec.colliders:
+    sources: dict[int, list[int]] = {PLANE: [], STATIC_SPHERE: [], STATIC_BOX: [], TRIANGLE: []}
+    for number, collider in enumerate(spec.colliders):
         material = table.index(collider.material)
         if isinstance(collider, PlaneCollider):
             normal = np.asarray(collider.normal, float)
             planes.append((np.asarray(collider.point, float), normal / np.linalg.norm(normal), material))
+            sources[PLANE].append(number)
         elif isinstance(collider, SphereCollider):
             spheres.append((np.asarray(collider.position, float), collider.radius, material))
+            sources[STATIC_SPHERE].append(number)
         elif isinstance(collider, BoxCollider):
             boxes.append((np.asarray(collider.position, float), orientation_matrix(collider.orientation),
                           np.asarray(collider.size, float) / 2, material))
+            sources[STATIC_BOX].append(number)
         elif isinstance(collider, MeshCollider):
             mesh = load_mesh(base / collider.file, collider.scale).transformed(
                 orientation_matrix(collider.orientation), np.asarray(collider.position, float))
             meshes.append((mesh.triangles, np.full(len(mesh.faces), material)))
+            sources[TRIANGLE] += [number] * len(mesh.faces)
     empty = StaticColliders.empty()
 
     def stack(items: list, k: int, fallback: np.ndarray) -> np.ndarray:
         return np.array([item[k] for item in items]) if items else fallback
 
-    return StaticColliders(
+    statics = StaticColliders(
         stack(planes, 0, empty.plane_point), stack(planes, 1, empty.plane_normal),
         stack(planes, 2, empty.plane_material).astype(np.intp),
         stack(spheres, 0, empty.sphere_centre), stack(spheres, 1, empty.sphere_radius),
@@ -106,6 +112,7 @@ def _statics(spec: SceneSpec, table: MaterialTable, base: Path) -> StaticCollide
         stack(boxes, 3, empty.box_material).astype(np.intp),
         np.concatenate([m[0] for m in meshes]) if meshes else empty.triangles,
         np.concatenate([m[1] for m in meshes]).astype(np.intp) if meshes else empty.triangle_material)
+    return statics, {kind: np.array(numbers, np.intp) for kind, numbers in sources.items()}
 
 
 def material_table(spec: SceneSpec) -> MaterialTable:
@@ -147,7 +154,7 @@ def build_contact_world(spec: SceneSpec, model: Any, centres: dict[str, np.ndarr
             offsets.append(np.zeros(3))
             radii.append(float(model.bodies.radius[point]))
             corner_of.append(-1)
-    statics = _statics(spec, table, base)
+    statics, sources = _statics(spec, table, base)
     tree, reach = None, 0.0
     if len(statics.triangles):
         centroids = statics.triangles.mean(axis=1)
@@ -162,5 +169,6 @@ def build_contact_world(spec: SceneSpec, model: Any, centres: dict[str, np.ndarr
         statics, table, np.array([table.index(by_name[n].material) for n in owner_names], np.intp),
         np.array([by_name[n].collide for n in owner_names], bool),
         settings.bodies, tree, reach,
-        np.array([deformable_names.index(n) if n in deformable_names else -1 for n in owner_names], np.intp))
+        np.array([deformable_names.index(n) if n in deformable_names else -1 for n in owner_names], np.intp),
+        sources)
     return world, ContactSettings(settings.iterations, settings.rest_speed, settings.slop)

@@ -36,7 +36,7 @@ def compile_particles(spec: SceneSpec, model: Any, base_dir: Path = Path(".")) -
     from animbatch.contact.world import _statics, material_table
 
     table = material_table(spec)
-    statics = _statics(spec, table, base_dir) if spec.colliders else None
+    statics = _statics(spec, table, base_dir)[0] if spec.colliders else None
     emitters, colliders = [], {}
     for index, item in enumerate(spec.emitters):
         body = body_centre = geometry = None
