@@ -125,3 +125,80 @@ def test_solver_failure_names_the_fastest_body():
         ScipyIntegrator("RK45", rtol=1e-8).integrate(Singular(model), model.y0, model.frame_times)
     assert "singular" in str(caught.value)
     assert caught.value.time == pytest.approx(0.5, abs=0.01)
+
+
+# ------------------------------------------------------------------------------------------------ advice that fits
+
+# Two bodies released from rest 1 m apart under their mutual gravitation (G = 1, M = 4 kg) fall straight into each
+# other: r(t) reaches 0 at the free-fall time t_ff = (π/2) sqrt(r₀³ / (2 G M)) = 0.5554 s, where 1/r² diverges.
+PLUNGE = """
+    duration: 1
+    solver: {{method: {method}, rtol: 1.0e-8, atol: 1.0e-10}}
+    bodies:
+      - {{name: star, mass: 3.0, radius: 0.08, position: [-0.5, 0, 0]}}
+      - {{name: planet, mass: 1.0, radius: 0.05, position: [0.5, 0, 0]}}
+    fields: [{{type: gravitation, G: 1.0}}]
+"""
+FREE_FALL_TIME = np.pi / 2 * np.sqrt(1.0 / (2 * 4.0))
+
+
+@pytest.mark.parametrize("method", ["RK45", "DOP853", "Radau", "BDF", "LSODA"])
+def test_a_gravitational_plunge_names_the_pair_and_softening_not_another_solver(method):
+    """Every adaptive method stops at the free-fall time (LSODA by the stall check, which turns a five-minute crawl
+    of 1e-16 s steps into a second), naming the two bodies, their radii, softening and collisions as the fix; an
+    implicit method is never told to try an implicit method."""
+    with pytest.raises(SimulationError) as caught:
+        run(PLUNGE.format(method=method))
+    message = str(caught.value)
+    assert caught.value.time == pytest.approx(FREE_FALL_TIME, abs=1e-3)
+    assert "Bodies 'star' and 'planet' come" in message and "closer than their radii together (0.13 m)" in message
+    assert "softening: 0.065" in message and "'contacts: {}'" in message
+    assert "Radau or BDF" not in message
+    if method == "LSODA":
+        assert "stalled" in message
+
+
+def test_a_fixed_step_through_a_plunge_is_stopped_by_the_energy_guard_naming_the_pair():
+    """Verlet jumps across the singularity and leaves with thousands of times the scene's energy: the guard stops the
+    run and names the pair that came closer than their radii, near the free-fall time, and softening."""
+    with pytest.raises(SimulationError) as caught:
+        run(PLUNGE.format(method="verlet").replace("rtol: 1.0e-8, atol: 1.0e-10", "dt: 1.0e-3"))
+    message = str(caught.value)
+    assert "is adding energy" in message and "Bodies 'star' and 'planet' come" in message
+    when = float(message.split("at t ≈ ")[1].split(" s")[0])
+    assert when == pytest.approx(FREE_FALL_TIME, abs=0.04)  # on the straight path between two frames
+    assert "softening: 0.065" in message
+
+
+def spring_model(stiffness: float):
+    builder = ModelBuilder()
+    hook = builder.add_anchor("hook", (0, 0, 0))
+    bob = builder.add_particle("bob", position=(1.1, 0, 0), mass=0.01)
+    builder.add_spring(bob, hook, stiffness=stiffness, rest_length=1.0, second_is_anchor=True, name="wire")
+    return builder.finalize(duration=1.0, fps=10)
+
+
+def test_advice_names_a_stiff_spring_and_fits_the_kind_of_method():
+    """With a stiff spring, an explicit method is pointed to Radau, BDF or backward_euler, an implicit one that
+    failed anyway to backward_euler or a softer spring, never to Radau or BDF; both name the spring and its ω."""
+    from animbatch.integrators.advice import failure_advice
+
+    model = spring_model(1.0e8)
+    explicit = failure_advice(model, "RK45", model.y0, 0.1, "bob")
+    implicit = failure_advice(model, "Radau", model.y0, 0.1, "bob")
+    for advice in (explicit, implicit):
+        assert "spring 'wire' (ks = 1e+08 N/m" in advice and "ω = 1e+05 rad/s" in advice
+    assert "Radau or BDF" in explicit
+    assert "Radau is already implicit: try backward_euler" in implicit and "Radau or BDF" not in implicit
+
+
+def test_advice_without_springs_or_encounters_names_the_fastest_body():
+    """Nothing stiff and no close pair: the fastest-changing body is named; an explicit method hears that the scene
+    may be stiff, an implicit one that a jump or singularity in a force is the likelier cause."""
+    from animbatch.integrators.advice import failure_advice
+
+    model = two_particles("runaway")
+    assert "Radau or BDF" in failure_advice(model, "DOP853", model.y0, 0.3, "runaway")
+    implicit = failure_advice(model, "BDF", model.y0, 0.3, "runaway")
+    assert "'runaway'" in implicit and "already implicit, so stiffness is not the cause" in implicit
+    assert "Radau or BDF" not in implicit and "verlet" in implicit

@@ -556,10 +556,11 @@ def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any
                     raise SimulationError(f"{method} failed at t = {solver.t:.6g} s with contacts: {message}. A "
                                           "fixed-step method (symplectic_euler) is more robust for scenes with many "
                                           "contacts.", time=solver.t)
-                stats.steps += 1
+                stats.count_step(solver.t - solver.t_old)
                 bad = first_non_finite(solver.y)
                 if bad is not None:
-                    raise divergence_error(layout, solver.y, bad, solver.t, method=method, step=stats.steps)
+                    raise divergence_error(layout, solver.y, bad, solver.t, method=method, step=stats.steps,
+                                           model=system.model, last_finite=before)
                 impact = events._first_impact(solver, *events._impact_candidates(before, solver.y,
                                                                                  solver.t - solver.t_old))
                 after = events._mode_functions(solver.t, solver.y) if modes is not None else None

@@ -57,11 +57,7 @@ def integrate_with_checkpoints(integrator, system, y0: np.ndarray, times: np.nda
         shifted = None if on_frame is None else (lambda k, t, base=done - 1: k and on_frame(base + k, t))
         part = integrator.integrate(system, states[done - 1], times[done - 1:stop + 1], on_frame=shifted)
         states[done:stop + 1] = part.states[1:]
-        for name in ("rhs_evaluations", "steps", "jacobian_evaluations", "lu_decompositions", "wall_time"):
-            setattr(stats, name, getattr(stats, name) + getattr(part.stats, name))
-        stats.dt = max(stats.dt or 0.0, part.stats.dt or 0.0) or None
-        stats.substeps_per_frame = part.stats.substeps_per_frame
-        stats.impacts = list(stats.impacts) + list(part.stats.impacts)
+        stats.add(part.stats)
         done = stop + 1
         if done < len(times):
             _save(path, states[:done], stats)

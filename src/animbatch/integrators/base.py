@@ -51,11 +51,30 @@ class SolverStats:
     scipy_nfev: int | None = None
     dt: float | None = None  # fixed-step methods: the step actually used [s]
     substeps_per_frame: int | None = None
+    smallest_step: float | None = None  # adaptive methods: the shortest and longest accepted steps [s]
+    largest_step: float | None = None
     wall_time: float = 0.0  # [s]
     impacts: list[tuple[float, int]] = field(default_factory=list)  # (time [s], body index) of bounces, in order
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    def add(self, part: SolverStats) -> None:
+        """Add the work of a later part of the same run (a checkpointed segment)."""
+        for name in ("rhs_evaluations", "steps", "jacobian_evaluations", "lu_decompositions", "wall_time"):
+            setattr(self, name, getattr(self, name) + getattr(part, name))
+        self.dt = max(self.dt or 0.0, part.dt or 0.0) or None
+        self.substeps_per_frame = part.substeps_per_frame
+        for name, pick in (("smallest_step", min), ("largest_step", max)):
+            values = [v for v in (getattr(self, name), getattr(part, name)) if v is not None]
+            setattr(self, name, pick(values) if values else None)
+        self.impacts = list(self.impacts) + list(part.impacts)
+
+    def count_step(self, h: float) -> None:
+        """Count an accepted step of ``h`` [s] (adaptive methods)."""
+        self.steps += 1
+        self.smallest_step = h if self.smallest_step is None else min(self.smallest_step, h)
+        self.largest_step = h if self.largest_step is None else max(self.largest_step, h)
 
 
 @dataclass

@@ -16,8 +16,11 @@ def first_non_finite(y: np.ndarray) -> int | None:
 
 
 def divergence_error(layout: StateLayout | None, y: np.ndarray, index: int, t: float, *, method: str,
-                     dt: float | None = None, step: int | None = None) -> SimulationError:
-    """The error for state component ``index`` of ``y`` having become non-finite at time ``t`` [s]."""
+                     dt: float | None = None, step: int | None = None, model: object = None,
+                     last_finite: np.ndarray | None = None) -> SimulationError:
+    """The error for state component ``index`` of ``y`` having become non-finite at time ``t`` [s]; with the
+    ``model`` and the ``last_finite`` state before it, an adaptive method's advice fits the cause
+    (:func:`~animbatch.integrators.advice.failure_advice`)."""
     body, quantity = layout.describe_index(index) if layout is not None else (None, f"component {index}")
     who = f"body {body!r} {quantity}" if body is not None else quantity
     when = f"t = {t:.6g} s" + (f" (step {step})" if step is not None else "")
@@ -26,7 +29,9 @@ def divergence_error(layout: StateLayout | None, y: np.ndarray, index: int, t: f
         advice = (f"{method} is unstable at dt = {dt:.3g} s for this scene: reduce solver.dt (try {dt / 10:.3g}), "
                   "or use an adaptive method (solver.method: RK45, or Radau for stiff springs)")
     else:
-        advice = "tighten solver.rtol/atol, or try a stiff method (solver.method: Radau or BDF)"
+        from animbatch.integrators.advice import failure_advice
+
+        advice = failure_advice(model, method, last_finite if last_finite is not None else y, t, body)
     return SimulationError(f"the simulation diverged at {when}: {who} became {value} ({method}). {advice}.",
                            time=t, body=body, details={"quantity": quantity, "method": method, "dt": dt})
 
@@ -72,7 +77,7 @@ def check_energy_growth(model: object, states: np.ndarray, method: str, dt: floa
                         limit: float = ENERGY_GROWTH_LIMIT) -> None:
     """Raise SimulationError when the total energy of a scene that has no energy input (no wind, applied forces,
     moving anchors or targets) stays above ``E₀ + limit × scale`` (:func:`energy_scale`) at every frame of a window
-    of :data:`ENERGY_WINDOW` seconds, in ``states`` (F, n).
+    of :data:`ENERGY_WINDOW` seconds, or of the last half window or more of the run, in ``states`` (F, n).
 
     Such a rise can only be numerical: an unstable step, or a near collision under gravitation resolved too coarsely.
     The error names the frame time, the body that gained the most kinetic energy, the stiffest spring and the largest
@@ -89,9 +94,14 @@ def check_energy_growth(model: object, states: np.ndarray, method: str, dt: floa
     times = model.frame_times  # type: ignore[attr-defined]
     energy = total_energy(model, states)  # type: ignore[arg-type]
     scale = energy_scale(model)
-    # a run shorter than the window is judged on all its frames after the first
-    window = min(max(2, int(round(ENERGY_WINDOW / float(times[1] - times[0])))), len(energy) - 1)
-    sustained = np.lib.stride_tricks.sliding_window_view(energy[1:], window).min(axis=1)  # min over each window
+    # A run shorter than the window is judged on all its frames after the first. In a longer one, windows near the
+    # end are cut short by it: a rise in the last half window must stay high to the end, over half a window at least
+    # (a plunge through a singularity 0.45 s before the end went unnoticed otherwise).
+    interval = float(times[1] - times[0])
+    window = min(max(2, int(round(ENERGY_WINDOW / interval))), len(energy) - 1)
+    shortest = window if window == len(energy) - 1 else max(2, -(-window // 2))
+    padded = np.concatenate([energy[1:], np.full(window - 1, np.inf)])
+    sustained = np.lib.stride_tricks.sliding_window_view(padded, window).min(axis=1)[: len(energy) - shortest]
     mode = stiffest_mode(model)
     if dt and mode is not None and method in SYMPLECTIC and mode.omega * dt < 2:
         # a stable symplectic step keeps a modified energy; the true one swings within 1 / (1 - (ω h / 2)²) of it
@@ -99,8 +109,8 @@ def check_energy_growth(model: object, states: np.ndarray, method: str, dt: floa
     over = np.flatnonzero(sustained - energy[0] > limit * scale)
     if not len(over):
         return
-    over = over + window  # the last frame of the first window that stayed high
-    frame = int(over[0])
+    first = int(over[0]) + 1  # the first frame of the first window that stayed high
+    frame = min(first + window - 1, len(energy) - 1)  # and its last
     t = float(times[frame])
     velocities = model.velocities(states[[0, frame]])  # type: ignore[attr-defined]
     speed2 = np.sum(velocities**2, axis=2)  # (2, P)
@@ -108,7 +118,9 @@ def check_energy_growth(model: object, states: np.ndarray, method: str, dt: floa
     body = model.bodies.names[int(np.argmax(gained))]  # type: ignore[attr-defined]
     rise = energy[frame] - energy[0]
     message = (f"the total energy rose by {rise:.4g} J ({rise / scale:.3g} × its scale {scale:.4g} J, and stayed "
-               f"that high for {window * float(times[1] - times[0]):.3g} s) by t = {t:.4g} s, in a scene that has "
+               f"that high for {(frame - first + 1) * interval:.3g} s"
+               + (", to the end of the run" if frame - first + 1 < window else "")
+               + f") by t = {t:.4g} s, in a scene that has "
                f"no energy input: the integration ({method}"
                + (f" at dt = {dt:.3g} s" if dt else "") + f") is adding energy. Body {body!r} gained the most "
                f"kinetic energy ({gained.max():.4g} J).")
@@ -124,7 +136,14 @@ def check_energy_growth(model: object, states: np.ndarray, method: str, dt: floa
     remedies += ["solver.method Radau or BDF", "backward_euler"]
     terms = model.force_terms  # type: ignore[attr-defined]
     if any(isinstance(term, Gravitation) and term.softening == 0 for term in terms):
-        remedies.append("softening on the gravitation field (bodies pass very close)")
+        from animbatch.integrators.advice import closest_encounter
+
+        encounter = closest_encounter(model, model.positions(states[: frame + 1]),  # type: ignore[attr-defined]
+                                      times[: frame + 1])
+        if encounter is not None:
+            message += " " + encounter.advice() + "."
+        else:
+            remedies.append("softening on the gravitation field (bodies pass very close)")
     raise SimulationError(message + " Try " + ", ".join(remedies) + ". No frame was written.", time=t, body=body,
                           details={"energy_rise": float(rise), "method": method, "dt": dt,
                                    "spring": mode.spring if mode else None})

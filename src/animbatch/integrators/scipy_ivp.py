@@ -22,11 +22,18 @@ from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
 from animbatch.errors import SimulationError
 from animbatch.integrators.base import (CountingRhs, EquationsOfMotion, FrameCallback, IntegrationResult, Integrator,
                                         SolverStats)
+from animbatch.integrators.advice import failure_advice
 from animbatch.integrators.guard import divergence_error, fastest_body, first_non_finite
 
 SCIPY_METHODS: dict[str, type[OdeSolver]] = {
     "RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA,
 }
+
+#: A solver whose steps stay shorter than this fraction of the frame interval for more than STALL_STEPS steps in a
+#: row has stalled (LSODA crawled through 5.6 million steps of 1e-16 s for 5 minutes at the centre of a gravitational
+#: plunge without failing); no physical transient needs that.
+STALL_FRACTION = 1e-9
+STALL_STEPS = 10_000
 
 #: Implicit methods given the analytic sparse Jacobian (models of particles; LSODA only takes dense ones).
 JACOBIAN_METHODS = ("Radau", "BDF")
@@ -118,16 +125,23 @@ class ScipyIntegrator(Integrator):
                 use_second_order_factors(solver, mass)
             cap = NewtonStepCap(solver, self.max_step or np.inf) if self.method == "BDF" else None
             frame = 1
+            tiny, stall_step = 0, STALL_FRACTION * float(times[1] - times[0])
             while frame < len(times):
+                before = solver.y.copy()  # the last finite state, for advice should this step diverge
                 message = solver.step()
                 if solver.status == "failed":
-                    raise self._failure(solver, fun, layout, message)
+                    raise self._failure(solver, fun, system, message)
                 if cap is not None:
                     cap.after_step()
-                stats.steps += 1
+                stats.count_step(solver.t - solver.t_old)
+                tiny = tiny + 1 if solver.t - solver.t_old < stall_step else 0
+                if tiny > STALL_STEPS:
+                    raise self._failure(solver, fun, system, f"its last {STALL_STEPS} steps were all shorter than "
+                                        f"{stall_step:.2g} s, so it has stalled ({stats.steps} steps so far).")
                 bad = first_non_finite(solver.y)
                 if bad is not None:
-                    raise divergence_error(layout, solver.y, bad, solver.t, method=self.method, step=stats.steps)
+                    raise divergence_error(layout, solver.y, bad, solver.t, method=self.method, step=stats.steps,
+                                           model=getattr(system, "model", None), last_finite=before)
                 if times[frame] <= solver.t:
                     interpolant = solver.dense_output()
                     while frame < len(times) and times[frame] <= solver.t:
@@ -140,8 +154,12 @@ class ScipyIntegrator(Integrator):
             stats.lu_decompositions = int(solver.nlu)
             stats.scipy_nfev = int(solver.nfev)
 
-    def _failure(self, solver: OdeSolver, fun: CountingRhs, layout: Any, message: str | None) -> SimulationError:
-        """Why the solver gave up: non-finite forces if any were seen, else the fastest-changing body."""
+    def _failure(self, solver: OdeSolver, fun: CountingRhs, system: EquationsOfMotion,
+                 message: str | None) -> SimulationError:
+        """Why the solver gave up: non-finite forces if any were seen, else advice that fits what happened (a close
+        gravitational encounter, a stiff spring, the fastest-changing body; :mod:`animbatch.integrators.advice`)."""
+        model = getattr(system, "model", None)
+        layout = getattr(model, "layout", None)
         if fun.first_non_finite is not None and layout is not None:
             seen_at, index = fun.first_non_finite
             body, quantity = layout.describe_index(index)
@@ -150,7 +168,6 @@ class ScipyIntegrator(Integrator):
                 f"became non-finite (first at t = {seen_at:.6g} s), so no step could be accepted. Check that body's "
                 "springs and fields for extreme values.", time=solver.t, body=body)
         body = fastest_body(layout, fun(solver.t, solver.y), solver.y, self.atol, self.rtol)
-        return SimulationError(
-            f"{self.method} failed at t = {solver.t:.6g} s: {message} The fastest-changing body is {body!r}. "
-            "Stiff springs or near collisions cause this: try solver.method Radau or BDF, or check that body's "
-            "parameters.", time=solver.t, body=body)
+        advice = failure_advice(model, self.method, solver.y, solver.t, body)
+        return SimulationError(f"{self.method} failed at t = {solver.t:.6g} s: {message} {advice}.", time=solver.t,
+                               body=body)
