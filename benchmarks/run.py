@@ -24,8 +24,10 @@ Prints one table. Measures:
 
 9. farm: 'animbatch render' of a 300-frame scene at 1280×720 with one render process and with one per core.
 
+10. the accuracy ledger: its wall time next to the integration's, for 1000 bouncing particles and a 32×32 cloth.
+
 Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, rigid, contacts, render,
-encode, cloth, fountain, lean, farm), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick),
+encode, cloth, fountain, lean, farm, ledger), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick),
 ``--cloth-method NAME`` (only the cloth methods whose label starts with NAME, e.g. ``BDF``; repeatable),
 ``--json FILE`` (also write the rows as JSON).
 """
@@ -523,9 +525,67 @@ def bench_farm(quick: bool) -> list[Row]:
     return rows
 
 
+def ledger_particles_scene(count: int) -> str:
+    """``count`` particles under gravity and drag thrown up from a grid and bouncing on the floor for 2 s (contacts
+    with the floor only), symplectic Euler at 1 ms."""
+    rng = np.random.default_rng(0)
+    side = int(np.ceil(np.sqrt(count)))
+    index = np.arange(count)
+    positions = np.stack([(index % side) * 0.1, 0.5 + rng.uniform(0, 0.5, count), (index // side) * 0.1], axis=1)
+    velocities = rng.normal(0, 1, (count, 3)) + [0, 3, 0]
+    bodies = "\n".join(f"  - {{name: p{i}, radius: 0.02, mass: 0.01, position: {p.round(4).tolist()}, "
+                       f"velocity: {v.round(4).tolist()}}}" for i, (p, v) in enumerate(zip(positions, velocities)))
+    return f"""
+duration: 2
+fps: 30
+solver: {{method: symplectic_euler, dt: 1.0e-3}}
+bodies:
+{bodies}
+colliders: [{{type: plane, material: rubber}}]
+contacts: {{bodies: false}}
+fields: [{{type: gravity}}, {{type: drag, model: quadratic, coefficient: 0.001}}]
+"""
+
+
+def bench_ledger(quick: bool) -> list[Row]:
+    """What the accuracy ledger costs: its own wall time (conservation laws, the quantities at every frame, the
+    contact audit) next to the integration's, for 1000 bouncing particles and a 32×32 cloth under backward Euler.
+    The ledger is computed at frame times only, so it should add well under 5 %."""
+    import warnings
+
+    from animbatch import api
+    from animbatch.integrators import DEFAULT_DT
+    from animbatch.ledger import build_ledger
+    from animbatch.scene import parse_scene
+
+    rows = []
+    count, side = (300, 16) if quick else (1000, 32)
+    cases = {f"{count} particles bouncing, symplectic_euler": ledger_particles_scene(count),
+             f"{side}×{side} cloth, backward_euler 1 step/frame": cloth_scene(side, 1.0 if quick else 3.0,
+                                                                          "{method: backward_euler, dt: 0.0333334}")}
+    for label, text in cases.items():
+        scene = parse_scene(text, filename="benchmark.yaml")
+        model = api.compile_model(scene)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            trajectory = api.simulate(scene, model=model)
+            states = model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
+                                       trajectory.angular_velocities)
+            solver = scene.spec.solver
+            ledger_seconds = best_of(2, lambda: build_ledger(
+                model, states, trajectory.solver_stats, trajectory.particle_stats, method=solver.method,
+                adaptive=solver.is_adaptive, requested_dt=solver.dt or DEFAULT_DT, rtol=solver.rtol))
+        integration = float(trajectory.solver_stats["wall_time"])
+        rows += [{"benchmark": "accuracy ledger", "case": f"{label}: integration", "value": integration, "unit": "s"},
+                 {"benchmark": "accuracy ledger", "case": f"{label}: ledger", "value": ledger_seconds, "unit": "s"},
+                 {"benchmark": "accuracy ledger", "case": f"{label}: ledger / integration",
+                  "value": 100 * ledger_seconds / integration, "unit": "%"}]
+    return rows
+
+
 BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "rigid": bench_rigid, "contacts": bench_contacts,
               "render": bench_render, "encode": bench_encode, "cloth": bench_cloth, "fountain": bench_fountain,
-              "lean": bench_lean, "farm": bench_farm}
+              "lean": bench_lean, "farm": bench_farm, "ledger": bench_ledger}
 
 
 def main() -> int:

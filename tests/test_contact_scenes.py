@@ -70,3 +70,37 @@ def test_slope_materials_hold_or_slide_as_their_friction_coefficients_say():
     for name in ["wood", "steel", "rubber"]:
         assert np.abs(trajectory.positions[:, names.index(name)] - trajectory.positions[0, names.index(name)]
                       ).max() < 1e-4, name
+
+
+def test_collision_lab_meets_its_comment():
+    """The pucks touch at 0.6 s and leave at the textbook velocities (-2, 0 for e = 1; -1.25, -0.25 for e = 0.5, the
+    latter losing ½ μ (1 - e²) Δv² = 1.125 J); the thrown balls touch at (3 - 0.3) / 8 = 0.3375 s and, equal and
+    elastic, swap velocities. No floor anywhere, and RK45 finds every impact."""
+    trajectory = simulate("collision_lab.yaml")
+    names = trajectory.body_names
+    v = {name: trajectory.velocities[-1, names.index(name)] for name in names}
+    assert [v[name][0] for name in ("a1", "b1", "a2", "b2")] == pytest.approx([-2, 0, -1.25, -0.25], abs=1e-9)
+    before = 0.5 * 1 * 1**2 + 0.5 * 3 * 1**2
+    after = 0.5 * 1 * 1.25**2 + 0.5 * 3 * 0.25**2
+    assert before - after == pytest.approx(1.125)
+    impacts = sorted(trajectory.solver_stats["impacts"])
+    assert [t for t, _ in impacts] == pytest.approx([0.3375, 0.6, 0.6], abs=1e-9)
+    t = trajectory.times[-1]
+    assert v["ball1"] == pytest.approx([-4, 4 - G * t, 0], abs=1e-7)  # ball2's velocity, now ball1's
+    assert v["ball2"] == pytest.approx([4, 4 - G * t, 0], abs=1e-7)
+
+
+def test_energy_drift_scene_warns_as_its_comment_says():
+    """Explicit Euler over ten orbits: the energy drifts by about 30 % of its 2.04 J binding energy, the angular
+    momentum by about 12 %, and the run warns; verlet at the same step does not."""
+    import warnings
+
+    from animbatch.errors import AccuracyWarning
+
+    with pytest.warns(AccuracyWarning, match="the energy drifted by"):
+        ledger = simulate("energy_drift.yaml").ledger
+    assert ledger["conservation"]["energy"]["drift"] == pytest.approx(0.30, abs=0.02)
+    assert ledger["conservation"]["angular_momentum"]["drift"] == pytest.approx(0.12, abs=0.01)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AccuracyWarning)
+        assert simulate("energy_drift.yaml", "solver.method=verlet").ledger["warnings"] == []

@@ -8,9 +8,12 @@ lets them pass through each other. These scenes have no collider at all, so noth
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
+from animbatch.errors import AccuracyWarning
 from animbatch.invariants import kinetic_energy, linear_momentum
 from conftest import ADAPTIVE, run, states
 
@@ -129,3 +132,94 @@ def test_fixed_steps_look_for_an_impact_as_far_as_both_bodies_close(method):
     """ % method)
     assert trajectory.velocities[-1, :, 0] == pytest.approx([-60, 60], rel=1e-9)
     assert np.all(trajectory.positions[:, 0, 0] < trajectory.positions[:, 1, 0])
+
+
+# ------------------------------------------------------------------------------------------------ the safety net
+
+
+def audit_warnings(text: str) -> tuple:
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        _, trajectory = run(text)
+    return trajectory, [str(w.message) for w in caught if issubclass(w.category, AccuracyWarning)]
+
+
+@pytest.fixture
+def impact_search_off(monkeypatch):
+    """Adaptive runs whose impact search finds nothing: a method that misses every collision."""
+    from animbatch.contact import events
+    from animbatch.contact.detection import Contacts
+
+    monkeypatch.setattr(events.ContactEvents, "_impact_candidates",
+                        lambda self, y0, y1, h: (Contacts.concatenate([]), np.zeros(0)))
+
+
+def test_a_collision_the_method_misses_is_reported_with_both_bodies_and_the_time(impact_search_off):
+    """Should the impact search ever miss (here it is switched off), the run does not pass silently: the ledger
+    finds the pucks deepest inside each other at t = 1 s, when their centres meet (closed form: centres 2 - 2t apart,
+    overlap 0.2 - |2 - 2t|, so 0.2 m), and warns, naming both bodies, the method and what to change."""
+    trajectory, warned = audit_warnings("""
+        duration: 1.2
+        fps: 10
+        solver: {method: RK45}
+        contacts: {}
+        bodies:
+          - {name: a, radius: 0.1, position: [-1, 0, 0], velocity: [1, 0, 0]}
+          - {name: b, radius: 0.1, position: [1, 0, 0], velocity: [-1, 0, 0]}
+    """)
+    missed = trajectory.ledger["contacts"]["missed"]
+    assert (missed["body"], missed["solid"]) in (("a", "body 'b'"), ("b", "body 'a'"))
+    assert missed["depth"] == pytest.approx(0.2, abs=1e-9) and missed["time"] == pytest.approx(1.0)
+    assert len(warned) == 1 and "RK45 missed a collision" in warned[0] and "solver.max_step" in warned[0]
+
+
+def test_a_small_body_crossing_a_thin_slab_between_two_frames_is_seen(impact_search_off):
+    """A 5 mm pellet passing a 1 cm slab within one frame (each moves 3.3 m per frame) is inside it for 0.1 ms only:
+    the audit looks where the two come closest between the frames, and finds the pellet's centre on the slab's
+    mid-plane at t = 4 m / 200 m/s = 0.02 s, 5 mm + 5 mm deep."""
+    trajectory, warned = audit_warnings("""
+        duration: 0.1
+        fps: 30
+        solver: {method: RK45}
+        contacts: {}
+        bodies:
+          - {name: pellet, mass: 0.01, radius: 0.005, position: [-2, 0, 0], velocity: [100, 0, 0]}
+          - {name: slab, type: rigid, shape: {type: box, size: [0.01, 1, 1]}, density: 1000, position: [2, 0, 0],
+             velocity: [-100, 0, 0]}
+    """)
+    missed = trajectory.ledger["contacts"]["missed"]
+    assert missed["between_frames"] and missed["body"] in ("pellet", "slab")
+    assert missed["time"] == pytest.approx(0.02, abs=1e-9) and missed["depth"] == pytest.approx(0.01, abs=1e-9)
+    assert len(warned) == 1 and "between two frames" in warned[0] and "'slab'" in warned[0]
+
+
+def test_bodies_placed_inside_each_other_are_named_with_the_overlap():
+    """Two balls of radius 0.1 m whose centres start 0.15 m apart overlap by 0.05 m: the warning says the scene
+    placed them so, by how much, and to move them apart; it is not called a missed collision."""
+    trajectory, warned = audit_warnings("""
+        duration: 0.5
+        solver: {method: symplectic_euler}
+        contacts: {}
+        bodies:
+          - {name: left, radius: 0.1, position: [-0.075, 0, 0]}
+          - {name: right, radius: 0.1, position: [0.075, 0, 0]}
+    """)
+    contacts = trajectory.ledger["contacts"]
+    assert contacts["missed"] is None
+    assert contacts["starts_inside"]["depth"] == pytest.approx(0.05)
+    assert len(warned) == 1 and "starts 0.05 m inside body" in warned[0] and "0.05 m further apart" in warned[0]
+
+
+def test_runs_that_collide_correctly_raise_no_contact_warning():
+    """The pellet and the slab, with the impact found, leave nothing for the audit."""
+    trajectory, warned = audit_warnings("""
+        duration: 0.3
+        solver: {method: DOP853, rtol: 1.0e-6}
+        materials: {hard: {restitution: 0.8, static_friction: 0, kinetic_friction: 0}}
+        contacts: {}
+        bodies:
+          - {name: pellet, mass: 0.01, radius: 0.005, position: [-2, 0, 0], velocity: [100, 0, 0], material: hard}
+          - {name: slab, type: rigid, shape: {type: box, size: [0.01, 1, 1]}, density: 1000, position: [2, 0, 0],
+             velocity: [-100, 0, 0], material: hard}
+    """)
+    assert not warned and trajectory.ledger["contacts"] == {"starts_inside": None, "missed": None}

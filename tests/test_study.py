@@ -372,7 +372,7 @@ def test_bundled_scenes_that_declare_closed_forms_have_them_and_a_tight_run_agre
 
 def test_accuracy_page_sections_link_the_plot_and_list_every_method(projectile_study):
     """docs/accuracy.md is generated: each scene's section links its plot and files and has one row per method."""
-    from animbatch.study.document import GUIDE, page, section
+    from animbatch.study.document import GUIDE, LEDGER, page, section
 
     text = section("projectile", "a ball", projectile_study, "accuracy/projectile")
     assert "![work-precision plot of projectile](accuracy/projectile/study.png)" in text
@@ -380,4 +380,19 @@ def test_accuracy_page_sections_link_the_plot_and_list_every_method(projectile_s
     for method in ("RK45", "euler", "symplectic_euler", "verlet"):
         assert f"| {method} | " in text
     assert "Fastest to 1e-3: **" in text
-    assert page([text], 1.0).endswith(GUIDE)
+    ledger = LEDGER + "| a table |\n"
+    assert page([text], 1.0, ledger).endswith(GUIDE + "\n" + ledger)
+
+
+def test_the_accuracy_page_holds_the_guide_and_the_ledger_as_the_generator_writes_them():
+    """docs/accuracy.md is regenerated rarely (it takes half an hour): its guide and its ledger section must still be
+    the text the generator writes, and the ledger table must have a row per run of the generator."""
+    from pathlib import Path
+
+    from animbatch.study.document import GUIDE, LEDGER, LEDGER_RUNS
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "accuracy.md").read_text(encoding="utf-8")
+    assert GUIDE + "\n" + LEDGER in text
+    table = text.split(LEDGER, 1)[1].strip().splitlines()
+    assert len(table) == 2 + len(LEDGER_RUNS)
+    assert [row.split("|")[1].strip() for row in table[2:]] == [method for method, _ in LEDGER_RUNS]

@@ -25,9 +25,11 @@ import numpy as np
 from animbatch import __version__
 from animbatch.errors import SimulationError, TrajectoryError
 from animbatch.files import write_json_atomic
-from animbatch.integrators import IntegrationResult, SolverStats, make_integrator
+from animbatch.integrators import DEFAULT_DT, IntegrationResult, SolverStats, make_integrator
 from animbatch.integrators.guard import check_energy_growth
 from animbatch.integrators.preflight import preflight
+from animbatch.ledger import build_ledger
+from animbatch.ledger import summary as ledger_summary
 from animbatch.model import Dynamics, Model, compile_scene
 from animbatch.progress import Progress
 from animbatch.scene import LoadedScene, load_scene, physics_fingerprint
@@ -66,6 +68,10 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
     states = result.states
     kinds = ("particle",) * model.particle_count + ("rigid",) * model.rigid_count
     particles, particle_stats = simulate_emitters(scene, model, states, progress)
+    stats = result.stats.as_dict()
+    ledger = build_ledger(model, states, stats, particle_stats, method=spec.solver.method,
+                          adaptive=spec.solver.is_adaptive, requested_dt=spec.solver.dt or DEFAULT_DT,
+                          rtol=spec.solver.rtol, drift_warning=spec.solver.drift_warning)
     return Trajectory(
         times=model.frame_times.copy(), body_names=model.body_names, positions=model.positions(states),
         velocities=model.velocities(states), orientations=model.orientations(states),
@@ -73,7 +79,8 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
         anchor_names=model.anchor_names, anchor_positions=model.anchor_position.copy(),
         physics_hash=scene_fingerprint(scene), scene_name=scene.name, package_version=__version__,
         solver={**spec.solver.model_dump(), "description": integrator.describe()},
-        solver_stats={**result.stats.as_dict(), "warnings": warnings}, particles=tuple(particles), particle_stats=particle_stats)
+        solver_stats={**stats, "warnings": warnings}, particles=tuple(particles), particle_stats=particle_stats,
+        ledger=ledger.as_dict())
 
 
 def simulate_emitters(scene: LoadedScene, model: Model, states: np.ndarray, progress: Progress
@@ -83,7 +90,6 @@ def simulate_emitters(scene: LoadedScene, model: Model, states: np.ndarray, prog
     spec = scene.spec
     if not spec.emitters:
         return [], {}
-    from animbatch.integrators import DEFAULT_DT
     from animbatch.particles.body_motion import BodyMotion
     from animbatch.particles.compile import compile_particles
     from animbatch.particles.simulate import simulate_particles
@@ -167,6 +173,29 @@ def particle_extent(trajectory: Trajectory) -> np.ndarray:
         if len(live):
             corners += [np.percentile(live, 1, axis=0), np.percentile(live, 99, axis=0)]
     return np.array(corners, float).reshape(-1, 3)
+
+
+def write_quantities(scene: LoadedScene, model: Model, trajectory: Trajectory, folder: str | Path, *,
+                     plot: bool = False) -> list[Path]:
+    """Write the run's per-frame quantities (energy, momentum, angular momentum, speeds) to ``quantities.csv`` in
+    ``folder``, and with ``plot`` draw them to ``quantities.png``; nothing for a scene without bodies."""
+    if not model.body_count:
+        return []
+    from animbatch.files import write_text_atomic
+    from animbatch.ledger import QuantitySeries
+
+    states = model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
+                               trajectory.angular_velocities)
+    series = QuantitySeries.of_states(model, states)
+    folder = Path(folder)
+    written = [folder / "quantities.csv"]
+    write_text_atomic(written[0], series.csv())
+    if plot:
+        from animbatch.plot import plot_quantities
+
+        written.append(plot_quantities(series, folder / "quantities.png", scene=scene.name,
+                                       ledger=trajectory.ledger))
+    return written
 
 
 @dataclass
@@ -259,15 +288,15 @@ class RunReport:
     workers: int = 1  # render processes
     cache: str | None = None  # the baked trajectory file
     cache_reused: bool = False
+    ledger: dict[str, Any] = field(default_factory=dict)  # the accuracy ledger (see animbatch.ledger)
+    quantities: list[str] = field(default_factory=list)  # quantities.csv (and .png) beside the report
 
     def summary(self) -> str:
-        """One line for logs: outputs, frames, timings and solver work."""
-        stats = self.solver_stats
-        solver = f"{stats.get('method')}: {stats.get('steps')} steps, {stats.get('rhs_evaluations')} RHS"
+        """One line for logs: outputs, frames, timings, solver work and the accuracy ledger."""
+        solver = ledger_summary(self.ledger) if self.ledger else str(self.solver_stats.get("method"))
         if self.particle_stats:
             particles = self.particle_stats
-            solver += (f"; particles: {particles.get('born')} born, peak {particles.get('peak_live')} live, "
-                       f"{particles.get('steps')} steps")
+            solver += f"; particles: {particles.get('born')} born, peak {particles.get('peak_live')} live"
         if self.trajectory_file:
             solver = f"from {self.trajectory_file} ({solver})"
         timings = ", ".join(f"{stage} {seconds:.2f} s" for stage, seconds in self.stages.items())
@@ -288,7 +317,7 @@ def failure_report(scene: LoadedScene, error: SimulationError, watch: Stopwatch)
 
 def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: str | Path = "renders",
         backend: str = "auto", trajectory_path: str | Path | None = None, progress: Progress | None = None,
-        jobs: int | None = None, frames: str | None = None) -> RunReport:
+        jobs: int | None = None, frames: str | None = None, plot: bool = False) -> RunReport:
     """Bake, render and encode one scene, as a render farm does, on this machine; write its report.
 
     * **bake**: the trajectory from the cache (``renders/<scene>/cache/``) when the physics, solver settings and
@@ -299,7 +328,8 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
       the formats.
 
     With ``frames`` (``"120-239"``) only that range is rendered, and nothing is encoded (``animbatch encode`` does
-    that once every range is done); the report is written for whole runs only.
+    that once every range is done); the report is written for whole runs only, with ``quantities.csv`` (and, with
+    ``plot``, ``quantities.png``) beside it.
     """
     from animbatch.farm import bake, parse_frames, render_frames
     from animbatch.farm.frames import frames_folder, prepare_frames
@@ -350,7 +380,10 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
                        [str(p) for p in outputs], str(trajectory_path) if trajectory_path else None,
                        trajectory.particle_stats, frames=str(span), frames_drawn=len(rendered.drawn),
                        frames_skipped=len(rendered.skipped), workers=workers,
-                       cache=str(cache.path) if cache else None, cache_reused=bool(cache and cache.reused))
+                       cache=str(cache.path) if cache else None, cache_reused=bool(cache and cache.reused),
+                       ledger=trajectory.ledger)
     if frames is None:
-        write_json_atomic(Path(out_dir) / scene.name / "report.json", report.__dict__)
+        folder = Path(out_dir) / scene.name
+        report.quantities = [str(path) for path in write_quantities(scene, model, trajectory, folder, plot=plot)]
+        write_json_atomic(folder / "report.json", report.__dict__)
     return report

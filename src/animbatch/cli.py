@@ -162,10 +162,12 @@ def simulate(scene: Path, output: Path | None, settings: tuple[str, ...], progre
 
     loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
     trajectory = api.simulate(loaded, progress=Progress(enabled=progress))
+    from animbatch.ledger import summary
+
     target = trajectory.save(output or Path("renders") / loaded.name / f"{loaded.name}.npz")
-    stats = trajectory.solver_stats
-    click.echo(f"{loaded.name}: {trajectory.frame_count} frames -> {target} | {stats['method']}: {stats['steps']} "
-               f"steps, {stats['rhs_evaluations']} RHS evaluations, {stats['wall_time']:.3f} s")
+    seconds = trajectory.solver_stats.get("wall_time", 0.0) + trajectory.particle_stats.get("wall_time", 0.0)
+    click.echo(f"{loaded.name}: {trajectory.frame_count} frames -> {target} | {summary(trajectory.ledger)} | "
+               f"{seconds:.3f} s")
 
 
 @cli.command()
@@ -214,11 +216,13 @@ def study(scene: Path, out_dir: Path | None, methods: str | None, repeats: int |
               "encode nothing; complete frames are skipped.")
 @click.option("--jobs", type=click.IntRange(min=1), help="Render processes (default: one per core; fewer for short "
               "animations).")
+@click.option("--plot", is_flag=True, help="Also draw the per-frame quantities (energy, momentum, angular momentum, "
+              "speeds) to quantities.png beside report.json and quantities.csv.")
 @_scene_options
 @click.option("--progress/--no-progress", default=None, help="Progress bars (default: on a terminal).")
 @_reports_errors
 def render(scene: Path, trajectory: Path | None, out_dir: Path, backend: str, settings: tuple[str, ...],
-           progress: bool | None, frames: str | None, jobs: int | None, **shortcuts: str | None) -> None:
+           progress: bool | None, frames: str | None, jobs: int | None, plot: bool, **shortcuts: str | None) -> None:
     """Bake (or reuse the cached simulation), render the frames off-screen in parallel, and encode the videos into
     renders/<scene>/. Frames already complete on disk are not drawn again."""
     from animbatch import api
@@ -226,10 +230,45 @@ def render(scene: Path, trajectory: Path | None, out_dir: Path, backend: str, se
 
     try:
         report = api.run(scene, overrides=_overrides(settings, **shortcuts), out_dir=out_dir, backend=backend,
-                         trajectory_path=trajectory, progress=Progress(enabled=progress), jobs=jobs, frames=frames)
+                         trajectory_path=trajectory, progress=Progress(enabled=progress), jobs=jobs, frames=frames,
+                         plot=plot)
     except ValueError as error:  # a --frames range the scene does not have
         raise click.BadParameter(str(error), param_hint="--frames") from None
     click.echo(report.summary())
+
+
+@cli.command()
+@click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--trajectory", type=click.Path(dir_okay=False, path_type=Path),
+              help="Plot this trajectory (from 'animbatch simulate') instead of the scene's bake.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("renders"),
+              show_default=True, help="Output folder; files go to OUT/<scene name>/.")
+@_scene_options
+@click.option("--progress/--no-progress", default=None, help="Progress bar while simulating (default: on a terminal).")
+@_reports_errors
+def plot(scene: Path, trajectory: Path | None, out_dir: Path, settings: tuple[str, ...], progress: bool | None,
+         **shortcuts: str | None) -> None:
+    """Draw the run's energy (kinetic, potential, total), momentum, angular momentum and each body's speed against
+    time into OUT/<scene>/quantities.png, with the numbers in quantities.csv. Uses --trajectory, or the scene's bake
+    (simulating it first when there is none)."""
+    from animbatch import api
+    from animbatch.farm import bake as bake_scene
+    from animbatch.ledger import summary
+    from animbatch.progress import Progress
+    from animbatch.trajectory import Trajectory
+
+    loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
+    model = api.compile_model(loaded)
+    if not model.body_count:
+        raise click.UsageError(f"{scene} has no bodies to plot (emitted particles carry no energy or momentum "
+                               "series)")
+    if trajectory is not None:
+        run = Trajectory.load(trajectory)
+        api.check_trajectory(loaded, model, run, trajectory)
+    else:
+        run = bake_scene(loaded, out_dir=out_dir, model=model, progress=Progress(enabled=progress)).trajectory
+    written = api.write_quantities(loaded, model, run, out_dir / loaded.name, plot=True)
+    click.echo(f"{loaded.name}: {', '.join(map(str, written))} | {summary(run.ledger)}")
 
 
 @cli.command()
@@ -256,8 +295,11 @@ def bake(scene: Path, out_dir: Path, force: bool, checkpoint_every: int | None, 
     result = bake_scene(loaded, out_dir=out_dir, progress=Progress(enabled=progress), force=force,
                         checkpoint_every=checkpoint_every)
     prepare_frames(loaded, result.trajectory, out_dir)  # before any render task: frames of another picture go
+    from animbatch.ledger import summary
+
     what = "up to date" if result.reused else f"baked in {result.seconds:.2f} s"
-    click.echo(f"{loaded.name}: {result.trajectory.frame_count} frames, cache {what} -> {result.path}")
+    click.echo(f"{loaded.name}: {result.trajectory.frame_count} frames, cache {what} -> {result.path} | "
+               f"{summary(result.trajectory.ledger)}")
 
 
 @cli.command()
@@ -418,9 +460,9 @@ def farm_openjd(scene: Path, output: Path | None, out_dir: Path, chunk_size: int
 
 def _show_warning(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:
     """Our own warnings as one plain line on stderr (others as Python formats them)."""
-    from animbatch.integrators.preflight import StabilityWarning
+    from animbatch.errors import AnimbatchWarning
 
-    if issubclass(category, StabilityWarning):
+    if issubclass(category, AnimbatchWarning):
         click.echo(f"warning: {message}", err=True)
     else:
         _python_showwarning(message, category, *args, **kwargs)

@@ -81,3 +81,13 @@ class StudyError(AnimbatchError):
     """A study could not measure errors: no reference run (a tight, trusted run) succeeded."""
 
     exit_code = 3
+
+
+class AnimbatchWarning(UserWarning):
+    """Base class of the warnings meant for the user: the CLI prints them as one plain line on stderr, and runs keep
+    them in their reports."""
+
+
+class AccuracyWarning(AnimbatchWarning):
+    """A finished run whose result is less accurate than it should be: a conserved quantity drifted beyond
+    ``solver.drift_warning``, or a collision was missed (see :mod:`animbatch.ledger`)."""

@@ -6,7 +6,9 @@ from typing import Any
 
 from animbatch.contact.stepping import DEFAULT_REST_SPEED
 from animbatch.forces import FIELD_TERMS
-from animbatch.integrators import make_integrator
+from animbatch.integrators import DEFAULT_DT, make_integrator
+from animbatch.integrators.fixed_step import substeps
+from animbatch.ledger import conservation_laws, step_note
 from animbatch.model import Model
 from animbatch.scene import LoadedScene
 from animbatch.scene.schema import BoxCollider, PlaneCollider, SphereCollider
@@ -69,6 +71,20 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
         f"timeline   {spec.duration:g} s at {spec.fps} fps: {len(times)} frames at t = k/{spec.fps} s, "
         f"k = 0 … {len(times) - 1} (last frame at {times[-1]:.6g} s)",
         f"solver     {make_integrator(spec.solver).describe()}",
+    ]
+    if not spec.solver.is_adaptive and len(times) > 1:
+        interval = float(times[1] - times[0])
+        requested = spec.solver.dt or DEFAULT_DT
+        count = substeps(interval, requested)
+        note = step_note(requested, interval / count, interval)
+        lines.append(f"step       {interval / count:.6g} s used, {count} per frame" + (f": {note}" if note else ""))
+    laws = conservation_laws(model)
+    for number, (name, law) in enumerate(laws.items()):
+        lines.append(f"{'conserves' if number == 0 else '':<10} {name.replace('_', ' ')}: "
+                     f"{'yes' if law.conserved else 'no'} ({law.reason})")
+    lines += [
+        f"           a run warns when a conserved quantity drifts by more than {100 * spec.solver.drift_warning:.3g} % "
+        "of its scale (solver.drift_warning)",
         f"state      {model.layout.size} values (float64)",
     ]
     for block in model.layout.blocks:

@@ -26,6 +26,7 @@ key                    shape / type    meaning
 ``particles_K_serials``   (F, C)       int32 serial of the particle in each slot, -1 where the slot is free
 ``particles_K_ages``      (F, C)       float32 age of each particle [s]
 ``particle_stats``     str (JSON)      births, deaths, drops, collisions, steps of the particle simulation
+``ledger``             str (JSON)      the run's accuracy ledger (see :mod:`animbatch.ledger`; absent in older files)
 =====================  ==============  =================================================================
 
 Version 2 files (without particles) are still read.
@@ -77,6 +78,7 @@ class Trajectory:
     solver_stats: dict[str, Any] = field(default_factory=dict)
     particles: tuple[ParticleFrames, ...] = ()
     particle_stats: dict[str, Any] = field(default_factory=dict)
+    ledger: dict[str, Any] = field(default_factory=dict)
 
     @property
     def frame_count(self) -> int:
@@ -96,7 +98,8 @@ class Trajectory:
                      scene_name=np.str_(self.scene_name), package_version=np.str_(self.package_version),
                      solver=np.str_(json.dumps(self.solver)), solver_stats=np.str_(json.dumps(self.solver_stats)),
                      emitter_names=np.array([p.name for p in self.particles], dtype=str),
-                     particle_stats=np.str_(json.dumps(self.particle_stats)), **self._particle_arrays())
+                     particle_stats=np.str_(json.dumps(self.particle_stats)), ledger=np.str_(json.dumps(self.ledger)),
+                     **self._particle_arrays())
         return path
 
     def _particle_arrays(self) -> dict[str, np.ndarray]:
@@ -151,4 +154,5 @@ class Trajectory:
                    str(arrays["physics_hash"]), str(arrays.get("scene_name", "")),
                    str(arrays.get("package_version", "")),
                    json.loads(str(arrays.get("solver", "{}"))), json.loads(str(arrays.get("solver_stats", "{}"))),
-                   tuple(particles), json.loads(str(arrays.get("particle_stats", "{}"))))
+                   tuple(particles), json.loads(str(arrays.get("particle_stats", "{}"))),
+                   json.loads(str(arrays.get("ledger", "{}"))))

@@ -71,7 +71,8 @@ def bake_task(scene_path: str, overrides: Sequence[Any], out_dir: str) -> dict[s
         raise
     prepare_frames(scene, result.trajectory, out_dir)
     return {"cache": str(result.path), "reused": result.reused, "seconds": time.perf_counter() - started,
-            "frames": result.trajectory.frame_count, "solver_stats": result.trajectory.solver_stats}
+            "frames": result.trajectory.frame_count, "solver_stats": result.trajectory.solver_stats,
+            "ledger": result.trajectory.ledger}
 
 
 def render_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: dict[str, Any], start: int,
@@ -116,13 +117,17 @@ def encode_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
         outputs.append(str(folder))
     else:
         shutil.rmtree(folder, ignore_errors=True)
+    from animbatch.trajectory import Trajectory
+
+    quantities = api.write_quantities(scene, api.compile_model(scene), Trajectory.load(baked["cache"]),
+                                      Path(out_dir) / scene.name)
     report = {"scene": scene.name, "scene_file": scene_path, "status": "ok", "frames": baked["frames"],
               "frames_drawn": sum(chunk["drawn"] for chunk in chunks),
               "frames_skipped": sum(chunk["skipped"] for chunk in chunks), "render_tasks": len(chunks),
               "stages": {"load_cache" if baked["reused"] else "simulate": baked["seconds"],
                          "render": sum(chunk["seconds"] for chunk in chunks), "encode": seconds},
               "cache": baked["cache"], "cache_reused": baked["reused"], "solver_stats": baked["solver_stats"],
-              "outputs": outputs, "backend": next((c["backend"] for c in chunks if c["backend"]), ""),
+              "ledger": baked.get("ledger", {}), "quantities": [str(path) for path in quantities], "outputs": outputs, "backend": next((c["backend"] for c in chunks if c["backend"]), ""),
               "package_version": __version__, "host": platform.node(),
               "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     path = Path(out_dir) / scene.name / "report.json"
@@ -203,7 +208,7 @@ def run_batch(jobs: Sequence[Job], *, out_dir: str | Path = "renders", workers: 
                 results[number] = JobResult(label, "ok", report["frames"], time.perf_counter() - started,
                                             outputs=report["outputs"], report=report["report"],
                                             metrics={"solver_stats": report["solver_stats"],
-                                                     "cache": report["cache"]})
+                                                     "cache": report["cache"], "ledger": report.get("ledger", {})})
             except Exception as error:
                 results[number] = JobResult(label, "failed", wall_time=time.perf_counter() - started,
                                             error=f"{type(error).__name__}: {error}")
@@ -223,6 +228,9 @@ def summary(results: Sequence[JobResult]) -> str:
     lines = [f"{'scene':<{width}}  {'frames':>6}  {'wall time':>9}  status", "-" * (width + 28)]
     for r in results:
         status = r.status if r.status == "ok" else f"FAILED: {r.error.splitlines()[0][:100] if r.error else ''}"
+        warned = (r.metrics or {}).get("ledger", {}).get("warnings", [])
+        if warned:  # it ran, but the ledger says the result is not to be trusted as it is
+            status += f" with {len(warned)} accuracy warning{'s' if len(warned) > 1 else ''}: {warned[0][:100]}…"
         lines.append(f"{r.label:<{width}}  {r.frames:>6}  {r.wall_time:>8.1f}s  {status}")
     failed = sum(r.status != "ok" for r in results)
     lines.append(f"{len(results) - failed} of {len(results)} jobs succeeded")

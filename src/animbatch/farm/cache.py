@@ -2,8 +2,8 @@
 
 The key is a content hash of what determines the motion: the scene's physics fingerprint (bodies, springs, fields,
 timeline, mesh-file bytes; see :func:`~animbatch.scene.loader.physics_fingerprint`), the solver settings and the
-package version. Camera, resolution, colours and every other render setting are not in it, so changing them never
-re-simulates; changing a mass, a step size or upgrading animbatch always does. A cache file whose key or contents do
+package version. Camera, resolution, colours, every other render setting and the accuracy ledger's warning threshold
+(``solver.drift_warning``, which only judges a run) are not in it, so changing them never re-simulates; changing a mass, a step size or upgrading animbatch always does. A cache file whose key or contents do
 not match is never used: it is replaced (and other keys' files in the folder are removed once a new bake lands).
 Files are written atomically, so an interrupted bake leaves no cache that a later run could mistake for done.
 """
@@ -11,6 +11,7 @@ Files are written atomically, so an interrupted bake leaves no cache that a late
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import hashlib
 import json
 from dataclasses import dataclass
@@ -22,12 +23,21 @@ from animbatch.scene import LoadedScene
 from animbatch.trajectory import Trajectory
 
 
+#: Solver keys that judge a run rather than shape it: changing them re-judges a cached bake, never re-simulates.
+JUDGING_KEYS = ("drift_warning", "description")
+
+
+def simulation_settings(solver: dict) -> dict:
+    """The solver settings that shape the motion (without :data:`JUDGING_KEYS`)."""
+    return {key: value for key, value in solver.items() if key not in JUDGING_KEYS}
+
+
 def bake_key(scene: LoadedScene) -> str:
     """16 hex digits naming the simulation a scene asks for (physics, solver settings, package version)."""
     from animbatch.api import scene_fingerprint
 
-    content = {"physics": scene_fingerprint(scene), "solver": scene.spec.solver.model_dump(mode="json"),
-               "version": __version__}
+    content = {"physics": scene_fingerprint(scene),
+               "solver": simulation_settings(scene.spec.solver.model_dump(mode="json")), "version": __version__}
     return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:16]
 
 
@@ -57,11 +67,17 @@ def load_cached(scene: LoadedScene, path: Path) -> Trajectory | None:
         return None
     from animbatch.api import scene_fingerprint
 
-    solver = {key: value for key, value in trajectory.solver.items() if key != "description"}
-    wanted = json.loads(json.dumps(scene.spec.solver.model_dump(), default=str))  # as stored: through JSON
+    solver = simulation_settings(trajectory.solver)
+    wanted = simulation_settings(json.loads(json.dumps(scene.spec.solver.model_dump(), default=str)))  # as stored
     if (trajectory.physics_hash != scene_fingerprint(scene) or trajectory.package_version != __version__
             or solver != wanted):
         return None
+    threshold = scene.spec.solver.drift_warning
+    if trajectory.ledger and trajectory.ledger.get("drift_warning") != threshold:
+        from animbatch.ledger import with_threshold
+
+        trajectory = dataclasses.replace(trajectory, ledger=with_threshold(trajectory.ledger, threshold),
+                                         solver={**trajectory.solver, "drift_warning": threshold})
     return trajectory
 
 

@@ -21,6 +21,7 @@ import warnings
 
 import numpy as np
 
+from animbatch.errors import AnimbatchWarning
 from animbatch.integrators.stability import GROWTH_LIMIT, amplification, largest_stable_step, stiffest_mode
 
 #: Steps an explicit adaptive method may be forced to take by stability before we suggest an implicit one.
@@ -33,7 +34,7 @@ LSODA_DENSE_STATES = 600
 EXPLICIT_LIMITS = {"RK23": 2.5, "RK45": 3.3, "DOP853": 6.0}
 
 
-class StabilityWarning(UserWarning):
+class StabilityWarning(AnimbatchWarning):
     """A setting likely to give a wrong or slow run, found before it starts."""
 
 

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from animbatch.errors import SimulationError
+from animbatch.integrators.fixed_step import substeps
 from animbatch.particles.body_motion import BodyMotion
 from animbatch.particles.collisions import MAX_BOUNCES, SURFACE_GAP, ParticleColliders, bounce
 from animbatch.particles.emitter import Emitter
@@ -211,7 +212,7 @@ def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, Parti
         t1 = float(times[frame])
         if frame:
             t0 = float(times[frame - 1])
-            count = max(1, int(np.ceil((t1 - t0) / dt - 1e-9))) if method in FIXED_METHODS else 1
+            count = substeps(t1 - t0, dt) if method in FIXED_METHODS else 1
             for run in runs:
                 with np.errstate(all="ignore"):  # a diverging particle is caught by check(), once per frame
                     for k in range(count):

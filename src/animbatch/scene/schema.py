@@ -133,6 +133,9 @@ class SolverSpec(SceneModel):
     dt: float | None = key(None, "Step of fixed-step methods (default 1e-3 s). The step used is the largest one "
                                  "<= dt that divides the frame interval 1/fps, so that frames fall on steps.",
                            "s", gt=0)
+    drift_warning: float = key(0.01, "Relative drift of a conserved quantity (energy, momentum, angular momentum) "
+                                     "above which a run warns, naming the quantity and what to change; 0.01 is 1 % "
+                                     "of the quantity's scale in the scene (see the accuracy ledger).", "1", gt=0)
 
     @property
     def is_adaptive(self) -> bool:

@@ -85,6 +85,47 @@ What the studies above show, as a rule of thumb (the tables give the numbers):
 """
 
 
+LEDGER = """\
+## Accuracy on every run: the ledger
+
+A study sweeps every method; a single `render`, `simulate` or `bake` reports its own accuracy too. Its *ledger*
+(see [the scene format](scene-format.md#the-accuracy-ledger)) gives the step used, the work of every part, which of
+energy, momentum and angular momentum the scene conserves (and why not), and their drift over the run relative to
+their scale in the scene. A drift above `solver.drift_warning` (default 1 %) warns, naming what to change; so does
+a collision the method missed. `render` writes the quantities at every frame to `quantities.csv` beside
+`report.json`, and `--plot` (or `animbatch plot`) draws them.
+
+The two-body orbit over ten orbits (20 s, `--set duration=20`), as the ledger reports it for some settings:
+
+"""
+
+#: The runs of the ledger table: (method, settings as --set would give them).
+LEDGER_RUNS = [("euler", ["solver.dt=1.0e-3"]), ("symplectic_euler", ["solver.dt=1.0e-3"]),
+               ("verlet", ["solver.dt=1.0e-3"]), ("verlet", ["solver.dt=1.0e-2"]), ("RK45", ["solver.rtol=1.0e-6"]),
+               ("DOP853", ["solver.rtol=1.0e-10"])]
+
+
+def ledger_table(root: Path) -> str:
+    """The ledger of the two-body orbit over ten orbits under :data:`LEDGER_RUNS`, as a Markdown table."""
+    import warnings
+
+    from animbatch import api
+
+    lines = ["| method | setting | steps | wall time | energy drift | angular momentum drift | warning |",
+             "|---|---|---|---|---|---|---|"]
+    for method, settings in LEDGER_RUNS:
+        scene = api.load_scene(root / "scenes" / "two_body_orbit.yaml",
+                               ["duration=20", f"solver.method={method}", "solver.atol=1.0e-12", *settings])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ledger = api.simulate(scene).ledger
+        work, drift = ledger["work"]["bodies"], ledger["conservation"]
+        lines.append(f"| {method} | {settings[0].split('.', 1)[1]} | {work['steps']} | "
+                     f"{_seconds(work['wall_time'], False)} | {drift['energy']['drift']:.2g} | "
+                     f"{drift['angular_momentum']['drift']:.2g} | {'yes' if ledger['warnings'] else 'no'} |")
+    return "\n".join(lines) + "\n"
+
+
 def _seconds(value: float | None, bound: bool) -> str:
     if value is None:
         return "—"
@@ -121,7 +162,7 @@ def section(name: str, what: str, result: StudyResult, folder: str) -> str:
     return "\n".join(lines)
 
 
-def page(sections: list[str], seconds: float) -> str:
+def page(sections: list[str], seconds: float, ledger: str) -> str:
     header = f"""\
 # What accuracy costs in time
 
@@ -148,7 +189,12 @@ How to read it:
 Measured on {platform.node()} ({os.cpu_count()} CPUs, Python {platform.python_version()}) in {seconds:.0f} s.
 
 """
-    return header + "\n".join(sections) + "\n" + GUIDE
+    return header + "\n".join(sections) + "\n" + GUIDE + "\n" + ledger
+
+
+def ledger_section(root: Path) -> str:
+    """The page's last section: the ledger and its table."""
+    return LEDGER + ledger_table(root)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -171,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
         result = run_study(loaded, progress=lambda line: print(f"  {line}", file=sys.stderr, flush=True))
         write_outputs(result, docs / "accuracy" / name)
         sections.append(section(name, what, result, f"accuracy/{name}"))
-    write_text_atomic(docs / "accuracy.md", page(sections, time.perf_counter() - started))
+    write_text_atomic(docs / "accuracy.md", page(sections, time.perf_counter() - started, ledger_section(args.root)))
     print(f"wrote {docs / 'accuracy.md'}", file=sys.stderr)
     return 0
 

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from animbatch.forces import Gravitation, SpringForces
 from animbatch.invariants import angular_momentum, linear_momentum, total_energy
+from animbatch.ledger import conservation_laws
 from animbatch.model.model import Model
 
 
@@ -82,15 +82,9 @@ class Motion:
 
 
 def conserved(model: Model) -> dict[str, bool]:
-    """Which of energy, linear and angular momentum the scene conserves. Energy: no term dissipates or puts energy
-    in, and no collisions. Momenta: every force is internal (springs between bodies, mutual gravitation)."""
-    contacts = model.contact_world is not None
-    energy = not contacts and not any(term.dissipative or term.adds_energy for term in model.force_terms)
-    internal = all(isinstance(term, Gravitation) or (isinstance(term, SpringForces)
-                                                      and not term.springs.second_is_anchor.any())
-                   for term in model.force_terms)
-    momentum = not contacts and internal and model.anchors is not None and not model.anchors.moving
-    return {"energy": energy, "momentum": momentum, "angular_momentum": momentum}
+    """Which of energy, linear and angular momentum the scene conserves (see
+    :func:`~animbatch.ledger.conservation_laws`, which also says why)."""
+    return {name: law.conserved for name, law in conservation_laws(model).items()}
 
 
 def _rotation_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
