@@ -214,7 +214,8 @@ def test_every_part_of_a_run_reports_its_work():
     _, alone = run(f"{timeline}{EMITTER}\nfields: [{{type: gravity}}]")
     work = alone.ledger["work"]
     assert "bodies" not in work and work["particles"]["steps"] == 45 and work["particles"]["rhs_evaluations"] > 0
-    assert "particles (verlet): 45 steps" in summary(alone.ledger) and "0 steps" not in summary(alone.ledger)
+    assert alone.ledger["step"]["dt"] == pytest.approx(0.01) and alone.ledger["step"]["steps_per_frame"] == 5
+    assert "particles (verlet dt 0.01 s): 45 steps" in summary(alone.ledger) and "0 steps" not in summary(alone.ledger)
     _, both = run(f"{timeline}{EMITTER}\nbodies: [{{name: ball}}]\nfields: [{{type: gravity}}]")
     assert both.ledger["work"]["bodies"]["steps"] == both.ledger["work"]["particles"]["steps"] == 45
 

@@ -361,8 +361,9 @@ def build_ledger(model: Model, states: np.ndarray, stats: dict[str, Any], partic
 
         found = OverlapAudit(model, Dynamics(model)).run(states, times, [tuple(i) for i in stats.get("impacts", [])])
         contacts = {kind: overlap.as_dict() if overlap is not None else None for kind, overlap in found.items()}
+    stepped = stats if model.layout.size or not particle_stats else particle_stats  # emitters only: their steps
     ledger = Ledger(method, "adaptive" if adaptive else "fixed-step", rtol if adaptive else None,
-                    step_record(adaptive, stats, requested_dt, interval, float(times[-1] - times[0])), work,
+                    step_record(adaptive, stepped, requested_dt, interval, float(times[-1] - times[0])), work,
                     conservation, drift_warning, contacts,
                     encounter=dataclasses.asdict(encounter) if encounter is not None else None)
     ledger.warnings = judge(ledger.as_dict())
@@ -380,19 +381,20 @@ def summary(ledger: dict[str, Any]) -> str:
     parts = []
     method, step = ledger.get("method", "?"), ledger.get("step", {})
     work = ledger.get("work", {})
+    if ledger.get("kind") == "fixed-step" and step.get("dt"):
+        how = f" dt {step['dt']:.4g} s" + (f" (solver.dt {step['requested_dt']:.4g} s does not divide 1/fps)"
+                                           if step.get("note") else "")
+    elif step.get("smallest") is not None:
+        how = f" steps {step['smallest']:.2g}–{step['largest']:.2g} s"
+    else:
+        how = ""
     if "bodies" in work:
-        if ledger.get("kind") == "fixed-step" and step.get("dt"):
-            how = f"dt {step['dt']:.4g} s" + (f" (solver.dt {step['requested_dt']:.4g} s does not divide 1/fps)"
-                                              if step.get("note") else "")
-        elif step.get("smallest") is not None:
-            how = f"steps {step['smallest']:.2g}–{step['largest']:.2g} s"
-        else:
-            how = ""
         bodies = work["bodies"]
-        parts.append(f"{method}{' ' + how if how else ''}: {bodies['steps']} steps, {bodies['rhs_evaluations']} RHS")
+        parts.append(f"{method}{how}: {bodies['steps']} steps, {bodies['rhs_evaluations']} RHS")
     if "particles" in work:
         particles = work["particles"]
-        parts.append(f"particles ({method}): {particles['steps']} steps, {particles['rhs_evaluations']} RHS")
+        parts.append(f"particles ({method}{'' if 'bodies' in work else how}): {particles['steps']} steps, "
+                     f"{particles['rhs_evaluations']} RHS")
     conservation = ledger.get("conservation", {})
     kept = [f"{name.replace('_', ' ')} {_number(entry['drift'])}" for name, entry in conservation.items()
             if entry.get("drift") is not None]

@@ -50,6 +50,8 @@ class ParticleStats:
     collisions: int = 0
     peak_live: int = 0
     wall_time: float = 0.0
+    dt: float | None = None  # fixed-step methods: the step used [s], and how many there are per frame
+    substeps_per_frame: int | None = None
     per_emitter: dict[str, dict[str, int]] = field(default_factory=dict)
 
     def as_dict(self) -> dict:
@@ -213,6 +215,8 @@ def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, Parti
         if frame:
             t0 = float(times[frame - 1])
             count = substeps(t1 - t0, dt) if method in FIXED_METHODS else 1
+            if method in FIXED_METHODS:
+                stats.dt, stats.substeps_per_frame = (t1 - t0) / count, count
             for run in runs:
                 with np.errstate(all="ignore"):  # a diverging particle is caught by check(), once per frame
                     for k in range(count):
