@@ -202,3 +202,32 @@ def test_advice_without_springs_or_encounters_names_the_fastest_body():
     implicit = failure_advice(model, "BDF", model.y0, 0.3, "runaway")
     assert "'runaway'" in implicit and "already implicit, so stiffness is not the cause" in implicit
     assert "Radau or BDF" not in implicit and "verlet" in implicit
+
+
+def test_a_plunge_in_a_scene_with_contacts_gets_the_same_advice_fitted_to_its_contact_settings():
+    """With a floor and contacts between bodies switched off, Radau fails at the same free-fall time inside the
+    contact path: the message names the pair and says how to let them collide in this scene (contacts.bodies)."""
+    text = PLUNGE.format(method="Radau").replace("position: [-0.5, 0, 0]", "position: [-0.5, 5, 0]").replace(
+        "position: [0.5, 0, 0]", "position: [0.5, 5, 0]") + "    colliders: [{type: plane}]\n    contacts: {bodies: false}\n"
+    with pytest.raises(SimulationError) as caught:
+        run(text)
+    message = str(caught.value)
+    assert caught.value.time == pytest.approx(FREE_FALL_TIME, abs=1e-3)
+    assert "with contacts" in message and "Bodies 'star' and 'planet' come" in message
+    assert "let the bodies collide (contacts.bodies: true)" in message and "Radau or BDF" not in message
+
+
+def test_emitted_particles_that_blow_up_stop_the_run_naming_the_emitter_and_the_fix():
+    """Quadratic drag of 1 N·s²/m² on 1 mg particles at 5 m/s: a = c v² / m = 2.5e7 m/s², so Verlet's 10 ms step
+    overshoots by orders of magnitude each step; the run stops naming the emitter, a smaller dt and backward_euler."""
+    with pytest.raises(SimulationError) as caught:
+        run("""
+            duration: 0.5
+            solver: {method: verlet, dt: 0.01}
+            emitters:
+              - {name: jet, rate: 100, lifetime: 1, speed: 5, mass: 1.0e-6, source: {type: point}}
+            fields: [{type: drag, model: quadratic, coefficient: 1.0}]
+        """)
+    message = str(caught.value)
+    assert "particles of emitter 'jet' left the finite numbers" in message
+    assert "lower solver.dt" in message and "backward_euler" in message and caught.value.body == "jet"

@@ -40,7 +40,8 @@ from animbatch.contact.stepping import DEFAULT_REST_SPEED
 from animbatch.errors import SimulationError
 from animbatch.forces import Kinematics
 from animbatch.integrators.base import CountingRhs, FrameCallback, IntegrationResult, SolverStats
-from animbatch.integrators.guard import divergence_error, first_non_finite
+from animbatch.integrators.advice import failure_advice
+from animbatch.integrators.guard import divergence_error, fastest_body, first_non_finite
 from animbatch.model.dynamics import Dynamics
 from animbatch.rigid.quaternion import cross
 
@@ -553,9 +554,12 @@ def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any
                 before = solver.y.copy()
                 message = solver.step()
                 if solver.status == "failed":
-                    raise SimulationError(f"{method} failed at t = {solver.t:.6g} s with contacts: {message}. A "
-                                          "fixed-step method (symplectic_euler) is more robust for scenes with many "
-                                          "contacts.", time=solver.t)
+                    body = fastest_body(layout, fun(solver.t, solver.y), solver.y, float(np.max(options["atol"])),
+                                        options["rtol"])
+                    raise SimulationError(
+                        f"{method} failed at t = {solver.t:.6g} s with contacts: {message} "
+                        + failure_advice(system.model, method, solver.y, solver.t, body) + ". A fixed-step method "
+                        "(symplectic_euler) is more robust for scenes with many contacts.", time=solver.t, body=body)
                 stats.count_step(solver.t - solver.t_old)
                 bad = first_non_finite(solver.y)
                 if bad is not None:

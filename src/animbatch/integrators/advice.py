@@ -34,14 +34,25 @@ class Encounter:
     distance: float
     touching: float
     time: float | None = None
+    collide: str = "a 'contacts: {}' section"  # what makes them collide in this scene
 
     def advice(self) -> str:
         when = f" at t ≈ {self.time:.4g} s" if self.time is not None else ""
         return (f"Bodies {self.first!r} and {self.second!r} come {self.distance:.3g} m apart{when}, closer than "
                 f"their radii together ({self.touching:.3g} m), and the gravitation field has no softening, so the "
                 f"1/r² force between them grows without bound. Give the gravitation field a softening length "
-                f"(softening: {max(0.5 * self.touching, 1e-12):.3g}), let the bodies collide (a 'contacts: {{}}' "
-                "section), or make their radii match their closest approach")
+                f"(softening: {max(0.5 * self.touching, 1e-12):.3g}), let the bodies collide ({self.collide}), or "
+                "make their radii match their closest approach")
+
+
+def _collide_hint(model: object) -> str:
+    """What to change in the scene so that bodies collide."""
+    world = getattr(model, "contact_world", None)
+    if world is None:
+        return "a 'contacts: {}' section"
+    if not world.bodies_collide:
+        return "contacts.bodies: true"
+    return "remove 'collide: false' from them"
 
 
 def closest_encounter(model: object, positions: np.ndarray, times: np.ndarray | None = None) -> Encounter | None:
@@ -78,7 +89,7 @@ def closest_encounter(model: object, positions: np.ndarray, times: np.ndarray | 
                 when = None if times is None else float(times[k] if not k else times[k - 1] + fraction[i, j] * (
                     times[k] - times[k - 1]))
                 worst = (ratio[i, j], Encounter(names[index[i]], names[index[j]], float(distance[i, j]),
-                                                float(touching[i, j]), when))
+                                                float(touching[i, j]), when, _collide_hint(model)))
     return None if worst is None else worst[1]
 
 
