@@ -308,7 +308,8 @@ def test_plot_of_a_scene_without_bodies_is_a_usage_error(tmp_cwd):
 
 
 def test_a_cached_bake_is_judged_again_with_a_new_threshold_without_simulating(tmp_path):
-    """Changing solver.drift_warning reuses the bake (same cache file) and re-judges its ledger."""
+    """Changing solver.drift_warning reuses the bake (same cache file) and re-judges its ledger; reusing it tells
+    its warnings again."""
     from animbatch.farm import bake
 
     text = KEPLER.format(duration=2.0, solver="{method: euler, dt: 1.0e-3}")
@@ -319,3 +320,5 @@ def test_a_cached_bake_is_judged_again_with_a_new_threshold_without_simulating(t
     again = bake(scene(text, "solver.drift_warning=0.9"), out_dir=tmp_path)
     assert again.reused and again.path == first.path
     assert again.trajectory.ledger["drift_warning"] == 0.9 and again.trajectory.ledger["warnings"] == []
+    with pytest.warns(AccuracyWarning, match="the energy drifted by"):  # a reused bake tells its warnings again
+        assert bake(scene(text), out_dir=tmp_path).reused

@@ -28,7 +28,7 @@ from animbatch.files import write_json_atomic
 from animbatch.integrators import DEFAULT_DT, IntegrationResult, SolverStats, make_integrator
 from animbatch.integrators.guard import check_energy_growth
 from animbatch.integrators.preflight import preflight
-from animbatch.ledger import build_ledger
+from animbatch.ledger import build_ledger, warn_again
 from animbatch.ledger import summary as ledger_summary
 from animbatch.model import Dynamics, Model, compile_scene
 from animbatch.progress import Progress
@@ -346,6 +346,7 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
         with watch.stage("load_trajectory"):
             trajectory = Trajectory.load(trajectory_path)
             check_trajectory(scene, model, trajectory, trajectory_path)  # before rendering, naming the file
+            warn_again(trajectory.ledger)
         source = Path(trajectory_path)
     else:
         try:

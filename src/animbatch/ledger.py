@@ -325,6 +325,12 @@ def with_threshold(ledger: dict[str, Any], drift_warning: float) -> dict[str, An
     return judged
 
 
+def warn_again(ledger: dict[str, Any]) -> None:
+    """Issue a stored ledger's warnings again (a run from a cached bake or a trajectory file tells them too)."""
+    for message in ledger.get("warnings", []):
+        warnings.warn(message, AccuracyWarning, stacklevel=2)
+
+
 def build_ledger(model: Model, states: np.ndarray, stats: dict[str, Any], particle_stats: dict[str, Any], *,
                  method: str, adaptive: bool, requested_dt: float | None, rtol: float | None,
                  drift_warning: float = DEFAULT_DRIFT_WARNING, series: QuantitySeries | None = None) -> Ledger:

@@ -94,6 +94,9 @@ def bake(scene: LoadedScene, *, out_dir: str | Path = "renders", model: object =
     started = time.perf_counter()
     cached = None if force else load_cached(scene, path)
     if cached is not None:
+        from animbatch.ledger import warn_again
+
+        warn_again(cached.ledger)  # what the run said when it was baked holds for every use of the bake
         return BakeResult(cached, path, True, time.perf_counter() - started)
     checkpoint = (checkpoint_every, path.with_name(f"checkpoint-{bake_key(scene)}.npz")) if checkpoint_every else None
     trajectory = simulate(scene, model=model, progress=progress, checkpoint=checkpoint)  # type: ignore[arg-type]
