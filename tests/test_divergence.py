@@ -208,7 +208,8 @@ def test_a_plunge_in_a_scene_with_contacts_gets_the_same_advice_fitted_to_its_co
     """With a floor and contacts between bodies switched off, Radau fails at the same free-fall time inside the
     contact path: the message names the pair and says how to let them collide in this scene (contacts.bodies)."""
     text = PLUNGE.format(method="Radau").replace("position: [-0.5, 0, 0]", "position: [-0.5, 5, 0]").replace(
-        "position: [0.5, 0, 0]", "position: [0.5, 5, 0]") + "    colliders: [{type: plane}]\n    contacts: {bodies: false}\n"
+        "position: [0.5, 0, 0]", "position: [0.5, 5, 0]")
+    text += "    colliders: [{type: plane}]\n    contacts: {bodies: false}\n"
     with pytest.raises(SimulationError) as caught:
         run(text)
     message = str(caught.value)

@@ -265,7 +265,9 @@ class Ledger:
 
 def step_note(requested_dt: float | None, used: float | None, interval: float | None) -> str | None:
     """Why a fixed step ``used`` [s] differs from ``solver.dt`` (None when it does not, to :data:`DT_DIFFERS`)."""
-    if used is None or requested_dt is None or interval is None or abs(used - requested_dt) <= DT_DIFFERS * requested_dt:
+    if used is None or requested_dt is None or interval is None:
+        return None
+    if abs(used - requested_dt) <= DT_DIFFERS * requested_dt:
         return None
     return f"the largest step ≤ solver.dt = {requested_dt:.4g} s that divides the frame interval {interval:.4g} s"
 
