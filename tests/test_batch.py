@@ -51,6 +51,9 @@ solver: {method: euler, dt: 0.01}
         report = json.loads((tmp_cwd / "renders" / name / "report.json").read_text())
         assert report["status"] == "ok" and report["frames_drawn"] == frames
         assert report["render_tasks"] == -(-frames // 20)
+        assert report["ledger"]["conservation"]["energy"]["conserved"] is True  # each job's accuracy ledger
+        csv_rows = (tmp_cwd / "renders" / name / "quantities.csv").read_text().splitlines()
+        assert len(csv_rows) == 1 + frames
     assert not (tmp_cwd / "renders" / "bad" / "bad.mp4").exists()
     failed = json.loads((tmp_cwd / "renders" / "bad" / "report.json").read_text())
     assert failed["status"] == "failed" and failed["exit_code"] == 3 and "'" in failed["error"]
@@ -167,3 +170,14 @@ sweep:
                                               "bob-stiffness-80-velocity-0_0_0", "bob-stiffness-80-velocity-1_0_0"]
     assert planned[3].overrides == ("sweep={}", "springs[0].stiffness=80", "bodies[bob].velocity=[1, 0, 0]",
                                     "name=bob-stiffness-80-velocity-1_0_0")
+
+
+def test_the_batch_summary_says_when_a_job_ran_but_its_ledger_warns():
+    """A job that succeeded with an accuracy warning is marked so in the table, with the warning's start."""
+    from animbatch.farm.batch import JobResult, summary
+
+    warned = JobResult("orbit", "ok", 30, 2.0, metrics={"ledger": {"warnings": ["the energy drifted by 30 %"]}})
+    clean = JobResult("ball", "ok", 30, 1.0, metrics={"ledger": {"warnings": []}})
+    lines = summary([warned, clean]).splitlines()
+    assert "ok with 1 accuracy warning: the energy drifted by 30 %" in lines[2]
+    assert lines[3].endswith("ok")
