@@ -26,11 +26,14 @@ from animbatch import __version__
 from animbatch.errors import SimulationError, TrajectoryError
 from animbatch.files import write_json_atomic
 from animbatch.integrators import DEFAULT_DT, IntegrationResult, SolverStats, make_integrator
+from animbatch.integrators.budget import wall_budget
+from animbatch.integrators.cost import check_cost, estimate_cost
 from animbatch.integrators.guard import check_energy_growth
 from animbatch.integrators.preflight import preflight
 from animbatch.ledger import build_ledger, warn_again
 from animbatch.ledger import summary as ledger_summary
 from animbatch.model import Dynamics, Model, compile_scene
+from animbatch.particles.compile import pool_sizes
 from animbatch.progress import Progress
 from animbatch.scene import LoadedScene, load_scene, physics_fingerprint
 from animbatch.scene.overrides import Override
@@ -52,23 +55,13 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
     integrator = make_integrator(spec.solver)
     progress = progress or Progress(enabled=False)
     warnings = preflight(spec, model)  # risky settings, with numbers (what is certain to fail is refused)
-    if model.layout.size:
-        with progress.task("simulate", len(model.frame_times)) as on_frame:
-            if checkpoint is None:
-                result = integrator.integrate(Dynamics(model), model.y0, model.frame_times, on_frame=on_frame)
-            else:
-                from animbatch.farm.checkpoint import integrate_with_checkpoints
-
-                every, path = checkpoint
-                result = integrate_with_checkpoints(integrator, Dynamics(model), model.y0, model.frame_times,
-                                                    every=every, path=Path(path), on_frame=on_frame)
-        check_energy_growth(model, result.states, spec.solver.method, result.stats.dt)
-    else:  # a scene of emitters only: no body to integrate
-        result = IntegrationResult(np.zeros((len(model.frame_times), 0)), SolverStats(spec.solver.method))
+    cost = estimate_cost(model, spec.solver, pool_sizes(spec))
+    check_cost(cost, spec.solver.max_cost)  # refuse what would run for hours or cannot fit, before it starts
+    with wall_budget(spec.solver.max_cost, float(model.frame_times[0]), float(model.frame_times[-1])):
+        result, particles, particle_stats = _integrate(scene, model, integrator, progress, checkpoint)
     states = result.states
     kinds = ("particle",) * model.particle_count + ("rigid",) * model.rigid_count
-    particles, particle_stats = simulate_emitters(scene, model, states, progress)
-    stats = result.stats.as_dict()
+    stats = {**result.stats.as_dict(), "estimated_seconds": cost.seconds}
     ledger = build_ledger(model, states, stats, particle_stats, method=spec.solver.method,
                           adaptive=spec.solver.is_adaptive, requested_dt=spec.solver.dt or DEFAULT_DT,
                           rtol=spec.solver.rtol, drift_warning=spec.solver.drift_warning)
@@ -81,6 +74,26 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
         solver={**spec.solver.model_dump(), "description": integrator.describe()},
         solver_stats={**stats, "warnings": warnings}, particles=tuple(particles), particle_stats=particle_stats,
         ledger=ledger.as_dict())
+
+
+def _integrate(scene: LoadedScene, model: Model, integrator: Any, progress: Progress,
+               checkpoint: tuple[int, Path] | None) -> tuple[IntegrationResult, list, dict[str, Any]]:
+    """The bodies' states at the frame times, then the emitted particles (which may ride on bodies)."""
+    if model.layout.size:
+        with progress.task("simulate", len(model.frame_times)) as on_frame:
+            if checkpoint is None:
+                result = integrator.integrate(Dynamics(model), model.y0, model.frame_times, on_frame=on_frame)
+            else:
+                from animbatch.farm.checkpoint import integrate_with_checkpoints
+
+                every, path = checkpoint
+                result = integrate_with_checkpoints(integrator, Dynamics(model), model.y0, model.frame_times,
+                                                    every=every, path=Path(path), on_frame=on_frame)
+        check_energy_growth(model, result.states, scene.spec.solver.method, result.stats.dt)
+    else:  # a scene of emitters only: no body to integrate
+        result = IntegrationResult(np.zeros((len(model.frame_times), 0)), SolverStats(scene.spec.solver.method))
+    particles, particle_stats = simulate_emitters(scene, model, result.states, progress)
+    return result, particles, particle_stats
 
 
 def simulate_emitters(scene: LoadedScene, model: Model, states: np.ndarray, progress: Progress

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import functools
 import json
+import re
 import sys
 import warnings
 from collections.abc import Callable
@@ -54,17 +55,34 @@ def _scene_options(command: F) -> F:
         click.option("--atol", metavar="NUMBER", help="Absolute tolerance (solver.atol)."),
         click.option("--max-step", metavar="SECONDS", help="Largest adaptive step (solver.max_step)."),
         click.option("--fps", metavar="N", help="Frames per second (fps)."),
+        click.option("--max-cost", metavar="TIME", help="Wall-time budget of the simulation (solver.max_cost): "
+                                                       "seconds, or 30min, 2h; 0 = no limit."),
     ]
     for option in reversed(options):
         command = option(command)
     return command
 
 
+_TIME_UNITS = {"": 1, "s": 1, "min": 60, "m": 60, "h": 3600, "d": 86400}
+
+
+def _seconds(text: str) -> str:
+    """'90', '90s', '30min', '2h', '1d' -> seconds, as text for the override; anything else is passed on unchanged,
+    so that the scene's validation reports it with the key's rules."""
+    match = re.fullmatch(r"\s*([0-9.eE+-]+)\s*(s|min|m|h|d|)\s*", text)
+    if match is None:
+        return text
+    try:
+        return repr(float(match.group(1)) * _TIME_UNITS[match.group(2)])
+    except ValueError:
+        return text
+
+
 def _overrides(settings: tuple[str, ...], **shortcuts: str | None) -> list[Override]:
     """Command-line settings as overrides; shortcuts such as --dt keep their own spelling for error messages."""
     # Values stay text here: they are read as YAML and validated with the scene, like --set.
     keys = {"method": "solver.method", "dt": "solver.dt", "rtol": "solver.rtol", "atol": "solver.atol",
-            "max_step": "solver.max_step", "fps": "fps", "resolution": "render.resolution", "formats": "render.formats"}
+            "max_step": "solver.max_step", "fps": "fps", "max_cost": "solver.max_cost", "resolution": "render.resolution", "formats": "render.formats"}
     result: list[Override] = list(settings)
     for name, value in shortcuts.items():
         if value is None:
@@ -75,6 +93,8 @@ def _overrides(settings: tuple[str, ...], **shortcuts: str | None) -> list[Overr
             result.append((f"render.resolution=[{width},{height}]", f"{flag} {value}"))
         elif name == "formats":
             result.append((f"render.formats=[{value}]", f"{flag} {value}"))
+        elif name == "max_cost":
+            result.append((f"{keys[name]}={_seconds(value)}", f"{flag} {value}"))
         else:
             result.append((f"{keys[name]}={value}", f"{flag} {value}"))
     return result

@@ -41,6 +41,7 @@ from animbatch.errors import SimulationError
 from animbatch.forces import Kinematics
 from animbatch.integrators.base import CountingRhs, FrameCallback, IntegrationResult, SolverStats
 from animbatch.integrators.advice import failure_advice
+from animbatch.integrators.budget import budget_spent
 from animbatch.integrators.guard import divergence_error, fastest_body, first_non_finite
 from animbatch.model.dynamics import Dynamics
 from animbatch.rigid.quaternion import cross
@@ -561,6 +562,14 @@ def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any
                         + failure_advice(system.model, method, solver.y, solver.t, body) + ". A fixed-step method "
                         "(symplectic_euler) is more robust for scenes with many contacts.", time=solver.t, body=body)
                 stats.count_step(solver.t - solver.t_old)
+                spent = budget_spent(solver.t)
+                if spent is not None:
+                    body = fastest_body(layout, fun(solver.t, solver.y), solver.y, float(np.max(options["atol"])),
+                                        options["rtol"])
+                    raise SimulationError(f"{method} stopped at t = {solver.t:.6g} s with contacts: {spent} "
+                                          f"({stats.steps} steps, {events.events} contact events so far). "
+                                          + failure_advice(system.model, method, solver.y, solver.t, body) + ".",
+                                          time=solver.t, body=body)
                 bad = first_non_finite(solver.y)
                 if bad is not None:
                     raise divergence_error(layout, solver.y, bad, solver.t, method=method, step=stats.steps,

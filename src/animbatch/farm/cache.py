@@ -24,7 +24,7 @@ from animbatch.trajectory import Trajectory
 
 
 #: Solver keys that judge a run rather than shape it: changing them re-judges a cached bake, never re-simulates.
-JUDGING_KEYS = ("drift_warning", "description")
+JUDGING_KEYS = ("drift_warning", "max_cost", "description")
 
 
 def simulation_settings(solver: dict) -> dict:

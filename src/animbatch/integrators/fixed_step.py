@@ -35,7 +35,9 @@ from typing import Any
 
 import numpy as np
 
+from animbatch.errors import SimulationError
 from animbatch.integrators.base import EquationsOfMotion, FrameCallback, IntegrationResult, Integrator, SolverStats
+from animbatch.integrators.budget import budget_spent
 from animbatch.integrators.guard import divergence_error, first_non_finite
 
 DEFAULT_DT = 1e-3  # s
@@ -270,7 +272,10 @@ class FixedStepIntegrator(Integrator):
             saved_state, saved_scheme = y.copy(), scheme.snapshot()
             for i in range(count):
                 scheme.step(t0 + i * h, y, h)
+                if i % 64 == 63:  # a clock read per 64 steps; a frame may hold 10⁶ of them
+                    self._check_budget(t0 + (i + 1) * h, h, count)
             stats.steps += count
+            self._check_budget(t1, h, count)
             if first_non_finite(y) is not None:
                 # Checked once per frame to keep the loop cheap; replay the frame to find the exact step.
                 y[...] = saved_state
@@ -280,6 +285,11 @@ class FixedStepIntegrator(Integrator):
             if on_frame is not None:
                 on_frame(frame, t1)
         return largest_step
+
+    def _check_budget(self, t: float, h: float, count: int) -> None:
+        spent = budget_spent(t)
+        if spent is not None:
+            raise SimulationError(f"{self.method} at dt = {h:.3g} s ({count} steps per frame): {spent}", time=t)
 
     def _raise_at_first_bad_step(self, scheme: Scheme, layout: Any, y: np.ndarray, t0: float, h: float, count: int,
                                  steps_before: int) -> None:

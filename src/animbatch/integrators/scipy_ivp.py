@@ -23,6 +23,7 @@ from animbatch.errors import SimulationError
 from animbatch.integrators.base import (CountingRhs, EquationsOfMotion, FrameCallback, IntegrationResult, Integrator,
                                         SolverStats)
 from animbatch.integrators.advice import failure_advice
+from animbatch.integrators.budget import budget_spent
 from animbatch.integrators.guard import divergence_error, fastest_body, first_non_finite
 
 SCIPY_METHODS: dict[str, type[OdeSolver]] = {
@@ -138,6 +139,10 @@ class ScipyIntegrator(Integrator):
                 if tiny > STALL_STEPS:
                     raise self._failure(solver, fun, system, f"its last {STALL_STEPS} steps were all shorter than "
                                         f"{stall_step:.2g} s, so it has stalled ({stats.steps} steps so far).")
+                spent = budget_spent(solver.t)
+                if spent is not None:
+                    raise self._failure(solver, fun, system, f"{spent} ({stats.steps} steps so far, the last "
+                                        f"{solver.t - solver.t_old:.3g} s long).")
                 bad = first_non_finite(solver.y)
                 if bad is not None:
                     raise divergence_error(layout, solver.y, bad, solver.t, method=self.method, step=stats.steps,

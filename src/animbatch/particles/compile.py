@@ -28,6 +28,21 @@ class ParticleSystems:
         return next(e for e in self.emitters if e.name == name)
 
 
+def pool_sizes(spec: SceneSpec) -> list[tuple[str, int, float]]:
+    """(emitter name, pool capacity, particles born over the animation) of each emitter, without allocating the
+    pools: what the cost pre-flight needs."""
+    sizes = []
+    for item in spec.emitters:
+        schedule = EmissionSchedule.from_spec(item, spec.duration)
+        sizes.append((item.name, _capacity(item, schedule, spec.duration), float(schedule.born_by(spec.duration))))
+    return sizes
+
+
+def _capacity(item: Any, schedule: EmissionSchedule, duration: float) -> int:
+    """Slots of an emitter's pool: its declared capacity, or the most its rate, bursts and longest life keep alive."""
+    return int(item.capacity or max(1, schedule.most_alive(Law.of(item.lifetime).largest, duration)))
+
+
 def compile_particles(spec: SceneSpec, model: Any, base_dir: Path = Path(".")) -> ParticleSystems | None:
     """The particle systems of a scene (None when it declares no emitters). ``model`` gives the bodies that
     emitters move with (their index in the trajectory, centre of mass and surface)."""
@@ -47,7 +62,7 @@ def compile_particles(spec: SceneSpec, model: Any, base_dir: Path = Path(".")) -
             geometry = model.rigid.geometry[rigid]
         schedule = EmissionSchedule.from_spec(item, spec.duration)
         lifetime = Law.of(item.lifetime)
-        capacity = item.capacity or max(1, schedule.most_alive(lifetime.largest, spec.duration))
+        capacity = _capacity(item, schedule, spec.duration)
         mean, spread, distribution = color_law(item.color)
         axis = None
         if item.direction.axis != "normal":

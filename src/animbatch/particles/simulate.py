@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from animbatch.errors import SimulationError
+from animbatch.integrators.budget import budget_spent
 from animbatch.integrators.fixed_step import substeps
 from animbatch.particles.body_motion import BodyMotion
 from animbatch.particles.collisions import MAX_BOUNCES, SURFACE_GAP, ParticleColliders, bounce
@@ -187,6 +188,12 @@ class EmitterRun:
                 "which takes drag implicitly", time=t, body=self.emitter.name)
 
 
+def _check_budget(t: float, stats: ParticleStats) -> None:
+    spent = budget_spent(t, "the emitted particles' simulation")
+    if spent is not None:
+        raise SimulationError(f"{spent}; up to {stats.peak_live} particles were alive at once", time=t)
+
+
 def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, ParticleColliders | None],
                        times: np.ndarray, solver: object, motion: BodyMotion | None, *, dt: float,
                        on_frame: Callable[[int, float], None] | None = None, record: bool = True
@@ -221,7 +228,10 @@ def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, Parti
                 with np.errstate(all="ignore"):  # a diverging particle is caught by check(), once per frame
                     for k in range(count):
                         run.step(t0 + (t1 - t0) * k / count, t0 + (t1 - t0) * (k + 1) / count)
+                        if k % 16 == 15:  # a frame may hold thousands of steps of a large pool
+                            _check_budget(t0 + (t1 - t0) * (k + 1) / count, stats)
                 run.check(t1)
+            _check_budget(t1, stats)
         for run, kept in zip(runs, records):
             pool = run.pool
             stats.peak_live = max(stats.peak_live, pool.live_count)

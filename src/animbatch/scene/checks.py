@@ -57,6 +57,11 @@ def _names(data: dict[str, Any], section: str) -> dict[str, KeyPath]:
     return names
 
 
+def _strings(items: list[Any]) -> list[tuple[int, str]]:
+    """(position, name) of the text items of a list of names; anything else is the schema's to report."""
+    return [(position, name) for position, name in enumerate(items) if isinstance(name, str)]
+
+
 def _body_list(data: dict[str, Any]) -> Iterator[Problem]:
     if data.get("bodies") in (None, []) and data.get("emitters") in (None, []):
         yield ("bodies",), "a scene needs at least one body (a list under 'bodies:') or emitter ('emitters:')"
@@ -98,14 +103,14 @@ def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str,
     for index, field in _items(data, "fields"):
         selection = field.get("bodies")
         if isinstance(selection, list):
-            for position, name in enumerate(selection):
+            for position, name in _strings(selection):
                 if name in emitters and name not in bodies and field.get("type") not in PARTICLE_FIELD_TYPES:
                     yield ("fields", index, "bodies", position), (
                         f"{name!r} is an emitter; {field.get('type')} does not act on emitted particles (only "
                         f"{', '.join(PARTICLE_FIELD_TYPES)} do)")
         if field.get("type") == "aerodynamics":
             if isinstance(selection, list):
-                for position, name in enumerate(selection):
+                for position, name in _strings(selection):
                     if name in bodies and name not in cloths:
                         yield ("fields", index, "bodies", position), (
                             f"{name!r} is not a cloth: aerodynamics acts on the faces of cloths (use a wind or drag "
@@ -114,7 +119,7 @@ def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str,
                 yield ("fields", index, "type"), "aerodynamics acts on cloths, and the scene has none"
         if field.get("type") in RIGID_ONLY_FIELDS:
             if isinstance(selection, list):
-                for position, name in enumerate(selection):
+                for position, name in _strings(selection):
                     if name in bodies and name not in rigid:
                         kind = "a cloth or lattice" if name in deformable else "a particle"
                         yield ("fields", index, "bodies", position), (
@@ -122,7 +127,7 @@ def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str,
             elif not rigid:
                 yield ("fields", index, "type"), f"{field['type']} acts on rigid bodies, and the scene has none"
         if isinstance(selection, list):
-            for position, name in enumerate(selection):
+            for position, name in _strings(selection):
                 if not isinstance(name, str) or name in bodies or name in emitters:
                     continue
                 known = [*bodies, *emitters]
@@ -243,6 +248,10 @@ def check_files(spec: Any, base_dir: Path) -> list[Problem]:
             shapes.append((("bodies", index, "shape"), body.shape))
     for path, shape in shapes:
         if isinstance(shape, MeshShape | MeshCollider | ClothMeshSpec):
+            outside = _outside_search_path(shape.file, base_dir)
+            if outside:
+                problems.append(((*path, "file"), outside))
+                continue
             try:
                 (load_surface if isinstance(shape, ClothMeshSpec) else load_mesh)(base_dir / shape.file, shape.scale)
             except ValueError as error:
@@ -251,6 +260,19 @@ def check_files(spec: Any, base_dir: Path) -> list[Problem]:
     if not problems:
         problems += _pin_selections(spec, base_dir)
     return problems
+
+
+def _outside_search_path(name: str, base_dir: Path) -> str | None:
+    """Why the mesh file ``name`` may not be read (an absolute path, or one that leaves the scene's folder), or None.
+
+    A scene is data that may come from anyone: it must not make us read ``/etc/shadow`` or ``../../secrets``."""
+    if Path(name).is_absolute():
+        return (f"mesh files are given relative to the scene's folder, not as absolute paths ({name!r}); copy the "
+                "file into the scene's folder (or a folder below it) and give its relative path")
+    if not (base_dir / name).resolve().is_relative_to(base_dir.resolve()):
+        return (f"{name!r} leads outside the scene's folder (through '..' or a link); mesh files are read only from "
+                "the scene's folder and the folders below it. Copy the file there")
+    return None
 
 
 def _pin_selections(spec: Any, base_dir: Path) -> list[Problem]:

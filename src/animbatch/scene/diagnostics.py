@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import difflib
 import typing
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,6 +33,7 @@ class Located:
     owner: type[BaseModel] | None  # the model that owns the last key of ``path``
     field: FieldInfo | None  # the last named field on the way (gives the unit of list items too)
     union_members: tuple[type[BaseModel], ...] = ()  # set when the location ends at a discriminated union
+    branch: str | None = None  # the member of a plain union (``number | list``) the error came from, if any
 
 
 def locate(root: type[BaseModel], loc: tuple[str | int, ...]) -> Located:
@@ -40,9 +42,19 @@ def locate(root: type[BaseModel], loc: tuple[str | int, ...]) -> Located:
     path: list[str | int] = []
     owner: type[BaseModel] | None = None
     field: FieldInfo | None = None
+    branch = None
     for part in loc:
         models = model_members(annotation)
         inner = union_members(strip_annotated(annotation))
+        if len(models) <= 1 and len(inner) > 1 and isinstance(part, str) and not (
+                models and part in models[0].model_fields):
+            # a plain union (number | list): pydantic names the member it tried ('float', 'list[...]'); not a key
+            listed = [a for a in inner if typing.get_origin(strip_annotated(a)) in (list, tuple)]
+            is_list = "list[" in part or "tuple[" in part
+            branch = "list" if is_list else "single"
+            annotation = (listed[0] if is_list and listed else
+                          next((a for a in inner if a not in listed), inner[0]))
+            continue
         if len(models) > 1:  # discriminated union: this part is the tag, not a key
             chosen = next((m for m in models if tag_of(m) == part), None)
             if chosen is not None:
@@ -62,7 +74,7 @@ def locate(root: type[BaseModel], loc: tuple[str | int, ...]) -> Located:
         args = typing.get_args(strip_annotated(sequence)) if sequence is not None else ()
         annotation = args[0] if args else None
     models = model_members(annotation)
-    return Located(tuple(path), owner, field, models if len(models) > 1 else ())
+    return Located(tuple(path), owner, field, models if len(models) > 1 else (), branch)
 
 
 def unit_of(field: FieldInfo | None) -> str:
@@ -179,12 +191,34 @@ def describe(error: dict[str, Any], located: Located) -> tuple[KeyPath, str, boo
 
 def issues_from_validation(error: ValidationError, root: type[BaseModel], source: SourceMap) -> list[SceneIssue]:
     """One SceneIssue per pydantic error, in file order."""
-    issues = []
+    found: dict[KeyPath, list[tuple[str, bool, bool]]] = {}  # path -> (message, at key, a type mismatch)
     for item in error.errors(include_url=False):
         located = locate(root, tuple(item["loc"]))
         path, message, at_key = describe(item, located)
-        issues.append(SceneIssue(source.source_of(path, key=at_key), format_path(path), message))
+        mismatch = located.branch is not None and str(item["type"]).endswith("_type")
+        found.setdefault(path, []).append((message, at_key, mismatch))
+    issues = []
+    for path, messages in found.items():
+        # A value of the right kind for one member of 'number | list' that breaks a rule there gets that rule only,
+        # not "must be a number" from the member it was never meant for; a value that fits no member gets one
+        # message naming them all.
+        deeper = any(len(other) > len(path) and other[:len(path)] == path for other in found)
+        kept = [m for m in messages if not m[2]]
+        if not kept and not deeper:
+            kept = [(_either(m[0] for m in messages), messages[0][1], True)]
+        issues += [SceneIssue(source.source_of(path, key=at_key), format_path(path), message)
+                   for message, at_key, _ in kept]
     return sort_issues(issues)
+
+
+def _either(messages: Iterable[str]) -> str:
+    """'must be a number (got 'x')' and 'must be a list (got 'x')' -> 'must be a number, or a list (got 'x')'."""
+    wanted, got = [], ""
+    for message in messages:
+        head, _, tail = message.partition(" (got ")
+        wanted.append(head.removeprefix("must be "))
+        got = got or (f" (got {tail}" if tail else "")
+    return "must be " + ", or ".join(dict.fromkeys(wanted)) + got
 
 
 def sort_issues(issues: list[SceneIssue]) -> list[SceneIssue]:

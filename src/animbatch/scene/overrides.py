@@ -11,10 +11,8 @@ import re
 from collections.abc import Sequence
 from typing import Any
 
-import yaml
-
 from animbatch.errors import SceneError, SceneIssue
-from animbatch.scene.yaml_source import KeyPath, SceneYamlLoader, SourceMap, format_path
+from animbatch.scene.yaml_source import KeyPath, SourceMap, format_path, load_yaml
 
 _TOKEN = re.compile(r"([^.\[\]]+)|\[([^\]]*)\]")
 
@@ -73,10 +71,11 @@ def _apply_one(data: Any, text: str, source: SourceMap, label: str) -> Any:
         parts = parse_key_path(raw_path.strip())
     except ValueError as error:
         raise _OverrideProblem("", str(error)) from None
-    try:
-        value = yaml.load(raw_value, Loader=SceneYamlLoader) if raw_value.strip() else None
-    except yaml.YAMLError as error:
-        raise _OverrideProblem(raw_path, f"cannot read the value as YAML: {error}") from None
+    try:  # the same reader as scene files: same limits, same number range
+        value = load_yaml(raw_value, label)[0] if raw_value.strip() else None
+    except SceneError as error:
+        reason = "; ".join(issue.message for issue in error.issues)
+        raise _OverrideProblem(raw_path, f"cannot read the value as YAML: {reason}") from None
     if not isinstance(data, dict):
         raise _OverrideProblem("", "the scene's top level is not a mapping")
 

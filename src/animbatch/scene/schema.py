@@ -133,6 +133,10 @@ class SolverSpec(SceneModel):
     dt: float | None = key(None, "Step of fixed-step methods (default 1e-3 s). The step used is the largest one "
                                  "<= dt that divides the frame interval 1/fps, so that frames fall on steps.",
                            "s", gt=0)
+    max_cost: float = key(3600.0, "Wall-time budget of one simulation. Before it starts, a run estimated to take "
+                                  "longer is refused, naming what makes it expensive; a run that reaches it anyway "
+                                  "stops with exit code 3, saying how far it got. 0 = no limit. The command line's "
+                                  "--max-cost takes seconds or 30min, 2h.", "s", ge=0)
     drift_warning: float = key(0.01, "Relative drift of a conserved quantity (energy, momentum, angular momentum) "
                                      "above which a run warns, naming the quantity and what to change; 0.01 is 1 % "
                                      "of the quantity's scale in the scene (see the accuracy ledger).", "1", gt=0)
@@ -1050,7 +1054,8 @@ class EmitterSpec(SceneModel):
                                   "coordinates, and turns with it.")
     inherit_velocity: float = key(1.0, "Fraction of the body's velocity at the birth point that particles start "
                                        "with (with 'body').", "1")
-    rate: float | Annotated[list[RateKeyframe], at.Len(1, 100000), AfterValidator(_increasing_times)] = key(
+    rate: Annotated[float, Field(ge=0)] | Annotated[list[RateKeyframe], at.Len(1, 100000),
+                                                  AfterValidator(_increasing_times)] = key(
         0.0, "Particles per second: a number, or keyframes [{time, rate}] (linear between keys, held outside "
              "them). Fractions of a particle carry over exactly: rate × time particles are born by any time.",
         "1/s", example=500)

@@ -8,6 +8,13 @@ Scalars follow YAML 1.2 (core schema) rather than PyYAML's YAML 1.1 defaults, be
 authors: ``1e-6`` would be a string (1.1 floats need a dot), ``no``/``on`` would be booleans, ``012`` would be octal 10.
 Only ``true``/``false`` are booleans here, and ``1e-6`` is a float. No tag that constructs Python objects is accepted
 (the loader derives from ``SafeLoader``). Duplicate keys are errors instead of silently keeping the last one.
+
+Hostile documents are refused before they cost anything: the text's size, the nesting depth and the number of nodes
+*after expanding aliases* (an alias bomb, "billion laughs", is a few lines that expand to 10⁹ nodes) are counted on
+PyYAML's event stream while the nodes are composed, by a loop rather than PyYAML's recursive composer, so a document
+nested thousands of levels deep gives a SceneError, not a RecursionError. Once composed, a document is at most
+``MAX_DEPTH`` levels deep, aliases included, which bounds every later walk of it. Numbers too large or too small to
+be physical (``1e300`` m, ``1e-300`` kg) are refused here too, with their position, because they overflow later.
 """
 
 from __future__ import annotations
@@ -22,8 +29,15 @@ from animbatch.errors import SceneError, SceneIssue
 
 KeyPath = tuple[str | int, ...]
 
-#: More nodes than this (after expanding aliases) is refused, so that an alias bomb cannot exhaust memory.
+#: Largest scene file [bytes]: far above any hand-written scene (a 100 000-point polyline is ~4 MB).
+MAX_DOCUMENT_BYTES = 16 * 1024 * 1024
+#: Deepest nesting of mappings and lists, counting what aliases expand to (real scenes nest about 6 levels).
+MAX_DEPTH = 64
+#: Most nodes (keys, values, list items) after expanding aliases, so that an alias bomb cannot exhaust memory.
 MAX_NODES = 2_000_000
+#: Numbers in a scene are 0 or have a magnitude in this range [SI units]: from an electron's mass (9.1e-31 kg) to
+#: fifty thousand suns (1e35 kg). Beyond it, squares and products overflow or underflow float64 in the physics.
+NUMBER_RANGE = (1e-35, 1e35)
 
 
 @dataclass(frozen=True)
@@ -76,8 +90,9 @@ def format_path(path: KeyPath) -> str:
     return text
 
 
-class SceneYamlLoader(yaml.SafeLoader):
-    """``SafeLoader`` with YAML 1.2 core-schema booleans, integers and floats."""
+class SceneYamlLoader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
+    """``SafeLoader`` with YAML 1.2 core-schema booleans, integers and floats; libyaml's parser where PyYAML was
+    built with it (30× faster: a 10 MB file parses in seconds, not minutes)."""
 
 
 _BOOL_TAG = "tag:yaml.org,2002:bool"
@@ -125,13 +140,9 @@ class _Builder:
         self.loader = loader
         self.source = source
         self.issues: list[SceneIssue] = []
-        self.node_count = 0
 
     def build(self, node: yaml.Node, path: KeyPath) -> Any:
-        self.node_count += 1
-        if self.node_count > MAX_NODES:
-            raise SceneError([SceneIssue(self.source.filename, "",
-                                         f"the document expands to more than {MAX_NODES} nodes (alias loop?)")])
+        """Plain data of ``node``. Recursive, but only ``MAX_DEPTH`` deep: the composer has checked the depth."""
         self.source.values.setdefault(path, _position(node.start_mark))
         if not isinstance(node, yaml.ScalarNode) and node.tag not in _PLAIN_COLLECTION_TAGS:
             # SafeLoader would refuse these too, but only when constructing; we build collections ourselves.
@@ -143,7 +154,21 @@ class _Builder:
             return self._mapping(node, path)
         if isinstance(node, yaml.SequenceNode):
             return [self.build(item, (*path, index)) for index, item in enumerate(node.value)]
-        return self.loader.construct_object(node, deep=True)
+        return self._scalar(node, path)
+
+    def _scalar(self, node: yaml.ScalarNode, path: KeyPath) -> Any:
+        try:
+            value = self.loader.construct_object(node, deep=True)
+        except ValueError:  # Python refuses to read integers of more than 4300 digits
+            value = None
+            problem: str | None = f"the number {node.value[:20]}… has {len(node.value)} digits; " + _range_text()
+        else:
+            problem = number_problem(value)
+        if problem is not None:
+            where = _position(node.start_mark)
+            self.issues.append(SceneIssue(f"{self.source.filename}:{where.line}:{where.column}", format_path(path),
+                                          problem))
+        return value
 
     def _mapping(self, node: yaml.MappingNode, path: KeyPath) -> dict[Any, Any]:
         # Keys written in this mapping (as opposed to merged in with '<<: *anchor'); only these can be duplicates.
@@ -176,9 +201,13 @@ class _Builder:
 def load_yaml(text: str, filename: str) -> tuple[Any, SourceMap]:
     """Parse one YAML document into plain data and a SourceMap; raise SceneError on any problem."""
     source = SourceMap(filename)
+    if len(text) > MAX_DOCUMENT_BYTES // 4 and len(text.encode("utf-8")) > MAX_DOCUMENT_BYTES:
+        raise SceneError([SceneIssue(filename, "", f"the file is {len(text.encode('utf-8')) / 2**20:.1f} MiB; scene "
+                                                   f"files are limited to {MAX_DOCUMENT_BYTES // 2**20} MiB "
+                                                   "(MAX_DOCUMENT_BYTES)")])
     loader = SceneYamlLoader(text)
     try:
-        node = loader.get_single_node()
+        node = _compose(loader, filename)
         if node is None:
             raise SceneError([SceneIssue(filename, "", "the scene file is empty")])
         builder = _Builder(loader, source)
@@ -192,6 +221,119 @@ def load_yaml(text: str, filename: str) -> tuple[Any, SourceMap]:
     if builder.issues:
         raise SceneError(builder.issues)
     return data, source
+
+
+def number_problem(value: Any) -> str | None:
+    """Why a loaded number cannot be physical (outside NUMBER_RANGE), or None. NaN and infinity are left to the
+    schema, which refuses them with the key's own rules."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    size = abs(value)
+    if size == 0 or size != size or size == float("inf") or NUMBER_RANGE[0] <= size <= NUMBER_RANGE[1]:
+        return None
+    return f"{value:.3g} is {'too large' if size > 1 else 'too small'}; " + _range_text()
+
+
+def _range_text() -> str:
+    low, high = NUMBER_RANGE
+    return (f"numbers in a scene are 0 or between {low:g} and {high:g} in size (SI units; from an electron's mass "
+            "to 50 000 suns), so that the physics cannot overflow. Choose units that bring the values into range "
+            "(e.g. G = 1 with scaled masses)")
+
+
+def _limit(filename: str, mark: yaml.Mark, message: str) -> SceneError:
+    where = _position(mark)
+    return SceneError([SceneIssue(f"{filename}:{where.line}:{where.column}", "", message)])
+
+
+def _compose(loader: SceneYamlLoader, filename: str) -> yaml.Node | None:
+    """The document's root node, composed from PyYAML's events by a loop (PyYAML's composer recurses once per level).
+
+    While composing, it counts nodes after expanding aliases and the depth they expand to, and stops at the first
+    event beyond MAX_NODES or MAX_DEPTH: an alias bomb or a deep document is refused in milliseconds.
+    """
+    loader.get_event()  # StreamStart
+    if loader.check_event(yaml.StreamEndEvent):
+        loader.get_event()
+        return None
+    loader.get_event()  # DocumentStart
+    anchors: dict[str, yaml.Node] = {}
+    expanded: dict[int, tuple[int, int]] = {}  # id(collection) -> (nodes it expands to, its height)
+    open_nodes: list[tuple[yaml.Node, int, list[int]]] = []  # (node, node count at its start, [height of children])
+    pending_key: list[yaml.Node | None] = []  # per open mapping: its key waiting for a value
+    count = 0
+    root: yaml.Node | None = None
+
+    def finish(node: yaml.Node, size: int, height: int, mark: yaml.Mark) -> yaml.Node | None:
+        nonlocal count
+        count += size
+        if count > MAX_NODES:
+            raise _limit(filename, mark, f"the document expands to more than {MAX_NODES:,} nodes (MAX_NODES), "
+                                         "counting what its aliases (*name) repeat; an alias bomb?")
+        if len(open_nodes) + height > MAX_DEPTH:
+            raise _limit(filename, mark, f"mappings and lists are nested more than {MAX_DEPTH} levels deep "
+                                         "(MAX_DEPTH), counting what aliases (*name) expand to; scenes need about 6")
+        if not open_nodes:
+            return node
+        parent, _, heights = open_nodes[-1]
+        heights.append(height)
+        if isinstance(parent, yaml.SequenceNode):
+            parent.value.append(node)
+        elif pending_key[-1] is None:
+            pending_key[-1] = node
+        else:
+            parent.value.append((pending_key[-1], node))
+            pending_key[-1] = None
+        return None
+
+    while root is None:
+        event = loader.get_event()
+        if isinstance(event, yaml.AliasEvent):
+            if event.anchor not in anchors:
+                raise yaml.composer.ComposerError(None, None, f"found undefined alias {event.anchor!r}",
+                                                  event.start_mark)
+            target = anchors[event.anchor]
+            if isinstance(target, yaml.CollectionNode) and id(target) not in expanded:
+                raise _limit(filename, event.start_mark, f"the alias *{event.anchor} is inside the collection it "
+                                                         "names, so it would repeat forever")
+            size, height = expanded.get(id(target), (1, 0))
+            root = finish(target, size, height, event.start_mark)
+        elif isinstance(event, yaml.ScalarEvent):
+            tag = event.tag
+            if tag is None or tag == "!":
+                tag = loader.resolve(yaml.ScalarNode, event.value, event.implicit)
+            node: yaml.Node = yaml.ScalarNode(tag, event.value, event.start_mark, event.end_mark, style=event.style)
+            if event.anchor is not None:
+                anchors[event.anchor] = node
+            root = finish(node, 1, 0, event.start_mark)
+        elif isinstance(event, yaml.CollectionStartEvent):
+            tag = event.tag
+            is_mapping = isinstance(event, yaml.MappingStartEvent)
+            kind = yaml.MappingNode if is_mapping else yaml.SequenceNode
+            if tag is None or tag == "!":
+                tag = loader.resolve(kind, None, event.implicit)
+            node = kind(tag, [], event.start_mark, None, flow_style=event.flow_style)
+            if event.anchor is not None:
+                anchors[event.anchor] = node
+            if len(open_nodes) >= MAX_DEPTH:
+                raise _limit(filename, event.start_mark, f"mappings and lists are nested more than {MAX_DEPTH} "
+                                                         "levels deep (MAX_DEPTH); scenes need about 6")
+            open_nodes.append((node, count, []))
+            pending_key.append(None)
+        else:  # SequenceEnd or MappingEnd
+            node, start, heights = open_nodes.pop()
+            pending_key.pop()
+            node.end_mark = event.end_mark
+            size, height = 1 + count - start, 1 + max(heights, default=0)
+            expanded[id(node)] = (size, height)
+            count = start  # its children were counted already; count it whole, once
+            root = finish(node, size, height, event.start_mark)
+    loader.get_event()  # DocumentEnd
+    if not loader.check_event(yaml.StreamEndEvent):
+        event = loader.get_event()
+        raise _limit(filename, event.start_mark,
+                     "the file holds more than one YAML document (---); a scene file holds exactly one")
+    return root
 
 
 def _syntax_issue(error: yaml.MarkedYAMLError, filename: str) -> SceneIssue:

@@ -1,0 +1,294 @@
+"""Bad input never gets a traceback, a hang or unbounded memory: regression tests for each defect the fuzzer and
+hand-made hostile files found, the YAML limits, the number range, file paths, and the cost pre-flight and budget."""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from click.testing import CliRunner
+
+from animbatch import api
+from animbatch.cli import cli
+from animbatch.errors import SceneError, SimulationError
+from animbatch.integrators.budget import wall_budget
+from animbatch.integrators.cost import CostEstimate, check_cost, estimate_cost
+from animbatch.model import compile_scene
+from animbatch.particles.compile import pool_sizes
+from animbatch.scene import load_scene, parse_scene
+from animbatch.scene.yaml_source import MAX_DEPTH, MAX_DOCUMENT_BYTES, MAX_NODES
+from conftest import scene
+
+GOOD = "bodies: [{name: ball, mass: 1.0, position: [0, 1, 0]}]\nfields: [{type: gravity}]\n"
+
+
+def refusal(text: str, *overrides: str) -> SceneError:
+    """The SceneError that ``text`` gets, checked to point at a line and column; and how long it took."""
+    with pytest.raises(SceneError) as caught:
+        parse_scene(text, filename="hostile.yaml", overrides=list(overrides))
+    for issue in caught.value.issues:
+        assert issue.source.startswith(("hostile.yaml:", "--set")) or "the file is" in issue.message, issue
+    return caught.value
+
+
+def timed_refusal(text: str, limit: float = 1.0) -> str:
+    start = time.perf_counter()
+    message = str(refusal(text))
+    elapsed = time.perf_counter() - start
+    assert elapsed < limit, f"took {elapsed:.2f} s to refuse"
+    return message
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# YAML limits
+
+
+def test_a_document_nested_thousands_deep_is_refused_without_recursion_error():
+    for text in ("bodies: " + "[" * 5000 + "]" * 5000,
+                 "bodies: " + "{a: " * 5000 + "1" + "}" * 5000,
+                 "".join(" " * i + f"k{i}:\n" for i in range(3000))):
+        message = timed_refusal(text)
+        assert f"more than {MAX_DEPTH} levels" in message or "maximum nesting depth" in message
+
+
+def test_an_alias_bomb_is_refused_in_milliseconds_naming_the_limit():
+    """The 'billion laughs': nine levels of nine aliases each expand to 9⁹ ≈ 4·10⁸ nodes."""
+    lines = ['a0: &a0 ["lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol"]']
+    lines += [f"a{i}: &a{i} [" + ", ".join([f"*a{i - 1}"] * 9) + "]" for i in range(1, 10)]
+    message = timed_refusal("\n".join(lines) + "\n", limit=0.2)
+    assert f"more than {MAX_NODES:,} nodes (MAX_NODES)" in message and "hostile.yaml:" in message
+
+
+def test_aliases_that_nest_deeper_than_the_limit_are_refused():
+    """Depth through aliases counts too: each alias wraps the previous one in one more list, and merge keys chain."""
+    chain = "a0: &a0 [1]\n" + "".join(f"a{i}: &a{i} [*a{i - 1}]\n" for i in range(1, 200))
+    assert f"more than {MAX_DEPTH} levels" in timed_refusal(chain)
+    merges = "a0: &a0 {x: 1}\n" + "".join(f"a{i}: &a{i} {{<<: *a{i - 1}, y{i}: 1}}\n" for i in range(1, 200))
+    assert f"more than {MAX_DEPTH} levels" in timed_refusal(merges)
+
+
+def test_a_self_referencing_alias_is_refused():
+    assert "repeat forever" in timed_refusal("bodies: &b [*b]\n")
+
+
+def test_an_oversized_file_is_refused_before_parsing():
+    text = GOOD + "#" * (MAX_DOCUMENT_BYTES + 1)
+    message = timed_refusal(text, limit=0.5)
+    assert "MAX_DOCUMENT_BYTES" in message and "MiB" in message
+
+
+def test_ordinary_aliases_and_merge_keys_still_work():
+    from animbatch.scene.yaml_source import load_yaml
+
+    data, _ = load_yaml("d: &x {m: 2, r: 0.1}\nb: [{<<: *x, n: a}, {<<: *x, n: b, m: 3}, *x]\n", "x.yaml")
+    assert data["b"] == [{"m": 2, "r": 0.1, "n": "a"}, {"m": 3, "r": 0.1, "n": "b"}, {"m": 2, "r": 0.1}]
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Numbers and names
+
+
+@pytest.mark.parametrize("value, word", [("1e300", "too large"), ("-1e300", "too large"), ("1e-300", "too small"),
+                                         ("9" * 5000, "5000 digits")])
+def test_absurd_numbers_are_refused_with_the_physical_range(value, word):
+    message = str(refusal(GOOD.replace("position: [0, 1, 0]", f"position: [0, {value}, 0]")))
+    assert word in message and "between 1e-35 and 1e+35" in message and "bodies[0].position[1]" in message
+    message = str(refusal(GOOD, f"bodies[ball].mass={value}"))
+    assert word in message
+
+
+def test_a_list_or_mapping_where_a_body_name_belongs_is_a_located_error_not_a_traceback():
+    """Found by the fuzzer: 'unhashable type' in the cross-reference checks."""
+    for wrong in ("[ball]", "{a: ball}"):
+        message = str(refusal(GOOD.replace("[{type: gravity}]", f"[{{type: drag, model: linear, coefficient: 0.1, "
+                                                                f"bodies: [{wrong}]}}]")))
+        assert "fields[0].bodies[0]" in message
+
+
+def test_a_negative_emitter_rate_is_refused():
+    """Found by the fuzzer: a negative rate passed validation and crashed the particle simulation."""
+    message = str(refusal("emitters: [{name: e, rate: -5}]\n"))
+    assert "emitters[0].rate: must be >= 0 1/s (got -5)" in message
+    assert "must be a list" not in message  # the member of 'number | keyframes' it was not meant for is not blamed
+
+
+@pytest.mark.parametrize("name", ["../../escape", "/etc/passwd", "a/b", "..", "con\\x", "ü"])
+def test_scene_names_cannot_leave_the_output_folder(name):
+    assert "name" in str(refusal(f"name: {name!r}\n" + GOOD))
+
+
+def test_huge_but_valid_coordinates_do_not_overflow_contact_detection():
+    """Found by the fuzzer: a KD-tree query overflowed on huge coordinates. At the edge of the range, contacts work."""
+    loaded = scene("""
+        duration: 0.1
+        bodies:
+          - {name: a, mass: 1, radius: 1.0e+30, position: [1.0e+34, 0, 0], velocity: [1.0e+30, 0, 0]}
+          - {name: b, mass: 1, radius: 1.0e+30, position: [-1.0e+34, 0, 0]}
+        contacts: {}
+        solver: {method: symplectic_euler, dt: 0.01}
+        """)
+    trajectory = api.simulate(loaded)
+    assert np.isfinite(trajectory.positions).all()
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Files
+
+
+def test_mesh_files_are_read_only_from_the_scene_folder(tmp_path):
+    folder = tmp_path / "scene"
+    (folder / "meshes").mkdir(parents=True)
+    trimesh.creation.box((1.0, 1.0, 1.0)).export(folder / "meshes" / "box.stl")
+    trimesh.creation.box((1.0, 1.0, 1.0)).export(tmp_path / "outside.stl")
+    os.symlink(tmp_path / "outside.stl", folder / "link.stl")
+    body = "bodies: [{{name: b, type: rigid, density: 1, shape: {{type: mesh, file: {!r}}}}}]\n"
+    (folder / "ok.yaml").write_text(body.format("meshes/box.stl"))
+    assert load_scene(folder / "ok.yaml").spec.bodies[0].shape.file == "meshes/box.stl"
+    for file, word in [("/etc/shadow", "absolute"), ("../outside.stl", "outside the scene's folder"),
+                       ("meshes/../../outside.stl", "outside the scene's folder"),
+                       ("link.stl", "outside the scene's folder")]:
+        (folder / "bad.yaml").write_text(body.format(file))
+        with pytest.raises(SceneError) as caught:
+            load_scene(folder / "bad.yaml")
+        assert word in str(caught.value) and "bodies[0].shape.file" in str(caught.value), file
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Cost pre-flight and budget
+
+
+STIFF = """
+    duration: 1
+    solver: {method: RK45}
+    bodies: [{name: bob, mass: 0.001, position: [0, -1, 0]}]
+    anchors: [{name: top, position: [0, 0, 0]}]
+    springs: [{name: wire, between: [top, bob], stiffness: 1.0e+12}]
+    """
+
+
+def test_an_explicit_method_on_a_very_stiff_spring_is_refused_before_it_starts_naming_the_spring_and_override():
+    loaded = scene(STIFF)
+    start = time.perf_counter()
+    with pytest.raises(SimulationError) as caught:
+        api.simulate(loaded)
+    assert time.perf_counter() - start < 2.0
+    message = str(caught.value)
+    assert "refused before it starts" in message and "stability of the stiffest spring" in message
+    assert "'bob'" in message and "--max-cost" in message and "solver.max_cost" in message
+    assert "Radau or BDF" in message  # the fix that avoids the cost, not only the override
+
+
+def test_the_explicit_step_estimate_is_the_stability_limit():
+    """RK45 is stable for |hλ| ≤ 3.3; with ω = sqrt(k/m) = 3.16e7 rad/s over 1 s that is ~1e7 steps."""
+    loaded = scene(STIFF)
+    model = compile_scene(loaded.spec)
+    estimate = estimate_cost(model, loaded.spec.solver, rhs_seconds=1e-5)
+    integration = next(term for term in estimate.terms if term.name == "integration")
+    steps = integration.seconds / 1e-5 / 6  # 6 right-hand sides per RK45 step
+    span = model.frame_times[-1] - model.frame_times[0]
+    assert steps == pytest.approx(np.sqrt(1e12 / 1e-3) * span / 3.3, rel=1e-6)
+
+
+def test_the_fixed_step_estimate_counts_the_steps_exactly():
+    loaded = scene(GOOD, "solver.method=verlet", "solver.dt=1e-4", "duration=2")
+    model = compile_scene(loaded.spec)
+    estimate = estimate_cost(model, loaded.spec.solver, rhs_seconds=1.0)
+    frames = len(model.frame_times)
+    assert estimate.seconds == pytest.approx((frames - 1) * math.ceil(1 / 30 / 1e-4) * 1.0)  # dt divides 1/fps
+
+
+def test_the_adaptive_estimate_is_within_an_order_of_magnitude_of_the_steps_taken():
+    loaded = scene("""
+        duration: 6
+        solver: {method: DOP853, rtol: 1.0e-10, atol: 1.0e-12}
+        bodies:
+          - {name: star, mass: 3.0, position: [-0.25, 0, 0], velocity: [0, -0.4, 0]}
+          - {name: planet, mass: 1.0, position: [0.75, 0, 0], velocity: [0, 1.2, 0]}
+        fields: [{type: gravitation, G: 1.0}]
+        """)
+    model = compile_scene(loaded.spec)
+    estimate = estimate_cost(model, loaded.spec.solver, rhs_seconds=1.0)
+    predicted = estimate.seconds / 12  # DOP853: 12 right-hand sides per step
+    taken = api.simulate(loaded).solver_stats["steps"]
+    assert taken / 10 < predicted < taken * 10
+
+
+def test_a_raised_budget_lets_the_run_through_the_pre_flight():
+    loaded = scene(GOOD, "solver.method=euler", "solver.dt=1e-7", "duration=0.5")
+    model = compile_scene(loaded.spec)
+    estimate = estimate_cost(model, loaded.spec.solver, rhs_seconds=1e-5)
+    with pytest.raises(SimulationError, match="per frame"):
+        check_cost(estimate, max_cost=1.0)
+    check_cost(estimate, max_cost=estimate.seconds * 1.5)
+    check_cost(estimate, max_cost=0)  # 0 = no limit
+
+
+def test_emitters_beyond_memory_are_refused_naming_the_emitter():
+    loaded = scene("""
+        duration: 10
+        emitters: [{name: storm, rate: 4.0e+6, lifetime: 10}]
+        """)
+    model = compile_scene(loaded.spec)
+    sizes = pool_sizes(loaded.spec)
+    assert sizes[0][1] >= 4e7 * 0.99  # everything born stays alive for the whole run
+    estimate = estimate_cost(model, loaded.spec.solver, sizes, rhs_seconds=1e-6)
+    with pytest.raises(SimulationError) as caught:
+        check_cost(estimate, max_cost=0, memory=16 * 2**30)
+    assert "memory" in str(caught.value) and "emitter 'storm'" in str(caught.value)
+
+
+@pytest.mark.parametrize("overrides", [
+    ("solver.method=verlet", "solver.dt=1e-7"),  # fixed-step loop
+    ("solver.method=RK45", "solver.rtol=1e-12", "solver.atol=1e-14", "solver.max_step=1e-6"),  # adaptive loop
+])
+def test_a_run_that_exceeds_its_budget_stops_early_saying_how_far_it_got(monkeypatch, overrides):
+    """What the pre-flight cannot foresee is caught while running: here the estimate is disabled."""
+    monkeypatch.setattr(api, "estimate_cost", lambda *args, **kwargs: CostEstimate())
+    loaded = scene(GOOD, *overrides, "duration=5", "solver.max_cost=0.5")
+    start = time.perf_counter()
+    with pytest.raises(SimulationError) as caught:
+        api.simulate(loaded)
+    assert time.perf_counter() - start < 3.0
+    message = str(caught.value)
+    assert "used up its wall-time budget of 0.5 s" in message and "% of the way" in message
+    assert "--max-cost" in message
+
+
+def test_emitted_particles_stop_at_the_budget_too(monkeypatch):
+    monkeypatch.setattr(api, "estimate_cost", lambda *args, **kwargs: CostEstimate())
+    loaded = scene("""
+        duration: 20
+        solver: {method: symplectic_euler, dt: 1.0e-5, max_cost: 0.5}
+        emitters: [{name: jet, rate: 20000, lifetime: 20}]
+        fields: [{type: gravity}]
+        """)
+    with pytest.raises(SimulationError, match="emitted particles' simulation used up its wall-time budget"):
+        api.simulate(loaded)
+
+
+def test_the_budget_is_per_context_and_off_by_default():
+    from animbatch.integrators.budget import budget_spent
+
+    assert budget_spent(1.0) is None
+    with wall_budget(1e-9, 0.0, 1.0):
+        time.sleep(0.001)
+        assert "used up" in budget_spent(0.5)
+    assert budget_spent(1.0) is None
+    with wall_budget(0, 0.0, 1.0):  # 0 = no limit
+        time.sleep(0.001)
+        assert budget_spent(0.5) is None
+
+
+def test_max_cost_on_the_command_line_takes_units(tmp_path):
+    path = tmp_path / "s.yaml"
+    path.write_text(STIFF.replace("\n    ", "\n"))
+    runner = CliRunner()
+    result = runner.invoke(cli, ["simulate", str(path), "--max-cost", "30min", "-o", str(tmp_path / "t.npz")])
+    assert result.exit_code == 3 and "budget of 30 min" in result.output
+    result = runner.invoke(cli, ["simulate", str(path), "--max-cost", "soon"])
+    assert result.exit_code == 1 and "solver.max_cost" in result.output
