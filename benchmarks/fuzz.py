@@ -39,7 +39,7 @@ def main() -> int:
             tally.failures.append(str(error))
         except Exception:  # a traceback: the defect this run exists to find
             tally.outcomes["TRACEBACK"] += 1
-            tally.failures.append(f"{base}:\n{traceback.format_exc()}\n{text[:3000]}")
+            tally.failures.append(f"{base}:\n{traceback.format_exc()}\n{text}")
         done = sum(tally.outcomes.values())
         if done % 500 == 0:
             print(f"  {done} mutants, {time.perf_counter() - start:.0f} s", file=sys.stderr, flush=True)

@@ -5,6 +5,7 @@
 #   bash scripts/dev.sh test    set up, then run the whole test suite (what CI runs)
 #   bash scripts/dev.sh bench   set up, then run the benchmark suite and print its table
 #   bash scripts/dev.sh accuracy  set up, then regenerate docs/accuracy.md (studies of the bundled scenes)
+#   bash scripts/dev.sh fuzz    set up, then run 10 000 mutated scenes through validate and simulate (a table)
 #   bash scripts/dev.sh setup   only set up
 #
 # Set-up is idempotent and quick when nothing changed: it installs the off-screen OpenGL library when it is
@@ -108,12 +109,16 @@ case "$command" in
         setup
         exec "$venv/bin/python" benchmarks/run.py "$@"
         ;;
+    fuzz)
+        setup
+        exec "$venv/bin/python" benchmarks/fuzz.py "$@"
+        ;;
     accuracy)
         setup
         exec "$venv/bin/python" -m animbatch.study.document "$@"
         ;;
     *)
-        echo "usage: bash scripts/dev.sh {demo|test|bench|accuracy|setup} [extra arguments]" >&2
+        echo "usage: bash scripts/dev.sh {demo|test|bench|fuzz|accuracy|setup} [extra arguments]" >&2
         exit 2
         ;;
 esac

@@ -156,7 +156,7 @@ def check(base: str, text: str, tally: Tally | None = None, *, time_limit: float
         scene = parse_scene(text, filename="fuzz.yaml")
     except SceneError as error:
         for issue in error.issues:
-            assert LOCATION.match(issue.source) or "file is empty" in issue.message, f"{base}: issue without file:line:column: {issue}\n{text[:2000]}"
+            assert LOCATION.match(issue.source) or "file is empty" in issue.message, f"{base}: issue without file:line:column: {issue}\n{text}"
         tally.outcomes["invalid scene (SceneError)"] += 1
         return "invalid"
     scene = _with_cost_budget(scene)
@@ -173,7 +173,7 @@ def check(base: str, text: str, tally: Tally | None = None, *, time_limit: float
         outcome = f"refused ({type(error).__name__})"
     except _OverTime:
         raise AssertionError(f"{base}: simulating took over {time_limit:g} s; the cost pre-flight let it through"
-                             f"\n{text[:3000]}") from None
+                             f"\n{text}") from None
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)

@@ -164,10 +164,11 @@ def test_mesh_files_are_read_only_from_the_scene_folder(tmp_path):
 
 STIFF = """
     duration: 1
-    solver: {method: RK45}
-    bodies: [{name: bob, mass: 0.001, position: [0, -1, 0]}]
+    solver: {method: RK45, max_cost: 60}
+    bodies: [{name: bob, mass: 0.001, position: [0, -1, 0], velocity: [0, -0.1, 0]}]
     anchors: [{name: top, position: [0, 0, 0]}]
-    springs: [{name: wire, between: [top, bob], stiffness: 1.0e+12}]
+    springs: [{name: wire, between: [top, bob], stiffness: 1.0e+12, rest_length: 1}]
+    fields: [{type: gravity}]
     """
 
 
@@ -288,7 +289,49 @@ def test_max_cost_on_the_command_line_takes_units(tmp_path):
     path = tmp_path / "s.yaml"
     path.write_text(STIFF.replace("\n    ", "\n"))
     runner = CliRunner()
-    result = runner.invoke(cli, ["simulate", str(path), "--max-cost", "30min", "-o", str(tmp_path / "t.npz")])
-    assert result.exit_code == 3 and "budget of 30 min" in result.output
+    result = runner.invoke(cli, ["simulate", str(path), "--max-cost", "0.5min", "-o", str(tmp_path / "t.npz")])
+    assert result.exit_code == 3 and "budget of 30 s" in result.output, result.output
     result = runner.invoke(cli, ["simulate", str(path), "--max-cost", "soon"])
     assert result.exit_code == 1 and "solver.max_cost" in result.output
+
+
+def test_a_feather_light_ball_in_a_break_stops_with_a_named_divergence_not_a_kd_tree_overflow():
+    """Found by the long fuzz run: ball4 at 1e-9 kg among 0.17 kg balls is kicked past 1e100 m/s and the contact
+    search overflowed (ValueError from cKDTree). The run now stops, naming the body and its mass."""
+    loaded = load_scene(Path(__file__).resolve().parent.parent / "scenes" / "billiard_break.yaml",
+                        overrides=["duration=0.2", "bodies[ball4].mass=1e-9"])
+    with pytest.raises(SimulationError) as caught:
+        api.simulate(loaded)
+    assert "'ball4' (mass 1e-09 kg) left every physical scale" in str(caught.value)
+
+
+def test_backward_euler_step_halving_stops_at_the_budget():
+    """Found by the long fuzz run: a lattice at rest without gravity made the energy guard halve its steps without
+    end (each halving a sparse factorisation); the budget now stops it within the halvings."""
+    loaded = scene("""
+        duration: 0.2
+        solver: {method: backward_euler, dt: 0.0041667, max_cost: 1}
+        bodies:
+          - name: jelly
+            type: lattice
+            size: [0.3, 0.3, 0.3]
+            resolution: [6, 6, 6]
+            position: [0, 0.72, 0]
+            orientation: {axis: [1, 0, 1], angle: 35}
+            density: 1050
+            structural: {stiffness: 6000, damping: 8}
+            shear: {stiffness: 3000, damping: 4}
+        """)
+    start = time.perf_counter()
+    try:
+        api.simulate(loaded)
+    except SimulationError as error:
+        assert "wall-time budget of 1 s" in str(error)
+    assert time.perf_counter() - start < 8.0
+
+
+def test_an_empty_orientation_is_a_located_error():
+    """Found by the fuzz test: 'orientation: {}' passed validation and crashed computing the rotation."""
+    message = str(refusal("bodies: [{name: b, type: rigid, density: 1, shape: {type: sphere, radius: 1}, "
+                          "orientation: {}}]\n"))
+    assert "bodies[0].orientation" in message and "got none of them" in message

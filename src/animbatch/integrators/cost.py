@@ -12,7 +12,7 @@ hours or being killed half-way. The estimate is an order of magnitude, not a pro
 * **implicit methods** add Jacobians (analytic and sparse where the scene has them, else one right-hand side per
   state variable) and LU factorisations (dense: n³/3 flops);
 * **emitted particles**: births (rate × time + bursts, within the pool's capacity) × steps, at a documented cost per
-  particle-step (``PARTICLE_STEP_SECONDS``, from the particle benchmark).
+  particle-step (``PARTICLE_STEP_SECONDS``, measured on the fountain scene).
 
 What cannot be foreseen from the first state (two bodies plunging into each other, a pile that jams) is caught while
 the run goes, by the same budget (:mod:`animbatch.integrators.budget`).
@@ -30,8 +30,9 @@ from animbatch.integrators.budget import format_seconds
 from animbatch.integrators.preflight import EXPLICIT_LIMITS
 from animbatch.integrators.stability import stiffest_mode
 
-#: Cost of advancing one emitted particle by one step [s] (gravity, drag, a collider; ~30-40 ns measured).
-PARTICLE_STEP_SECONDS = 60e-9
+#: Cost of advancing one emitted particle by one step [s], births and records included: the fountain (gravity, drag,
+#: box colliders) measured 0.35-0.7 µs per particle-step on a 2-core machine; the bare stepping benchmark ~40 ns.
+PARTICLE_STEP_SECONDS = 500e-9
 #: Bytes kept per emitted particle and frame (position float32 ×3, serial int64, age float32) and per pool slot.
 PARTICLE_FRAME_BYTES = 24
 PARTICLE_SLOT_BYTES = 160

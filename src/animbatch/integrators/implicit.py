@@ -41,7 +41,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from animbatch.errors import SimulationError
 from animbatch.forces.base import ForceTerm
+from animbatch.integrators.budget import budget_spent
 from animbatch.integrators.fixed_step import PartitionedScheme
 from animbatch.integrators.linear_algebra import factor_symmetric
 
@@ -109,5 +111,9 @@ class BackwardEuler(PartitionedScheme):
         if depth < self.max_halvings and after > energy + ENERGY_TOLERANCE * max(scale, after_scale):
             y[...] = before
             self.halvings += 1
+            spent = budget_spent(t)
+            if spent is not None:  # halvings can multiply one step into thousands
+                raise SimulationError(f"backward_euler at dt = {h:.3g} s, halving its steps {self.halvings} times so "
+                                      f"far to keep the energy from rising: {spent}", time=t)
             self._guarded_step(t, y, 0.5 * h, depth + 1)
             self._guarded_step(t + 0.5 * h, y, 0.5 * h, depth + 1)

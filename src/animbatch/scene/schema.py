@@ -294,10 +294,10 @@ class OrientationSpec(SceneModel):
     @model_validator(mode="after")
     def _one_way(self) -> "OrientationSpec":
         given = [name for name in ("axis", "angle", "quaternion", "euler") if getattr(self, name) is not None]
-        ways = {"axis" in given or "angle" in given, "quaternion" in given, "euler" in given}
-        if sum(ways) > 1 or (("axis" in given) != ("angle" in given)):
+        ways = ["axis" in given or "angle" in given, "quaternion" in given, "euler" in given]
+        if sum(ways) != 1 or (("axis" in given) != ("angle" in given)):  # an empty mapping is no orientation either
             raise rule_error("give the orientation one way: axis and angle together, or quaternion, or euler "
-                             f"(got {', '.join(given)})")
+                             f"(got {', '.join(given) or 'none of them'})")
         if self.axis is not None and not any(self.axis):
             raise rule_error("must not be the zero vector", "axis")
         if self.quaternion is not None and not any(self.quaternion):
