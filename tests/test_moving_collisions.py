@@ -151,7 +151,7 @@ def impact_search_off(monkeypatch):
     from animbatch.contact.detection import Contacts
 
     monkeypatch.setattr(events.ContactEvents, "_impact_candidates",
-                        lambda self, y0, y1, h: (Contacts.concatenate([]), np.zeros(0)))
+                        lambda self, y0, y1, h, t1=0.0: (Contacts.concatenate([]), np.zeros(0)))
 
 
 def test_a_collision_the_method_misses_is_reported_with_both_bodies_and_the_time(impact_search_off):

@@ -22,6 +22,7 @@ from scipy.spatial import cKDTree
 from animbatch.contact.geometry import (BodyBoxes, Probes, StaticColliders, separating_direction, to_box, to_box_face,
                                        to_face_plane, to_plane, to_sphere, to_triangles)
 from animbatch.contact.materials import MaterialTable
+from animbatch.errors import SimulationError
 from animbatch.forces.base import Kinematics
 
 STATIC = -1  # "solid body" index of fixed colliders
@@ -41,7 +42,7 @@ class ContactWorld:
     cloth or lattice) never collide with each other, and do not bounce (restitution 0: a point of a sheet has no
     elastic rebound of its own; a lattice bounces through its springs). ``collider_source``: for the fixed solids of
     each kind (PLANE, STATIC_SPHERE, STATIC_BOX, TRIANGLE), the number of the scene collider each came from, to name
-    it in messages.
+    it in messages. ``body_names`` and ``body_mass`` (P,) [kg] name a body in messages.
     """
 
     probes: Probes
@@ -55,6 +56,31 @@ class ContactWorld:
     triangle_reach: float
     group: np.ndarray | None = None
     collider_source: dict[int, np.ndarray] | None = None
+    body_names: tuple[str, ...] = ()
+    body_mass: np.ndarray | None = None
+
+
+#: Positions [m] or distances moved in one step beyond this mean the run has diverged (scene numbers stay below 1e35).
+RUNAWAY_SCALE = 1e100
+
+
+def check_scale(world: ContactWorld, state: Kinematics, travel: np.ndarray | None) -> None:
+    """Stop a run whose bodies have left every physical scale (a feather-light body kicked by heavy ones, say)
+    before the k-d tree search overflows on them: every method's contact search comes through here, and the
+    per-frame or per-step divergence checks only catch values that are no longer finite."""
+    size = np.max(np.abs(state.x), axis=1)
+    if travel is not None:
+        size = np.maximum(size, travel)
+    if np.all(size < RUNAWAY_SCALE):  # also false for NaN
+        return
+    body = int(np.argmax(np.where(np.isfinite(size), size, np.inf)))
+    name = world.body_names[body] if world.body_names else f"number {body}"
+    mass = f" (mass {float(world.body_mass[body]):.3g} kg)" if world.body_mass is not None else ""
+    raise SimulationError(
+        f"body {name!r}{mass} left every physical scale at t = {state.t:.6g} s (position "
+        f"{np.max(np.abs(state.x[body])):.3g} m, speed {np.linalg.norm(state.v[body]):.3g} m/s): the simulation "
+        "diverged, so no contact can be found. Check that body's mass against the bodies it hits and the forces on "
+        "it, or take a smaller solver.dt or tighter solver.rtol", time=state.t, body=name)
 
 
 @dataclass(frozen=True, eq=False)
@@ -157,6 +183,7 @@ def _contacts(world: ContactWorld, probes: np.ndarray, centres: np.ndarray, dist
 def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.ndarray | None = None) -> Contacts:
     """Every probe–solid pair whose gap is below ``margin`` [m] plus how far both sides can travel (``travel`` (P,)
     [m] per body, the most any of its points moves in the coming step; None: nothing moves), as contacts."""
+    check_scale(world, state, travel)
     centres = probe_centres(world, state)
     active = world.collides[world.probes.owner]
     statics, parts = world.statics, []

@@ -119,9 +119,9 @@ class ContactEvents:
 
     # ------------------------------------------------------------------------------------- bodies
 
-    def _state(self, y: np.ndarray) -> Kinematics:
-        """The kinematics of a state, in arrays of its own (events compare several states)."""
-        return self.system.kinematics(*self.system.split(y), copy=True)
+    def _state(self, y: np.ndarray, t: float = 0.0) -> Kinematics:
+        """The kinematics of a state at time ``t`` [s], in arrays of its own (events compare several states)."""
+        return self.system.kinematics(*self.system.split(y), t=t, copy=True)
 
     def _inertia(self, state: Kinematics) -> BodyVelocities:
         """Inverse masses and world inverse inertias, with zeros for velocities (filled by callers)."""
@@ -271,11 +271,12 @@ class ContactEvents:
                 h * np.maximum(np.linalg.norm(s0.omega, axis=1), np.linalg.norm(s1.omega, axis=1)))
         return PATH_ALLOWANCE * travel
 
-    def _impact_candidates(self, y0: np.ndarray, y1: np.ndarray, h: float) -> tuple[Contacts, np.ndarray]:
+    def _impact_candidates(self, y0: np.ndarray, y1: np.ndarray, h: float, t1: float = 0.0
+                           ) -> tuple[Contacts, np.ndarray]:
         """Pairs that the step of ``h`` [s] could bring into touch (excluding resting ones): every probe–solid pair
         whose gap at the step's end is less than what its two sides travelled (:meth:`_travel`; a fixed solid
         travels nothing), and that travel (K,) [m]."""
-        s0, s1 = self._state(y0), self._state(y1)
+        s0, s1 = self._state(y0, t1 - h), self._state(y1, t1)
         travel = self._travel(s0, s1, h)
         found = detect(self.world, s1, TOUCH, travel=travel)
         if self.resting.count and found.count:
@@ -414,7 +415,7 @@ class ContactEvents:
     def settle(self, y: np.ndarray, t: float) -> None:
         """At an event (or the start) at time ``t`` [s]: apply impacts at touching contacts (and log them) and decide
         which contacts rest."""
-        state = self._state(y)
+        state = self._state(y, t)
         touching = detect(self.world, state, TOUCH + self.settings.slop)
         if touching.count:
             bodies = self._velocities(state)
@@ -575,7 +576,7 @@ def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any
                     raise divergence_error(layout, solver.y, bad, solver.t, method=method, step=stats.steps,
                                            model=system.model, last_finite=before)
                 impact = events._first_impact(solver, *events._impact_candidates(before, solver.y,
-                                                                                 solver.t - solver.t_old))
+                                                                                 solver.t - solver.t_old, solver.t))
                 after = events._mode_functions(solver.t, solver.y) if modes is not None else None
                 change = events._first_mode_change(solver, modes, after) if modes is not None else None
                 modes = after

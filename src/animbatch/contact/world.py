@@ -170,5 +170,5 @@ def build_contact_world(spec: SceneSpec, model: Any, centres: dict[str, np.ndarr
         np.array([by_name[n].collide for n in owner_names], bool),
         settings.bodies, tree, reach,
         np.array([deformable_names.index(n) if n in deformable_names else -1 for n in owner_names], np.intp),
-        sources)
+        sources, tuple(model.body_names), np.asarray(model.bodies.mass, float))
     return world, ContactSettings(settings.iterations, settings.rest_speed, settings.slop)
