@@ -17,9 +17,10 @@ from animbatch import api
 from animbatch.cli import cli
 from animbatch.errors import SceneError, SimulationError
 from animbatch.integrators.budget import wall_budget
-from animbatch.integrators.cost import CostEstimate, check_cost, estimate_cost
+from animbatch.integrators.cost import PARTICLE_STEP_SECONDS, CostEstimate, check_cost, estimate_cost
 from animbatch.model import compile_scene
 from animbatch.particles.compile import pool_sizes
+from animbatch.particles.simulate import steps_per_frame
 from animbatch.scene import load_scene, parse_scene
 from animbatch.scene.yaml_source import MAX_DEPTH, MAX_DOCUMENT_BYTES, MAX_NODES
 from conftest import scene
@@ -119,7 +120,7 @@ def test_a_negative_emitter_rate_is_refused():
 
 @pytest.mark.parametrize("name", ["../../escape", "/etc/passwd", "a/b", "..", "con\\x", "ü"])
 def test_scene_names_cannot_leave_the_output_folder(name):
-    assert "name" in str(refusal(f"name: {name!r}\n" + GOOD))
+    assert "hostile.yaml:1:7: name: names start with a letter or '_'" in str(refusal(f"name: {name!r}\n" + GOOD))
 
 
 def test_huge_but_valid_coordinates_do_not_overflow_contact_detection():
@@ -217,6 +218,25 @@ def test_the_adaptive_estimate_is_within_an_order_of_magnitude_of_the_steps_take
     predicted = estimate.seconds / 12  # DOP853: 12 right-hand sides per step
     taken = api.simulate(loaded).solver_stats["steps"]
     assert taken / 10 < predicted < taken * 10
+
+
+@pytest.mark.parametrize("method, per_frame", [("verlet", math.ceil(1 / 30 / 1e-3)), ("RK45", 1)])
+def test_emitted_particles_are_estimated_at_the_steps_they_take(method, per_frame):
+    """Fixed-step methods advance particles in steps of at most dt that divide the frame interval; adaptive ones
+    integrate each frame interval as one segment. Everything born lives all run: alive = births = 30 × 2 s."""
+    loaded = scene(f"""
+        duration: 2
+        solver: {{method: {method}, dt: 1.0e-3}}
+        emitters: [{{name: jet, rate: 30, lifetime: 5}}]
+        """)
+    model = compile_scene(loaded.spec)
+    steps = steps_per_frame(1 / 30, method, 1e-3) * (len(model.frame_times) - 1)
+    assert steps == per_frame * 59
+    estimate = estimate_cost(model, loaded.spec.solver, pool_sizes(loaded.spec), steps, rhs_seconds=0.0)
+    emitter = next(term for term in estimate.terms if term.name == "emitter 'jet'")
+    births = pool_sizes(loaded.spec)[0][2]
+    assert births == pytest.approx(60, abs=1)
+    assert emitter.seconds == pytest.approx(births * steps * PARTICLE_STEP_SECONDS)
 
 
 def test_a_raised_budget_lets_the_run_through_the_pre_flight():

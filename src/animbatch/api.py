@@ -34,6 +34,7 @@ from animbatch.ledger import build_ledger, warn_again
 from animbatch.ledger import summary as ledger_summary
 from animbatch.model import Dynamics, Model, compile_scene
 from animbatch.particles.compile import pool_sizes
+from animbatch.particles.simulate import steps_per_frame
 from animbatch.progress import Progress
 from animbatch.scene import LoadedScene, load_scene, physics_fingerprint
 from animbatch.scene.overrides import Override
@@ -55,7 +56,8 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
     integrator = make_integrator(spec.solver)
     progress = progress or Progress(enabled=False)
     warnings = preflight(spec, model)  # risky settings, with numbers (what is certain to fail is refused)
-    cost = estimate_cost(model, spec.solver, pool_sizes(spec))
+    frame_steps = steps_per_frame(1.0 / spec.fps, spec.solver.method, spec.solver.dt or DEFAULT_DT)
+    cost = estimate_cost(model, spec.solver, pool_sizes(spec), frame_steps * (len(model.frame_times) - 1))
     check_cost(cost, spec.solver.max_cost)  # refuse what would run for hours or cannot fit, before it starts
     with wall_budget(spec.solver.max_cost, float(model.frame_times[0]), float(model.frame_times[-1])):
         result, particles, particle_stats = _integrate(scene, model, integrator, progress, checkpoint)

@@ -82,7 +82,8 @@ def _overrides(settings: tuple[str, ...], **shortcuts: str | None) -> list[Overr
     """Command-line settings as overrides; shortcuts such as --dt keep their own spelling for error messages."""
     # Values stay text here: they are read as YAML and validated with the scene, like --set.
     keys = {"method": "solver.method", "dt": "solver.dt", "rtol": "solver.rtol", "atol": "solver.atol",
-            "max_step": "solver.max_step", "fps": "fps", "max_cost": "solver.max_cost", "resolution": "render.resolution", "formats": "render.formats"}
+            "max_step": "solver.max_step", "fps": "fps", "max_cost": "solver.max_cost",
+            "resolution": "render.resolution", "formats": "render.formats"}
     result: list[Override] = list(settings)
     for name, value in shortcuts.items():
         if value is None:

@@ -527,6 +527,15 @@ class ContactEvents:
         self._warm_forces = None
 
 
+def _stopped(solver: Any, fun: CountingRhs, system: Dynamics, layout: Any, method: str, options: dict[str, Any],
+             what: str, after: str) -> SimulationError:
+    """Why an adaptive run with contacts stopped (``what``), with the advice that fits its state (the closest
+    gravitational encounter, the stiffest spring or the fastest-changing body), then ``after``."""
+    body = fastest_body(layout, fun(solver.t, solver.y), solver.y, float(np.max(options["atol"])), options["rtol"])
+    return SimulationError(f"{method} {what} " + failure_advice(system.model, method, solver.y, solver.t, body)
+                           + after, time=solver.t, body=body)
+
+
 def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any], system: Dynamics,
                           y0: np.ndarray, times: np.ndarray, on_frame: FrameCallback | None) -> IntegrationResult:
     """Integrate ``system`` with a scipy solver class, stopping at every contact event (see the module notes)."""
@@ -556,21 +565,15 @@ def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any
                 before = solver.y.copy()
                 message = solver.step()
                 if solver.status == "failed":
-                    body = fastest_body(layout, fun(solver.t, solver.y), solver.y, float(np.max(options["atol"])),
-                                        options["rtol"])
-                    raise SimulationError(
-                        f"{method} failed at t = {solver.t:.6g} s with contacts: {message} "
-                        + failure_advice(system.model, method, solver.y, solver.t, body) + ". A fixed-step method "
-                        "(symplectic_euler) is more robust for scenes with many contacts.", time=solver.t, body=body)
+                    raise _stopped(solver, fun, system, layout, method, options, f"failed at t = {solver.t:.6g} s "
+                                   f"with contacts: {message}", ". A fixed-step method (symplectic_euler) is more "
+                                   "robust for scenes with many contacts.")
                 stats.count_step(solver.t - solver.t_old)
                 spent = budget_spent(solver.t)
                 if spent is not None:
-                    body = fastest_body(layout, fun(solver.t, solver.y), solver.y, float(np.max(options["atol"])),
-                                        options["rtol"])
-                    raise SimulationError(f"{method} stopped at t = {solver.t:.6g} s with contacts: {spent} "
-                                          f"({stats.steps} steps, {events.events} contact events so far). "
-                                          + failure_advice(system.model, method, solver.y, solver.t, body) + ".",
-                                          time=solver.t, body=body)
+                    raise _stopped(solver, fun, system, layout, method, options, f"stopped at t = {solver.t:.6g} s "
+                                   f"with contacts: {spent} ({stats.steps} steps, {events.events} contact events so "
+                                   "far).", ".")
                 bad = first_non_finite(solver.y)
                 if bad is not None:
                     raise divergence_error(layout, solver.y, bad, solver.t, method=method, step=stats.steps,

@@ -78,17 +78,12 @@ class CostEstimate:
         """The term that costs most ``seconds`` or ``bytes``."""
         return max(self.terms, key=lambda term: getattr(term, kind))
 
-    def as_dict(self) -> dict[str, object]:
-        return {"seconds": self.seconds, "bytes": self.bytes,
-                "terms": [{"name": t.name, "seconds": t.seconds, "bytes": t.bytes, "detail": t.detail}
-                          for t in self.terms]}
-
 
 def estimate_cost(model: object, solver: object, particle_pools: list[tuple[str, int, float]] = (),
-                  rhs_seconds: float | None = None) -> CostEstimate:
+                  particle_steps: int = 0, rhs_seconds: float | None = None) -> CostEstimate:
     """The estimated cost of integrating ``model`` with ``solver`` settings (a SolverSpec-like object), and of the
-    emitted particles ``particle_pools``: (emitter name, pool capacity, particles born over the run).
-    ``rhs_seconds``: time of one right-hand side [s] (measured here when not given)."""
+    emitted particles ``particle_pools``: (emitter name, pool capacity, particles born over the run), each advanced
+    ``particle_steps`` times. ``rhs_seconds``: time of one right-hand side [s] (measured here when not given)."""
     times = np.asarray(model.frame_times)  # type: ignore[attr-defined]
     frames = len(times)
     duration = float(times[-1] - times[0]) if frames > 1 else 0.0
@@ -105,12 +100,11 @@ def estimate_cost(model: object, solver: object, particle_pools: list[tuple[str,
                                      f"right-hand sides of {1e6 * rhs:.3g} µs ({states} state variables)"))
         terms += _implicit_terms(model, method, steps, states, rhs)
     for name, capacity, births in particle_pools:
-        h = solver.dt or 1e-3  # type: ignore[attr-defined]
-        particle_steps = min(births, capacity) * duration / h
-        terms.append(CostTerm(f"emitter {name!r}", seconds=particle_steps * PARTICLE_STEP_SECONDS,
+        alive = min(births, capacity)
+        terms.append(CostTerm(f"emitter {name!r}", seconds=alive * particle_steps * PARTICLE_STEP_SECONDS,
                               bytes=capacity * (PARTICLE_SLOT_BYTES + PARTICLE_FRAME_BYTES * frames),
-                              detail=f"up to {capacity:,} particles alive ({births:,.0f} born) × {duration / h:.3g} "
-                                     f"steps of {h:.3g} s, kept at {frames} frames"))
+                              detail=f"up to {capacity:,} particles alive ({births:,.0f} born) × {particle_steps:,} "
+                                     f"steps, kept at {frames} frames"))
     return CostEstimate(terms)
 
 

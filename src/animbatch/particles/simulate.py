@@ -188,6 +188,12 @@ class EmitterRun:
                 "which takes drag implicitly", time=t, body=self.emitter.name)
 
 
+def steps_per_frame(interval: float, method: str, dt: float) -> int:
+    """Calls of EmitterRun.step per frame interval [s]: fixed-step methods take steps of at most ``dt`` [s] that
+    divide it; adaptive ones integrate each frame interval as one segment (their own steps inside)."""
+    return substeps(interval, dt) if method in FIXED_METHODS else 1
+
+
 def _check_budget(t: float, stats: ParticleStats) -> None:
     spent = budget_spent(t, "the emitted particles' simulation")
     if spent is not None:
@@ -221,7 +227,7 @@ def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, Parti
         t1 = float(times[frame])
         if frame:
             t0 = float(times[frame - 1])
-            count = substeps(t1 - t0, dt) if method in FIXED_METHODS else 1
+            count = steps_per_frame(t1 - t0, method, dt)
             if method in FIXED_METHODS:
                 stats.dt, stats.substeps_per_frame = (t1 - t0) / count, count
             for run in runs:

@@ -248,7 +248,7 @@ def check_files(spec: Any, base_dir: Path) -> list[Problem]:
             shapes.append((("bodies", index, "shape"), body.shape))
     for path, shape in shapes:
         if isinstance(shape, MeshShape | MeshCollider | ClothMeshSpec):
-            outside = _outside_search_path(shape.file, base_dir)
+            outside = _outside_scene_folder(shape.file, base_dir)
             if outside:
                 problems.append(((*path, "file"), outside))
                 continue
@@ -262,7 +262,7 @@ def check_files(spec: Any, base_dir: Path) -> list[Problem]:
     return problems
 
 
-def _outside_search_path(name: str, base_dir: Path) -> str | None:
+def _outside_scene_folder(name: str, base_dir: Path) -> str | None:
     """Why the mesh file ``name`` may not be read (an absolute path, or one that leaves the scene's folder), or None.
 
     A scene is data that may come from anyone: it must not make us read ``/etc/shadow`` or ``../../secrets``."""
