@@ -188,6 +188,24 @@ def test_a_fixed_step_that_does_not_divide_the_frame_is_reported_as_used():
     assert "note" not in aligned.ledger["step"]
 
 
+def test_a_step_written_to_a_few_digits_still_divides_the_frame():
+    """dt = 0.008333333 s is 1/120 s to seven digits: four steps per 30 fps frame, not five (the bundled fountain
+    took five, 25 % more work, and was told its dt did not divide 1/fps). A dt smaller by more than 1e-6 relative
+    is a real request for smaller steps."""
+    from animbatch.integrators.fixed_step import substeps
+
+    assert substeps(1 / 30, 0.008333333) == 4
+    assert substeps(1 / 30, 0.0333334) == 1
+    assert substeps(1 / 30, 1 / 120 * (1 - 1e-5)) == 5
+    _, trajectory = run("""
+        duration: 0.5
+        solver: {method: verlet, dt: 0.008333333}
+        bodies: [{name: ball}]
+        fields: [{type: gravity}]
+    """)
+    assert trajectory.ledger["step"]["steps_per_frame"] == 4 and "note" not in trajectory.ledger["step"]
+
+
 def test_an_adaptive_run_reports_its_smallest_largest_and_mean_steps():
     """The mean step is the time integrated (to the last frame) over the steps taken, between the smallest and the
     largest accepted step."""

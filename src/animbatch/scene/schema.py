@@ -131,7 +131,8 @@ class SolverSpec(SceneModel):
                             "(m for positions, m/s for velocities).", "m, m/s", gt=0)
     max_step: float | None = key(None, "Largest step an adaptive method may take (default: no limit).", "s", gt=0)
     dt: float | None = key(None, "Step of fixed-step methods (default 1e-3 s). The step used is the largest one "
-                                 "<= dt that divides the frame interval 1/fps, so that frames fall on steps.",
+                                 "<= dt that divides the frame interval 1/fps, so that frames fall on steps (to 1e-6: "
+                                 "dt 0.008333333 counts as 1/120 s).",
                            "s", gt=0)
     max_cost: float = key(3600.0, "Wall-time budget of one simulation. Before it starts, a run estimated to take "
                                   "longer is refused, naming what makes it expensive; a run that reaches it anyway "

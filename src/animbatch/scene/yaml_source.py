@@ -92,7 +92,7 @@ def format_path(path: KeyPath) -> str:
 
 class SceneYamlLoader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
     """``SafeLoader`` with YAML 1.2 core-schema booleans, integers and floats; libyaml's parser where PyYAML was
-    built with it (30× faster: a 10 MB file parses in seconds, not minutes)."""
+    built with it (a list of 300 000 numbers loads in 3 s instead of 12 s)."""
 
 
 _BOOL_TAG = "tag:yaml.org,2002:bool"
@@ -343,8 +343,6 @@ def _syntax_issue(error: yaml.MarkedYAMLError, filename: str) -> SceneIssue:
     if isinstance(error, yaml.constructor.ConstructorError) and "tag" in problem:
         message = (f"YAML tag not allowed: {problem.replace('could not determine a constructor for the tag ', '')}; "
                    "scene files hold plain data only (mappings, lists, numbers, text)")
-    elif isinstance(error, yaml.composer.ComposerError) and "single document" in (error.context or ""):
-        message = "the file holds more than one YAML document (---); a scene file holds exactly one"
     else:
         context = f" {error.context}" if error.context else ""
         message = f"YAML syntax error: {problem}{context}"
