@@ -25,7 +25,8 @@ import numpy as np
 
 from animbatch.contact.detection import (BODY_BOX, BODY_BOX_FACE, BODY_SPHERE, PLANE, STATIC_BOX, STATIC_BOX_FACE,
                                         STATIC_SPHERE, TRIANGLE, ContactWorld, Contacts, body_box_poses, body_reach,
-                                        closing_margin, contact_codes, detect, evaluate_pairs, probe_centres)
+                                        closing_margin, contact_codes, detect, evaluate_pairs, probe_centres,
+                                        turn_angle)
 
 #: Points between consecutive frames at which the straight path is checked.
 SUBSAMPLES = 8
@@ -92,9 +93,7 @@ class OverlapAudit:
         """How far each body's points move between two states (P,) [m]: translation plus reach times the turn."""
         travel = np.linalg.norm(s1.x - s0.x, axis=1)
         if s0.rotation is not None:
-            trace = np.einsum("bij,bij->b", s0.rotation, s1.rotation)
-            turn = np.arccos(np.clip((trace - 1) / 2, -1.0, 1.0))
-            travel[s0.first_rigid:] += self.reach[s0.first_rigid:] * turn
+            travel[s0.first_rigid:] += self.reach[s0.first_rigid:] * turn_angle(s0.rotation, s1.rotation)
         return travel
 
     def _allowance(self, contacts: Contacts) -> np.ndarray:

@@ -64,6 +64,12 @@ class ContactWorld:
 RUNAWAY_SCALE = 1e100
 
 
+def turn_angle(r0: np.ndarray, r1: np.ndarray) -> np.ndarray:
+    """The angle [rad] between rotation matrices (..., 3, 3): cos θ = (trace(R0ᵀ R1) - 1) / 2."""
+    trace = np.einsum("...ij,...ij->...", r0, r1)
+    return np.arccos(np.clip((trace - 1) / 2, -1.0, 1.0))
+
+
 def check_scale(world: ContactWorld, state: Kinematics, travel: np.ndarray | None) -> None:
     """Stop a run whose bodies have left every physical scale (a feather-light body kicked by heavy ones, say)
     before the k-d tree search overflows on them: every method's contact search comes through here, and the

@@ -33,7 +33,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from animbatch.contact.detection import (Contacts, body_reach, closing_margin, detect, evaluate_pairs,
-                                        probe_centres)
+                                        probe_centres, turn_angle)
 from animbatch.contact.impacts import ImpactLog
 from animbatch.contact.solver import BodyVelocities, solve_forces, solve_impulses
 from animbatch.contact.stepping import DEFAULT_REST_SPEED
@@ -63,12 +63,6 @@ MAX_EVENTS_PER_FRAME = 10_000
 #: Consecutive events at one instant after which the event loop gives up (it would otherwise spin forever).
 MAX_STALLED_EVENTS = 100
 SLIP_ONSET = 1e-6  # m/s²: tangential acceleration of a sticking contact point at which it starts to slide
-
-
-def _turn(r0: np.ndarray, r1: np.ndarray) -> np.ndarray:
-    """The angle [rad] between rotation matrices (..., 3, 3): cos θ = (trace(R0ᵀ R1) - 1) / 2."""
-    trace = np.einsum("...ij,...ij->...", r0, r1)
-    return np.arccos(np.clip((trace - 1) / 2, -1.0, 1.0))
 
 
 @dataclass
@@ -267,7 +261,7 @@ class ContactEvents:
         if s0.rotation is not None:
             assert s1.rotation is not None and s0.omega is not None and s1.omega is not None
             travel[s0.first_rigid:] += self.reach[s0.first_rigid:] * np.maximum(
-                _turn(s0.rotation, s1.rotation),
+                turn_angle(s0.rotation, s1.rotation),
                 h * np.maximum(np.linalg.norm(s0.omega, axis=1), np.linalg.norm(s1.omega, axis=1)))
         return PATH_ALLOWANCE * travel
 
@@ -364,7 +358,7 @@ class ContactEvents:
             rigid = solid >= first
             if rigid.any():
                 rotations = np.array([state.rotation[solid[rigid] - first] for state in sampled])  # type: ignore[index]
-                solid_travel[:, rigid] += self.reach[solid[rigid]] * _turn(rotations[:-1], rotations[1:])
+                solid_travel[:, rigid] += self.reach[solid[rigid]] * turn_angle(rotations[:-1], rotations[1:])
             travel[:, moving] += solid_travel
         return ARC_ALLOWANCE * travel
 

@@ -86,7 +86,6 @@ def estimate_cost(model: object, solver: object, particle_pools: list[tuple[str,
     ``particle_steps`` times. ``rhs_seconds``: time of one right-hand side [s] (measured here when not given)."""
     times = np.asarray(model.frame_times)  # type: ignore[attr-defined]
     frames = len(times)
-    duration = float(times[-1] - times[0]) if frames > 1 else 0.0
     states = int(np.size(model.y0))  # type: ignore[attr-defined]
     method = solver.method  # type: ignore[attr-defined]
     terms = [CostTerm("trajectory", bytes=frames * states * 8 * 3.0,
