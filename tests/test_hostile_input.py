@@ -327,29 +327,46 @@ def test_a_feather_light_ball_in_a_break_stops_with_a_named_divergence_not_a_kd_
     assert "'ball4' (mass 1e-09 kg) left every physical scale" in str(caught.value)
 
 
-def test_backward_euler_step_halving_stops_at_the_budget():
-    """Found by the long fuzz run: a lattice at rest without gravity made the energy guard halve its steps without
-    end (each halving a sparse factorisation); the budget now stops it within the halvings."""
-    loaded = scene("""
-        duration: 0.2
-        solver: {method: backward_euler, dt: 0.0041667, max_cost: 1}
-        bodies:
-          - name: jelly
-            type: lattice
-            size: [0.3, 0.3, 0.3]
-            resolution: [6, 6, 6]
-            position: [0, 0.72, 0]
-            orientation: {axis: [1, 0, 1], angle: 35}
-            density: 1050
-            structural: {stiffness: 6000, damping: 8}
-            shear: {stiffness: 3000, damping: 4}
-        """)
+RESTING_JELLY = """
+    duration: 0.2
+    solver: {method: backward_euler, dt: 0.0041667, max_cost: 1}
+    bodies:
+      - name: jelly
+        type: lattice
+        size: [0.3, 0.3, 0.3]
+        resolution: [6, 6, 6]
+        position: [0, 0.72, 0]
+        orientation: {axis: [1, 0, 1], angle: 35}
+        density: 1050
+        structural: {stiffness: 6000, damping: 8}
+        shear: {stiffness: 3000, damping: 4}
+    """
+
+
+def test_backward_euler_step_halving_stops_at_the_budget(monkeypatch):
+    """Found by the long fuzz run: a lattice at rest without gravity made the energy guard halve every step ten
+    times over (each halving a sparse factorisation; 56 s for 0.03 s). With the guard's rounding floor removed to
+    recreate that, the budget stops it within the halvings."""
+    from animbatch.integrators import implicit
+
+    monkeypatch.setattr(implicit, "ROUNDING_FLOOR", 0.0)
     start = time.perf_counter()
-    try:
-        api.simulate(loaded)
-    except SimulationError as error:
-        assert "wall-time budget of 1 s" in str(error)
+    with pytest.raises(SimulationError) as caught:
+        api.simulate(scene(RESTING_JELLY))
+    assert "wall-time budget of 1 s" in str(caught.value) and "halving its steps" in str(caught.value)
     assert time.perf_counter() - start < 8.0
+
+
+def test_a_resting_lattice_takes_its_steps_whole_and_stays_at_rest():
+    """The cause: at rest the springs hold no energy, so the guard's relative tolerance took the rounding of their
+    lengths for a rise. Above the floor ε Σ k r² nothing is taken for rounding: the run takes 48 steps (8 per frame,
+    none halved), and the block stays where it was (nothing acts on it) to round-off."""
+    trajectory = api.simulate(scene(RESTING_JELLY))
+    stats = trajectory.solver_stats
+    assert stats["steps"] == 8 * (len(trajectory.times) - 1)
+    assert stats["rhs_evaluations"] <= stats["steps"] + 1  # one per step: a halved step would take two or more
+    assert np.max(np.abs(trajectory.positions - trajectory.positions[0])) < 1e-12
+    assert np.max(np.abs(trajectory.velocities)) < 1e-10
 
 
 def test_an_empty_orientation_is_a_located_error():

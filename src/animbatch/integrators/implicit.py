@@ -53,6 +53,8 @@ MAX_HALVINGS = 10
 APPROXIMATE_HALVINGS = 3
 #: Energy rises smaller than this fraction of the energy's scale are rounding, not gains.
 ENERGY_TOLERANCE = 1e-12
+#: Times Σ k r² of the springs: the smallest energy rise [J] the guard takes for real (see BackwardEuler).
+ROUNDING_FLOOR = 64 * np.finfo(float).eps
 
 
 class BackwardEuler(PartitionedScheme):
@@ -74,6 +76,12 @@ class BackwardEuler(PartitionedScheme):
         self.halvings = 0  # steps redone as two half steps by the energy guard
         self.max_halvings = (MAX_HALVINGS if all(term.steps_lose_energy for term in model.force_terms)
                              else APPROXIMATE_HALVINGS)
+        # Springs at rest hold almost no energy, so a relative tolerance alone would take the rounding of their
+        # lengths for a rise and halve every step ten times over (a lattice at rest without gravity did): below
+        # this floor [J], a rise is rounding. It is ε Σ k r², far below anything a step can do to the motion.
+        springs = model.springs
+        self.energy_floor = (ROUNDING_FLOOR * float(np.sum(springs.stiffness * springs.rest_length ** 2))
+                             if springs is not None else 0.0)
 
     def kick(self, t: float, config: np.ndarray, motion: np.ndarray, h: float) -> None:
         """Change the motion by one step: the linear solve for the particles, an explicit kick for rigid bodies."""
@@ -108,7 +116,8 @@ class BackwardEuler(PartitionedScheme):
         energy, scale = self.system.energy(t, *self.system.split(y))
         self._plain_step(t, y, h)
         after, after_scale = self.system.energy(t + h, *self.system.split(y))
-        if depth < self.max_halvings and after > energy + ENERGY_TOLERANCE * max(scale, after_scale):
+        if depth < self.max_halvings and after > energy + max(ENERGY_TOLERANCE * max(scale, after_scale),
+                                                              self.energy_floor):
             y[...] = before
             self.halvings += 1
             spent = budget_spent(t)
