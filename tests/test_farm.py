@@ -140,6 +140,40 @@ def test_an_interrupted_render_resumes_without_redrawing_finished_frames(throw, 
     assert sorted(p.name for p in folder.glob("frame_*.png")) == [f"frame_{i:05d}.png" for i in range(20)]
 
 
+def test_a_render_over_its_budget_exits_4_keeps_its_frames_and_a_larger_budget_finishes_it(throw, tmp_cwd,
+                                                                                            monkeypatch):
+    """render.max_cost: with every frame costing 0.5 s more (a slowed renderer), 20 frames project to over 10 s, over
+    a budget of 5 s (which the set-up and first frame stay within): the render stops after frame 2 with exit code 4,
+    those frames complete on disk. The budget and the
+    warning threshold draw nothing, so with a larger budget the next run keeps them and draws the other 18."""
+    import time
+
+    from animbatch.render.frames import FrameRenderer
+
+    original = FrameRenderer.draw
+
+    def slow(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+        time.sleep(0.5)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(FrameRenderer, "draw", slow)
+    runner = CliRunner()
+    result = runner.invoke(cli, ["render", str(throw), "--frames", "0-19", "--jobs", "1",
+                                 "--set", "render.max_cost=5"])
+    assert result.exit_code == 4, result.output
+    assert "rendering stopped after 2 of 20 frames" in result.output and "render.max_cost" in result.output
+    folder = tmp_cwd / "renders" / "throw" / "frames"
+    kept = sorted(p.name for p in folder.glob("frame_*.png"))
+    assert kept == ["frame_00000.png", "frame_00001.png"]
+    assert all(frame_is_complete(folder / name, (WIDTH, HEIGHT)) for name in kept)
+    monkeypatch.setattr(FrameRenderer, "draw", original)
+    drawn = counting(monkeypatch, FrameRenderer, "draw")
+    result = runner.invoke(cli, ["render", str(throw), "--frames", "0-19", "--jobs", "1", "--set",
+                                 "render.max_cost=0", "--set", "solver.drift_warning=0.5", "--max-cost", "2h"])
+    assert result.exit_code == 0, result.output
+    assert len(drawn) == 18
+
+
 def test_frames_of_another_picture_are_never_reused(throw, tmp_cwd, monkeypatch):
     """After a camera change, frames on disk from the old camera (same size, complete) are deleted and drawn again."""
     from animbatch.render.frames import FrameRenderer

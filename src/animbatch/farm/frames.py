@@ -102,9 +102,12 @@ def render_key(scene: LoadedScene, trajectory: Trajectory) -> str:
 
     from animbatch import __version__
 
+    from animbatch.farm.cache import simulation_settings
+
     spec = scene.spec.model_dump(mode="json", exclude={"study", "description"})
-    spec["render"].pop("formats", None)
-    spec["render"].pop("video", None)
+    spec["solver"] = simulation_settings(spec["solver"])  # budgets and warning thresholds draw nothing
+    for key in ("formats", "video", "max_cost"):
+        spec["render"].pop(key, None)
     content = {"scene": spec, "physics": trajectory.physics_hash, "solver": trajectory.solver.get("description"),
                "version": __version__}
     return hashlib.sha256(json.dumps(content, sort_keys=True, default=str).encode()).hexdigest()[:16]
@@ -157,14 +160,48 @@ def render_frames(scene: LoadedScene, trajectory: Trajectory, frames: FrameRange
         if on_frame is not None:
             on_frame(index)
 
+    budget = RenderBudget(scene.spec.render.max_cost, len(todo))
     with contextlib.ExitStack() as stack:
         renderer = stack.enter_context(FrameRenderer(scene.spec.render, geometry, chosen))
         background = stack.enter_context(BackgroundPngWriter(writer, written))  # closed first: frames finished
-        for index in todo:
+        for done, index in enumerate(todo, start=1):
             started = time.perf_counter()
             image = renderer.draw(float(trajectory.times[index]), trajectory.positions[index],
                                   trajectory.orientations[index], trajectory.angular_velocities[index],
                                   (trajectory.particles, index) if trajectory.particles else None)
             result.render_seconds += time.perf_counter() - started
             background.submit(index, image)
+            budget.after_frame(done)  # the frames submitted are finished on disk before the error leaves
     return result
+
+
+class RenderBudget:
+    """``render.max_cost`` [s] for one render process drawing ``frames`` frames: after the second frame (the first
+    one also builds the scene's actors) the rest is projected at that pace, and a render that would exceed the
+    budget stops there; one that runs over anyway stops when the budget is spent. Frames drawn are kept."""
+
+    def __init__(self, seconds: float, frames: int) -> None:
+        self.seconds, self.frames = seconds, frames
+        self.started = time.perf_counter()
+        self.second_started: float | None = None
+
+    def after_frame(self, done: int) -> None:
+        now = time.perf_counter()
+        if done == 1:
+            self.second_started = now
+        if not self.seconds or done >= self.frames:
+            return
+        elapsed = now - self.started
+        per_frame = (now - self.second_started) / (done - 1) if done >= 2 else None
+        projected = elapsed + per_frame * (self.frames - done) if per_frame is not None else None
+        if elapsed > self.seconds or (projected is not None and projected > self.seconds):
+            from animbatch.errors import RenderError
+            from animbatch.integrators.budget import format_seconds
+
+            pace = (f"about {format_seconds(projected)} at {per_frame:.3g} s per frame" if projected is not None
+                    else f"more than the {format_seconds(elapsed)} the first frame took")
+            raise RenderError(
+                f"rendering stopped after {done} of {self.frames} frames: drawing them all would take {pace}, "
+                f"more than the budget of {format_seconds(self.seconds)} (render.max_cost). The {done} frames drawn "
+                "are kept; run again with --set render.max_cost=SECONDS (0 = no limit) to draw the rest, or lower "
+                "render.resolution, fps or anti_aliasing")

@@ -1184,6 +1184,11 @@ class RenderSpec(SceneModel):
         "at 33.3), and png (keep the frame files; they are the render's resumable state and are otherwise deleted "
         "once every video is encoded).")
     video: VideoSpec = key(VideoSpec(), "MP4 encoding settings.")
+    max_cost: float = key(3600.0, "Wall-time budget of drawing the frames (each render process gets it). After "
+                                  "two frames the time of the rest is projected, and a render that would take "
+                                  "longer stops with exit code 4, saying what it would take; the frames drawn stay "
+                                  "on disk, and a run with a larger budget goes on from them. 0 = no limit.",
+                          "s", ge=0)
 
     @field_validator("resolution")
     @classmethod
