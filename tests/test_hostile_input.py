@@ -416,3 +416,16 @@ def test_a_first_frame_longer_than_the_whole_budget_stops_at_once(monkeypatch):
     budget = frames.RenderBudget(5.0, 10)
     with pytest.raises(RenderError, match="more than the 7 s the first frame took"):
         budget.after_frame(1)
+
+
+def test_a_damping_that_swamps_the_masses_names_the_spring_instead_of_a_singular_factor():
+    """Found by the long fuzz run: the curtain's damping scaled to 1e35 N·s/m made backward Euler's matrix
+    M − h D − h² K singular in rounding (SuperLU's 'Factor is exactly singular' traceback). Now exit 3, naming the
+    spring, its numbers and how many times its lighter end's mass it is over one step."""
+    loaded = load_scene(Path(__file__).resolve().parent.parent / "scenes" / "curtain.yaml",
+                        overrides=["duration=0.2", "bodies[curtain].structural.damping=1e35"])
+    with pytest.raises(SimulationError) as caught:
+        api.simulate(loaded)
+    message = str(caught.value)
+    assert "spring 'curtain.structural[" in message and "damping 1e+35 N·s/m" in message
+    assert "masses vanish in the rounding" in message

@@ -95,8 +95,31 @@ class BackwardEuler(PartitionedScheme):
             velocity = motion[:size]
             force = self._mass @ rate[:size]
             matrix = self._mass - h * damping - (h * h) * stiffness  # symmetric positive definite
-            motion[:size] += factor_symmetric(matrix).solve(h * (force + h * (stiffness @ velocity)))
+            try:
+                factors = factor_symmetric(matrix)
+            except RuntimeError:  # SuperLU: "Factor is exactly singular"
+                raise self._singular(t, h) from None
+            motion[:size] += factors.solve(h * (force + h * (stiffness @ velocity)))
         motion[size:] += h * rate[size:]
+
+    def _singular(self, t: float, h: float) -> SimulationError:
+        """Why the step's matrix M − h D − h² K could not be factored: springs so stiff or so damped, next to their
+        masses, that the masses vanish in its rounding (the matrix is then as singular as D or K alone)."""
+        springs = self.system.model.springs
+        if springs is None or not springs.count:
+            return SimulationError(f"backward_euler could not solve its step at t = {t:.6g} s: the step's matrix is "
+                                   "singular. Check the scene's masses and the forces on them", time=t)
+        mass = np.asarray(self.system.model.bodies.mass, float)
+        lightest = np.where(springs.second_is_anchor, mass[springs.first],
+                            np.minimum(mass[springs.first], mass[np.where(springs.second_is_anchor, 0, springs.second)]))
+        ratio = np.maximum(h * springs.damping, h * h * springs.stiffness) / lightest
+        k = int(np.argmax(ratio))
+        return SimulationError(
+            f"backward_euler could not solve its step at t = {t:.6g} s: spring {springs.names[k]!r} (stiffness "
+            f"{springs.stiffness[k]:.3g} N/m, damping {springs.damping[k]:.3g} N·s/m) is {ratio[k]:.3g} times its "
+            f"lighter end's mass ({lightest[k]:.3g} kg) over a step of {h:.3g} s, so the masses vanish in the "
+            "rounding of the step's matrix M − h D − h² K and it is singular. Give that spring a physical stiffness "
+            "and damping (or the bodies physical masses)", time=t, body=springs.names[k])
 
     def step(self, t: float, y: np.ndarray, h: float) -> None:
         if self.guard_energy:
