@@ -107,13 +107,14 @@ def bench_ivp(quick: bool) -> list[Row]:
     mass = builder.add_particle("m", position=(1.3, 0, 0))
     anchor = builder.add_anchor("a", (0, 0, 0))
     builder.add_spring(mass, anchor, stiffness=50, damping=0.1, rest_length=1.0, second_is_anchor=True)
-    model = builder.finalize(duration=20.0 if not quick else 5.0, fps=30)
+    model = builder.finalize(duration=20.0 if not quick else 1.0, fps=30)
     system = Dynamics(model)
+    repeats = 1 if quick else 3  # --quick is a smoke run: the numbers must exist, not be the best of several
     rows = []
     for method in ("RK45", "DOP853"):
         integrator = ScipyIntegrator(method, rtol=1e-9, atol=1e-11)
         result = integrator.integrate(system, model.y0, model.frame_times)
-        ours = best_of(3, lambda: integrator.integrate(system, model.y0, model.frame_times))
+        ours = best_of(repeats, lambda: integrator.integrate(system, model.y0, model.frame_times))
 
         def bare() -> None:
             solve_ivp(system.rhs, (model.frame_times[0], model.frame_times[-1]), model.y0, method=method, rtol=1e-9,
@@ -121,7 +122,7 @@ def bench_ivp(quick: bool) -> list[Row]:
 
         reference = solve_ivp(system.rhs, (model.frame_times[0], model.frame_times[-1]), model.y0, method=method,
                               rtol=1e-9, atol=1e-11, t_eval=model.frame_times)
-        theirs = best_of(3, bare)
+        theirs = best_of(repeats, bare)
         # Both run the same scipy solver class with the same settings, so they take the same steps.
         steps = result.stats.steps
         assert np.allclose(reference.y.T, result.states, rtol=1e-6, atol=1e-8), "paths disagree"
@@ -132,8 +133,8 @@ def bench_ivp(quick: bool) -> list[Row]:
              "value": theirs / steps * 1e6, "unit": "µs/step"},
         ]
     y = model.y0.copy()
-    calls = 20000
-    rhs_seconds = best_of(3, lambda: [system.rhs(0.0, y) for _ in range(calls)])
+    calls = 2000 if quick else 20000
+    rhs_seconds = best_of(repeats, lambda: [system.rhs(0.0, y) for _ in range(calls)])
     rows.append({"benchmark": "solve_ivp path", "case": "one RHS evaluation (1 particle, 1 spring)",
                  "value": rhs_seconds / calls * 1e6, "unit": "µs/call"})
     return rows
@@ -152,8 +153,8 @@ def bench_rigid(quick: bool) -> list[Row]:
         spec = parse_scene(f"bodies:\n{bodies}\nfields: [{{type: gravity}}, {{type: buoyancy}}]").spec
         system = Dynamics(compile_scene(spec))
         y = system.model.y0.copy()
-        calls = max(20, 4000 // count)
-        seconds = best_of(3, lambda: [system.rhs(0.0, y) for _ in range(calls)])
+        calls = max(20, (400 if quick else 4000) // count)
+        seconds = best_of(1 if quick else 3, lambda: [system.rhs(0.0, y) for _ in range(calls)])
         rows.append({"benchmark": "rigid bodies", "case": f"RHS, {count} floating boxes (gravity + buoyancy)",
                      "value": seconds / calls / count * 1e6, "unit": "µs/body"})
     return rows
