@@ -429,3 +429,33 @@ def test_a_damping_that_swamps_the_masses_names_the_spring_instead_of_a_singular
     message = str(caught.value)
     assert "spring 'curtain.structural[" in message and "damping 1e+35 N·s/m" in message
     assert "masses vanish in the rounding" in message
+
+
+def test_an_alias_of_a_mapping_that_overrides_a_merged_key_is_not_a_duplicate():
+    """Found in review: PyYAML flattens merge keys in place, so building an aliased mapping a second time took
+    its merged keys for its own and reported the override as a duplicate key."""
+    from animbatch.scene.yaml_source import load_yaml
+
+    data, source = load_yaml("y: &y {m: 1, r: 2}\na: &x {<<: *y, m: 3}\nb: *x\n", "x.yaml")
+    assert data["a"] == data["b"] == {"m": 3, "r": 2}
+    assert source.source_of(("b", "m")) == "x.yaml:2:19"  # where the value that counts was written
+
+
+def test_a_document_is_built_without_recursion():
+    """The builder is a loop: 60 levels of nesting (within MAX_DEPTH) build with the recursion limit at 80, which a
+    recursive builder (two frames a level) would exceed."""
+    import sys
+
+    from animbatch.scene.yaml_source import load_yaml
+
+    text = "a: " + "[" * 60 + "1" + "]" * 60 + "\n"
+    limit = sys.getrecursionlimit()
+    sys.setrecursionlimit(80)  # pytest's own frames take part of it
+    try:
+        data, _ = load_yaml(text, "x.yaml")
+    finally:
+        sys.setrecursionlimit(limit)
+    value = data["a"]
+    for _ in range(60):
+        value = value[0]
+    assert value == 1

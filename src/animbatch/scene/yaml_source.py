@@ -13,8 +13,9 @@ Hostile documents are refused before they cost anything: the text's size, the ne
 *after expanding aliases* (an alias bomb, "billion laughs", is a few lines that expand to 10⁹ nodes) are counted on
 PyYAML's event stream while the nodes are composed, by a loop rather than PyYAML's recursive composer, so a document
 nested thousands of levels deep gives a SceneError, not a RecursionError. Once composed, a document is at most
-``MAX_DEPTH`` levels deep, aliases included, which bounds every later walk of it. Numbers too large or too small to
-be physical (``1e300`` m, ``1e-300`` kg) are refused here too, with their position, because they overflow later.
+``MAX_DEPTH`` levels deep, aliases included, which bounds every later walk of it; the nodes are turned into plain
+data by a loop too. Numbers too large or too small to be physical (``1e300`` m, ``1e-300`` kg) are refused here
+too, with their position, because they overflow later.
 """
 
 from __future__ import annotations
@@ -134,27 +135,39 @@ def _position(mark: yaml.Mark) -> Position:
 
 
 class _Builder:
-    """Turns composed YAML nodes into plain data while filling a SourceMap."""
+    """Turns composed YAML nodes into plain data while filling a SourceMap, by a loop over a stack of nodes still to
+    build (no recursion, whatever the depth)."""
 
     def __init__(self, loader: SceneYamlLoader, source: SourceMap) -> None:
         self.loader = loader
         self.source = source
         self.issues: list[SceneIssue] = []
+        self._pairs: dict[int, list[tuple[yaml.Node, yaml.Node, bool]]] = {}  # id(mapping) -> its flattened pairs
 
-    def build(self, node: yaml.Node, path: KeyPath) -> Any:
-        """Plain data of ``node``. Recursive, but only ``MAX_DEPTH`` deep: the composer has checked the depth."""
-        self.source.values.setdefault(path, _position(node.start_mark))
-        if not isinstance(node, yaml.ScalarNode) and node.tag not in _PLAIN_COLLECTION_TAGS:
-            # SafeLoader would refuse these too, but only when constructing; we build collections ourselves.
-            where = _position(node.start_mark)
-            raise SceneError([SceneIssue(f"{self.source.filename}:{where.line}:{where.column}", format_path(path),
-                                         f"YAML tag not allowed: {node.tag!r}; scene files hold plain data only "
-                                         "(mappings, lists, numbers, text)")])
-        if isinstance(node, yaml.MappingNode):
-            return self._mapping(node, path)
-        if isinstance(node, yaml.SequenceNode):
-            return [self.build(item, (*path, index)) for index, item in enumerate(node.value)]
-        return self._scalar(node, path)
+    def build(self, root: yaml.Node, path: KeyPath) -> Any:
+        """Plain data of ``root``, found at ``path``."""
+        holder: list[Any] = [None]
+        todo: list[tuple[yaml.Node, KeyPath, Any, Any]] = [(root, path, holder, 0)]  # (node, path, container, slot)
+        while todo:
+            node, where, container, slot = todo.pop()
+            self.source.values.setdefault(where, _position(node.start_mark))
+            if not isinstance(node, yaml.ScalarNode) and node.tag not in _PLAIN_COLLECTION_TAGS:
+                # SafeLoader would refuse these too, but only when constructing; we build collections ourselves.
+                at = _position(node.start_mark)
+                raise SceneError([SceneIssue(f"{self.source.filename}:{at.line}:{at.column}", format_path(where),
+                                             f"YAML tag not allowed: {node.tag!r}; scene files hold plain data only "
+                                             "(mappings, lists, numbers, text)")])
+            if isinstance(node, yaml.MappingNode):
+                value: Any = {}
+                children = [(child, (*where, key), value, key) for key, child in self._mapping(node, where)]
+            elif isinstance(node, yaml.SequenceNode):
+                value = [None] * len(node.value)
+                children = [(child, (*where, index), value, index) for index, child in enumerate(node.value)]
+            else:
+                value, children = self._scalar(node, where), []
+            container[slot] = value
+            todo.extend(reversed(children))  # in document order, so that first positions are recorded first
+        return holder[0]
 
     def _scalar(self, node: yaml.ScalarNode, path: KeyPath) -> Any:
         try:
@@ -170,13 +183,21 @@ class _Builder:
                                           problem))
         return value
 
-    def _mapping(self, node: yaml.MappingNode, path: KeyPath) -> dict[Any, Any]:
-        # Keys written in this mapping (as opposed to merged in with '<<: *anchor'); only these can be duplicates.
-        own_keys = {id(key) for key, _ in node.value if key.tag != "tag:yaml.org,2002:merge"}
-        self.loader.flatten_mapping(node)  # merged pairs first, then own pairs, so own values override merged ones
-        result: dict[Any, Any] = {}
-        own_seen: dict[Any, Position] = {}
-        for key_node, value_node in node.value:
+    def _flattened(self, node: yaml.MappingNode) -> list[tuple[yaml.Node, yaml.Node, bool]]:
+        """(key, value, written in this mapping) for each pair, merged ones ('<<: *anchor') first, so that own values
+        override them. Kept per node: PyYAML flattens in place, and an alias builds the same node again."""
+        if id(node) not in self._pairs:
+            own = {id(key) for key, _ in node.value if key.tag != "tag:yaml.org,2002:merge"}
+            self.loader.flatten_mapping(node)
+            self._pairs[id(node)] = [(key, value, id(key) in own) for key, value in node.value]
+        return self._pairs[id(node)]
+
+    def _mapping(self, node: yaml.MappingNode, path: KeyPath) -> list[tuple[str, yaml.Node]]:
+        """The (key, value node) pairs that make the mapping at ``path``: text keys, no own duplicates, the last
+        value of each key (own over merged); records the keys' positions."""
+        chosen: dict[str, yaml.Node] = {}
+        own_seen: dict[str, Position] = {}
+        for key_node, value_node, own in self._flattened(node):
             key = self.loader.construct_object(key_node, deep=True)
             where = _position(key_node.start_mark)
             if not isinstance(key, str):
@@ -184,18 +205,16 @@ class _Builder:
                                               format_path(path),
                                               f"keys must be text, got {key!r} ({type(key).__name__})"))
                 continue
-            if id(key_node) in own_keys:
+            if own:
                 if key in own_seen:
                     self.issues.append(SceneIssue(
                         f"{self.source.filename}:{where.line}:{where.column}", format_path((*path, key)),
                         f"duplicate key (first given at line {own_seen[key].line}); keep only one"))
                     continue
                 own_seen[key] = where
-            if key in result:  # replacing a merged value: positions must point at the new one
-                self.source.forget_below((*path, key))
+            chosen[key] = value_node  # an own value replaces a merged one (in its place), before either is built
             self.source.keys[(*path, key)] = where
-            result[key] = self.build(value_node, (*path, key))
-        return result
+        return list(chosen.items())
 
 
 def load_yaml(text: str, filename: str) -> tuple[Any, SourceMap]:
