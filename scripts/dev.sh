@@ -103,7 +103,8 @@ case "$command" in
         ;;
     test)
         setup
-        exec "$venv/bin/python" -m pytest "$@"
+        # Spread the tests over the machine's cores (at most 4: each render test holds a software OpenGL context).
+        exec "$venv/bin/python" -m pytest -n auto --maxprocesses=4 "$@"
         ;;
     bench)
         setup
