@@ -50,9 +50,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
 
-from animbatch.integrators import ScipyIntegrator  # noqa: E402
-from animbatch.integrators.fixed_step import SymplecticEuler, VelocityVerlet  # noqa: E402
-from animbatch.model import ModelBuilder, Dynamics  # noqa: E402
+from animbatch.sim.integrators import ScipyIntegrator  # noqa: E402
+from animbatch.sim.integrators.fixed_step import SymplecticEuler, VelocityVerlet  # noqa: E402
+from animbatch.compile.builder import ModelBuilder  # noqa: E402
+from animbatch.sim.model import Dynamics  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -142,8 +143,8 @@ def bench_ivp(quick: bool) -> list[Row]:
 
 def bench_rigid(quick: bool) -> list[Row]:
     """Cost of one right-hand-side evaluation per rigid body (boxes under gravity, floating in water)."""
-    from animbatch.model import compile_scene
-    from animbatch.scene import parse_scene
+    from animbatch.compile.model import compile_scene
+    from animbatch.stages import parse_scene
 
     rows = []
     for count in ([1, 100] if quick else [1, 100, 1000]):
@@ -194,9 +195,9 @@ def bench_contacts(quick: bool) -> list[Row]:
     default iteration limit (300) and with 30, which shows what exactness costs while the pile forms."""
     from scipy.spatial import cKDTree
 
-    from animbatch.integrators import make_integrator
-    from animbatch.model import compile_scene
-    from animbatch.scene import parse_scene
+    from animbatch.compile.solver import make_integrator
+    from animbatch.compile.model import compile_scene
+    from animbatch.stages import parse_scene
 
     rows = []
     for count, iterations in ([(1_000, 300)] if quick else [(1_000, 300), (10_000, 300), (10_000, 30)]):
@@ -257,10 +258,10 @@ class OutOfBudget(Exception):
 def bench_cloth(quick: bool, budget: float | None = None, only: list[str] | None = None) -> list[Row]:
     """The stiff cloth with each method (or those whose label starts with one of ``only``), each within a wall-time
     budget."""
-    from animbatch.integrators import make_integrator
-    from animbatch.integrators.stability import largest_stable_step, stiffest_mode
-    from animbatch.model import compile_scene
-    from animbatch.scene import parse_scene
+    from animbatch.compile.solver import make_integrator
+    from animbatch.sim.integrators.stability import largest_stable_step, stiffest_mode
+    from animbatch.compile.model import compile_scene
+    from animbatch.stages import parse_scene
 
     resolution, duration = (24, 1.0) if quick else (64, 5.0)
     budget = budget if budget is not None else (60.0 if quick else 900.0)
@@ -321,7 +322,7 @@ def render_frames(count: int, anti_aliasing: str, frames: int) -> tuple[float, l
     from animbatch import api
     from animbatch.render.backend import select_backend
     from animbatch.render.frames import FrameGeometry, FrameRenderer
-    from animbatch.scene import parse_scene
+    from animbatch.stages import parse_scene
 
     rng = np.random.default_rng(1)
     positions = rng.normal(size=(count, 3)) * (0.0 if count == 1 else 1.0)
@@ -391,11 +392,11 @@ def bench_fountain(quick: bool) -> list[Row]:
     second once the pool is full, and rendered frames per second at 1280×720 (sphere sprites, with and without the
     scene's 2-frame trails)."""
     from animbatch import api
-    from animbatch.particles.compile import compile_particles
-    from animbatch.particles.simulate import simulate_particles
+    from animbatch.compile.particles import compile_particles
+    from animbatch.sim.particles.simulate import simulate_particles
     from animbatch.render.backend import select_backend
     from animbatch.render.frames import FrameRenderer
-    from animbatch.scene import load_scene
+    from animbatch.stages import load_scene
 
     live = 10_000 if quick else 100_000
     overrides = [f"emitters[jet].rate={live / 2.2!r}", "duration=3.0"]  # mean lifetime 2.2 s
@@ -480,8 +481,8 @@ def bench_lean(quick: bool) -> list[Row]:
 
 
 def compile_scene_text(text: str):  # type: ignore[no-untyped-def]
-    from animbatch.model import compile_scene
-    from animbatch.scene import parse_scene
+    from animbatch.compile.model import compile_scene
+    from animbatch.stages import parse_scene
 
     return compile_scene(parse_scene(text, filename="benchmark.yaml").spec)
 
@@ -555,9 +556,9 @@ def bench_ledger(quick: bool) -> list[Row]:
     import warnings
 
     from animbatch import api
-    from animbatch.integrators import DEFAULT_DT
-    from animbatch.ledger import build_ledger
-    from animbatch.scene import parse_scene
+    from animbatch.sim.integrators import DEFAULT_DT
+    from animbatch.sim.ledger import build_ledger
+    from animbatch.stages import parse_scene
 
     rows = []
     count, side = (300, 16) if quick else (1000, 32)

@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 from animbatch import api
-from animbatch.model import Model, compile_scene
-from animbatch.scene import LoadedScene, parse_scene
+from animbatch.sim.model import Model
+from animbatch.compile.model import compile_scene
+from animbatch.scene import LoadedScene
+from animbatch.stages import parse_scene
 from animbatch.trajectory import Trajectory
 
 

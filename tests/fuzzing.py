@@ -27,7 +27,7 @@ from hypothesis import strategies as st
 
 from animbatch import api
 from animbatch.errors import AnimbatchError, SceneError
-from animbatch.scene import parse_scene
+from animbatch.stages import parse_scene
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
 #: Exit codes the README documents for errors meant for the user.

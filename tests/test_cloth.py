@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from animbatch.deformable import topology
+from animbatch.sim.deformable import topology
 from animbatch.errors import SimulationError
-from animbatch.forces.dihedral import hinge_angles, hinge_gradients
-from animbatch.invariants import kinetic_energy, linear_momentum, total_energy
-from animbatch.model import Dynamics, compile_scene
+from animbatch.sim.forces.dihedral import hinge_angles, hinge_gradients
+from animbatch.sim.invariants import kinetic_energy, linear_momentum, total_energy
+from animbatch.sim.model import Dynamics
+from animbatch.compile.model import compile_scene
 from conftest import run, scene, states
 
 G = 9.81
@@ -98,7 +99,7 @@ def test_dihedral_springs_unfold_a_folded_cloth_and_conserve_energy_undamped():
     """A free 3 × 3 cloth with structural and dihedral springs, its top row folded up by 40° about the middle row
     (a rigid fold: no spring is stretched, only the hinges bend): it unfolds and swings through flat, with total
     energy constant (DOP853 at tight tolerance) and momentum zero."""
-    from animbatch.integrators import ScipyIntegrator
+    from animbatch.sim.integrators import ScipyIntegrator
 
     model = compile_scene(scene("""
         duration: 0.5
@@ -215,7 +216,7 @@ def test_implicit_adaptive_methods_with_the_sparse_jacobian_follow_the_exact_lin
     changes), reproduce x(t) = expm(A t) x0 of a stiff two-spring chain to within their tolerance."""
     from scipy.linalg import expm
 
-    from animbatch.integrators import make_integrator
+    from animbatch.compile.solver import make_integrator
 
     loaded = scene(stiff_oscillator_chain(method))
     model = compile_scene(loaded.spec)
@@ -235,7 +236,8 @@ def test_implicit_adaptive_methods_with_the_sparse_jacobian_follow_the_exact_lin
 def test_implicit_adaptive_methods_reuse_newton_factors_without_losing_accuracy(monkeypatch):
     """On a stiff falling cloth, BDF factors its Newton matrix far less often when factors are reused across small
     step changes, and lands where it lands when it refactors at every change (both within tolerance of each other)."""
-    from animbatch.integrators import linear_algebra, make_integrator
+    from animbatch.sim.integrators import linear_algebra
+    from animbatch.compile.solver import make_integrator
     from animbatch.scene.schema import SolverSpec
 
     model = compile_scene(scene(cloth("{}", **{**STIFF_CLOTH, "duration": 0.1}),
@@ -275,7 +277,7 @@ def test_fixed_pins_never_move_and_keyframed_pins_follow_their_path():
 def test_vertices_pinned_to_a_rigid_body_move_with_it_and_pull_on_it():
     """A cloth hanging from a spinning, thrown box: the attached corners stay at their body points, and the whole
     system's momentum changes at exactly (M_box + m_free_vertices) g, so the cloth's springs pull on the box."""
-    from animbatch.rigid import quaternion
+    from animbatch import quaternion
 
     model, trajectory = run("""
         duration: 0.5
@@ -323,7 +325,7 @@ def test_aerodynamic_force_on_a_plate_facing_and_edge_on_to_the_wind():
 
 def test_gusts_stay_within_their_amplitude_and_repeat():
     """The gust signal is bounded by its amplitude and the same at the same time in every run."""
-    from animbatch.forces.aerodynamics import gust_signal
+    from animbatch.sim.forces.aerodynamics import gust_signal
 
     t = np.linspace(0, 60, 6001)
     signal = np.array([gust_signal(x, 2.0) for x in t])

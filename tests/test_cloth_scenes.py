@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from animbatch import api
-from animbatch.invariants import kinetic_energy
-from animbatch.model import Dynamics
-from animbatch.scene import load_scene
+from animbatch.sim.invariants import kinetic_energy
+from animbatch.sim.model import Dynamics
+from animbatch.stages import load_scene
 from conftest import states
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -116,7 +116,7 @@ def test_bead_under_backward_euler_never_rises_above_its_starting_energy_at_a_bo
     out of the definite derivative, so the energy guard halves a rising step at most three times. At every frame the
     energy (kinetic, gravity and the controller's ks d²/2) is at or below the start, and no step costs more than
     the 15 plain steps of three halvings (ten halvings had cost up to 1023 per step: a minute for this loop)."""
-    from animbatch.invariants import total_energy
+    from animbatch.sim.invariants import total_energy
 
     model, trajectory, _ = simulate("bead_on_wire.yaml", "solver.method=backward_euler", "solver.dt=0.0166667",
                                     "duration=2")

@@ -7,9 +7,10 @@ import pytest
 from click.testing import CliRunner
 
 from animbatch.cli import cli
-from animbatch.forces import FIELD_TERMS, Drag, Gravitation, SpringForces, UniformGravity
-from animbatch.forces import springs as spring_module
-from animbatch.model import compile_scene
+from animbatch.sim.forces import Drag, Gravitation, SpringForces, UniformGravity
+from animbatch.compile.forces import FIELD_TERMS
+from animbatch.sim.forces import springs as spring_module
+from animbatch.compile.model import compile_scene
 from animbatch.scene.schema import field_type_names
 from conftest import run, scene
 
@@ -100,7 +101,7 @@ bodies:
 
 def test_particle_scenes_do_no_rigid_body_work(monkeypatch):
     """With quaternion maths sabotaged, a particle-only scene still runs with every kind of method."""
-    from animbatch.rigid import quaternion
+    from animbatch import quaternion
 
     def sabotaged(*args, **kwargs):
         raise AssertionError("rigid-body code evaluated")
@@ -113,7 +114,7 @@ def test_particle_scenes_do_no_rigid_body_work(monkeypatch):
 
 def test_buoyancy_is_computed_only_where_a_fluid_is_declared(monkeypatch):
     """A rigid scene without a fluid never computes submerged volumes; one with a fluid does."""
-    from animbatch.forces import buoyancy
+    from animbatch.sim.forces import buoyancy
 
     calls = []
     monkeypatch.setattr(buoyancy, "submerged_volume_and_moment", lambda *a, **k: calls.append(1) or 1 / 0)
@@ -188,8 +189,8 @@ def test_declared_but_unused_kinds_add_nothing_to_the_right_hand_side(monkeypatc
     spring uses, a material nobody wears, a particle emitter, study settings): the same compiled terms and state,
     the same derivative, and not one keyframe evaluated per right-hand side (a moving anchor used to be evaluated
     by every spring term whether attached or not). benchmarks/run.py --only lean times both."""
-    from animbatch.model import Dynamics
-    from animbatch.motion import KeyframePath
+    from animbatch.sim.model import Dynamics
+    from animbatch.sim.motion import KeyframePath
 
     plain, extended = (compile_scene(scene(text).spec) for text in (CLOTH, CLOTH + UNUSED))
     assert [term.describe() for term in extended.force_terms] == [term.describe() for term in plain.force_terms]

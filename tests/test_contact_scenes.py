@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from animbatch import api
-from animbatch.scene import load_scene
+from animbatch.stages import load_scene
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 G = 9.81

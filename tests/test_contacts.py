@@ -7,10 +7,10 @@ import warnings
 import numpy as np
 import pytest
 
-from animbatch.contact import detection
-from animbatch.contact.materials import BUILT_IN, MaterialTable
-from animbatch.integrators.preflight import StabilityWarning
-from animbatch.invariants import kinetic_energy, linear_momentum
+from animbatch.sim.contact import detection
+from animbatch.sim.contact.materials import BUILT_IN, MaterialTable
+from animbatch.sim.integrators.preflight import StabilityWarning
+from animbatch.sim.invariants import kinetic_energy, linear_momentum
 from conftest import run, states
 
 G = 9.81
@@ -335,7 +335,7 @@ def test_box_dropped_on_its_edge_tumbles_and_lands_flat(method):
     """)
     spin = trajectory.angular_velocities[:, 0, 2]
     assert np.abs(spin).max() > 1.0
-    from animbatch.rigid import quaternion
+    from animbatch import quaternion
 
     axes = quaternion.to_matrix(trajectory.orientations[-1, 0])
     assert np.max(np.abs(axes[1])) > np.cos(np.radians(0.5))  # some body axis points straight up
@@ -399,7 +399,7 @@ def test_broad_phase_finds_exactly_the_pairs_a_brute_force_search_finds():
         bodies:
 {bodies}
     """)
-    from animbatch.model import Dynamics
+    from animbatch.sim.model import Dynamics
 
     dynamics = Dynamics(model)
     found = detection.detect(model.contact_world, dynamics.kinematics(*dynamics.split(model.y0.copy())), 0.0)
@@ -453,7 +453,7 @@ def test_an_event_loop_that_stops_advancing_is_stopped_with_a_clear_error(monkey
     """A safety net: should impact location ever keep reporting an impact at the step's start (no progress), the
     run stops after MAX_STALLED_EVENTS events at that instant, naming the time and a method that copes, instead of
     spinning forever."""
-    from animbatch.contact import events
+    from animbatch.sim.contact import events
     from animbatch.errors import SimulationError
 
     monkeypatch.setattr(events.ContactEvents, "_first_impact", lambda self, solver, candidates, closing: solver.t_old)

@@ -8,7 +8,7 @@ import pytest
 
 from animbatch.curves import (ExpressionError, ParametricCurve, Polyline, compile_expression, compile_tree,
                               differentiate, parse_expression)
-from animbatch.motion import KeyframePath
+from animbatch.sim.motion import KeyframePath
 from conftest import body, run, scene
 
 G = 9.81
@@ -169,7 +169,7 @@ def test_controller_on_a_rigid_body_point_holds_it_like_a_pendulum_pivot():
              target: {type: point, position: [0.3, 1.1, 0.1]}}
         fields: [{type: gravity}, {type: angular_drag, coefficient: 0.2, bodies: [crate]}]
     """)
-    from animbatch.rigid import quaternion
+    from animbatch import quaternion
 
     x, v = body(trajectory, "crate")
     rotation = quaternion.to_matrix(trajectory.orientations[-1, 0])

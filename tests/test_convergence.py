@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from animbatch.integrators import FIXED_STEP_SCHEMES
+from animbatch.sim.integrators import FIXED_STEP_SCHEMES
 from conftest import ADAPTIVE, body, run
 from test_closed_forms import oscillator_exact, oscillator_scene
 

@@ -10,8 +10,8 @@ from click.testing import CliRunner
 
 from animbatch.cli import cli
 from animbatch.errors import SimulationError
-from animbatch.integrators import FixedStepIntegrator, ScipyIntegrator
-from animbatch.model import ModelBuilder, Dynamics
+from animbatch.sim.integrators import FixedStepIntegrator, ScipyIntegrator
+from animbatch.sim.model import ModelBuilder, Dynamics
 from conftest import run
 
 # ω = sqrt(k/m) = 1e4 rad/s, so explicit Euler at h = 1e-3 (ω h = 10) multiplies the amplitude by ~10 per step.
@@ -181,7 +181,7 @@ def spring_model(stiffness: float):
 def test_advice_names_a_stiff_spring_and_fits_the_kind_of_method():
     """With a stiff spring, an explicit method is pointed to Radau, BDF or backward_euler, an implicit one that
     failed anyway to backward_euler or a softer spring, never to Radau or BDF; both name the spring and its ω."""
-    from animbatch.integrators.advice import failure_advice
+    from animbatch.sim.integrators.advice import failure_advice
 
     model = spring_model(1.0e8)
     explicit = failure_advice(model, "RK45", model.y0, 0.1, "bob")
@@ -195,7 +195,7 @@ def test_advice_names_a_stiff_spring_and_fits_the_kind_of_method():
 def test_advice_without_springs_or_encounters_names_the_fastest_body():
     """Nothing stiff and no close pair: the fastest-changing body is named; an explicit method hears that the scene
     may be stiff, an implicit one that a jump or singularity in a force is the likelier cause."""
-    from animbatch.integrators.advice import failure_advice
+    from animbatch.sim.integrators.advice import failure_advice
 
     model = two_particles("runaway")
     assert "Radau or BDF" in failure_advice(model, "DOP853", model.y0, 0.3, "runaway")

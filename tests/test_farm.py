@@ -11,7 +11,7 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
-from animbatch import api
+from animbatch import api, stages
 from animbatch.cli import cli
 from animbatch.farm import FrameRange, bake, frame_is_complete, parse_frames, render_frames
 
@@ -56,7 +56,7 @@ def counting(monkeypatch, module, name):
 def test_cache_is_reused_for_a_new_camera_and_redone_for_new_physics_or_solver(throw, monkeypatch):
     """The cache key covers physics, solver settings and version, not the picture: a camera or resolution change
     reuses it; a mass or a tolerance change simulates again; a truncated cache file is never used."""
-    simulated = counting(monkeypatch, api, "simulate")
+    simulated = counting(monkeypatch, stages, "simulate")
     first = bake(api.load_scene(throw))
     assert not first.reused and len(simulated) == 1 and first.path.is_file()
     for overrides in (["render.camera.direction=[1, 1, 1]"], ["render.resolution=[160, 90]"], []):
@@ -347,7 +347,7 @@ def test_an_interrupted_checkpointed_bake_resumes_from_its_last_checkpoint(throw
     """bake --checkpoint-every 10 on the 50-frame scene, interrupted during its third segment: the checkpoint holds
     frames 0-20 and no cache exists. The next bake integrates only the remaining segments (frames 20-49) and, with
     semi-implicit Euler (no state carried between steps), gives exactly the uninterrupted trajectory."""
-    from animbatch.integrators import FixedStepIntegrator
+    from animbatch.sim.integrators import FixedStepIntegrator
 
     overrides = ["solver.method=symplectic_euler", "solver.dt=0.001"]
     plain = bake(api.load_scene(throw, overrides), out_dir="plain").trajectory

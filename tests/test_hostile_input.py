@@ -13,15 +13,15 @@ import pytest
 import trimesh
 from click.testing import CliRunner
 
-from animbatch import api
+from animbatch import api, stages
 from animbatch.cli import cli
 from animbatch.errors import SceneError, SimulationError
-from animbatch.integrators.budget import wall_budget
-from animbatch.integrators.cost import PARTICLE_STEP_SECONDS, CostEstimate, check_cost, estimate_cost
-from animbatch.model import compile_scene
-from animbatch.particles.compile import pool_sizes
-from animbatch.particles.simulate import steps_per_frame
-from animbatch.scene import load_scene, parse_scene
+from animbatch.sim.integrators.budget import wall_budget
+from animbatch.sim.integrators.cost import PARTICLE_STEP_SECONDS, CostEstimate, check_cost, estimate_cost
+from animbatch.compile.model import compile_scene
+from animbatch.compile.particles import pool_sizes
+from animbatch.sim.particles.simulate import steps_per_frame
+from animbatch.stages import load_scene, parse_scene
 from animbatch.scene.yaml_source import MAX_DEPTH, MAX_DOCUMENT_BYTES, MAX_NODES
 from conftest import scene
 
@@ -269,7 +269,7 @@ def test_emitters_beyond_memory_are_refused_naming_the_emitter():
 ])
 def test_a_run_that_exceeds_its_budget_stops_early_saying_how_far_it_got(monkeypatch, overrides):
     """What the pre-flight cannot foresee is caught while running: here the estimate is disabled."""
-    monkeypatch.setattr(api, "estimate_cost", lambda *args, **kwargs: CostEstimate())
+    monkeypatch.setattr(stages, "estimate_cost", lambda *args, **kwargs: CostEstimate())
     loaded = scene(GOOD, *overrides, "duration=5", "solver.max_cost=0.5")
     start = time.perf_counter()
     with pytest.raises(SimulationError) as caught:
@@ -281,7 +281,7 @@ def test_a_run_that_exceeds_its_budget_stops_early_saying_how_far_it_got(monkeyp
 
 
 def test_emitted_particles_stop_at_the_budget_too(monkeypatch):
-    monkeypatch.setattr(api, "estimate_cost", lambda *args, **kwargs: CostEstimate())
+    monkeypatch.setattr(stages, "estimate_cost", lambda *args, **kwargs: CostEstimate())
     loaded = scene("""
         duration: 20
         solver: {method: symplectic_euler, dt: 1.0e-5, max_cost: 0.5}
@@ -293,7 +293,7 @@ def test_emitted_particles_stop_at_the_budget_too(monkeypatch):
 
 
 def test_the_budget_is_per_context_and_off_by_default():
-    from animbatch.integrators.budget import budget_spent
+    from animbatch.sim.integrators.budget import budget_spent
 
     assert budget_spent(1.0) is None
     with wall_budget(1e-9, 0.0, 1.0):
@@ -347,7 +347,7 @@ def test_backward_euler_step_halving_stops_at_the_budget(monkeypatch):
     """Found by the long fuzz run: a lattice at rest without gravity made the energy guard halve every step ten
     times over (each halving a sparse factorisation; 56 s for 0.03 s). With the guard's rounding floor removed to
     recreate that, the budget stops it within the halvings."""
-    from animbatch.integrators import implicit
+    from animbatch.sim.integrators import implicit
 
     monkeypatch.setattr(implicit, "ROUNDING_FLOOR", 0.0)
     start = time.perf_counter()

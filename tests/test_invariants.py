@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from animbatch.invariants import (angular_momentum, centre_of_mass, kinetic_energy, linear_momentum,
+from animbatch.sim.invariants import (angular_momentum, centre_of_mass, kinetic_energy, linear_momentum,
                                   potential_energy, total_energy)
 from conftest import body, run, states
 
@@ -56,7 +56,7 @@ def test_softened_gravitation_force_matches_plummer_formula():
         bodies: [{name: a, mass: 2, position: [0, 0, 0]}, {name: b, mass: 5, position: [0.3, 0.4, 0]}]
         fields: [{type: gravitation, G: 1.5, softening: 0.2}]
     """)
-    from animbatch.model import Dynamics
+    from animbatch.sim.model import Dynamics
 
     dynamics = Dynamics(model)
     force, _ = dynamics.loads(0.0, dynamics.kinematics(*dynamics.split(model.y0.copy())))

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from animbatch.forces.base import ForceJacobian
-from animbatch.model import Dynamics
+from animbatch.sim.forces.base import ForceJacobian
+from animbatch.sim.model import Dynamics
 from conftest import scene
 
-from animbatch.model import compile_scene
+from animbatch.compile.model import compile_scene
 
 SCENE = """
     duration: 1
@@ -135,8 +135,8 @@ def test_newton_matrices_drop_only_the_weak_couplings_and_keep_the_solution():
     same cloth at every frame, to its tolerance, as with the full matrix."""
     import scipy.sparse as sp
 
-    import animbatch.integrators.linear_algebra as linear_algebra
-    from animbatch.integrators import ScipyIntegrator
+    import animbatch.sim.integrators.linear_algebra as linear_algebra
+    from animbatch.sim.integrators import ScipyIntegrator
 
     loaded = scene("""
         duration: 0.2

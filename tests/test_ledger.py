@@ -18,7 +18,7 @@ from click.testing import CliRunner
 from animbatch import api
 from animbatch.cli import cli
 from animbatch.errors import AccuracyWarning
-from animbatch.ledger import QuantitySeries, conservation_laws, summary
+from animbatch.sim.ledger import QuantitySeries, conservation_laws, summary
 from conftest import run, scene, states
 
 G = 9.81
@@ -192,7 +192,7 @@ def test_a_step_written_to_a_few_digits_still_divides_the_frame():
     """dt = 0.008333333 s is 1/120 s to seven digits: four steps per 30 fps frame, not five (the bundled fountain
     took five, 25 % more work, and was told its dt did not divide 1/fps). A dt smaller by more than 1e-6 relative
     is a real request for smaller steps."""
-    from animbatch.integrators.fixed_step import substeps
+    from animbatch.sim.integrators.fixed_step import substeps
 
     assert substeps(1 / 30, 0.008333333) == 4
     assert substeps(1 / 30, 0.0333334) == 1

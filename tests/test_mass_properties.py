@@ -8,10 +8,10 @@ import pytest
 import trimesh
 
 from animbatch import api
-from animbatch.rigid import mass_properties as mp
-from animbatch.rigid.polyhedra import (box_mesh, cylinder_mesh, icosphere, mesh_mass_properties,
+from animbatch.sim.rigid import mass_properties as mp
+from animbatch.sim.rigid.polyhedra import (box_mesh, cylinder_mesh, icosphere, mesh_mass_properties,
                                        submerged_volume_and_moment)
-from animbatch.rigid.shapes import body_geometry
+from animbatch.compile.bodies import body_geometry
 from conftest import scene
 
 DENSITY = 800.0
@@ -205,7 +205,7 @@ def test_submerged_part_of_a_tilted_cube_is_a_triangular_prism():
 
 def test_unit_quaternion_conventions():
     """q = [w, x, y, z]: 90° about z takes x to y, and composition is the Hamilton product."""
-    from animbatch.rigid import quaternion as q
+    from animbatch import quaternion as q
 
     quarter = q.from_rotation_vector(np.array([0, 0, np.pi / 2]))
     assert np.allclose(q.rotate(quarter, np.array([1.0, 0, 0])), [0, 1, 0])

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from animbatch.errors import AccuracyWarning
-from animbatch.invariants import kinetic_energy, linear_momentum
+from animbatch.sim.invariants import kinetic_energy, linear_momentum
 from conftest import ADAPTIVE, run, states
 
 FIXED = ["symplectic_euler", "verlet"]
@@ -147,8 +147,8 @@ def audit_warnings(text: str) -> tuple:
 @pytest.fixture
 def impact_search_off(monkeypatch):
     """Adaptive runs whose impact search finds nothing: a method that misses every collision."""
-    from animbatch.contact import events
-    from animbatch.contact.detection import Contacts
+    from animbatch.sim.contact import events
+    from animbatch.sim.contact.detection import Contacts
 
     monkeypatch.setattr(events.ContactEvents, "_impact_candidates",
                         lambda self, y0, y1, h, t1=0.0: (Contacts.concatenate([]), np.zeros(0)))

@@ -11,9 +11,9 @@ import pytest
 
 from animbatch import api
 from animbatch.errors import SceneError, SimulationError
-from animbatch.particles.compile import compile_particles
-from animbatch.particles.schedule import Births
-from animbatch.particles.simulate import simulate_particles
+from animbatch.compile.particles import compile_particles
+from animbatch.sim.particles.schedule import Births
+from animbatch.sim.particles.simulate import simulate_particles
 from conftest import run, scene
 
 G = 9.81

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from animbatch import api
-from animbatch.invariants import angular_momentum, kinetic_energy, total_energy
-from animbatch.model import Dynamics
-from animbatch.rigid import quaternion as Q
-from animbatch.scene import load_scene
+from animbatch.sim.invariants import angular_momentum, kinetic_energy, total_energy
+from animbatch.sim.model import Dynamics
+from animbatch import quaternion as Q
+from animbatch.stages import load_scene
 from conftest import ADAPTIVE, FIXED_STEP, run, states
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from animbatch import api
-from animbatch.invariants import angular_momentum, total_energy
-from animbatch.model import compile_scene
-from animbatch.scene import load_scene
+from animbatch.sim.invariants import angular_momentum, total_energy
+from animbatch.compile.model import compile_scene
+from animbatch.stages import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = sorted([*(ROOT / "scenes").glob("*.yaml"), *(ROOT / "templates").glob("*.yaml")])

@@ -14,8 +14,8 @@ from PIL import Image
 
 from animbatch.cli import cli
 from animbatch.errors import SceneError
-from animbatch.invariants import angular_momentum, total_energy
-from animbatch.model import compile_scene
+from animbatch.sim.invariants import angular_momentum, total_energy
+from animbatch.compile.model import compile_scene
 from animbatch.study import run_study, write_outputs
 from animbatch.study.report import csv_text, table
 from animbatch.study.closed_forms import exact_motion

@@ -121,7 +121,7 @@ def cli() -> None:
 def validate(scenes: tuple[Path, ...], settings: tuple[str, ...]) -> None:
     """Check scene files; report every error of each file, exit 1 if any is invalid."""
     from animbatch.info import one_line_summary
-    from animbatch.scene import load_scene
+    from animbatch.stages import load_scene
 
     failed = 0
     for path in scenes:
@@ -162,7 +162,7 @@ def info(scene: Path, settings: tuple[str, ...], **shortcuts: str | None) -> Non
     """Show the compiled model: force terms, state layout, bodies and their masses."""
     from animbatch.api import compile_model
     from animbatch.info import describe_model
-    from animbatch.scene import load_scene
+    from animbatch.stages import load_scene
 
     loaded = load_scene(scene, _overrides(settings, **shortcuts))
     click.echo(describe_model(loaded, compile_model(loaded)))
@@ -183,7 +183,7 @@ def simulate(scene: Path, output: Path | None, settings: tuple[str, ...], progre
 
     loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
     trajectory = api.simulate(loaded, progress=Progress(enabled=progress))
-    from animbatch.ledger import summary
+    from animbatch.sim.ledger import summary
 
     target = trajectory.save(output or Path("renders") / loaded.name / f"{loaded.name}.npz")
     seconds = trajectory.solver_stats.get("wall_time", 0.0) + trajectory.particle_stats.get("wall_time", 0.0)
@@ -274,7 +274,7 @@ def plot(scene: Path, trajectory: Path | None, out_dir: Path, settings: tuple[st
     (simulating it first when there is none)."""
     from animbatch import api
     from animbatch.farm import bake as bake_scene
-    from animbatch.ledger import summary
+    from animbatch.sim.ledger import summary
     from animbatch.progress import Progress
     from animbatch.trajectory import Trajectory
 
@@ -316,7 +316,7 @@ def bake(scene: Path, out_dir: Path, force: bool, checkpoint_every: int | None, 
     result = bake_scene(loaded, out_dir=out_dir, progress=Progress(enabled=progress), force=force,
                         checkpoint_every=checkpoint_every)
     prepare_frames(loaded, result.trajectory, out_dir)  # before any render task: frames of another picture go
-    from animbatch.ledger import summary
+    from animbatch.sim.ledger import summary
 
     what = "up to date" if result.reused else f"baked in {result.seconds:.2f} s"
     click.echo(f"{loaded.name}: {result.trajectory.frame_count} frames, cache {what} -> {result.path} | "
@@ -431,7 +431,7 @@ def _farm_job_options(function: Callable[..., Any]) -> Callable[..., Any]:
 def _scene_frames(scene: Path, settings: tuple[str, ...]) -> tuple[Any, int]:
     """The loaded scene and its number of frames."""
     from animbatch import api
-    from animbatch.model.builder import frame_times
+    from animbatch.sim.model.builder import frame_times
 
     loaded = api.load_scene(scene, list(settings))
     return loaded, len(frame_times(loaded.spec.duration, loaded.spec.fps))

@@ -90,4 +90,4 @@ class AnimbatchWarning(UserWarning):
 
 class AccuracyWarning(AnimbatchWarning):
     """A finished run whose result is less accurate than it should be: a conserved quantity drifted beyond
-    ``solver.drift_warning``, or a collision was missed (see :mod:`animbatch.ledger`)."""
+    ``solver.drift_warning``, or a collision was missed (see :mod:`animbatch.sim.ledger`)."""

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 from typing import Any
 
-from animbatch.contact.stepping import DEFAULT_REST_SPEED
-from animbatch.forces import FIELD_TERMS
-from animbatch.integrators import DEFAULT_DT, make_integrator
-from animbatch.integrators.fixed_step import substeps
-from animbatch.ledger import conservation_laws, step_note
-from animbatch.model import Model
+from animbatch.sim.contact.stepping import DEFAULT_REST_SPEED
+from animbatch.compile.forces import FIELD_TERMS
+from animbatch.sim.integrators import DEFAULT_DT
+from animbatch.compile.solver import make_integrator
+from animbatch.sim.integrators.fixed_step import substeps
+from animbatch.sim.ledger import conservation_laws, step_note
+from animbatch.sim.model import Model
 from animbatch.scene import LoadedScene
 from animbatch.scene.schema import BoxCollider, PlaneCollider, SphereCollider
 
@@ -138,7 +139,7 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
 
 def _emitter_lines(scene: LoadedScene, model: Model) -> list[str]:
     """Each emitter: its pool, schedule, attribute bounds, the fields its particles feel, what they collide with."""
-    from animbatch.particles.compile import compile_particles
+    from animbatch.compile.particles import compile_particles
     from animbatch.scene.schema import random_bounds
 
     spec = scene.spec
@@ -174,7 +175,7 @@ def _deformable_lines(model: Model) -> list[str]:
     deformables = model.deformables
     if deformables is None:
         return []
-    from animbatch.deformable.vertices import ANCHOR, BODY_POINT, PARTICLE
+    from animbatch.sim.deformable.vertices import ANCHOR, BODY_POINT, PARTICLE
 
     springs = model.springs
     lines = []

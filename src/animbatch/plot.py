@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from animbatch.files import atomic_path
-from animbatch.ledger import QuantitySeries
+from animbatch.sim.ledger import QuantitySeries
 
 #: Bodies drawn one line each in the speed panel; with more, the mean and the fastest are drawn instead.
 MOST_SPEED_LINES = 10

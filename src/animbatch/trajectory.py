@@ -26,7 +26,7 @@ key                    shape / type    meaning
 ``particles_K_serials``   (F, C)       int32 serial of the particle in each slot, -1 where the slot is free
 ``particles_K_ages``      (F, C)       float32 age of each particle [s]
 ``particle_stats``     str (JSON)      births, deaths, drops, collisions, steps of the particle simulation
-``ledger``             str (JSON)      the run's accuracy ledger (see :mod:`animbatch.ledger`; absent in older files)
+``ledger``             str (JSON)      the run's accuracy ledger (see :mod:`animbatch.sim.ledger`; absent in older files)
 =====================  ==============  =================================================================
 
 Version 2 files (without particles) are still read.
@@ -50,11 +50,26 @@ import numpy as np
 
 from animbatch.errors import TrajectoryError
 from animbatch.files import atomic_path
-from animbatch.particles.records import ParticleFrames
 
 FORMAT = "animbatch-trajectory"
 FORMAT_VERSION = 3
 READABLE_VERSIONS = (2, 3)
+
+
+@dataclass
+class ParticleFrames:
+    """One emitter's particles at the frame times (F frames, C slots): ``positions`` (F, C, 3) float32 [m];
+    ``serials`` (F, C) int32, the serial of the particle in each slot, -1 where the slot is free; ``ages`` (F, C)
+    float32 [s]. ``radius`` is not stored: it follows from the serial like every attribute."""
+
+    name: str
+    positions: np.ndarray
+    serials: np.ndarray
+    ages: np.ndarray
+
+    @property
+    def live_counts(self) -> np.ndarray:
+        return np.count_nonzero(self.serials >= 0, axis=1)
 
 
 @dataclass(frozen=True, eq=False)

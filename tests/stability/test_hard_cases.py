@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from animbatch.errors import SimulationError
-from animbatch.integrators.preflight import StabilityWarning, preflight
-from animbatch.integrators.stability import largest_stable_step, step_matrix
-from animbatch.invariants import angular_momentum, kinetic_energy, total_energy
-from animbatch.model import compile_scene
+from animbatch.sim.integrators.preflight import StabilityWarning, preflight
+from animbatch.sim.integrators.stability import largest_stable_step, step_matrix
+from animbatch.sim.invariants import angular_momentum, kinetic_energy, total_energy
+from animbatch.compile.model import compile_scene
 from conftest import run, scene, states
 
 G = 9.81
@@ -402,9 +402,9 @@ def test_bdf_at_a_loose_tolerance_stays_below_the_steps_where_newton_failed():
     step controller grows the step straight back to where Newton's iteration fails, and factorises the Newton
     matrix three times as often; with it, the run needs at most half the factorisations, and no vertex strays from
     a tight run by more than without the cap (a few times atol = 1 cm at worst, on the 1 m sheet)."""
-    from animbatch.integrators import ScipyIntegrator
-    from animbatch.integrators.scipy_ivp import NewtonStepCap
-    from animbatch.model import Dynamics
+    from animbatch.sim.integrators import ScipyIntegrator
+    from animbatch.sim.integrators.scipy_ivp import NewtonStepCap
+    from animbatch.sim.model import Dynamics
 
     model = compile_scene(scene(BENCHMARK_CLOTH).spec)
     loose = {}

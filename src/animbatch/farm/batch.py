@@ -54,7 +54,7 @@ class JobResult:
 
 def bake_task(scene_path: str, overrides: Sequence[Any], out_dir: str) -> dict[str, Any]:
     """Simulate (or reuse the cache) and prepare the frames folder; what the render tasks need to know."""
-    from animbatch import api
+    from animbatch import stages
     from animbatch.farm import bake
     from animbatch.farm.frames import prepare_frames
 
@@ -62,12 +62,12 @@ def bake_task(scene_path: str, overrides: Sequence[Any], out_dir: str) -> dict[s
     from animbatch.files import write_json_atomic
     from animbatch.stopwatch import Stopwatch
 
-    scene = api.load_scene(scene_path, list(overrides))
+    scene = stages.load_scene(scene_path, list(overrides))
     started = time.perf_counter()
     try:
         result = bake(scene, out_dir=out_dir)
     except SimulationError as error:  # the job's report says why, as for 'animbatch render'
-        write_json_atomic(Path(out_dir) / scene.name / "report.json", api.failure_report(scene, error, Stopwatch()))
+        write_json_atomic(Path(out_dir) / scene.name / "report.json", stages.failure_report(scene, error, Stopwatch()))
         raise
     prepare_frames(scene, result.trajectory, out_dir)
     return {"cache": str(result.path), "reused": result.reused, "seconds": time.perf_counter() - started,
@@ -80,11 +80,11 @@ def render_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
     """Render frames ``start`` … ``stop - 1`` from the baked cache (skipping complete ones)."""
     for name, value in WORKER_ENV.items():
         os.environ.setdefault(name, value)
-    from animbatch import api
+    from animbatch import stages
     from animbatch.farm import render_frames
     from animbatch.trajectory import Trajectory
 
-    scene = api.load_scene(scene_path, list(overrides))
+    scene = stages.load_scene(scene_path, list(overrides))
     trajectory = Trajectory.load(baked["cache"])
     started = time.perf_counter()
     result = render_frames(scene, trajectory, FrameRange(start, stop), out_dir=out_dir, backend=backend)
@@ -99,12 +99,12 @@ def encode_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
     import platform
     import shutil
 
-    from animbatch import __version__, api
+    from animbatch import __version__, stages
     from animbatch.farm.encode import encode
     from animbatch.farm.frames import frames_folder
     from animbatch.files import write_json_atomic
 
-    scene = api.load_scene(scene_path, list(overrides))
+    scene = stages.load_scene(scene_path, list(overrides))
     kinds = tuple(kind for kind in scene.spec.render.formats if kind != "png")
     outputs: list[str] = []
     seconds = 0.0
@@ -119,7 +119,7 @@ def encode_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
         shutil.rmtree(folder, ignore_errors=True)
     from animbatch.trajectory import Trajectory
 
-    quantities = api.write_quantities(scene, api.compile_model(scene), Trajectory.load(baked["cache"]),
+    quantities = stages.write_quantities(scene, stages.compile_model(scene), Trajectory.load(baked["cache"]),
                                       Path(out_dir) / scene.name)
     report = {"scene": scene.name, "scene_file": scene_path, "status": "ok", "frames": baked["frames"],
               "frames_drawn": sum(chunk["drawn"] for chunk in chunks),
@@ -140,10 +140,10 @@ def encode_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
 
 def frame_count(job: Job) -> tuple[str, int]:
     """The scene's name and number of frames, read on the client to plan the render chunks (raises SceneError)."""
-    from animbatch import api
-    from animbatch.model.builder import frame_times
+    from animbatch import stages
+    from animbatch.sim.model.builder import frame_times
 
-    scene = api.load_scene(job.scene_path, list(job.overrides))
+    scene = stages.load_scene(job.scene_path, list(job.overrides))
     return scene.name, len(frame_times(scene.spec.duration, scene.spec.fps))
 
 

@@ -133,7 +133,7 @@ def prepare_frames(scene: LoadedScene, trajectory: Trajectory, out_dir: str | Pa
 def render_frames(scene: LoadedScene, trajectory: Trajectory, frames: FrameRange, *, out_dir: str | Path = "renders",
                   backend: str = "auto", model: object = None, on_frame=None) -> RangeResult:  # type: ignore[no-untyped-def]
     """Draw the frames of ``frames`` that are not complete on disk; ``on_frame(index)`` after each frame."""
-    from animbatch.api import check_trajectory, compile_model, frame_geometry
+    from animbatch.stages import check_trajectory, compile_model, frame_geometry
     from animbatch.render.backend import select_backend
     from animbatch.render.frames import FrameRenderer
 
@@ -196,7 +196,7 @@ class RenderBudget:
         projected = elapsed + per_frame * (self.frames - done) if per_frame is not None else None
         if elapsed > self.seconds or (projected is not None and projected > self.seconds):
             from animbatch.errors import RenderError
-            from animbatch.integrators.budget import format_seconds
+            from animbatch.sim.integrators.budget import format_seconds
 
             pace = (f"about {format_seconds(projected)} at {per_frame:.3g} s per frame" if projected is not None
                     else f"more than the {format_seconds(elapsed)} the first frame took")

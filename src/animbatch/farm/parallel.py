@@ -38,11 +38,11 @@ def _limit_rasteriser_threads() -> None:
 def _render_chunk(scene_path: str, overrides: Sequence[tuple[str, str]], trajectory_path: str, chunk: FrameRange,
                   out_dir: str, backend: str) -> RangeResult:
     """In a worker: load the scene and the trajectory, render one chunk."""
-    from animbatch import api
+    from animbatch import stages
     from animbatch.farm.frames import render_frames
     from animbatch.trajectory import Trajectory
 
-    scene = api.load_scene(scene_path, list(overrides))
+    scene = stages.load_scene(scene_path, list(overrides))
     trajectory = Trajectory.load(trajectory_path)
     return render_frames(scene, trajectory, chunk, out_dir=out_dir, backend=backend)
 

@@ -69,13 +69,13 @@ def variants(scene_path: str, name: str, sweeps: Sequence[Sweep], overrides: Seq
 def energy_drift(job: Job, cache: str) -> float | None:
     """Largest change of the total energy over the run, relative to its energy scale (None when the scene puts
     energy in, so that a change is not drift)."""
-    from animbatch import api
-    from animbatch.integrators.guard import energy_scale
-    from animbatch.invariants import total_energy
+    from animbatch import stages
+    from animbatch.sim.integrators.guard import energy_scale
+    from animbatch.sim.invariants import total_energy
     from animbatch.trajectory import Trajectory
 
-    scene = api.load_scene(job.scene_path, list(job.overrides))
-    model = api.compile_model(scene)
+    scene = stages.load_scene(job.scene_path, list(job.overrides))
+    model = stages.compile_model(scene)
     if any(term.adds_energy for term in model.force_terms) or model.anchors.moving:
         return None
     trajectory = Trajectory.load(cache)

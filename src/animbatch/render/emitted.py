@@ -3,7 +3,7 @@
 Every slot of an emitter's pool is a point of its cloud, drawn by VTK's point-Gaussian mapper as a splat scaled by
 the particle's radius (``sprite``: glowing and unlit, as particles in the lecture notes "do not reflect light,
 usually emit it"; ``sphere``: shaded sphere impostors). Free slots get radius and opacity zero. Each particle's
-radius, colour and lifetime come from its serial (:meth:`~animbatch.particles.emitter.Emitter.looks`), computed
+radius, colour and lifetime come from its serial (:meth:`~animbatch.sim.particles.emitter.Emitter.looks`), computed
 only when a slot takes a new particle; size, opacity and colour then follow the ramps of the emitter's ``look`` over
 the particle's age / lifetime.
 
@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.particles.emitter import Emitter
-from animbatch.particles.records import ParticleFrames
+from animbatch.sim.particles.emitter import Emitter
+from animbatch.trajectory import ParticleFrames
 
 
 def ramp(values: np.ndarray, fraction: np.ndarray) -> np.ndarray:

@@ -23,10 +23,10 @@ from typing import Any
 import numpy as np
 
 from animbatch.errors import RenderError
-from animbatch.model.model import Model
+from animbatch.sim.model.model import Model
 from animbatch.render.backend import Backend, activate
 from animbatch.render.camera import CameraPlacement, nice_spacing, place_camera, plane_axes
-from animbatch.rigid import quaternion
+from animbatch import quaternion
 from animbatch.scene.schema import (BoxShape, CompoundShape, CylinderShape, MeshCollider, MeshShape, RenderSpec,
                                     RodShape, SceneSpec, ShellShape, SphereShape)
 
@@ -69,7 +69,8 @@ def body_extents(model: Model) -> np.ndarray:
 def collider_points(spec: SceneSpec, scene_dir: Path = Path(".")) -> np.ndarray:
     """Corner points (K, 3) of the finite colliders (boxes, spheres, meshes), for fitting the camera; planes are
     infinite and left out."""
-    from animbatch.rigid.shapes import load_mesh, orientation_matrix
+    from animbatch.sim.rigid.shapes import load_mesh
+    from animbatch.compile.bodies import orientation_matrix
     from animbatch.scene.schema import BoxCollider, SphereCollider
 
     points = []
@@ -170,7 +171,7 @@ class FrameGeometry:
 def controller_targets(model: Model) -> tuple[np.ndarray | None, tuple[Any, ...]]:
     """The segments (S, 2, 3) of the curves that the model's PD controllers pull towards (or None), and their point
     and keyframe targets."""
-    from animbatch.forces.controllers import CurveTarget
+    from animbatch.sim.forces.controllers import CurveTarget
 
     term = next((term for term in model.force_terms if term.kind == "controller"), None)
     if term is None:
@@ -215,13 +216,13 @@ def shape_mesh(shape: Any, base_dir: Path, resolution: int) -> Any:
         return pv.Cylinder(center=(0, 0, 0), direction=(0, 0, 1), radius=radius, height=shape.length,
                            resolution=resolution).triangulate()
     if isinstance(shape, MeshShape | MeshCollider):
-        from animbatch.rigid.shapes import load_mesh
+        from animbatch.sim.rigid.shapes import load_mesh
 
         mesh = load_mesh(base_dir / shape.file, shape.scale)
         faces = np.hstack([np.full((len(mesh.faces), 1), 3), mesh.faces]).ravel()
         return pv.PolyData(mesh.vertices, faces)
     if isinstance(shape, CompoundShape):
-        from animbatch.rigid.shapes import orientation_matrix
+        from animbatch.compile.bodies import orientation_matrix
 
         merged = None
         for part in shape.parts:
@@ -458,7 +459,7 @@ class FrameRenderer:
 
     def _add_colliders(self) -> None:
         """Fixed colliders, built once: planes as squares around the motion, boxes, spheres and meshes."""
-        from animbatch.rigid.shapes import orientation_matrix
+        from animbatch.compile.bodies import orientation_matrix
         from animbatch.scene.schema import BoxCollider, MeshCollider, PlaneCollider, SphereCollider
 
         for collider in self.geometry.colliders:
@@ -525,7 +526,7 @@ class FrameRenderer:
              angular_velocities: np.ndarray | None = None, emitted: tuple[Any, int] | None = None) -> np.ndarray:
         """Render the bodies at time ``t`` [s]: centre-of-mass ``positions`` (P, 3) [m], ``orientations`` (P, 4)
         quaternions and ``angular_velocities`` (P, 3) [rad/s]; ``emitted``: the trajectory's particle frames (one
-        :class:`~animbatch.particles.records.ParticleFrames` per emitter) and the index of this frame. Returns an
+        :class:`~animbatch.trajectory.ParticleFrames` per emitter) and the index of this frame. Returns an
         RGB image (H, W, 3) uint8."""
         geometry = self.geometry
         if emitted is not None:

@@ -11,7 +11,9 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from animbatch.materials import BUILT_IN
 from animbatch.scene.diagnostics import did_you_mean
+from animbatch.scene.schema import PARTICLE_FIELD_TYPES
 from animbatch.scene.yaml_source import KeyPath, format_path
 
 Problem = tuple[KeyPath, str]
@@ -97,8 +99,6 @@ def _springs(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str
 
 def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath],
             rigid: set[str], deformable: set[str], emitters: dict[str, KeyPath]) -> Iterator[Problem]:
-    from animbatch.particles.fields import PARTICLE_FIELD_TYPES
-
     cloths = _of_type(data, ("cloth",))
     for index, field in _items(data, "fields"):
         selection = field.get("bodies")
@@ -192,8 +192,6 @@ def _controllers(data: dict[str, Any], bodies: dict[str, KeyPath], rigid: set[st
 
 def _materials(data: dict[str, Any]) -> Iterator[Problem]:
     """Material names used by bodies, colliders and pairs must be built in or defined under 'materials'."""
-    from animbatch.contact.materials import BUILT_IN
-
     custom = data.get("materials")
     known = sorted(set(BUILT_IN) | (set(custom) if isinstance(custom, dict) else set()))
 
@@ -225,78 +223,6 @@ def _contact_method(data: dict[str, Any]) -> Iterator[Problem]:
             f"{method} cannot keep contacts: it moves positions with the velocities from before the step, so bodies "
             "would sink into colliders. Use symplectic_euler or verlet (fixed step), or an adaptive method such as "
             "RK45")
-
-
-def check_files(spec: Any, base_dir: Path) -> list[Problem]:
-    """Mesh files that are missing, unreadable or not closed, found from ``base_dir`` (the scene's folder)."""
-    from animbatch.rigid.shapes import load_mesh, load_surface
-    from animbatch.scene.schema import (ClothMeshSpec, ClothSpec, CompoundShape, MeshCollider, MeshShape,
-                                        RigidBodySpec)
-
-    problems: list[Problem] = []
-    shapes: list[tuple[KeyPath, Any]] = [(("colliders", index), collider) for index, collider in
-                                         enumerate(spec.colliders) if isinstance(collider, MeshCollider)]
-    for index, body in enumerate(spec.bodies):
-        if isinstance(body, ClothSpec) and body.mesh is not None:
-            shapes.append((("bodies", index, "mesh"), body.mesh))
-        if not isinstance(body, RigidBodySpec):
-            continue
-        if isinstance(body.shape, CompoundShape):
-            shapes += [(("bodies", index, "shape", "parts", k, "shape"), part.shape)
-                       for k, part in enumerate(body.shape.parts)]
-        else:
-            shapes.append((("bodies", index, "shape"), body.shape))
-    for path, shape in shapes:
-        if isinstance(shape, MeshShape | MeshCollider | ClothMeshSpec):
-            outside = _outside_scene_folder(shape.file, base_dir)
-            if outside:
-                problems.append(((*path, "file"), outside))
-                continue
-            try:
-                (load_surface if isinstance(shape, ClothMeshSpec) else load_mesh)(base_dir / shape.file, shape.scale)
-            except ValueError as error:
-                problems.append(((*path, "file"), f"{error} (looked in {base_dir.resolve()})"
-                                 if "no such file" in str(error) else str(error)))
-    if not problems:
-        problems += _pin_selections(spec, base_dir)
-    return problems
-
-
-def _outside_scene_folder(name: str, base_dir: Path) -> str | None:
-    """Why the mesh file ``name`` may not be read (an absolute path, or one that leaves the scene's folder), or None.
-
-    A scene is data that may come from anyone: it must not make us read ``/etc/shadow`` or ``../../secrets``."""
-    if Path(name).is_absolute():
-        return (f"mesh files are given relative to the scene's folder, not as absolute paths ({name!r}); copy the "
-                "file into the scene's folder (or a folder below it) and give its relative path")
-    if not (base_dir / name).resolve().is_relative_to(base_dir.resolve()):
-        return (f"{name!r} leads outside the scene's folder (through '..' or a link); mesh files are read only from "
-                "the scene's folder and the folders below it. Copy the file there")
-    return None
-
-
-def _pin_selections(spec: Any, base_dir: Path) -> list[Problem]:
-    """Pins of cloth and lattices select existing vertices, and not all of them (needs the bodies' topology)."""
-    from animbatch.deformable import build
-    from animbatch.scene.schema import DEFORMABLE_SPECS
-
-    problems: list[Problem] = []
-    for index, body in enumerate(spec.bodies):
-        if not isinstance(body, DEFORMABLE_SPECS) or not body.pin:
-            continue
-        topology = build.body_topology(body, base_dir)
-        world = build.world_vertices(body, topology)
-        pinned = set()
-        for number, pin in enumerate(body.pin):
-            vertices, messages = build.pin_vertices(pin, topology, world)
-            pinned.update(vertices.tolist())
-            for message in messages:
-                key = "region" if message.startswith("the region") else "vertices"
-                problems.append((("bodies", index, "pin", number, key), message))
-        if len(pinned) == topology.vertex_count:
-            problems.append((("bodies", index, "pin"), f"the pins hold all {topology.vertex_count} vertices of "
-                                                       f"{body.name!r}, so nothing is left to simulate"))
-    return problems
 
 
 def _duplicate_names(data: dict[str, Any]) -> Iterator[Problem]:

@@ -10,7 +10,7 @@ import difflib
 import hashlib
 import json
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -18,7 +18,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from animbatch.errors import SceneError, SceneIssue
-from animbatch.scene.checks import check_files, check_references
+from animbatch.scene.checks import Problem, check_references
 from animbatch.scene.diagnostics import issues_from_validation, sort_issues
 from animbatch.scene.overrides import Override, apply_overrides
 from animbatch.scene.schema import PRESENTATION_KEYS, SceneSpec
@@ -39,16 +39,27 @@ class LoadedScene:
         return self.spec.name
 
 
-def load_scene(path: str | Path, overrides: Sequence[Override] = ()) -> LoadedScene:
-    """Read and validate the scene file at ``path``, applying ``--set`` style ``overrides`` first."""
+#: Checks of a validated scene that need more than the file format (mesh files, pin selections): (spec, the scene's
+#: folder) -> problems as (key path, message). The compiler provides them (:mod:`animbatch.compile.checks`).
+GeometryChecks = Callable[[SceneSpec, Path], list[Problem]]
+
+
+def load_scene(path: str | Path, overrides: Sequence[Override] = (), *,
+               geometry_checks: GeometryChecks | None = None) -> LoadedScene:
+    """Read and validate the scene file at ``path``, applying ``--set`` style ``overrides`` first.
+
+    Use :func:`animbatch.stages.load_scene` (also ``animbatch.api.load_scene``), which adds the geometry checks; this
+    one checks the format, names and references only, unless ``geometry_checks`` is given."""
     path = Path(path)
     text = _read(path)
-    return parse_scene(text, filename=str(path), overrides=overrides, default_name=path.stem, path=path)
+    return parse_scene(text, filename=str(path), overrides=overrides, default_name=path.stem, path=path,
+                       geometry_checks=geometry_checks)
 
 
 def parse_scene(text: str, *, filename: str = "<scene>", overrides: Sequence[Override] = (),
-                default_name: str = "scene", path: Path | None = None) -> LoadedScene:
-    """Validate scene text (YAML); ``filename`` is only used in messages."""
+                default_name: str = "scene", path: Path | None = None,
+                geometry_checks: GeometryChecks | None = None) -> LoadedScene:
+    """Validate scene text (YAML); ``filename`` is only used in messages, ``path``'s folder finds mesh files."""
     data, source = load_yaml(text, filename)
     if not isinstance(data, dict):
         raise SceneError([SceneIssue(source.source_of(()), "",
@@ -62,7 +73,7 @@ def parse_scene(text: str, *, filename: str = "<scene>", overrides: Sequence[Ove
         issues.extend(issues_from_validation(error, SceneSpec, source))
     if issues:
         raise SceneError(sort_issues(issues))
-    file_problems = check_files(spec, path.parent if path is not None else Path("."))
+    file_problems = geometry_checks(spec, path.parent if path is not None else Path(".")) if geometry_checks else []
     if file_problems:
         raise SceneError(sort_issues([SceneIssue(source.source_of(p), format_path(p), message)
                                       for p, message in file_problems]))

@@ -733,6 +733,8 @@ class AerodynamicsSpec(SceneModel):
 
 FIELD_SPECS: tuple[type[SceneModel], ...] = (GravitySpec, GravitationSpec, DragSpec, WindSpec, ForceSpec, TorqueSpec,
                                              AngularDragSpec, BuoyancySpec, AerodynamicsSpec)
+#: Field types that act on emitted particles too (the others act on bodies only).
+PARTICLE_FIELD_TYPES = ("gravity", "drag", "wind", "buoyancy")
 FieldSpec = Annotated[Union[*FIELD_SPECS], Field(discriminator="type")]  # type: ignore[valid-type]
 
 

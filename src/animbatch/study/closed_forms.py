@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
-from animbatch.forces import Drag, Gravitation, SpringForces, UniformGravity
+from animbatch.sim.forces import Drag, Gravitation, SpringForces, UniformGravity
 
 
 @dataclass(frozen=True)

@@ -109,16 +109,16 @@ def ledger_table(root: Path) -> str:
     """The ledger of the two-body orbit over ten orbits under :data:`LEDGER_RUNS`, as a Markdown table."""
     import warnings
 
-    from animbatch import api
+    from animbatch import stages
 
     lines = ["| method | setting | steps | wall time | energy drift | angular momentum drift | warning |",
              "|---|---|---|---|---|---|---|"]
     for method, settings in LEDGER_RUNS:
-        scene = api.load_scene(root / "scenes" / "two_body_orbit.yaml",
+        scene = stages.load_scene(root / "scenes" / "two_body_orbit.yaml",
                                ["duration=20", f"solver.method={method}", "solver.atol=1.0e-12", *settings])
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            ledger = api.simulate(scene).ledger
+            ledger = stages.simulate(scene).ledger
         work, drift = ledger["work"]["bodies"], ledger["conservation"]
         lines.append(f"| {method} | {settings[0].split('.', 1)[1]} | {work['steps']} | "
                      f"{_seconds(work['wall_time'], False)} | {drift['energy']['drift']:.2g} | "
@@ -204,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--timeout", type=float, default=30.0, help="wall-time limit per run [s]")
     parser.add_argument("--repeats", type=int, help="timed repeats per run (default: each scene's study.repeats)")
     args = parser.parse_args(argv)
-    from animbatch import api
+    from animbatch import stages
 
     started = time.perf_counter()
     docs = args.root / "docs"
@@ -212,7 +212,7 @@ def main(argv: list[str] | None = None) -> int:
     for name, what in SCENES.items():
         overrides = [*OVERRIDES.get(name, []), f"study.timeout={args.timeout}",
                      *([f"study.repeats={args.repeats}"] if args.repeats else [])]
-        loaded = api.load_scene(args.root / "scenes" / f"{name}.yaml", overrides)
+        loaded = stages.load_scene(args.root / "scenes" / f"{name}.yaml", overrides)
         print(f"studying {name} …", file=sys.stderr, flush=True)
         result = run_study(loaded, progress=lambda line: print(f"  {line}", file=sys.stderr, flush=True))
         write_outputs(result, docs / "accuracy" / name)

@@ -22,9 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from animbatch.invariants import angular_momentum, linear_momentum, total_energy
-from animbatch.ledger import conservation_laws
-from animbatch.model.model import Model
+from animbatch.sim.invariants import angular_momentum, linear_momentum, total_energy
+from animbatch.sim.ledger import conservation_laws
+from animbatch.sim.model.model import Model
 
 
 @dataclass(frozen=True)
@@ -83,7 +83,7 @@ class Motion:
 
 def conserved(model: Model) -> dict[str, bool]:
     """Which of energy, linear and angular momentum the scene conserves (see
-    :func:`~animbatch.ledger.conservation_laws`, which also says why)."""
+    :func:`~animbatch.sim.ledger.conservation_laws`, which also says why)."""
     return {name: law.conserved for name, law in conservation_laws(model).items()}
 
 

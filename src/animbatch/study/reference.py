@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from animbatch.errors import StudyError
-from animbatch.integrators.stability import stiffest_mode
-from animbatch.model import Model
+from animbatch.sim.integrators.stability import stiffest_mode
+from animbatch.sim.model import Model
 from animbatch.study.closed_forms import exact_motion
 from animbatch.study.measure import Motion, Scales, final_error, position_error
 from animbatch.study.runs import RunOutcome, RunSetting, execute

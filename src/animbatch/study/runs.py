@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from animbatch.errors import SimulationError
-from animbatch.integrators import FIXED_STEP_SCHEMES, SCIPY_METHODS, FixedStepIntegrator, Integrator, ScipyIntegrator
-from animbatch.integrators.guard import check_energy_growth
-from animbatch.model import Dynamics, Model
+from animbatch.sim.integrators import FIXED_STEP_SCHEMES, SCIPY_METHODS, FixedStepIntegrator, Integrator, ScipyIntegrator
+from animbatch.sim.integrators.guard import check_energy_growth
+from animbatch.sim.model import Dynamics, Model
 
 
 @dataclass(frozen=True)

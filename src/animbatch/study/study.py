@@ -1,9 +1,9 @@
 """``run_study``: every applicable integrator over a sweep of tolerances or steps, each run's error against the
 reference and its work, and each method's figures of merit.
 
-    from animbatch import api
+    from animbatch import stages
     from animbatch.study import run_study, write_outputs
-    result = run_study(api.load_scene("scenes/projectile.yaml"))
+    result = run_study(stages.load_scene("scenes/projectile.yaml"))
     write_outputs(result, "renders/projectile")
 """
 
@@ -15,7 +15,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from animbatch.errors import SceneError, SceneIssue
-from animbatch.model import Model, compile_scene
+from animbatch.sim.model import Model
+from animbatch.compile.model import compile_scene
 from animbatch.scene import LoadedScene
 from animbatch.study.closed_forms import NoClosedForm
 from animbatch.study.measure import Motion, conserved, contact_time_error, drifts, final_error, position_error

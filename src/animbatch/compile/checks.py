@@ -1,0 +1,79 @@
+"""Checks of a validated scene that need geometry: mesh files that exist, are readable and closed, and pins that
+select vertices of their cloth or lattice. The scene layer cannot build geometry, so the loader takes these as its
+``geometry_checks`` (:func:`animbatch.stages.load_scene` passes them)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from animbatch.compile import deformables as build
+from animbatch.scene.checks import Problem
+from animbatch.scene.schema import (DEFORMABLE_SPECS, ClothMeshSpec, ClothSpec, CompoundShape, MeshCollider, MeshShape,
+                                    RigidBodySpec, SceneSpec)
+from animbatch.sim.rigid.shapes import load_mesh, load_surface
+
+
+def check_files(spec: SceneSpec, base_dir: Path) -> list[Problem]:
+    """Mesh files that are missing, unreadable or not closed, found from ``base_dir`` (the scene's folder)."""
+    problems: list[Problem] = []
+    shapes: list[tuple[KeyPath, Any]] = [(("colliders", index), collider) for index, collider in
+                                         enumerate(spec.colliders) if isinstance(collider, MeshCollider)]
+    for index, body in enumerate(spec.bodies):
+        if isinstance(body, ClothSpec) and body.mesh is not None:
+            shapes.append((("bodies", index, "mesh"), body.mesh))
+        if not isinstance(body, RigidBodySpec):
+            continue
+        if isinstance(body.shape, CompoundShape):
+            shapes += [(("bodies", index, "shape", "parts", k, "shape"), part.shape)
+                       for k, part in enumerate(body.shape.parts)]
+        else:
+            shapes.append((("bodies", index, "shape"), body.shape))
+    for path, shape in shapes:
+        if isinstance(shape, MeshShape | MeshCollider | ClothMeshSpec):
+            outside = _outside_scene_folder(shape.file, base_dir)
+            if outside:
+                problems.append(((*path, "file"), outside))
+                continue
+            try:
+                (load_surface if isinstance(shape, ClothMeshSpec) else load_mesh)(base_dir / shape.file, shape.scale)
+            except ValueError as error:
+                problems.append(((*path, "file"), f"{error} (looked in {base_dir.resolve()})"
+                                 if "no such file" in str(error) else str(error)))
+    if not problems:
+        problems += _pin_selections(spec, base_dir)
+    return problems
+
+
+def _outside_scene_folder(name: str, base_dir: Path) -> str | None:
+    """Why the mesh file ``name`` may not be read (an absolute path, or one that leaves the scene's folder), or None.
+
+    A scene is data that may come from anyone: it must not make us read ``/etc/shadow`` or ``../../secrets``."""
+    if Path(name).is_absolute():
+        return (f"mesh files are given relative to the scene's folder, not as absolute paths ({name!r}); copy the "
+                "file into the scene's folder (or a folder below it) and give its relative path")
+    if not (base_dir / name).resolve().is_relative_to(base_dir.resolve()):
+        return (f"{name!r} leads outside the scene's folder (through '..' or a link); mesh files are read only from "
+                "the scene's folder and the folders below it. Copy the file there")
+    return None
+
+
+def _pin_selections(spec: Any, base_dir: Path) -> list[Problem]:
+    """Pins of cloth and lattices select existing vertices, and not all of them (needs the bodies' topology)."""
+    problems: list[Problem] = []
+    for index, body in enumerate(spec.bodies):
+        if not isinstance(body, DEFORMABLE_SPECS) or not body.pin:
+            continue
+        topology = build.body_topology(body, base_dir)
+        world = build.world_vertices(body, topology)
+        pinned = set()
+        for number, pin in enumerate(body.pin):
+            vertices, messages = build.pin_vertices(pin, topology, world)
+            pinned.update(vertices.tolist())
+            for message in messages:
+                key = "region" if message.startswith("the region") else "vertices"
+                problems.append((("bodies", index, "pin", number, key), message))
+        if len(pinned) == topology.vertex_count:
+            problems.append((("bodies", index, "pin"), f"the pins hold all {topology.vertex_count} vertices of "
+                                                       f"{body.name!r}, so nothing is left to simulate"))
+    return problems

@@ -1,0 +1,175 @@
+"""Build the contact world of a scene: probes and boxes of every colliding body, the fixed colliders, materials.
+
+Only scenes with colliders or a ``contacts`` section, and a body that collides, get one (see
+:attr:`SceneSpec.has_contacts`).
+
+What each body contributes (all in body axes from its centre of mass):
+
+* particle: a probe sphere of its radius;
+* sphere or shell: a probe sphere;
+* box: probes at its 8 corners, and the box as a solid for other bodies' probes;
+* cylinder, rod: probes on both rims (16 each) and along the axis ends — enough to land, roll and rest on colliders
+  (other bodies touching a cylinder's side are not detected);
+* mesh: probes at its vertices (at most ``MESH_PROBES``, evenly chosen);
+* compound: the union of its parts'.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from animbatch.sim.contact.detection import PLANE, STATIC_BOX, STATIC_SPHERE, TRIANGLE, ContactWorld
+from animbatch.sim.contact.geometry import BodyBoxes, Probes, StaticColliders
+from animbatch.sim.contact.materials import Coefficients, MaterialTable
+from animbatch.sim.rigid.shapes import load_mesh
+from animbatch.compile.bodies import orientation_matrix
+from animbatch.scene.schema import (DEFORMABLE_SPECS, BoxCollider, BoxShape, CompoundShape, ContactSpec, CylinderShape, MeshCollider, MeshShape,
+                                    PlaneCollider, RigidBodySpec, RodShape, SceneSpec, ShellShape, SphereCollider,
+                                    SphereShape)
+
+RIM_PROBES = 16
+MESH_PROBES = 400
+
+
+@dataclass(frozen=True)
+class ContactSettings:
+    """Solver settings: iterations per step, rest speed [m/s] (None: automatic), slop [m]."""
+
+    iterations: int
+    rest_speed: float | None
+    slop: float
+
+
+def _shape_features(shape: Any, base: Path) -> tuple[list[tuple[np.ndarray, float, int]], list[tuple]]:
+    """Probes [(centre, radius, box)] and boxes [(offset, rotation, half)] of one shape, in shape coordinates;
+    ``box`` numbers the shape's box whose corner the probe is (-1: not a box corner)."""
+    if isinstance(shape, SphereShape | ShellShape):
+        return [(np.zeros(3), shape.radius, -1)], []
+    if isinstance(shape, BoxShape):
+        half = np.asarray(shape.size, float) / 2
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+        return [(c, 0.0, 0) for c in corners], [(np.zeros(3), np.eye(3), half)]
+    if isinstance(shape, CylinderShape | RodShape):
+        radius = shape.radius if shape.radius is not None else shape.length / 100
+        angles = 2 * np.pi * np.arange(RIM_PROBES) / RIM_PROBES
+        ring = np.stack([radius * np.cos(angles), radius * np.sin(angles), np.zeros(RIM_PROBES)], axis=1)
+        ends = [np.array([0.0, 0.0, -shape.length / 2]), np.array([0.0, 0.0, shape.length / 2])]
+        return [(p + end, 0.0, -1) for end in ends for p in ring] + [(end, 0.0, -1) for end in ends], []
+    if isinstance(shape, MeshShape):
+        vertices = load_mesh(base / shape.file, shape.scale).vertices
+        if len(vertices) > MESH_PROBES:
+            vertices = vertices[np.linspace(0, len(vertices) - 1, MESH_PROBES).astype(int)]
+        return [(v, 0.0, -1) for v in vertices], []
+    if isinstance(shape, CompoundShape):
+        probes, boxes = [], []
+        for part in shape.parts:
+            rotation = orientation_matrix(part.orientation)
+            offset = np.asarray(part.offset, float)
+            part_probes, part_boxes = _shape_features(part.shape, base)
+            probes += [(rotation @ c + offset, r, box + len(boxes) if box >= 0 else -1) for c, r, box in part_probes]
+            boxes += [(rotation @ o + offset, rotation @ rot, half) for o, rot, half in part_boxes]
+        return probes, boxes
+    raise TypeError(f"no collision geometry for shape {shape!r}")
+
+
+def _statics(spec: SceneSpec, table: MaterialTable, base: Path) -> tuple[StaticColliders, dict[int, np.ndarray]]:
+    """The fixed colliders, and for each kind of solid the scene collider (its number) each one came from."""
+    planes, spheres, boxes, meshes = [], [], [], []
+    sources: dict[int, list[int]] = {PLANE: [], STATIC_SPHERE: [], STATIC_BOX: [], TRIANGLE: []}
+    for number, collider in enumerate(spec.colliders):
+        material = table.index(collider.material)
+        if isinstance(collider, PlaneCollider):
+            normal = np.asarray(collider.normal, float)
+            planes.append((np.asarray(collider.point, float), normal / np.linalg.norm(normal), material))
+            sources[PLANE].append(number)
+        elif isinstance(collider, SphereCollider):
+            spheres.append((np.asarray(collider.position, float), collider.radius, material))
+            sources[STATIC_SPHERE].append(number)
+        elif isinstance(collider, BoxCollider):
+            boxes.append((np.asarray(collider.position, float), orientation_matrix(collider.orientation),
+                          np.asarray(collider.size, float) / 2, material))
+            sources[STATIC_BOX].append(number)
+        elif isinstance(collider, MeshCollider):
+            mesh = load_mesh(base / collider.file, collider.scale).transformed(
+                orientation_matrix(collider.orientation), np.asarray(collider.position, float))
+            meshes.append((mesh.triangles, np.full(len(mesh.faces), material)))
+            sources[TRIANGLE] += [number] * len(mesh.faces)
+    empty = StaticColliders.empty()
+
+    def stack(items: list, k: int, fallback: np.ndarray) -> np.ndarray:
+        return np.array([item[k] for item in items]) if items else fallback
+
+    statics = StaticColliders(
+        stack(planes, 0, empty.plane_point), stack(planes, 1, empty.plane_normal),
+        stack(planes, 2, empty.plane_material).astype(np.intp),
+        stack(spheres, 0, empty.sphere_centre), stack(spheres, 1, empty.sphere_radius),
+        stack(spheres, 2, empty.sphere_material).astype(np.intp),
+        stack(boxes, 0, empty.box_centre), stack(boxes, 1, empty.box_rotation), stack(boxes, 2, empty.box_half),
+        stack(boxes, 3, empty.box_material).astype(np.intp),
+        np.concatenate([m[0] for m in meshes]) if meshes else empty.triangles,
+        np.concatenate([m[1] for m in meshes]).astype(np.intp) if meshes else empty.triangle_material)
+    return statics, {kind: np.array(numbers, np.intp) for kind, numbers in sources.items()}
+
+
+def material_table(spec: SceneSpec) -> MaterialTable:
+    custom = {name: Coefficients(m.restitution, m.static_friction, m.kinetic_friction)
+              for name, m in spec.materials.items()}
+    pairs = {frozenset(p.materials): {"restitution": p.restitution, "static_friction": p.static_friction,
+                                      "kinetic_friction": p.kinetic_friction} for p in spec.material_pairs}
+    return MaterialTable.build(custom, pairs)
+
+
+def build_contact_world(spec: SceneSpec, model: Any, centres: dict[str, np.ndarray],
+                        base: Path) -> tuple[ContactWorld, ContactSettings]:
+    """The contact world for a scene and its model (bodies in model order; the vertices of cloth and lattices are
+    particles of the model); ``centres`` gives each rigid body's centre of mass in shape coordinates."""
+    table = material_table(spec)
+    by_name = {body.name: body for body in spec.bodies}
+    owner_names = model.owners
+    deformable_names = [body.name for body in spec.bodies if isinstance(body, DEFORMABLE_SPECS)]
+    owners, offsets, radii, corner_of = [], [], [], []
+    box_owner, box_offset, box_rotation, box_half = [], [], [], []
+    for point, name in enumerate(owner_names):
+        body = by_name[name]
+        if isinstance(body, RigidBodySpec):
+            probes, boxes = _shape_features(body.shape, base)
+            centre = centres[name]
+            first_box = len(box_owner)
+            for c, r, box in probes:
+                owners.append(point)
+                offsets.append(c - centre)
+                radii.append(r)
+                corner_of.append(first_box + box if box >= 0 else -1)
+            for offset, rotation, half in boxes:
+                box_owner.append(point)
+                box_offset.append(offset - centre)
+                box_rotation.append(rotation)
+                box_half.append(half)
+        else:  # a particle, or a vertex of a cloth or lattice (a particle with the body's vertex radius)
+            owners.append(point)
+            offsets.append(np.zeros(3))
+            radii.append(float(model.bodies.radius[point]))
+            corner_of.append(-1)
+    statics, sources = _statics(spec, table, base)
+    tree, reach = None, 0.0
+    if len(statics.triangles):
+        centroids = statics.triangles.mean(axis=1)
+        tree = cKDTree(centroids)
+        reach = float(np.max(np.linalg.norm(statics.triangles - centroids[:, None, :], axis=2)))
+    settings = spec.contacts if spec.contacts is not None else ContactSpec()
+    world = ContactWorld(
+        Probes(np.array(owners, np.intp), np.array(offsets, float).reshape(-1, 3), np.array(radii, float),
+               np.array(corner_of, np.intp)),
+        BodyBoxes(np.array(box_owner, np.intp), np.array(box_offset, float).reshape(-1, 3),
+                  np.array(box_rotation, float).reshape(-1, 3, 3), np.array(box_half, float).reshape(-1, 3)),
+        statics, table, np.array([table.index(by_name[n].material) for n in owner_names], np.intp),
+        np.array([by_name[n].collide for n in owner_names], bool),
+        settings.bodies, tree, reach,
+        np.array([deformable_names.index(n) if n in deformable_names else -1 for n in owner_names], np.intp),
+        sources, tuple(model.body_names), np.asarray(model.bodies.mass, float))
+    return world, ContactSettings(settings.iterations, settings.rest_speed, settings.slop)

@@ -1,0 +1,110 @@
+"""Compile a validated scene into a Model: names become body handles, shapes become mass properties, declared fields
+become force terms."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from animbatch.compile import deformables as build
+from animbatch.compile.forces import field_term
+from animbatch.curves import ParametricCurve, Polyline
+from animbatch.sim.forces.controllers import ControllerSetting, CurveTarget, FixedTarget, PathTarget, Target
+from animbatch.sim.model.builder import ModelBuilder, Pin
+from animbatch.sim.model.model import Model
+from animbatch.sim.motion import KeyframePath
+from animbatch.compile.bodies import body_geometry, orientation_matrix, orientation_quaternion
+from animbatch.scene.schema import DEFORMABLE_SPECS, ClothSpec, RigidBodySpec, SceneSpec
+
+
+def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
+    """The Model for a validated scene (cross-references were checked by the loader); ``base_dir`` resolves the
+    scene's relative file names (mesh files), normally the scene file's folder."""
+    builder = ModelBuilder(base_dir)
+    handles: dict[str, list[int]] = {}
+    for body in spec.bodies:
+        if isinstance(body, RigidBodySpec):
+            handles[body.name] = [builder.add_rigid_body(
+                body.name, body_geometry(body, Path(base_dir)), position=body.position,
+                orientation=orientation_quaternion(body.orientation), velocity=body.velocity,
+                angular_velocity=body.angular_velocity, shape=body.shape)]
+        elif not isinstance(body, DEFORMABLE_SPECS):
+            handles[body.name] = [builder.add_particle(body.name, mass=body.mass, radius=body.radius,
+                                                       position=body.position, velocity=body.velocity)]
+    for body in spec.bodies:  # after the rigid bodies, which pins may attach to
+        if isinstance(body, DEFORMABLE_SPECS):
+            handles[body.name] = list(_add_deformable(builder, body, handles, Path(base_dir)))
+    anchor = {a.name: builder.add_anchor(a.name, a.start, path=_anchor_path(a)) for a in spec.anchors}
+    for spring in spec.springs:
+        first, second = spring.between
+        first_point, second_point = spring.attach or (None, None)
+        if first in anchor:  # the first end is always a body
+            first, second = second, first
+            first_point, second_point = second_point, first_point
+        builder.add_spring(handles[first][0], anchor[second] if second in anchor else handles[second][0],
+                           stiffness=spring.stiffness, damping=spring.damping, rest_length=spring.rest_length,
+                           second_is_anchor=second in anchor, name=spring.name or "--".join(spring.between),
+                           first_point=first_point, second_point=second_point)
+    for controller in spec.controllers:
+        builder.add_controller(handles[controller.body][0], ControllerSetting(
+            controller.stiffness, controller.damping, controller_target(controller.target),
+            None if controller.point is None else np.asarray(controller.point, float), controller.name))
+    for field in spec.fields if handles else ():  # a scene of emitters only has no body to act on
+        if field.bodies is None:
+            builder.add_field(field_term(field))
+            continue
+        chosen = [name for name in field.bodies if name in handles]  # the others are emitters
+        if chosen:
+            builder.add_field(field_term(field), [handle for name in chosen for handle in handles[name]])
+    model = builder.finalize(duration=spec.duration, fps=spec.fps)
+    if not spec.has_contacts:
+        return model
+    from animbatch.compile.contacts import build_contact_world  # only scenes with contacts load contact code
+
+    rigid = model.rigid
+    centres = dict(zip(rigid.names, rigid.centre)) if rigid is not None else {}
+    world, settings = build_contact_world(spec, model, centres, Path(base_dir))
+    return replace(model, contact_world=world, contact_settings=settings)
+
+
+def controller_target(spec: Any) -> Target:
+    """The target of a controller's ``target`` spec: a point, keyframes, a polyline or a parametric curve."""
+    if spec.type == "point":
+        return FixedTarget(np.asarray(spec.position, float))
+    if spec.type == "keyframes":
+        return PathTarget(KeyframePath(np.array([k.time for k in spec.keyframes], float),
+                                       np.array([k.position for k in spec.keyframes], float), spec.interpolation))
+    if spec.type == "polyline":
+        return CurveTarget(Polyline.through(np.asarray(spec.points, float), spec.closed),
+                           "closed polyline" if spec.closed else "polyline")
+    curve = ParametricCurve((spec.x, spec.y, spec.z), spec.range[0], spec.range[1], spec.closed, spec.samples)
+    return CurveTarget(curve, f"curve ({spec.x}, {spec.y}, {spec.z}), s in [{spec.range[0]:g}, {spec.range[1]:g}]")
+
+
+def _anchor_path(anchor: object) -> KeyframePath | None:
+    keyframes = anchor.keyframes  # type: ignore[attr-defined]
+    if keyframes is None:
+        return None
+    return KeyframePath(np.array([k.time for k in keyframes], float), np.array([k.position for k in keyframes], float),
+                        anchor.interpolation)  # type: ignore[attr-defined]
+
+
+def _add_deformable(builder: ModelBuilder, body: object, handles: dict[str, list[int]], base_dir: Path) -> object:
+    """Add a cloth or lattice: its topology, vertex masses, pins and spring families."""
+    topology = build.body_topology(body, base_dir)  # type: ignore[arg-type]
+    world = build.world_vertices(body, topology)  # type: ignore[arg-type]
+    pins = []
+    for pin in body.pin:  # type: ignore[attr-defined]
+        vertices, problems = build.pin_vertices(pin, topology, world)
+        if problems:  # the loader reports these with file positions; reaching here means a Python caller
+            raise ValueError(f"{body.name}: {'; '.join(problems)}")  # type: ignore[attr-defined]
+        pins.append(Pin(vertices, build.pin_path(pin), handles[pin.to][0] if pin.to is not None else None))
+    dihedral = body.dihedral if isinstance(body, ClothSpec) else None
+    return builder.add_deformable(
+        body.name, body.type, topology, masses=build.vertex_masses(body, topology),  # type: ignore[attr-defined]
+        position=body.position, rotation=orientation_matrix(body.orientation),  # type: ignore[attr-defined]
+        velocity=body.velocity, radius=body.radius, springs=build.spring_families(body),  # type: ignore[attr-defined]
+        pins=pins, dihedral=(dihedral.stiffness, dihedral.damping) if dihedral is not None else None)

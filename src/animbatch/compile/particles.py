@@ -1,0 +1,180 @@
+"""Compile a scene's emitters: schedules, sources, attribute laws, the fields and colliders each one meets."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from animbatch.compile.bodies import orientation_matrix
+from animbatch.scene.schema import (BoxSource, BuoyancySpec, DiscSource, DragSpec, GravitySpec, PARTICLE_FIELD_TYPES,
+                                    PointSource, RandomColor, RandomValue, SceneSpec, SphereSource, WindSpec)
+from animbatch.sim.forces.drag import AIR_VISCOSITY
+from animbatch.sim.particles.collisions import ParticleColliders
+from animbatch.sim.particles.emitter import Emitter, Law
+from animbatch.sim.particles.fields import ParticleField
+from animbatch.sim.particles.schedule import EmissionSchedule
+from animbatch.sim.particles.sources import Source
+from animbatch.sim.particles.streams import ParticleStreams
+from animbatch.sim.rigid.shapes import BodyGeometry
+
+
+@dataclass(frozen=True, eq=False)
+class ParticleSystems:
+    """A scene's compiled emitters and the colliders their particles meet (per emitter, by name; None: none)."""
+
+    emitters: tuple[Emitter, ...]
+    colliders: dict[str, ParticleColliders | None]
+
+    def emitter(self, name: str) -> Emitter:
+        return next(e for e in self.emitters if e.name == name)
+
+
+def pool_sizes(spec: SceneSpec) -> list[tuple[str, int, float]]:
+    """(emitter name, pool capacity, particles born over the animation) of each emitter, without allocating the
+    pools: what the cost pre-flight needs."""
+    sizes = []
+    for item in spec.emitters:
+        schedule = _schedule(item, spec.duration)
+        sizes.append((item.name, _capacity(item, schedule, spec.duration), float(schedule.born_by(spec.duration))))
+    return sizes
+
+
+def _capacity(item: Any, schedule: EmissionSchedule, duration: float) -> int:
+    """Slots of an emitter's pool: its declared capacity, or the most its rate, bursts and longest life keep alive."""
+    return int(item.capacity or max(1, schedule.most_alive(_law(item.lifetime).largest, duration)))
+
+
+def compile_particles(spec: SceneSpec, model: Any, base_dir: Path = Path(".")) -> ParticleSystems | None:
+    """The particle systems of a scene (None when it declares no emitters). ``model`` gives the bodies that
+    emitters move with (their index in the trajectory, centre of mass and surface)."""
+    if not spec.emitters:
+        return None
+    from animbatch.compile.contacts import _statics, material_table
+
+    table = material_table(spec)
+    statics = _statics(spec, table, base_dir)[0] if spec.colliders else None
+    emitters, colliders = [], {}
+    for index, item in enumerate(spec.emitters):
+        body = body_centre = geometry = None
+        if item.body is not None:
+            body = model.body_names.index(item.body)
+            rigid = body - model.particle_count
+            body_centre = model.rigid.centre[rigid]
+            geometry = model.rigid.geometry[rigid]
+        schedule = _schedule(item, spec.duration)
+        lifetime = _law(item.lifetime)
+        capacity = _capacity(item, schedule, spec.duration)
+        mean, spread, distribution = _color_law(item.color)
+        axis = None
+        if item.direction.axis != "normal":
+            axis = np.asarray(item.direction.axis, float)
+            axis /= np.linalg.norm(axis)
+        emitters.append(Emitter(
+            item.name, index, schedule, ParticleStreams(spec.seed, index), _source(item.source, geometry),
+            lifetime, _law(item.speed), _law(item.radius), _law(item.mass), mean, spread, distribution, axis,
+            float(np.radians(item.direction.cone)), body, item.body,
+            body_centre if body_centre is not None else np.zeros(3), item.inherit_velocity, item.collision,
+            table.index(item.material), capacity, _particle_fields(spec.fields, item.name), item.look))
+        if statics is not None and item.collision != "pass":
+            own = table.index(item.material)
+            colliders[item.name] = ParticleColliders(statics, table.restitution[own], table.static_friction[own],
+                                                     table.kinetic_friction[own])
+        else:
+            colliders[item.name] = None
+    return ParticleSystems(tuple(emitters), colliders)
+
+
+def _law(value: float | RandomValue) -> Law:
+    """A per-particle value: fixed, or ``mean ± spread`` as the scene's random value gives it."""
+    if isinstance(value, RandomValue):
+        return Law(value.mean, value.spread, value.distribution)
+    return Law(float(value))
+
+
+def _hex_rgb(color: str) -> np.ndarray:
+    value = color.lstrip("#")
+    return np.array([int(value[i:i + 2], 16) / 255 for i in (0, 2, 4)])
+
+
+def _color_law(color: str | RandomColor) -> tuple[np.ndarray, float, str]:
+    """(mean RGB (3,), spread, distribution) of an emitter's colour key."""
+    if isinstance(color, RandomColor):
+        return _hex_rgb(color.mean), color.spread, color.distribution
+    return _hex_rgb(color), 0.0, "uniform"
+
+
+def _schedule(spec: Any, end: float) -> EmissionSchedule:
+    """The schedule of an emitter spec, for an animation that ends at ``end`` [s]."""
+    rate = spec.rate
+    start = float(spec.start)
+    stop = float(spec.stop) if spec.stop is not None else max(end, start) + 1.0
+    if isinstance(rate, int | float):
+        times, rates = np.array([start, stop]), np.array([float(rate)] * 2)
+    else:
+        keys_t = np.array([k.time for k in rate], float)
+        keys_r = np.array([k.rate for k in rate], float)
+        inner = keys_t[(keys_t > start) & (keys_t < stop)]
+        times = np.concatenate([[start], inner, [stop]])
+        rates = np.interp(times, keys_t, keys_r)
+    bursts = spec.bursts
+    return EmissionSchedule(times, rates, np.array([b.time for b in bursts], float),
+               np.array([b.count for b in bursts], np.int64))
+
+
+def _source(spec: object, body_geometry: BodyGeometry | None = None) -> Source:
+    """The source of an emitter spec; a ``surface`` source needs its body's geometry (shape coordinates)."""
+    if isinstance(spec, PointSource):
+        return Source("point", np.asarray(spec.position, float))
+    if isinstance(spec, SphereSource):
+        return Source("sphere", np.asarray(spec.position, float), spec.radius, spec.surface)
+    if isinstance(spec, DiscSource):
+        normal = np.asarray(spec.normal, float)
+        return Source("disc", np.asarray(spec.position, float), spec.radius, normal=normal / np.linalg.norm(normal))
+    if isinstance(spec, BoxSource):
+        return Source("box", np.asarray(spec.position, float), rotation=orientation_matrix(spec.orientation),
+                      half=np.asarray(spec.size, float) / 2)
+    assert body_geometry is not None, "a surface source needs its body"
+    spheres, triangles = body_geometry.spheres, body_geometry.triangles
+    areas = np.concatenate([4.0 * np.pi * spheres[:, 3] ** 2,
+                            0.5 * np.linalg.norm(np.cross(triangles[:, 1] - triangles[:, 0],
+                                                          triangles[:, 2] - triangles[:, 0]), axis=1)])
+    cumulative = np.cumsum(areas) / np.sum(areas)
+    return Source("surface", np.zeros(3), triangles=triangles, spheres=spheres, area_cumulative=cumulative)
+
+
+def _particle_fields(fields: list, emitter: str) -> tuple[ParticleField, ...]:
+    """The fields (scene specs) that act on the particles of ``emitter``, in declaration order."""
+    built = []
+    for field in fields:
+        if field.type not in PARTICLE_FIELD_TYPES:
+            continue
+        if field.bodies is not None and emitter not in field.bodies:
+            continue
+        built.append(_particle_field(field))
+    return tuple(built)
+
+
+def _vector(values: list[float]) -> str:
+    return "(" + ", ".join(f"{c:g}" for c in values) + ")"
+
+
+def _particle_field(field: GravitySpec | DragSpec | WindSpec | BuoyancySpec) -> ParticleField:
+    if isinstance(field, GravitySpec):
+        return ParticleField("gravity", f"gravity g = {_vector(field.g)} m/s²", g=np.asarray(field.g, float))
+    if isinstance(field, DragSpec | WindSpec):
+        wind = np.asarray(field.velocity, float) if isinstance(field, WindSpec) else None
+        viscosity = field.viscosity if field.viscosity is not None else AIR_VISCOSITY
+        if field.model == "stokes":
+            law = f"stokes 6πηr, η = {viscosity:g} Pa·s"
+        else:
+            law = f"{field.model}, C = {field.coefficient:g} {'N·s/m' if field.model == 'linear' else 'kg/m'}"
+        label = f"{field.type} {law}" + (f", wind {_vector(field.velocity)} m/s" if wind is not None else "")
+        return ParticleField(field.type, label, law=field.model, coefficient=float(field.coefficient or 0.0),
+                             viscosity=viscosity, wind=wind if wind is not None and np.any(wind) else None)
+    up = np.asarray(field.up, float)
+    return ParticleField("buoyancy", f"buoyancy ρ = {field.density:g} kg/m³ below {field.level:g} m",
+                         density=field.density, level=field.level, up=up / np.linalg.norm(up), buoyancy_g=field.g,
+                         damping=field.linear_damping)

@@ -1,0 +1,204 @@
+"""A whole run on this machine, as a render farm does it: bake (simulate or reuse the cache), render the frames not
+yet on disk (in worker processes), encode, and write the run's report. ``animbatch render`` is this."""
+
+from __future__ import annotations
+
+import datetime as _dt
+import platform
+import shutil
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from animbatch import __version__
+from animbatch.errors import SimulationError
+from animbatch.farm.cache import bake
+from animbatch.farm.encode import encode
+from animbatch.farm.frames import FrameRange, frames_folder, parse_frames, prepare_frames, render_frames
+from animbatch.farm.parallel import render_in_parallel, worker_count
+from animbatch.encode import PngSequenceWriter
+from animbatch.files import write_json_atomic
+from animbatch.progress import Progress
+from animbatch.scene import LoadedScene
+from animbatch.scene.overrides import Override
+from animbatch.sim.ledger import summary as ledger_summary
+from animbatch.sim.ledger import warn_again
+from animbatch.sim.model import Model
+from animbatch.stages import check_trajectory, compile_model, failure_report, load_scene, write_quantities
+from animbatch.stopwatch import Stopwatch
+from animbatch.trajectory import Trajectory
+
+
+@dataclass
+class RenderResult:
+    """What a render wrote, and how long drawing and encoding took [s]."""
+
+    outputs: list[Path]
+    frame_count: int
+    backend: str
+    render_seconds: float
+    encode_seconds: float
+    resolution: tuple[int, int]
+    fps: int
+
+
+def render(scene: LoadedScene, trajectory: Trajectory, *, model: Model | None = None,
+           out_dir: str | Path = "renders", backend: str = "auto", progress: Progress | None = None) -> RenderResult:
+    """Draw every frame of ``trajectory`` and write the scene's outputs into ``out_dir/<scene name>/``, in this
+    process: ``run`` without the bake (the same frames, videos and file rules, see :func:`run`).
+
+    The trajectory must come from this scene's physics (TrajectoryError otherwise); frames already complete on disk
+    for this picture are not drawn again; every file is written atomically.
+    """
+    model = model if model is not None else compile_model(scene)
+    check_trajectory(scene, model, trajectory)
+    prepare_frames(scene, trajectory, out_dir)
+    progress = progress or Progress(enabled=False)
+    with progress.task("render", trajectory.frame_count) as on_frame:
+        rendered = render_frames(scene, trajectory, FrameRange(0, trajectory.frame_count), out_dir=out_dir,
+                                 backend=backend, model=model,
+                                 on_frame=lambda i: on_frame(i, float(trajectory.times[i])))
+    outputs, encode_seconds = finish_outputs(scene, trajectory.frame_count, out_dir)
+    return RenderResult(outputs, trajectory.frame_count, rendered.backend or "(none: frames were complete)",
+                        rendered.render_seconds, encode_seconds, tuple(scene.spec.render.resolution),  # type: ignore[arg-type]
+                        scene.spec.fps)
+
+
+def finish_outputs(scene: LoadedScene, frame_count: int, out_dir: str | Path) -> tuple[list[Path], float]:
+    """Once every frame is on disk: encode each video format the scene asks for, then keep the frames if ``png`` is
+    one of its formats (without frames left over from a longer run) or delete them. Returns the outputs and the
+    encoding time [s]."""
+    formats = scene.spec.render.formats
+    folder = frames_folder(scene, out_dir)
+    outputs: list[Path] = []
+    seconds = 0.0
+    videos = tuple(kind for kind in formats if kind != "png")
+    if videos:
+        encoded = encode(scene, frame_count, out_dir=out_dir, kinds=videos)
+        seconds = encoded.seconds
+        outputs += encoded.outputs
+    if "png" in formats:
+        PngSequenceWriter(folder).remove_beyond(frame_count)
+        outputs.append(folder)
+    else:
+        shutil.rmtree(folder, ignore_errors=True)
+    return outputs, seconds
+
+
+@dataclass
+class RunReport:
+    """Everything a run did, written as ``report.json`` beside its outputs."""
+
+    scene: str
+    scene_file: str | None
+    physics_hash: str
+    package_version: str
+    stages: dict[str, float]  # seconds per stage: load, compile, simulate (or load_trajectory), render, encode
+    solver: dict[str, Any]
+    solver_stats: dict[str, Any]
+    frame_count: int
+    resolution: tuple[int, int]
+    fps: int
+    backend: str
+    outputs: list[str]
+    trajectory_file: str | None = None
+    particle_stats: dict[str, Any] = field(default_factory=dict)
+    created: str = field(default_factory=lambda: _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
+    host: str = field(default_factory=platform.node)
+    status: str = "ok"
+    frames: str = ""  # the range rendered, "0-299"
+    frames_drawn: int = 0  # frames drawn by this run (the others were complete on disk)
+    frames_skipped: int = 0
+    workers: int = 1  # render processes
+    cache: str | None = None  # the baked trajectory file
+    cache_reused: bool = False
+    ledger: dict[str, Any] = field(default_factory=dict)  # the accuracy ledger (see animbatch.sim.ledger)
+    quantities: list[str] = field(default_factory=list)  # quantities.csv (and .png) beside the report
+
+    def summary(self) -> str:
+        """One line for logs: outputs, frames, timings, solver work and the accuracy ledger."""
+        solver = ledger_summary(self.ledger) if self.ledger else str(self.solver_stats.get("method"))
+        if self.particle_stats:
+            particles = self.particle_stats
+            solver += f"; particles: {particles.get('born')} born, peak {particles.get('peak_live')} live"
+        if self.trajectory_file:
+            solver = f"from {self.trajectory_file} ({solver})"
+        timings = ", ".join(f"{stage} {seconds:.2f} s" for stage, seconds in self.stages.items())
+        width, height = self.resolution
+        target = self.outputs[0] if self.outputs else "(no output)"
+        return (f"{self.scene}: {self.frame_count} frames {width}×{height} @ {self.fps} fps -> {target} | "
+                f"{timings} | {solver} | {self.backend}")
+
+
+def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: str | Path = "renders",
+        backend: str = "auto", trajectory_path: str | Path | None = None, progress: Progress | None = None,
+        jobs: int | None = None, frames: str | None = None, plot: bool = False) -> RunReport:
+    """Bake, render and encode one scene, as a render farm does, on this machine; write its report.
+
+    * **bake**: the trajectory from the cache (``renders/<scene>/cache/``) when the physics, solver settings and
+      package version match, else simulated and cached (or read from ``trajectory_path``);
+    * **render**: the frames not yet complete on disk, in ``jobs`` worker processes (default: one per core, fewer
+      for short animations), into ``renders/<scene>/frames/``;
+    * **encode**: every video format the scene asks for; the frame files are then deleted unless ``png`` is one of
+      the formats.
+
+    With ``frames`` (``"120-239"``) only that range is rendered, and nothing is encoded (``animbatch encode`` does
+    that once every range is done); the report is written for whole runs only, with ``quantities.csv`` (and, with
+    ``plot``, ``quantities.png``) beside it.
+    """
+    watch = Stopwatch()
+    progress = progress or Progress(enabled=False)
+    with watch.stage("load"):
+        scene = load_scene(scene_path, overrides)
+    with watch.stage("compile"):
+        model = compile_model(scene)
+    cache = None
+    if trajectory_path is not None:
+        with watch.stage("load_trajectory"):
+            trajectory = Trajectory.load(trajectory_path)
+            check_trajectory(scene, model, trajectory, trajectory_path)  # before rendering, naming the file
+            warn_again(trajectory.ledger)
+        source = Path(trajectory_path)
+    else:
+        try:
+            baked = bake(scene, out_dir=out_dir, model=model, progress=progress)
+        except SimulationError as error:  # the reason goes in the report too, where batch tools look for it
+            write_json_atomic(Path(out_dir) / scene.name / "report.json", failure_report(scene, error, watch))
+            raise
+        watch.add("load_cache" if baked.reused else "simulate", baked.seconds)
+        trajectory, source, cache = baked.trajectory, baked.path, baked
+    span = parse_frames(frames, trajectory.frame_count)
+    prepare_frames(scene, trajectory, out_dir)  # before any worker starts: stale frames of another picture go
+    workers = worker_count(jobs, len(span))
+    # the stage's wall time: with worker processes the frames' own times add up to more than the stage took
+    with watch.stage("render"), progress.task("render", len(span)) as on_frame:
+        if workers > 1:
+            rendered = render_in_parallel(scene_path, overrides, source, span, workers=workers, out_dir=out_dir,
+                                          backend=backend, on_chunk=lambda chunk: [
+                                              on_frame(i, float(trajectory.times[i])) for i in chunk.drawn])
+        else:
+            rendered = render_frames(scene, trajectory, span, out_dir=out_dir, backend=backend, model=model,
+                                     on_frame=lambda i: on_frame(i, float(trajectory.times[i])))
+    spec = scene.spec
+    if frames is None:
+        outputs, encode_seconds = finish_outputs(scene, trajectory.frame_count, out_dir)
+        if any(kind != "png" for kind in spec.render.formats):
+            watch.add("encode", encode_seconds)
+    else:
+        outputs = [frames_folder(scene, out_dir)]
+    report = RunReport(scene.name, str(scene.path) if scene.path else None, trajectory.physics_hash, __version__,
+                       dict(watch.seconds), trajectory.solver, trajectory.solver_stats, trajectory.frame_count,
+                       tuple(spec.render.resolution), spec.fps, rendered.backend or "(none: frames were complete)",
+                       [str(p) for p in outputs], str(trajectory_path) if trajectory_path else None,
+                       trajectory.particle_stats, frames=str(span), frames_drawn=len(rendered.drawn),
+                       frames_skipped=len(rendered.skipped), workers=workers,
+                       cache=str(cache.path) if cache else None, cache_reused=bool(cache and cache.reused),
+                       ledger=trajectory.ledger)
+    if frames is None:
+        folder = Path(out_dir) / scene.name
+        report.quantities = [str(path) for path in write_quantities(scene, model, trajectory, folder, plot=plot)]
+        write_json_atomic(folder / "report.json", report.__dict__)
+    return report

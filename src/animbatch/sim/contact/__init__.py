@@ -1,0 +1,1 @@
+"""Contact detection and response between rigid bodies, deformables and colliders (numbers only)."""

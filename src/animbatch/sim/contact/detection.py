@@ -1,0 +1,353 @@
+"""Finding contacts: which probes are near which solids (broad phase), and how far apart they are (narrow phase).
+
+Broad phase: a k-d tree (``scipy.spatial.cKDTree``) over the probes' centres, queried once per solid, plus one
+tree over mesh triangles built once; so N bodies cost O(N log N), not O(N²). Contacts closer than a margin are kept
+("speculative" contacts): with the margin at least the distance a pair can close in a step, the solver sees every
+obstacle a fast body could reach during the step, however thin (a swept test: no tunnelling).
+
+The distance a pair can close is the sum of what *both* its sides travel: a probe moving at v towards a fixed wall
+closes v h, but two bodies moving towards each other at v each close 2 v h. So :func:`detect` takes each body's
+``travel`` over the step and keeps a pair while its gap is below ``margin + travel[probe body] + travel[solid body]``
+(fixed colliders travel nothing). With only the larger of the two travels, two bodies approaching each other were
+looked for at half the distance they close, and passed through each other.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from animbatch.sim.contact.geometry import (BodyBoxes, Probes, StaticColliders, separating_direction, to_box, to_box_face,
+                                       to_face_plane, to_plane, to_sphere, to_triangles)
+from animbatch.sim.contact.materials import MaterialTable
+from animbatch.errors import SimulationError
+from animbatch.sim.forces.base import Kinematics
+
+STATIC = -1  # "solid body" index of fixed colliders
+
+# What a contact's solid is (``Contacts.solid_kind``); ``solid_index`` numbers solids within their kind. A box corner
+# against a box touches one face of it (``*_BOX_FACE``, ``solid_index = 6 box + face``, see geometry.to_box_face).
+PLANE, STATIC_SPHERE, STATIC_BOX, TRIANGLE, BODY_SPHERE, BODY_BOX, STATIC_BOX_FACE, BODY_BOX_FACE = range(8)
+
+
+@dataclass(frozen=True, eq=False)
+class ContactWorld:
+    """Everything contact detection needs that does not change during a run.
+
+    ``body_material`` (P,) material index per body; ``collides`` (P,) bool; ``bodies_collide``: whether bodies touch
+    each other (not only colliders); ``triangle_tree``: k-d tree of static triangle centroids (or None) with the
+    largest triangle's circumradius ``triangle_reach``; ``group`` (P,): bodies of one group ≥ 0 (the vertices of one
+    cloth or lattice) never collide with each other, and do not bounce (restitution 0: a point of a sheet has no
+    elastic rebound of its own; a lattice bounces through its springs). ``collider_source``: for the fixed solids of
+    each kind (PLANE, STATIC_SPHERE, STATIC_BOX, TRIANGLE), the number of the scene collider each came from, to name
+    it in messages. ``body_names`` and ``body_mass`` (P,) [kg] name a body in messages.
+    """
+
+    probes: Probes
+    boxes: BodyBoxes
+    statics: StaticColliders
+    materials: MaterialTable
+    body_material: np.ndarray
+    collides: np.ndarray
+    bodies_collide: bool
+    triangle_tree: cKDTree | None
+    triangle_reach: float
+    group: np.ndarray | None = None
+    collider_source: dict[int, np.ndarray] | None = None
+    body_names: tuple[str, ...] = ()
+    body_mass: np.ndarray | None = None
+
+
+#: Positions [m] or distances moved in one step beyond this mean the run has diverged (scene numbers stay below 1e35).
+RUNAWAY_SCALE = 1e100
+
+
+def turn_angle(r0: np.ndarray, r1: np.ndarray) -> np.ndarray:
+    """The angle [rad] between rotation matrices (..., 3, 3): cos θ = (trace(R0ᵀ R1) - 1) / 2."""
+    trace = np.einsum("...ij,...ij->...", r0, r1)
+    return np.arccos(np.clip((trace - 1) / 2, -1.0, 1.0))
+
+
+def check_scale(world: ContactWorld, state: Kinematics, travel: np.ndarray | None) -> None:
+    """Stop a run whose bodies have left every physical scale (a feather-light body kicked by heavy ones, say)
+    before the k-d tree search overflows on them: every method's contact search comes through here, and the
+    per-frame or per-step divergence checks only catch values that are no longer finite."""
+    size = np.max(np.abs(state.x), axis=1)
+    if travel is not None:
+        size = np.maximum(size, travel)
+    if np.all(size < RUNAWAY_SCALE):  # also false for NaN
+        return
+    body = int(np.argmax(np.where(np.isfinite(size), size, np.inf)))
+    name = world.body_names[body] if world.body_names else f"number {body}"
+    mass = f" (mass {float(world.body_mass[body]):.3g} kg)" if world.body_mass is not None else ""
+    raise SimulationError(
+        f"body {name!r}{mass} left every physical scale at t = {state.t:.6g} s (position "
+        f"{np.max(np.abs(state.x[body])):.3g} m, speed {np.linalg.norm(state.v[body]):.3g} m/s): the simulation "
+        "diverged, so no contact can be found. Check that body's mass against the bodies it hits and the forces on "
+        "it, or take a smaller solver.dt or tighter solver.rtol", time=state.t, body=name)
+
+
+@dataclass(frozen=True, eq=False)
+class Contacts:
+    """K contacts: ``probe_body``/``solid_body`` (K,) body indices (``solid_body`` is -1 for fixed colliders),
+    ``point`` (K, 3) [m], ``normal`` (K, 3) unit, from the solid towards the probe, ``gap`` (K,) [m] (negative when
+    overlapping), the pair's ``restitution``, ``static_friction``, ``kinetic_friction`` (K,), and which features
+    touch: ``probe`` (K,) probe index, ``solid_kind`` and ``solid_index`` (K,) (see PLANE … BODY_BOX)."""
+
+    probe_body: np.ndarray
+    solid_body: np.ndarray
+    point: np.ndarray
+    normal: np.ndarray
+    gap: np.ndarray
+    restitution: np.ndarray
+    static_friction: np.ndarray
+    kinetic_friction: np.ndarray
+    probe: np.ndarray
+    solid_kind: np.ndarray
+    solid_index: np.ndarray
+
+    FIELDS = ("probe_body", "solid_body", "point", "normal", "gap", "restitution", "static_friction",
+              "kinetic_friction", "probe", "solid_kind", "solid_index")
+
+    @property
+    def count(self) -> int:
+        return len(self.gap)
+
+    @classmethod
+    def concatenate(cls, parts: list[Contacts]) -> Contacts:
+        if not parts:
+            z3, z, zi = np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.intp)
+            return cls(zi, zi, z3, z3, z, z, z, z, zi, zi, zi)
+        return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in cls.FIELDS))
+
+    def select(self, chosen: np.ndarray) -> Contacts:
+        """The contacts at indices or mask ``chosen``."""
+        return Contacts(*(getattr(self, name)[chosen] for name in self.FIELDS))
+
+
+def body_reach(world: ContactWorld, body_count: int) -> np.ndarray:
+    """For each body (P,), how far its collision geometry reaches from its centre of mass [m]: the largest
+    ``|offset| + radius`` of its probes (box faces lie within their corners). A turn by θ moves no point of the body
+    further than ``reach θ``."""
+    probes = world.probes
+    reach = np.zeros(body_count)
+    np.maximum.at(reach, probes.owner, np.linalg.norm(probes.offset, axis=1) + probes.radius)
+    return reach
+
+
+def contact_codes(contacts: Contacts) -> np.ndarray:
+    """One int64 per contact that names its probe and solid, to find the same contact in another state."""
+    return ((contacts.probe.astype(np.int64) << 36) | (contacts.solid_kind.astype(np.int64) << 32)
+            | contacts.solid_index.astype(np.int64))
+
+
+def probe_centres(world: ContactWorld, state: Kinematics) -> np.ndarray:
+    """World positions (Q, 3) of all probes."""
+    probes = world.probes
+    centres = state.x[probes.owner].copy()
+    on_rigid = (probes.owner >= state.first_rigid) & np.any(probes.offset != 0, axis=1)
+    if on_rigid.any():
+        centres[on_rigid] += state.lever(probes.owner[on_rigid] - state.first_rigid, probes.offset[on_rigid])
+    return centres
+
+
+def closing_margin(world: ContactWorld, probes: np.ndarray, solid_body: np.ndarray, margin: float,
+                   travel: np.ndarray | None) -> float | np.ndarray:
+    """How close (gap [m]) probe–solid pairs (K,) must be to be kept: ``margin`` plus the distance both sides can
+    travel (``travel`` (P,) per body, None: no travel; fixed solids, body -1, travel nothing)."""
+    if travel is None:
+        return margin
+    solid = np.where(solid_body >= 0, travel[np.maximum(solid_body, 0)], 0.0)
+    return margin + travel[world.probes.owner[probes]] + solid
+
+
+def _contacts(world: ContactWorld, probes: np.ndarray, centres: np.ndarray, distance: np.ndarray,
+              normal: np.ndarray, solid_body: np.ndarray, solid_material: np.ndarray, margin: float,
+              kind: int | np.ndarray, solid_index: np.ndarray, travel: np.ndarray | None = None) -> Contacts:
+    """Contacts from probe indices (K,), their centres, distances of the centres to the solids and normals; those
+    with a gap under the pair's :func:`closing_margin` are kept."""
+    radius = world.probes.radius[probes]
+    gap = distance - radius
+    keep = gap < closing_margin(world, probes, solid_body, margin, travel)
+    probes, gap, normal, radius = probes[keep], gap[keep], normal[keep], radius[keep]
+    centres, solid_body, solid_material = centres[keep], solid_body[keep], solid_material[keep]
+    owner = world.probes.owner[probes]
+    point = centres - normal * (radius + 0.5 * gap)[:, None]  # midway between the two surfaces
+    a, b = world.body_material[owner], solid_material
+    table = world.materials
+    restitution = table.restitution[a, b]
+    if world.group is not None:
+        restitution = np.where(world.group[owner] >= 0, 0.0, restitution)
+    return Contacts(owner, solid_body, point, normal, gap, restitution, table.static_friction[a, b],
+                    table.kinetic_friction[a, b], probes,
+                    np.broadcast_to(np.asarray(kind, np.intp), keep.shape)[keep].copy(),
+                    np.broadcast_to(solid_index, keep.shape)[keep].astype(np.intp))
+
+
+def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.ndarray | None = None) -> Contacts:
+    """Every probe–solid pair whose gap is below ``margin`` [m] plus how far both sides can travel (``travel`` (P,)
+    [m] per body, the most any of its points moves in the coming step; None: nothing moves), as contacts."""
+    check_scale(world, state, travel)
+    centres = probe_centres(world, state)
+    active = world.collides[world.probes.owner]
+    statics, parts = world.statics, []
+    everywhere = np.flatnonzero(active)
+    largest_travel = float(travel.max(initial=0.0)) if travel is not None else 0.0
+    reach = margin + largest_travel + (float(world.probes.radius.max()) if world.probes.count else 0.0)
+    tree = cKDTree(centres) if world.probes.count else None
+
+    def near(centre: np.ndarray, radius: float) -> np.ndarray:
+        found = np.asarray(tree.query_ball_point(centre, radius + reach), dtype=np.intp)
+        return found[active[found]] if len(found) else found
+
+    for k in range(len(statics.plane_point)):
+        d, n = to_plane(centres[everywhere], statics.plane_point[k], statics.plane_normal[k])
+        parts.append(_contacts(world, everywhere, centres[everywhere], d, np.array(n), np.full(len(d), STATIC),
+                               np.full(len(d), statics.plane_material[k]), margin, PLANE, np.full(len(d), k), travel))
+    for k in range(len(statics.sphere_centre)):
+        chosen = near(statics.sphere_centre[k], statics.sphere_radius[k])
+        d, n = to_sphere(centres[chosen], np.broadcast_to(statics.sphere_centre[k], (len(chosen), 3)),
+                         np.full(len(chosen), statics.sphere_radius[k]))
+        parts.append(_contacts(world, chosen, centres[chosen], d, n, np.full(len(chosen), STATIC),
+                               np.full(len(chosen), statics.sphere_material[k]), margin, STATIC_SPHERE,
+                               np.full(len(chosen), k), travel))
+    box_centres, box_rotations = body_box_poses(world, state)
+    for k in range(len(statics.box_centre)):
+        chosen = near(statics.box_centre[k], float(np.linalg.norm(statics.box_half[k])))
+        parts.append(_box_contacts(world, chosen, centres, statics.box_centre[k], statics.box_rotation[k],
+                                   statics.box_half[k], STATIC, statics.box_material[k], margin,
+                                   (STATIC_BOX, STATIC_BOX_FACE), k, box_centres, box_rotations, travel))
+    if world.triangle_tree is not None and len(everywhere):
+        found = world.triangle_tree.query_ball_point(centres[everywhere], world.triangle_reach + reach)
+        probes = np.repeat(everywhere, [len(f) for f in found])
+        triangles = np.concatenate([np.asarray(f, np.intp) for f in found]) if len(probes) else np.zeros(0, np.intp)
+        if len(probes):
+            d, n = to_triangles(centres[probes], statics.triangles[triangles])
+            parts.append(_contacts(world, probes, centres[probes], d, n, np.full(len(probes), STATIC),
+                                   statics.triangle_material[triangles], margin, TRIANGLE, triangles, travel))
+    if world.bodies_collide and tree is not None:
+        parts += _between_bodies(world, centres, tree, active, margin, box_centres, box_rotations, travel)
+    return Contacts.concatenate(parts)
+
+
+def body_box_poses(world: ContactWorld, state: Kinematics) -> tuple[np.ndarray, np.ndarray]:
+    """World centres (X, 3) and rotations (X, 3, 3) of the boxes moving with bodies."""
+    boxes = world.boxes
+    if not boxes.count:
+        return np.zeros((0, 3)), np.zeros((0, 3, 3))
+    assert state.rotation is not None
+    rigid = boxes.owner - state.first_rigid
+    return state.x[boxes.owner] + state.lever(rigid, boxes.offset), state.rotation[rigid] @ boxes.rotation
+
+
+def _box_contacts(world: ContactWorld, chosen: np.ndarray, centres: np.ndarray, box_centre: np.ndarray,
+                  box_rotation: np.ndarray, box_half: np.ndarray, solid_body: int, material: int, margin: float,
+                  kinds: tuple[int, int], box: int, box_centres: np.ndarray, box_rotations: np.ndarray,
+                  travel: np.ndarray | None = None) -> Contacts:
+    """Contacts of probes ``chosen`` with one box: corners of other boxes against the face their separating axis
+    picks, everything else against the box as a whole. ``kinds``: (whole box, face) contact kinds."""
+    count = len(chosen)
+    points = centres[chosen]
+    centre, rotation, half = (np.broadcast_to(a, (count, *np.shape(a))) for a in (box_centre, box_rotation,
+                                                                                    box_half))
+    distance, normal = to_box(points, centre, rotation, half)
+    kind, index = np.full(count, kinds[0]), np.full(count, box)
+    corner_of = world.probes.box[chosen]
+    corners = np.flatnonzero(corner_of >= 0)
+    if len(corners):
+        own = corner_of[corners]
+        direction = separating_direction(box_centres[own], box_rotations[own], world.boxes.half[own],
+                                         centre[corners], rotation[corners], half[corners])
+        tolerance = margin + (2 * float(travel.max(initial=0.0)) if travel is not None else 0.0)
+        face_distance, face_normal, face, on_face = to_box_face(points[corners], centre[corners], rotation[corners],
+                                                                half[corners], direction, tolerance)
+        use = corners[on_face]
+        distance[use], normal[use] = face_distance[on_face], face_normal[on_face]
+        kind[use], index[use] = kinds[1], 6 * box + face[on_face]
+    return _contacts(world, chosen, points, distance, normal, np.full(count, solid_body),
+                     np.full(count, material), margin, kind, index, travel)
+
+
+def _between_bodies(world: ContactWorld, centres: np.ndarray, tree: cKDTree, active: np.ndarray, margin: float,
+                    box_centres: np.ndarray, box_rotations: np.ndarray,
+                    travel: np.ndarray | None) -> list[Contacts]:
+    """Probe spheres against other bodies' probe spheres, and probes against other bodies' boxes."""
+    probes, parts = world.probes, []
+    closing = margin + 2 * (float(travel.max(initial=0.0)) if travel is not None else 0.0)  # both sides move
+    pairs = tree.query_pairs(2 * float(probes.radius.max()) + closing, output_type="ndarray")
+    if len(pairs):
+        i, j = pairs[:, 0], pairs[:, 1]
+        keep = (probes.owner[i] != probes.owner[j]) & active[i] & active[j] & (probes.radius[j] > 0)
+        if world.group is not None:
+            group_i, group_j = world.group[probes.owner[i]], world.group[probes.owner[j]]
+            keep &= (group_i < 0) | (group_i != group_j)
+        i, j = i[keep], j[keep]
+        d, n = to_sphere(centres[i], centres[j], probes.radius[j])  # probe i against the sphere of probe j
+        owner_j = probes.owner[j]
+        parts.append(_contacts(world, i, centres[i], d, n, owner_j, world.body_material[owner_j], margin,
+                               BODY_SPHERE, j, travel))
+    boxes = world.boxes
+    for k in range(boxes.count):
+        owner = boxes.owner[k]
+        if not world.collides[owner]:
+            continue
+        found = np.asarray(tree.query_ball_point(box_centres[k], float(np.linalg.norm(boxes.half[k])) + closing
+                                                 + float(probes.radius.max())), dtype=np.intp)
+        chosen = found[(probes.owner[found] != owner) & active[found]] if len(found) else found
+        if len(chosen):
+            parts.append(_box_contacts(world, chosen, centres, box_centres[k], box_rotations[k], boxes.half[k],
+                                       owner, world.body_material[owner], margin, (BODY_BOX, BODY_BOX_FACE), k,
+                                       box_centres, box_rotations, travel))
+    return parts
+
+
+def evaluate_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, kind: np.ndarray,
+                   index: np.ndarray) -> Contacts:
+    """The contacts of given probe–solid pairs (K,) at ``state``, whatever their distance (for tracking contacts
+    between events)."""
+    all_centres = probe_centres(world, state)
+    centres = all_centres[probe]
+    statics, probes = world.statics, world.probes
+    distance = np.zeros(len(probe))
+    normal = np.zeros((len(probe), 3))
+    solid_body = np.full(len(probe), STATIC)
+    material = np.zeros(len(probe), np.intp)
+    for code in np.unique(kind):
+        k = kind == code
+        i, c = index[k], centres[k]
+        if code == PLANE:
+            distance[k] = np.einsum("ij,ij->i", c - statics.plane_point[i], statics.plane_normal[i])
+            normal[k] = statics.plane_normal[i]
+            material[k] = statics.plane_material[i]
+        elif code == STATIC_SPHERE:
+            distance[k], normal[k] = to_sphere(c, statics.sphere_centre[i], statics.sphere_radius[i])
+            material[k] = statics.sphere_material[i]
+        elif code == STATIC_BOX:
+            distance[k], normal[k] = to_box(c, statics.box_centre[i], statics.box_rotation[i], statics.box_half[i])
+            material[k] = statics.box_material[i]
+        elif code == STATIC_BOX_FACE:
+            box = i // 6
+            distance[k], normal[k] = to_face_plane(c, statics.box_centre[box], statics.box_rotation[box],
+                                                   statics.box_half[box], i % 6)
+            material[k] = statics.box_material[box]
+        elif code == TRIANGLE:
+            distance[k], normal[k] = to_triangles(c, statics.triangles[i])
+            material[k] = statics.triangle_material[i]
+        elif code == BODY_SPHERE:
+            distance[k], normal[k] = to_sphere(c, all_centres[i], probes.radius[i])
+            solid_body[k] = probes.owner[i]
+            material[k] = world.body_material[probes.owner[i]]
+        else:  # BODY_BOX, BODY_BOX_FACE
+            box = i // 6 if code == BODY_BOX_FACE else i
+            box_centres, box_rotations = body_box_poses(world, state)
+            centre, rotation, half = box_centres[box], box_rotations[box], world.boxes.half[box]
+            if code == BODY_BOX_FACE:
+                distance[k], normal[k] = to_face_plane(c, centre, rotation, half, i % 6)
+            else:
+                distance[k], normal[k] = to_box(c, centre, rotation, half)
+            owner = world.boxes.owner[box]
+            solid_body[k] = owner
+            material[k] = world.body_material[owner]
+    return _contacts(world, probe, centres, distance, normal, solid_body, material, np.inf, kind, index)

@@ -1,0 +1,618 @@
+"""Adaptive (solve_ivp) integration with contacts: impacts at their exact time, resting contacts as forces.
+
+The scipy solver integrates free motion. After each accepted step, the step is searched for
+
+* **impacts**: a probe reaching a solid it was not resting on. The probe–solid pairs that the step's travel could
+  bring into touch are evaluated along the solver's dense output; between samples the gap along the straight segment
+  is minimised too, so that a thin wall cannot hide between two samples. The first crossing is refined by Brent's
+  method to the exact contact time;
+* **mode changes** of resting contacts (root finding on the dense output as well): a contact whose normal force
+  would turn into a pull separates; a sliding contact whose slip reverses starts to stick; a sticking one whose
+  friction would exceed ``μs f_n`` starts to slide.
+
+At the first such event the integration stops exactly there, impulses are applied (restitution and friction,
+:func:`~animbatch.sim.contact.solver.solve_impulses`) or the contact's mode changes, and the solver restarts. Frames
+before the event come from the old dense output, frames after it from the new one: both sides of a contact are right.
+
+An impact slower than ``rest_speed`` does not bounce: the contact becomes *resting*, and from then on it exerts
+forces (:func:`~animbatch.sim.contact.solver.solve_forces`) instead of impulses. So a bouncing ball comes to rest after
+finitely many bounces instead of stalling the solver on ever shorter ones (the Zeno problem), and a resting body
+stays exactly still.
+
+For stacks, piles and many simultaneous contacts, the fixed-step methods (:mod:`animbatch.sim.contact.stepping`) are the
+robust choice; this path suits scenes with few contacts where exact impact times matter.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import brentq
+
+from animbatch.sim.contact.detection import (Contacts, body_reach, closing_margin, detect, evaluate_pairs,
+                                        probe_centres, turn_angle)
+from animbatch.sim.contact.impacts import ImpactLog
+from animbatch.sim.contact.solver import BodyVelocities, solve_forces, solve_impulses
+from animbatch.sim.contact.stepping import DEFAULT_REST_SPEED
+from animbatch.errors import SimulationError
+from animbatch.sim.forces import Kinematics
+from animbatch.sim.integrators.base import CountingRhs, FrameCallback, IntegrationResult, SolverStats
+from animbatch.sim.integrators.advice import failure_advice
+from animbatch.sim.integrators.budget import budget_spent
+from animbatch.sim.integrators.guard import divergence_error, fastest_body, first_non_finite
+from animbatch.sim.model.dynamics import Dynamics
+from animbatch.quaternion import cross
+
+SAMPLES = 24  # points per step at which impact candidates are evaluated
+TOUCH = 1e-6  # m: contacts this close count as touching at an event
+HOP_RESOLUTION = 1e-12  # m: a hop must rise this far above its starting depth to be followed (rounding is far below)
+STIFFNESS = 2500.0  # 1/s²: pulls a resting contact's gap back to zero (ω0 = 50 rad/s, critically damped)
+DAMPING = 100.0  # 1/s
+#: Longest step [s] while contacts rest: the gap's stabilisation (rate √STIFFNESS) must stay within an explicit
+#: method's stability region. Unbounded, a loose tolerance let resting balls sink 8 mm and jump out of rest.
+RESTING_MAX_STEP = 2.0 / np.sqrt(STIFFNESS)
+#: Safety factor on a body's travel over a step (:meth:`ContactEvents._travel`), for paths that bend more than a
+#: parabola's within one step.
+PATH_ALLOWANCE = 1.25
+#: Arcs between two samples are longer than their chords (by π/2 at most for a half turn).
+ARC_ALLOWANCE = 1.6
+MAX_EVENTS_PER_FRAME = 10_000
+#: Consecutive events at one instant after which the event loop gives up (it would otherwise spin forever).
+MAX_STALLED_EVENTS = 100
+SLIP_ONSET = 1e-6  # m/s²: tangential acceleration of a sticking contact point at which it starts to slide
+
+
+@dataclass
+class Resting:
+    """Resting contacts, by the features that touch: ``probe``, ``kind``, ``index`` (R,); ``sticking`` (R,);
+    ``slide_direction`` (R, 3), the unit slip direction of sliding contacts."""
+
+    probe: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intp))
+    kind: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intp))
+    index: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intp))
+    sticking: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    slide_direction: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    @property
+    def count(self) -> int:
+        return len(self.probe)
+
+    def keys(self) -> set[tuple[int, int, int]]:
+        return set(zip(self.probe.tolist(), self.kind.tolist(), self.index.tolist()))
+
+    def holds(self, contacts: Contacts) -> np.ndarray:
+        """Which of the contacts (K,) bool are among these resting ones (same probe and solid)."""
+        keys = self.keys()
+        return np.array([key in keys for key in zip(contacts.probe.tolist(), contacts.solid_kind.tolist(),
+                                                     contacts.solid_index.tolist())], dtype=bool)
+
+    def keep(self, chosen: np.ndarray) -> Resting:
+        return Resting(self.probe[chosen], self.kind[chosen], self.index[chosen], self.sticking[chosen],
+                       self.slide_direction[chosen])
+
+
+class ContactEvents:
+    """The event-driven contact handling of one run."""
+
+    def __init__(self, system: Dynamics) -> None:
+        model = system.model
+        self.system = system
+        self.world = model.contact_world
+        self.settings = model.contact_settings
+        self.rest_speed = self.settings.rest_speed or DEFAULT_REST_SPEED
+        self.resting = Resting()
+        self._warm_forces: tuple[np.ndarray, np.ndarray] | None = None  # last forces of the current resting set
+        self.reach = body_reach(self.world, model.body_count)
+        self.events = 0
+        self.impacts = ImpactLog()
+        #: Probe–solid pairs whose rebound was too small for the solver to follow; the next settle lands them.
+        self.landing: Contacts | None = None
+
+    # ------------------------------------------------------------------------------------- bodies
+
+    def _state(self, y: np.ndarray, t: float = 0.0) -> Kinematics:
+        """The kinematics of a state at time ``t`` [s], in arrays of its own (events compare several states)."""
+        return self.system.kinematics(*self.system.split(y), t=t, copy=True)
+
+    def _inertia(self, state: Kinematics) -> BodyVelocities:
+        """Inverse masses and world inverse inertias, with zeros for velocities (filled by callers)."""
+        model = self.system.model
+        count, n = model.body_count, model.particle_count
+        inverse_mass = np.zeros(count + 1)
+        inverse_mass[:count] = 1.0 / model.bodies.mass
+        inverse_inertia = np.zeros((count + 1, 3, 3))
+        if state.rotation is not None:
+            r = state.rotation
+            inverse_inertia[n:count] = r @ model.rigid.inverse_inertia @ np.transpose(r, (0, 2, 1))
+        return BodyVelocities(np.zeros((count + 1, 3)), np.zeros((count + 1, 3)), inverse_mass, inverse_inertia)
+
+    def _write_velocities(self, y: np.ndarray, state: Kinematics, bodies: BodyVelocities) -> None:
+        """Store velocities (v, ω) back into a state's motion (P = M v, L = I ω for rigid bodies)."""
+        model = self.system.model
+        n, b = model.particle_count, model.rigid_count
+        _, motion = self.system.split(y)
+        motion[: 3 * n] = bodies.v[:n].ravel()
+        if b:
+            rigid, r = model.rigid, state.rotation
+            motion[3 * n: 3 * n + 3 * b] = (bodies.v[n:n + b] * rigid.mass[:, None]).ravel()
+            inertia_world = r @ rigid.inertia @ np.transpose(r, (0, 2, 1))
+            motion[3 * n + 3 * b:] = np.einsum("bij,bj->bi", inertia_world, bodies.omega[n:n + b]).ravel()
+
+    # ------------------------------------------------------------------------------------- resting forces
+
+    def _resting_contacts(self, state: Kinematics) -> Contacts:
+        r = self.resting
+        return evaluate_pairs(self.world, state, r.probe, r.kind, r.index)
+
+    def _contact_forces(self, t: float, y: np.ndarray, dydt: np.ndarray
+                        ) -> tuple[Contacts, Any, BodyVelocities, np.ndarray]:
+        """Add the resting contacts' forces to ``dydt``; return the contacts, the force solution, the accelerations
+        and the tangential biases (K, 2)."""
+        model, system = self.system.model, self.system
+        n, b = model.particle_count, model.rigid_count
+        config, motion = system.split(y)
+        state = system.kinematics(config, motion)
+        contacts = self._resting_contacts(state)
+        bodies = self._inertia(state)
+        _, rate = system.split(dydt)
+        bodies.v[:n] = rate[: 3 * n].reshape(n, 3)
+        spin = None
+        if b:
+            force = rate[3 * n: 3 * n + 3 * b].reshape(b, 3)
+            torque = rate[3 * n + 3 * b:].reshape(b, 3)
+            angular = motion[3 * n + 3 * b:].reshape(b, 3)
+            bodies.v[n:n + b] = force / model.rigid.mass[:, None]
+            spin = cross(state.omega, angular)  # dL/dt = I ω̇ + ω × L
+            bodies.omega[n:n + b] = np.einsum("bij,bj->bi", bodies.inverse_inertia[n:n + b], torque - spin)
+        velocities = self._velocities(state)
+        x = np.vstack([state.x, np.zeros((1, 3))])
+        normal_bias, tangent_bias = self._biases(contacts, state, velocities, x)
+        warm = self._warm_forces
+        if warm is not None and len(warm[0]) != contacts.count:
+            warm = None
+        result = solve_forces(contacts, bodies, x, normal_bias=normal_bias, tangent_bias=tangent_bias,
+                              sticking=self.resting.sticking, slide_direction=self.resting.slide_direction,
+                              iterations=self.settings.iterations, warm=warm)
+        # consecutive evaluations see nearly the same contacts: start the next solve from this one
+        self._warm_forces = (result.normal_impulse.copy(), result.tangent_impulse.copy())
+        rate[: 3 * n] = bodies.v[:n].ravel()
+        if b:
+            rate[3 * n: 3 * n + 3 * b] = (bodies.v[n:n + b] * model.rigid.mass[:, None]).ravel()
+            r = state.rotation
+            inertia_world = r @ model.rigid.inertia @ np.transpose(r, (0, 2, 1))
+            rate[3 * n + 3 * b:] = (np.einsum("bij,bj->bi", inertia_world, bodies.omega[n:n + b]) + spin).ravel()
+        return contacts, result, bodies, tangent_bias
+
+    def _velocities(self, state: Kinematics) -> BodyVelocities:
+        bodies = self._inertia(state)
+        count, n = self.system.model.body_count, self.system.model.particle_count
+        bodies.v[:count] = state.v
+        if state.omega is not None:
+            bodies.omega[n:count] = state.omega
+        return bodies
+
+    def _biases(self, contacts: Contacts, state: Kinematics, velocities: BodyVelocities,
+                x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Velocity products and stabilisation terms of the resting contacts' gaps and tangential motion."""
+        from animbatch.sim.contact.solver import ContactRows
+
+        rows = ContactRows(contacts, velocities, x)
+        w = velocities.omega
+        a, b = rows.a, rows.b
+        # The gap and the slip follow the probe's centre, a point of the body: a sphere's contact point slides over
+        # its surface and has no centripetal term of its own (a corner's centre is the corner itself).
+        centre = probe_centres(self.world, state)[contacts.probe] - x[a]
+        centripetal = cross(w[a], cross(w[a], centre)) - cross(w[b], cross(w[b], rows.r_b))
+        normal_velocity = rows.relative(rows.n)
+        normal_bias = (np.einsum("ki,ki->k", centripetal, rows.n) + STIFFNESS * contacts.gap
+                       + DAMPING * normal_velocity)
+        slip = rows.tangential()
+        tangent_bias = np.stack([np.einsum("ki,ki->k", centripetal, rows.t1),
+                                 np.einsum("ki,ki->k", centripetal, rows.t2)], axis=1) + DAMPING * slip
+        return normal_bias, tangent_bias
+
+    def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        dydt = self.system.rhs(t, y)
+        if self.resting.count:
+            self._contact_forces(t, y, dydt)
+        return dydt
+
+    # ------------------------------------------------------------------------------------- events
+
+    def _mode_functions(self, t: float, y: np.ndarray) -> np.ndarray:
+        """For each resting contact, a value that changes sign when its mode must change (R,)."""
+        dydt = self.system.rhs(t, y)
+        contacts, result, accelerations, tangent_bias = self._contact_forces(t, y, dydt)
+        state = self._state(y)
+        velocities = self._velocities(state)
+        from animbatch.sim.contact.solver import ContactRows
+
+        x = np.vstack([state.x, np.zeros((1, 3))])
+        rows = ContactRows(contacts, velocities, x)
+        separating = rows.relative(rows.n, accelerations.v, accelerations.omega)
+        # normal force per unit effective mass minus the separating acceleration: + pressing, - pulling apart
+        values = result.normal_impulse / rows.w_n - np.maximum(separating, 0.0)
+        slip = rows.tangential()
+        sticking = self.resting.sticking
+        direction = self.resting.slide_direction
+        along = slip[:, 0] * np.einsum("ki,ki->k", direction, rows.t1) + slip[:, 1] * np.einsum(
+            "ki,ki->k", direction, rows.t2)
+        # A sticking contact starts to slide when static friction, even at its limit, no longer stops the contact
+        # point: its tangential acceleration leaves zero. (Friction at the limit of the cone alone is not slipping:
+        # with several contacts, some may sit at their limit while the body is held.)
+        slipping = np.linalg.norm(rows.tangential(accelerations.v, accelerations.omega) + tangent_bias, axis=1)
+        grip = SLIP_ONSET - slipping
+        mode = np.where(sticking, grip, along)  # stick: no slip acceleration; slide: slip along its direction
+        return np.concatenate([values, mode])
+
+    def _travel(self, s0: Kinematics, s1: Kinematics, h: float) -> np.ndarray:
+        """How far any point of each body (P,) [m] can have moved during a step of ``h`` [s] from ``s0`` to ``s1``.
+
+        The chord alone misses curved paths (a ball thrown up and caught again in one long step has a chord of
+        zero), so the path is taken as at least ``h`` times the larger end speed: exact for a parabola, whose speed
+        is largest at an end. Rotation moves a point by at most its reach times the angle turned, likewise bounded
+        by ``h`` times the larger end spin."""
+        chord = np.linalg.norm(s1.x - s0.x, axis=1)
+        speed = np.maximum(np.linalg.norm(s0.v, axis=1), np.linalg.norm(s1.v, axis=1))
+        travel = np.maximum(chord, h * speed)
+        if s0.rotation is not None:
+            assert s1.rotation is not None and s0.omega is not None and s1.omega is not None
+            travel[s0.first_rigid:] += self.reach[s0.first_rigid:] * np.maximum(
+                turn_angle(s0.rotation, s1.rotation),
+                h * np.maximum(np.linalg.norm(s0.omega, axis=1), np.linalg.norm(s1.omega, axis=1)))
+        return PATH_ALLOWANCE * travel
+
+    def _impact_candidates(self, y0: np.ndarray, y1: np.ndarray, h: float, t1: float = 0.0
+                           ) -> tuple[Contacts, np.ndarray]:
+        """Pairs that the step of ``h`` [s] could bring into touch (excluding resting ones): every probe–solid pair
+        whose gap at the step's end is less than what its two sides travelled (:meth:`_travel`; a fixed solid
+        travels nothing), and that travel (K,) [m]."""
+        s0, s1 = self._state(y0, t1 - h), self._state(y1, t1)
+        travel = self._travel(s0, s1, h)
+        found = detect(self.world, s1, TOUCH, travel=travel)
+        if self.resting.count and found.count:
+            found = found.select(~self.resting.holds(found))
+        return found, closing_margin(self.world, found.probe, found.solid_body, 0.0, travel)
+
+    def _first_impact(self, solver: Any, candidates: Contacts, closing: np.ndarray) -> float | None:
+        """Time of the first impact among the candidates during the solver's last step, or None; ``closing`` (K,)
+        [m] bounds how far each candidate's gap can change over the step."""
+        if not candidates.count:
+            return None
+        t0, t1 = solver.t_old, solver.t
+        interpolant = solver.dense_output()
+        # Quick exclusion: a gap that changes by at most ``closing`` and is positive at both ends, with the two
+        # ends' gaps together larger than ``closing``, stays positive in between (triangle inequality).
+        ends = [self._state(solver.y_start if hasattr(solver, "y_start") else interpolant(t0)), self._state(solver.y)]
+        end_gaps = [evaluate_pairs(self.world, state, candidates.probe, candidates.solid_kind,
+                                   candidates.solid_index).gap for state in ends]
+        if np.all(end_gaps[1] > 0) and np.all(closing < end_gaps[0] + end_gaps[1]):
+            return None
+        times = np.linspace(t0, t1, SAMPLES + 1)
+
+        def gaps(t: float, chosen: Any = slice(None)) -> np.ndarray:
+            return evaluate_pairs(self.world, self._state(interpolant(t)), candidates.probe[chosen],
+                                  candidates.solid_kind[chosen], candidates.solid_index[chosen]).gap
+
+        sampled = [self._state(interpolant(t)) for t in times]
+        values = np.array([evaluate_pairs(self.world, state, candidates.probe, candidates.solid_kind,
+                                          candidates.solid_index).gap for state in sampled])  # (S + 1, C)
+        travel = self._sample_travel(sampled, candidates)  # (S, C)
+        # A probe that starts the step touching the solid (it bounced off at the event that began the step, or left
+        # rest a hair inside the solid at a loose tolerance) impacts when it comes back to its starting depth, not
+        # to zero depth, which it may never reach again. A short hop can rise and come back within the first
+        # sample interval: then the impact lies between the hop's apex and the first sample.
+        level = np.minimum(values[0], 0.0)
+        first = None
+        hops = np.flatnonzero((values[0] <= TOUCH) & (values[1] <= level))
+        unresolved = []
+        for pair in hops:
+            apex = self._apex(gaps, t0, times[1], int(pair))
+            if gaps(apex, [pair])[0] > level[pair] + HOP_RESOLUTION:
+                hop = brentq(lambda t, k=int(pair): gaps(t, [k])[0] - level[k], apex, times[1], xtol=1e-12,
+                             rtol=4 * np.finfo(float).eps)
+                first = hop if first is None else min(first, hop)
+            else:
+                unresolved.append(int(pair))
+        if unresolved:
+            # The probe touched the solid at the step's start (it had just bounced) yet never rises above its
+            # depth on the solver's path: a hop too small for the step (a slow rebound under a low-order or loose
+            # solver; its first step after a restart is often of order one) that would otherwise sink into the
+            # solid unnoticed, or bounce again and again at the same instant. It lands where it is.
+            self.landing = candidates.select(np.array(unresolved))
+            return t0
+        if first is not None:
+            return first
+        for k in range(SAMPLES):
+            # Several pairs can reach their solids within one sample interval (a long step of free flight carries
+            # every ball to the floor): the impact is the earliest of their crossings, not the first pair's.
+            brackets = [(times[k], times[k + 1], int(pair))
+                        for pair in np.flatnonzero((values[k] > level) & (values[k + 1] <= level))]
+            # a thin solid may hide between samples: look for a dip below zero inside the interval
+            could = (values[k] > 0) & (values[k + 1] > 0) & (travel[k] > values[k] + values[k + 1])
+            brackets += self._dips(gaps, times[k], times[k + 1], could, level)
+            for lower, upper, pair in brackets:
+                crossing = brentq(lambda t, p=pair: gaps(t, [p])[0] - level[p], lower, upper, xtol=1e-12,
+                                  rtol=4 * np.finfo(float).eps)
+                first = crossing if first is None else min(first, crossing)
+            if first is not None:
+                break
+        return first
+
+    def _sample_travel(self, sampled: list[Kinematics], candidates: Contacts) -> np.ndarray:
+        """For each interval between consecutive samples (S) and candidate (C), a bound [m] on how much its gap can
+        change: the probe's move plus, for a solid that is a body, that body's (translation plus reach times the
+        angle turned). A straight piece of path shorter than the gaps at its two ends cannot reach the solid
+        (triangle inequality); probes and solids move on arcs, hence the allowance."""
+        centres = np.array([probe_centres(self.world, state)[candidates.probe] for state in sampled])  # (S+1, C, 3)
+        travel = np.linalg.norm(np.diff(centres, axis=0), axis=2)
+        moving = candidates.solid_body >= 0
+        if moving.any():
+            solid = candidates.solid_body[moving]
+            x = np.array([state.x[solid] for state in sampled])  # (S+1, M, 3)
+            solid_travel = np.linalg.norm(np.diff(x, axis=0), axis=2)
+            first = sampled[0].first_rigid
+            rigid = solid >= first
+            if rigid.any():
+                rotations = np.array([state.rotation[solid[rigid] - first] for state in sampled])  # type: ignore[index]
+                solid_travel[:, rigid] += self.reach[solid[rigid]] * turn_angle(rotations[:-1], rotations[1:])
+            travel[:, moving] += solid_travel
+        return ARC_ALLOWANCE * travel
+
+    @staticmethod
+    def _apex(gaps: Any, start: float, stop: float, pair: int) -> float:
+        """Where one candidate's gap is largest in [start, stop] (ternary search; a hop's gap is concave)."""
+        low, high = start, stop
+        for _ in range(60):
+            left, right = low + (high - low) / 3, high - (high - low) / 3
+            if gaps(left, [pair])[0] < gaps(right, [pair])[0]:
+                low = left
+            else:
+                high = right
+        return 0.5 * (low + high)
+
+    @staticmethod
+    def _dips(gaps: Any, start: float, stop: float, candidates: np.ndarray, level: np.ndarray
+              ) -> list[tuple[float, float, int]]:
+        """For each candidate whose gap dips below its ``level`` inside [start, stop], a sub-interval that brackets
+        its first crossing (ternary search on the gap, which is close to convex over so short a piece of path)."""
+        found = []
+        for pair in np.flatnonzero(candidates):
+            low, high = start, stop
+            for _ in range(40):
+                left, right = low + (high - low) / 3, high - (high - low) / 3
+                if gaps(left, [pair])[0] > gaps(right, [pair])[0]:
+                    low = left
+                else:
+                    high = right
+            middle = 0.5 * (low + high)
+            if gaps(middle, [pair])[0] <= level[pair]:
+                found.append((start, middle, int(pair)))
+        return found
+
+    def _first_mode_change(self, solver: Any, before: np.ndarray, after: np.ndarray) -> float | None:
+        """Time of the first sign change of a resting contact's mode function in the last step, or None."""
+        changed = (before > 0) & (after <= 0)
+        if not changed.any():
+            return None
+        interpolant = solver.dense_output()
+        pairs = np.flatnonzero(changed)
+        times = [brentq(lambda t, k=k: self._mode_functions(t, interpolant(t))[k], solver.t_old, solver.t,
+                        xtol=1e-12) for k in pairs]
+        return float(min(times))
+
+    # ------------------------------------------------------------------------------------- handling events
+
+    def settle(self, y: np.ndarray, t: float) -> None:
+        """At an event (or the start) at time ``t`` [s]: apply impacts at touching contacts (and log them) and decide
+        which contacts rest."""
+        state = self._state(y, t)
+        touching = detect(self.world, state, TOUCH + self.settings.slop)
+        if touching.count:
+            bodies = self._velocities(state)
+            x = np.vstack([state.x, np.zeros((1, 3))])
+            result = solve_impulses(touching, bodies, x, 0.0, iterations=self.settings.iterations,
+                                    rest_speed=self.rest_speed, slop=self.settings.slop)
+            self.impacts.record(np.full(touching.count, t), touching.probe_body, result.impact)
+            if self.landing is not None:
+                self._land(touching, bodies, x)
+            self._write_velocities(y, state, bodies)
+            state = self._state(y)
+        self.landing = None
+        self._choose_resting(y, state, touching)
+
+    def _land(self, touching: Contacts, bodies: BodyVelocities, x: np.ndarray) -> None:
+        """Take away the separating normal velocity of the landing contacts among ``touching``, so that they rest
+        (the kinetic energy of a hop the solver could not resolve, ½ m v² for v below what its step can show)."""
+        from animbatch.sim.contact.solver import ContactRows
+
+        landing = self.landing
+        assert landing is not None
+        keys = set(zip(landing.probe.tolist(), landing.solid_kind.tolist(), landing.solid_index.tolist()))
+        chosen = np.array([key in keys for key in zip(touching.probe.tolist(), touching.solid_kind.tolist(),
+                                                       touching.solid_index.tolist())], dtype=bool)
+        if not chosen.any():
+            return
+        rows = ContactRows(touching.select(chosen), bodies, x)
+        for _ in range(self.settings.iterations):  # contacts on one body share it: a few sweeps
+            separating = np.maximum(rows.relative(rows.n), 0.0)
+            if separating.max(initial=0.0) <= 1e-12:
+                break
+            rows.apply_normal(-separating / rows.w_n)
+
+    def _choose_resting(self, y: np.ndarray, state: Kinematics, touching: Contacts) -> None:
+        """Touching contacts that the impulses left at rest become resting contacts; those that bounced fly free
+        until their next, slower impact.
+
+        A contact that was already resting before this event (another body's impact, say) stays resting unless it
+        separates at the rest speed or faster: its normal velocity carries the integration's error (1e-8 m/s at a
+        loose tolerance, either sign), and let fly it would start its flight touching or a hair inside the solid,
+        where no gap can cross zero to report its next impact: it would sink through. (Lift-off from rest is a mode
+        change, found by the mode functions.)
+        """
+        if not touching.count:
+            self.resting = Resting()
+            self._warm_forces = None
+            return
+        from animbatch.sim.contact.solver import ContactRows
+
+        velocities = self._velocities(state)
+        x = np.vstack([state.x, np.zeros((1, 3))])
+        rows = ContactRows(touching, velocities, x)
+        normal = rows.relative(rows.n)
+        keep = normal < 1e-9 + 1e-9 * np.abs(normal).max(initial=0.0)
+        if self.resting.count:
+            keep |= self.resting.holds(touching) & (normal < self.rest_speed)
+        slip = rows.tangential()[keep]
+        speed = np.linalg.norm(slip, axis=1)
+        chosen = touching.select(keep)
+        t1, t2 = rows.t1[keep], rows.t2[keep]
+        direction = slip[:, [0]] * t1 + slip[:, [1]] * t2
+        direction = np.divide(direction, speed[:, None], out=np.zeros_like(direction), where=speed[:, None] > 0)
+        self.resting = Resting(chosen.probe, chosen.solid_kind, chosen.solid_index, speed <= self.rest_speed,
+                               direction)
+        self._warm_forces = None
+        if self.resting.count:  # a contact may only stick where static friction can hold it
+            self.change_modes(0.0, y)
+
+    def change_modes(self, t: float, y: np.ndarray) -> None:
+        """After a mode event: drop separating contacts, and switch sticking and sliding where their functions
+        changed sign."""
+        values = self._mode_functions(t, y)
+        count = self.resting.count
+        pressing, mode = values[:count], values[count:]
+        state = self._state(y)
+        keep = pressing > 1e-9
+        resting = self.resting
+        switch = (mode <= 1e-9) & keep
+        if switch.any():
+            contacts = evaluate_pairs(self.world, state, resting.probe, resting.kind, resting.index)
+            from animbatch.sim.contact.solver import ContactRows
+
+            bodies = self._velocities(state)
+            x = np.vstack([state.x, np.zeros((1, 3))])
+            rows = ContactRows(contacts, bodies, x)
+            to_stick = switch & ~resting.sticking
+            to_slide = switch & resting.sticking
+            if to_stick.any():  # the slip has just reversed: stop it exactly
+                solve_impulses(contacts.select(to_stick), bodies, x, 0.0, iterations=self.settings.iterations,
+                               rest_speed=np.inf, slop=self.settings.slop, bounce=False)
+                self._write_velocities(y, state, bodies)
+            sticking = resting.sticking.copy()
+            sticking[to_stick] = True
+            sticking[to_slide] = False
+            direction = resting.slide_direction.copy()
+            if to_slide.any():  # slip starts along the tangential acceleration friction could no longer cancel
+                dydt = self.system.rhs(t, y)
+                _, rate = self.system.split(dydt)
+                free = self._inertia(state)
+                n, b = self.system.model.particle_count, self.system.model.rigid_count
+                free.v[:n] = rate[: 3 * n].reshape(n, 3)
+                if b:
+                    free.v[n:n + b] = rate[3 * n: 3 * n + 3 * b].reshape(b, 3) / self.system.model.rigid.mass[:, None]
+                tangential = rows.tangential(free.v, free.omega)[to_slide]
+                vector = tangential[:, [0]] * rows.t1[to_slide] + tangential[:, [1]] * rows.t2[to_slide]
+                direction[to_slide] = vector / np.maximum(np.linalg.norm(vector, axis=1, keepdims=True), 1e-300)
+            self.resting = Resting(resting.probe, resting.kind, resting.index, sticking, direction)
+        self.resting = self.resting.keep(keep)
+        self._warm_forces = None
+
+
+def _stopped(solver: Any, fun: CountingRhs, system: Dynamics, layout: Any, method: str, options: dict[str, Any],
+             what: str, after: str) -> SimulationError:
+    """Why an adaptive run with contacts stopped (``what``), with the advice that fits its state (the closest
+    gravitational encounter, the stiffest spring or the fastest-changing body), then ``after``."""
+    body = fastest_body(layout, fun(solver.t, solver.y), solver.y, float(np.max(options["atol"])), options["rtol"])
+    return SimulationError(f"{method} {what} " + failure_advice(system.model, method, solver.y, solver.t, body)
+                           + after, time=solver.t, body=body)
+
+
+def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any], system: Dynamics,
+                          y0: np.ndarray, times: np.ndarray, on_frame: FrameCallback | None) -> IntegrationResult:
+    """Integrate ``system`` with a scipy solver class, stopping at every contact event (see the module notes)."""
+    started = time.perf_counter()
+    events = ContactEvents(system)
+    layout = system.model.layout
+    stats = SolverStats(method)
+    states = np.empty((len(times), len(y0)))
+    y = np.array(y0, dtype=float)
+    t = float(times[0])
+    fun = CountingRhs(events.rhs)
+    budget = MAX_EVENTS_PER_FRAME * len(times)
+    stalled = 0  # consecutive events that did not move time forward
+    frame = 1
+    with np.errstate(all="ignore"):
+        events.settle(y, t)
+        states[0] = y
+        if on_frame is not None:
+            on_frame(0, t)
+        while frame < len(times):
+            settings = dict(options)
+            if events.resting.count:
+                settings["max_step"] = min(options.get("max_step", np.inf), RESTING_MAX_STEP)
+            solver = solver_class(fun, t, y.copy(), float(times[-1]), **settings)
+            modes = events._mode_functions(t, y) if events.resting.count else None
+            while frame < len(times):
+                before = solver.y.copy()
+                message = solver.step()
+                if solver.status == "failed":
+                    raise _stopped(solver, fun, system, layout, method, options, f"failed at t = {solver.t:.6g} s "
+                                   f"with contacts: {message}", ". A fixed-step method (symplectic_euler) is more "
+                                   "robust for scenes with many contacts.")
+                stats.count_step(solver.t - solver.t_old)
+                spent = budget_spent(solver.t)
+                if spent is not None:
+                    raise _stopped(solver, fun, system, layout, method, options, f"stopped at t = {solver.t:.6g} s "
+                                   f"with contacts: {spent} ({stats.steps} steps, {events.events} contact events so "
+                                   "far).", ".")
+                bad = first_non_finite(solver.y)
+                if bad is not None:
+                    raise divergence_error(layout, solver.y, bad, solver.t, method=method, step=stats.steps,
+                                           model=system.model, last_finite=before)
+                impact = events._first_impact(solver, *events._impact_candidates(before, solver.y,
+                                                                                 solver.t - solver.t_old, solver.t))
+                after = events._mode_functions(solver.t, solver.y) if modes is not None else None
+                change = events._first_mode_change(solver, modes, after) if modes is not None else None
+                modes = after
+                event_time = min((e for e in (impact, change) if e is not None), default=None)
+                end = solver.t if event_time is None else event_time
+                interpolant = solver.dense_output()
+                while frame < len(times) and times[frame] <= end:
+                    exact = times[frame] == solver.t and event_time is None
+                    states[frame] = solver.y if exact else interpolant(times[frame])
+                    system.project(states[frame])
+                    if on_frame is not None:
+                        on_frame(frame, float(times[frame]))
+                    frame += 1
+                if event_time is not None:
+                    # events a few ulps apart are the same instant: count them as no progress
+                    stalled = stalled + 1 if event_time <= t + 1e-12 * max(1.0, abs(t)) else 0
+                    if stalled > MAX_STALLED_EVENTS:  # a safety net: the same event again and again, no progress
+                        raise SimulationError(
+                            f"contact events stopped advancing at t = {t:.9g} s ({stalled} events at that time): "
+                            f"{method} cannot resolve these contacts. Use a fixed-step method (solver.method: "
+                            "symplectic_euler), or tighter solver.rtol and solver.atol.", time=t)
+                    t, y = float(event_time), interpolant(event_time)
+                    system.project(y)
+                    if impact is not None and (change is None or impact <= change):
+                        events.settle(y, t)
+                    else:
+                        events.change_modes(t, y)
+                    events.events += 1
+                    if events.events > budget:
+                        raise SimulationError(f"more than {budget} contact events: the contacts do not settle. Use "
+                                              "a fixed-step method (symplectic_euler) for this scene.", time=t)
+                    break  # restart the solver from the event
+                if solver.status == "finished":
+                    break
+            stats.jacobian_evaluations += int(solver.njev)
+            stats.lu_decompositions += int(solver.nlu)
+            if event_time is None:
+                break
+    stats.rhs_evaluations = fun.count
+    stats.impacts = events.impacts.as_list()
+    stats.wall_time = time.perf_counter() - started
+    return IntegrationResult(states, stats)

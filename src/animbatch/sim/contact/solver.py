@@ -1,0 +1,455 @@
+"""Contact impulses and contact forces: restitution, non-penetration and Coulomb friction, for all contacts at once.
+
+For contact k between bodies a (the probe's) and b (the solid's, or a fixed collider), with normal n and lever arms
+``r_a``, ``r_b`` from the centres of mass to the contact point, the relative velocity at the contact is
+``u = (v_a + ω_a × r_a) - (v_b + ω_b × r_b)``. An impulse ``λ d`` along a direction d changes it by
+``λ / w(d)`` along d, with ``w(d) = 1/m_a + (r_a × d)·I_a⁻¹(r_a × d) + (same for b)``: impulses change both
+linear and angular momentum (``ΔP = λ d``, ``ΔL = r × λ d``), so a box landing on an edge tumbles and a sliding
+ball starts to roll. The same rows, with accelerations for velocities and forces for impulses, give the forces of
+resting contacts.
+
+Impacts (:func:`solve_impulses`), with Newton's impact law and the lecture notes' coefficient of restitution:
+
+* normal: ``u_n ≥ target``, impulse ``λ_n ≥ 0``, and no impulse where the contact separates by itself. The target is
+  ``-e u_n⁻`` (bounce) when the contact approaches faster than ``rest_speed``, 0 (rest) when slower, and, for a
+  contact still ``gap`` away, ``-gap / h``: it may close the gap during the step but not pass it (speculative
+  contact);
+* friction: the tangential impulse makes ``u_t = 0`` if that needs no more than ``μs λ_n`` (sticking: the contact
+  holds exactly, and stays stopped once stopped), and is ``μk λ_n`` against the sliding direction otherwise.
+
+Overlapping bodies (depth beyond ``slop``) are pushed apart by a separate *pseudo-velocity* that moves positions only
+(split impulse): a velocity bias would turn overlap into kinetic energy and make bodies pop out.
+
+Resting contacts (:func:`solve_forces`): normal forces ``f_n ≥ 0`` keep the gap's second derivative at the value
+that holds the contact (plus a small stabilising term), sticking contacts hold the contact point's tangential
+acceleration at zero within ``|f_t| ≤ μs f_n``, and sliding ones feel ``μk f_n`` against their slip direction.
+
+All contacts are solved at once by projected Jacobi iterations with *mass splitting* (each of a body's n contacts
+sees it with n times its inverse mass, and the updates are summed), which is fully vectorised and converges to the
+simultaneous solution; for one contact per body it is exact in one iteration. Contacts that happen one after the
+other in time (a Newton's cradle with small gaps, successive bounces) are resolved one after the other.
+
+An elastic impact (e = 1) between two bodies conserves momentum and kinetic energy; an inelastic one (e < 1) loses
+exactly ``½ μ (1 - e²) Δv²`` (μ: reduced mass, Δv: approach speed) — the tests check both.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from animbatch.sim.contact.detection import Contacts
+from animbatch.quaternion import cross
+
+#: Fraction of an overlap (beyond the slop) removed per step.
+BAUMGARTE = 0.2
+#: Overlaps beyond the slop smaller than this fraction of the slop are left alone.
+OVERLAP_TOLERANCE = 1e-2
+#: Pseudo-velocities are converged when every push meets its target to this fraction of the largest target, or
+#: after this many iterations: they only correct positions, a fraction of the overlap per step, so a partly
+#: converged push (which pushes less, never the wrong way) is corrected in the next steps.
+PUSH_TOLERANCE = 1e-3
+PUSH_ITERATIONS = 50
+
+
+@dataclass
+class BodyVelocities:
+    """Velocities (or accelerations) and inverse inertias of P bodies plus one fixed "body" at index P (colliders).
+
+    ``v``, ``omega``: (P + 1, 3); ``inverse_mass``: (P + 1,); ``inverse_inertia``: (P + 1, 3, 3), world axes
+    (zero for particles, which do not turn, and for the fixed body).
+    """
+
+    v: np.ndarray
+    omega: np.ndarray
+    inverse_mass: np.ndarray
+    inverse_inertia: np.ndarray
+
+
+def tangent_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors (K, 3) spanning the plane perpendicular to each normal."""
+    helper = np.where(np.abs(normal[:, [0]]) < 0.6, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    first = cross(normal, helper)
+    first /= np.linalg.norm(first, axis=1, keepdims=True)
+    return first, cross(normal, first)
+
+
+@dataclass(frozen=True)
+class _Direction:
+    """One row direction d for every contact, with its Jacobian and response precomputed.
+
+    ``ang_a = r_a × d`` (and b): the relative velocity along d is ``(v_a - v_b)·d + ω_a·ang_a - ω_b·ang_b``.
+    ``lin_a = d / m_a``, ``turn_a = I_a⁻¹ (r_a × d)`` (and b): what a unit impulse along d does to the bodies.
+    """
+
+    d: np.ndarray
+    ang_a: np.ndarray
+    ang_b: np.ndarray
+    lin_a: np.ndarray
+    lin_b: np.ndarray
+    turn_a: np.ndarray
+    turn_b: np.ndarray
+
+
+class ContactRows:
+    """The rows of K contacts on the bodies of ``bodies``: directions, lever arms, effective masses, and how to read
+    relative motion along a row and apply impulses (or forces) to the bodies.
+
+    Everything that does not change between solver iterations is computed once here, as two sparse matrices over
+    the flat velocity vector ``V = [v.ravel(), ω.ravel()]`` (6 (P + 1),): the Jacobian ``J`` (3K rows: normals, then
+    first and second tangents), with ``J V`` the relative velocities along the rows, and the response
+    ``B = M⁻¹ Jᵀ``, with ``B λ`` the velocity change from row impulses λ. An iteration is then a few sparse
+    products, one C call each, whatever the number of contacts.
+    """
+
+    def __init__(self, contacts: Contacts, bodies: BodyVelocities, x: np.ndarray) -> None:
+        self.bodies = bodies
+        self.count = contacts.count
+        self.size = len(x)
+        self.a = contacts.probe_body
+        self.b = np.where(contacts.solid_body < 0, len(x) - 1, contacts.solid_body)
+        self.n = contacts.normal
+        self.t1, self.t2 = tangent_basis(self.n)
+        self.r_a, self.r_b = contacts.point - x[self.a], contacts.point - x[self.b]
+        # mass splitting: each body is shared by the contacts touching it
+        shares = np.bincount(np.concatenate([self.a, self.b]), minlength=len(x)).astype(float)
+        shares[-1] = 1.0
+        self._shares = shares
+        self.normal_row, self.first_row, self.second_row = (self._direction(d) for d in (self.n, self.t1, self.t2))
+        self.w_n, self.w_1, self.w_2 = (self._weight(row) for row in (self.normal_row, self.first_row,
+                                                                     self.second_row))
+        rows = (self.normal_row, self.first_row, self.second_row)
+        self._jacobian_normal = self._sparse(rows[:1], response=False)
+        self._jacobian_tangent = self._sparse(rows[1:], response=False)
+        self._response_normal = self._sparse(rows[:1], response=True)
+        self._response_tangent = self._sparse(rows[1:], response=True)
+
+    def _sparse(self, rows: tuple[_Direction, ...], *, response: bool) -> sp.csr_matrix | sp.csc_matrix:
+        """``J`` (R K, 6 (P + 1)) for the given row directions, or the response ``B`` (6 (P + 1), R K).
+
+        Entries that can only ever meet zeros are left out: the fixed body's (its velocity is zero and its inverse
+        mass too) and the angular ones of bodies that do not turn (particles). For a pile of particles on the ground
+        that halves the work per iteration. Built directly in compressed form (no sorting): row k holds body a's
+        linear and angular entries, then body b's.
+        """
+        k, size, a, b = self.count, self.size, self.a, self.b
+        moving = self.bodies.inverse_mass > 0
+        turning = np.any(self.bodies.inverse_inertia != 0, axis=(1, 2))
+        keep = np.stack([moving[a], turning[a], moving[b], turning[b]], axis=1)  # (K, 4) blocks of 3 entries
+        columns = (np.stack([3 * a, 3 * (size + a), 3 * b, 3 * (size + b)], axis=1)[:, :, None] + np.arange(3))
+        per_row = 3 * keep.sum(axis=1)
+        data = np.concatenate([
+            np.stack([row.lin_a, row.turn_a, -row.lin_b, -row.turn_b] if response
+                     else [row.d, row.ang_a, -row.d, -row.ang_b], axis=1)[keep].ravel() for row in rows])
+        indices = np.tile(columns[keep].ravel(), len(rows))
+        indptr = np.concatenate([[0], np.cumsum(np.tile(per_row, len(rows)))])
+        matrix = sp.csr_matrix((data, indices, indptr), shape=(len(rows) * k, 6 * size))
+        return matrix.T if response else matrix
+
+    def _direction(self, d: np.ndarray) -> _Direction:
+        a, b, inverse_mass, inverse_inertia = self.a, self.b, self.bodies.inverse_mass, self.bodies.inverse_inertia
+        ang_a, ang_b = cross(self.r_a, d), cross(self.r_b, d)
+        return _Direction(d, ang_a, ang_b, inverse_mass[a][:, None] * d, inverse_mass[b][:, None] * d,
+                          np.einsum("kij,kj->ki", inverse_inertia[a], ang_a),
+                          np.einsum("kij,kj->ki", inverse_inertia[b], ang_b))
+
+    def _weight(self, row: _Direction) -> np.ndarray:
+        """Effective mass along a row, with each body's inverse mass and inertia multiplied by its share."""
+        a, b = self.a, self.b
+        inverse = (self._shares[a] * (np.einsum("ki,ki->k", row.lin_a, row.d) + np.einsum("ki,ki->k", row.turn_a,
+                                                                                          row.ang_a))
+                   + self._shares[b] * (np.einsum("ki,ki->k", row.lin_b, row.d) + np.einsum("ki,ki->k", row.turn_b,
+                                                                                            row.ang_b)))
+        return 1.0 / inverse
+
+    def weight(self, direction: np.ndarray) -> np.ndarray:
+        """Effective mass of each row along ``direction`` (K, 3), with masses split among contacts."""
+        return self._weight(self._direction(direction))
+
+    # -- flat velocity vectors: what the solver iterates on --------------------------------------------------------
+
+    def flat(self, v: np.ndarray | None = None, w: np.ndarray | None = None) -> np.ndarray:
+        """``V`` (6 (P + 1),) from linear and angular velocities (default: the bodies')."""
+        v = self.bodies.v if v is None else v
+        w = self.bodies.omega if w is None else w
+        return np.concatenate([v.ravel(), w.ravel()])
+
+    def unflat(self, velocity: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> None:
+        """Write ``V`` back into linear and angular velocity arrays (default: the bodies')."""
+        v = self.bodies.v if v is None else v
+        w = self.bodies.omega if w is None else w
+        half = 3 * self.size
+        v[:] = velocity[:half].reshape(-1, 3)
+        w[:] = velocity[half:].reshape(-1, 3)
+
+    def normal_velocity(self, velocity: np.ndarray) -> np.ndarray:
+        """Relative normal velocities (K,) for the flat velocity ``V``."""
+        return self._jacobian_normal @ velocity
+
+    def tangent_velocity(self, velocity: np.ndarray) -> np.ndarray:
+        """Relative tangential velocities (K, 2) in the (t1, t2) basis for the flat velocity ``V``."""
+        return (self._jacobian_tangent @ velocity).reshape(2, -1).T
+
+    def push_normal(self, velocity: np.ndarray, amount: np.ndarray) -> None:
+        """Add normal impulses (K,) to the flat velocity ``V`` in place."""
+        velocity += self._response_normal @ amount
+
+    def push_tangent(self, velocity: np.ndarray, amounts: np.ndarray) -> None:
+        """Add tangential impulses (K, 2), in the (t1, t2) basis, to the flat velocity ``V`` in place."""
+        velocity += self._response_tangent @ amounts.T.ravel()
+
+    # -- the same on (P + 1, 3) arrays, for callers that keep v and ω apart -----------------------------------------
+
+    def _row(self, direction: np.ndarray) -> _Direction:
+        for row in (self.normal_row, self.first_row, self.second_row):
+            if row.d is direction:
+                return row
+        return self._direction(direction)
+
+    def relative(self, direction: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> np.ndarray:
+        """Relative velocity (or acceleration) of the contact points along ``direction``, (K,)."""
+        if direction is self.n:
+            return self.normal_velocity(self.flat(v, w))
+        v = self.bodies.v if v is None else v
+        w = self.bodies.omega if w is None else w
+        row = self._row(direction)
+        a, b = self.a, self.b
+        return (np.einsum("ki,ki->k", v[a] - v[b], row.d) + np.einsum("ki,ki->k", w[a], row.ang_a)
+                - np.einsum("ki,ki->k", w[b], row.ang_b))
+
+    def tangential(self, v: np.ndarray | None = None, w: np.ndarray | None = None) -> np.ndarray:
+        """Relative tangential motion (K, 2) in the (t1, t2) basis."""
+        return self.tangent_velocity(self.flat(v, w))
+
+    def apply(self, impulse: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> None:
+        """Add impulses (or forces) (K, 3) at the contacts: +impulse on a, -impulse on b."""
+        velocity = self.flat(v, w)
+        self.push_normal(velocity, np.einsum("ki,ki->k", impulse, self.n))
+        self.push_tangent(velocity, np.stack([np.einsum("ki,ki->k", impulse, self.t1),
+                                              np.einsum("ki,ki->k", impulse, self.t2)], axis=1))
+        self.unflat(velocity, v, w)
+
+    def apply_normal(self, amount: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> None:
+        velocity = self.flat(v, w)
+        self.push_normal(velocity, amount)
+        self.unflat(velocity, v, w)
+
+    def apply_tangential(self, amounts: np.ndarray) -> None:
+        """Add tangential impulses given in the (t1, t2) basis, (K, 2)."""
+        velocity = self.flat()
+        self.push_tangent(velocity, amounts)
+        self.unflat(velocity)
+
+    def friction_step(self, velocity: np.ndarray, tangent_impulse: np.ndarray, normal_impulse: np.ndarray,
+                      static: np.ndarray, sticking: np.ndarray, kinetic: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        """One Coulomb projection on the flat velocity ``V`` (changed in place): the tangential impulse that stops
+        the relative tangential motion if the static cone allows it (for contacts that may stick), else the kinetic
+        limit against it. Returns the new total (K, 2) and which contacts hold (K,) bool."""
+        current = self.tangent_velocity(velocity)
+        wanted = tangent_impulse - np.stack([current[:, 0] * self.w_1, current[:, 1] * self.w_2], axis=1)
+        size = np.linalg.norm(wanted, axis=1)
+        holds = sticking & (size <= static * normal_impulse)
+        limit = np.where(holds, size, kinetic * normal_impulse)
+        scale = np.divide(np.minimum(size, limit), size, out=np.zeros(self.count), where=size > 0)
+        updated = wanted * scale[:, None]
+        self.push_tangent(velocity, updated - tangent_impulse)
+        return updated, holds
+
+
+#: Resting-contact forces are converged when every contact's acceleration target is met to this [m/s²].
+ACCELERATION_TOLERANCE = 1e-9
+#: Impulses are converged when every contact's velocity target is met to this, relative to the approach speeds.
+VELOCITY_TOLERANCE = 1e-10
+
+
+@dataclass
+class SolveResult:
+    """Accumulated normal impulses (or forces) (K,) and tangential ones (K, 2); for impulse solves, the
+    pseudo-velocities (P + 1, 3) that move positions out of overlaps (or None when nothing overlaps)."""
+
+    normal_impulse: np.ndarray
+    tangent_impulse: np.ndarray
+    pseudo_v: np.ndarray | None = None
+    pseudo_omega: np.ndarray | None = None
+    impact: np.ndarray | None = None  # (K,) bool: contacts arriving faster than the rest speed (they bounce)
+    arrival: np.ndarray | None = None  # (K,) fraction of the step at which each gap closes (straight-line motion)
+
+
+def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h: float, *, iterations: int,
+                   rest_speed: float, slop: float, bounce: bool = True,
+                   warm: tuple[np.ndarray, np.ndarray] | None = None) -> SolveResult:
+    """Change ``bodies.v`` and ``bodies.omega`` in place so that the contacts hold, over a step of ``h`` [s].
+
+    ``x``: centres of mass (P + 1, 3) [m]. ``bounce``: apply restitution (off when re-projecting velocities that
+    were already resolved in this step). ``h = 0`` means an instant: no speculative contacts, no pushing apart.
+    ``warm``: normal impulses (K,) and tangential impulse vectors (K, 3) to start from (warm starting: the last
+    step's impulses of the same contacts, so that resting contacts converge over steps).
+    """
+    count = contacts.count
+    result = SolveResult(np.zeros(count), np.zeros((count, 2)))
+    if count == 0:
+        return result
+    rows = ContactRows(contacts, bodies, x)
+    n = rows.n
+    approach = rows.relative(n)
+    sticking = np.linalg.norm(rows.tangential(), axis=1) <= rest_speed
+    fast = approach < -rest_speed
+    gap = contacts.gap
+    bounce_target = -contacts.restitution * approach if bounce else np.zeros(count)
+    if h > 0:
+        arrives = approach * h < -gap  # reaches the surface within this step
+        # without bounce (re-projecting after a step's second half kick), a fast contact still in the air is an
+        # impact the next bouncing solve must see at full speed: leave it alone rather than stop it dead
+        arriving = bounce_target if bounce else approach
+        target = np.where(gap > 0, np.where(arrives & fast, arriving, -gap / h),
+                          np.where(fast, bounce_target, 0.0))
+        result.impact = fast & ((gap <= 0) | arrives) if bounce else np.zeros(count, bool)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            result.arrival = np.clip(np.where(approach < 0, gap / (-approach * h), 0.0), 0.0, 1.0)
+    else:
+        target = np.where(fast, bounce_target, 0.0)
+        result.impact, result.arrival = fast & bounce, np.zeros(count)
+    normal_impulse = np.zeros(count)
+    tangent_impulse = np.zeros((count, 2))
+    velocity = rows.flat()
+    if warm is not None:
+        normal_impulse = np.where(fast, 0.0, warm[0])  # impacts start afresh; resting contacts from last step
+        tangent_impulse = np.stack([np.einsum("ki,ki->k", warm[1], rows.t1),
+                                    np.einsum("ki,ki->k", warm[1], rows.t2)], axis=1) * (~fast)[:, None]
+        rows.push_normal(velocity, normal_impulse)
+        rows.push_tangent(velocity, tangent_impulse)
+    tolerance = VELOCITY_TOLERANCE * (1.0 + float(np.abs(approach).max(initial=0.0)))
+    for iteration in range(iterations + 1):
+        normal_now = rows.normal_velocity(velocity) - target
+        # Stop when every contact does what it must (not when impulses stop changing: with redundant contacts,
+        # a box on four corners, impulses may keep moving among corners after the motion has converged). At least
+        # one iteration, so that a warm start that is almost right is still polished, and resting bodies stay put.
+        if iteration > 0:
+            violation = np.where(normal_impulse > 0, np.abs(normal_now), np.maximum(-normal_now, 0.0))
+            slip = np.linalg.norm(rows.tangent_velocity(velocity), axis=1)
+            if (max(float(violation.max()), float((slip * gripping).max(initial=0.0))) <= tolerance
+                    or iteration == iterations):
+                break
+        updated = np.maximum(normal_impulse - normal_now * rows.w_n, 0.0)
+        rows.push_normal(velocity, updated - normal_impulse)
+        normal_impulse = updated
+        tangent_impulse, gripping = rows.friction_step(velocity, tangent_impulse, normal_impulse,
+                                                       contacts.static_friction, sticking, contacts.kinetic_friction)
+    rows.unflat(velocity)
+    result.normal_impulse[:] = normal_impulse
+    result.tangent_impulse[:] = tangent_impulse
+    # split impulse: push apart through positions only, the overlaps that exceed the slop by more than a trifle
+    # (pushing converges geometrically onto the slop; chasing the last nanometre would cost a solve every step)
+    overlap = np.maximum(-gap - slop, 0.0)
+    overlap[overlap < OVERLAP_TOLERANCE * max(slop, 1e-6)] = 0.0
+    if h > 0 and np.any(overlap > 0):
+        pseudo = np.zeros_like(velocity)
+        push_target = BAUMGARTE * overlap / h
+        push = np.zeros(count)
+        enough = PUSH_TOLERANCE * float(push_target.max())
+        for _ in range(min(iterations, PUSH_ITERATIONS)):
+            pushed = rows.normal_velocity(pseudo) - push_target
+            violation = np.where(push > 0, np.abs(pushed), np.maximum(-pushed, 0.0))
+            if float(violation.max()) <= enough:
+                break
+            updated = np.maximum(push - pushed * rows.w_n, 0.0)
+            rows.push_normal(pseudo, updated - push)
+            push = updated
+        pseudo_v, pseudo_w = np.zeros_like(bodies.v), np.zeros_like(bodies.omega)
+        rows.unflat(pseudo, pseudo_v, pseudo_w)
+        result.pseudo_v, result.pseudo_omega = pseudo_v, pseudo_w
+    return result
+
+
+def _generalised(rows: ContactRows, body: np.ndarray, sign: float, linear: np.ndarray, lever: np.ndarray,
+                 columns: dict[int, int], size: int) -> np.ndarray:
+    """Rows (K, 6 B) that place ``sign · [linear, lever × linear]`` in each contact's body's six columns."""
+    matrix = np.zeros((len(body), size))
+    for k, (owner, vector, arm) in enumerate(zip(body, linear, lever)):
+        if owner in columns:
+            column = 6 * columns[owner]
+            matrix[k, column:column + 3] += sign * vector
+            matrix[k, column + 3:column + 6] += sign * cross(arm, vector)
+    return matrix
+
+
+def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarray, *, normal_bias: np.ndarray,
+                 tangent_bias: np.ndarray, sticking: np.ndarray, slide_direction: np.ndarray,
+                 iterations: int, warm: tuple[np.ndarray, np.ndarray] | None = None) -> SolveResult:
+    """Forces of resting contacts, changing the accelerations in ``accelerations`` (``v``: linear, ``omega``:
+    angular) in place.
+
+    ``normal_bias`` (K,): the part of each gap's second derivative not carried by the accelerations (velocity
+    products, stabilisation); the normal rows make ``relative acceleration + normal_bias ≥ 0``. ``tangent_bias``
+    (K, 2): the same for the contact points' tangential acceleration. ``sticking`` (K,) bool; ``slide_direction``
+    (K, 3): unit slip direction of sliding contacts (friction opposes it). ``warm``: normal (K,) and tangential
+    (K, 2) forces to start from.
+
+    Resting contacts are few, so this builds their small contact matrix ``A = J M⁻¹ Fᵀ`` (J: what each row measures,
+    F: the force each row applies; a sliding contact's normal row also carries its kinetic friction, ``n - μk d``)
+    and solves it by projected Gauss–Seidel, which converges in a few sweeps where Jacobi iteration crawls on
+    redundant contacts (a box resting on four corners). ``iterations`` bounds the sweeps.
+    """
+    count = contacts.count
+    result = SolveResult(np.zeros(count), np.zeros((count, 2)))
+    if count == 0:
+        return result
+    rows = ContactRows(contacts, accelerations, x)
+    bodies = [int(i) for i in np.unique(np.concatenate([rows.a, rows.b])) if i != rows.size - 1]
+    columns = {body: k for k, body in enumerate(bodies)}
+    size = 6 * len(bodies)
+    inverse = np.zeros((size, size))
+    for body, k in columns.items():
+        inverse[6 * k:6 * k + 3, 6 * k:6 * k + 3] = accelerations.inverse_mass[body] * np.eye(3)
+        inverse[6 * k + 3:6 * k + 6, 6 * k + 3:6 * k + 6] = accelerations.inverse_inertia[body]
+    sliding = ~sticking
+    normal_force_direction = rows.n - (contacts.kinetic_friction * sliding)[:, None] * slide_direction
+
+    def jacobian(direction: np.ndarray) -> np.ndarray:
+        return (_generalised(rows, rows.a, 1.0, direction, rows.r_a, columns, size)
+                + _generalised(rows, rows.b, -1.0, direction, rows.r_b, columns, size))
+
+    measure = np.vstack([jacobian(rows.n), jacobian(rows.t1), jacobian(rows.t2)])  # (3K, 6B)
+    force = np.vstack([jacobian(normal_force_direction), jacobian(rows.t1), jacobian(rows.t2)])
+    matrix = measure @ inverse @ force.T  # (3K, 3K): row i's acceleration per unit of force j
+    free = np.concatenate([rows.relative(rows.n) + normal_bias, rows.relative(rows.t1) + tangent_bias[:, 0],
+                           rows.relative(rows.t2) + tangent_bias[:, 1]])
+    solution = np.zeros(3 * count)
+    if warm is not None:
+        solution[:count] = warm[0]
+        solution[count:] = np.concatenate([warm[1][:, 0], warm[1][:, 1]]) * np.tile(sticking, 2)
+    diagonal = np.diag(matrix).copy()
+    diagonal[diagonal <= 0] = np.inf
+    limit = contacts.static_friction
+    for _ in range(iterations):
+        for k in range(count):
+            i = k
+            solution[i] = max(solution[i] - (free[i] + matrix[i] @ solution) / diagonal[i], 0.0)
+            if sticking[k]:
+                j1, j2 = count + k, 2 * count + k
+                t1 = solution[j1] - (free[j1] + matrix[j1] @ solution) / diagonal[j1]
+                solution[j1] = t1
+                t2 = solution[j2] - (free[j2] + matrix[j2] @ solution) / diagonal[j2]
+                size_t = np.hypot(t1, t2)
+                cap = limit[k] * solution[i]
+                scale = 1.0 if size_t <= cap else cap / size_t
+                solution[j1], solution[j2] = t1 * scale, t2 * scale
+        residual = free + matrix @ solution
+        normal_residual = np.where(solution[:count] > 0, np.abs(residual[:count]),
+                                   np.maximum(-residual[:count], 0.0))
+        tangential = np.hypot(residual[count:2 * count], residual[2 * count:]) * sticking
+        inside = np.hypot(solution[count:2 * count], solution[2 * count:]) < limit * solution[:count] * (1 - 1e-9)
+        if max(float(normal_residual.max()), float((tangential * inside).max())) <= ACCELERATION_TOLERANCE:
+            break
+    normal_force = solution[:count]
+    tangent_force = np.stack([solution[count:2 * count], solution[2 * count:]], axis=1)
+    change = inverse @ (force.T @ solution)  # (6B,): accelerations added by the forces
+    for body, k in columns.items():
+        accelerations.v[body] += change[6 * k:6 * k + 3]
+        accelerations.omega[body] += change[6 * k + 3:6 * k + 6]
+    result.normal_impulse[:] = normal_force
+    result.tangent_impulse[:] = tangent_force
+    return result

@@ -1,0 +1,195 @@
+"""Fixed-step integration with contacts (velocity-level time stepping, as in Box2D, Bullet or MuJoCo).
+
+A step of ``h``: forces change the velocities (kick), the contact solver changes them again so that every contact
+holds over the step (see :mod:`animbatch.sim.contact.solver`), and positions move with the corrected velocities (drift).
+Contacts are looked for up to the distance bodies can travel in the step (speculative contacts), which is the swept
+test: a fast body stops at a thin wall instead of passing through it. Positions never move with velocities that would
+take them into a collider, so a body resting on the ground stays exactly still.
+
+* ``symplectic_euler``: kick h, contacts, drift h.
+* ``verlet``: kick h/2, contacts, drift h, kick h/2, and the end-of-step velocities re-projected onto the contacts
+  (without restitution), so that resting bodies end each step with zero velocity too.
+
+Explicit Euler and midpoint move positions with the velocities from before the step, so they cannot keep contacts;
+the loader refuses them for scenes with contacts.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from animbatch.sim.contact.detection import body_reach, contact_codes, detect
+from animbatch.sim.contact.impacts import ImpactLog
+from animbatch.sim.contact.solver import BodyVelocities, solve_impulses
+from animbatch.sim.forces import Kinematics
+from animbatch.sim.integrators.fixed_step import SymplecticEuler, VelocityVerlet
+from animbatch.sim.integrators.implicit import BackwardEuler
+from animbatch.sim.model.dynamics import Dynamics
+from animbatch import quaternion
+
+DEFAULT_REST_SPEED = 0.01  # m/s
+
+
+def gravity_magnitude(system: Dynamics) -> float:
+    """The largest uniform gravity the scene declares [m/s²] (0 without gravity)."""
+    sizes = [float(np.linalg.norm(term.g)) for term in system.terms if term.kind == "gravity"]
+    return max(sizes, default=0.0)
+
+
+class ContactResolver:
+    """Applies the contact solver to a state's velocities, for steps of a given length."""
+
+    def __init__(self, system: Dynamics) -> None:
+        model = system.model
+        assert model.contact_world is not None and model.contact_settings is not None
+        self.system = system
+        self.world = model.contact_world
+        self.settings = model.contact_settings
+        self.gravity = gravity_magnitude(system)
+        self.reach = body_reach(self.world, model.body_count)
+        self.contacts_last_step = 0
+        self.impacts = ImpactLog()
+        # warm starting: last step's impulses per unit time, normal (K,) and tangential vectors (K, 3), for the
+        # contacts identified by sorted codes (K,) (see contact_codes)
+        self._warm_codes = np.zeros(0, np.int64)
+        self._warm_normal = np.zeros(0)
+        self._warm_tangent = np.zeros((0, 3))
+
+    def rest_speed(self, h: float) -> float:
+        """Impacts slower than this do not bounce; sticking is allowed below it (at least 3 g h)."""
+        if self.settings.rest_speed is not None:
+            return self.settings.rest_speed
+        return max(DEFAULT_REST_SPEED, 3 * self.gravity * h)
+
+    def _bodies(self, state: Kinematics) -> BodyVelocities:
+        """Velocities and inverse inertias, plus the fixed body at the end."""
+        system, model = self.system, self.system.model
+        count, n = model.body_count, model.particle_count
+        v = np.zeros((count + 1, 3))
+        omega = np.zeros((count + 1, 3))
+        inverse_mass = np.zeros(count + 1)
+        inverse_inertia = np.zeros((count + 1, 3, 3))
+        v[:count] = state.v
+        inverse_mass[:count] = 1.0 / model.bodies.mass
+        if state.rotation is not None:
+            omega[n:count] = state.omega
+            rotation = state.rotation
+            inverse_inertia[n:count] = rotation @ model.rigid.inverse_inertia @ np.transpose(rotation, (0, 2, 1))
+        return BodyVelocities(v, omega, inverse_mass, inverse_inertia)
+
+    def _write_back(self, motion: np.ndarray, state: Kinematics, bodies: BodyVelocities) -> None:
+        system, model = self.system, self.system.model
+        n, b = model.particle_count, model.rigid_count
+        motion[: 3 * n] = bodies.v[:n].ravel()
+        if b:
+            rigid = model.rigid
+            momentum = motion[3 * n: 3 * n + 3 * b].reshape(b, 3)
+            angular = motion[3 * n + 3 * b:].reshape(b, 3)
+            momentum[...] = bodies.v[n:n + b] * rigid.mass[:, None]
+            rotation = state.rotation
+            inertia_world = rotation @ rigid.inertia @ np.transpose(rotation, (0, 2, 1))
+            angular[...] = np.einsum("bij,bj->bi", inertia_world, bodies.omega[n:n + b])
+
+    def _warm_start(self, codes: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+        """Impulses to start from: last step's, for contacts that persist (zero for new ones)."""
+        known = self._warm_codes
+        if not len(known):
+            return np.zeros(len(codes)), np.zeros((len(codes), 3))
+        where = np.minimum(np.searchsorted(known, codes), len(known) - 1)
+        found = known[where] == codes
+        return (np.where(found, self._warm_normal[where] * h, 0.0),
+                np.where(found[:, None], self._warm_tangent[where] * h, 0.0))
+
+    def _remember(self, codes: np.ndarray, normal: np.ndarray, tangent: np.ndarray, h: float) -> None:
+        order = np.argsort(codes)
+        self._warm_codes, self._warm_normal, self._warm_tangent = codes[order], normal[order] / h, tangent[order] / h
+
+    def resolve(self, config: np.ndarray, motion: np.ndarray, h: float, *, bounce: bool = True,
+                t: float = 0.0) -> np.ndarray | None:
+        """Change the motion so that all contacts hold over the step of ``h`` [s] from time ``t``; impacts are
+        logged at the time within the step where their gap closes.
+
+        Returns the motion to drift with when overlaps must also be pushed apart (the corrected motion plus the
+        split-impulse pseudo-velocities), or None to drift with the motion itself.
+        """
+        state = self.system.kinematics(config, motion, t=t)
+        speed = np.linalg.norm(state.v, axis=1)
+        if state.omega is not None:
+            speed[state.first_rigid:] += np.linalg.norm(state.omega, axis=1) * self.reach[state.first_rigid:]
+        # each body's reach in the step, with room for the velocity to grow; a pair closes the sum of its two
+        contacts = detect(self.world, state, 2 * self.settings.slop + 1e-9, travel=1.5 * h * speed)
+        self.contacts_last_step = contacts.count
+        if not contacts.count:
+            return None
+        bodies = self._bodies(state)
+        x = np.vstack([state.x, np.zeros((1, 3))])
+        codes = contact_codes(contacts)
+        warm = self._warm_start(codes, h)
+        result = solve_impulses(contacts, bodies, x, h, iterations=self.settings.iterations,
+                                rest_speed=self.rest_speed(h), slop=self.settings.slop, bounce=bounce, warm=warm)
+        if bounce:  # remember the impulses of the main solve (not of end-of-step re-projections)
+            self.impacts.record(t + result.arrival * h, contacts.probe_body, result.impact)
+            from animbatch.sim.contact.solver import tangent_basis
+
+            t1, t2 = tangent_basis(contacts.normal)
+            tangential = result.tangent_impulse[:, [0]] * t1 + result.tangent_impulse[:, [1]] * t2
+            self._remember(codes, result.normal_impulse, tangential, h)
+        self._write_back(motion, state, bodies)
+        if result.pseudo_v is None:
+            return None
+        bodies.v += result.pseudo_v
+        bodies.omega += result.pseudo_omega
+        drifting = motion.copy()
+        self._write_back(drifting, state, bodies)
+        return drifting
+
+
+class _KickContactsDrift:
+    """Kick (the scheme's own), contacts, drift: for the one-kick schemes, symplectic and backward Euler."""
+
+    system: Dynamics
+
+    def __init__(self, system: Dynamics) -> None:
+        super().__init__(system)  # type: ignore[call-arg]
+        self.contacts = ContactResolver(system)
+
+    def step(self, t: float, y: np.ndarray, h: float) -> None:
+        config, motion = self.system.split(y)
+        self.kick(t, config, motion, h)  # type: ignore[attr-defined]
+        drifting = self.contacts.resolve(config, motion, h, t=t)
+        self.system.drift(config, motion if drifting is None else drifting, h)
+        self.system.project(y)
+
+
+class ContactSymplecticEuler(_KickContactsDrift, SymplecticEuler):
+    """Kick, contacts, drift."""
+
+
+class ContactBackwardEuler(_KickContactsDrift, BackwardEuler):
+    """Implicit kick, contacts, drift."""
+
+
+class ContactVerlet(VelocityVerlet):
+    """Half kick, contacts, drift, half kick, contacts again (no bounce)."""
+
+    def __init__(self, system: Dynamics) -> None:
+        super().__init__(system)
+        self.contacts = ContactResolver(system)
+
+    def step(self, t: float, y: np.ndarray, h: float) -> None:
+        config, motion = self.system.split(y)
+        rate, work = self._rate, self._work
+        motion += np.multiply(rate, 0.5 * h, out=work)
+        drifting = self.contacts.resolve(config, motion, h, t=t)
+        np.add(motion, np.multiply(rate, 0.5 * h, out=work), out=self._predicted)
+        self.system.drift(config, motion if drifting is None else drifting, h)
+        rate_next = self.system.motion_rate(t + h, config, self._predicted, out=self._rate_next)
+        self.evaluations += 1
+        motion += np.multiply(rate_next, 0.5 * h, out=work)
+        self.contacts.resolve(config, motion, h, bounce=False)
+        self.system.project(y)
+        self._rate, self._rate_next = rate_next, rate
+
+
+CONTACT_SCHEMES = {"symplectic_euler": ContactSymplecticEuler, "verlet": ContactVerlet,
+                   "backward_euler": ContactBackwardEuler}

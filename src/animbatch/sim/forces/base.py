@@ -1,0 +1,230 @@
+"""What every force term provides, and what it is given.
+
+Force terms see every body as a *point* at its centre of mass: particles first (indices ``0 … N-1``), then rigid
+bodies (``N … N+B-1``). A term adds forces [N] on those points to ``force`` (P, 3); terms that act off the centre
+of mass (springs attached to a body point, forces ``at`` a point, buoyancy) also add torques [N·m] about each rigid
+body's centre of mass to ``torque`` (B, 3). Terms are immutable and built only for effects the scene declares (see
+:mod:`animbatch.sim.model.builder`), so the right-hand side loops over exactly the declared terms.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+import scipy.sparse as sp
+
+
+@dataclass(frozen=True, eq=False)
+class BodyTable:
+    """The bodies as force terms see them (immutable).
+
+    ``names``, ``mass`` [kg], ``radius`` [m]: per point, shape (P,); a rigid body's radius is that of the sphere of its
+    volume. ``first_rigid``: index of the first rigid body (= number of particles). ``rigid``: the rigid bodies'
+    inertia and geometry (a :class:`~animbatch.sim.model.rigid_set.RigidBodySet`), or None. ``deformables``: cloth and
+    lattices, their triangles and where their vertices are (a
+    :class:`~animbatch.sim.deformable.vertices.DeformableSet`), or None.
+    """
+
+    names: tuple[str, ...]
+    mass: np.ndarray
+    radius: np.ndarray
+    first_rigid: int
+    rigid: Any = None
+    deformables: Any = None
+
+    @property
+    def count(self) -> int:
+        return len(self.names)
+
+    @property
+    def rigid_count(self) -> int:
+        return self.count - self.first_rigid
+
+    def is_rigid(self, index: np.ndarray) -> np.ndarray:
+        return np.asarray(index) >= self.first_rigid
+
+
+@dataclass(frozen=True, eq=False)
+class Kinematics:
+    """Where the bodies are and how they move, at one instant ``t`` [s].
+
+    ``x``, ``v``: centre-of-mass positions [m] and velocities [m/s] of all points, shape (P, 3). For the B rigid bodies
+    (points ``first_rigid …``): ``rotation`` (B, 3, 3) body-to-world matrices and ``omega`` (B, 3) angular velocities
+    [rad/s], world axes; both None when there are no rigid bodies. ``t`` places moving anchors.
+    """
+
+    x: np.ndarray
+    v: np.ndarray
+    rotation: np.ndarray | None
+    omega: np.ndarray | None
+    first_rigid: int
+    t: float = 0.0
+
+    def lever(self, rigid_index: np.ndarray, offset: np.ndarray) -> np.ndarray:
+        """World vectors from the centres of mass of rigid bodies ``rigid_index`` (K,) to their body points
+        ``offset`` (K, 3), given in body axes relative to the centre of mass."""
+        assert self.rotation is not None
+        return np.einsum("kij,kj->ki", self.rotation[rigid_index], offset)
+
+
+class BlockPattern:
+    """Where each entry of a list of 3×3 blocks at particle pairs ``(i, j)`` (K,) lands in a (3N, 3N) CSR matrix.
+
+    Implicit methods assemble a matrix of the same pattern at every step; working the pattern out once and then only
+    summing values into their slots is several times faster than building a COO matrix and converting it each time.
+    """
+
+    def __init__(self, i: np.ndarray, j: np.ndarray, size: int) -> None:
+        self.i, self.j, self.size = i, j, size
+        axis = np.arange(3)
+        # entry [k, a, b] of block k sits at row 3 i_k + a, column 3 j_k + b
+        rows = np.broadcast_to(3 * i[:, None, None] + axis[None, :, None], (len(i), 3, 3)).ravel()
+        cols = np.broadcast_to(3 * j[:, None, None] + axis[None, None, :], (len(j), 3, 3)).ravel()
+        keys = rows.astype(np.int64) * size + cols
+        unique, self.slot = np.unique(keys, return_inverse=True)  # sorted by row, then column: CSR order
+        self.indices = (unique % size).astype(np.int32)
+        self.indptr = np.searchsorted(unique // size, np.arange(size + 1)).astype(np.int32)
+
+    def matches(self, i: np.ndarray, j: np.ndarray) -> bool:
+        return np.array_equal(i, self.i) and np.array_equal(j, self.j)
+
+    def assemble(self, data: np.ndarray) -> sp.csr_matrix:
+        values = np.bincount(self.slot, weights=data, minlength=len(self.indices))  # repeated pairs add up
+        return sp.csr_matrix((values, self.indices, self.indptr), shape=(self.size, self.size))
+
+
+class ForceJacobian:
+    """The derivatives of the forces on the N particles: ``∂f/∂x`` and ``∂f/∂v``, (3N, 3N) each, gathered from the
+    terms as 3×3 blocks ``(i, j)`` = the derivative of the force on particle i with respect to particle j.
+
+    Implicit integration (backward Euler, Radau, BDF) needs them: a stiff spring's force changes a lot when its ends
+    move, and an implicit step takes that change into account. Rigid bodies are not part of this matrix (they are
+    stepped explicitly by the implicit methods, see :mod:`animbatch.sim.integrators.implicit`).
+
+    With ``definite``, terms give instead the nearest *definite* derivatives: ``∂f/∂x`` and ``∂f/∂v`` symmetric and
+    negative semi-definite. The exact ``∂f/∂x`` of a compressed spring or a bent hinge is indefinite, and a
+    linearised backward Euler step built on it can land far off (energy growing ten-thousandfold on a falling cloth);
+    built on the definite one, ``M - h ∂f/∂v - h² ∂f/∂x`` is symmetric positive definite and the step damps.
+    Newton-type solvers (Radau, BDF) want the exact ones.
+
+    ``patterns``: a dict kept by the caller between evaluations, in which the matrices' sparsity patterns are
+    remembered (see :class:`BlockPattern`).
+    """
+
+    def __init__(self, particles: int, *, definite: bool = False,
+                 patterns: dict[str, BlockPattern] | None = None) -> None:
+        self.particles = particles
+        self.definite = definite
+        self._patterns = patterns if patterns is not None else {}
+        self._blocks: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {"x": [], "v": []}
+
+    def add(self, i: np.ndarray, j: np.ndarray, dfdx: np.ndarray | None = None, dfdv: np.ndarray | None = None) -> None:
+        """Add blocks (K, 3, 3) at particle pairs ``(i, j)`` (K,) (repeated pairs add up)."""
+        for name, blocks in (("x", dfdx), ("v", dfdv)):
+            if blocks is not None and len(i):
+                self._blocks[name].append((np.asarray(i, np.intp), np.asarray(j, np.intp), blocks))
+
+    def matrix(self, which: str) -> sp.csr_matrix:
+        """``∂f/∂x`` (``which='x'``) or ``∂f/∂v`` (``'v'``) as a sparse (3N, 3N) matrix."""
+        size = 3 * self.particles
+        parts = self._blocks[which]
+        if not parts:
+            return sp.csr_matrix((size, size))
+        i = np.concatenate([i for i, _, _ in parts])
+        j = np.concatenate([j for _, j, _ in parts])
+        pattern = self._patterns.get(which)
+        if pattern is None or not pattern.matches(i, j):
+            pattern = self._patterns[which] = BlockPattern(i, j, size)
+        return pattern.assemble(np.concatenate([blocks.ravel() for _, _, blocks in parts]))
+
+
+class ForceTerm(ABC):
+    """One force law acting on some or all bodies."""
+
+    #: Registry name, shown by ``animbatch info``.
+    kind: ClassVar[str]
+    #: True when part of the force derives from a potential, returned by ``potential_energy``.
+    has_potential: ClassVar[bool] = False
+
+    @property
+    def label(self) -> str:
+        """Name shown to users (a term kind may have variants, e.g. drag and wind)."""
+        return self.kind
+
+    @property
+    def dissipative(self) -> bool:
+        """True when the term can change the total mechanical energy (drag, dampers, applied forces)."""
+        return False
+
+    @property
+    def adds_energy(self) -> bool:
+        """True when the term can put mechanical energy in (applied forces, wind, moving anchors and targets, forces
+        whose potential is not tracked); False when its energy is accounted for by ``potential_energy`` or it only
+        ever removes energy (drag, dampers). Backward Euler keeps a scene without inputs from gaining energy."""
+        return not self.has_potential
+
+    @property
+    def steps_lose_energy(self) -> bool:
+        """True when a backward Euler step linearised with this term's definite derivatives loses energy unless the
+        step is too long (so halving a step that gained energy cures it); False when those derivatives leave out a
+        part of the force's change that makes every step's energy error O(h²) of either sign, so that halving
+        shrinks a gain but does not end it (backward Euler then halves only a few times)."""
+        return True
+
+    @abstractmethod
+    def accumulate(self, t: float, state: Kinematics, force: np.ndarray, torque: np.ndarray | None) -> None:
+        """Add this term's forces [N] (P, 3) and, for rigid bodies, torques [N·m] (B, 3) at time ``t`` [s]."""
+
+    @abstractmethod
+    def describe(self) -> str:
+        """One line for ``animbatch info``: the parameters and the bodies acted on."""
+
+    def potential_energy(self, state: Kinematics) -> float:
+        """Potential energy [J]; only for terms with ``has_potential``."""
+        raise NotImplementedError(f"{self.kind} has no potential energy")
+
+    def jacobian(self, t: float, state: Kinematics, out: ForceJacobian) -> bool:
+        """Add this term's ``∂f/∂x`` and ``∂f/∂v`` on particles to ``out``; return False when the term gives none
+        (implicit methods then treat its force explicitly, as evaluated at the start of the step)."""
+        return False
+
+
+#: How a model builder makes a force term once the bodies are known: (bodies, selected point indices or None for
+#: all) -> term. The compiler makes one from each scene field (:mod:`animbatch.compile.forces`).
+TermFactory = Callable[[BodyTable, "np.ndarray | None"], ForceTerm]
+
+
+def selection_text(index: np.ndarray | None, names: tuple[str, ...]) -> str:
+    """'all 5 bodies' or 'bodies a, b' for a selection of points."""
+    if index is None:
+        return f"all {len(names)} bod{'y' if len(names) == 1 else 'ies'}"
+    chosen = [names[i] for i in index]
+    shown = ", ".join(chosen[:6]) + (f", … ({len(chosen)} in all)" if len(chosen) > 6 else "")
+    return f"bod{'y' if len(chosen) == 1 else 'ies'} {shown}"
+
+
+def vector_text(vector: np.ndarray) -> str:
+    return "(" + ", ".join(f"{c:g}" for c in vector) + ")"
+
+
+def add_at(target: np.ndarray, index: np.ndarray | None, values: np.ndarray, sign: float = 1.0) -> None:
+    """``target[index] += sign * values`` for unique indices (or all rows when index is None)."""
+    if index is None:
+        if sign > 0:
+            target += values
+        else:
+            target -= values
+    elif sign > 0:
+        target[index] += values
+    else:
+        target[index] -= values
+
+
+def rigid_selection(bodies: BodyTable, index: np.ndarray | None) -> np.ndarray:
+    """The rigid bodies (as indices 0 … B-1) among a selection of points."""
+    points = np.arange(bodies.count) if index is None else np.asarray(index)
+    return points[points >= bodies.first_rigid] - bodies.first_rigid

@@ -1,0 +1,149 @@
+"""Fluid drag, optionally relative to a moving medium (wind), optionally at a point of rigid bodies.
+
+With relative velocity ``u = v - w`` (``w``: wind velocity, zero for plain drag):
+
+* linear:    ``f = -C u``            (C in N·s/m)
+* quadratic: ``f = -C |u| u``        (C in kg/m; ``C = ½ ρ C_d A`` for a body of area A)
+* stokes:    ``f = -6 π η r u``      (η: dynamic viscosity in Pa·s, r: particle radius, or for a rigid body the
+  radius of the sphere of equal volume)
+
+At a point ``at`` of a rigid body, ``v`` is that point's velocity ``v_cm + ω × r`` and the force there also gives a
+torque ``r × f``; particles and bodies without ``at`` feel the drag at their centre of mass.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+
+from animbatch.sim.forces.base import (BodyTable, ForceJacobian, ForceTerm, Kinematics, add_at,
+                                   rigid_selection, selection_text, vector_text)
+from animbatch.quaternion import cross
+
+AIR_VISCOSITY = 1.81e-5  # Pa·s, dry air at 15 °C
+DragLaw = Literal["linear", "quadratic", "stokes"]
+
+
+def drag_force(law: DragLaw, coefficient: float | np.ndarray, relative: np.ndarray) -> np.ndarray:
+    """The drag force [N] (K, 3) for relative velocities (K, 3); ``coefficient`` scalar or (K, 1)."""
+    if law == "quadratic":
+        scale = np.sqrt(np.einsum("ij,ij->i", relative, relative))  # |u|, shape (K,)
+        scale *= np.ravel(coefficient) if np.ndim(coefficient) else coefficient
+        return scale[:, None] * -relative
+    return -(coefficient * relative)
+
+
+@dataclass(frozen=True, eq=False)
+class Drag(ForceTerm):
+    """Drag at centres of mass for points ``index`` (None: all), and at body points for rigid bodies.
+
+    ``coefficient``: C, a number when it is the same for every body (linear, quadratic), else per centre-of-mass point
+    with shape (S, 1) (stokes: 6 π η r). Bodies dragged at a point: ``at_points`` (K,) point indices, ``at_rigid`` (K,)
+    rigid indices, ``at_offset`` (K, 3) the point in body axes from the centre of mass, ``at_coefficient`` like
+    ``coefficient``. ``wind``: (3,) or None.
+    """
+
+    kind = "drag"
+
+    law: DragLaw
+    coefficient: float | np.ndarray
+    wind: np.ndarray | None
+    index: np.ndarray | None
+    names: tuple[str, ...]
+    viscosity: float | None = None
+    at_points: np.ndarray | None = None
+    at_rigid: np.ndarray | None = None
+    at_offset: np.ndarray | None = None
+    at_coefficient: float | np.ndarray = 0.0
+    at: np.ndarray | None = None  # the point as given (shape coordinates), for messages
+
+    @classmethod
+    def build(cls, law: DragLaw, *, coefficient: float | None, viscosity: float | None, wind: np.ndarray | None,
+              bodies: BodyTable, index: np.ndarray | None, at: list[float] | None = None) -> Drag:
+        if law == "stokes":
+            viscosity = AIR_VISCOSITY if viscosity is None else viscosity
+        elif coefficient is None:
+            raise ValueError(f"the {law} drag law needs a coefficient")
+
+        def law_coefficient(points: np.ndarray | None) -> float | np.ndarray:
+            if law != "stokes":
+                return float(coefficient)  # type: ignore[arg-type]
+            radius = bodies.radius if points is None else bodies.radius[points]
+            return (6.0 * np.pi * viscosity * radius)[:, None]  # Stokes' law for a sphere
+
+        wind_vector = None if wind is None or not np.any(wind) else np.asarray(wind, float)
+        if at is None or bodies.rigid_count == 0:
+            return cls(law, law_coefficient(index), wind_vector, index, bodies.names, viscosity)
+        rigid = rigid_selection(bodies, index)
+        points = np.arange(bodies.count) if index is None else np.asarray(index)
+        centre_points = points[points < bodies.first_rigid]
+        at_points = rigid + bodies.first_rigid
+        offset = np.asarray(at, float)[None, :] - bodies.rigid.centre[rigid]  # shape frame -> from the centre of mass
+        return cls(law, law_coefficient(centre_points), wind_vector, centre_points, bodies.names, viscosity,
+                   at_points, rigid, offset, law_coefficient(at_points), np.asarray(at, float))
+
+    @property
+    def label(self) -> str:
+        return "wind" if self.wind is not None else "drag"
+
+    @property
+    def dissipative(self) -> bool:
+        return True
+
+    @property
+    def adds_energy(self) -> bool:
+        return self.wind is not None  # still air only takes energy; wind can give it
+
+    def accumulate(self, t: float, state: Kinematics, force: np.ndarray, torque: np.ndarray | None) -> None:
+        if self.index is None or len(self.index):
+            relative = state.v if self.index is None else state.v[self.index]
+            if self.wind is not None:
+                relative = relative - self.wind
+            add_at(force, self.index, drag_force(self.law, self.coefficient, relative))
+        if self.at_points is not None and len(self.at_points):
+            assert torque is not None and state.omega is not None
+            lever = state.lever(self.at_rigid, self.at_offset)
+            relative = state.v[self.at_points] + cross(state.omega[self.at_rigid], lever)
+            if self.wind is not None:
+                relative = relative - self.wind
+            pulled = drag_force(self.law, self.at_coefficient, relative)
+            force[self.at_points] += pulled
+            torque[self.at_rigid] += cross(lever, pulled)
+
+    def jacobian(self, t: float, state: Kinematics, out: ForceJacobian) -> bool:
+        """``∂f/∂v`` on particles: ``-C I`` (linear, stokes), ``-C (|u| I + u uᵀ / |u|)`` (quadratic)."""
+        points = np.arange(len(state.x)) if self.index is None else np.asarray(self.index)
+        coefficient = np.broadcast_to(np.ravel(self.coefficient), (len(points),)) if np.ndim(self.coefficient) \
+            else np.full(len(points), float(self.coefficient))
+        particles = points < state.first_rigid
+        points, coefficient = points[particles], coefficient[particles]
+        if not len(points):
+            return True
+        if self.law != "quadratic":
+            blocks = -coefficient[:, None, None] * np.eye(3)
+        else:
+            relative = state.v[points] - (self.wind if self.wind is not None else 0.0)
+            speed = np.sqrt(np.einsum("ij,ij->i", relative, relative))
+            unit = np.divide(relative, speed[:, None], out=np.zeros_like(relative), where=speed[:, None] > 0)
+            # ∂(|u| u)/∂u = |u| (I + û ûᵀ)
+            blocks = -(coefficient * speed)[:, None, None] * (np.eye(3) + unit[:, :, None] * unit[:, None, :])
+        out.add(points, points, dfdv=blocks)
+        return True
+
+    def describe(self) -> str:
+        if self.law == "stokes":
+            law = f"stokes 6πηr with η = {self.viscosity:g} Pa·s"
+        else:
+            unit = "N·s/m" if self.law == "linear" else "kg/m"
+            law = f"{self.law}, C = {self.coefficient:g} {unit}"
+        wind = f", wind {vector_text(self.wind)} m/s" if self.wind is not None else ""
+        if self.at_points is None:
+            return f"{law}{wind} on {selection_text(self.index, self.names)}"
+        selected = np.sort(np.concatenate([self.index, self.at_points]))
+        return (f"{law}{wind} on {selection_text(selected, self.names)}; rigid bodies at their point "
+                f"{vector_text(self.at)} m")
+
+

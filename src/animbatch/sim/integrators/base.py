@@ -1,0 +1,121 @@
+"""The contract every integrator keeps, and what a run records about its solver.
+
+An integrator takes the equations of motion, an initial state and the frame times, and returns the state at exactly
+those times (whatever its internal steps). It raises :class:`~animbatch.errors.SimulationError` as soon as the state
+stops being finite or the solver fails, before any frame could be rendered from a broken state.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+#: Called after each frame's state is known: ``on_frame(frame_index, time)``.
+FrameCallback = Callable[[int, float], None]
+
+
+class EquationsOfMotion(Protocol):
+    """What integrators need from a system (see :class:`~animbatch.sim.model.dynamics.Dynamics`)."""
+
+    size: int
+
+    def rhs(self, t: float, y: np.ndarray) -> np.ndarray: ...
+
+    def split(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def motion_rate(self, t: float, config: np.ndarray, motion: np.ndarray,
+                    out: np.ndarray | None = None) -> np.ndarray: ...
+
+    def drift(self, config: np.ndarray, motion: np.ndarray, h: float) -> None: ...
+
+    def project(self, y: np.ndarray) -> None: ...
+
+
+@dataclass
+class SolverStats:
+    """Work done by a solver during one run.
+
+    ``rhs_evaluations`` is counted by our own wrapper and includes the evaluations made for finite-difference
+    Jacobians, which scipy's ``nfev`` leaves out (it is kept as ``scipy_nfev`` for comparison).
+    """
+
+    method: str
+    rhs_evaluations: int = 0
+    steps: int = 0
+    jacobian_evaluations: int = 0
+    lu_decompositions: int = 0
+    scipy_nfev: int | None = None
+    dt: float | None = None  # fixed-step methods: the step actually used [s]
+    substeps_per_frame: int | None = None
+    smallest_step: float | None = None  # adaptive methods: the shortest and longest accepted steps [s]
+    largest_step: float | None = None
+    wall_time: float = 0.0  # [s]
+    impacts: list[tuple[float, int]] = field(default_factory=list)  # (time [s], body index) of bounces, in order
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def add(self, part: SolverStats) -> None:
+        """Add the work of a later part of the same run (a checkpointed segment)."""
+        for name in ("rhs_evaluations", "steps", "jacobian_evaluations", "lu_decompositions", "wall_time"):
+            setattr(self, name, getattr(self, name) + getattr(part, name))
+        self.dt = max(self.dt or 0.0, part.dt or 0.0) or None
+        self.substeps_per_frame = part.substeps_per_frame
+        for name, pick in (("smallest_step", min), ("largest_step", max)):
+            values = [v for v in (getattr(self, name), getattr(part, name)) if v is not None]
+            setattr(self, name, pick(values) if values else None)
+        self.impacts = list(self.impacts) + list(part.impacts)
+
+    def count_step(self, h: float) -> None:
+        """Count an accepted step of ``h`` [s] (adaptive methods)."""
+        self.steps += 1
+        self.smallest_step = h if self.smallest_step is None else min(self.smallest_step, h)
+        self.largest_step = h if self.largest_step is None else max(self.largest_step, h)
+
+
+@dataclass
+class IntegrationResult:
+    """States at the frame times, shape (F, n), and the solver's statistics."""
+
+    states: np.ndarray
+    stats: SolverStats
+
+
+class CountingRhs:
+    """Wraps a right-hand side, counts its calls and remembers the first non-finite derivative it returned.
+
+    Adaptive methods never accept a step whose error estimate is not finite, so a non-finite force shows up as a
+    solver failure ("step size too small") a few rejections later; ``first_non_finite`` (time, component) then says
+    where it came from.
+    """
+
+    def __init__(self, fun: Callable[[float, np.ndarray], np.ndarray]) -> None:
+        self.fun = fun
+        self.count = 0
+        self.first_non_finite: tuple[float, int] | None = None
+
+    def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
+        self.count += 1
+        dydt = self.fun(t, y)
+        if self.first_non_finite is None and not np.isfinite(dydt).all():
+            self.first_non_finite = (t, int(np.flatnonzero(~np.isfinite(dydt))[0]))
+        return dydt
+
+
+class Integrator(ABC):
+    """Integrates equations of motion and samples the state at given times."""
+
+    method: str
+
+    @abstractmethod
+    def integrate(self, system: EquationsOfMotion, y0: np.ndarray, times: np.ndarray, *,
+                  on_frame: FrameCallback | None = None) -> IntegrationResult:
+        """States at ``times`` (increasing, ``times[0]`` is the time of ``y0``), shape (len(times), len(y0))."""
+
+    @abstractmethod
+    def describe(self) -> str:
+        """One line: the method and its settings."""

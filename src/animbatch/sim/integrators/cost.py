@@ -1,0 +1,257 @@
+"""What a simulation will cost, before it starts: wall time and memory, term by term.
+
+The pre-flight (:func:`check_cost`) refuses a run whose estimate exceeds its budget (``solver.max_cost``, or
+``--max-cost``) or the memory this machine has, naming the term that makes it expensive, instead of running for
+hours or being killed half-way. The estimate is an order of magnitude, not a promise:
+
+* **time per right-hand side** is measured, not guessed: the scene's own equations are evaluated a few times here;
+* **steps**: exact for fixed-step methods (steps per frame × frames); for adaptive ones, the larger of what stability
+  forces on an explicit method (``ω T / |hλ|max`` for the stiffest spring) and what accuracy asks of the tightest
+  orbit at the start (``ω T / rtol^(1/(p+1))``, for a method of order p), and at least one step per frame;
+  ``solver.max_step`` adds ``T / max_step``;
+* **implicit methods** add Jacobians (analytic and sparse where the scene has them, else one right-hand side per
+  state variable) and LU factorisations (dense: n³/3 flops);
+* **emitted particles**: births (rate × time + bursts, within the pool's capacity) × steps, at a documented cost per
+  particle-step (``PARTICLE_STEP_SECONDS``, measured on the fountain scene).
+
+What cannot be foreseen from the first state (two bodies plunging into each other, a pile that jams) is caught while
+the run goes, by the same budget (:mod:`animbatch.sim.integrators.budget`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from animbatch.errors import SimulationError
+from animbatch.sim.integrators.budget import format_seconds
+from animbatch.sim.integrators.preflight import EXPLICIT_LIMITS
+from animbatch.sim.integrators.stability import stiffest_mode
+
+#: Cost of advancing one emitted particle by one step [s], births and records included: the fountain (gravity, drag,
+#: box colliders) measured 0.35-0.7 µs per particle-step on a 2-core machine; the bare stepping benchmark ~40 ns.
+PARTICLE_STEP_SECONDS = 500e-9
+#: Bytes kept per emitted particle and frame (position float32 ×3, serial int64, age float32) and per pool slot.
+PARTICLE_FRAME_BYTES = 24
+PARTICLE_SLOT_BYTES = 160
+#: Floating-point operations per second of a dense LU factorisation (LAPACK on one core, conservatively).
+DENSE_FLOPS = 5e9
+#: Right-hand sides per step of each method (explicit Runge–Kutta stages; implicit: stages × Newton iterations).
+EVALUATIONS_PER_STEP = {"euler": 1, "midpoint": 2, "symplectic_euler": 1, "verlet": 1, "backward_euler": 2,
+                        "RK23": 3, "RK45": 6, "DOP853": 12, "Radau": 8, "BDF": 3, "LSODA": 3}
+#: Order of the error per unit time of each adaptive method (BDF and LSODA vary theirs; a middle value).
+ADAPTIVE_ORDER = {"RK23": 2, "RK45": 4, "DOP853": 7, "Radau": 5, "BDF": 3, "LSODA": 4}
+#: Steps between Jacobians (and between factorisations) of implicit adaptive methods, roughly.
+STEPS_PER_JACOBIAN = 10
+STEPS_PER_LU = 3
+#: Part of the available memory a run may plan to use.
+MEMORY_SHARE = 0.8
+
+
+@dataclass(frozen=True)
+class CostTerm:
+    """One part of a run's cost: ``seconds`` of wall time [s] or ``bytes`` of memory, and what it comes from."""
+
+    name: str
+    seconds: float = 0.0
+    bytes: float = 0.0
+    detail: str = ""
+
+
+@dataclass(frozen=True)
+class CostEstimate:
+    """The cost of a run, by term."""
+
+    terms: list[CostTerm] = field(default_factory=list)
+
+    @property
+    def seconds(self) -> float:
+        return sum(term.seconds for term in self.terms)
+
+    @property
+    def bytes(self) -> float:
+        return sum(term.bytes for term in self.terms)
+
+    def dearest(self, kind: str) -> CostTerm:
+        """The term that costs most ``seconds`` or ``bytes``."""
+        return max(self.terms, key=lambda term: getattr(term, kind))
+
+
+def estimate_cost(model: object, solver: object, particle_pools: list[tuple[str, int, float]] = (),
+                  particle_steps: int = 0, rhs_seconds: float | None = None) -> CostEstimate:
+    """The estimated cost of integrating ``model`` with ``solver`` settings (a SolverSpec-like object), and of the
+    emitted particles ``particle_pools``: (emitter name, pool capacity, particles born over the run), each advanced
+    ``particle_steps`` times. ``rhs_seconds``: time of one right-hand side [s] (measured here when not given)."""
+    times = np.asarray(model.frame_times)  # type: ignore[attr-defined]
+    frames = len(times)
+    states = int(np.size(model.y0))  # type: ignore[attr-defined]
+    method = solver.method  # type: ignore[attr-defined]
+    terms = [CostTerm("trajectory", bytes=frames * states * 8 * 3.0,
+                      detail=f"{frames} frames × {states} state variables")]
+    steps, why = _steps(model, solver, times)
+    if states and steps:
+        rhs = rhs_seconds if rhs_seconds is not None else measure_rhs(model)
+        evaluations = steps * EVALUATIONS_PER_STEP.get(method, 4)
+        terms.append(CostTerm("integration", seconds=evaluations * rhs,
+                              detail=f"{method}: about {steps:.3g} steps ({why}) × {EVALUATIONS_PER_STEP.get(method, 4)} "
+                                     f"right-hand sides of {1e6 * rhs:.3g} µs ({states} state variables)"))
+        terms += _implicit_terms(model, method, steps, states, rhs)
+    for name, capacity, births in particle_pools:
+        alive = min(births, capacity)
+        terms.append(CostTerm(f"emitter {name!r}", seconds=alive * particle_steps * PARTICLE_STEP_SECONDS,
+                              bytes=capacity * (PARTICLE_SLOT_BYTES + PARTICLE_FRAME_BYTES * frames),
+                              detail=f"up to {capacity:,} particles alive ({births:,.0f} born) × {particle_steps:,} "
+                                     f"steps, kept at {frames} frames"))
+    return CostEstimate(terms)
+
+
+def _steps(model: object, solver: object, times: np.ndarray) -> tuple[float, str]:
+    """Steps the method will take over ``times``, and the reason in words."""
+    from animbatch.sim.integrators.fixed_step import DEFAULT_DT, substeps
+
+    frames = len(times)
+    if frames < 2:
+        return 0.0, "a single frame"
+    duration = float(times[-1] - times[0])
+    interval = duration / (frames - 1)
+    method = solver.method  # type: ignore[attr-defined]
+    if method not in ADAPTIVE_ORDER:
+        per_frame = substeps(interval, solver.dt or DEFAULT_DT)  # type: ignore[attr-defined]
+        return float(per_frame * (frames - 1)), f"{per_frame} per frame × {frames - 1} frames"
+    candidates = [(float(frames - 1), "one per frame at least")]
+    if solver.max_step:  # type: ignore[attr-defined]
+        candidates.append((duration / solver.max_step, f"max_step {solver.max_step:g} s"))  # type: ignore[attr-defined]
+    for omega, what in _fastest_motions(model):
+        if method in EXPLICIT_LIMITS:
+            candidates.append((omega * duration / EXPLICIT_LIMITS[method],
+                               f"stability of the {what}, ω = {omega:.3g} rad/s"))
+        if "spring" in what:
+            continue  # a stiff spring rarely vibrates visibly: it costs explicit methods stability, not accuracy
+        per_radian = solver.rtol ** (-1.0 / (ADAPTIVE_ORDER[method] + 1))  # type: ignore[attr-defined]
+        candidates.append((omega * duration * per_radian,
+                           f"accuracy on the {what}, ω = {omega:.3g} rad/s at rtol {solver.rtol:g}"))  # type: ignore[attr-defined]
+    return max(candidates)
+
+
+def _fastest_motions(model: object) -> list[tuple[float, str]]:
+    """(ω [rad/s], description) of the stiffest spring and of the tightest gravitational pair at the start."""
+    found = []
+    mode = stiffest_mode(model)
+    if mode is not None and mode.omega > 0:
+        found.append((float(mode.omega), f"stiffest spring (around {mode.body!r})"))
+    from animbatch.sim.forces import Gravitation
+
+    positions = np.asarray(model.positions(model.y0[None])[0])  # type: ignore[attr-defined]
+    for term in model.force_terms:  # type: ignore[attr-defined]
+        if not isinstance(term, Gravitation) or len(term.mass) < 2:
+            continue
+        index = np.arange(len(positions)) if term.index is None else term.index
+        points, mass = positions[index][:2000], np.asarray(term.mass, float)[:2000]  # the first 2000 suffice
+        r2 = np.sum((points[:, None, :] - points[None, :, :]) ** 2, axis=-1) + term.softening ** 2
+        np.fill_diagonal(r2, np.inf)
+        with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+            omega2 = term.G * (mass[:, None] + mass[None, :]) / r2 ** 1.5
+        omega2 = np.nan_to_num(omega2, nan=0.0, posinf=1e300)
+        i, j = np.unravel_index(int(np.argmax(omega2)), omega2.shape)
+        names = model.bodies.names  # type: ignore[attr-defined]
+        found.append((float(np.sqrt(omega2[i, j])),
+                      f"tightest gravitating pair ({names[index[i]]!r} and {names[index[j]]!r})"))
+    return found
+
+
+def _implicit_terms(model: object, method: str, steps: float, states: int, rhs: float) -> list[CostTerm]:
+    if method not in ("Radau", "BDF", "LSODA"):
+        return []
+    analytic = method in ("Radau", "BDF") and getattr(model, "has_jacobian", False)
+    jacobians = steps / STEPS_PER_JACOBIAN
+    factorisations = steps / STEPS_PER_LU
+    terms = []
+    if not analytic:
+        terms.append(CostTerm("Jacobians", seconds=jacobians * states * rhs,
+                              detail=f"about {jacobians:.3g} finite-difference Jacobians of {states} right-hand "
+                                     "sides each"))
+        dense = states ** 3 / 3 / DENSE_FLOPS
+        terms.append(CostTerm("factorisations", seconds=factorisations * dense, bytes=16.0 * states ** 2,
+                              detail=f"about {factorisations:.3g} dense LU factorisations of {states}×{states}"))
+    return terms
+
+
+def measure_rhs(model: object, repeats: int = 3) -> float:
+    """Wall time of one evaluation of the model's right-hand side [s] (the fastest of a few)."""
+    from animbatch.sim.model import Dynamics
+
+    dynamics = Dynamics(model)  # type: ignore[arg-type]
+    y = np.array(model.y0, dtype=float)  # type: ignore[attr-defined]
+    t = float(model.frame_times[0])  # type: ignore[attr-defined]
+    best = np.inf
+    with np.errstate(all="ignore"):
+        for _ in range(repeats + 1):  # the first call warms caches and is not counted
+            start = time.perf_counter()
+            dynamics.rhs(t, y)
+            best = min(best, time.perf_counter() - start)
+    return float(best)
+
+
+def available_memory() -> float:
+    """Bytes of memory available to a new allocation (MemAvailable on Linux, else physical memory)."""
+    try:
+        with open("/proc/meminfo") as meminfo:
+            for line in meminfo:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        import os
+
+        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return float("inf")
+
+
+def check_cost(estimate: CostEstimate, max_cost: float | None, memory: float | None = None) -> None:
+    """Refuse (SimulationError, exit code 3) a run estimated to take more than ``max_cost`` [s] (None or 0: no
+    limit) or more than MEMORY_SHARE of ``memory`` [bytes] (default: what is available now)."""
+    memory = available_memory() if memory is None else memory
+    if estimate.bytes > MEMORY_SHARE * memory:
+        term = estimate.dearest("bytes")
+        raise SimulationError(
+            f"refused before it starts: the run would need about {estimate.bytes / 2**30:.3g} GiB of memory, more "
+            f"than this machine has available ({memory / 2**30:.3g} GiB); most of it for the {term.name} "
+            f"({term.bytes / 2**30:.3g} GiB: {term.detail}). Shorten the scene, lower fps, or lower the particle "
+            "rate or the emitter's capacity")
+    if max_cost and estimate.seconds > max_cost:
+        term = estimate.dearest("seconds")
+        raise SimulationError(
+            f"refused before it starts: the run would take about {format_seconds(estimate.seconds)}, more than its "
+            f"budget of {format_seconds(max_cost)} (solver.max_cost); most of it in the {term.name}: {term.detail}. "
+            f"{_fix(term)}Or raise the budget with --max-cost {_suggest(estimate.seconds)} or solver.max_cost "
+            "(0 = no limit)")
+
+
+def _fix(term: CostTerm) -> str:
+    if "stability of the stiffest spring" in term.detail:
+        return ("An implicit method (Radau or BDF with the analytic Jacobian, or backward_euler) is not limited by "
+                "stiff springs. ")
+    if "finite-difference" in term.detail or "dense LU" in term.detail:
+        return "Radau or BDF with the analytic Jacobian (particles and cloth), or backward_euler, cost far less. "
+    if "per frame" in term.detail:
+        return "A larger solver.dt (or an implicit method for stiff springs) takes fewer steps. "
+    if "accuracy" in term.detail:
+        higher = "" if "DOP853" in term.detail else " or a higher-order method (DOP853)"
+        return f"A looser solver.rtol{higher} takes fewer steps. "
+    if term.name.startswith("emitter"):
+        return "A lower rate, shorter lifetimes or a larger solver.dt cost less. "
+    return ""
+
+
+def _suggest(seconds: float) -> str:
+    """A budget comfortably above ``seconds``, as the command line takes it (``90``, ``30min``, ``5h``)."""
+    padded = 2 * seconds
+    if padded < 120:
+        return f"{int(np.ceil(padded))}"
+    if padded < 7200:
+        return f"{int(np.ceil(padded / 60))}min"
+    return f"{int(np.ceil(padded / 3600))}h"

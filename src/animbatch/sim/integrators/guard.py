@@ -1,0 +1,149 @@
+"""Turning a non-finite state or a solver failure into an error that names the time, the body and the fix."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from animbatch.errors import SimulationError
+from animbatch.sim.model.layout import StateLayout
+
+
+def first_non_finite(y: np.ndarray) -> int | None:
+    """Index of the first NaN or infinite component of ``y``, or None."""
+    if np.isfinite(y).all():  # the common case: one fast pass
+        return None
+    return int(np.flatnonzero(~np.isfinite(y))[0])
+
+
+def divergence_error(layout: StateLayout | None, y: np.ndarray, index: int, t: float, *, method: str,
+                     dt: float | None = None, step: int | None = None, model: object = None,
+                     last_finite: np.ndarray | None = None) -> SimulationError:
+    """The error for state component ``index`` of ``y`` having become non-finite at time ``t`` [s]; with the
+    ``model`` and the ``last_finite`` state before it, an adaptive method's advice fits the cause
+    (:func:`~animbatch.sim.integrators.advice.failure_advice`)."""
+    body, quantity = layout.describe_index(index) if layout is not None else (None, f"component {index}")
+    who = f"body {body!r} {quantity}" if body is not None else quantity
+    when = f"t = {t:.6g} s" + (f" (step {step})" if step is not None else "")
+    value = "NaN" if np.isnan(y[index]) else "infinite"
+    if dt is not None:
+        advice = (f"{method} is unstable at dt = {dt:.3g} s for this scene: reduce solver.dt (try {dt / 10:.3g}), "
+                  "or use an adaptive method (solver.method: RK45, or Radau for stiff springs)")
+    else:
+        from animbatch.sim.integrators.advice import failure_advice
+
+        advice = failure_advice(model, method, last_finite if last_finite is not None else y, t, body)
+    return SimulationError(f"the simulation diverged at {when}: {who} became {value} ({method}). {advice}.",
+                           time=t, body=body, details={"quantity": quantity, "method": method, "dt": dt})
+
+
+def fastest_body(layout: StateLayout | None, rate: np.ndarray, y: np.ndarray, atol: float, rtol: float) -> str:
+    """The body whose state changes fastest relative to the tolerances: usually the culprit of a stalled solver."""
+    if layout is None:
+        return "?"
+    with np.errstate(all="ignore"):
+        scaled = np.abs(rate) / (atol + rtol * np.abs(y))
+    scaled = np.where(np.isfinite(scaled), scaled, np.inf)
+    body, _ = layout.describe_index(int(np.argmax(scaled)))
+    return body
+
+
+#: Largest sustained rise of the total energy tolerated in a scene without energy input, as a multiple of its
+#: energy scale (see :func:`check_energy_growth`): far above what any stable method's error gives, and reached soon
+#: by an unstable one, whose energy grows geometrically.
+ENERGY_GROWTH_LIMIT = 1.0
+#: Methods that conserve a modified energy on springs (their energy error oscillates and does not drift).
+SYMPLECTIC = ("symplectic_euler", "verlet")
+#: The rise must hold over this long [s] (every frame in it), so that a stable symplectic method, whose energy
+#: oscillates (widely near its step limit) but always comes back, is never stopped.
+ENERGY_WINDOW = 0.5
+
+
+def energy_scale(model: object) -> float:
+    """The energy a scene has to play with [J], from its initial state: the largest of |E₀|, the kinetic energy and
+    ``M |g| L`` (total mass, strongest uniform gravity, size of the initial configuration or the largest body)."""
+    from animbatch.sim.invariants import kinetic_energy, total_energy
+
+    y0 = model.y0  # type: ignore[attr-defined]
+    x0 = model.positions(y0[None])[0]  # type: ignore[attr-defined]
+    size = max(float(np.linalg.norm(np.ptp(x0, axis=0))) if len(x0) else 0.0,
+               float(np.max(model.bodies.radius, initial=0.0)))  # type: ignore[attr-defined]
+    gravity = max((float(np.linalg.norm(term.g)) for term in model.force_terms  # type: ignore[attr-defined]
+                   if term.kind == "gravity"), default=0.0)
+    return max(abs(float(total_energy(model, y0))), float(kinetic_energy(model, y0)),  # type: ignore[arg-type]
+               float(np.sum(model.bodies.mass)) * gravity * size, 1e-12)  # type: ignore[attr-defined]
+
+
+def check_energy_growth(model: object, states: np.ndarray, method: str, dt: float | None,
+                        limit: float = ENERGY_GROWTH_LIMIT) -> None:
+    """Raise SimulationError when the total energy of a scene that has no energy input (no wind, applied forces,
+    moving anchors or targets) stays above ``E₀ + limit × scale`` (:func:`energy_scale`) at every frame of a window
+    of :data:`ENERGY_WINDOW` seconds, or of the last half window or more of the run, in ``states`` (F, n).
+
+    Such a rise can only be numerical: an unstable step, or a near collision under gravitation resolved too coarsely.
+    The error names the frame time, the body that gained the most kinetic energy, the stiffest spring and the largest
+    stable step, and what to change.
+    """
+    from animbatch.sim.forces import Gravitation
+    from animbatch.sim.integrators.stability import largest_stable_step, stiffest_mode
+    from animbatch.sim.invariants import total_energy
+
+    if len(states) < 2 or any(term.adds_energy for term in model.force_terms):  # type: ignore[attr-defined]
+        return
+    if getattr(model.anchors, "moving", False):  # type: ignore[attr-defined]
+        return
+    times = model.frame_times  # type: ignore[attr-defined]
+    energy = total_energy(model, states)  # type: ignore[arg-type]
+    scale = energy_scale(model)
+    # A run shorter than the window is judged on all its frames after the first. In a longer one, windows near the
+    # end are cut short by it: a rise in the last half window must stay high to the end, over half a window at least
+    # (a plunge through a singularity 0.45 s before the end went unnoticed otherwise).
+    interval = float(times[1] - times[0])
+    window = min(max(2, int(round(ENERGY_WINDOW / interval))), len(energy) - 1)
+    shortest = window if window == len(energy) - 1 else max(2, -(-window // 2))
+    padded = np.concatenate([energy[1:], np.full(window - 1, np.inf)])
+    sustained = np.lib.stride_tricks.sliding_window_view(padded, window).min(axis=1)[: len(energy) - shortest]
+    mode = stiffest_mode(model)
+    if dt and mode is not None and method in SYMPLECTIC and mode.omega * dt < 2:
+        # a stable symplectic step keeps a modified energy; the true one swings within 1 / (1 - (ω h / 2)²) of it
+        limit = max(limit, 2 / (1 - (mode.omega * dt / 2) ** 2))
+    over = np.flatnonzero(sustained - energy[0] > limit * scale)
+    if not len(over):
+        return
+    first = int(over[0]) + 1  # the first frame of the first window that stayed high
+    frame = min(first + window - 1, len(energy) - 1)  # and its last
+    t = float(times[frame])
+    velocities = model.velocities(states[[0, frame]])  # type: ignore[attr-defined]
+    speed2 = np.sum(velocities**2, axis=2)  # (2, P)
+    gained = 0.5 * model.bodies.mass * (speed2[1] - speed2[0])  # type: ignore[attr-defined]
+    body = model.bodies.names[int(np.argmax(gained))]  # type: ignore[attr-defined]
+    rise = energy[frame] - energy[0]
+    message = (f"the total energy rose by {rise:.4g} J ({rise / scale:.3g} × its scale {scale:.4g} J, and stayed "
+               f"that high for {(frame - first + 1) * interval:.3g} s"
+               + (", to the end of the run" if frame - first + 1 < window else "")
+               + f") by t = {t:.4g} s, in a scene that has "
+               f"no energy input: the integration ({method}"
+               + (f" at dt = {dt:.3g} s" if dt else "") + f") is adding energy. Body {body!r} gained the most "
+               f"kinetic energy ({gained.max():.4g} J).")
+    remedies = []
+    if mode is not None:
+        stable = largest_stable_step(method, mode.omega, mode.decay) if dt else None
+        message += (f" The stiffest is the {mode.stiffest()}, ω = {mode.spring_omega:.4g} rad/s "
+                    f"(up to {mode.omega:.4g} rad/s around {mode.body!r})"
+                    + (f"; the largest stable step of {method} for it is {stable:.3g} s" if stable else "") + ".")
+        remedies.append(f"a smaller solver.dt (≤ {0.9 * stable:.3g} s)" if stable else "a smaller solver.dt")
+    else:
+        remedies.append("a smaller solver.dt" if dt else "tighter solver.rtol and solver.atol")
+    remedies += ["solver.method Radau or BDF", "backward_euler"]
+    terms = model.force_terms  # type: ignore[attr-defined]
+    if any(isinstance(term, Gravitation) and term.softening == 0 for term in terms):
+        from animbatch.sim.integrators.advice import closest_encounter
+
+        encounter = closest_encounter(model, model.positions(states[: frame + 1]),  # type: ignore[attr-defined]
+                                      times[: frame + 1])
+        if encounter is not None:
+            message += " " + encounter.advice() + "."
+        else:
+            remedies.append("softening on the gravitation field (bodies pass very close)")
+    raise SimulationError(message + " Try " + ", ".join(remedies) + ". No frame was written.", time=t, body=body,
+                          details={"energy_rise": float(rise), "method": method, "dt": dt,
+                                   "spring": mode.spring if mode else None})

@@ -1,0 +1,417 @@
+"""The accuracy ledger of a run: what the integration did, what it cost, and how well it kept what physics keeps.
+
+Every simulation (``simulate``, ``render``, ``bake``) gets one, computed from the states at the frame times only (so
+it costs a small fraction of the run):
+
+* **work**: the method, the step it used (fixed-step methods use the largest step ≤ ``solver.dt`` that divides the
+  frame interval; adaptive ones report their smallest and largest accepted steps), steps and right-hand-side
+  evaluations of the bodies and of the emitted particles;
+* **conservation**: for energy, linear momentum and angular momentum, whether this scene conserves it and why (or
+  why not), and where it does, its *drift*: the largest change from the first frame over the run, relative to the
+  quantity's scale in this scene (:func:`conservation_laws`, :func:`drifts`);
+* **contacts**: in scenes with collisions, the deepest overlap that no logged impact explains (a collision the
+  integration missed), and the deepest one the scene starts with (:mod:`animbatch.sim.contact.audit`);
+* **warnings**: a drift above ``solver.drift_warning`` (default :data:`DEFAULT_DRIFT_WARNING`) in a quantity the scene
+  conserves, a missed collision, or bodies placed inside each other, each naming the quantity or bodies, the
+  numbers and what to change.
+
+The per-frame series behind the drifts (:class:`QuantitySeries`) are written as CSV next to a render's report and
+plotted by ``animbatch plot``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from animbatch.errors import AccuracyWarning
+from animbatch.sim.forces import Gravitation, SpringForces
+from animbatch.sim.forces.dihedral import DihedralSprings
+from animbatch.sim.integrators.guard import energy_scale
+from animbatch.sim.invariants import angular_momentum, centre_of_mass, kinetic_energy, linear_momentum, potential_energy
+from animbatch.sim.model.model import Model
+
+#: Relative drift of a conserved quantity above which a run warns (``solver.drift_warning``).
+DEFAULT_DRIFT_WARNING = 0.01
+QUANTITIES = ("energy", "momentum", "angular_momentum")
+UNITS = {"energy": "J", "momentum": "kg·m/s", "angular_momentum": "kg·m²/s"}
+#: Explicit fixed-step methods that are not symplectic: on a conservative scene their energy drifts steadily.
+DRIFTING_FIXED_STEP = ("euler", "midpoint")
+#: A step used that differs from ``solver.dt`` by more than this fraction is pointed out (0.0333334 for one step
+#: per frame at 30 fps is the same step).
+DT_DIFFERS = 1e-3
+
+
+#: How the damping of terms that also have a potential is named.
+DAMPED = {"spring": "spring damping", "dihedral": "dihedral damping", "controller": "controller damping"}
+
+
+@dataclass(frozen=True)
+class Law:
+    """Whether a scene conserves one quantity, and in words why (or why not)."""
+
+    conserved: bool
+    reason: str
+
+
+def _elastic_contacts(model: Model) -> bool:
+    """True when every pair of materials that can meet in the scene bounces with e = 1 and no friction."""
+    world = model.contact_world
+    if world is None:
+        return True
+    if world.group is not None and np.any((world.group >= 0) & world.collides):
+        return False  # cloth and lattice vertices never bounce
+    table = world.materials
+    bodies = np.unique(world.body_material[world.collides])
+    statics = world.statics
+    fixed = np.unique(np.concatenate([statics.plane_material, statics.sphere_material, statics.box_material,
+                                      statics.triangle_material]).astype(np.intp))
+    solids = np.union1d(fixed, bodies) if world.bodies_collide else fixed
+    pairs = np.ix_(bodies, solids)
+    return bool(np.all(table.restitution[pairs] == 1.0) and np.all(table.static_friction[pairs] == 0.0)
+                and np.all(table.kinetic_friction[pairs] == 0.0))
+
+
+def _has_fixed_colliders(model: Model) -> bool:
+    world = model.contact_world
+    return world is not None and world.statics.count > 0
+
+
+def conservation_laws(model: Model) -> dict[str, Law]:
+    """Which of energy, linear momentum and angular momentum the scene conserves, with the reason.
+
+    Energy: every force derives from a potential we track (gravity, gravitation, springs, dihedral springs,
+    controllers to fixed targets), nothing moves the anchors, and collisions (if any) are elastic and frictionless.
+    Momenta: every force is internal to the bodies (gravitation, springs and dihedral springs between bodies) and no
+    fixed collider or anchor pushes them; contacts between bodies exchange equal and opposite impulses at one point,
+    so they keep both momenta.
+    """
+    energy_culprits = []
+    for term in model.force_terms:
+        if term.adds_energy:
+            energy_culprits.append(f"{term.label} does work that no potential accounts for")
+        elif term.dissipative:
+            energy_culprits.append(f"{DAMPED.get(term.label, term.label)} dissipates it")
+    if model.anchors is not None and model.anchors.moving:
+        energy_culprits.append("moving anchors do work")
+    if model.contact_world is not None and not _elastic_contacts(model):
+        energy_culprits.append("collisions lose it: restitution below 1 or friction")
+    if energy_culprits:
+        energy = Law(False, "; ".join(dict.fromkeys(energy_culprits)))
+    else:
+        sources = sorted({term.label for term in model.force_terms})
+        energy = Law(True, ("all forces derive from potentials: " + ", ".join(sources) if sources
+                            else "no force acts") + ("; collisions are elastic and frictionless"
+                                                     if model.contact_world is not None else ""))
+
+    external = []
+    for term in model.force_terms:
+        if isinstance(term, SpringForces):
+            if term.springs.second_is_anchor.any():
+                external.append("springs to anchors or pins hold the bodies")
+        elif not isinstance(term, Gravitation | DihedralSprings):
+            external.append(f"{term.label} is an external force")
+    if _has_fixed_colliders(model):
+        external.append("fixed colliders push the bodies")
+    if model.anchors is not None and model.anchors.moving:
+        external.append("moving anchors pull the bodies")
+    if external:
+        momentum = Law(False, "; ".join(dict.fromkeys(external)))
+    else:
+        contacts = "; contacts only between bodies" if model.contact_world is not None else ""
+        momentum = Law(True, "all forces act between the bodies, equal and opposite" + contacts)
+    angular = Law(momentum.conserved, momentum.reason if not momentum.conserved else
+                  "all forces act between the bodies, equal and opposite on one line" + contacts)
+    return {"energy": energy, "momentum": momentum, "angular_momentum": angular}
+
+
+@dataclass(frozen=True)
+class QuantitySeries:
+    """The scene's mechanical quantities at the frame times: ``times`` (F,) [s]; kinetic, potential and total energy
+    (F,) [J]; linear momentum (F, 3) [kg·m/s]; angular momentum about the scene's centre of mass (F, 3) [kg·m²/s];
+    the speed of each scene body's centre of mass (F, B) [m/s] (a cloth or lattice: of its vertices' centre of
+    mass), named by ``body_names`` (B,)."""
+
+    times: np.ndarray
+    kinetic: np.ndarray
+    potential: np.ndarray
+    momentum: np.ndarray
+    angular_momentum: np.ndarray
+    body_names: tuple[str, ...]
+    speeds: np.ndarray
+
+    @property
+    def total(self) -> np.ndarray:
+        return self.kinetic + self.potential
+
+    @classmethod
+    def of_states(cls, model: Model, states: np.ndarray) -> QuantitySeries:
+        """From the states (F, n) at ``model.frame_times``."""
+        count = len(states)
+        times = np.asarray(model.frame_times[:count], float)
+        if not model.body_count:
+            zero, zero3 = np.zeros(count), np.zeros((count, 3))
+            return cls(times, zero, zero, zero3, zero3, (), np.zeros((count, 0)))
+        centre = centre_of_mass(model, states)
+        spin = angular_momentum(model, states, origin=centre[:, None, :])
+        names, first, owner = np.unique(np.asarray(model.owners), return_index=True, return_inverse=True)
+        order = np.argsort(first)  # scene order: as each body is first seen
+        mass = model.bodies.mass
+        weighted = np.zeros((count, len(names), 3))
+        np.add.at(weighted, (slice(None), owner), model.velocities(states) * mass[:, None])
+        totals = np.bincount(owner, weights=mass, minlength=len(names))
+        speeds = np.linalg.norm(weighted / totals[None, :, None], axis=2)[:, order]
+        return cls(times, kinetic_energy(model, states), potential_energy(model, states),
+                   linear_momentum(model, states), spin, tuple(str(n) for n in names[order]), speeds)
+
+    def csv(self) -> str:
+        """The series as CSV text: one row per frame, SI units in the column names."""
+        columns = ["time_s", "kinetic_energy_J", "potential_energy_J", "total_energy_J", "momentum_x_kg_m_s",
+                   "momentum_y_kg_m_s", "momentum_z_kg_m_s", "angular_momentum_x_kg_m2_s",
+                   "angular_momentum_y_kg_m2_s", "angular_momentum_z_kg_m2_s"]
+        columns += [f"speed_{name}_m_s" for name in self.body_names]
+        table = np.column_stack([self.times, self.kinetic, self.potential, self.total, self.momentum,
+                                 self.angular_momentum, self.speeds])
+        out = io.StringIO()
+        out.write(",".join(columns) + "\n")
+        np.savetxt(out, table, delimiter=",", fmt="%.10g")
+        return out.getvalue()
+
+
+def _scales(model: Model, states: np.ndarray) -> dict[str, float]:
+    """What each drift is relative to: energy, the largest of |E₀|, the kinetic energy and M g L (see
+    :func:`~animbatch.sim.integrators.guard.energy_scale`); momentum, the largest Σ m|v| over the run; angular momentum,
+    the largest Σ m |x - c| |v| plus the bodies' spins |L| over the run (c: the centre of mass)."""
+    mass = model.bodies.mass
+    velocities = model.velocities(states)
+    speed = np.linalg.norm(velocities, axis=2)
+    arm = np.linalg.norm(model.positions(states) - centre_of_mass(model, states)[:, None, :], axis=2)
+    spin = 0.0
+    if model.rigid is not None:
+        spin = np.linalg.norm(model.layout.view(states, "rigid_angular_momentum"), axis=2).sum(axis=1)
+    return {"energy": energy_scale(model),
+            "momentum": float(np.max(speed @ mass, initial=0.0)),
+            "angular_momentum": float(np.max((arm * speed) @ mass + spin, initial=0.0))}
+
+
+def drifts(model: Model, states: np.ndarray, series: QuantitySeries, laws: dict[str, Law]
+           ) -> dict[str, tuple[float, float] | None]:
+    """For each conserved quantity, (relative drift, scale): the largest change from the first frame over the run,
+    divided by the scale (:func:`_scales`); None where the scene does not conserve it."""
+    scales = _scales(model, states)
+    values = {"energy": series.total[:, None], "momentum": series.momentum,
+              "angular_momentum": series.angular_momentum}
+    result: dict[str, tuple[float, float] | None] = {}
+    for name in QUANTITIES:
+        if not laws[name].conserved or len(states) == 0:
+            result[name] = None
+            continue
+        change = float(np.max(np.linalg.norm(values[name] - values[name][0], axis=1)))
+        scale = scales[name]
+        result[name] = (change / scale if scale > 0 else 0.0, scale)
+    return result
+
+
+#: Order of accuracy of each fixed-step method: its drift over a run shrinks as dt to this power.
+ORDER = {"euler": 1, "midpoint": 2, "symplectic_euler": 1, "verlet": 2, "backward_euler": 1}
+
+
+def drift_advice(method: str, drift: float, threshold: float, *, rtol: float | None, dt: float | None) -> str:
+    """What to change when a conserved quantity drifts by ``drift`` (relative) under ``method``, to bring it under
+    ``threshold``: a step or tolerance worked out from the method's order, with a factor two to spare."""
+    shrink = 0.5 * threshold / drift  # how much smaller the drift must become
+    if method in ORDER:
+        order = ORDER[method]
+        step = f"solver.dt ≤ {dt * shrink ** (1 / order):.3g} s (its drift shrinks as dt^{order})" if dt else \
+            "a smaller solver.dt"
+        if method in DRIFTING_FIXED_STEP:
+            return ("it is not symplectic, so its error accumulates step after step: use a symplectic method "
+                    f"(solver.method: verlet) or an adaptive one (DOP853), or {step}")
+        if method == "backward_euler":
+            return ("backward Euler damps every vibration it cannot resolve, which conservative scenes show as lost "
+                    f"energy: use verlet (symplectic), or {step}")
+        return f"use {step}"
+    # an adaptive run's drift falls with its tolerance, but seldom in proportion: aim a decade lower
+    tighter = f" to {rtol * shrink / 10:.2g} or less" if rtol else ""
+    return (f"tighten solver.rtol{tighter} (and solver.atol with it; tighter still if this warning stays), or use "
+            "DOP853, whose high order pays off at tight tolerances")
+
+
+@dataclass
+class Ledger:
+    """The ledger of one run (see the module notes); ``as_dict`` is what report.json and trajectory files hold.
+    ``warnings`` follow from the rest (:func:`judge`), so a cached run can be judged again against another
+    ``drift_warning`` without simulating again."""
+
+    method: str
+    kind: str  # "adaptive" or "fixed-step"
+    rtol: float | None
+    step: dict[str, Any]
+    work: dict[str, Any]
+    conservation: dict[str, dict[str, Any]]
+    drift_warning: float
+    contacts: dict[str, Any] | None = None
+    encounter: dict[str, Any] | None = None  # two gravitating bodies closer than their radii, without softening
+    warnings: list[str] = field(default_factory=list)
+
+    def as_dict(self) -> dict[str, Any]:
+        return dict(self.__dict__)
+
+
+def step_note(requested_dt: float | None, used: float | None, interval: float | None) -> str | None:
+    """Why a fixed step ``used`` [s] differs from ``solver.dt`` (None when it does not, to :data:`DT_DIFFERS`)."""
+    if used is None or requested_dt is None or interval is None:
+        return None
+    if abs(used - requested_dt) <= DT_DIFFERS * requested_dt:
+        return None
+    return f"the largest step ≤ solver.dt = {requested_dt:.4g} s that divides the frame interval {interval:.4g} s"
+
+
+def step_record(adaptive: bool, stats: dict[str, Any], requested_dt: float | None, interval: float | None,
+                duration: float) -> dict[str, Any]:
+    """The step a run used: fixed-step methods the step and how it relates to ``solver.dt`` and the frame interval
+    [s]; adaptive ones their smallest, largest and mean accepted steps over the ``duration`` [s]."""
+    if not adaptive:
+        used = stats.get("dt")
+        record: dict[str, Any] = {"requested_dt": requested_dt, "dt": used,
+                                  "steps_per_frame": stats.get("substeps_per_frame")}
+        note = step_note(requested_dt, used, interval)
+        if note:
+            record["note"] = f"{stats.get('substeps_per_frame')} steps of {used:.4g} s per frame: {note}"
+        return record
+    steps = stats.get("steps") or 0
+    return {"smallest": stats.get("smallest_step"), "largest": stats.get("largest_step"),
+            "mean": duration / steps if steps else None}
+
+
+def judge(ledger: dict[str, Any]) -> list[str]:
+    """The warnings a ledger (as a dict) calls for: one for the conserved quantities that drifted more than its
+    ``drift_warning`` (with the fix the worst of them needs), one for a missed collision, one for bodies that start
+    inside each other."""
+    method, threshold = ledger["method"], ledger["drift_warning"]
+    adaptive = ledger["kind"] == "adaptive"
+    messages = []
+    drifted = {name: entry for name, entry in ledger["conservation"].items()
+               if entry.get("drift") is not None and entry["drift"] > threshold}
+    if drifted:
+        parts = [f"the {name.replace('_', ' ')}{' drifted' if not number else ''} by {100 * entry['drift']:.3g} % "
+                 f"(of {entry['scale']:.4g} {entry['unit']})" for number, (name, entry) in enumerate(drifted.items())]
+        worst = max(entry["drift"] for entry in drifted.values())
+        advice = drift_advice(method, worst, threshold, rtol=ledger.get("rtol") if adaptive else None,
+                              dt=ledger["step"].get("dt"))
+        encounter = ledger.get("encounter")
+        if encounter:  # the likelier culprit: a pass closer than the bodies' radii, where 1/r² has no bound
+            from animbatch.sim.integrators.advice import Encounter
+
+            advice += ". " + Encounter(**encounter).advice()
+        messages.append(
+            " and ".join(parts) + f" over the run, though this scene conserves {'it' if len(drifted) == 1 else 'them'}"
+            f" (solver.drift_warning: {100 * threshold:.3g} %). {method} is not accurate enough here: {advice}.")
+    for overlap in (ledger.get("contacts") or {}).values():
+        if overlap:
+            from animbatch.sim.contact.audit import Overlap
+
+            messages.append(Overlap(**overlap).message(method, adaptive=adaptive))
+    return messages
+
+
+def with_threshold(ledger: dict[str, Any], drift_warning: float) -> dict[str, Any]:
+    """The same ledger judged against another ``drift_warning`` (a cached bake rendered with a new setting)."""
+    judged = {**ledger, "drift_warning": drift_warning}
+    judged["warnings"] = judge(judged)
+    return judged
+
+
+def warn_again(ledger: dict[str, Any]) -> None:
+    """Issue a stored ledger's warnings again (a run from a cached bake or a trajectory file tells them too)."""
+    for message in ledger.get("warnings", []):
+        warnings.warn(message, AccuracyWarning, stacklevel=2)
+
+
+def build_ledger(model: Model, states: np.ndarray, stats: dict[str, Any], particle_stats: dict[str, Any], *,
+                 method: str, adaptive: bool, requested_dt: float | None, rtol: float | None,
+                 drift_warning: float = DEFAULT_DRIFT_WARNING, series: QuantitySeries | None = None) -> Ledger:
+    """The ledger of a run of ``model`` that gave ``states`` (F, n) at the frame times, with the solver's statistics
+    ``stats`` and the emitted particles' ``particle_stats`` (empty without emitters). Its warnings are also issued
+    as :class:`~animbatch.errors.AccuracyWarning`."""
+    times = model.frame_times
+    interval = float(times[1] - times[0]) if len(times) > 1 else None
+    work: dict[str, Any] = {}
+    if model.layout.size:
+        work["bodies"] = {"steps": stats.get("steps", 0), "rhs_evaluations": stats.get("rhs_evaluations", 0),
+                          "wall_time": stats.get("wall_time", 0.0)}
+    if particle_stats:
+        work["particles"] = {"steps": particle_stats.get("steps", 0),
+                             "rhs_evaluations": particle_stats.get("rhs_evaluations", 0),
+                             "wall_time": particle_stats.get("wall_time", 0.0)}
+    laws = conservation_laws(model)
+    if model.body_count:
+        series = series if series is not None else QuantitySeries.of_states(model, states)
+        drift = drifts(model, states, series, laws)
+    else:
+        drift = {name: None for name in QUANTITIES}
+    conservation = {name: {"conserved": laws[name].conserved, "reason": laws[name].reason,
+                           "drift": None if drift[name] is None else drift[name][0],
+                           "scale": None if drift[name] is None else drift[name][1], "unit": UNITS[name]}
+                    for name in QUANTITIES}
+    from animbatch.sim.integrators.advice import closest_encounter
+
+    encounter = closest_encounter(model, model.positions(states), times) if model.body_count else None
+    contacts = None
+    if model.contact_world is not None and model.body_count:
+        from animbatch.sim.contact.audit import OverlapAudit
+        from animbatch.sim.model.dynamics import Dynamics
+
+        found = OverlapAudit(model, Dynamics(model)).run(states, times, [tuple(i) for i in stats.get("impacts", [])])
+        contacts = {kind: overlap.as_dict() if overlap is not None else None for kind, overlap in found.items()}
+    stepped = stats if model.layout.size or not particle_stats else particle_stats  # emitters only: their steps
+    ledger = Ledger(method, "adaptive" if adaptive else "fixed-step", rtol if adaptive else None,
+                    step_record(adaptive, stepped, requested_dt, interval, float(times[-1] - times[0])), work,
+                    conservation, drift_warning, contacts,
+                    encounter=dataclasses.asdict(encounter) if encounter is not None else None)
+    ledger.warnings = judge(ledger.as_dict())
+    for message in ledger.warnings:
+        warnings.warn(message, AccuracyWarning, stacklevel=2)
+    return ledger
+
+
+def _number(value: float) -> str:
+    return f"{value:.2g}" if value else "0"
+
+
+def summary(ledger: dict[str, Any]) -> str:
+    """The ledger in one line: method and step, work of every part, drifts, and how many warnings."""
+    parts = []
+    method, step = ledger.get("method", "?"), ledger.get("step", {})
+    work = ledger.get("work", {})
+    if ledger.get("kind") == "fixed-step" and step.get("dt"):
+        how = f" dt {step['dt']:.4g} s" + (f" (solver.dt {step['requested_dt']:.4g} s does not divide 1/fps)"
+                                           if step.get("note") else "")
+    elif step.get("smallest") is not None:
+        how = f" steps {step['smallest']:.2g}–{step['largest']:.2g} s"
+    else:
+        how = ""
+    if "bodies" in work:
+        bodies = work["bodies"]
+        parts.append(f"{method}{how}: {bodies['steps']} steps, {bodies['rhs_evaluations']} RHS")
+    if "particles" in work:
+        particles = work["particles"]
+        parts.append(f"particles ({method}{'' if 'bodies' in work else how}): {particles['steps']} steps, "
+                     f"{particles['rhs_evaluations']} RHS")
+    conservation = ledger.get("conservation", {})
+    kept = [f"{name.replace('_', ' ')} {_number(entry['drift'])}" for name, entry in conservation.items()
+            if entry.get("drift") is not None]
+    if kept:
+        parts.append("drift: " + ", ".join(kept))
+    lost = [name.replace("_", " ") for name, entry in conservation.items() if not entry.get("conserved")]
+    if lost and "bodies" in work:
+        parts.append("not conserved: " + ", ".join(lost))
+    count = len(ledger.get("warnings", []))
+    if count:
+        parts.append(f"{count} accuracy warning{'s' if count > 1 else ''} (above)")
+    return " | ".join(parts)

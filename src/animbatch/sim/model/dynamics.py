@@ -1,0 +1,206 @@
+"""The equations of motion of a Model, in the forms the integrators need.
+
+State (see :mod:`animbatch.sim.model.layout`): configuration ``c = [x_particles, x_rigid, q]`` and motion
+``m = [v_particles, P, L]``. The lecture notes' rigid-body equations::
+
+    dx/dt = v = P / M        dq/dt = ½ (0, ω) ⊗ q,  ω = I(t)⁻¹ L,  I(t)⁻¹ = R I_body⁻¹ Rᵀ
+    dP/dt = F                dL/dt = τ
+
+and for particles ``dx/dt = v``, ``dv/dt = F / m``. F and τ sum the model's force terms (only those the scene
+declares). The quaternion's norm is conserved by these equations; integrators re-normalise it (:meth:`project`)
+after each fixed step and on every output, so rounding never accumulates.
+
+Forms offered: :meth:`Dynamics.rhs` (all of ``dy/dt``, for adaptive and Runge–Kutta methods), and for partitioned
+(symplectic) methods :meth:`motion_rate` (``dm/dt``: the "kick") and :meth:`drift` (advance c with the motion held
+fixed). A scene of particles only takes exactly the particle path: no rigid-body work is done.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from animbatch.sim.forces import Kinematics
+from animbatch.sim.forces.base import ForceJacobian
+from animbatch.sim.model.model import Model, world_inverse_inertia_times
+from animbatch import quaternion
+
+
+class Dynamics:
+    """Right-hand side for a Model. Holds its force/torque buffers, reused by every evaluation."""
+
+    def __init__(self, model: Model) -> None:
+        self.model = model
+        self.terms = model.force_terms
+        self.size = model.layout.size
+        self.particles = model.particle_count
+        self.rigid = model.rigid_count
+        n, b = self.particles, self.rigid
+        self._config_size = 3 * n + 7 * b
+        self._inverse_mass = (1.0 / model.bodies.mass[:n])[:, None]
+        self._force = np.zeros((n + b, 3))
+        self._torque = np.zeros((b, 3)) if b else None
+        self._patterns: dict[bool, dict] = {}  # sparsity patterns of the force Jacobians, reused between steps
+        if b:
+            rigid = model.rigid
+            assert rigid is not None
+            self._rigid_inverse_mass = (1.0 / rigid.mass)[:, None]
+            self._inverse_inertia = rigid.inverse_inertia
+            self._x = np.empty((n + b, 3))
+            self._v = np.empty((n + b, 3))
+
+    # ------------------------------------------------------------------------------------------ state views
+
+    def split(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Views ``(configuration, motion)`` of a flat state."""
+        return y[: self._config_size], y[self._config_size:]
+
+    def _rigid_views(self, config: np.ndarray, motion: np.ndarray) -> tuple[np.ndarray, ...]:
+        n, b = self.particles, self.rigid
+        return (config[3 * n: 3 * n + 3 * b].reshape(b, 3), config[3 * n + 3 * b:].reshape(b, 4),
+                motion[3 * n: 3 * n + 3 * b].reshape(b, 3), motion[3 * n + 3 * b:].reshape(b, 3))
+
+    def kinematics(self, config: np.ndarray, motion: np.ndarray, *, t: float = 0.0, copy: bool = False) -> Kinematics:
+        """Positions, velocities, rotations and angular velocities of all bodies at time ``t`` [s].
+
+        The position and velocity arrays are views of the state or buffers reused by the next call, which is what
+        the right-hand side wants; with ``copy`` they are the caller's own (to keep several states at once).
+        """
+        n = self.particles
+        x = config[: 3 * n].reshape(n, 3)
+        v = motion[: 3 * n].reshape(n, 3)
+        if not self.rigid:
+            return Kinematics(x.copy(), v.copy(), None, None, n, t) if copy else Kinematics(x, v, None, None, n, t)
+        position, orientation, momentum, angular_momentum = self._rigid_views(config, motion)
+        rotation = quaternion.to_matrix(orientation)
+        omega = world_inverse_inertia_times(rotation, self._inverse_inertia, angular_momentum)
+        self._x[:n], self._x[n:] = x, position
+        self._v[:n] = v
+        np.multiply(momentum, self._rigid_inverse_mass, out=self._v[n:])
+        if copy:
+            return Kinematics(self._x.copy(), self._v.copy(), rotation, omega, n, t)
+        return Kinematics(self._x, self._v, rotation, omega, n, t)
+
+    def loads(self, t: float, state: Kinematics) -> tuple[np.ndarray, np.ndarray | None]:
+        """Total force [N] (P, 3) on every body and torque [N·m] (B, 3) on every rigid body (buffers, overwritten by
+        the next call)."""
+        force, torque = self._force, self._torque
+        force.fill(0.0)
+        if torque is not None:
+            torque.fill(0.0)
+        for term in self.terms:
+            term.accumulate(t, state, force, torque)
+        return force, torque
+
+    # ------------------------------------------------------------------------------------------ the forms
+
+    def motion_rate(self, t: float, config: np.ndarray, motion: np.ndarray,
+                    out: np.ndarray | None = None) -> np.ndarray:
+        """``dm/dt = [F_particles / m, F_rigid, τ]``, flat, written to ``out`` when given."""
+        return self._motion_rate(t, self.kinematics(config, motion, t=t),
+                                 np.empty(len(motion)) if out is None else out)
+
+    def _motion_rate(self, t: float, state: Kinematics, out: np.ndarray) -> np.ndarray:
+        force, torque = self.loads(t, state)
+        n = self.particles
+        np.multiply(force[:n], self._inverse_mass, out=out[: 3 * n].reshape(n, 3))
+        if self.rigid:
+            out[3 * n: 3 * n + 3 * self.rigid] = force[n:].ravel()
+            out[3 * n + 3 * self.rigid:] = torque.ravel()  # type: ignore[union-attr]
+        return out
+
+    def _config_rate(self, config: np.ndarray, motion: np.ndarray, state: Kinematics, out: np.ndarray) -> None:
+        """``dc/dt = [v, P / M, ½ (0, ω) ⊗ q]``, flat, into ``out``."""
+        n = self.particles
+        out[: 3 * n] = motion[: 3 * n]
+        if self.rigid:
+            b = self.rigid
+            assert state.omega is not None
+            orientation = config[3 * n + 3 * b:].reshape(b, 4)
+            out[3 * n: 3 * n + 3 * b] = state.v[n:].ravel()
+            out[3 * n + 3 * b:] = quaternion.rate(orientation, state.omega).ravel()
+
+    def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        """``dy/dt`` as a new array (solve_ivp keeps references to the arrays it receives)."""
+        config, motion = self.split(y)
+        state = self.kinematics(config, motion, t=t)  # rotations and ω once, for both halves
+        dydt = np.empty_like(y)
+        self._config_rate(config, motion, state, dydt[: self._config_size])
+        self._motion_rate(t, state, dydt[self._config_size:])
+        return dydt
+
+    def drift(self, config: np.ndarray, motion: np.ndarray, h: float) -> None:
+        """Advance the configuration by ``h`` [s] with the motion held fixed, in place.
+
+        Positions move by ``h v``. Orientations turn by the exact rotation ``exp(h ω)``, with ω evaluated at the
+        half-turned orientation (a midpoint rule, second-order accurate, and norm-preserving).
+        """
+        n = self.particles
+        config[: 3 * n] += h * motion[: 3 * n]
+        if self.rigid:
+            position, orientation, momentum, angular_momentum = self._rigid_views(config, motion)
+            position += h * momentum * self._rigid_inverse_mass
+            omega = world_inverse_inertia_times(quaternion.to_matrix(orientation), self._inverse_inertia,
+                                                angular_momentum)
+            halfway = quaternion.multiply(quaternion.from_rotation_vector(0.5 * h * omega), orientation)
+            omega = world_inverse_inertia_times(quaternion.to_matrix(halfway), self._inverse_inertia,
+                                                angular_momentum)
+            orientation[...] = quaternion.multiply(quaternion.from_rotation_vector(h * omega), orientation)
+
+    def energy(self, t: float, config: np.ndarray, motion: np.ndarray) -> tuple[float, float]:
+        """Total mechanical energy [J] (kinetic, plus the potentials of the terms that have one) at time ``t``, and
+        its scale (the sum of the magnitudes of its parts), against which rounding is judged."""
+        state = self.kinematics(config, motion, t=t)
+        n = self.particles
+        parts = [0.5 * float(np.sum(self.model.bodies.mass[:n, None] * state.v[:n] ** 2))]
+        if self.rigid:
+            _, _, momentum, angular_momentum = self._rigid_views(config, motion)
+            parts.append(0.5 * float(np.sum(momentum * state.v[n:]) + np.sum(state.omega * angular_momentum)))
+        parts += [term.potential_energy(state) for term in self.terms if term.has_potential]
+        return float(sum(parts)), float(sum(abs(p) for p in parts))
+
+    @property
+    def adds_energy(self) -> bool:
+        """Whether any term can put energy in (see :attr:`ForceTerm.adds_energy`)."""
+        return any(term.adds_energy for term in self.terms)
+
+    # ------------------------------------------------------------------------------------------ derivatives
+
+    def force_jacobian(self, t: float, config: np.ndarray, motion: np.ndarray, *,
+                       definite: bool = False) -> tuple[ForceJacobian, list[str]]:
+        """``∂f/∂x`` and ``∂f/∂v`` of the forces on the particles (exact, or ``definite``: see
+        :class:`ForceJacobian`), and the labels of the terms that give none (they are explicit in implicit steps)."""
+        state = self.kinematics(config, motion, t=t)
+        jacobian = ForceJacobian(self.particles, definite=definite,
+                                 patterns=self._patterns.setdefault(definite, {}))
+        explicit = [term.label for term in self.terms if not term.jacobian(t, state, jacobian)]
+        return jacobian, explicit
+
+    @property
+    def has_jacobian(self) -> bool:
+        """Whether :meth:`jacobian` can give ``∂(dy/dt)/∂y``: for models of particles only."""
+        return self.rigid == 0
+
+    def jacobian(self, t: float, y: np.ndarray) -> sp.csr_matrix:
+        """``∂(dy/dt)/∂y`` for a model of particles (for Radau, BDF and LSODA)::
+
+            [[0,          I        ],
+             [M⁻¹ ∂f/∂x,  M⁻¹ ∂f/∂v]]
+
+        sparse, (6N, 6N). Terms without derivatives (aerodynamics, buoyancy, gravitation) are left out; Newton's
+        method in the solver still converges, only a little slower, as long as they are not stiff.
+        """
+        config, motion = self.split(y)
+        derivatives, _ = self.force_jacobian(t, config, motion)
+        inverse_mass = sp.diags(np.repeat(self._inverse_mass[:, 0], 3))
+        size = 3 * self.particles
+        return sp.bmat([[None, sp.identity(size, format="csr")],
+                        [inverse_mass @ derivatives.matrix("x"), inverse_mass @ derivatives.matrix("v")]],
+                       format="csr")
+
+    def project(self, y: np.ndarray) -> None:
+        """Re-normalise the quaternions of a state (…, n) in place (nothing to do without rigid bodies)."""
+        if self.rigid:
+            block = self.model.layout.block("rigid_orientation")
+            q = y[..., block.span].reshape(*y.shape[:-1], self.rigid, 4)
+            q /= np.linalg.norm(q, axis=-1, keepdims=True)

@@ -1,0 +1,262 @@
+"""Simulate a scene's emitters over its frames: births, motion, collisions and deaths, recorded at frame times.
+
+Per step (fixed-step methods: every step; adaptive methods: every frame interval, the *segment* solve_ivp
+integrates):
+
+1. the particles alive at the step's start move with the scene's method (:mod:`animbatch.sim.particles.stepping`);
+2. the particles born during the step (:mod:`animbatch.sim.particles.schedule`) take the lowest free slots, with their
+   attributes (:mod:`animbatch.sim.particles.emitter`), each advanced in a straight line from its birth instant to the
+   step's end;
+3. every segment travelled in the step is tested against the colliders (:mod:`animbatch.sim.particles.collisions`);
+4. particles whose age reached their lifetime die, freeing their slots.
+
+So with fixed-step methods births and deaths fall on steps (at most ``dt`` late), and with adaptive methods on
+frame boundaries: a particle's first partial frame is then a straight line, its collisions are found only on the
+chord of each frame interval, and it may live up to one frame past its lifetime. Fixed-step methods are the ones to
+use for particles; adaptive ones are there for comparison.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from animbatch.errors import SimulationError
+from animbatch.sim.integrators.budget import budget_spent
+from animbatch.sim.integrators.fixed_step import substeps
+from animbatch.sim.particles.body_motion import BodyMotion
+from animbatch.sim.particles.collisions import MAX_BOUNCES, SURFACE_GAP, ParticleColliders, bounce
+from animbatch.sim.particles.emitter import Emitter
+from animbatch.sim.particles.pool import ParticlePool
+from animbatch.trajectory import ParticleFrames
+from animbatch.sim.particles.stepping import FIXED_METHODS, Accelerations, adaptive_segment, fixed_step
+
+#: Serials are stored as int32 in trajectories.
+LARGEST_SERIAL = 2**31 - 1
+
+
+@dataclass
+class ParticleStats:
+    """Work and events of a particle simulation (all emitters)."""
+
+    method: str
+    steps: int = 0
+    rhs_evaluations: int = 0
+    born: int = 0
+    died: int = 0
+    dropped: int = 0
+    collisions: int = 0
+    peak_live: int = 0
+    wall_time: float = 0.0
+    dt: float | None = None  # fixed-step methods: the step used [s], and how many there are per frame
+    substeps_per_frame: int | None = None
+    per_emitter: dict[str, dict[str, int]] = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+class EmitterRun:
+    """The running state of one emitter: its pool, and how it steps."""
+
+    def __init__(self, emitter: Emitter, colliders: ParticleColliders | None, method: str, solver: object,
+                 motion: BodyMotion | None) -> None:
+        self.emitter = emitter
+        self.pool = ParticlePool(emitter.capacity)
+        self.colliders = colliders if emitter.collision != "pass" and colliders is not None and \
+            not colliders.empty else None
+        self.method = method
+        self.solver = solver
+        self.motion = motion
+        self.acceleration = Accelerations(emitter.fields)
+        gravity = sum((f.g for f in emitter.fields if f.kind == "gravity"), np.zeros(3))
+        self._gravity = float(np.linalg.norm(gravity))
+        self.collisions = 0
+        self.steps = 0
+
+    def step(self, t0: float, t1: float) -> None:
+        """Advance the pool from ``t0`` to ``t1`` [s]: move, give birth, collide, age."""
+        pool, h = self.pool, t1 - t0
+        frozen = ~pool.alive | pool.stuck
+        start = pool.x.copy()
+        if self.method in FIXED_METHODS:
+            # every slot at once, free and stuck ones held in place after: a pool is mostly full, and whole-array
+            # operations cost less than gathering and scattering the live ones
+            x, v, a = fixed_step(self.method, self.acceleration, pool.x, pool.v, pool.acceleration, pool.mass,
+                                 pool.radius, h)
+            if frozen.any():
+                held = frozen[:, None]
+                np.copyto(x, start, where=held)
+                np.copyto(v, 0.0, where=held)
+                np.copyto(a, 0.0, where=held)
+            pool.x, pool.v, pool.acceleration = x, v, a
+            self.steps += 1
+        else:
+            moving = np.flatnonzero(~frozen)
+            x, v, steps = adaptive_segment(self.method, self.solver.rtol, self.solver.atol,  # type: ignore[attr-defined]
+                                           self.solver.max_step, self.acceleration, pool.x[moving], pool.v[moving],  # type: ignore[attr-defined]
+                                           pool.mass[moving], pool.radius[moving], t0, t1)
+            pool.x[moving], pool.v[moving] = x, v
+            self.steps += steps
+        born, born_at = self.give_birth(t0, t1)
+        if self.colliders is not None:
+            start[born] = born_at  # a newborn's path starts where it was born
+            self.collide(start, h)
+        aged = pool.alive & (t1 - pool.birth >= pool.lifetime)
+        if aged.any():
+            pool.kill(aged)
+
+    def give_birth(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
+        """Births in ``(t0, t1]``: fill free slots; return the slots and the birth points (K, 3)."""
+        emitter, pool = self.emitter, self.pool
+        births = emitter.schedule.births(t0, t1)
+        if births.count == 0:
+            return np.zeros(0, np.intp), np.zeros((0, 3))
+        if births.serials[-1] > LARGEST_SERIAL:
+            raise SimulationError(f"emitter {emitter.name!r} gave birth to more than {LARGEST_SERIAL} particles; "
+                                  "lower its rate or shorten the animation", time=t1)
+        slots = pool.allocate(births.count)
+        kept = len(slots)
+        newborn = emitter.newborns(births, self.motion)
+        take = slice(0, kept)  # a full pool drops the latest births
+        pool.alive[slots] = True
+        pool.stuck[slots] = False
+        pool.serial[slots] = births.serials[take]
+        pool.birth[slots] = births.times[take]
+        pool.lifetime[slots] = newborn.lifetime[take]
+        pool.mass[slots] = newborn.mass[take]
+        pool.radius[slots] = newborn.radius[take]
+        # each newborn moves for the rest of the step from its own birth instant: one step of the method (Verlet
+        # for adaptive methods) of its own length, so that births within a step leave no bands or lag
+        flight = t1 - births.times[take]
+        x, v = newborn.position[take], newborn.velocity[take]
+        mass, radius = newborn.mass[take], newborn.radius[take]
+        a = self.acceleration(x, v, mass, radius)
+        method = self.method if self.method in FIXED_METHODS else "verlet"
+        pool.x[slots], pool.v[slots], pool.acceleration[slots] = fixed_step(method, self.acceleration, x, v, a,
+                                                                            mass, radius, flight[:, None])
+        return slots, newborn.position[take]
+
+    def collide(self, start: np.ndarray, h: float) -> None:
+        """Stop every slot's path ``start → x`` (C, 3) at the colliders (see :mod:`collisions`); paths of free and
+        stuck slots have no length and never hit."""
+        pool, colliders, mode = self.pool, self.colliders, self.emitter.collision
+        assert colliders is not None
+        x0, x1, v, radius = start, pool.x, pool.v, pool.radius
+        rest_speed = 2.0 * h * self._gravity
+        hits = colliders.first_hits(x0, x1, radius)
+        index = np.flatnonzero(np.isfinite(hits.fraction))
+        fraction, normal, material = hits.fraction[index], hits.normal[index], hits.material[index]
+        for bounces in range(MAX_BOUNCES + 1):
+            if not len(index):
+                break
+            self.collisions += len(index)
+            at = x0[index] + fraction[:, None] * (x1[index] - x0[index]) + SURFACE_GAP * normal
+            if mode == "bounce":
+                v[index] = bounce(v[index], normal, colliders.restitution[material],
+                                  colliders.static_friction[material], colliders.kinetic_friction[material],
+                                  rest_speed)
+                if bounces == MAX_BOUNCES:  # out of bounces: stay at the surface for the rest of this step
+                    x1[index] = at
+                    break
+                x0[index] = at
+                x1[index] = at + ((1.0 - fraction) * h)[:, None] * v[index]  # the rest of the step, bounced
+                again = colliders.first_hits(x0[index], x1[index], radius[index])
+                hit = np.isfinite(again.fraction)
+                index = index[hit]
+                fraction, normal, material = again.fraction[hit], again.normal[hit], again.material[hit]
+                continue
+            x1[index] = at
+            v[index] = 0.0
+            if mode == "stick":
+                pool.stuck[index] = True
+            else:  # die
+                pool.kill(index)
+            break
+        colliders.push_out(x1, v, radius)
+
+    def check(self, t: float) -> None:
+        """Stop on a non-finite particle, naming the emitter."""
+        # beyond 1e30 m (or m/s) nothing physical is left, and positions are stored as float32 (largest 3.4e38)
+        if not (np.abs(self.pool.x) < 1e30).all() or not (np.abs(self.pool.v) < 1e30).all():
+            raise SimulationError(
+                f"particles of emitter {self.emitter.name!r} left the finite numbers by t = {t:g} s "
+                f"({self.method}); a field is too strong for the step: lower solver.dt, or use backward_euler, "
+                "which takes drag implicitly", time=t, body=self.emitter.name)
+
+
+def steps_per_frame(interval: float, method: str, dt: float) -> int:
+    """Calls of EmitterRun.step per frame interval [s]: fixed-step methods take steps of at most ``dt`` [s] that
+    divide it; adaptive ones integrate each frame interval as one segment (their own steps inside)."""
+    return substeps(interval, dt) if method in FIXED_METHODS else 1
+
+
+def _check_budget(t: float, stats: ParticleStats) -> None:
+    spent = budget_spent(t, "the emitted particles' simulation")
+    if spent is not None:
+        raise SimulationError(f"{spent}; up to {stats.peak_live} particles were alive at once", time=t)
+
+
+def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, ParticleColliders | None],
+                       times: np.ndarray, solver: object, motion: BodyMotion | None, *, dt: float,
+                       on_frame: Callable[[int, float], None] | None = None, record: bool = True
+                       ) -> tuple[list[ParticleFrames], ParticleStats]:
+    """Simulate every emitter over the frame ``times`` (F,) [s]; fixed-step methods step at most ``dt`` [s].
+
+    Returns the particles at each frame (unless ``record`` is False: then only the statistics, for measuring) and the
+    statistics. Raises SimulationError when a particle's state stops being finite."""
+    started = time.perf_counter()
+    method = solver.method  # type: ignore[attr-defined]
+    runs = [EmitterRun(e, colliders.get(e.name), method, solver, motion) for e in emitters]
+    frames = len(times)
+    records = [ParticleFrames(run.emitter.name,
+                              np.zeros((frames if record else 1, run.pool.capacity, 3), np.float32),
+                              np.full((frames if record else 1, run.pool.capacity), -1, np.int32),
+                              np.zeros((frames if record else 1, run.pool.capacity), np.float32)) for run in runs]
+    stats = ParticleStats(method)
+    for run in runs:
+        born, born_at = run.give_birth(-np.inf, float(times[0]))  # bursts at the very start
+        if run.colliders is not None and len(born):
+            start = run.pool.x.copy()
+            start[born] = born_at
+            run.collide(start, 0.0)
+    for frame in range(frames):
+        t1 = float(times[frame])
+        if frame:
+            t0 = float(times[frame - 1])
+            count = steps_per_frame(t1 - t0, method, dt)
+            if method in FIXED_METHODS:
+                stats.dt, stats.substeps_per_frame = (t1 - t0) / count, count
+            for run in runs:
+                with np.errstate(all="ignore"):  # a diverging particle is caught by check(), once per frame
+                    for k in range(count):
+                        run.step(t0 + (t1 - t0) * k / count, t0 + (t1 - t0) * (k + 1) / count)
+                        if k % 16 == 15:  # a frame may hold thousands of steps of a large pool
+                            _check_budget(t0 + (t1 - t0) * (k + 1) / count, stats)
+                run.check(t1)
+            _check_budget(t1, stats)
+        for run, kept in zip(runs, records):
+            pool = run.pool
+            stats.peak_live = max(stats.peak_live, pool.live_count)
+            row = frame if record else 0
+            kept.positions[row] = pool.x
+            kept.serials[row] = np.where(pool.alive, pool.serial, -1)
+            kept.ages[row] = np.where(pool.alive, t1 - pool.birth, 0.0)
+        if on_frame is not None:
+            on_frame(frame, t1)
+    for run in runs:
+        pool = run.pool
+        stats.steps += run.steps
+        stats.rhs_evaluations += run.acceleration.evaluations
+        stats.born += pool.born
+        stats.died += pool.died
+        stats.dropped += pool.dropped
+        stats.collisions += run.collisions
+        stats.per_emitter[run.emitter.name] = {"capacity": pool.capacity, "born": pool.born, "died": pool.died,
+                                               "dropped": pool.dropped, "collisions": run.collisions,
+                                               "live_at_end": pool.live_count}
+    stats.wall_time = time.perf_counter() - started
+    return records, stats

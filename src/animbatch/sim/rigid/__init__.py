@@ -1,0 +1,1 @@
+"""Rigid-body geometry: shapes, mass properties, polyhedra (numbers only)."""

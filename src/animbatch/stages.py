@@ -1,0 +1,236 @@
+"""The stages of a run, as library functions shared by the API, the farm and ``study``:
+
+    load (with the geometry checks) -> compile -> simulate -> frame geometry, and the checks between them
+    (does a trajectory belong to this scene's physics?).
+
+They sit above the compiler and below every driver (``api``, ``farm``, ``study``, the CLI), so that the farm can
+bake and render without importing the API that drives it.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import platform
+import shutil
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from animbatch import __version__
+from animbatch.errors import SimulationError, TrajectoryError
+from animbatch.files import write_json_atomic
+from animbatch.compile.solver import make_integrator
+from animbatch.sim.integrators import DEFAULT_DT, IntegrationResult, SolverStats
+from animbatch.sim.integrators.budget import wall_budget
+from animbatch.sim.integrators.cost import check_cost, estimate_cost
+from animbatch.sim.integrators.guard import check_energy_growth
+from animbatch.sim.integrators.preflight import preflight
+from animbatch.sim.ledger import build_ledger, warn_again
+from animbatch.sim.ledger import summary as ledger_summary
+from animbatch.sim.model import Dynamics, Model
+from animbatch.compile.particles import pool_sizes
+from animbatch.sim.particles.simulate import steps_per_frame
+from animbatch.progress import Progress
+from animbatch.compile.checks import check_files
+from animbatch.compile.model import compile_scene
+from animbatch.scene import LoadedScene, physics_fingerprint
+from animbatch.scene import loader as scene_loader
+from animbatch.scene.overrides import Override
+from animbatch.stopwatch import Stopwatch
+from animbatch.trajectory import Trajectory
+
+
+
+def load_scene(path: str | Path, overrides: Sequence[Override] = ()) -> LoadedScene:
+    """Read and validate the scene file at ``path`` (``--set`` style ``overrides`` first), with every check: format,
+    names and references, and the geometry (mesh files, pin selections). SceneError lists every problem."""
+    return scene_loader.load_scene(path, overrides, geometry_checks=check_files)
+
+
+def parse_scene(text: str, *, filename: str = "<scene>", overrides: Sequence[Override] = (),
+                default_name: str = "scene", path: Path | None = None) -> LoadedScene:
+    """Validate scene text (YAML) with every check; ``path``'s folder finds mesh files (default: the current one)."""
+    return scene_loader.parse_scene(text, filename=filename, overrides=overrides, default_name=default_name,
+                                    path=path, geometry_checks=check_files)
+
+
+def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progress | None = None,
+             checkpoint: tuple[int, Path] | None = None) -> Trajectory:
+    """Integrate the scene and sample it at the frame times. Raises SimulationError on divergence or failure.
+
+    ``checkpoint``: (every N frames, file): integrate in segments, saving the states after each and resuming from
+    the file when it exists (see :mod:`animbatch.sim.integrators.checkpoint`)."""
+    spec = scene.spec
+    model = model if model is not None else compile_model(scene)
+    integrator = make_integrator(spec.solver)
+    progress = progress or Progress(enabled=False)
+    warnings = preflight(spec, model)  # risky settings, with numbers (what is certain to fail is refused)
+    frame_steps = steps_per_frame(1.0 / spec.fps, spec.solver.method, spec.solver.dt or DEFAULT_DT)
+    cost = estimate_cost(model, spec.solver, pool_sizes(spec), frame_steps * (len(model.frame_times) - 1))
+    check_cost(cost, spec.solver.max_cost)  # refuse what would run for hours or cannot fit, before it starts
+    with wall_budget(spec.solver.max_cost, float(model.frame_times[0]), float(model.frame_times[-1])):
+        result, particles, particle_stats = _integrate(scene, model, integrator, progress, checkpoint)
+    states = result.states
+    kinds = ("particle",) * model.particle_count + ("rigid",) * model.rigid_count
+    stats = {**result.stats.as_dict(), "estimated_seconds": cost.seconds}
+    ledger = build_ledger(model, states, stats, particle_stats, method=spec.solver.method,
+                          adaptive=spec.solver.is_adaptive, requested_dt=spec.solver.dt or DEFAULT_DT,
+                          rtol=spec.solver.rtol, drift_warning=spec.solver.drift_warning)
+    return Trajectory(
+        times=model.frame_times.copy(), body_names=model.body_names, positions=model.positions(states),
+        velocities=model.velocities(states), orientations=model.orientations(states),
+        angular_velocities=model.angular_velocities(states), body_kinds=kinds,
+        anchor_names=model.anchor_names, anchor_positions=model.anchor_position.copy(),
+        physics_hash=scene_fingerprint(scene), scene_name=scene.name, package_version=__version__,
+        solver={**spec.solver.model_dump(), "description": integrator.describe()},
+        solver_stats={**stats, "warnings": warnings}, particles=tuple(particles), particle_stats=particle_stats,
+        ledger=ledger.as_dict())
+
+
+def _integrate(scene: LoadedScene, model: Model, integrator: Any, progress: Progress,
+               checkpoint: tuple[int, Path] | None) -> tuple[IntegrationResult, list, dict[str, Any]]:
+    """The bodies' states at the frame times, then the emitted particles (which may ride on bodies)."""
+    if model.layout.size:
+        with progress.task("simulate", len(model.frame_times)) as on_frame:
+            if checkpoint is None:
+                result = integrator.integrate(Dynamics(model), model.y0, model.frame_times, on_frame=on_frame)
+            else:
+                from animbatch.sim.integrators.checkpoint import integrate_with_checkpoints  # noqa: I001
+
+                every, path = checkpoint
+                result = integrate_with_checkpoints(integrator, Dynamics(model), model.y0, model.frame_times,
+                                                    every=every, path=Path(path), on_frame=on_frame)
+        check_energy_growth(model, result.states, scene.spec.solver.method, result.stats.dt)
+    else:  # a scene of emitters only: no body to integrate
+        result = IntegrationResult(np.zeros((len(model.frame_times), 0)), SolverStats(scene.spec.solver.method))
+    particles, particle_stats = simulate_emitters(scene, model, result.states, progress)
+    return result, particles, particle_stats
+
+
+def simulate_emitters(scene: LoadedScene, model: Model, states: np.ndarray, progress: Progress
+                      ) -> tuple[list, dict[str, Any]]:
+    """The scene's emitted particles at the frame times (after its bodies, whose motion ``states`` (F, n) moves
+    emitters attached to them), and the statistics of their simulation; nothing when it has no emitters."""
+    spec = scene.spec
+    if not spec.emitters:
+        return [], {}
+    from animbatch.sim.particles.body_motion import BodyMotion
+    from animbatch.compile.particles import compile_particles
+    from animbatch.sim.particles.simulate import simulate_particles
+
+    systems = compile_particles(spec, model, scene_folder(scene))
+    assert systems is not None
+    motion = BodyMotion(model.frame_times, model.positions(states), model.velocities(states),
+                        model.orientations(states), model.angular_velocities(states))
+    with progress.task("particles", len(model.frame_times)) as on_frame:
+        records, stats = simulate_particles(systems.emitters, systems.colliders, model.frame_times, spec.solver,
+                                            motion, dt=spec.solver.dt or DEFAULT_DT, on_frame=on_frame)
+    return records, stats.as_dict()
+
+
+def scene_folder(scene: LoadedScene) -> Path:
+    """Where the scene's relative file names (mesh files) are resolved: the scene file's folder."""
+    return scene.path.parent if scene.path is not None else Path(".")
+
+
+def compile_model(scene: LoadedScene) -> Model:
+    """The Model of a loaded scene, with mesh files found beside the scene file."""
+    return compile_scene(scene.spec, scene_folder(scene))
+
+
+def scene_fingerprint(scene: LoadedScene) -> str:
+    """The physics hash of a loaded scene, including the contents of its mesh files."""
+    return physics_fingerprint(scene.spec, scene_folder(scene))
+
+
+def check_trajectory(scene: LoadedScene, model: Model, trajectory: Trajectory, source: str | Path = "trajectory"
+                     ) -> None:
+    """Refuse a trajectory that was not simulated from this scene's physics (bodies, fields, timeline)."""
+    if trajectory.physics_hash != scene_fingerprint(scene):
+        raise TrajectoryError(
+            f"{source} was simulated from different physics than {scene.path or scene.name} (bodies, springs, fields, "
+            f"mesh files, duration or fps changed). Re-run 'animbatch simulate {scene.path or 'SCENE'} -o {source}'.")
+    if trajectory.body_names != model.body_names:
+        raise TrajectoryError(f"{source} holds bodies {', '.join(trajectory.body_names)}, the scene has "
+                              f"{', '.join(model.body_names)}")
+
+
+def largest_vector(model: Model, trajectory: Trajectory, kind: str) -> float:
+    """The largest |ω| [rad/s] or |L| [kg·m²/s] of any rigid body over the trajectory (0 when not drawn)."""
+    if kind == "none" or model.rigid is None:
+        return 0.0
+    omega = trajectory.angular_velocities[:, model.particle_count:]
+    if kind == "angular_velocity":
+        return float(np.max(np.linalg.norm(omega, axis=-1), initial=0.0))
+    states = model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
+                               trajectory.angular_velocities)
+    momentum = model.layout.view(states, "rigid_angular_momentum")
+    return float(np.max(np.linalg.norm(momentum, axis=-1), initial=0.0))
+
+
+def frame_geometry(scene: LoadedScene, model: Model, trajectory: Trajectory) -> Any:
+    """What the renderer draws for this scene and trajectory (a :class:`~animbatch.render.frames.FrameGeometry`),
+    with the camera fitted to the whole motion: bodies, anchors, colliders and emitted particles."""
+    from animbatch.render.camera import motion_bounds
+    from animbatch.render.frames import FrameGeometry, body_extents, collider_points
+
+    spec = scene.spec
+    anchors = (np.vstack([model.anchors.positions(float(t)) for t in trajectory.times]) if model.anchors.moving
+               else model.anchor_position)
+    fixed = np.vstack([anchors, collider_points(spec, scene_folder(scene)), particle_extent(trajectory)])
+    bounds = motion_bounds(trajectory.positions, body_extents(model), fixed)
+    emitters = ()
+    if spec.emitters:
+        from animbatch.compile.particles import compile_particles
+
+        emitters = compile_particles(spec, model, scene_folder(scene)).emitters  # type: ignore[union-attr]
+    return FrameGeometry.from_scene(spec, model, bounds, largest_vector(model, trajectory, spec.render.show_vectors),
+                                    scene_folder(scene), emitters)
+
+
+def particle_extent(trajectory: Trajectory) -> np.ndarray:
+    """Two corners (2, 3) of the box around every emitted particle at every frame (a 1st–99th percentile box, so
+    that a few strays do not shrink the view), or none (0, 3)."""
+    corners = []
+    for frames in trajectory.particles:
+        live = frames.positions[frames.serials >= 0]
+        if len(live):
+            corners += [np.percentile(live, 1, axis=0), np.percentile(live, 99, axis=0)]
+    return np.array(corners, float).reshape(-1, 3)
+
+
+def write_quantities(scene: LoadedScene, model: Model, trajectory: Trajectory, folder: str | Path, *,
+                     plot: bool = False) -> list[Path]:
+    """Write the run's per-frame quantities (energy, momentum, angular momentum, speeds) to ``quantities.csv`` in
+    ``folder``, and with ``plot`` draw them to ``quantities.png``; nothing for a scene without bodies."""
+    if not model.body_count:
+        return []
+    from animbatch.files import write_text_atomic
+    from animbatch.sim.ledger import QuantitySeries
+
+    states = model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
+                               trajectory.angular_velocities)
+    series = QuantitySeries.of_states(model, states)
+    folder = Path(folder)
+    written = [folder / "quantities.csv"]
+    write_text_atomic(written[0], series.csv())
+    if plot:
+        from animbatch.plot import plot_quantities
+
+        written.append(plot_quantities(series, folder / "quantities.png", scene=scene.name,
+                                       ledger=trajectory.ledger))
+    return written
+
+
+def failure_report(scene: LoadedScene, error: SimulationError, watch: Stopwatch) -> dict[str, Any]:
+    """The report of a run whose simulation failed: what failed, when, which body, and the message."""
+    return {"scene": scene.name, "scene_file": str(scene.path) if scene.path else None, "status": "failed",
+            "exit_code": error.exit_code, "error": str(error), "time": error.time, "body": error.body,
+            "details": error.details, "solver": scene.spec.solver.model_dump(), "stages": dict(watch.seconds),
+            "package_version": __version__, "outputs": [],
+            "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"), "host": platform.node()}
+
+
