@@ -321,7 +321,8 @@ def render_frames(count: int, anti_aliasing: str, frames: int) -> tuple[float, l
 
     from animbatch import api
     from animbatch.render.backend import select_backend
-    from animbatch.render.frames import FrameGeometry, FrameRenderer
+    from animbatch.compile.frame_geometry import frame_geometry
+    from animbatch.render.frames import FrameRenderer
     from animbatch.stages import parse_scene
 
     rng = np.random.default_rng(1)
@@ -333,7 +334,7 @@ def render_frames(count: int, anti_aliasing: str, frames: int) -> tuple[float, l
     ground = ", ground: {}" if count == 1 else ""
     loaded = parse_scene(f"duration: 1\nbodies: [{{name: p, radius: 0.5}}]\n"
                          f"render: {{anti_aliasing: {anti_aliasing}{ground}}}\n")
-    geometry = dataclasses.replace(FrameGeometry.from_scene(loaded.spec, api.compile_model(loaded), bounds),
+    geometry = dataclasses.replace(frame_geometry(loaded.spec, api.compile_model(loaded), bounds),
                                    particle_radius=radius, colors=["#e15759"] * count)
     spec = loaded.spec.render
     images = []

@@ -175,7 +175,8 @@ def frame_geometry(scene: LoadedScene, model: Model, trajectory: Trajectory) -> 
     """What the renderer draws for this scene and trajectory (a :class:`~animbatch.render.frames.FrameGeometry`),
     with the camera fitted to the whole motion: bodies, anchors, colliders and emitted particles."""
     from animbatch.render.camera import motion_bounds
-    from animbatch.render.frames import FrameGeometry, body_extents, collider_points
+    from animbatch.compile.frame_geometry import body_extents, collider_points
+    from animbatch.compile.frame_geometry import frame_geometry as compile_frame_geometry
 
     spec = scene.spec
     anchors = (np.vstack([model.anchors.positions(float(t)) for t in trajectory.times]) if model.anchors.moving
@@ -187,7 +188,7 @@ def frame_geometry(scene: LoadedScene, model: Model, trajectory: Trajectory) -> 
         from animbatch.compile.particles import compile_particles
 
         emitters = compile_particles(spec, model, scene_folder(scene)).emitters  # type: ignore[union-attr]
-    return FrameGeometry.from_scene(spec, model, bounds, largest_vector(model, trajectory, spec.render.show_vectors),
+    return compile_frame_geometry(spec, model, bounds, largest_vector(model, trajectory, spec.render.show_vectors),
                                     scene_folder(scene), emitters)
 
 

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from animbatch import quaternion
-from animbatch.scene.schema import (BoxShape, CompoundShape, CylinderShape, MeshShape, OrientationSpec, RigidBodySpec,
+from animbatch.scene.orientation import orientation_matrix, orientation_quaternion
+from animbatch.scene.schema import (BoxShape, CompoundShape, CylinderShape, MeshShape, RigidBodySpec,
                                     RodShape, ShellShape, SphereShape)
 from animbatch.sim.rigid import mass_properties as mp
 from animbatch.sim.rigid.polyhedra import box_mesh, cylinder_mesh, mesh_mass_properties
@@ -17,25 +17,7 @@ from animbatch.sim.rigid.shapes import BodyGeometry, load_mesh
 #: Sides of the prism standing in for cylinders and rods when computing submerged volumes (error < 0.1 %).
 BUOYANCY_SEGMENTS = 96
 
-
-def orientation_matrix(spec: OrientationSpec | None) -> np.ndarray:
-    """Rotation matrix (3, 3) of an orientation spec (identity when None)."""
-    return quaternion.to_matrix(orientation_quaternion(spec))
-
-
-def orientation_quaternion(spec: OrientationSpec | None) -> np.ndarray:
-    """Unit quaternion [w, x, y, z] of an orientation spec (identity when None)."""
-    if spec is None:
-        return quaternion.IDENTITY.copy()
-    if spec.quaternion is not None:
-        return quaternion.normalized(np.asarray(spec.quaternion, float))
-    if spec.euler is not None:
-        from scipy.spatial.transform import Rotation
-
-        x, y, z, w = Rotation.from_euler("xyz", spec.euler, degrees=True).as_quat()  # scipy: scalar last
-        return np.array([w, x, y, z])
-    axis = np.asarray(spec.axis, float)
-    return quaternion.from_rotation_vector(axis / np.linalg.norm(axis) * np.radians(spec.angle))
+__all__ = ["BUOYANCY_SEGMENTS", "body_geometry", "orientation_matrix", "orientation_quaternion"]
 
 
 def _primitive(shape: object, mass: float | None, density: float | None, base: Path

@@ -13,12 +13,23 @@ held the same particle), so that a frame looks the same whichever frames were dr
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
-from animbatch.sim.particles.emitter import Emitter
 from animbatch.trajectory import ParticleFrames
+
+
+class ParticleLooks(Protocol):
+    """What the renderer needs of a compiled emitter (:class:`animbatch.sim.particles.emitter.Emitter` is one):
+    its pool size, its scene ``look``, its mean colour, and each particle's lifetime, radius and colour drawn again
+    from its serial."""
+
+    capacity: int
+    look: Any
+    color_mean: np.ndarray
+
+    def looks(self, serials: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
 
 def ramp(values: np.ndarray, fraction: np.ndarray) -> np.ndarray:
@@ -40,7 +51,7 @@ def _rgb(color: str) -> np.ndarray:
 class EmitterLayer:
     """The actors of one emitter: its cloud and, optionally, its trails."""
 
-    def __init__(self, pv: Any, plotter: Any, emitter: Emitter) -> None:
+    def __init__(self, pv: Any, plotter: Any, emitter: ParticleLooks) -> None:
         self.emitter = emitter
         look = emitter.look
         self.look = look

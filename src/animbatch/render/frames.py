@@ -16,17 +16,17 @@ silently switches to SSAA on OSMesa/EGL builds, which is several times slower.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from animbatch.errors import RenderError
-from animbatch.sim.model.model import Model
 from animbatch.render.backend import Backend, activate
 from animbatch.render.camera import CameraPlacement, nice_spacing, place_camera, plane_axes
 from animbatch import quaternion
+from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (BoxShape, CompoundShape, CylinderShape, MeshCollider, MeshShape, RenderSpec,
                                     RodShape, SceneSpec, ShellShape, SphereShape)
 
@@ -48,46 +48,6 @@ def hex_to_rgb(color: str) -> tuple[float, float, float]:
     """``'#rrggbb'`` -> (r, g, b) in 0…1."""
     value = color.lstrip("#")
     return tuple(int(value[i:i + 2], 16) / 255 for i in (0, 2, 4))  # type: ignore[return-value]
-
-
-def body_extents(model: Model) -> np.ndarray:
-    """How far each body reaches from its centre of mass [m], shape (P,): radius for particles, the farthest
-    surface point for rigid bodies (used to fit the camera)."""
-    extents = np.array(model.bodies.radius, float)
-    rigid = model.rigid
-    if rigid is not None:
-        for b, geometry in enumerate(rigid.geometry):
-            reach = 0.0
-            if len(geometry.triangles):
-                reach = float(np.max(np.linalg.norm(geometry.triangles - rigid.centre[b], axis=-1)))
-            for x, y, z, r in geometry.spheres:
-                reach = max(reach, float(np.linalg.norm(np.array([x, y, z]) - rigid.centre[b]) + r))
-            extents[model.particle_count + b] = reach
-    return extents
-
-
-def collider_points(spec: SceneSpec, scene_dir: Path = Path(".")) -> np.ndarray:
-    """Corner points (K, 3) of the finite colliders (boxes, spheres, meshes), for fitting the camera; planes are
-    infinite and left out."""
-    from animbatch.sim.rigid.shapes import load_mesh
-    from animbatch.compile.bodies import orientation_matrix
-    from animbatch.scene.schema import BoxCollider, SphereCollider
-
-    points = []
-    for collider in spec.colliders:
-        if not collider.visible:
-            continue
-        if isinstance(collider, SphereCollider):
-            points += [np.asarray(collider.position) + s * collider.radius for s in (-1, 1)]
-        elif isinstance(collider, BoxCollider):
-            half = np.asarray(collider.size) / 2
-            corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half
-            points += list(corners @ orientation_matrix(collider.orientation).T + collider.position)
-        elif isinstance(collider, MeshCollider):
-            vertices = load_mesh(scene_dir / collider.file, collider.scale).vertices
-            vertices = vertices @ orientation_matrix(collider.orientation).T + collider.position
-            points += [vertices.min(axis=0), vertices.max(axis=0)]
-    return np.array(points, float).reshape(-1, 3)
 
 
 @dataclass(frozen=True)
@@ -120,71 +80,8 @@ class FrameGeometry:
     surface_colors: tuple[tuple[str, str], ...] = ()  # (front, back) per deformable body
     target_segments: np.ndarray | None = None  # (S, 2, 3) [m]: the curves PD controllers keep bodies on
     target_points: tuple[Any, ...] = ()  # point and keyframe targets (forces.controllers.Target), drawn as markers
-    emitters: tuple[Any, ...] = ()  # compiled emitters (particles.emitter.Emitter), whose particles are drawn
-
-    @classmethod
-    def from_scene(cls, spec: SceneSpec, model: Model, bounds: np.ndarray, largest_vector: float = 0.0,
-                   scene_dir: Path = Path("."), emitters: tuple[Any, ...] = ()) -> FrameGeometry:
-        # palette colours follow the scene's order of bodies; the model orders them particles first
-        by_name = {body.name: (index, body) for index, body in enumerate(spec.bodies)}
-        colors = [by_name[name][1].color or PALETTE[by_name[name][0] % len(PALETTE)] for name in model.owners]
-        n, rigid, springs = model.particle_count, model.rigid, model.springs
-        extents = body_extents(model)
-        none = np.zeros(0, np.intp)
-        spring_parts: tuple[np.ndarray, ...] = (none, none, np.zeros(0, bool), np.zeros((0, 3)), np.zeros((0, 3)))
-        spring_colors: list[str] = []
-        if springs is not None:
-            mesh = springs.mesh if springs.mesh is not None else np.zeros(springs.count, bool)
-            drawn = ~mesh | (spec.render.mesh_springs == "line")
-            spring_parts = tuple(np.asarray(a)[drawn] for a in (springs.first, springs.second,
-                                                                 springs.second_is_anchor, springs.first_offset,
-                                                                 springs.second_offset))
-            scene_colors = iter([s.color or SPRING_COLOR for s in spec.springs])
-            spring_colors = [MESH_SPRING_COLOR if is_mesh else next(scene_colors) for is_mesh in mesh[drawn]]
-        fluids = [(term.level, term.up) for term in model.force_terms if term.kind == "buoyancy"]
-        rigid_extent = extents[n:]
-        scale = 2 * float(np.max(rigid_extent)) / largest_vector if largest_vector > 0 and len(rigid_extent) else 0.0
-        deformables = model.deformables
-        owners = np.array(model.owners[:n], dtype=object)
-        drawn_particles = np.ones(n, bool)
-        surface_colors = []
-        if deformables is not None:
-            names = {body.name for body in deformables.bodies}
-            drawn_particles = np.array([owner not in names for owner in owners], bool)
-            for body in deformables.bodies:
-                index, body_spec = by_name[body.name]
-                front = body_spec.color or PALETTE[index % len(PALETTE)]
-                back = getattr(body_spec, "back_color", None) or darker(front)
-                surface_colors.append((front, back))
-        segments, points = controller_targets(model)
-        return cls(np.asarray(model.bodies.radius[:n]), colors,
-                   rigid.shapes if rigid is not None else (),
-                   rigid.centre if rigid is not None else np.zeros((0, 3)),
-                   rigid.inertia if rigid is not None else np.zeros((0, 3, 3)), rigid_extent,
-                   rigid.base_dir if rigid is not None else Path("."), np.asarray(model.anchor_position),
-                   *spring_parts, spring_colors, fluids, bounds, scale,
-                   tuple(c for c in spec.colliders if c.visible), scene_dir, model.anchors,
-                   np.asarray(model.anchor_visible), drawn_particles, deformables, tuple(surface_colors),
-                   segments, points, emitters)
-
-
-def controller_targets(model: Model) -> tuple[np.ndarray | None, tuple[Any, ...]]:
-    """The segments (S, 2, 3) of the curves that the model's PD controllers pull towards (or None), and their point
-    and keyframe targets."""
-    from animbatch.sim.forces.controllers import CurveTarget
-
-    term = next((term for term in model.force_terms if term.kind == "controller"), None)
-    if term is None:
-        return None, ()
-    segments, points = [], []
-    for target in term.targets:
-        if isinstance(target, CurveTarget):
-            line = getattr(target.curve, "polyline", target.curve)  # a parametric curve's samples
-            segments.append(np.stack([line.start, line.start + line.direction], axis=1))
-        else:
-            points.append(target)
-    return (np.concatenate(segments) if segments else None), tuple(points)
-
+    emitters: tuple[Any, ...] = ()  # compiled emitters whose particles are drawn (render.emitted.ParticleLooks)
+    meshes: dict[tuple[str, str], Any] = field(default_factory=dict)  # mesh files read: (file, scale) -> mesh
 
 def darker(color: str, factor: float = 0.7) -> str:
     """The same hue, darker (for the back of a cloth)."""
@@ -202,8 +99,14 @@ def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     return np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
 
 
-def shape_mesh(shape: Any, base_dir: Path, resolution: int) -> Any:
-    """A PyVista surface of a scene shape, in shape coordinates."""
+def mesh_key(shape: Any) -> tuple[str, str]:
+    """How :attr:`FrameGeometry.meshes` names the mesh file of a mesh shape or collider."""
+    return shape.file, repr(shape.scale)
+
+
+def shape_mesh(shape: Any, meshes: dict[tuple[str, str], Any], resolution: int) -> Any:
+    """A PyVista surface of a scene shape, in shape coordinates; ``meshes`` holds the mesh files already read
+    (vertices (V, 3) [m], faces (F, 3))."""
     import pyvista as pv
 
     if isinstance(shape, SphereShape | ShellShape):
@@ -216,20 +119,16 @@ def shape_mesh(shape: Any, base_dir: Path, resolution: int) -> Any:
         return pv.Cylinder(center=(0, 0, 0), direction=(0, 0, 1), radius=radius, height=shape.length,
                            resolution=resolution).triangulate()
     if isinstance(shape, MeshShape | MeshCollider):
-        from animbatch.sim.rigid.shapes import load_mesh
-
-        mesh = load_mesh(base_dir / shape.file, shape.scale)
+        mesh = meshes[mesh_key(shape)]
         faces = np.hstack([np.full((len(mesh.faces), 1), 3), mesh.faces]).ravel()
         return pv.PolyData(mesh.vertices, faces)
     if isinstance(shape, CompoundShape):
-        from animbatch.compile.bodies import orientation_matrix
-
         merged = None
         for part in shape.parts:
             transform = np.eye(4)
             transform[:3, :3] = orientation_matrix(part.orientation)
             transform[:3, 3] = part.offset
-            piece = shape_mesh(part.shape, base_dir, resolution).transform(transform, inplace=False)
+            piece = shape_mesh(part.shape, meshes, resolution).transform(transform, inplace=False)
             merged = piece if merged is None else merged.merge(piece)
         return merged
     raise TypeError(f"cannot draw shape {shape!r}")
@@ -353,7 +252,7 @@ class FrameRenderer:
         self._rigid_matrices = []
         self._vector_actors = []
         for b, shape in enumerate(geometry.rigid_shapes):
-            mesh = shape_mesh(shape, geometry.base_dir, spec.sphere_resolution).translate(-geometry.rigid_centre[b])
+            mesh = shape_mesh(shape, geometry.meshes, spec.sphere_resolution).translate(-geometry.rigid_centre[b])
             # split vertices at sharp edges so boxes stay crisp while spheres and cylinders look smooth
             mesh = mesh.compute_normals(split_vertices=True, feature_angle=40.0)
             matrix = self._matrix_class()
@@ -459,7 +358,6 @@ class FrameRenderer:
 
     def _add_colliders(self) -> None:
         """Fixed colliders, built once: planes as squares around the motion, boxes, spheres and meshes."""
-        from animbatch.compile.bodies import orientation_matrix
         from animbatch.scene.schema import BoxCollider, MeshCollider, PlaneCollider, SphereCollider
 
         for collider in self.geometry.colliders:
@@ -479,7 +377,7 @@ class FrameRenderer:
                 transform[:3, 3] = collider.position
                 mesh = self.pv.Box(bounds=(-a, a, -b, b, -c, c)).triangulate().transform(transform, inplace=False)
             elif isinstance(collider, MeshCollider):
-                surface = shape_mesh(collider, self.geometry.scene_dir, self.render_spec.sphere_resolution)
+                surface = shape_mesh(collider, self.geometry.meshes, self.render_spec.sphere_resolution)
                 transform = np.eye(4)
                 transform[:3, :3] = orientation_matrix(collider.orientation)
                 transform[:3, 3] = collider.position

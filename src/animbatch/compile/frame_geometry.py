@@ -1,0 +1,130 @@
+"""What the renderer draws, compiled from the scene and its model: a :class:`~animbatch.render.frames.FrameGeometry`.
+
+Rendering never reads the Model or recompiles anything: everything it needs about bodies, springs, fluids,
+controllers and mesh files is gathered here, once per render.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from animbatch.render.frames import (MESH_SPRING_COLOR, PALETTE, SPRING_COLOR, FrameGeometry, darker, mesh_key)
+from animbatch.scene.orientation import orientation_matrix
+from animbatch.scene.schema import (BoxCollider, CompoundShape, MeshCollider, MeshShape, RigidBodySpec, SceneSpec,
+                                    SphereCollider)
+from animbatch.sim.forces.buoyancy import Buoyancy
+from animbatch.sim.forces.controllers import Controllers, CurveTarget
+from animbatch.sim.model.model import Model
+from animbatch.sim.rigid.shapes import load_mesh
+
+
+def body_extents(model: Model) -> np.ndarray:
+    """How far each body reaches from its centre of mass [m], shape (P,): radius for particles, the farthest
+    surface point for rigid bodies (used to fit the camera)."""
+    extents = np.array(model.bodies.radius, float)
+    rigid = model.rigid
+    if rigid is not None:
+        for b, geometry in enumerate(rigid.geometry):
+            reach = 0.0
+            if len(geometry.triangles):
+                reach = float(np.max(np.linalg.norm(geometry.triangles - rigid.centre[b], axis=-1)))
+            for x, y, z, r in geometry.spheres:
+                reach = max(reach, float(np.linalg.norm(np.array([x, y, z]) - rigid.centre[b]) + r))
+            extents[model.particle_count + b] = reach
+    return extents
+
+
+def collider_points(spec: SceneSpec, scene_dir: Path = Path(".")) -> np.ndarray:
+    """Corner points (K, 3) of the finite colliders (boxes, spheres, meshes), for fitting the camera; planes are
+    infinite and left out."""
+    points = []
+    for collider in spec.colliders:
+        if not collider.visible:
+            continue
+        if isinstance(collider, SphereCollider):
+            points += [np.asarray(collider.position) + s * collider.radius for s in (-1, 1)]
+        elif isinstance(collider, BoxCollider):
+            half = np.asarray(collider.size) / 2
+            corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half
+            points += list(corners @ orientation_matrix(collider.orientation).T + collider.position)
+        elif isinstance(collider, MeshCollider):
+            vertices = load_mesh(scene_dir / collider.file, collider.scale).vertices
+            vertices = vertices @ orientation_matrix(collider.orientation).T + collider.position
+            points += [vertices.min(axis=0), vertices.max(axis=0)]
+    return np.array(points, float).reshape(-1, 3)
+
+
+def frame_geometry(spec: SceneSpec, model: Model, bounds: np.ndarray, largest_vector: float = 0.0,
+                   scene_dir: Path = Path("."), emitters: tuple[Any, ...] = ()) -> FrameGeometry:
+    """What the renderer draws for a scene and its model: colours, shapes, springs, fluids, colliders, targets and
+    the mesh files read, within ``bounds`` (2, 3) [m]; ``largest_vector`` scales the ω/L arrows."""
+    # palette colours follow the scene's order of bodies; the model orders them particles first
+    by_name = {body.name: (index, body) for index, body in enumerate(spec.bodies)}
+    colors = [by_name[name][1].color or PALETTE[by_name[name][0] % len(PALETTE)] for name in model.owners]
+    n, rigid, springs = model.particle_count, model.rigid, model.springs
+    extents = body_extents(model)
+    none = np.zeros(0, np.intp)
+    spring_parts: tuple[np.ndarray, ...] = (none, none, np.zeros(0, bool), np.zeros((0, 3)), np.zeros((0, 3)))
+    spring_colors: list[str] = []
+    if springs is not None:
+        mesh = springs.mesh if springs.mesh is not None else np.zeros(springs.count, bool)
+        drawn = ~mesh | (spec.render.mesh_springs == "line")
+        spring_parts = tuple(np.asarray(a)[drawn] for a in (springs.first, springs.second, springs.second_is_anchor,
+                                                            springs.first_offset, springs.second_offset))
+        scene_colors = iter([s.color or SPRING_COLOR for s in spec.springs])
+        spring_colors = [MESH_SPRING_COLOR if is_mesh else next(scene_colors) for is_mesh in mesh[drawn]]
+    fluids = [(term.level, term.up) for term in model.force_terms if isinstance(term, Buoyancy)]
+    rigid_extent = extents[n:]
+    scale = 2 * float(np.max(rigid_extent)) / largest_vector if largest_vector > 0 and len(rigid_extent) else 0.0
+    deformables = model.deformables
+    owners = np.array(model.owners[:n], dtype=object)
+    drawn_particles = np.ones(n, bool)
+    surface_colors = []
+    if deformables is not None:
+        names = {body.name for body in deformables.bodies}
+        drawn_particles = np.array([owner not in names for owner in owners], bool)
+        for body in deformables.bodies:
+            index, body_spec = by_name[body.name]
+            front = body_spec.color or PALETTE[index % len(PALETTE)]
+            back = getattr(body_spec, "back_color", None) or darker(front)
+            surface_colors.append((front, back))
+    segments, points = controller_targets(model)
+    shapes = tuple(by_name[name][1].shape for name in rigid.names) if rigid is not None else ()
+    return FrameGeometry(np.asarray(model.bodies.radius[:n]), colors, shapes,
+                         rigid.centre if rigid is not None else np.zeros((0, 3)),
+                         rigid.inertia if rigid is not None else np.zeros((0, 3, 3)), rigid_extent,
+                         scene_dir, np.asarray(model.anchor_position),
+                         *spring_parts, spring_colors, fluids, bounds, scale,
+                         tuple(c for c in spec.colliders if c.visible), scene_dir, model.anchors,
+                         np.asarray(model.anchor_visible), drawn_particles, deformables, tuple(surface_colors),
+                         segments, points, emitters, _mesh_files(spec, scene_dir))
+
+
+def controller_targets(model: Model) -> tuple[np.ndarray | None, tuple[Any, ...]]:
+    """The segments (S, 2, 3) of the curves that the model's PD controllers pull towards (or None), and their point
+    and keyframe targets."""
+    term = next((term for term in model.force_terms if isinstance(term, Controllers)), None)
+    if term is None:
+        return None, ()
+    segments, points = [], []
+    for target in term.targets:
+        if isinstance(target, CurveTarget):
+            line = getattr(target.curve, "polyline", target.curve)  # a parametric curve's samples
+            segments.append(np.stack([line.start, line.start + line.direction], axis=1))
+        else:
+            points.append(target)
+    return (np.concatenate(segments) if segments else None), tuple(points)
+
+
+def _mesh_files(spec: SceneSpec, scene_dir: Path) -> dict[tuple[str, str], Any]:
+    """Every mesh file the renderer draws (rigid shapes, compound parts, visible mesh colliders), read once."""
+    shapes: list[Any] = [c for c in spec.colliders if isinstance(c, MeshCollider) and c.visible]
+    for body in spec.bodies:
+        if isinstance(body, RigidBodySpec):
+            parts = body.shape.parts if isinstance(body.shape, CompoundShape) else ()
+            shapes += [body.shape] + [part.shape for part in parts]
+    return {mesh_key(shape): load_mesh(scene_dir / shape.file, shape.scale)
+            for shape in shapes if isinstance(shape, MeshShape | MeshCollider)}
