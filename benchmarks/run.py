@@ -50,9 +50,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
 
+from animbatch.compile.builder import ModelBuilder  # noqa: E402
 from animbatch.sim.integrators import ScipyIntegrator  # noqa: E402
 from animbatch.sim.integrators.fixed_step import SymplecticEuler, VelocityVerlet  # noqa: E402
-from animbatch.compile.builder import ModelBuilder  # noqa: E402
 from animbatch.sim.model import Dynamics  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -195,8 +195,8 @@ def bench_contacts(quick: bool) -> list[Row]:
     default iteration limit (300) and with 30, which shows what exactness costs while the pile forms."""
     from scipy.spatial import cKDTree
 
-    from animbatch.compile.solver import make_integrator
     from animbatch.compile.model import compile_scene
+    from animbatch.compile.solver import make_integrator
     from animbatch.stages import parse_scene
 
     rows = []
@@ -204,7 +204,7 @@ def bench_contacts(quick: bool) -> list[Row]:
         loaded = parse_scene(pile_scene(count, iterations))
         model = compile_scene(loaded.spec)
         system = Dynamics(model)
-        integrator = make_integrator(loaded.spec.solver)
+        integrator = make_integrator(loaded.spec.solver, model)
         stamps: list[float] = []
         result = integrator.integrate(system, model.y0, model.frame_times,
                                       on_frame=lambda frame, t: stamps.append(time.perf_counter()))
@@ -258,9 +258,9 @@ class OutOfBudget(Exception):
 def bench_cloth(quick: bool, budget: float | None = None, only: list[str] | None = None) -> list[Row]:
     """The stiff cloth with each method (or those whose label starts with one of ``only``), each within a wall-time
     budget."""
+    from animbatch.compile.model import compile_scene
     from animbatch.compile.solver import make_integrator
     from animbatch.sim.integrators.stability import largest_stable_step, stiffest_mode
-    from animbatch.compile.model import compile_scene
     from animbatch.stages import parse_scene
 
     resolution, duration = (24, 1.0) if quick else (64, 5.0)
@@ -279,7 +279,7 @@ def bench_cloth(quick: bool, budget: float | None = None, only: list[str] | None
     ]
     methods = [(name, solver) for name, solver in methods if not only or name.startswith(tuple(only))]
     label = f"cloth {resolution}×{resolution}, {duration:g} s"
-    rows: list[Row] = [{"benchmark": label, "case": f"fastest spring mode ω (explicit methods need ω dt ≲ 2)",
+    rows: list[Row] = [{"benchmark": label, "case": "fastest spring mode ω (explicit methods need ω dt ≲ 2)",
                         "value": mode.omega, "unit": "rad/s"}]
     for name, solver in methods:
         loaded = parse_scene(cloth_scene(resolution, duration, solver))
@@ -295,7 +295,7 @@ def bench_cloth(quick: bool, budget: float | None = None, only: list[str] | None
 
         print(f"  cloth: {name} …", file=sys.stderr, flush=True)
         try:
-            stats = make_integrator(loaded.spec.solver).integrate(system, model.y0, model.frame_times,
+            stats = make_integrator(loaded.spec.solver, model).integrate(system, model.y0, model.frame_times,
                                                                   on_frame=on_frame).stats
         except OutOfBudget:
             seconds = time.perf_counter() - started
@@ -320,8 +320,8 @@ def render_frames(count: int, anti_aliasing: str, frames: int) -> tuple[float, l
     import dataclasses
 
     from animbatch import api
-    from animbatch.render.backend import select_backend
     from animbatch.compile.frame_geometry import frame_geometry
+    from animbatch.render.backend import select_backend
     from animbatch.render.frames import FrameRenderer
     from animbatch.stages import parse_scene
 
@@ -394,9 +394,9 @@ def bench_fountain(quick: bool) -> list[Row]:
     scene's 2-frame trails)."""
     from animbatch import api
     from animbatch.compile.particles import compile_particles
-    from animbatch.sim.particles.simulate import simulate_particles
     from animbatch.render.backend import select_backend
     from animbatch.render.frames import FrameRenderer
+    from animbatch.sim.particles.simulate import simulate_particles
     from animbatch.stages import load_scene
 
     live = 10_000 if quick else 100_000

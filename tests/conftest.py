@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from animbatch import api
-from animbatch.sim.model import Model
 from animbatch.compile.model import compile_scene
 from animbatch.scene import LoadedScene
+from animbatch.sim.model import Model
 from animbatch.stages import parse_scene
 from animbatch.trajectory import Trajectory
 

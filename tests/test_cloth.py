@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from animbatch.sim.deformable import topology
+from animbatch.compile.model import compile_scene
 from animbatch.errors import SimulationError
+from animbatch.sim.deformable import topology
 from animbatch.sim.forces.dihedral import hinge_angles, hinge_gradients
 from animbatch.sim.invariants import kinetic_energy, linear_momentum, total_energy
 from animbatch.sim.model import Dynamics
-from animbatch.compile.model import compile_scene
 from conftest import run, scene, states
 
 G = 9.81
@@ -220,7 +220,7 @@ def test_implicit_adaptive_methods_with_the_sparse_jacobian_follow_the_exact_lin
 
     loaded = scene(stiff_oscillator_chain(method))
     model = compile_scene(loaded.spec)
-    result = make_integrator(loaded.spec.solver).integrate(Dynamics(model), model.y0, model.frame_times)
+    result = make_integrator(loaded.spec.solver, model).integrate(Dynamics(model), model.y0, model.frame_times)
     assert result.stats.jacobian_evaluations > 0 and result.stats.lu_decompositions < result.stats.steps
     mass, k1, k2, c1, c2 = 0.5, 2.0e5, 1.0e5, 20.0, 10.0
     stiffness = np.array([[-(k1 + k2), k2], [k2, -k2]]) / mass
@@ -236,16 +236,16 @@ def test_implicit_adaptive_methods_with_the_sparse_jacobian_follow_the_exact_lin
 def test_implicit_adaptive_methods_reuse_newton_factors_without_losing_accuracy(monkeypatch):
     """On a stiff falling cloth, BDF factors its Newton matrix far less often when factors are reused across small
     step changes, and lands where it lands when it refactors at every change (both within tolerance of each other)."""
-    from animbatch.sim.integrators import linear_algebra
     from animbatch.compile.solver import make_integrator
     from animbatch.scene.schema import SolverSpec
+    from animbatch.sim.integrators import linear_algebra
 
     model = compile_scene(scene(cloth("{}", **{**STIFF_CLOTH, "duration": 0.1}),
                                 "bodies[sheet].orientation={axis: [1, 0, 0], angle: -90}").spec)
     solver = SolverSpec(method="BDF", rtol=1e-4, atol=1e-6)
 
     def integrate() -> tuple[np.ndarray, int, int]:
-        result = make_integrator(solver).integrate(Dynamics(model), model.y0, model.frame_times)
+        result = make_integrator(solver, model).integrate(Dynamics(model), model.y0, model.frame_times)
         return result.states, result.stats.lu_decompositions, result.stats.steps
 
     reused, reused_factorisations, steps = integrate()

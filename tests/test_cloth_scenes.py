@@ -13,7 +13,6 @@ import pytest
 
 from animbatch import api
 from animbatch.sim.invariants import kinetic_energy
-from animbatch.sim.model import Dynamics
 from animbatch.stages import load_scene
 from conftest import states
 

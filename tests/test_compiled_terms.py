@@ -7,11 +7,11 @@ import pytest
 from click.testing import CliRunner
 
 from animbatch.cli import cli
-from animbatch.sim.forces import Drag, Gravitation, SpringForces, UniformGravity
 from animbatch.compile.forces import FIELD_TERMS
-from animbatch.sim.forces import springs as spring_module
 from animbatch.compile.model import compile_scene
 from animbatch.scene.schema import field_type_names
+from animbatch.sim.forces import Drag, Gravitation, SpringForces, UniformGravity
+from animbatch.sim.forces import springs as spring_module
 from conftest import run, scene
 
 PLAIN = """

@@ -453,8 +453,8 @@ def test_an_event_loop_that_stops_advancing_is_stopped_with_a_clear_error(monkey
     """A safety net: should impact location ever keep reporting an impact at the step's start (no progress), the
     run stops after MAX_STALLED_EVENTS events at that instant, naming the time and a method that copes, instead of
     spinning forever."""
-    from animbatch.sim.contact import events
     from animbatch.errors import SimulationError
+    from animbatch.sim.contact import events
 
     monkeypatch.setattr(events.ContactEvents, "_first_impact", lambda self, solver, candidates, closing: solver.t_old)
     with pytest.raises(SimulationError, match=r"contact events stopped advancing at t = 0 s \(101 events at that "

@@ -6,8 +6,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from animbatch.curves import (ExpressionError, ParametricCurve, Polyline, compile_expression, compile_tree,
-                              differentiate, parse_expression)
+from animbatch.curves import (
+    ExpressionError,
+    ParametricCurve,
+    Polyline,
+    compile_expression,
+    compile_tree,
+    differentiate,
+    parse_expression,
+)
 from animbatch.sim.motion import KeyframePath
 from conftest import body, run, scene
 

@@ -11,7 +11,7 @@ from click.testing import CliRunner
 from animbatch.cli import cli
 from animbatch.errors import SimulationError
 from animbatch.sim.integrators import FixedStepIntegrator, ScipyIntegrator
-from animbatch.sim.model import ModelBuilder, Dynamics
+from animbatch.sim.model import Dynamics, ModelBuilder
 from conftest import run
 
 # ω = sqrt(k/m) = 1e4 rad/s, so explicit Euler at h = 1e-3 (ω h = 10) multiplies the amplitude by ~10 per step.

@@ -15,14 +15,14 @@ from click.testing import CliRunner
 
 from animbatch import api, stages
 from animbatch.cli import cli
-from animbatch.errors import SceneError, SimulationError
-from animbatch.sim.integrators.budget import wall_budget
-from animbatch.sim.integrators.cost import PARTICLE_STEP_SECONDS, CostEstimate, check_cost, estimate_cost
 from animbatch.compile.model import compile_scene
 from animbatch.compile.particles import pool_sizes
+from animbatch.errors import SceneError, SimulationError
+from animbatch.scene.yaml_source import MAX_DEPTH, MAX_DOCUMENT_BYTES, MAX_NODES
+from animbatch.sim.integrators.budget import wall_budget
+from animbatch.sim.integrators.cost import PARTICLE_STEP_SECONDS, CostEstimate, check_cost, estimate_cost
 from animbatch.sim.particles.simulate import steps_per_frame
 from animbatch.stages import load_scene, parse_scene
-from animbatch.scene.yaml_source import MAX_DEPTH, MAX_DOCUMENT_BYTES, MAX_NODES
 from conftest import scene
 
 GOOD = "bodies: [{name: ball, mass: 1.0, position: [0, 1, 0]}]\nfields: [{type: gravity}]\n"

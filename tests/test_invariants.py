@@ -5,9 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from animbatch.sim.invariants import (angular_momentum, centre_of_mass, kinetic_energy, linear_momentum,
-                                  potential_energy, total_energy)
-from conftest import body, run, states
+from animbatch.sim.invariants import (
+    angular_momentum,
+    centre_of_mass,
+    kinetic_energy,
+    linear_momentum,
+    potential_energy,
+    total_energy,
+)
+from conftest import run, states
 
 ORBIT = """
     duration: 6

@@ -5,11 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from animbatch.compile.model import compile_scene
 from animbatch.sim.forces.base import ForceJacobian
 from animbatch.sim.model import Dynamics
 from conftest import scene
-
-from animbatch.compile.model import compile_scene
 
 SCENE = """
     duration: 1

@@ -8,10 +8,15 @@ import pytest
 import trimesh
 
 from animbatch import api
-from animbatch.sim.rigid import mass_properties as mp
-from animbatch.sim.rigid.polyhedra import (box_mesh, cylinder_mesh, icosphere, mesh_mass_properties,
-                                       submerged_volume_and_moment)
 from animbatch.compile.bodies import body_geometry
+from animbatch.sim.rigid import mass_properties as mp
+from animbatch.sim.rigid.polyhedra import (
+    box_mesh,
+    cylinder_mesh,
+    icosphere,
+    mesh_mass_properties,
+    submerged_volume_and_moment,
+)
 from conftest import scene
 
 DENSITY = 800.0

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from animbatch import api
-from animbatch.errors import SceneError, SimulationError
 from animbatch.compile.particles import compile_particles
+from animbatch.errors import SceneError, SimulationError
 from animbatch.sim.particles.schedule import Births
 from animbatch.sim.particles.simulate import simulate_particles
 from conftest import run, scene

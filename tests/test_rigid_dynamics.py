@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from animbatch import api
+from animbatch import quaternion as Q
 from animbatch.sim.invariants import angular_momentum, kinetic_energy, total_energy
 from animbatch.sim.model import Dynamics
-from animbatch import quaternion as Q
 from animbatch.stages import load_scene
 from conftest import ADAPTIVE, FIXED_STEP, run, states
 

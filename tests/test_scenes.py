@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from animbatch import api
-from animbatch.sim.invariants import angular_momentum, total_energy
 from animbatch.compile.model import compile_scene
+from animbatch.sim.invariants import angular_momentum, total_energy
 from animbatch.stages import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]

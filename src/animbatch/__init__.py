@@ -9,7 +9,8 @@ Everything is usable from Python; the ``animbatch`` command is a thin layer over
 
 from __future__ import annotations
 
-from importlib.metadata import PackageNotFoundError, version as _version
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _version
 
 try:
     __version__ = _version("animbatch")

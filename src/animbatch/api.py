@@ -16,9 +16,19 @@ from animbatch.compile.builder import ModelBuilder
 from animbatch.compile.model import compile_scene
 from animbatch.farm.run import RenderResult, RunReport, finish_outputs, render, run
 from animbatch.scene import physics_fingerprint
-from animbatch.stages import (check_trajectory, compile_model, failure_report, frame_geometry, load_scene,
-                              parse_scene, scene_fingerprint, scene_folder, simulate, simulate_emitters,
-                              write_quantities)
+from animbatch.stages import (
+                              check_trajectory,
+                              compile_model,
+                              failure_report,
+                              frame_geometry,
+                              load_scene,
+                              parse_scene,
+                              scene_fingerprint,
+                              scene_folder,
+                              simulate,
+                              simulate_emitters,
+                              write_quantities,
+)
 
 __all__ = ["ModelBuilder", "RenderResult", "RunReport", "check_trajectory", "compile_model", "compile_scene",
            "failure_report", "finish_outputs", "frame_geometry", "load_scene", "parse_scene", "physics_fingerprint",

@@ -274,8 +274,8 @@ def plot(scene: Path, trajectory: Path | None, out_dir: Path, settings: tuple[st
     (simulating it first when there is none)."""
     from animbatch import api
     from animbatch.farm import bake as bake_scene
-    from animbatch.sim.ledger import summary
     from animbatch.progress import Progress
+    from animbatch.sim.ledger import summary
     from animbatch.trajectory import Trajectory
 
     loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
@@ -308,9 +308,8 @@ def bake(scene: Path, out_dir: Path, force: bool, checkpoint_every: int | None, 
     say that the cache is already up to date."""
     from animbatch import api
     from animbatch.farm import bake as bake_scene
-    from animbatch.progress import Progress
-
     from animbatch.farm.frames import prepare_frames
+    from animbatch.progress import Progress
 
     loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
     result = bake_scene(loaded, out_dir=out_dir, progress=Progress(enabled=progress), force=force,
@@ -364,9 +363,8 @@ def batch(scenes: tuple[Path, ...], out_dir: Path, workers: int | None, schedule
           backend: str, settings: tuple[str, ...], sweeps: tuple[str, ...]) -> None:
     """Render many scenes on Dask: each is baked, rendered in chunks in parallel, then encoded. Every job runs to
     its end; a summary table follows, and the exit code is 1 if any job failed."""
-    from animbatch.farm.batch import Job, run_batch, summary
-
     from animbatch import api
+    from animbatch.farm.batch import Job, run_batch, summary
 
     chosen: list[dict[str, str]] = []
     if not sweeps and len(scenes) == 1:  # a sweep: block in the scene stands for --sweep options

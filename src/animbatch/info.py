@@ -4,15 +4,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from animbatch.sim.contact.stepping import DEFAULT_REST_SPEED
 from animbatch.compile.forces import FIELD_TERMS
-from animbatch.sim.integrators import DEFAULT_DT
 from animbatch.compile.solver import make_integrator
+from animbatch.scene import LoadedScene
+from animbatch.scene.schema import BoxCollider, PlaneCollider, SphereCollider
+from animbatch.sim.contact.stepping import DEFAULT_REST_SPEED
+from animbatch.sim.integrators import DEFAULT_DT
 from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.ledger import conservation_laws, step_note
 from animbatch.sim.model import Model
-from animbatch.scene import LoadedScene
-from animbatch.scene.schema import BoxCollider, PlaneCollider, SphereCollider
 
 
 def _plural(count: int, word: str, plural: str | None = None) -> str:
@@ -52,7 +52,7 @@ def _rigid_lines(model: Model, x0: object, v0: object) -> list[str]:
         lines += [
             f"rigid      {name}: mass {rigid.mass[b]:.6g} kg, volume {properties.volume:.6g} m³, "
             f"centre of mass {_vector(rigid.centre[b])} m from the shape origin",
-            f"           inertia about the centre of mass, body axes [kg·m²]: "
+            "           inertia about the centre of mass, body axes [kg·m²]: "
             + "  ".join(_vector(row) for row in inertia),
             f"           principal moments {_vector(properties.principal_moments)} kg·m²",
             f"           start: centre at {_vector(x0[point])} m, velocity {_vector(v0[point])} m/s, "  # type: ignore[index]

@@ -11,37 +11,32 @@ from __future__ import annotations
 
 import datetime as _dt
 import platform
-import shutil
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from animbatch import __version__
-from animbatch.errors import SimulationError, TrajectoryError
-from animbatch.files import write_json_atomic
+from animbatch.compile.checks import check_files
+from animbatch.compile.model import compile_scene
+from animbatch.compile.particles import pool_sizes
 from animbatch.compile.solver import make_integrator
+from animbatch.errors import SimulationError, TrajectoryError
+from animbatch.progress import Progress
+from animbatch.scene import LoadedScene, physics_fingerprint
+from animbatch.scene import loader as scene_loader
+from animbatch.scene.overrides import Override
 from animbatch.sim.integrators import DEFAULT_DT, IntegrationResult, SolverStats
 from animbatch.sim.integrators.budget import wall_budget
 from animbatch.sim.integrators.cost import check_cost, estimate_cost
 from animbatch.sim.integrators.guard import check_energy_growth
 from animbatch.sim.integrators.preflight import preflight
-from animbatch.sim.ledger import build_ledger, warn_again
-from animbatch.sim.ledger import summary as ledger_summary
+from animbatch.sim.ledger import build_ledger
 from animbatch.sim.model import Dynamics, Model
-from animbatch.compile.particles import pool_sizes
 from animbatch.sim.particles.simulate import steps_per_frame
-from animbatch.progress import Progress
-from animbatch.compile.checks import check_files
-from animbatch.compile.model import compile_scene
-from animbatch.scene import LoadedScene, physics_fingerprint
-from animbatch.scene import loader as scene_loader
-from animbatch.scene.overrides import Override
 from animbatch.stopwatch import Stopwatch
 from animbatch.trajectory import Trajectory
-
 
 
 def load_scene(path: str | Path, overrides: Sequence[Override] = ()) -> LoadedScene:
@@ -65,7 +60,7 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
     the file when it exists (see :mod:`animbatch.sim.integrators.checkpoint`)."""
     spec = scene.spec
     model = model if model is not None else compile_model(scene)
-    integrator = make_integrator(spec.solver)
+    integrator = make_integrator(spec.solver, model)
     progress = progress or Progress(enabled=False)
     warnings = preflight(spec, model)  # risky settings, with numbers (what is certain to fail is refused)
     frame_steps = steps_per_frame(1.0 / spec.fps, spec.solver.method, spec.solver.dt or DEFAULT_DT)
@@ -117,8 +112,8 @@ def simulate_emitters(scene: LoadedScene, model: Model, states: np.ndarray, prog
     spec = scene.spec
     if not spec.emitters:
         return [], {}
-    from animbatch.sim.particles.body_motion import BodyMotion
     from animbatch.compile.particles import compile_particles
+    from animbatch.sim.particles.body_motion import BodyMotion
     from animbatch.sim.particles.simulate import simulate_particles
 
     systems = compile_particles(spec, model, scene_folder(scene))
@@ -174,9 +169,9 @@ def largest_vector(model: Model, trajectory: Trajectory, kind: str) -> float:
 def frame_geometry(scene: LoadedScene, model: Model, trajectory: Trajectory) -> Any:
     """What the renderer draws for this scene and trajectory (a :class:`~animbatch.render.frames.FrameGeometry`),
     with the camera fitted to the whole motion: bodies, anchors, colliders and emitted particles."""
-    from animbatch.render.camera import motion_bounds
     from animbatch.compile.frame_geometry import body_extents, collider_points
     from animbatch.compile.frame_geometry import frame_geometry as compile_frame_geometry
+    from animbatch.render.camera import motion_bounds
 
     spec = scene.spec
     anchors = (np.vstack([model.anchors.positions(float(t)) for t in trajectory.times]) if model.anchors.moving

@@ -26,7 +26,7 @@ key                    shape / type    meaning
 ``particles_K_serials``   (F, C)       int32 serial of the particle in each slot, -1 where the slot is free
 ``particles_K_ages``      (F, C)       float32 age of each particle [s]
 ``particle_stats``     str (JSON)      births, deaths, drops, collisions, steps of the particle simulation
-``ledger``             str (JSON)      the run's accuracy ledger (see :mod:`animbatch.sim.ledger`; absent in older files)
+``ledger``             str (JSON)      the run's accuracy ledger (:mod:`animbatch.sim.ledger`; not in older files)
 =====================  ==============  =================================================================
 
 Version 2 files (without particles) are still read.
@@ -130,7 +130,8 @@ class Trajectory:
         """Read a trajectory file, checking its format and the consistency of its arrays."""
         path = Path(path)
         if not path.is_file():
-            raise TrajectoryError(f"{path}: no such trajectory file (write one with 'animbatch simulate SCENE -o {path}')")
+            raise TrajectoryError(f"{path}: no such trajectory file "
+                                  f"(write one with 'animbatch simulate SCENE -o {path}')")
         try:
             with np.load(path, allow_pickle=False) as data:
                 arrays = {key: data[key] for key in data.files}

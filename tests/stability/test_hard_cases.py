@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from animbatch.compile.model import compile_scene
 from animbatch.errors import SimulationError
 from animbatch.sim.integrators.preflight import StabilityWarning, preflight
 from animbatch.sim.integrators.stability import largest_stable_step, step_matrix
 from animbatch.sim.invariants import angular_momentum, kinetic_energy, total_energy
-from animbatch.compile.model import compile_scene
 from conftest import run, scene, states
 
 G = 9.81

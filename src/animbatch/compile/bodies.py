@@ -8,8 +8,16 @@ from pathlib import Path
 import numpy as np
 
 from animbatch.scene.orientation import orientation_matrix, orientation_quaternion
-from animbatch.scene.schema import (BoxShape, CompoundShape, CylinderShape, MeshShape, RigidBodySpec,
-                                    RodShape, ShellShape, SphereShape)
+from animbatch.scene.schema import (
+    BoxShape,
+    CompoundShape,
+    CylinderShape,
+    MeshShape,
+    RigidBodySpec,
+    RodShape,
+    ShellShape,
+    SphereShape,
+)
 from animbatch.sim.rigid import mass_properties as mp
 from animbatch.sim.rigid.polyhedra import box_mesh, cylinder_mesh, mesh_mass_properties
 from animbatch.sim.rigid.shapes import BodyGeometry, load_mesh

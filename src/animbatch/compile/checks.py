@@ -9,8 +9,17 @@ from typing import Any
 
 from animbatch.compile import deformables as build
 from animbatch.scene.checks import Problem
-from animbatch.scene.schema import (DEFORMABLE_SPECS, ClothMeshSpec, ClothSpec, CompoundShape, MeshCollider, MeshShape,
-                                    RigidBodySpec, SceneSpec)
+from animbatch.scene.schema import (
+    DEFORMABLE_SPECS,
+    ClothMeshSpec,
+    ClothSpec,
+    CompoundShape,
+    MeshCollider,
+    MeshShape,
+    RigidBodySpec,
+    SceneSpec,
+)
+from animbatch.scene.yaml_source import KeyPath
 from animbatch.sim.rigid.shapes import load_mesh, load_surface
 
 

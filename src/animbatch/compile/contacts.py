@@ -23,14 +23,28 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
+from animbatch.compile.bodies import orientation_matrix
+from animbatch.scene.schema import (
+    DEFORMABLE_SPECS,
+    BoxCollider,
+    BoxShape,
+    CompoundShape,
+    ContactSpec,
+    CylinderShape,
+    MeshCollider,
+    MeshShape,
+    PlaneCollider,
+    RigidBodySpec,
+    RodShape,
+    SceneSpec,
+    ShellShape,
+    SphereCollider,
+    SphereShape,
+)
 from animbatch.sim.contact.detection import PLANE, STATIC_BOX, STATIC_SPHERE, TRIANGLE, ContactWorld
 from animbatch.sim.contact.geometry import BodyBoxes, Probes, StaticColliders
 from animbatch.sim.contact.materials import Coefficients, MaterialTable
 from animbatch.sim.rigid.shapes import load_mesh
-from animbatch.compile.bodies import orientation_matrix
-from animbatch.scene.schema import (DEFORMABLE_SPECS, BoxCollider, BoxShape, CompoundShape, ContactSpec, CylinderShape, MeshCollider, MeshShape,
-                                    PlaneCollider, RigidBodySpec, RodShape, SceneSpec, ShellShape, SphereCollider,
-                                    SphereShape)
 
 RIM_PROBES = 16
 MESH_PROBES = 400

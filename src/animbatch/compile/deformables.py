@@ -10,11 +10,11 @@ from pathlib import Path
 
 import numpy as np
 
+from animbatch.compile.bodies import orientation_matrix
+from animbatch.scene.schema import ClothSpec, LatticeSpec, PinSpec
 from animbatch.sim.deformable import topology as topo
 from animbatch.sim.motion import KeyframePath
 from animbatch.sim.rigid.shapes import load_surface
-from animbatch.compile.bodies import orientation_matrix
-from animbatch.scene.schema import ClothSpec, LatticeSpec, PinSpec
 
 CORNERS = ("bottom-left", "bottom-right", "top-left", "top-right")
 
@@ -61,7 +61,8 @@ def pin_vertices(pin: PinSpec, topology: topo.Topology, world: np.ndarray) -> tu
         inside = np.flatnonzero(np.all((world >= low - 1e-12) & (world <= high + 1e-12), axis=1))
         if not len(inside):
             problems.append(f"the region {pin.region.min} … {pin.region.max} holds no vertex at the start (the body "
-                            f"spans {np.round(world.min(axis=0), 4).tolist()} … {np.round(world.max(axis=0), 4).tolist()})")
+                            f"spans {np.round(world.min(axis=0), 4).tolist()} … "
+                            f"{np.round(world.max(axis=0), 4).tolist()})")
         chosen += inside.tolist()
     return np.unique(np.asarray(chosen, np.intp)), problems
 

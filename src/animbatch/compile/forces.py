@@ -14,8 +14,18 @@ from typing import Any
 import numpy as np
 from pydantic import TypeAdapter
 
-from animbatch.scene.schema import (AerodynamicsSpec, AngularDragSpec, BuoyancySpec, DragSpec, FieldSpec, ForceSpec,
-                                    GravitationSpec, GravitySpec, TorqueSpec, WindSpec)
+from animbatch.scene.schema import (
+    AerodynamicsSpec,
+    AngularDragSpec,
+    BuoyancySpec,
+    DragSpec,
+    FieldSpec,
+    ForceSpec,
+    GravitationSpec,
+    GravitySpec,
+    TorqueSpec,
+    WindSpec,
+)
 from animbatch.sim.forces.aerodynamics import build_aerodynamics
 from animbatch.sim.forces.applied import build_angular_drag, build_force, build_torque
 from animbatch.sim.forces.base import BodyTable, ForceTerm, TermFactory

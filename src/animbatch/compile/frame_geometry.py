@@ -11,10 +11,17 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.render.frames import (MESH_SPRING_COLOR, PALETTE, SPRING_COLOR, FrameGeometry, darker, mesh_key)
+from animbatch.render.frames import MESH_SPRING_COLOR, PALETTE, SPRING_COLOR, FrameGeometry, darker, mesh_key
 from animbatch.scene.orientation import orientation_matrix
-from animbatch.scene.schema import (BoxCollider, CompoundShape, MeshCollider, MeshShape, RigidBodySpec, SceneSpec,
-                                    SphereCollider)
+from animbatch.scene.schema import (
+    BoxCollider,
+    CompoundShape,
+    MeshCollider,
+    MeshShape,
+    RigidBodySpec,
+    SceneSpec,
+    SphereCollider,
+)
 from animbatch.sim.forces.buoyancy import Buoyancy
 from animbatch.sim.forces.controllers import Controllers, CurveTarget
 from animbatch.sim.model.model import Model

@@ -10,14 +10,14 @@ from typing import Any
 import numpy as np
 
 from animbatch.compile import deformables as build
+from animbatch.compile.bodies import body_geometry, orientation_matrix, orientation_quaternion
 from animbatch.compile.forces import field_term
 from animbatch.curves import ParametricCurve, Polyline
+from animbatch.scene.schema import DEFORMABLE_SPECS, ClothSpec, RigidBodySpec, SceneSpec
 from animbatch.sim.forces.controllers import ControllerSetting, CurveTarget, FixedTarget, PathTarget, Target
 from animbatch.sim.model.builder import ModelBuilder, Pin
 from animbatch.sim.model.model import Model
 from animbatch.sim.motion import KeyframePath
-from animbatch.compile.bodies import body_geometry, orientation_matrix, orientation_quaternion
-from animbatch.scene.schema import DEFORMABLE_SPECS, ClothSpec, RigidBodySpec, SceneSpec
 
 
 def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:

@@ -9,8 +9,20 @@ from typing import Any
 import numpy as np
 
 from animbatch.compile.bodies import orientation_matrix
-from animbatch.scene.schema import (BoxSource, BuoyancySpec, DiscSource, DragSpec, GravitySpec, PARTICLE_FIELD_TYPES,
-                                    PointSource, RandomColor, RandomValue, SceneSpec, SphereSource, WindSpec)
+from animbatch.scene.schema import (
+    PARTICLE_FIELD_TYPES,
+    BoxSource,
+    BuoyancySpec,
+    DiscSource,
+    DragSpec,
+    GravitySpec,
+    PointSource,
+    RandomColor,
+    RandomValue,
+    SceneSpec,
+    SphereSource,
+    WindSpec,
+)
 from animbatch.sim.forces.drag import AIR_VISCOSITY
 from animbatch.sim.particles.collisions import ParticleColliders
 from animbatch.sim.particles.emitter import Emitter, Law

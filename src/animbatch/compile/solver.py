@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from animbatch.scene.schema import SolverSpec
-from animbatch.sim.integrators import (DEFAULT_DT, SCIPY_METHODS, FixedStepIntegrator, Integrator,
-                                       ScipyIntegrator)
+from animbatch.sim.integrate import integrator_for
+from animbatch.sim.integrators import Integrator
+from animbatch.sim.model.model import Model
 
 
-def make_integrator(solver: SolverSpec) -> Integrator:
-    """The integrator a scene's ``solver`` section asks for."""
-    if solver.method in SCIPY_METHODS:
-        return ScipyIntegrator(solver.method, rtol=solver.rtol, atol=solver.atol, max_step=solver.max_step)
-    return FixedStepIntegrator(solver.method, dt=solver.dt if solver.dt is not None else DEFAULT_DT)
+def make_integrator(solver: SolverSpec, model: Model | None = None) -> Integrator:
+    """The integrator a scene's ``solver`` section asks for, with contact handling when ``model`` has contacts."""
+    return integrator_for(model, solver.method, dt=solver.dt, rtol=solver.rtol, atol=solver.atol,
+                          max_step=solver.max_step)

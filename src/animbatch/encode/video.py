@@ -21,7 +21,6 @@ import numpy as np
 from animbatch.errors import RenderError
 from animbatch.files import partial_path
 
-
 #: Video kinds: ffmpeg codec, output pixel format, and extra options (``{preset}``/``{crf}`` filled in).
 VIDEO_KINDS: dict[str, tuple[str, str, list[str]]] = {
     "mp4": ("libx264", "yuv420p", ["-preset", "{preset}", "-crf", "{crf}", "-movflags", "+faststart"]),

@@ -55,10 +55,9 @@ class JobResult:
 def bake_task(scene_path: str, overrides: Sequence[Any], out_dir: str) -> dict[str, Any]:
     """Simulate (or reuse the cache) and prepare the frames folder; what the render tasks need to know."""
     from animbatch import stages
+    from animbatch.errors import SimulationError
     from animbatch.farm import bake
     from animbatch.farm.frames import prepare_frames
-
-    from animbatch.errors import SimulationError
     from animbatch.files import write_json_atomic
     from animbatch.stopwatch import Stopwatch
 
@@ -127,7 +126,8 @@ def encode_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
               "stages": {"load_cache" if baked["reused"] else "simulate": baked["seconds"],
                          "render": sum(chunk["seconds"] for chunk in chunks), "encode": seconds},
               "cache": baked["cache"], "cache_reused": baked["reused"], "solver_stats": baked["solver_stats"],
-              "ledger": baked.get("ledger", {}), "quantities": [str(path) for path in quantities], "outputs": outputs, "backend": next((c["backend"] for c in chunks if c["backend"]), ""),
+              "ledger": baked.get("ledger", {}), "quantities": [str(path) for path in quantities], "outputs": outputs,
+              "backend": next((c["backend"] for c in chunks if c["backend"]), ""),
               "package_version": __version__, "host": platform.node(),
               "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     path = Path(out_dir) / scene.name / "report.json"

@@ -3,7 +3,8 @@
 The key is a content hash of what determines the motion: the scene's physics fingerprint (bodies, springs, fields,
 timeline, mesh-file bytes; see :func:`~animbatch.scene.loader.physics_fingerprint`), the solver settings and the
 package version. Camera, resolution, colours, every other render setting and the accuracy ledger's warning threshold
-(``solver.drift_warning``, which only judges a run) are not in it, so changing them never re-simulates; changing a mass, a step size or upgrading animbatch always does. A cache file whose key or contents do
+(``solver.drift_warning``, which only judges a run) are not in it, so changing them never re-simulates; changing
+a mass, a step size or upgrading animbatch always does. A cache file whose key or contents do
 not match is never used: it is replaced (and other keys' files in the folder are removed once a new bake lands).
 Files are written atomically, so an interrupted bake leaves no cache that a later run could mistake for done.
 """
@@ -21,7 +22,6 @@ from animbatch import __version__
 from animbatch.errors import TrajectoryError
 from animbatch.scene import LoadedScene
 from animbatch.trajectory import Trajectory
-
 
 #: Solver keys that judge a run rather than shape it: changing them re-judges a cached bake, never re-simulates.
 JUDGING_KEYS = ("drift_warning", "max_cost", "description")

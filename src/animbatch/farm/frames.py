@@ -101,7 +101,6 @@ def render_key(scene: LoadedScene, trajectory: Trajectory) -> str:
     import json
 
     from animbatch import __version__
-
     from animbatch.farm.cache import simulation_settings
 
     spec = scene.spec.model_dump(mode="json", exclude={"study", "description"})
@@ -133,9 +132,9 @@ def prepare_frames(scene: LoadedScene, trajectory: Trajectory, out_dir: str | Pa
 def render_frames(scene: LoadedScene, trajectory: Trajectory, frames: FrameRange, *, out_dir: str | Path = "renders",
                   backend: str = "auto", model: object = None, on_frame=None) -> RangeResult:  # type: ignore[no-untyped-def]
     """Draw the frames of ``frames`` that are not complete on disk; ``on_frame(index)`` after each frame."""
-    from animbatch.stages import check_trajectory, compile_model, frame_geometry
     from animbatch.render.backend import select_backend
     from animbatch.render.frames import FrameRenderer
+    from animbatch.stages import check_trajectory, compile_model, frame_geometry
 
     if frames.stop > trajectory.frame_count:
         raise ValueError(f"frames {frames} asked for; the trajectory has {trajectory.frame_count} (0-"

@@ -11,15 +11,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from animbatch import __version__
+from animbatch.encode import PngSequenceWriter
 from animbatch.errors import SimulationError
 from animbatch.farm.cache import bake
 from animbatch.farm.encode import encode
 from animbatch.farm.frames import FrameRange, frames_folder, parse_frames, prepare_frames, render_frames
 from animbatch.farm.parallel import render_in_parallel, worker_count
-from animbatch.encode import PngSequenceWriter
 from animbatch.files import write_json_atomic
 from animbatch.progress import Progress
 from animbatch.scene import LoadedScene

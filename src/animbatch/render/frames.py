@@ -22,13 +22,22 @@ from typing import Any
 
 import numpy as np
 
+from animbatch import quaternion
 from animbatch.errors import RenderError
 from animbatch.render.backend import Backend, activate
 from animbatch.render.camera import CameraPlacement, nice_spacing, place_camera, plane_axes
-from animbatch import quaternion
 from animbatch.scene.orientation import orientation_matrix
-from animbatch.scene.schema import (BoxShape, CompoundShape, CylinderShape, MeshCollider, MeshShape, RenderSpec,
-                                    RodShape, SceneSpec, ShellShape, SphereShape)
+from animbatch.scene.schema import (
+    BoxShape,
+    CompoundShape,
+    CylinderShape,
+    MeshCollider,
+    MeshShape,
+    RenderSpec,
+    RodShape,
+    ShellShape,
+    SphereShape,
+)
 
 #: Above this many particles, ``particles: auto`` draws point sprites instead of sphere meshes.
 SPRITE_THRESHOLD = 200
@@ -456,7 +465,8 @@ class FrameRenderer:
                 for b, matrix in enumerate(self._vector_actors):
                     self._set_matrix(matrix, bases[b], positions[n + b])
         if self._surfaces:
-            rigid_rotation = rotation if rotation is not None or orientations is None else quaternion.to_matrix(orientations[n:])
+            rigid_rotation = (rotation if rotation is not None or orientations is None
+                              else quaternion.to_matrix(orientations[n:]))
             vertices = geometry.deformables.vertex_map.place(positions, rigid_rotation, anchor_positions)
             for body, triangles, mesh in self._surfaces:
                 points = vertices[body.vertices]

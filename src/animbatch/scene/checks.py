@@ -8,7 +8,6 @@ reports it. Rules that concern one item only (a drag law and its coefficient, sa
 from __future__ import annotations
 
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 from animbatch.materials import BUILT_IN

@@ -90,7 +90,8 @@ def _read(path: Path) -> str:
     try:
         return path.read_text(encoding="utf-8")
     except UnicodeDecodeError as error:
-        raise SceneError([SceneIssue(str(path), "", f"is not UTF-8 text ({error.reason} at byte {error.start})")]) from None
+        problem = f"is not UTF-8 text ({error.reason} at byte {error.start})"
+        raise SceneError([SceneIssue(str(path), "", problem)]) from None
     except OSError as error:
         raise SceneError([SceneIssue(str(path), "", f"cannot be read: {error.strerror}")]) from None
 
@@ -117,7 +118,8 @@ def physics_fingerprint(spec: SceneSpec, base_dir: str | Path = ".") -> str:
 
     Included: bodies, anchors, springs, fields, timeline, and the bytes of mesh files (found from ``base_dir``).
     Excluded: the name, description, solver settings (stored separately with a trajectory), render settings,
-    colours, and how emitted particles look (their colours are drawn again from their serials when frames are drawn). Two scenes with the same fingerprint describe the same physical system over the same frame times.
+    colours, and how emitted particles look (their colours are drawn again from their serials when frames are
+    drawn). Two scenes with the same fingerprint describe the same physical system over the same frame times.
     """
     data = _without_colors(spec.model_dump(mode="json", exclude=set(PRESENTATION_KEYS)))
     files = sorted(set(_mesh_files(data)))

@@ -118,4 +118,5 @@ def _list_index(items: list[Any], part: str | int, here: str, resolved: list[str
         if isinstance(item, dict) and item.get("name") == part:
             return index
     known = ", ".join(str(n) for n in names if n is not None) or "(no named items)"
-    raise _OverrideProblem(f"{format_path(tuple(resolved))}[{part}]", f"no item named {part!r} in {here}; names: {known}")
+    raise _OverrideProblem(f"{format_path(tuple(resolved))}[{part}]",
+                           f"no item named {part!r} in {here}; names: {known}")

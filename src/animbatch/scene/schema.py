@@ -14,8 +14,19 @@ import difflib
 from typing import Annotated, Any, Literal, Union
 
 import annotated_types as at
-from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, PlainValidator,
-                      Tag, WithJsonSchema, field_validator, model_validator)
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Discriminator,
+    Field,
+    PlainValidator,
+    Tag,
+    WithJsonSchema,
+    field_validator,
+    model_validator,
+)
 from pydantic_core import PydanticCustomError, PydanticUndefined
 
 NAME_PATTERN = r"^[A-Za-z_][A-Za-z0-9_.\-]*$"

@@ -33,6 +33,7 @@ from animbatch.errors import AccuracyWarning
 from animbatch.sim.forces import Gravitation, SpringForces
 from animbatch.sim.forces.dihedral import DihedralSprings
 from animbatch.sim.integrators.guard import energy_scale
+from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.invariants import angular_momentum, centre_of_mass, kinetic_energy, linear_momentum, potential_energy
 from animbatch.sim.model.model import Model
 
@@ -40,8 +41,6 @@ from animbatch.sim.model.model import Model
 DEFAULT_DRIFT_WARNING = 0.01
 QUANTITIES = ("energy", "momentum", "angular_momentum")
 UNITS = {"energy": "J", "momentum": "kg·m/s", "angular_momentum": "kg·m²/s"}
-#: Explicit fixed-step methods that are not symplectic: on a conservative scene their energy drifts steadily.
-DRIFTING_FIXED_STEP = ("euler", "midpoint")
 #: A step used that differs from ``solver.dt`` by more than this fraction is pointed out (0.0333334 for one step
 #: per frame at 30 fps is the same step).
 DT_DIFFERS = 1e-3
@@ -217,19 +216,15 @@ def drifts(model: Model, states: np.ndarray, series: QuantitySeries, laws: dict[
     return result
 
 
-#: Order of accuracy of each fixed-step method: its drift over a run shrinks as dt to this power.
-ORDER = {"euler": 1, "midpoint": 2, "symplectic_euler": 1, "verlet": 2, "backward_euler": 1}
-
-
 def drift_advice(method: str, drift: float, threshold: float, *, rtol: float | None, dt: float | None) -> str:
     """What to change when a conserved quantity drifts by ``drift`` (relative) under ``method``, to bring it under
     ``threshold``: a step or tolerance worked out from the method's order, with a factor two to spare."""
     shrink = 0.5 * threshold / drift  # how much smaller the drift must become
-    if method in ORDER:
-        order = ORDER[method]
+    if method in METHODS and METHODS[method].fixed_step:
+        order = METHODS[method].order  # its drift over a run shrinks as dt to this power
         step = f"solver.dt ≤ {dt * shrink ** (1 / order):.3g} s (its drift shrinks as dt^{order})" if dt else \
             "a smaller solver.dt"
-        if method in DRIFTING_FIXED_STEP:
+        if not (METHODS[method].symplectic or METHODS[method].implicit):  # explicit, not symplectic: drifts
             return ("it is not symplectic, so its error accumulates step after step: use a symplectic method "
                     f"(solver.method: verlet) or an adaptive one (DOP853), or {step}")
         if method == "backward_euler":

@@ -15,7 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from animbatch.errors import SimulationError
-from animbatch.sim.integrators import FIXED_STEP_SCHEMES, SCIPY_METHODS, FixedStepIntegrator, Integrator, ScipyIntegrator
+from animbatch.sim.integrate import integrator_for
+from animbatch.sim.integrators import FIXED_STEP_SCHEMES, SCIPY_METHODS, Integrator
 from animbatch.sim.integrators.guard import check_energy_growth
 from animbatch.sim.model import Dynamics, Model
 
@@ -37,12 +38,13 @@ class RunSetting:
     def label(self) -> str:
         return f"rtol {self.rtol:.0e}" if self.adaptive else f"dt {self.dt:.3g} s"
 
-    def integrator(self, tolerance_scale: np.ndarray) -> Integrator:
+    def integrator(self, model: Model, tolerance_scale: np.ndarray) -> Integrator:
+        """The integrator of this setting for ``model`` (with its contacts, if any)."""
         if self.adaptive:
             assert self.rtol is not None
-            return ScipyIntegrator(self.method, rtol=self.rtol, atol=self.rtol * tolerance_scale)
+            return integrator_for(model, self.method, rtol=self.rtol, atol=self.rtol * tolerance_scale)
         assert self.dt is not None
-        return FixedStepIntegrator(self.method, dt=self.dt)
+        return integrator_for(model, self.method, dt=self.dt)
 
 
 @dataclass
@@ -127,7 +129,7 @@ def execute(model: Model, setting: RunSetting, tolerance_scale: np.ndarray, *, r
 
     with threadpool_limits(limits=1):
         try:
-            first = _integrate(model, setting.integrator(tolerance_scale), timeout)
+            first = _integrate(model, setting.integrator(model, tolerance_scale), timeout)
             check_energy_growth(model, first.states, setting.method, first.stats.dt)  # as every run is checked
         except RunTimeout:
             return RunOutcome(setting, "timeout", f"took longer than {timeout:g} s")
@@ -139,7 +141,7 @@ def execute(model: Model, setting: RunSetting, tolerance_scale: np.ndarray, *, r
         timed = repeats if first.stats.wall_time < 2.0 else min(repeats, 1)
         for _ in range(timed):
             try:
-                outcome.wall_times.append(_integrate(model, setting.integrator(tolerance_scale),
+                outcome.wall_times.append(_integrate(model, setting.integrator(model, tolerance_scale),
                                                      timeout).stats.wall_time)
             except RunTimeout:  # the untimed run made it, a timed one did not: keep what was measured
                 outcome.wall_times.append(timeout)

@@ -14,10 +14,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from animbatch.errors import SceneError, SceneIssue
-from animbatch.sim.model import Model
 from animbatch.compile.model import compile_scene
+from animbatch.errors import SceneError, SceneIssue
 from animbatch.scene import LoadedScene
+from animbatch.sim.model import Model
 from animbatch.study.closed_forms import NoClosedForm
 from animbatch.study.measure import Motion, conserved, contact_time_error, drifts, final_error, position_error
 from animbatch.study.merit import Point, TimeTo, observed_order, time_to

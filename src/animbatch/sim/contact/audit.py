@@ -23,10 +23,26 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.sim.contact.detection import (BODY_BOX, BODY_BOX_FACE, BODY_SPHERE, PLANE, STATIC_BOX, STATIC_BOX_FACE,
-                                        STATIC_SPHERE, TRIANGLE, ContactWorld, Contacts, body_box_poses, body_reach,
-                                        closing_margin, contact_codes, detect, evaluate_pairs, probe_centres,
-                                        turn_angle)
+from animbatch.sim.contact.detection import (
+    BODY_BOX,
+    BODY_BOX_FACE,
+    BODY_SPHERE,
+    PLANE,
+    STATIC_BOX,
+    STATIC_BOX_FACE,
+    STATIC_SPHERE,
+    TRIANGLE,
+    Contacts,
+    ContactWorld,
+    body_box_poses,
+    body_reach,
+    closing_margin,
+    contact_codes,
+    detect,
+    evaluate_pairs,
+    probe_centres,
+    turn_angle,
+)
 
 #: Points between consecutive frames at which the straight path is checked.
 SUBSAMPLES = 8

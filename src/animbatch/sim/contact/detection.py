@@ -19,11 +19,21 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from animbatch.sim.contact.geometry import (BodyBoxes, Probes, StaticColliders, separating_direction, to_box, to_box_face,
-                                       to_face_plane, to_plane, to_sphere, to_triangles)
-from animbatch.sim.contact.materials import MaterialTable
 from animbatch.errors import SimulationError
-from animbatch.sim.forces.base import Kinematics
+from animbatch.sim.bodies import Kinematics
+from animbatch.sim.contact.geometry import (
+    BodyBoxes,
+    Probes,
+    StaticColliders,
+    separating_direction,
+    to_box,
+    to_box_face,
+    to_face_plane,
+    to_plane,
+    to_sphere,
+    to_triangles,
+)
+from animbatch.sim.contact.materials import MaterialTable
 
 STATIC = -1  # "solid body" index of fixed colliders
 

@@ -32,19 +32,26 @@ from typing import Any
 import numpy as np
 from scipy.optimize import brentq
 
-from animbatch.sim.contact.detection import (Contacts, body_reach, closing_margin, detect, evaluate_pairs,
-                                        probe_centres, turn_angle)
+from animbatch.errors import SimulationError
+from animbatch.quaternion import cross
+from animbatch.sim.contact.detection import (
+    Contacts,
+    body_reach,
+    closing_margin,
+    detect,
+    evaluate_pairs,
+    probe_centres,
+    turn_angle,
+)
 from animbatch.sim.contact.impacts import ImpactLog
 from animbatch.sim.contact.solver import BodyVelocities, solve_forces, solve_impulses
 from animbatch.sim.contact.stepping import DEFAULT_REST_SPEED
-from animbatch.errors import SimulationError
 from animbatch.sim.forces import Kinematics
-from animbatch.sim.integrators.base import CountingRhs, FrameCallback, IntegrationResult, SolverStats
 from animbatch.sim.integrators.advice import failure_advice
+from animbatch.sim.integrators.base import CountingRhs, FrameCallback, IntegrationResult, SolverStats
 from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.guard import divergence_error, fastest_body, first_non_finite
 from animbatch.sim.model.dynamics import Dynamics
-from animbatch.quaternion import cross
 
 SAMPLES = 24  # points per step at which impact candidates are evaluated
 TOUCH = 1e-6  # m: contacts this close count as touching at an event

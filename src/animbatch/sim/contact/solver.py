@@ -40,8 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from animbatch.sim.contact.detection import Contacts
 from animbatch.quaternion import cross
+from animbatch.sim.contact.detection import Contacts
 
 #: Fraction of an overlap (beyond the slop) removed per step.
 BAUMGARTE = 0.2
@@ -322,6 +322,7 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         rows.push_normal(velocity, normal_impulse)
         rows.push_tangent(velocity, tangent_impulse)
     tolerance = VELOCITY_TOLERANCE * (1.0 + float(np.abs(approach).max(initial=0.0)))
+    gripping = np.zeros(count, bool)  # which contacts hold by friction; set by the first iteration
     for iteration in range(iterations + 1):
         normal_now = rows.normal_velocity(velocity) - target
         # Stop when every contact does what it must (not when impulses stop changing: with redundant contacts,

@@ -1,4 +1,8 @@
-"""Fixed-step integration with contacts (velocity-level time stepping, as in Box2D, Bullet or MuJoCo).
+"""Contacts for the fixed-step methods (velocity-level time stepping, as in Box2D, Bullet or MuJoCo).
+
+:class:`ContactResolver` is the velocity constraint the fixed-step schemes apply between their kick and their drift
+(:class:`~animbatch.sim.integrators.base.VelocityConstraint`); :func:`animbatch.sim.integrate.integrator_for` hands
+it to them for scenes with contacts.
 
 A step of ``h``: forces change the velocities (kick), the contact solver changes them again so that every contact
 holds over the step (see :mod:`animbatch.sim.contact.solver`), and positions move with the corrected velocities (drift).
@@ -22,10 +26,7 @@ from animbatch.sim.contact.detection import body_reach, contact_codes, detect
 from animbatch.sim.contact.impacts import ImpactLog
 from animbatch.sim.contact.solver import BodyVelocities, solve_impulses
 from animbatch.sim.forces import Kinematics
-from animbatch.sim.integrators.fixed_step import SymplecticEuler, VelocityVerlet
-from animbatch.sim.integrators.implicit import BackwardEuler
 from animbatch.sim.model.dynamics import Dynamics
-from animbatch import quaternion
 
 DEFAULT_REST_SPEED = 0.01  # m/s
 
@@ -63,7 +64,7 @@ class ContactResolver:
 
     def _bodies(self, state: Kinematics) -> BodyVelocities:
         """Velocities and inverse inertias, plus the fixed body at the end."""
-        system, model = self.system, self.system.model
+        model = self.system.model
         count, n = model.body_count, model.particle_count
         v = np.zeros((count + 1, 3))
         omega = np.zeros((count + 1, 3))
@@ -78,7 +79,7 @@ class ContactResolver:
         return BodyVelocities(v, omega, inverse_mass, inverse_inertia)
 
     def _write_back(self, motion: np.ndarray, state: Kinematics, bodies: BodyVelocities) -> None:
-        system, model = self.system, self.system.model
+        model = self.system.model
         n, b = model.particle_count, model.rigid_count
         motion[: 3 * n] = bodies.v[:n].ravel()
         if b:
@@ -142,54 +143,3 @@ class ContactResolver:
         drifting = motion.copy()
         self._write_back(drifting, state, bodies)
         return drifting
-
-
-class _KickContactsDrift:
-    """Kick (the scheme's own), contacts, drift: for the one-kick schemes, symplectic and backward Euler."""
-
-    system: Dynamics
-
-    def __init__(self, system: Dynamics) -> None:
-        super().__init__(system)  # type: ignore[call-arg]
-        self.contacts = ContactResolver(system)
-
-    def step(self, t: float, y: np.ndarray, h: float) -> None:
-        config, motion = self.system.split(y)
-        self.kick(t, config, motion, h)  # type: ignore[attr-defined]
-        drifting = self.contacts.resolve(config, motion, h, t=t)
-        self.system.drift(config, motion if drifting is None else drifting, h)
-        self.system.project(y)
-
-
-class ContactSymplecticEuler(_KickContactsDrift, SymplecticEuler):
-    """Kick, contacts, drift."""
-
-
-class ContactBackwardEuler(_KickContactsDrift, BackwardEuler):
-    """Implicit kick, contacts, drift."""
-
-
-class ContactVerlet(VelocityVerlet):
-    """Half kick, contacts, drift, half kick, contacts again (no bounce)."""
-
-    def __init__(self, system: Dynamics) -> None:
-        super().__init__(system)
-        self.contacts = ContactResolver(system)
-
-    def step(self, t: float, y: np.ndarray, h: float) -> None:
-        config, motion = self.system.split(y)
-        rate, work = self._rate, self._work
-        motion += np.multiply(rate, 0.5 * h, out=work)
-        drifting = self.contacts.resolve(config, motion, h, t=t)
-        np.add(motion, np.multiply(rate, 0.5 * h, out=work), out=self._predicted)
-        self.system.drift(config, motion if drifting is None else drifting, h)
-        rate_next = self.system.motion_rate(t + h, config, self._predicted, out=self._rate_next)
-        self.evaluations += 1
-        motion += np.multiply(rate_next, 0.5 * h, out=work)
-        self.contacts.resolve(config, motion, h, bounce=False)
-        self.system.project(y)
-        self._rate, self._rate_next = rate_next, rate
-
-
-CONTACT_SCHEMES = {"symplectic_euler": ContactSymplecticEuler, "verlet": ContactVerlet,
-                   "backward_euler": ContactBackwardEuler}

@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from animbatch.sim.forces.base import Kinematics
-from animbatch.sim.motion import AnchorMotion
 from animbatch.quaternion import cross
+from animbatch.sim.bodies import Kinematics
+from animbatch.sim.motion import AnchorMotion
 
 PARTICLE, ANCHOR, BODY_POINT = 0, 1, 2
 

@@ -20,10 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
+from animbatch.quaternion import cross
 from animbatch.sim.forces.base import BodyTable, ForceTerm, Kinematics, selection_text, vector_text
 from animbatch.sim.rigid.polyhedra import submerged_volume_and_moment
-from animbatch.quaternion import cross
 
 
 def spherical_caps(centres: np.ndarray, radii: np.ndarray, level: float, up: np.ndarray

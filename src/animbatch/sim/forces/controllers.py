@@ -21,9 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from animbatch.curves import ParametricCurve, Polyline
+from animbatch.quaternion import cross
 from animbatch.sim.forces.base import ForceJacobian, ForceTerm, Kinematics
 from animbatch.sim.motion import KeyframePath
-from animbatch.quaternion import cross
 
 
 @dataclass(frozen=True, eq=False)

@@ -22,9 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from animbatch.quaternion import cross
 from animbatch.sim.deformable.vertices import PARTICLE
 from animbatch.sim.forces.base import ForceJacobian, ForceTerm, Kinematics
-from animbatch.quaternion import cross
 
 
 def hinge_angles(x: np.ndarray) -> np.ndarray:

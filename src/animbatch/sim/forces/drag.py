@@ -18,10 +18,17 @@ from typing import Literal
 
 import numpy as np
 
-
-from animbatch.sim.forces.base import (BodyTable, ForceJacobian, ForceTerm, Kinematics, add_at,
-                                   rigid_selection, selection_text, vector_text)
 from animbatch.quaternion import cross
+from animbatch.sim.forces.base import (
+    BodyTable,
+    ForceJacobian,
+    ForceTerm,
+    Kinematics,
+    add_at,
+    rigid_selection,
+    selection_text,
+    vector_text,
+)
 
 AIR_VISCOSITY = 1.81e-5  # Pa·s, dry air at 15 °C
 DragLaw = Literal["linear", "quadratic", "stokes"]

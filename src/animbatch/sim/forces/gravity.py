@@ -6,8 +6,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from animbatch.sim.forces.base import (BodyTable, ForceJacobian, ForceTerm, Kinematics, add_at, selection_text,
-                                   vector_text)
+from animbatch.sim.forces.base import (
+    BodyTable,
+    ForceJacobian,
+    ForceTerm,
+    Kinematics,
+    add_at,
+    selection_text,
+    vector_text,
+)
 
 
 @dataclass(frozen=True, eq=False)

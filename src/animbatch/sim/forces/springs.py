@@ -20,9 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from animbatch.quaternion import cross
 from animbatch.sim.forces.base import ForceJacobian, ForceTerm, Kinematics
 from animbatch.sim.motion import AnchorMotion
-from animbatch.quaternion import cross
 
 
 @dataclass(frozen=True, eq=False)

@@ -20,8 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from animbatch.sim.integrators.methods import METHODS
+
 #: Methods that are implicit (or switch to an implicit method when the problem is stiff, as LSODA does).
-IMPLICIT = ("Radau", "BDF", "LSODA", "backward_euler")
+IMPLICIT = tuple(name for name, method in METHODS.items() if method.implicit)
 
 
 @dataclass(frozen=True)

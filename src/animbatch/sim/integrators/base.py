@@ -35,6 +35,33 @@ class EquationsOfMotion(Protocol):
     def project(self, y: np.ndarray) -> None: ...
 
 
+class VelocityConstraint(Protocol):
+    """Velocity-level constraints a fixed-step scheme applies between its kick and its drift (contacts; next,
+    joints): they change the motion so that the constraints hold over the step. Schemes that can take one say so
+    with ``takes_constraints``; the integrator is given a factory and never imports the constraint's code."""
+
+    impacts: Any  # what it logged (an ImpactLog for contacts: .as_list() -> [(time [s], body)])
+
+    def resolve(self, config: np.ndarray, motion: np.ndarray, h: float, *, bounce: bool = True,
+                t: float = 0.0) -> np.ndarray | None:
+        """Correct ``motion`` in place for a step of ``h`` [s] from ``t``; return the motion to drift with when it
+        differs (overlaps pushed apart), else None. ``bounce`` False: project only (end-of-step velocities)."""
+        ...
+
+
+#: (equations of motion) -> the constraint for them; how a fixed-step integrator is told about contacts.
+ConstraintFactory = Callable[[EquationsOfMotion], VelocityConstraint]
+
+
+class EventIntegration(Protocol):
+    """Integration with events between the frames (collisions for the adaptive methods), given the scipy method's
+    name, its ``OdeSolver`` class and options (rtol, atol, max_step); how an adaptive integrator is told about
+    contacts."""
+
+    def __call__(self, method: str, solver_class: Any, options: dict[str, Any], system: EquationsOfMotion,
+                 y0: np.ndarray, times: np.ndarray, on_frame: FrameCallback | None) -> IntegrationResult: ...
+
+
 @dataclass
 class SolverStats:
     """Work done by a solver during one run.

@@ -27,6 +27,7 @@ import numpy as np
 
 from animbatch.errors import SimulationError
 from animbatch.sim.integrators.budget import format_seconds
+from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.integrators.preflight import EXPLICIT_LIMITS
 from animbatch.sim.integrators.stability import stiffest_mode
 
@@ -38,11 +39,6 @@ PARTICLE_FRAME_BYTES = 24
 PARTICLE_SLOT_BYTES = 160
 #: Floating-point operations per second of a dense LU factorisation (LAPACK on one core, conservatively).
 DENSE_FLOPS = 5e9
-#: Right-hand sides per step of each method (explicit Runge–Kutta stages; implicit: stages × Newton iterations).
-EVALUATIONS_PER_STEP = {"euler": 1, "midpoint": 2, "symplectic_euler": 1, "verlet": 1, "backward_euler": 2,
-                        "RK23": 3, "RK45": 6, "DOP853": 12, "Radau": 8, "BDF": 3, "LSODA": 3}
-#: Order of the error per unit time of each adaptive method (BDF and LSODA vary theirs; a middle value).
-ADAPTIVE_ORDER = {"RK23": 2, "RK45": 4, "DOP853": 7, "Radau": 5, "BDF": 3, "LSODA": 4}
 #: Steps between Jacobians (and between factorisations) of implicit adaptive methods, roughly.
 STEPS_PER_JACOBIAN = 10
 STEPS_PER_LU = 3
@@ -93,9 +89,10 @@ def estimate_cost(model: object, solver: object, particle_pools: list[tuple[str,
     steps, why = _steps(model, solver, times)
     if states and steps:
         rhs = rhs_seconds if rhs_seconds is not None else measure_rhs(model)
-        evaluations = steps * EVALUATIONS_PER_STEP.get(method, 4)
+        per_step = METHODS[method].evaluations_per_step if method in METHODS else 4
+        evaluations = steps * per_step
         terms.append(CostTerm("integration", seconds=evaluations * rhs,
-                              detail=f"{method}: about {steps:.3g} steps ({why}) × {EVALUATIONS_PER_STEP.get(method, 4)} "
+                              detail=f"{method}: about {steps:.3g} steps ({why}) × {per_step} "
                                      f"right-hand sides of {1e6 * rhs:.3g} µs ({states} state variables)"))
         terms += _implicit_terms(model, method, steps, states, rhs)
     for name, capacity, births in particle_pools:
@@ -117,7 +114,7 @@ def _steps(model: object, solver: object, times: np.ndarray) -> tuple[float, str
     duration = float(times[-1] - times[0])
     interval = duration / (frames - 1)
     method = solver.method  # type: ignore[attr-defined]
-    if method not in ADAPTIVE_ORDER:
+    if method not in METHODS or METHODS[method].fixed_step:
         per_frame = substeps(interval, solver.dt or DEFAULT_DT)  # type: ignore[attr-defined]
         return float(per_frame * (frames - 1)), f"{per_frame} per frame × {frames - 1} frames"
     candidates = [(float(frames - 1), "one per frame at least")]
@@ -129,7 +126,7 @@ def _steps(model: object, solver: object, times: np.ndarray) -> tuple[float, str
                                f"stability of the {what}, ω = {omega:.3g} rad/s"))
         if "spring" in what:
             continue  # a stiff spring rarely vibrates visibly: it costs explicit methods stability, not accuracy
-        per_radian = solver.rtol ** (-1.0 / (ADAPTIVE_ORDER[method] + 1))  # type: ignore[attr-defined]
+        per_radian = solver.rtol ** (-1.0 / (METHODS[method].order + 1))  # type: ignore[attr-defined]
         candidates.append((omega * duration * per_radian,
                            f"accuracy on the {what}, ω = {omega:.3g} rad/s at rtol {solver.rtol:g}"))  # type: ignore[attr-defined]
     return max(candidates)

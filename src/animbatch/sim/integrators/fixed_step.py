@@ -22,23 +22,21 @@ The partitioned methods work on configuration c and motion m (for rigid bodies: 
 (:meth:`~animbatch.sim.model.dynamics.Dynamics.drift`). Semi-implicit Euler is kick, drift; Verlet is half kick, drift,
 half kick. After every step of every method, quaternions are re-normalised.
 
-Explicit Runge–Kutta methods are given as Butcher tableaux, so adding one is adding data.
+Explicit Runge–Kutta methods are given as Butcher tableaux, so adding one is adding data. Every method is listed once,
+with its order, stability matrix and particle kernel, in :data:`animbatch.sim.integrators.methods.METHODS`; the
+loop that steps them between frames is :class:`~animbatch.sim.integrators.stepping.FixedStepIntegrator`.
 """
 
 from __future__ import annotations
 
 import math
-import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from animbatch.errors import SimulationError
-from animbatch.sim.integrators.base import EquationsOfMotion, FrameCallback, IntegrationResult, Integrator, SolverStats
-from animbatch.sim.integrators.budget import budget_spent
-from animbatch.sim.integrators.guard import divergence_error, first_non_finite
+from animbatch.sim.integrators.base import EquationsOfMotion, VelocityConstraint
 
 DEFAULT_DT = 1e-3  # s
 
@@ -56,10 +54,14 @@ class Scheme(ABC):
     order: int
     #: Right-hand-side (force) evaluations per step, after the first.
     evaluations_per_step: int
+    #: True when the scheme applies velocity constraints (contacts) between its kick and its drift. Explicit Euler
+    #: and midpoint move positions with the velocities from before the step, so they cannot.
+    takes_constraints: bool = False
 
     def __init__(self, system: EquationsOfMotion) -> None:
         self.system = system
         self.evaluations = 0
+        self.constraint: VelocityConstraint | None = None  # set by the integrator for scenes with contacts
 
     def start(self, t: float, y: np.ndarray) -> None:
         """Prepare for stepping from state ``y`` at time ``t`` (called once, and again after a restore)."""
@@ -146,6 +148,7 @@ class SymplecticEuler(PartitionedScheme):
 
     order = 1
     evaluations_per_step = 1
+    takes_constraints = True
 
     def kick(self, t: float, config: np.ndarray, motion: np.ndarray, h: float) -> None:
         rate = self.system.motion_rate(t, config, motion, out=self._rate)
@@ -153,10 +156,17 @@ class SymplecticEuler(PartitionedScheme):
         motion += np.multiply(rate, h, out=self._work)
 
     def step(self, t: float, y: np.ndarray, h: float) -> None:
-        config, motion = self.system.split(y)
-        self.kick(t, config, motion, h)
-        self.system.drift(config, motion, h)
-        self.system.project(y)
+        kick_constrain_drift(self, t, y, h)
+
+
+def kick_constrain_drift(scheme: SymplecticEuler | Any, t: float, y: np.ndarray, h: float) -> None:
+    """One step of a one-kick scheme (symplectic or backward Euler): kick, constraints (contacts), drift."""
+    system = scheme.system
+    config, motion = system.split(y)
+    scheme.kick(t, config, motion, h)
+    drifting = scheme.constraint.resolve(config, motion, h, t=t) if scheme.constraint is not None else None
+    system.drift(config, motion if drifting is None else drifting, h)
+    system.project(y)
 
 
 class VelocityVerlet(PartitionedScheme):
@@ -166,6 +176,7 @@ class VelocityVerlet(PartitionedScheme):
 
     order = 2
     evaluations_per_step = 1
+    takes_constraints = True
 
     def __init__(self, system: EquationsOfMotion) -> None:
         super().__init__(system)
@@ -179,13 +190,21 @@ class VelocityVerlet(PartitionedScheme):
 
     def step(self, t: float, y: np.ndarray, h: float) -> None:
         config, motion = self.system.split(y)
-        rate, work = self._rate, self._work
-        np.add(motion, np.multiply(rate, h, out=work), out=self._predicted)  # m + h dm/dt
-        motion += np.multiply(rate, 0.5 * h, out=work)
-        self.system.drift(config, motion, h)
+        rate, work, constraint = self._rate, self._work, self.constraint
+        drifting = None
+        if constraint is None:
+            np.add(motion, np.multiply(rate, h, out=work), out=self._predicted)  # m + h dm/dt
+            motion += np.multiply(rate, 0.5 * h, out=work)
+        else:  # half kick, contacts, and the prediction from the corrected motion
+            motion += np.multiply(rate, 0.5 * h, out=work)
+            drifting = constraint.resolve(config, motion, h, t=t)
+            np.add(motion, np.multiply(rate, 0.5 * h, out=work), out=self._predicted)
+        self.system.drift(config, motion if drifting is None else drifting, h)
         rate_next = self.system.motion_rate(t + h, config, self._predicted, out=self._rate_next)
         self.evaluations += 1
         motion += np.multiply(rate_next, 0.5 * h, out=work)
+        if constraint is not None:  # end-of-step velocities back onto the contacts, without bouncing again
+            constraint.resolve(config, motion, h, bounce=False)
         self.system.project(y)
         self._rate, self._rate_next = rate_next, rate
 
@@ -194,112 +213,3 @@ class VelocityVerlet(PartitionedScheme):
 
     def restore(self, saved: Any) -> None:
         self._rate[...] = saved
-
-
-FIXED_STEP_SCHEMES: dict[str, type[Scheme]] = {
-    "euler": ExplicitEuler,
-    "midpoint": Midpoint,
-    "symplectic_euler": SymplecticEuler,
-    "verlet": VelocityVerlet,
-}
-
-from animbatch.sim.integrators.implicit import BackwardEuler  # noqa: E402  (built on PartitionedScheme, above)
-
-FIXED_STEP_SCHEMES["backward_euler"] = BackwardEuler
-
-
-class FixedStepIntegrator(Integrator):
-    """A fixed-step scheme with step at most ``dt`` [s], aligned to the frame times."""
-
-    def __init__(self, method: str, *, dt: float = DEFAULT_DT) -> None:
-        if method not in FIXED_STEP_SCHEMES:
-            raise ValueError(f"unknown fixed-step method {method!r}; choose from {', '.join(FIXED_STEP_SCHEMES)}")
-        if not dt > 0:
-            raise ValueError(f"dt must be > 0 (got {dt})")
-        self.method = method
-        self.dt = dt
-
-    def describe(self) -> str:
-        return f"{self.method} (fixed step, dt <= {self.dt:g} s)"
-
-    def integrate(self, system: EquationsOfMotion, y0: np.ndarray, times: np.ndarray, *,
-                  on_frame: FrameCallback | None = None) -> IntegrationResult:
-        started = time.perf_counter()
-        model = getattr(system, "model", None)
-        layout = getattr(model, "layout", None)
-        if model is not None and len(times) > 1:  # refuse a step that cannot hold the springs, before any work
-            from animbatch.sim.integrators.stability import check_fixed_step
-
-            count = substeps(float(times[1] - times[0]), self.dt)
-            check_fixed_step(model, self.method, float(times[1] - times[0]) / count, count * (len(times) - 1))
-        scheme = self._scheme(system, model)
-        stats = SolverStats(self.method)
-        y = np.array(y0, dtype=float)
-        states = np.empty((len(times), len(y)))
-        states[0] = y
-        if on_frame is not None:
-            on_frame(0, float(times[0]))
-        with np.errstate(all="ignore"):  # overflow is detected once per frame and reported, not warned about
-            largest_step = self._run(scheme, y, states, times, stats, layout, on_frame)
-        stats.rhs_evaluations = scheme.evaluations
-        if hasattr(scheme, "contacts"):  # contact schemes log their impacts
-            stats.impacts = scheme.contacts.impacts.as_list()
-        stats.dt = largest_step or None
-        if len(times) > 1:
-            stats.substeps_per_frame = substeps(float(times[1] - times[0]), self.dt)
-        stats.wall_time = time.perf_counter() - started
-        return IntegrationResult(states, stats)
-
-    def _scheme(self, system: EquationsOfMotion, model: Any) -> Scheme:
-        """The scheme for this method; scenes with contacts get its contact-resolving variant."""
-        if getattr(model, "contact_world", None) is None:
-            return FIXED_STEP_SCHEMES[self.method](system)
-        from animbatch.sim.contact.stepping import CONTACT_SCHEMES  # contact code only for scenes with contacts
-
-        if self.method not in CONTACT_SCHEMES:
-            raise ValueError(f"{self.method} cannot keep contacts; use one of {', '.join(CONTACT_SCHEMES)}")
-        return CONTACT_SCHEMES[self.method](system)  # type: ignore[arg-type]
-
-    def _run(self, scheme: Scheme, y: np.ndarray, states: np.ndarray, times: np.ndarray, stats: SolverStats,
-             layout: Any, on_frame: FrameCallback | None) -> float:
-        """Step through every frame interval; return the largest step used [s]."""
-        scheme.start(float(times[0]), y)
-        largest_step = 0.0
-        for frame in range(1, len(times)):
-            t0, t1 = float(times[frame - 1]), float(times[frame])
-            count = substeps(t1 - t0, self.dt)
-            h = (t1 - t0) / count
-            largest_step = max(largest_step, h)
-            saved_state, saved_scheme = y.copy(), scheme.snapshot()
-            for i in range(count):
-                scheme.step(t0 + i * h, y, h)
-                if i % 64 == 63:  # a clock read per 64 steps; a frame may hold 10⁶ of them
-                    self._check_budget(t0 + (i + 1) * h, h, count)
-            stats.steps += count
-            self._check_budget(t1, h, count)
-            if first_non_finite(y) is not None:
-                # Checked once per frame to keep the loop cheap; replay the frame to find the exact step.
-                y[...] = saved_state
-                scheme.restore(saved_scheme)
-                self._raise_at_first_bad_step(scheme, layout, y, t0, h, count, stats.steps - count)
-            states[frame] = y
-            if on_frame is not None:
-                on_frame(frame, t1)
-        return largest_step
-
-    def _check_budget(self, t: float, h: float, count: int) -> None:
-        spent = budget_spent(t)
-        if spent is not None:
-            raise SimulationError(f"{self.method} at dt = {h:.3g} s ({count} steps per frame): {spent}", time=t)
-
-    def _raise_at_first_bad_step(self, scheme: Scheme, layout: Any, y: np.ndarray, t0: float, h: float, count: int,
-                                 steps_before: int) -> None:
-        for i in range(count):
-            scheme.step(t0 + i * h, y, h)
-            bad = first_non_finite(y)
-            if bad is not None:
-                raise divergence_error(layout, y, bad, t0 + (i + 1) * h, method=self.method, dt=h,
-                                       step=steps_before + i + 1)
-        # Not reproduced (should not happen: the replay is exact). Report the frame interval instead.
-        bad = first_non_finite(y)
-        raise divergence_error(layout, y, bad if bad is not None else 0, t0 + count * h, method=self.method, dt=h)

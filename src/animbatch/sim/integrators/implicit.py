@@ -44,7 +44,7 @@ import scipy.sparse as sp
 from animbatch.errors import SimulationError
 from animbatch.sim.forces.base import ForceTerm
 from animbatch.sim.integrators.budget import budget_spent
-from animbatch.sim.integrators.fixed_step import PartitionedScheme
+from animbatch.sim.integrators.fixed_step import PartitionedScheme, kick_constrain_drift
 from animbatch.sim.integrators.linear_algebra import factor_symmetric
 
 #: How many times a step may be halved to keep a scene without inputs from gaining energy.
@@ -62,6 +62,7 @@ class BackwardEuler(PartitionedScheme):
 
     order = 1
     evaluations_per_step = 1
+    takes_constraints = True
 
     def __init__(self, system) -> None:  # noqa: ANN001 - a Dynamics
         super().__init__(system)
@@ -111,7 +112,8 @@ class BackwardEuler(PartitionedScheme):
                                    "singular. Check the scene's masses and the forces on them", time=t)
         mass = np.asarray(self.system.model.bodies.mass, float)
         lightest = np.where(springs.second_is_anchor, mass[springs.first],
-                            np.minimum(mass[springs.first], mass[np.where(springs.second_is_anchor, 0, springs.second)]))
+                            np.minimum(mass[springs.first],
+                                       mass[np.where(springs.second_is_anchor, 0, springs.second)]))
         ratio = np.maximum(h * springs.damping, h * h * springs.stiffness) / lightest
         k = int(np.argmax(ratio))
         return SimulationError(
@@ -122,16 +124,13 @@ class BackwardEuler(PartitionedScheme):
             "and damping (or the bodies physical masses)", time=t, body=springs.names[k])
 
     def step(self, t: float, y: np.ndarray, h: float) -> None:
-        if self.guard_energy:
+        if self.guard_energy and self.constraint is None:  # impacts change the energy by design
             self._guarded_step(t, y, h, 0)
         else:
             self._plain_step(t, y, h)
 
     def _plain_step(self, t: float, y: np.ndarray, h: float) -> None:
-        config, motion = self.system.split(y)
-        self.kick(t, config, motion, h)
-        self.system.drift(config, motion, h)
-        self.system.project(y)
+        kick_constrain_drift(self, t, y, h)
 
     def _guarded_step(self, t: float, y: np.ndarray, h: float, depth: int) -> None:
         """A step that may not raise the energy; if it does, two half steps instead (recursively)."""

@@ -17,18 +17,22 @@ import time
 from typing import Any
 
 import numpy as np
-from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
+from scipy.integrate import OdeSolver
 
 from animbatch.errors import SimulationError
-from animbatch.sim.integrators.base import (CountingRhs, EquationsOfMotion, FrameCallback, IntegrationResult, Integrator,
-                                        SolverStats)
 from animbatch.sim.integrators.advice import failure_advice
+from animbatch.sim.integrators.base import (
+    CountingRhs,
+    EquationsOfMotion,
+    EventIntegration,
+    FrameCallback,
+    IntegrationResult,
+    Integrator,
+    SolverStats,
+)
 from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.guard import divergence_error, fastest_body, first_non_finite
-
-SCIPY_METHODS: dict[str, type[OdeSolver]] = {
-    "RK23": RK23, "RK45": RK45, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA,
-}
+from animbatch.sim.integrators.methods import SCIPY_METHODS
 
 #: A solver whose steps stay shorter than this fraction of the frame interval for more than STALL_STEPS steps in a
 #: row has stalled (LSODA crawled through 5.6 million steps of 1e-16 s for 5 minutes at the centre of a gravitational
@@ -75,13 +79,15 @@ class ScipyIntegrator(Integrator):
     optional ``max_step`` [s]."""
 
     def __init__(self, method: str, *, rtol: float = 1e-6, atol: float | np.ndarray = 1e-9,
-                 max_step: float | None = None) -> None:
+                 max_step: float | None = None, events: EventIntegration | None = None) -> None:
+        """``events``: integrates with events between frames (collisions), or None for plain stepping."""
         if method not in SCIPY_METHODS:
             raise ValueError(f"unknown adaptive method {method!r}; choose from {', '.join(SCIPY_METHODS)}")
         self.method = method
         self.rtol = rtol
         self.atol = atol
         self.max_step = max_step
+        self.events = events
 
     def describe(self) -> str:
         limit = f", max_step {self.max_step:g} s" if self.max_step else ""
@@ -91,12 +97,9 @@ class ScipyIntegrator(Integrator):
     def integrate(self, system: EquationsOfMotion, y0: np.ndarray, times: np.ndarray, *,
                   on_frame: FrameCallback | None = None) -> IntegrationResult:
         started = time.perf_counter()
-        if getattr(getattr(system, "model", None), "contact_world", None) is not None:
-            from animbatch.sim.contact.events import integrate_with_events  # contact code only for scenes with contacts
-
+        if self.events is not None:
             options = {"rtol": self.rtol, "atol": self.atol, "max_step": self.max_step if self.max_step else np.inf}
-            return integrate_with_events(self.method, SCIPY_METHODS[self.method], options, system, y0, times,
-                                         on_frame)
+            return self.events(self.method, SCIPY_METHODS[self.method], options, system, y0, times, on_frame)
         layout = getattr(getattr(system, "model", None), "layout", None)
         stats = SolverStats(self.method)
         states = np.empty((len(times), len(y0)))

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from animbatch.errors import SimulationError
+from animbatch.sim.integrators.methods import METHODS
 
 #: Largest amplitude growth of the stiffest mode tolerated over a whole run.
 GROWTH_LIMIT = 1e6
@@ -92,29 +93,12 @@ def stiffest_mode(model: object) -> StiffestMode | None:
 
 
 def step_matrix(method: str, h: float, omega: float, decay: float) -> np.ndarray:
-    """The matrix taking (x, v) over one step of ``method`` on ``x'' = -ω² x - 2 α x'``; for Verlet (3, 3), taking
-    (x, v, a) with ``a`` the rate it carries over from the previous step."""
-    rate = np.array([[0.0, 1.0], [-omega**2, -2 * decay]])
-    identity = np.eye(2)
-    if method == "euler":
-        return identity + h * rate
-    if method == "midpoint":
-        return identity + h * rate + 0.5 * (h * rate) @ (h * rate)
-    if method == "symplectic_euler":  # v' = v + h a(x, v); x' = x + h v'
-        kick = identity + h * np.array([[0.0, 0.0], rate[1]])
-        return np.array([[1.0, h], [0.0, 1.0]]) @ kick
-    if method == "verlet":
-        # Velocity Verlet keeps the rate it evaluated at the predicted motion (x', v + h a) for the next step, so
-        # with damping its state is (x, v, a), not (x, v): x' = x + h v + h²/2 a; a' = a(x', v + h a);
-        # v' = v + h/2 (a + a').
-        position = np.array([1.0, h, 0.5 * h * h])
-        predicted = np.array([0.0, 1.0, h])
-        new_rate = -omega**2 * position - 2 * decay * predicted
-        velocity = np.array([0.0, 1.0, 0.5 * h]) + 0.5 * h * new_rate
-        return np.array([position, velocity, new_rate])
-    if method == "backward_euler":
-        return np.linalg.inv(identity - h * rate)
-    raise ValueError(f"no stability model for {method!r}")
+    """The matrix taking (x, v) over one step of ``method`` on ``x'' = -ω² x - 2 α x'`` (its ``step_matrix`` in
+    :data:`~animbatch.sim.integrators.methods.METHODS`); for Verlet (3, 3), taking (x, v, a)."""
+    model = METHODS[method].step_matrix if method in METHODS else None
+    if model is None:
+        raise ValueError(f"no stability model for {method!r}")
+    return model(h, omega, decay)
 
 
 def amplification(method: str, h: float, omega: float, decay: float) -> float:

@@ -25,15 +25,15 @@ from typing import Any
 
 import numpy as np
 
+from animbatch import quaternion
 from animbatch.sim.deformable.topology import Topology
 from animbatch.sim.deformable.vertices import ANCHOR, BODY_POINT, PARTICLE, DeformableBody, DeformableSet, VertexMap
-from animbatch.sim.forces.controllers import ControllerSetting, controllers_term
 from animbatch.sim.forces import BodyTable, ForceTerm, SpringForces, SpringSet, TermFactory
+from animbatch.sim.forces.controllers import ControllerSetting, controllers_term
 from animbatch.sim.model.layout import StateLayout
 from animbatch.sim.model.model import Model
 from animbatch.sim.model.rigid_set import RigidBodySet
 from animbatch.sim.motion import AnchorMotion, KeyframePath
-from animbatch import quaternion
 from animbatch.sim.rigid.shapes import BodyGeometry
 
 
@@ -187,7 +187,10 @@ class ModelBuilder:
         centre of mass). Without ``rest_length`` the spring rests at its initial length.
         """
         label = name or f"spring{self.spring_count}"
-        point = (lambda given: np.full((1, 3), np.nan) if given is None else np.asarray(given, float).reshape(1, 3))
+
+        def point(given: Sequence[float] | None) -> np.ndarray:
+            return np.full((1, 3), np.nan) if given is None else np.asarray(given, float).reshape(1, 3)
+
         self.add_springs(np.array([first]), np.array([second]), stiffness=stiffness, damping=damping,
                          rest_length=np.nan if rest_length is None else rest_length,
                          second_is_anchor=np.array([second_is_anchor]), names=[label],
@@ -368,7 +371,8 @@ class ModelBuilder:
             rotation = quaternion.to_matrix(np.array([b.orientation for b in self._rigid]))
             inertia_world = rotation @ rigid.inertia @ np.transpose(rotation, (0, 2, 1))
             angular_momentum = np.einsum("bij,bj->bi", inertia_world, [b.angular_velocity for b in self._rigid])
-            parts += [np.ravel([b.centre_position for b in self._rigid]), np.ravel([b.orientation for b in self._rigid])]
+            parts += [np.ravel([b.centre_position for b in self._rigid]),
+                      np.ravel([b.orientation for b in self._rigid])]
             motion += [np.ravel([b.velocity * m for b, m in zip(self._rigid, rigid.mass)]), angular_momentum.ravel()]
         y0 = _readonly(np.concatenate(parts + motion))
         owners = tuple(self._particle_owners) + tuple(body.name for body in self._rigid)

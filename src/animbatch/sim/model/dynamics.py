@@ -20,10 +20,10 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from animbatch import quaternion
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.forces.base import ForceJacobian
 from animbatch.sim.model.model import Model, world_inverse_inertia_times
-from animbatch import quaternion
 
 
 class Dynamics:

@@ -15,12 +15,12 @@ from typing import Any
 
 import numpy as np
 
+from animbatch import quaternion
 from animbatch.sim.deformable.vertices import DeformableSet
 from animbatch.sim.forces import BodyTable, ForceTerm, SpringSet
 from animbatch.sim.model.layout import StateLayout
-from animbatch.sim.motion import AnchorMotion
 from animbatch.sim.model.rigid_set import RigidBodySet
-from animbatch import quaternion
+from animbatch.sim.motion import AnchorMotion
 
 
 @dataclass(frozen=True, eq=False)

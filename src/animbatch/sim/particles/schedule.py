@@ -85,7 +85,8 @@ class EmissionSchedule:
         width = self.knot_times[piece + 1] - a
         slope = np.divide(rb - ra, width, out=np.zeros_like(a), where=width > 0)
         remaining = np.maximum(target - self._cumulative[piece], 0.0)
-        # ½ slope s² + ra s = remaining, in the form without cancellation: s = 2 remaining / (ra + √(ra² + 2 slope rem.))
+        # ½ slope s² + ra s = remaining, in the form without cancellation:
+        # s = 2 remaining / (ra + √(ra² + 2 slope remaining))
         root = np.sqrt(np.maximum(ra * ra + 2.0 * slope * remaining, 0.0))
         s = np.divide(2.0 * remaining, ra + root, out=np.zeros_like(a), where=(ra + root) > 0)
         return np.minimum(a + np.minimum(s, width), self.knot_times[-1])

@@ -31,8 +31,8 @@ from animbatch.sim.particles.body_motion import BodyMotion
 from animbatch.sim.particles.collisions import MAX_BOUNCES, SURFACE_GAP, ParticleColliders, bounce
 from animbatch.sim.particles.emitter import Emitter
 from animbatch.sim.particles.pool import ParticlePool
-from animbatch.trajectory import ParticleFrames
 from animbatch.sim.particles.stepping import FIXED_METHODS, Accelerations, adaptive_segment, fixed_step
+from animbatch.trajectory import ParticleFrames
 
 #: Serials are stored as int32 in trajectories.
 LARGEST_SERIAL = 2**31 - 1

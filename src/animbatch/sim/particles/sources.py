@@ -12,7 +12,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from animbatch.sim.particles.streams import DRAW
-from animbatch.sim.rigid.shapes import BodyGeometry
 
 
 def unit_vectors(u1: np.ndarray, u2: np.ndarray) -> np.ndarray:

@@ -25,9 +25,11 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 
+from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.particles.fields import ParticleField, Slots
 
-FIXED_METHODS = ("euler", "midpoint", "symplectic_euler", "verlet", "backward_euler")
+#: The fixed-step methods (each has a particle kernel).
+FIXED_METHODS = tuple(name for name, method in METHODS.items() if method.particle_step is not None)
 
 
 class Accelerations:
@@ -65,35 +67,14 @@ class Accelerations:
 
 def fixed_step(method: str, acceleration: Accelerations, x: np.ndarray, v: np.ndarray, cached: np.ndarray,
                mass: np.ndarray, radius: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One step ``h`` [s] of ``method`` for slots at ``x``, ``v`` (K, 3); ``cached``: each slot's acceleration at the
-    start of the step (Verlet). ``h`` may also be one step per slot, shape (K, 1). Returns the new positions,
-    velocities and accelerations to cache."""
-    a = cached if method == "verlet" else acceleration(x, v, mass, radius)
-    if method == "euler":
-        return x + h * v, v + h * a, a
-    if method == "symplectic_euler":
-        v_new = v + h * a
-        return x + h * v_new, v_new, a
-    if method == "midpoint":
-        v_half = v + 0.5 * h * a
-        a_half = acceleration(x + 0.5 * h * v, v_half, mass, radius)
-        return x + h * v_half, v + h * a_half, a_half
-    if method == "verlet":
-        x_new = x + h * v + (0.5 * h * h) * a
-        a_new = acceleration(x_new, v + h * a, mass, radius)
-        return x_new, v + (0.5 * h) * (a + a_new), a_new
-    if method == "backward_euler":
-        rates = acceleration.drag_rates(x, v, mass, radius)
-        step = np.ravel(h) if np.ndim(h) else h
-        c = 1.0 + step * rates[:, 0]
-        b = step * rates[:, 1]
-        unit = acceleration.quadratic_direction(v)
-        rhs = h * a
-        along = np.einsum("ij,ij->i", unit, rhs)
-        dv = (rhs - (b / (c + b) * along)[:, None] * unit) / c[:, None]  # ((c I + b û ûᵀ)⁻¹ rhs)
-        v_new = v + dv
-        return x + h * v_new, v_new, a
-    raise ValueError(f"unknown fixed-step method {method!r}; choose from {', '.join(FIXED_METHODS)}")
+    """One step ``h`` [s] of ``method`` for slots at ``x``, ``v`` (K, 3) (its kernel in
+    :mod:`animbatch.sim.integrators.particle_kernels`); ``cached``: each slot's acceleration at the start of the step
+    (Verlet). ``h`` may also be one step per slot, shape (K, 1). Returns the new positions, velocities and
+    accelerations to cache."""
+    kernel = METHODS[method].particle_step if method in METHODS else None
+    if kernel is None:
+        raise ValueError(f"unknown fixed-step method {method!r}; choose from {', '.join(FIXED_METHODS)}")
+    return kernel(acceleration, x, v, cached, mass, radius, h)
 
 
 def adaptive_segment(method: str, rtol: float, atol: float, max_step: float | None, acceleration: Accelerations,

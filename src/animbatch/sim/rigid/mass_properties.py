@@ -80,7 +80,8 @@ def spherical_shell(mass: float, radius: float, thickness: float | None = None) 
 def cuboid(mass: float, size: np.ndarray) -> MassProperties:
     """Box with side lengths (a, b, c) along x, y, z: ``I = m/12 diag(b² + c², a² + c², a² + b²)``."""
     a, b, c = np.asarray(size, float)
-    return MassProperties(mass, a * b * c, np.zeros(3), mass / 12 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b]))
+    inertia = mass / 12 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
+    return MassProperties(mass, a * b * c, np.zeros(3), inertia)
 
 
 def cylinder(mass: float, radius: float, length: float) -> MassProperties:

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from animbatch.sim.rigid import mass_properties as mp
-from animbatch.sim.rigid.polyhedra import (TriangleMesh, box_mesh, cylinder_mesh, mesh_mass_properties,
-                                       volume_integrals)
+from animbatch.sim.rigid.polyhedra import TriangleMesh, volume_integrals
+
 
 @dataclass(frozen=True, eq=False)
 class BodyGeometry:

@@ -1,0 +1,112 @@
+"""Every integration method, described once: what steps it (a scheme or a scipy solver), its order, its cost per
+step, its stability matrix and its kernel for particle pools.
+
+Everything else reads this table: the fixed-step loop and the scipy adapter look up their scheme or solver, the
+pre-flight and the step refusal use the stability matrices, the ledger and the cost estimate the orders and costs,
+the particle pools the kernels, and the advice which methods are implicit or symplectic. A test checks that the
+scene schema's method names are exactly these. Adding a fixed-step method: write its scheme (a Butcher tableau is
+enough for an explicit Runge–Kutta method), its particle kernel and its step matrix, and add one entry here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
+
+from animbatch.sim.integrators import particle_kernels as kernels
+from animbatch.sim.integrators.fixed_step import ExplicitEuler, Midpoint, Scheme, SymplecticEuler, VelocityVerlet
+from animbatch.sim.integrators.implicit import BackwardEuler
+from animbatch.sim.integrators.particle_kernels import ParticleKernel
+
+#: (h [s], ω [rad/s], decay α [1/s]) -> the matrix of one step on ``x'' = -ω² x - 2 α x'``.
+StepMatrix = Callable[[float, float, float], np.ndarray]
+
+
+def _rate(omega: float, decay: float) -> np.ndarray:
+    return np.array([[0.0, 1.0], [-omega**2, -2 * decay]])
+
+
+def _euler_matrix(h: float, omega: float, decay: float) -> np.ndarray:
+    return np.eye(2) + h * _rate(omega, decay)
+
+
+def _midpoint_matrix(h: float, omega: float, decay: float) -> np.ndarray:
+    hr = h * _rate(omega, decay)
+    return np.eye(2) + hr + 0.5 * hr @ hr
+
+
+def _symplectic_euler_matrix(h: float, omega: float, decay: float) -> np.ndarray:
+    kick = np.eye(2) + h * np.array([[0.0, 0.0], _rate(omega, decay)[1]])  # v' = v + h a(x, v)
+    return np.array([[1.0, h], [0.0, 1.0]]) @ kick  # x' = x + h v'
+
+
+def _verlet_matrix(h: float, omega: float, decay: float) -> np.ndarray:
+    # Velocity Verlet keeps the rate it evaluated at the predicted motion (x', v + h a) for the next step, so with
+    # damping its state is (x, v, a), not (x, v): x' = x + h v + h²/2 a; a' = a(x', v + h a); v' = v + h/2 (a + a').
+    position = np.array([1.0, h, 0.5 * h * h])
+    predicted = np.array([0.0, 1.0, h])
+    new_rate = -omega**2 * position - 2 * decay * predicted
+    velocity = np.array([0.0, 1.0, 0.5 * h]) + 0.5 * h * new_rate
+    return np.array([position, velocity, new_rate])
+
+
+def _backward_euler_matrix(h: float, omega: float, decay: float) -> np.ndarray:
+    return np.linalg.inv(np.eye(2) - h * _rate(omega, decay))
+
+
+@dataclass(frozen=True)
+class Method:
+    """One integration method.
+
+    ``order``: of the error per unit time (fixed-step: a run's drift shrinks as dt to this power; adaptive methods
+    with a variable order: a middle value). ``evaluations_per_step``: right-hand sides per step (explicit stages;
+    implicit: stages × Newton iterations, roughly), for cost estimates."""
+
+    name: str
+    family: Literal["fixed-step", "adaptive"]
+    order: int
+    evaluations_per_step: int
+    summary: str
+    scheme: type[Scheme] | None = None  # fixed-step: steps bodies
+    solver: type[OdeSolver] | None = None  # adaptive: the scipy solver
+    step_matrix: StepMatrix | None = None  # fixed-step: one step on a damped oscillator (stability)
+    particle_step: ParticleKernel | None = None  # fixed-step: one step of a pool of independent particles
+    symplectic: bool = False
+    implicit: bool = False
+
+    @property
+    def fixed_step(self) -> bool:
+        return self.family == "fixed-step"
+
+    @property
+    def keeps_contacts(self) -> bool:
+        """Adaptive methods stop at impacts; fixed-step schemes must apply contacts between kick and drift."""
+        return self.scheme.takes_constraints if self.scheme is not None else True
+
+
+METHODS: dict[str, Method] = {method.name: method for method in (
+    Method("RK23", "adaptive", 2, 3, "Bogacki–Shampine 3(2)", solver=RK23),
+    Method("RK45", "adaptive", 4, 6, "Dormand–Prince 5(4)", solver=RK45),
+    Method("DOP853", "adaptive", 7, 12, "Dormand–Prince 8(5,3)", solver=DOP853),
+    Method("Radau", "adaptive", 5, 8, "implicit Runge–Kutta (Radau IIA), order 5", solver=Radau, implicit=True),
+    Method("BDF", "adaptive", 3, 3, "backward differentiation, orders 1–5", solver=BDF, implicit=True),
+    Method("LSODA", "adaptive", 4, 3, "Adams / BDF, switching on stiffness", solver=LSODA, implicit=True),
+    Method("euler", "fixed-step", 1, 1, "explicit Euler", scheme=ExplicitEuler, step_matrix=_euler_matrix,
+           particle_step=kernels.euler),
+    Method("midpoint", "fixed-step", 2, 2, "explicit midpoint (RK2)", scheme=Midpoint, step_matrix=_midpoint_matrix,
+           particle_step=kernels.midpoint),
+    Method("symplectic_euler", "fixed-step", 1, 1, "semi-implicit Euler", scheme=SymplecticEuler,
+           step_matrix=_symplectic_euler_matrix, particle_step=kernels.symplectic_euler, symplectic=True),
+    Method("verlet", "fixed-step", 2, 1, "velocity Verlet", scheme=VelocityVerlet, step_matrix=_verlet_matrix,
+           particle_step=kernels.verlet, symplectic=True),
+    Method("backward_euler", "fixed-step", 1, 2, "linearised backward Euler", scheme=BackwardEuler,
+           step_matrix=_backward_euler_matrix, particle_step=kernels.backward_euler, implicit=True),
+)}
+
+#: Fixed-step method name -> scheme class; adaptive method name -> scipy solver class.
+FIXED_STEP_SCHEMES: dict[str, type[Scheme]] = {name: m.scheme for name, m in METHODS.items() if m.scheme is not None}
+SCIPY_METHODS: dict[str, type[OdeSolver]] = {name: m.solver for name, m in METHODS.items() if m.solver is not None}

@@ -1,0 +1,60 @@
+"""The floor plan holds: one table of integration methods that the scene format agrees with, and the import
+contracts (the wall at compile, no cycles) that .importlinter states."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from animbatch.scene.schema import ADAPTIVE_METHODS, FIXED_STEP_METHODS, SolverSpec
+from animbatch.sim.integrators import METHODS, FixedStepIntegrator, ScipyIntegrator
+from animbatch.sim.integrators.stability import amplification
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_the_scene_format_offers_exactly_the_methods_of_the_table():
+    """Every method a scene may name is in the method table, in the same family, and nothing else is."""
+    assert set(ADAPTIVE_METHODS) == {name for name, m in METHODS.items() if not m.fixed_step}
+    assert set(FIXED_STEP_METHODS) == {name for name, m in METHODS.items() if m.fixed_step}
+    for name in METHODS:  # and each validates as a solver method
+        assert SolverSpec(method=name).method == name
+
+
+@pytest.mark.parametrize("name", [name for name, m in METHODS.items() if m.fixed_step])
+def test_every_fixed_step_method_is_complete_in_the_table(name):
+    """A fixed-step method has its scheme, its particle kernel and a stability matrix that tends to the identity
+    (a consistent method) and agrees with its order: the one-step error on an undamped oscillator is O(h^(p+1))."""
+    method = METHODS[name]
+    assert method.scheme is not None and method.particle_step is not None and method.step_matrix is not None
+    assert FixedStepIntegrator(name, dt=1e-3).method == name
+    errors = []
+    for h in (1e-2, 5e-3):
+        matrix = method.step_matrix(h, 1.0, 0.0)
+        exact = np.array([[np.cos(h), np.sin(h)], [-np.sin(h), np.cos(h)]])
+        state = np.array([1.0, 0.0]) if len(matrix) == 2 else np.array([1.0, 0.0, -1.0])  # Verlet carries a
+        errors.append(np.linalg.norm((matrix @ state)[:2] - exact @ np.array([1.0, 0.0])))
+    assert np.log2(errors[0] / errors[1]) == pytest.approx(method.order + 1, abs=0.3)
+    assert amplification(name, 1e-3, 1.0, 0.0) == pytest.approx(1.0, abs=1e-2)
+
+
+@pytest.mark.parametrize("name", [name for name, m in METHODS.items() if not m.fixed_step])
+def test_every_adaptive_method_has_its_scipy_solver(name):
+    """An adaptive method names the scipy solver that steps it."""
+    assert METHODS[name].solver is not None and ScipyIntegrator(name).method == name
+
+
+def test_the_import_contracts_hold():
+    """lint-imports finds every contract of .importlinter kept: the simulation never imports the scene format,
+    rendering never imports the simulation, drivers sit above stages above the compiler, and no package cycles."""
+    command = shutil.which("lint-imports", path=str(Path(sys.executable).parent))
+    if command is None:
+        pytest.skip("import-linter is not installed (bash scripts/dev.sh test installs it)")
+    done = subprocess.run([command, "--config", str(ROOT / ".importlinter")], cwd=ROOT, capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr
