@@ -11,9 +11,10 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
-from animbatch import api, stages
+from animbatch import api
 from animbatch.cli import cli
 from animbatch.farm import FrameRange, bake, frame_is_complete, parse_frames, render_frames
+from animbatch.farm import cache as farm_cache
 
 pytestmark = pytest.mark.render
 
@@ -56,7 +57,7 @@ def counting(monkeypatch, module, name):
 def test_cache_is_reused_for_a_new_camera_and_redone_for_new_physics_or_solver(throw, monkeypatch):
     """The cache key covers physics, solver settings and version, not the picture: a camera or resolution change
     reuses it; a mass or a tolerance change simulates again; a truncated cache file is never used."""
-    simulated = counting(monkeypatch, stages, "simulate")
+    simulated = counting(monkeypatch, farm_cache, "simulate")
     first = bake(api.load_scene(throw))
     assert not first.reused and len(simulated) == 1 and first.path.is_file()
     for overrides in (["render.camera.direction=[1, 1, 1]"], ["render.resolution=[160, 90]"], []):

@@ -2,6 +2,9 @@
 
 Exit codes: 0 success, 1 invalid scene or trajectory, 2 bad command-line usage, 3 simulation failed,
 4 rendering failed, 130 interrupted.
+
+Each command imports the library inside its function: ``animbatch --help`` and a mistyped option answer without
+loading numpy, scipy or pydantic (start-up time is the only reason for imports inside functions in this package).
 """
 
 from __future__ import annotations
@@ -363,45 +366,20 @@ def batch(scenes: tuple[Path, ...], out_dir: Path, workers: int | None, schedule
           backend: str, settings: tuple[str, ...], sweeps: tuple[str, ...]) -> None:
     """Render many scenes on Dask: each is baked, rendered in chunks in parallel, then encoded. Every job runs to
     its end; a summary table follows, and the exit code is 1 if any job failed."""
-    from animbatch import api
-    from animbatch.farm.batch import Job, run_batch, summary
+    from animbatch.farm import batch as farm_batch
+    from animbatch.farm.sweep import finish_sweep, plan_batch
 
-    chosen: list[dict[str, str]] = []
-    if not sweeps and len(scenes) == 1:  # a sweep: block in the scene stands for --sweep options
-        block = api.load_scene(scenes[0], list(settings)).spec.sweep
-        sweeps = tuple(f"{key}=" + ",".join(json.dumps(value) for value in values) for key, values in block.items())
-    if sweeps:
-        from animbatch.farm.sweep import parse_sweep, variants
-
-        if len(scenes) != 1:
-            raise click.BadParameter("a sweep takes exactly one scene", param_hint="--sweep")
-        try:
-            parsed = [parse_sweep(text) for text in sweeps]
-        except ValueError as error:
-            raise click.BadParameter(str(error), param_hint="--sweep") from None
-        base = api.load_scene(scenes[0], list(settings))
-        planned = variants(str(scenes[0]), base.name, parsed, tuple(settings) + ("sweep={}",))
-        for job, values in planned:
-            api.load_scene(job.scene_path, list(job.overrides))  # every variant valid before any work starts
-        jobs = [job for job, _ in planned]
-        chosen = [values for _, values in planned]
-    else:
-        jobs = [Job(str(path), tuple(settings)) for path in scenes]
-    results = run_batch(jobs, out_dir=out_dir, workers=workers, scheduler=scheduler, chunk_size=chunk_size,
-                        backend=backend, on_result=lambda r: click.echo(f"{r.label}: {r.status}", err=True))
-    click.echo(summary(results))
-    if sweeps:
-        from animbatch.farm.sweep import contact_sheet, energy_drift, metrics_csv
-        from animbatch.files import write_text_atomic
-
-        for job, result in zip(jobs, results):
-            if result.status == "ok":
-                result.metrics["energy_drift"] = energy_drift(job, result.metrics["cache"])
-        folder = out_dir / f"{base.name}-sweep"
-        rows = list(zip(results, chosen))
-        write_text_atomic(folder / "sweep.csv", metrics_csv(rows))
-        contact_sheet(rows, folder / "contact-sheet.png")
-        click.echo(f"sweep: {folder / 'sweep.csv'}, {folder / 'contact-sheet.png'}")
+    try:
+        plan = plan_batch(scenes, settings, sweeps, out_dir)
+    except ValueError as error:
+        raise click.BadParameter(str(error), param_hint="--sweep") from None
+    results = farm_batch.run_batch(plan.jobs, out_dir=out_dir, workers=workers, scheduler=scheduler,
+                                   chunk_size=chunk_size, backend=backend,
+                                   on_result=lambda r: click.echo(f"{r.label}: {r.status}", err=True))
+    click.echo(farm_batch.summary(results))
+    if plan.sweep_folder is not None:
+        written = finish_sweep(plan, results)
+        click.echo(f"sweep: {', '.join(str(path) for path in written)}")
     if any(result.status != "ok" for result in results):
         sys.exit(1)
 

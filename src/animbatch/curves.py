@@ -174,15 +174,6 @@ def differentiate(node: ast.expr) -> ast.expr:
     return _binary(outer, ast.Mult(), differentiate(u))
 
 
-def sample_parametric(x: str, y: str, z: str, start: float, end: float, samples: int, closed: bool) -> np.ndarray:
-    """Points (samples, 3) [m] along a parametric curve; a closed curve leaves out its end (it is its start)."""
-    s = np.linspace(start, end, samples, endpoint=not closed)
-    points = np.stack([compile_expression(text)(s) for text in (x, y, z)], axis=1)
-    if not np.isfinite(points).all():
-        raise ExpressionError("the curve is not finite everywhere on its range (check divisions, log, sqrt)")
-    return points
-
-
 #: Segments whose midpoints are looked up per point before the exactness check (see :meth:`Polyline.closest`).
 NEAREST_CANDIDATES = 8
 #: Newton iterations at most when refining a closest point on a parametric curve (3 or 4 are typical).

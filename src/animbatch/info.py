@@ -5,10 +5,12 @@ from __future__ import annotations
 from typing import Any
 
 from animbatch.compile.forces import FIELD_TERMS
+from animbatch.compile.particles import compile_particles
 from animbatch.compile.solver import make_integrator
 from animbatch.scene import LoadedScene
-from animbatch.scene.schema import BoxCollider, PlaneCollider, SphereCollider
+from animbatch.scene.schema import BoxCollider, PlaneCollider, SphereCollider, random_bounds
 from animbatch.sim.contact.stepping import DEFAULT_REST_SPEED
+from animbatch.sim.deformable.vertices import ANCHOR, BODY_POINT, PARTICLE
 from animbatch.sim.integrators import DEFAULT_DT
 from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.ledger import conservation_laws, step_note
@@ -139,8 +141,6 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
 
 def _emitter_lines(scene: LoadedScene, model: Model) -> list[str]:
     """Each emitter: its pool, schedule, attribute bounds, the fields its particles feel, what they collide with."""
-    from animbatch.compile.particles import compile_particles
-    from animbatch.scene.schema import random_bounds
 
     spec = scene.spec
     systems = compile_particles(spec, model, scene.path.parent if scene.path is not None else ".")  # type: ignore[arg-type]
@@ -175,7 +175,6 @@ def _deformable_lines(model: Model) -> list[str]:
     deformables = model.deformables
     if deformables is None:
         return []
-    from animbatch.sim.deformable.vertices import ANCHOR, BODY_POINT, PARTICLE
 
     springs = model.springs
     lines = []

@@ -19,22 +19,29 @@ import numpy as np
 
 from animbatch import __version__
 from animbatch.compile.checks import check_files
+from animbatch.compile.frame_geometry import body_extents, collider_points
+from animbatch.compile.frame_geometry import frame_geometry as compile_frame_geometry
 from animbatch.compile.model import compile_scene
-from animbatch.compile.particles import pool_sizes
+from animbatch.compile.particles import compile_particles, pool_sizes
 from animbatch.compile.solver import make_integrator
 from animbatch.errors import SimulationError, TrajectoryError
+from animbatch.files import write_text_atomic
+from animbatch.plot import plot_quantities
 from animbatch.progress import Progress
+from animbatch.render.camera import motion_bounds
 from animbatch.scene import LoadedScene, physics_fingerprint
 from animbatch.scene import loader as scene_loader
 from animbatch.scene.overrides import Override
 from animbatch.sim.integrators import DEFAULT_DT, IntegrationResult, SolverStats
 from animbatch.sim.integrators.budget import wall_budget
+from animbatch.sim.integrators.checkpoint import integrate_with_checkpoints
 from animbatch.sim.integrators.cost import check_cost, estimate_cost
 from animbatch.sim.integrators.guard import check_energy_growth
 from animbatch.sim.integrators.preflight import preflight
-from animbatch.sim.ledger import build_ledger
+from animbatch.sim.ledger import QuantitySeries, build_ledger
 from animbatch.sim.model import Dynamics, Model
-from animbatch.sim.particles.simulate import steps_per_frame
+from animbatch.sim.particles.body_motion import BodyMotion
+from animbatch.sim.particles.simulate import simulate_particles, steps_per_frame
 from animbatch.stopwatch import Stopwatch
 from animbatch.trajectory import Trajectory
 
@@ -93,7 +100,6 @@ def _integrate(scene: LoadedScene, model: Model, integrator: Any, progress: Prog
             if checkpoint is None:
                 result = integrator.integrate(Dynamics(model), model.y0, model.frame_times, on_frame=on_frame)
             else:
-                from animbatch.sim.integrators.checkpoint import integrate_with_checkpoints  # noqa: I001
 
                 every, path = checkpoint
                 result = integrate_with_checkpoints(integrator, Dynamics(model), model.y0, model.frame_times,
@@ -112,9 +118,6 @@ def simulate_emitters(scene: LoadedScene, model: Model, states: np.ndarray, prog
     spec = scene.spec
     if not spec.emitters:
         return [], {}
-    from animbatch.compile.particles import compile_particles
-    from animbatch.sim.particles.body_motion import BodyMotion
-    from animbatch.sim.particles.simulate import simulate_particles
 
     systems = compile_particles(spec, model, scene_folder(scene))
     assert systems is not None
@@ -169,9 +172,6 @@ def largest_vector(model: Model, trajectory: Trajectory, kind: str) -> float:
 def frame_geometry(scene: LoadedScene, model: Model, trajectory: Trajectory) -> Any:
     """What the renderer draws for this scene and trajectory (a :class:`~animbatch.render.frames.FrameGeometry`),
     with the camera fitted to the whole motion: bodies, anchors, colliders and emitted particles."""
-    from animbatch.compile.frame_geometry import body_extents, collider_points
-    from animbatch.compile.frame_geometry import frame_geometry as compile_frame_geometry
-    from animbatch.render.camera import motion_bounds
 
     spec = scene.spec
     anchors = (np.vstack([model.anchors.positions(float(t)) for t in trajectory.times]) if model.anchors.moving
@@ -180,7 +180,6 @@ def frame_geometry(scene: LoadedScene, model: Model, trajectory: Trajectory) -> 
     bounds = motion_bounds(trajectory.positions, body_extents(model), fixed)
     emitters = ()
     if spec.emitters:
-        from animbatch.compile.particles import compile_particles
 
         emitters = compile_particles(spec, model, scene_folder(scene)).emitters  # type: ignore[union-attr]
     return compile_frame_geometry(spec, model, bounds, largest_vector(model, trajectory, spec.render.show_vectors),
@@ -204,8 +203,6 @@ def write_quantities(scene: LoadedScene, model: Model, trajectory: Trajectory, f
     ``folder``, and with ``plot`` draw them to ``quantities.png``; nothing for a scene without bodies."""
     if not model.body_count:
         return []
-    from animbatch.files import write_text_atomic
-    from animbatch.sim.ledger import QuantitySeries
 
     states = model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
                                trajectory.angular_velocities)
@@ -214,7 +211,6 @@ def write_quantities(scene: LoadedScene, model: Model, trajectory: Trajectory, f
     written = [folder / "quantities.csv"]
     write_text_atomic(written[0], series.csv())
     if plot:
-        from animbatch.plot import plot_quantities
 
         written.append(plot_quantities(series, folder / "quantities.png", scene=scene.name,
                                        ledger=trajectory.ledger))

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from animbatch.compile.bodies import orientation_matrix
+from animbatch.compile.contacts import _statics, material_table
 from animbatch.scene.schema import (
     PARTICLE_FIELD_TYPES,
     BoxSource,
@@ -64,7 +65,6 @@ def compile_particles(spec: SceneSpec, model: Any, base_dir: Path = Path(".")) -
     emitters move with (their index in the trajectory, centre of mass and surface)."""
     if not spec.emitters:
         return None
-    from animbatch.compile.contacts import _statics, material_table
 
     table = material_table(spec)
     statics = _statics(spec, table, base_dir)[0] if spec.colliders else None

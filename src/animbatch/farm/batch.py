@@ -17,7 +17,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from animbatch.farm.frames import FrameRange
+from animbatch import __version__, stages
+from animbatch.errors import SimulationError
+from animbatch.farm import bake, render_frames
+from animbatch.farm.encode import encode
+from animbatch.farm.frames import FrameRange, frames_folder, prepare_frames
+from animbatch.files import write_json_atomic
+from animbatch.sim.model.builder import frame_times
+from animbatch.stopwatch import Stopwatch
+from animbatch.trajectory import Trajectory
 
 #: Frames per render task by default: enough to amortise a renderer's start-up, small enough to spread a scene.
 CHUNK_SIZE = 48
@@ -54,12 +62,6 @@ class JobResult:
 
 def bake_task(scene_path: str, overrides: Sequence[Any], out_dir: str) -> dict[str, Any]:
     """Simulate (or reuse the cache) and prepare the frames folder; what the render tasks need to know."""
-    from animbatch import stages
-    from animbatch.errors import SimulationError
-    from animbatch.farm import bake
-    from animbatch.farm.frames import prepare_frames
-    from animbatch.files import write_json_atomic
-    from animbatch.stopwatch import Stopwatch
 
     scene = stages.load_scene(scene_path, list(overrides))
     started = time.perf_counter()
@@ -79,9 +81,6 @@ def render_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
     """Render frames ``start`` … ``stop - 1`` from the baked cache (skipping complete ones)."""
     for name, value in WORKER_ENV.items():
         os.environ.setdefault(name, value)
-    from animbatch import stages
-    from animbatch.farm import render_frames
-    from animbatch.trajectory import Trajectory
 
     scene = stages.load_scene(scene_path, list(overrides))
     trajectory = Trajectory.load(baked["cache"])
@@ -98,10 +97,6 @@ def encode_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
     import platform
     import shutil
 
-    from animbatch import __version__, stages
-    from animbatch.farm.encode import encode
-    from animbatch.farm.frames import frames_folder
-    from animbatch.files import write_json_atomic
 
     scene = stages.load_scene(scene_path, list(overrides))
     kinds = tuple(kind for kind in scene.spec.render.formats if kind != "png")
@@ -116,7 +111,6 @@ def encode_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
         outputs.append(str(folder))
     else:
         shutil.rmtree(folder, ignore_errors=True)
-    from animbatch.trajectory import Trajectory
 
     quantities = stages.write_quantities(scene, stages.compile_model(scene), Trajectory.load(baked["cache"]),
                                       Path(out_dir) / scene.name)
@@ -140,8 +134,6 @@ def encode_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
 
 def frame_count(job: Job) -> tuple[str, int]:
     """The scene's name and number of frames, read on the client to plan the render chunks (raises SceneError)."""
-    from animbatch import stages
-    from animbatch.sim.model.builder import frame_times
 
     scene = stages.load_scene(job.scene_path, list(job.overrides))
     return scene.name, len(frame_times(scene.spec.duration, scene.spec.fps))

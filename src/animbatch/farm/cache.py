@@ -21,6 +21,8 @@ from pathlib import Path
 from animbatch import __version__
 from animbatch.errors import TrajectoryError
 from animbatch.scene import LoadedScene
+from animbatch.sim.ledger import warn_again, with_threshold
+from animbatch.stages import scene_fingerprint, simulate
 from animbatch.trajectory import Trajectory
 
 #: Solver keys that judge a run rather than shape it: changing them re-judges a cached bake, never re-simulates.
@@ -34,7 +36,6 @@ def simulation_settings(solver: dict) -> dict:
 
 def bake_key(scene: LoadedScene) -> str:
     """16 hex digits naming the simulation a scene asks for (physics, solver settings, package version)."""
-    from animbatch.stages import scene_fingerprint
 
     content = {"physics": scene_fingerprint(scene),
                "solver": simulation_settings(scene.spec.solver.model_dump(mode="json")), "version": __version__}
@@ -65,7 +66,6 @@ def load_cached(scene: LoadedScene, path: Path) -> Trajectory | None:
         trajectory = Trajectory.load(path)
     except TrajectoryError:
         return None
-    from animbatch.stages import scene_fingerprint
 
     solver = simulation_settings(trajectory.solver)
     wanted = simulation_settings(json.loads(json.dumps(scene.spec.solver.model_dump(), default=str)))  # as stored
@@ -74,7 +74,6 @@ def load_cached(scene: LoadedScene, path: Path) -> Trajectory | None:
         return None
     threshold = scene.spec.solver.drift_warning
     if trajectory.ledger and trajectory.ledger.get("drift_warning") != threshold:
-        from animbatch.sim.ledger import with_threshold
 
         trajectory = dataclasses.replace(trajectory, ledger=with_threshold(trajectory.ledger, threshold),
                                          solver={**trajectory.solver, "drift_warning": threshold})
@@ -88,13 +87,11 @@ def bake(scene: LoadedScene, *, out_dir: str | Path = "renders", model: object =
     interrupted bake resumes from there."""
     import time
 
-    from animbatch.stages import simulate
 
     path = cache_file(scene, out_dir)
     started = time.perf_counter()
     cached = None if force else load_cached(scene, path)
     if cached is not None:
-        from animbatch.sim.ledger import warn_again
 
         warn_again(cached.ledger)  # what the run said when it was baked holds for every use of the bake
         return BakeResult(cached, path, True, time.perf_counter() - started)

@@ -18,8 +18,16 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from animbatch import __version__
 from animbatch.encode.images import BackgroundPngWriter, PngSequenceWriter
+from animbatch.errors import RenderError
+from animbatch.farm.cache import simulation_settings
+from animbatch.files import write_text_atomic
+from animbatch.render.backend import select_backend
+from animbatch.render.frames import FrameRenderer
 from animbatch.scene import LoadedScene
+from animbatch.sim.integrators.budget import format_seconds
+from animbatch.stages import check_trajectory, compile_model, frame_geometry
 from animbatch.trajectory import Trajectory
 
 
@@ -100,8 +108,6 @@ def render_key(scene: LoadedScene, trajectory: Trajectory) -> str:
     import hashlib
     import json
 
-    from animbatch import __version__
-    from animbatch.farm.cache import simulation_settings
 
     spec = scene.spec.model_dump(mode="json", exclude={"study", "description"})
     spec["solver"] = simulation_settings(spec["solver"])  # budgets and warning thresholds draw nothing
@@ -115,7 +121,6 @@ def render_key(scene: LoadedScene, trajectory: Trajectory) -> str:
 def prepare_frames(scene: LoadedScene, trajectory: Trajectory, out_dir: str | Path) -> Path:
     """Make the frames folder hold only frames of this picture: when its key differs (or is missing), delete the
     frames in it and write the new key. Returns the folder."""
-    from animbatch.files import write_text_atomic
 
     folder = frames_folder(scene, out_dir)
     key = render_key(scene, trajectory)
@@ -132,9 +137,6 @@ def prepare_frames(scene: LoadedScene, trajectory: Trajectory, out_dir: str | Pa
 def render_frames(scene: LoadedScene, trajectory: Trajectory, frames: FrameRange, *, out_dir: str | Path = "renders",
                   backend: str = "auto", model: object = None, on_frame=None) -> RangeResult:  # type: ignore[no-untyped-def]
     """Draw the frames of ``frames`` that are not complete on disk; ``on_frame(index)`` after each frame."""
-    from animbatch.render.backend import select_backend
-    from animbatch.render.frames import FrameRenderer
-    from animbatch.stages import check_trajectory, compile_model, frame_geometry
 
     if frames.stop > trajectory.frame_count:
         raise ValueError(f"frames {frames} asked for; the trajectory has {trajectory.frame_count} (0-"
@@ -194,8 +196,6 @@ class RenderBudget:
         per_frame = (now - self.second_started) / (done - 1) if done >= 2 else None
         projected = elapsed + per_frame * (self.frames - done) if per_frame is not None else None
         if elapsed > self.seconds or (projected is not None and projected > self.seconds):
-            from animbatch.errors import RenderError
-            from animbatch.sim.integrators.budget import format_seconds
 
             pace = (f"about {format_seconds(projected)} at {per_frame:.3g} s per frame" if projected is not None
                     else f"more than the {format_seconds(elapsed)} the first frame took")

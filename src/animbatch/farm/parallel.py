@@ -18,7 +18,9 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
-from animbatch.farm.frames import FrameRange, RangeResult
+from animbatch import stages
+from animbatch.farm.frames import FrameRange, RangeResult, render_frames
+from animbatch.trajectory import Trajectory
 
 #: Below this many frames per worker, starting worker processes costs more than it saves.
 MIN_FRAMES_PER_WORKER = 24
@@ -38,9 +40,6 @@ def _limit_rasteriser_threads() -> None:
 def _render_chunk(scene_path: str, overrides: Sequence[tuple[str, str]], trajectory_path: str, chunk: FrameRange,
                   out_dir: str, backend: str) -> RangeResult:
     """In a worker: load the scene and the trajectory, render one chunk."""
-    from animbatch import stages
-    from animbatch.farm.frames import render_frames
-    from animbatch.trajectory import Trajectory
 
     scene = stages.load_scene(scene_path, list(overrides))
     trajectory = Trajectory.load(trajectory_path)

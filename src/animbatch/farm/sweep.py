@@ -7,6 +7,7 @@ from __future__ import annotations
 import csv
 import io
 import itertools
+import json
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -15,7 +16,12 @@ from typing import Any
 
 import numpy as np
 
+from animbatch import stages
 from animbatch.farm.batch import Job, JobResult
+from animbatch.files import atomic_path, write_text_atomic
+from animbatch.sim.integrators.guard import energy_scale
+from animbatch.sim.invariants import total_energy
+from animbatch.trajectory import Trajectory
 
 
 @dataclass(frozen=True)
@@ -69,10 +75,6 @@ def variants(scene_path: str, name: str, sweeps: Sequence[Sweep], overrides: Seq
 def energy_drift(job: Job, cache: str) -> float | None:
     """Largest change of the total energy over the run, relative to its energy scale (None when the scene puts
     energy in, so that a change is not drift)."""
-    from animbatch import stages
-    from animbatch.sim.integrators.guard import energy_scale
-    from animbatch.sim.invariants import total_energy
-    from animbatch.trajectory import Trajectory
 
     scene = stages.load_scene(job.scene_path, list(job.overrides))
     model = stages.compile_model(scene)
@@ -108,7 +110,6 @@ def contact_sheet(rows: Sequence[tuple[JobResult, dict[str, str]]], target: Path
     import imageio_ffmpeg
     from PIL import Image, ImageDraw
 
-    from animbatch.files import atomic_path
 
     tiles = []
     for result, chosen in rows:
@@ -141,3 +142,46 @@ def contact_sheet(rows: Sequence[tuple[JobResult, dict[str, str]]], target: Path
     with atomic_path(target) as partial:
         sheet.save(partial, format="PNG")
     return target
+
+
+@dataclass(frozen=True)
+class BatchPlan:
+    """The jobs of a batch: one per scene, or one per variant of a sweep (with the values each stands for, and the
+    folder its CSV and contact sheet go to)."""
+
+    jobs: list[Job]
+    chosen: list[dict[str, str]]
+    sweep_folder: Path | None = None
+
+
+def plan_batch(scenes: Sequence[Path], settings: Sequence[str], sweeps: Sequence[str], out_dir: Path) -> BatchPlan:
+    """The jobs for ``animbatch batch``: a ``sweep:`` block in a lone scene stands for ``--sweep`` options; every
+    variant is validated before any work starts (SceneError). ValueError names a bad ``--sweep``."""
+
+    if not sweeps and len(scenes) == 1:
+        block = stages.load_scene(scenes[0], list(settings)).spec.sweep
+        sweeps = [f"{key}=" + ",".join(json.dumps(value) for value in values) for key, values in block.items()]
+    if not sweeps:
+        return BatchPlan([Job(str(path), tuple(settings)) for path in scenes], [])
+    if len(scenes) != 1:
+        raise ValueError("a sweep takes exactly one scene")
+    parsed = [parse_sweep(text) for text in sweeps]
+    base = stages.load_scene(scenes[0], list(settings))
+    planned = variants(str(scenes[0]), base.name, parsed, tuple(settings) + ("sweep={}",))
+    for job, _ in planned:
+        stages.load_scene(job.scene_path, list(job.overrides))
+    return BatchPlan([job for job, _ in planned], [values for _, values in planned],
+                     Path(out_dir) / f"{base.name}-sweep")
+
+
+def finish_sweep(plan: BatchPlan, results: Sequence[JobResult]) -> list[Path]:
+    """After a sweep's jobs: each variant's energy drift, then ``sweep.csv`` and the contact sheet; their paths."""
+
+    assert plan.sweep_folder is not None
+    for job, result in zip(plan.jobs, results):
+        if result.status == "ok":
+            result.metrics["energy_drift"] = energy_drift(job, result.metrics["cache"])
+    rows = list(zip(results, plan.chosen))
+    csv_path = plan.sweep_folder / "sweep.csv"
+    write_text_atomic(csv_path, metrics_csv(rows))
+    return [csv_path, contact_sheet(rows, plan.sweep_folder / "contact-sheet.png")]

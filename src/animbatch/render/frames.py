@@ -26,16 +26,20 @@ from animbatch import quaternion
 from animbatch.errors import RenderError
 from animbatch.render.backend import Backend, activate
 from animbatch.render.camera import CameraPlacement, nice_spacing, place_camera, plane_axes
+from animbatch.render.emitted import EmitterLayer
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (
+    BoxCollider,
     BoxShape,
     CompoundShape,
     CylinderShape,
     MeshCollider,
     MeshShape,
+    PlaneCollider,
     RenderSpec,
     RodShape,
     ShellShape,
+    SphereCollider,
     SphereShape,
 )
 
@@ -228,7 +232,6 @@ class FrameRenderer:
 
     def _add_emitted(self) -> None:
         """One point cloud per emitter (see :mod:`animbatch.render.emitted`)."""
-        from animbatch.render.emitted import EmitterLayer
 
         self._emitter_layers = [EmitterLayer(self.pv, self.plotter, emitter) for emitter in self.geometry.emitters]
 
@@ -367,7 +370,6 @@ class FrameRenderer:
 
     def _add_colliders(self) -> None:
         """Fixed colliders, built once: planes as squares around the motion, boxes, spheres and meshes."""
-        from animbatch.scene.schema import BoxCollider, MeshCollider, PlaneCollider, SphereCollider
 
         for collider in self.geometry.colliders:
             color = collider.color or COLLIDER_COLOR

@@ -29,6 +29,9 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError, PydanticUndefined
 
+from animbatch.curves import ExpressionError, compile_expression
+from animbatch.scene.annotations import tag_of
+
 NAME_PATTERN = r"^[A-Za-z_][A-Za-z0-9_.\-]*$"
 
 
@@ -751,7 +754,6 @@ FieldSpec = Annotated[Union[*FIELD_SPECS], Field(discriminator="type")]  # type:
 
 def field_type_names() -> tuple[str, ...]:
     """The ``type`` values of all field kinds, in declaration order."""
-    from animbatch.scene.annotations import tag_of
 
     return tuple(str(tag_of(spec)) for spec in FIELD_SPECS)
 
@@ -892,7 +894,6 @@ class ParametricTarget(SceneModel):
     @field_validator("x", "y", "z")
     @classmethod
     def _expression(cls, text: str) -> str:
-        from animbatch.curves import ExpressionError, compile_expression
 
         try:
             compile_expression(text)

@@ -39,9 +39,6 @@ class BodyTable:
     def rigid_count(self) -> int:
         return self.count - self.first_rigid
 
-    def is_rigid(self, index: np.ndarray) -> np.ndarray:
-        return np.asarray(index) >= self.first_rigid
-
 
 @dataclass(frozen=True, eq=False)
 class Kinematics:

@@ -30,11 +30,14 @@ from typing import Any
 import numpy as np
 
 from animbatch.errors import AccuracyWarning
+from animbatch.sim.contact.audit import Overlap, OverlapAudit
 from animbatch.sim.forces import Gravitation, SpringForces
 from animbatch.sim.forces.dihedral import DihedralSprings
+from animbatch.sim.integrators.advice import Encounter, closest_encounter
 from animbatch.sim.integrators.guard import energy_scale
 from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.invariants import angular_momentum, centre_of_mass, kinetic_energy, linear_momentum, potential_energy
+from animbatch.sim.model.dynamics import Dynamics
 from animbatch.sim.model.model import Model
 
 #: Relative drift of a conserved quantity above which a run warns (``solver.drift_warning``).
@@ -301,7 +304,6 @@ def judge(ledger: dict[str, Any]) -> list[str]:
                               dt=ledger["step"].get("dt"))
         encounter = ledger.get("encounter")
         if encounter:  # the likelier culprit: a pass closer than the bodies' radii, where 1/r² has no bound
-            from animbatch.sim.integrators.advice import Encounter
 
             advice += ". " + Encounter(**encounter).advice()
         messages.append(
@@ -309,7 +311,6 @@ def judge(ledger: dict[str, Any]) -> list[str]:
             f" (solver.drift_warning: {100 * threshold:.3g} %). {method} is not accurate enough here: {advice}.")
     for overlap in (ledger.get("contacts") or {}).values():
         if overlap:
-            from animbatch.sim.contact.audit import Overlap
 
             messages.append(Overlap(**overlap).message(method, adaptive=adaptive))
     return messages
@@ -354,13 +355,10 @@ def build_ledger(model: Model, states: np.ndarray, stats: dict[str, Any], partic
                            "drift": None if drift[name] is None else drift[name][0],
                            "scale": None if drift[name] is None else drift[name][1], "unit": UNITS[name]}
                     for name in QUANTITIES}
-    from animbatch.sim.integrators.advice import closest_encounter
 
     encounter = closest_encounter(model, model.positions(states), times) if model.body_count else None
     contacts = None
     if model.contact_world is not None and model.body_count:
-        from animbatch.sim.contact.audit import OverlapAudit
-        from animbatch.sim.model.dynamics import Dynamics
 
         found = OverlapAudit(model, Dynamics(model)).run(states, times, [tuple(i) for i in stats.get("impacts", [])])
         contacts = {kind: overlap.as_dict() if overlap is not None else None for kind, overlap in found.items()}

@@ -17,6 +17,7 @@ import sys
 import time
 from pathlib import Path
 
+from animbatch import stages
 from animbatch.files import write_text_atomic
 from animbatch.study.report import write_outputs
 from animbatch.study.study import TARGETS, StudyResult, run_study
@@ -109,7 +110,6 @@ def ledger_table(root: Path) -> str:
     """The ledger of the two-body orbit over ten orbits under :data:`LEDGER_RUNS`, as a Markdown table."""
     import warnings
 
-    from animbatch import stages
 
     lines = ["| method | setting | steps | wall time | energy drift | angular momentum drift | warning |",
              "|---|---|---|---|---|---|---|"]
@@ -204,7 +204,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--timeout", type=float, default=30.0, help="wall-time limit per run [s]")
     parser.add_argument("--repeats", type=int, help="timed repeats per run (default: each scene's study.repeats)")
     args = parser.parse_args(argv)
-    from animbatch import stages
 
     started = time.perf_counter()
     docs = args.root / "docs"

@@ -1,9 +1,9 @@
 """``run_study``: every applicable integrator over a sweep of tolerances or steps, each run's error against the
 reference and its work, and each method's figures of merit.
 
-    from animbatch import stages
+    from animbatch import api
     from animbatch.study import run_study, write_outputs
-    result = run_study(stages.load_scene("scenes/projectile.yaml"))
+    result = run_study(api.load_scene("scenes/projectile.yaml"))
     write_outputs(result, "renders/projectile")
 """
 

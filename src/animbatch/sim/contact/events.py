@@ -44,7 +44,7 @@ from animbatch.sim.contact.detection import (
     turn_angle,
 )
 from animbatch.sim.contact.impacts import ImpactLog
-from animbatch.sim.contact.solver import BodyVelocities, solve_forces, solve_impulses
+from animbatch.sim.contact.solver import BodyVelocities, ContactRows, solve_forces, solve_impulses
 from animbatch.sim.contact.stepping import DEFAULT_REST_SPEED
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.integrators.advice import failure_advice
@@ -204,7 +204,6 @@ class ContactEvents:
     def _biases(self, contacts: Contacts, state: Kinematics, velocities: BodyVelocities,
                 x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Velocity products and stabilisation terms of the resting contacts' gaps and tangential motion."""
-        from animbatch.sim.contact.solver import ContactRows
 
         rows = ContactRows(contacts, velocities, x)
         w = velocities.omega
@@ -235,7 +234,6 @@ class ContactEvents:
         contacts, result, accelerations, tangent_bias = self._contact_forces(t, y, dydt)
         state = self._state(y)
         velocities = self._velocities(state)
-        from animbatch.sim.contact.solver import ContactRows
 
         x = np.vstack([state.x, np.zeros((1, 3))])
         rows = ContactRows(contacts, velocities, x)
@@ -434,7 +432,6 @@ class ContactEvents:
     def _land(self, touching: Contacts, bodies: BodyVelocities, x: np.ndarray) -> None:
         """Take away the separating normal velocity of the landing contacts among ``touching``, so that they rest
         (the kinetic energy of a hop the solver could not resolve, ½ m v² for v below what its step can show)."""
-        from animbatch.sim.contact.solver import ContactRows
 
         landing = self.landing
         assert landing is not None
@@ -464,7 +461,6 @@ class ContactEvents:
             self.resting = Resting()
             self._warm_forces = None
             return
-        from animbatch.sim.contact.solver import ContactRows
 
         velocities = self._velocities(state)
         x = np.vstack([state.x, np.zeros((1, 3))])
@@ -497,7 +493,6 @@ class ContactEvents:
         switch = (mode <= 1e-9) & keep
         if switch.any():
             contacts = evaluate_pairs(self.world, state, resting.probe, resting.kind, resting.index)
-            from animbatch.sim.contact.solver import ContactRows
 
             bodies = self._velocities(state)
             x = np.vstack([state.x, np.zeros((1, 3))])

@@ -223,24 +223,10 @@ class ContactRows:
         """Relative tangential motion (K, 2) in the (t1, t2) basis."""
         return self.tangent_velocity(self.flat(v, w))
 
-    def apply(self, impulse: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> None:
-        """Add impulses (or forces) (K, 3) at the contacts: +impulse on a, -impulse on b."""
-        velocity = self.flat(v, w)
-        self.push_normal(velocity, np.einsum("ki,ki->k", impulse, self.n))
-        self.push_tangent(velocity, np.stack([np.einsum("ki,ki->k", impulse, self.t1),
-                                              np.einsum("ki,ki->k", impulse, self.t2)], axis=1))
-        self.unflat(velocity, v, w)
-
     def apply_normal(self, amount: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> None:
         velocity = self.flat(v, w)
         self.push_normal(velocity, amount)
         self.unflat(velocity, v, w)
-
-    def apply_tangential(self, amounts: np.ndarray) -> None:
-        """Add tangential impulses given in the (t1, t2) basis, (K, 2)."""
-        velocity = self.flat()
-        self.push_tangent(velocity, amounts)
-        self.unflat(velocity)
 
     def friction_step(self, velocity: np.ndarray, tangent_impulse: np.ndarray, normal_impulse: np.ndarray,
                       static: np.ndarray, sticking: np.ndarray, kinetic: np.ndarray

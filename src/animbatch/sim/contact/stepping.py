@@ -24,7 +24,7 @@ import numpy as np
 
 from animbatch.sim.contact.detection import body_reach, contact_codes, detect
 from animbatch.sim.contact.impacts import ImpactLog
-from animbatch.sim.contact.solver import BodyVelocities, solve_impulses
+from animbatch.sim.contact.solver import BodyVelocities, solve_impulses, tangent_basis
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.model.dynamics import Dynamics
 
@@ -130,7 +130,6 @@ class ContactResolver:
                                 rest_speed=self.rest_speed(h), slop=self.settings.slop, bounce=bounce, warm=warm)
         if bounce:  # remember the impulses of the main solve (not of end-of-step re-projections)
             self.impacts.record(t + result.arrival * h, contacts.probe_body, result.impact)
-            from animbatch.sim.contact.solver import tangent_basis
 
             t1, t2 = tangent_basis(contacts.normal)
             tangential = result.tangent_impulse[:, [0]] * t1 + result.tangent_impulse[:, [1]] * t2

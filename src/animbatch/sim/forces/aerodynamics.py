@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from animbatch.sim.deformable.vertices import PARTICLE
 from animbatch.sim.forces.base import BodyTable, ForceTerm, Kinematics, vector_text
 
 #: Relative frequencies, weights and phases of the three sine waves of a gust (incommensurate, so the pattern does
@@ -98,7 +99,6 @@ def build_aerodynamics(bodies: BodyTable, index: np.ndarray | None, *, wind: np.
     """Wind pressure on the triangles of the cloths among the selected points (all cloths when ``index`` is None);
     ``wind`` [m/s] (3,), gusts of ``gust_amplitude`` [m/s] (3,) over ``gust_period`` [s], air ``density`` [kg/m³],
     normal ``drag`` and tangential ``friction`` coefficients."""
-    from animbatch.sim.deformable.vertices import PARTICLE
 
     deformables = bodies.deformables
     vertex_map = deformables.vertex_map

@@ -20,7 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from animbatch.sim.forces import Gravitation
 from animbatch.sim.integrators.methods import METHODS
+from animbatch.sim.integrators.stability import stiffest_mode
 
 #: Methods that are implicit (or switch to an implicit method when the problem is stiff, as LSODA does).
 IMPLICIT = tuple(name for name, method in METHODS.items() if method.implicit)
@@ -61,7 +63,6 @@ def closest_encounter(model: object, positions: np.ndarray, times: np.ndarray | 
     """The gravitating pair without softening that comes closest to touching in ``positions`` (P, 3) or (F, P, 3)
     [m] (at the frames ``times`` [s] and on the straight paths between them), if any pair is closer than its radii
     together."""
-    from animbatch.sim.forces import Gravitation
 
     worst = None
     frames = positions.reshape(-1, *positions.shape[-2:])
@@ -103,7 +104,6 @@ def failure_advice(model: object | None, method: str, y: np.ndarray, t: float, f
         encounter = closest_encounter(model, model.positions(y), np.array([t]))  # type: ignore[attr-defined]
         if encounter is not None:
             return encounter.advice()
-        from animbatch.sim.integrators.stability import stiffest_mode
 
         mode = stiffest_mode(model)
         if mode is not None:

@@ -26,10 +26,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from animbatch.errors import SimulationError
+from animbatch.sim.forces import Gravitation
 from animbatch.sim.integrators.budget import format_seconds
+from animbatch.sim.integrators.fixed_step import DEFAULT_DT, substeps
 from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.integrators.preflight import EXPLICIT_LIMITS
 from animbatch.sim.integrators.stability import stiffest_mode
+from animbatch.sim.model import Dynamics
 
 #: Cost of advancing one emitted particle by one step [s], births and records included: the fountain (gravity, drag,
 #: box colliders) measured 0.35-0.7 µs per particle-step on a 2-core machine; the bare stepping benchmark ~40 ns.
@@ -106,7 +109,6 @@ def estimate_cost(model: object, solver: object, particle_pools: list[tuple[str,
 
 def _steps(model: object, solver: object, times: np.ndarray) -> tuple[float, str]:
     """Steps the method will take over ``times``, and the reason in words."""
-    from animbatch.sim.integrators.fixed_step import DEFAULT_DT, substeps
 
     frames = len(times)
     if frames < 2:
@@ -138,7 +140,6 @@ def _fastest_motions(model: object) -> list[tuple[float, str]]:
     mode = stiffest_mode(model)
     if mode is not None and mode.omega > 0:
         found.append((float(mode.omega), f"stiffest spring (around {mode.body!r})"))
-    from animbatch.sim.forces import Gravitation
 
     positions = np.asarray(model.positions(model.y0[None])[0])  # type: ignore[attr-defined]
     for term in model.force_terms:  # type: ignore[attr-defined]
@@ -177,7 +178,6 @@ def _implicit_terms(model: object, method: str, steps: float, states: int, rhs: 
 
 def measure_rhs(model: object, repeats: int = 3) -> float:
     """Wall time of one evaluation of the model's right-hand side [s] (the fastest of a few)."""
-    from animbatch.sim.model import Dynamics
 
     dynamics = Dynamics(model)  # type: ignore[arg-type]
     y = np.array(model.y0, dtype=float)  # type: ignore[attr-defined]

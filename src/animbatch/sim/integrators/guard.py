@@ -5,6 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from animbatch.errors import SimulationError
+from animbatch.sim.forces import Gravitation
+from animbatch.sim.integrators.advice import closest_encounter, failure_advice
+from animbatch.sim.integrators.stability import largest_stable_step, stiffest_mode
+from animbatch.sim.invariants import kinetic_energy, total_energy
 from animbatch.sim.model.layout import StateLayout
 
 
@@ -29,7 +33,6 @@ def divergence_error(layout: StateLayout | None, y: np.ndarray, index: int, t: f
         advice = (f"{method} is unstable at dt = {dt:.3g} s for this scene: reduce solver.dt (try {dt / 10:.3g}), "
                   "or use an adaptive method (solver.method: RK45, or Radau for stiff springs)")
     else:
-        from animbatch.sim.integrators.advice import failure_advice
 
         advice = failure_advice(model, method, last_finite if last_finite is not None else y, t, body)
     return SimulationError(f"the simulation diverged at {when}: {who} became {value} ({method}). {advice}.",
@@ -61,7 +64,6 @@ ENERGY_WINDOW = 0.5
 def energy_scale(model: object) -> float:
     """The energy a scene has to play with [J], from its initial state: the largest of |E₀|, the kinetic energy and
     ``M |g| L`` (total mass, strongest uniform gravity, size of the initial configuration or the largest body)."""
-    from animbatch.sim.invariants import kinetic_energy, total_energy
 
     y0 = model.y0  # type: ignore[attr-defined]
     x0 = model.positions(y0[None])[0]  # type: ignore[attr-defined]
@@ -83,9 +85,6 @@ def check_energy_growth(model: object, states: np.ndarray, method: str, dt: floa
     The error names the frame time, the body that gained the most kinetic energy, the stiffest spring and the largest
     stable step, and what to change.
     """
-    from animbatch.sim.forces import Gravitation
-    from animbatch.sim.integrators.stability import largest_stable_step, stiffest_mode
-    from animbatch.sim.invariants import total_energy
 
     if len(states) < 2 or any(term.adds_energy for term in model.force_terms):  # type: ignore[attr-defined]
         return
@@ -136,7 +135,6 @@ def check_energy_growth(model: object, states: np.ndarray, method: str, dt: floa
     remedies += ["solver.method Radau or BDF", "backward_euler"]
     terms = model.force_terms  # type: ignore[attr-defined]
     if any(isinstance(term, Gravitation) and term.softening == 0 for term in terms):
-        from animbatch.sim.integrators.advice import closest_encounter
 
         encounter = closest_encounter(model, model.positions(states[: frame + 1]),  # type: ignore[attr-defined]
                                       times[: frame + 1])

@@ -76,22 +76,17 @@ class Method:
     step_matrix: StepMatrix | None = None  # fixed-step: one step on a damped oscillator (stability)
     particle_step: ParticleKernel | None = None  # fixed-step: one step of a pool of independent particles
     symplectic: bool = False
-    implicit: bool = False
+    implicit: bool = False  # implicit (A-stable for the fixed-step ones), or switching to an implicit method
+    stability_limit: float | None = None  # explicit adaptive: |h λ| along the negative real axis
 
     @property
     def fixed_step(self) -> bool:
         return self.family == "fixed-step"
 
-    @property
-    def keeps_contacts(self) -> bool:
-        """Adaptive methods stop at impacts; fixed-step schemes must apply contacts between kick and drift."""
-        return self.scheme.takes_constraints if self.scheme is not None else True
-
-
 METHODS: dict[str, Method] = {method.name: method for method in (
-    Method("RK23", "adaptive", 2, 3, "Bogacki–Shampine 3(2)", solver=RK23),
-    Method("RK45", "adaptive", 4, 6, "Dormand–Prince 5(4)", solver=RK45),
-    Method("DOP853", "adaptive", 7, 12, "Dormand–Prince 8(5,3)", solver=DOP853),
+    Method("RK23", "adaptive", 2, 3, "Bogacki–Shampine 3(2)", solver=RK23, stability_limit=2.5),
+    Method("RK45", "adaptive", 4, 6, "Dormand–Prince 5(4)", solver=RK45, stability_limit=3.3),
+    Method("DOP853", "adaptive", 7, 12, "Dormand–Prince 8(5,3)", solver=DOP853, stability_limit=6.0),
     Method("Radau", "adaptive", 5, 8, "implicit Runge–Kutta (Radau IIA), order 5", solver=Radau, implicit=True),
     Method("BDF", "adaptive", 3, 3, "backward differentiation, orders 1–5", solver=BDF, implicit=True),
     Method("LSODA", "adaptive", 4, 3, "Adams / BDF, switching on stiffness", solver=LSODA, implicit=True),

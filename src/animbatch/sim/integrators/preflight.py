@@ -22,6 +22,8 @@ import warnings
 import numpy as np
 
 from animbatch.errors import AnimbatchWarning
+from animbatch.sim.integrators.fixed_step import DEFAULT_DT, substeps
+from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.integrators.stability import GROWTH_LIMIT, amplification, largest_stable_step, stiffest_mode
 
 #: Steps an explicit adaptive method may be forced to take by stability before we suggest an implicit one.
@@ -31,7 +33,7 @@ WARN_GROWTH = 2.0
 #: State variables above which LSODA's finite-difference, dense Jacobians make it slow on springs (a 10×10 cloth).
 LSODA_DENSE_STATES = 600
 #: Stability limit ``|h λ|`` along the negative real axis of each explicit Runge–Kutta pair.
-EXPLICIT_LIMITS = {"RK23": 2.5, "RK45": 3.3, "DOP853": 6.0}
+EXPLICIT_LIMITS = {name: m.stability_limit for name, m in METHODS.items() if m.stability_limit is not None}
 
 
 class StabilityWarning(AnimbatchWarning):
@@ -45,7 +47,7 @@ def _spring_warnings(model: object, solver: object, steps: int, h: float | None)
     method = solver.method  # type: ignore[attr-defined]
     zeta = mode.decay / mode.omega if mode.omega > 0 else 0.0
     duration = float(model.frame_times[-1])  # type: ignore[attr-defined]
-    if h is not None and method != "backward_euler":
+    if h is not None and not METHODS[method].implicit:  # implicit fixed-step methods are stable at any step
         growth = amplification(method, h, mode.omega, mode.decay)
         if growth > 1 + 1e-9 and steps * np.log(growth) > np.log(GROWTH_LIMIT):
             return []  # certain to blow up: refused with its own error when the run starts
@@ -108,7 +110,6 @@ def _contact_warnings(spec: object, model: object, h: float) -> list[str]:
 
 def preflight(spec: object, model: object) -> list[str]:
     """Warnings for running ``model`` with ``spec.solver``; each is also issued as a StabilityWarning."""
-    from animbatch.sim.integrators.fixed_step import DEFAULT_DT, substeps
 
     solver = spec.solver  # type: ignore[attr-defined]
     times = model.frame_times  # type: ignore[attr-defined]

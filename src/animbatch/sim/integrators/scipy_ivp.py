@@ -32,6 +32,7 @@ from animbatch.sim.integrators.base import (
 )
 from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.guard import divergence_error, fastest_body, first_non_finite
+from animbatch.sim.integrators.linear_algebra import use_second_order_factors
 from animbatch.sim.integrators.methods import SCIPY_METHODS
 
 #: A solver whose steps stay shorter than this fraction of the frame interval for more than STALL_STEPS steps in a
@@ -123,7 +124,6 @@ class ScipyIntegrator(Integrator):
                                                 rtol=self.rtol, atol=self.atol,
                                                 max_step=self.max_step if self.max_step else np.inf, **options)
             if "jac" in options:
-                from animbatch.sim.integrators.linear_algebra import use_second_order_factors
 
                 mass = np.repeat(np.asarray(system.model.bodies.mass[: system.particles], float), 3)
                 use_second_order_factors(solver, mass)

@@ -30,6 +30,7 @@ from animbatch.sim.deformable.topology import Topology
 from animbatch.sim.deformable.vertices import ANCHOR, BODY_POINT, PARTICLE, DeformableBody, DeformableSet, VertexMap
 from animbatch.sim.forces import BodyTable, ForceTerm, SpringForces, SpringSet, TermFactory
 from animbatch.sim.forces.controllers import ControllerSetting, controllers_term
+from animbatch.sim.forces.dihedral import DihedralSprings
 from animbatch.sim.model.layout import StateLayout
 from animbatch.sim.model.model import Model
 from animbatch.sim.model.rigid_set import RigidBodySet
@@ -360,7 +361,6 @@ class ModelBuilder:
                 records.append((point, setting, offset, names[point]))
             terms.append(controllers_term(records, n))
         if deformables is not None and any(d.dihedral for d in self._deformables):
-            from animbatch.sim.forces.dihedral import DihedralSprings
 
             terms.append(DihedralSprings.build(deformables, [d.dihedral for d in self._deformables]))
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from animbatch.sim.contact.geometry import StaticColliders
+from animbatch.sim.contact.geometry import StaticColliders, to_box, to_plane, to_sphere
 
 #: Bounces resolved within one step (a particle in a corner meets two or three faces).
 MAX_BOUNCES = 3
@@ -102,7 +102,6 @@ class ParticleColliders:
     def push_out(self, x: np.ndarray, v: np.ndarray, radius: np.ndarray) -> np.ndarray:
         """Move particles found inside a collider onto its surface and stop their motion into it; return which
         were moved (K,)."""
-        from animbatch.sim.contact.geometry import to_box, to_plane, to_sphere
 
         moved = np.zeros(len(x), bool)
         s = self.statics

@@ -25,6 +25,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 
+from animbatch.errors import SimulationError
 from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.particles.fields import ParticleField, Slots
 
@@ -104,7 +105,6 @@ def adaptive_segment(method: str, rtol: float, atol: float, max_step: float | No
     y0 = np.stack([x, v], axis=1).ravel()
     solution = solve_ivp(rhs, (t0, t1), y0, method=method, t_eval=None, dense_output=False, **options)
     if solution.status < 0:
-        from animbatch.errors import SimulationError
 
         raise SimulationError(f"{method} failed on the particles between t = {t0:g} and {t1:g} s: "
                               f"{solution.message}. Use a fixed-step method (e.g. verlet) for particles.", time=t0)

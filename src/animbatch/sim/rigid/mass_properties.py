@@ -32,11 +32,6 @@ class MassProperties:
         """Eigenvalues of the inertia tensor, ascending [kg·m²]."""
         return np.linalg.eigvalsh(self.inertia)
 
-    @property
-    def principal_axes(self) -> np.ndarray:
-        """Columns are the principal axes (unit vectors, shape frame), matching ``principal_moments``."""
-        return np.linalg.eigh(self.inertia)[1]
-
     def with_mass(self, mass: float) -> MassProperties:
         """Same shape and mass distribution, scaled to ``mass`` (inertia scales linearly)."""
         factor = mass / self.mass
