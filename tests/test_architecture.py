@@ -49,12 +49,30 @@ def test_every_adaptive_method_has_its_scipy_solver(name):
     assert METHODS[name].solver is not None and ScipyIntegrator(name).method == name
 
 
+def run_tool(name: str, *arguments: str) -> subprocess.CompletedProcess:
+    """Run a checker installed beside this Python (the test extras install them) from the project's root."""
+    command = shutil.which(name, path=str(Path(sys.executable).parent))
+    if command is None:
+        pytest.skip(f"{name} is not installed (bash scripts/dev.sh test installs it)")
+    return subprocess.run([command, *arguments], cwd=ROOT, capture_output=True, text=True, timeout=300)
+
+
 def test_the_import_contracts_hold():
     """lint-imports finds every contract of .importlinter kept: the simulation never imports the scene format,
     rendering never imports the simulation, drivers sit above stages above the compiler, and no package cycles."""
-    command = shutil.which("lint-imports", path=str(Path(sys.executable).parent))
-    if command is None:
-        pytest.skip("import-linter is not installed (bash scripts/dev.sh test installs it)")
-    done = subprocess.run([command, "--config", str(ROOT / ".importlinter")], cwd=ROOT, capture_output=True,
-                          text=True, timeout=120)
+    done = run_tool("lint-imports", "--config", str(ROOT / ".importlinter"))
+    assert done.returncode == 0, done.stdout + done.stderr
+
+
+def test_ruff_finds_nothing():
+    """ruff's rules of pyproject.toml hold, among them no module-level import of pyvista, vtk, imageio, matplotlib,
+    dask or trimesh outside the packages that draw, encode, plot or distribute (start-up time of the CLI)."""
+    done = run_tool("ruff", "check", "src", "tests", "benchmarks")
+    assert done.returncode == 0, done.stdout + done.stderr
+
+
+def test_the_simulation_type_checks():
+    """mypy finds no error in the simulation (the files of pyproject's [tool.mypy]): the Model's tables are typed,
+    optional parts are narrowed where used, and no ``type: ignore`` is left that is not needed."""
+    done = run_tool("mypy")
     assert done.returncode == 0, done.stdout + done.stderr

@@ -9,8 +9,8 @@ import pytest
 
 from animbatch.sim.contact import detection
 from animbatch.sim.contact.materials import BUILT_IN, MaterialTable
-from animbatch.sim.integrators.preflight import StabilityWarning
 from animbatch.sim.invariants import kinetic_energy, linear_momentum
+from animbatch.sim.preflight import StabilityWarning
 from conftest import run, states
 
 G = 9.81

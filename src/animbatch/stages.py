@@ -37,11 +37,11 @@ from animbatch.sim.integrators.budget import wall_budget
 from animbatch.sim.integrators.checkpoint import integrate_with_checkpoints
 from animbatch.sim.integrators.cost import check_cost, estimate_cost
 from animbatch.sim.integrators.guard import check_energy_growth
-from animbatch.sim.integrators.preflight import preflight
 from animbatch.sim.ledger import QuantitySeries, build_ledger
 from animbatch.sim.model import Dynamics, Model
 from animbatch.sim.particles.body_motion import BodyMotion
 from animbatch.sim.particles.simulate import simulate_particles, steps_per_frame
+from animbatch.sim.preflight import preflight
 from animbatch.stopwatch import Stopwatch
 from animbatch.trajectory import Trajectory
 
@@ -69,7 +69,8 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
     model = model if model is not None else compile_model(scene)
     integrator = make_integrator(spec.solver, model)
     progress = progress or Progress(enabled=False)
-    warnings = preflight(spec, model)  # risky settings, with numbers (what is certain to fail is refused)
+    # risky settings, with numbers (what is certain to fail is refused)
+    warnings = preflight(model, spec.solver.method, spec.solver.dt)
     frame_steps = steps_per_frame(1.0 / spec.fps, spec.solver.method, spec.solver.dt or DEFAULT_DT)
     cost = estimate_cost(model, spec.solver, pool_sizes(spec), frame_steps * (len(model.frame_times) - 1))
     check_cost(cost, spec.solver.max_cost)  # refuse what would run for hours or cannot fit, before it starts

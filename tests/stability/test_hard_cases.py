@@ -11,9 +11,9 @@ import pytest
 
 from animbatch.compile.model import compile_scene
 from animbatch.errors import SimulationError
-from animbatch.sim.integrators.preflight import StabilityWarning, preflight
 from animbatch.sim.integrators.stability import largest_stable_step, step_matrix
 from animbatch.sim.invariants import angular_momentum, kinetic_energy, total_energy
+from animbatch.sim.preflight import StabilityWarning, preflight
 from conftest import run, scene, states
 
 G = 9.81
@@ -426,7 +426,7 @@ def test_stiff_cloth_with_an_explicit_adaptive_method_is_warned_about():
     and points to Radau, BDF or backward Euler."""
     loaded = scene(STIFF_CLOTH, "solver.method=RK45", "duration=200")
     with pytest.warns(StabilityWarning, match=r"RK45 will need about .* steps for stability alone.*Radau or BDF"):
-        messages = preflight(loaded.spec, compile_scene(loaded.spec))
+        messages = preflight(compile_scene(loaded.spec), "RK45")
     assert len(messages) == 1 and "ζ = " in messages[0]
 
 
@@ -436,14 +436,14 @@ def test_lsoda_on_a_large_spring_system_is_warned_about_and_a_small_one_is_not()
     numbers and the alternatives. The 8×6 cloth (276 variables) is small enough for that to be cheap: no warning."""
     large = scene(BENCHMARK_CLOTH, "solver.method=LSODA")
     with pytest.warns(StabilityWarning) as caught:
-        preflight(large.spec, compile_scene(large.spec))
+        preflight(compile_scene(large.spec), "LSODA")
     (message,) = [str(w.message) for w in caught]
     assert message.startswith("LSODA gets no analytic Jacobian") and "costs 1524 right-hand sides" in message
     assert "dense 1524×1524 factorisation" in message and "Use BDF or Radau" in message
     small = scene(STIFF_CLOTH, "solver.method=LSODA")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert preflight(small.spec, compile_scene(small.spec)) == []
+        assert preflight(compile_scene(small.spec), "LSODA") == []
 
 
 def test_a_stiff_pd_controller_counts_as_a_spring_for_the_pre_flight_check():

@@ -16,7 +16,6 @@ What each body contributes (all in body axes from its centre of mass):
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -41,22 +40,13 @@ from animbatch.scene.schema import (
     SphereCollider,
     SphereShape,
 )
-from animbatch.sim.contact.detection import PLANE, STATIC_BOX, STATIC_SPHERE, TRIANGLE, ContactWorld
+from animbatch.sim.contact.detection import PLANE, STATIC_BOX, STATIC_SPHERE, TRIANGLE, ContactSettings, ContactWorld
 from animbatch.sim.contact.geometry import BodyBoxes, Probes, StaticColliders
 from animbatch.sim.contact.materials import Coefficients, MaterialTable
 from animbatch.sim.rigid.shapes import load_mesh
 
 RIM_PROBES = 16
 MESH_PROBES = 400
-
-
-@dataclass(frozen=True)
-class ContactSettings:
-    """Solver settings: iterations per step, rest speed [m/s] (None: automatic), slop [m]."""
-
-    iterations: int
-    rest_speed: float | None
-    slop: float
 
 
 def _shape_features(shape: Any, base: Path) -> tuple[list[tuple[np.ndarray, float, int]], list[tuple]]:

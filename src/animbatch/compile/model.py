@@ -23,14 +23,14 @@ from animbatch.sim.motion import KeyframePath
 def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
     """The Model for a validated scene (cross-references were checked by the loader); ``base_dir`` resolves the
     scene's relative file names (mesh files), normally the scene file's folder."""
-    builder = ModelBuilder(base_dir)
+    builder = ModelBuilder()
     handles: dict[str, list[int]] = {}
     for body in spec.bodies:
         if isinstance(body, RigidBodySpec):
             handles[body.name] = [builder.add_rigid_body(
                 body.name, body_geometry(body, Path(base_dir)), position=body.position,
                 orientation=orientation_quaternion(body.orientation), velocity=body.velocity,
-                angular_velocity=body.angular_velocity, shape=body.shape)]
+                angular_velocity=body.angular_velocity)]
         elif not isinstance(body, DEFORMABLE_SPECS):
             handles[body.name] = [builder.add_particle(body.name, mass=body.mass, radius=body.radius,
                                                        position=body.position, velocity=body.velocity)]

@@ -8,12 +8,33 @@ event integration when given one. This module gives them the contact ones when t
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from animbatch.sim.contact.events import integrate_with_events
 from animbatch.sim.contact.stepping import ContactResolver
 from animbatch.sim.integrators import DEFAULT_DT, SCIPY_METHODS, FixedStepIntegrator, Integrator, ScipyIntegrator
+from animbatch.sim.integrators.base import EquationsOfMotion, FrameCallback, IntegrationResult
+from animbatch.sim.model.dynamics import Dynamics
 from animbatch.sim.model.model import Model
+
+
+def _dynamics(system: EquationsOfMotion) -> Dynamics:
+    """Contacts act on a model's bodies: the system integrated is the model's Dynamics whenever it has contacts."""
+    assert isinstance(system, Dynamics), f"contacts need a model's Dynamics, not {type(system).__name__}"
+    return system
+
+
+def contact_constraint(system: EquationsOfMotion) -> ContactResolver:
+    """The velocity constraint of a fixed-step scheme: contacts resolved between its kick and its drift."""
+    return ContactResolver(_dynamics(system))
+
+
+def contact_events(method: str, solver_class: Any, options: dict[str, Any], system: EquationsOfMotion,
+                   y0: np.ndarray, times: np.ndarray, on_frame: FrameCallback | None) -> IntegrationResult:
+    """The event integration of an adaptive method: stop at every impact and change of contact mode."""
+    return integrate_with_events(method, solver_class, options, _dynamics(system), y0, times, on_frame)
 
 
 def integrator_for(model: Model | None, method: str, *, dt: float | None = None, rtol: float = 1e-6,
@@ -23,6 +44,6 @@ def integrator_for(model: Model | None, method: str, *, dt: float | None = None,
     contacts = model is not None and model.contact_world is not None
     if method in SCIPY_METHODS:
         return ScipyIntegrator(method, rtol=rtol, atol=atol, max_step=max_step,
-                               events=integrate_with_events if contacts else None)
+                               events=contact_events if contacts else None)
     return FixedStepIntegrator(method, dt=dt if dt is not None else DEFAULT_DT,
-                               constraint=ContactResolver if contacts else None)  # type: ignore[arg-type]
+                               constraint=contact_constraint if contacts else None)

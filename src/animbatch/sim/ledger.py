@@ -165,7 +165,7 @@ class QuantitySeries:
         order = np.argsort(first)  # scene order: as each body is first seen
         mass = model.bodies.mass
         weighted = np.zeros((count, len(names), 3))
-        np.add.at(weighted, (slice(None), owner), model.velocities(states) * mass[:, None])
+        np.add.at(weighted, (slice(None), owner), model.velocities(states) * mass[:, None])  # type: ignore[arg-type]
         totals = np.bincount(owner, weights=mass, minlength=len(names))
         speeds = np.linalg.norm(weighted / totals[None, :, None], axis=2)[:, order]
         return cls(times, kinetic_energy(model, states), potential_energy(model, states),
@@ -352,16 +352,16 @@ def build_ledger(model: Model, states: np.ndarray, stats: dict[str, Any], partic
     else:
         drift = {name: None for name in QUANTITIES}
     conservation = {name: {"conserved": laws[name].conserved, "reason": laws[name].reason,
-                           "drift": None if drift[name] is None else drift[name][0],
-                           "scale": None if drift[name] is None else drift[name][1], "unit": UNITS[name]}
+                           "drift": None if (found := drift[name]) is None else found[0],
+                           "scale": None if found is None else found[1], "unit": UNITS[name]}
                     for name in QUANTITIES}
 
     encounter = closest_encounter(model, model.positions(states), times) if model.body_count else None
     contacts = None
     if model.contact_world is not None and model.body_count:
-
-        found = OverlapAudit(model, Dynamics(model)).run(states, times, [tuple(i) for i in stats.get("impacts", [])])
-        contacts = {kind: overlap.as_dict() if overlap is not None else None for kind, overlap in found.items()}
+        overlaps = OverlapAudit(model, Dynamics(model)).run(states, times,
+                                                            [tuple(i) for i in stats.get("impacts", [])])
+        contacts = {kind: overlap.as_dict() if overlap is not None else None for kind, overlap in overlaps.items()}
     stepped = stats if model.layout.size or not particle_stats else particle_stats  # emitters only: their steps
     ledger = Ledger(method, "adaptive" if adaptive else "fixed-step", rtol if adaptive else None,
                     step_record(adaptive, stepped, requested_dt, interval, float(times[-1] - times[0])), work,

@@ -70,6 +70,15 @@ class ContactWorld:
     body_mass: np.ndarray | None = None
 
 
+@dataclass(frozen=True)
+class ContactSettings:
+    """Solver settings: iterations per step, rest speed [m/s] (None: automatic), slop [m]."""
+
+    iterations: int
+    rest_speed: float | None
+    slop: float
+
+
 #: Positions [m] or distances moved in one step beyond this mean the run has diverged (scene numbers stay below 1e35).
 RUNAWAY_SCALE = 1e100
 
@@ -164,11 +173,11 @@ def probe_centres(world: ContactWorld, state: Kinematics) -> np.ndarray:
 
 
 def closing_margin(world: ContactWorld, probes: np.ndarray, solid_body: np.ndarray, margin: float,
-                   travel: np.ndarray | None) -> float | np.ndarray:
+                   travel: np.ndarray | None) -> np.ndarray:
     """How close (gap [m]) probe–solid pairs (K,) must be to be kept: ``margin`` plus the distance both sides can
     travel (``travel`` (P,) per body, None: no travel; fixed solids, body -1, travel nothing)."""
     if travel is None:
-        return margin
+        return np.full(len(probes), margin)
     solid = np.where(solid_body >= 0, travel[np.maximum(solid_body, 0)], 0.0)
     return margin + travel[world.probes.owner[probes]] + solid
 
@@ -209,6 +218,8 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
     tree = cKDTree(centres) if world.probes.count else None
 
     def near(centre: np.ndarray, radius: float) -> np.ndarray:
+        if tree is None:  # no probes: nothing is near anything
+            return np.zeros(0, np.intp)
         found = np.asarray(tree.query_ball_point(centre, radius + reach), dtype=np.intp)
         return found[active[found]] if len(found) else found
 

@@ -107,6 +107,7 @@ class ContactEvents:
     def __init__(self, system: Dynamics) -> None:
         model = system.model
         self.system = system
+        assert model.contact_world is not None and model.contact_settings is not None, "no contacts were compiled"
         self.world = model.contact_world
         self.settings = model.contact_settings
         self.rest_speed = self.settings.rest_speed or DEFAULT_REST_SPEED
@@ -131,7 +132,7 @@ class ContactEvents:
         inverse_mass = np.zeros(count + 1)
         inverse_mass[:count] = 1.0 / model.bodies.mass
         inverse_inertia = np.zeros((count + 1, 3, 3))
-        if state.rotation is not None:
+        if state.rotation is not None and model.rigid is not None:
             r = state.rotation
             inverse_inertia[n:count] = r @ model.rigid.inverse_inertia @ np.transpose(r, (0, 2, 1))
         return BodyVelocities(np.zeros((count + 1, 3)), np.zeros((count + 1, 3)), inverse_mass, inverse_inertia)
@@ -142,8 +143,8 @@ class ContactEvents:
         n, b = model.particle_count, model.rigid_count
         _, motion = self.system.split(y)
         motion[: 3 * n] = bodies.v[:n].ravel()
-        if b:
-            rigid, r = model.rigid, state.rotation
+        rigid, r = model.rigid, state.rotation
+        if rigid is not None and r is not None:
             motion[3 * n: 3 * n + 3 * b] = (bodies.v[n:n + b] * rigid.mass[:, None]).ravel()
             inertia_world = r @ rigid.inertia @ np.transpose(r, (0, 2, 1))
             motion[3 * n + 3 * b:] = np.einsum("bij,bj->bi", inertia_world, bodies.omega[n:n + b]).ravel()
@@ -166,13 +167,14 @@ class ContactEvents:
         bodies = self._inertia(state)
         _, rate = system.split(dydt)
         bodies.v[:n] = rate[: 3 * n].reshape(n, 3)
-        spin = None
-        if b:
+        rigid, r, omega = model.rigid, state.rotation, state.omega
+        spin = np.zeros((b, 3))
+        if rigid is not None and r is not None and omega is not None:
             force = rate[3 * n: 3 * n + 3 * b].reshape(b, 3)
             torque = rate[3 * n + 3 * b:].reshape(b, 3)
             angular = motion[3 * n + 3 * b:].reshape(b, 3)
-            bodies.v[n:n + b] = force / model.rigid.mass[:, None]
-            spin = cross(state.omega, angular)  # dL/dt = I ω̇ + ω × L
+            bodies.v[n:n + b] = force / rigid.mass[:, None]
+            spin = cross(omega, angular)  # dL/dt = I ω̇ + ω × L
             bodies.omega[n:n + b] = np.einsum("bij,bj->bi", bodies.inverse_inertia[n:n + b], torque - spin)
         velocities = self._velocities(state)
         x = np.vstack([state.x, np.zeros((1, 3))])
@@ -186,10 +188,9 @@ class ContactEvents:
         # consecutive evaluations see nearly the same contacts: start the next solve from this one
         self._warm_forces = (result.normal_impulse.copy(), result.tangent_impulse.copy())
         rate[: 3 * n] = bodies.v[:n].ravel()
-        if b:
-            rate[3 * n: 3 * n + 3 * b] = (bodies.v[n:n + b] * model.rigid.mass[:, None]).ravel()
-            r = state.rotation
-            inertia_world = r @ model.rigid.inertia @ np.transpose(r, (0, 2, 1))
+        if rigid is not None and r is not None:
+            rate[3 * n: 3 * n + 3 * b] = (bodies.v[n:n + b] * rigid.mass[:, None]).ravel()
+            inertia_world = r @ rigid.inertia @ np.transpose(r, (0, 2, 1))
             rate[3 * n + 3 * b:] = (np.einsum("bij,bj->bi", inertia_world, bodies.omega[n:n + b]) + spin).ravel()
         return contacts, result, bodies, tangent_bias
 
@@ -314,7 +315,7 @@ class ContactEvents:
         first = None
         hops = np.flatnonzero((values[0] <= TOUCH) & (values[1] <= level))
         unresolved = []
-        for pair in hops:
+        for pair in hops.tolist():
             apex = self._apex(gaps, t0, times[1], int(pair))
             if gaps(apex, [pair])[0] > level[pair] + HOP_RESOLUTION:
                 hop = brentq(lambda t, k=int(pair): gaps(t, [k])[0] - level[k], apex, times[1], xtol=1e-12,
@@ -513,8 +514,9 @@ class ContactEvents:
                 free = self._inertia(state)
                 n, b = self.system.model.particle_count, self.system.model.rigid_count
                 free.v[:n] = rate[: 3 * n].reshape(n, 3)
-                if b:
-                    free.v[n:n + b] = rate[3 * n: 3 * n + 3 * b].reshape(b, 3) / self.system.model.rigid.mass[:, None]
+                rigid = self.system.model.rigid
+                if rigid is not None:
+                    free.v[n:n + b] = rate[3 * n: 3 * n + 3 * b].reshape(b, 3) / rigid.mass[:, None]
                 tangential = rows.tangential(free.v, free.omega)[to_slide]
                 vector = tangential[:, [0]] * rows.t1[to_slide] + tangential[:, [1]] * rows.t2[to_slide]
                 direction[to_slide] = vector / np.maximum(np.linalg.norm(vector, axis=1, keepdims=True), 1e-300)
@@ -576,9 +578,11 @@ def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any
                                            model=system.model, last_finite=before)
                 impact = events._first_impact(solver, *events._impact_candidates(before, solver.y,
                                                                                  solver.t - solver.t_old, solver.t))
-                after = events._mode_functions(solver.t, solver.y) if modes is not None else None
-                change = events._first_mode_change(solver, modes, after) if modes is not None else None
-                modes = after
+                change = None
+                if modes is not None:
+                    after = events._mode_functions(solver.t, solver.y)
+                    change = events._first_mode_change(solver, modes, after)
+                    modes = after
                 event_time = min((e for e in (impact, change) if e is not None), default=None)
                 end = solver.t if event_time is None else event_time
                 interpolant = solver.dense_output()

@@ -35,7 +35,7 @@ exactly ``½ μ (1 - e²) Δv²`` (μ: reduced mass, Δv: approach speed) — th
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -260,8 +260,10 @@ class SolveResult:
     tangent_impulse: np.ndarray
     pseudo_v: np.ndarray | None = None
     pseudo_omega: np.ndarray | None = None
-    impact: np.ndarray | None = None  # (K,) bool: contacts arriving faster than the rest speed (they bounce)
-    arrival: np.ndarray | None = None  # (K,) fraction of the step at which each gap closes (straight-line motion)
+    # (K,) bool: contacts arriving faster than the rest speed (they bounce)
+    impact: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    # (K,) fraction of the step at which each gap closes (straight-line motion)
+    arrival: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h: float, *, iterations: int,

@@ -26,15 +26,10 @@ from animbatch.sim.contact.detection import body_reach, contact_codes, detect
 from animbatch.sim.contact.impacts import ImpactLog
 from animbatch.sim.contact.solver import BodyVelocities, solve_impulses, tangent_basis
 from animbatch.sim.forces import Kinematics
+from animbatch.sim.forces.gravity import gravity_magnitude
 from animbatch.sim.model.dynamics import Dynamics
 
 DEFAULT_REST_SPEED = 0.01  # m/s
-
-
-def gravity_magnitude(system: Dynamics) -> float:
-    """The largest uniform gravity the scene declares [m/s²] (0 without gravity)."""
-    sizes = [float(np.linalg.norm(term.g)) for term in system.terms if term.kind == "gravity"]
-    return max(sizes, default=0.0)
 
 
 class ContactResolver:
@@ -46,7 +41,7 @@ class ContactResolver:
         self.system = system
         self.world = model.contact_world
         self.settings = model.contact_settings
-        self.gravity = gravity_magnitude(system)
+        self.gravity = gravity_magnitude(system.terms)
         self.reach = body_reach(self.world, model.body_count)
         self.contacts_last_step = 0
         self.impacts = ImpactLog()
@@ -72,7 +67,7 @@ class ContactResolver:
         inverse_inertia = np.zeros((count + 1, 3, 3))
         v[:count] = state.v
         inverse_mass[:count] = 1.0 / model.bodies.mass
-        if state.rotation is not None:
+        if state.rotation is not None and state.omega is not None and model.rigid is not None:
             omega[n:count] = state.omega
             rotation = state.rotation
             inverse_inertia[n:count] = rotation @ model.rigid.inverse_inertia @ np.transpose(rotation, (0, 2, 1))
@@ -82,12 +77,11 @@ class ContactResolver:
         model = self.system.model
         n, b = model.particle_count, model.rigid_count
         motion[: 3 * n] = bodies.v[:n].ravel()
-        if b:
-            rigid = model.rigid
+        rigid, rotation = model.rigid, state.rotation
+        if rigid is not None and rotation is not None:
             momentum = motion[3 * n: 3 * n + 3 * b].reshape(b, 3)
             angular = motion[3 * n + 3 * b:].reshape(b, 3)
             momentum[...] = bodies.v[n:n + b] * rigid.mass[:, None]
-            rotation = state.rotation
             inertia_world = rotation @ rigid.inertia @ np.transpose(rotation, (0, 2, 1))
             angular[...] = np.einsum("bij,bj->bi", inertia_world, bodies.omega[n:n + b])
 

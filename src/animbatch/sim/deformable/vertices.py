@@ -11,7 +11,7 @@ them).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -34,6 +34,11 @@ class VertexMap:
     offset: np.ndarray
     point_count: int
     first_rigid: int
+    # derived in __post_init__: the vertices of each kind, and the (P, V) matrix that scatters vertex forces
+    _free: np.ndarray = field(init=False, repr=False)
+    _on_anchor: np.ndarray = field(init=False, repr=False)
+    _on_body: np.ndarray = field(init=False, repr=False)
+    _scatter: sp.csr_matrix = field(init=False, repr=False)
 
     @property
     def count(self) -> int:
@@ -50,17 +55,17 @@ class VertexMap:
 
     def free_vertices(self) -> np.ndarray:
         """Indices of the vertices that are particles."""
-        return self._free  # type: ignore[attr-defined]
+        return self._free
 
     def place(self, points: np.ndarray, rotations: np.ndarray | None, anchor_positions: np.ndarray) -> np.ndarray:
         """Vertex positions (V, 3) [m] from the points' positions (P, 3), the rigid bodies' rotations (B, 3, 3) and
         the anchors' positions (A, 3) (for drawing a frame from a trajectory)."""
         x = np.empty((self.count, 3))
-        free = self._free  # type: ignore[attr-defined]
+        free = self._free
         x[free] = points[self.index[free]]
-        pinned = self._on_anchor  # type: ignore[attr-defined]
+        pinned = self._on_anchor
         x[pinned] = anchor_positions[self.index[pinned]]
-        attached = self._on_body  # type: ignore[attr-defined]
+        attached = self._on_body
         if len(attached):
             assert rotations is not None
             rigid = self.index[attached]
@@ -72,12 +77,12 @@ class VertexMap:
         """Positions [m] and velocities [m/s] of all vertices, (V, 3) each, at ``state`` (time ``state.t``)."""
         x = self.place(state.x, state.rotation, anchors.positions(state.t))
         v = np.zeros((self.count, 3))
-        free = self._free  # type: ignore[attr-defined]
+        free = self._free
         v[free] = state.v[self.index[free]]
-        pinned = self._on_anchor  # type: ignore[attr-defined]
+        pinned = self._on_anchor
         if len(pinned) and anchors.moving:
             v[pinned] = anchors.velocities(state.t)[self.index[pinned]]
-        attached = self._on_body  # type: ignore[attr-defined]
+        attached = self._on_body
         if len(attached):
             rigid = self.index[attached]
             lever = x[attached] - state.x[state.first_rigid + rigid]
@@ -87,8 +92,8 @@ class VertexMap:
     def scatter(self, vertex_force: np.ndarray, state: Kinematics, force: np.ndarray,
                 torque: np.ndarray | None) -> None:
         """Add forces on vertices (V, 3) [N] to the model's points (P, 3), with torques (B, 3) for body points."""
-        force += self._scatter @ vertex_force  # type: ignore[attr-defined]
-        attached = self._on_body  # type: ignore[attr-defined]
+        force += self._scatter @ vertex_force
+        attached = self._on_body
         if len(attached):
             assert torque is not None
             rigid = self.index[attached]

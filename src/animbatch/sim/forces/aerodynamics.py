@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from animbatch.sim.deformable.vertices import PARTICLE
+from animbatch.sim.deformable.vertices import PARTICLE, DeformableSet
 from animbatch.sim.forces.base import BodyTable, ForceTerm, Kinematics, vector_text
 
 #: Relative frequencies, weights and phases of the three sine waves of a gust (incommensurate, so the pattern does
@@ -41,7 +41,7 @@ class Aerodynamics(ForceTerm):
 
     kind = "aerodynamics"
 
-    deformables: object  # DeformableSet
+    deformables: DeformableSet
     triangles: np.ndarray  # (T, 3) vertex indices
     wind: np.ndarray  # (3,) [m/s]
     gust_amplitude: np.ndarray  # (3,) [m/s]
@@ -82,8 +82,8 @@ class Aerodynamics(ForceTerm):
                                  + self.tangential_coefficient * (relative - normal_part))
 
     def accumulate(self, t: float, state: Kinematics, force: np.ndarray, torque: np.ndarray | None) -> None:
-        vertices = self.deformables.vertex_map  # type: ignore[attr-defined]
-        x, v = vertices.positions_velocities(state, self.deformables.anchors)  # type: ignore[attr-defined]
+        vertices = self.deformables.vertex_map
+        x, v = vertices.positions_velocities(state, self.deformables.anchors)
         vertices.scatter(self.share @ self.face_forces(x, v, t), state, force, torque)
 
     def describe(self) -> str:
@@ -101,6 +101,7 @@ def build_aerodynamics(bodies: BodyTable, index: np.ndarray | None, *, wind: np.
     normal ``drag`` and tangential ``friction`` coefficients."""
 
     deformables = bodies.deformables
+    assert deformables is not None, "wind pressure acts on cloth: the compiler builds it only for scenes with cloth"
     vertex_map = deformables.vertex_map
     selected = set(range(bodies.count)) if index is None else set(np.asarray(index).tolist())
     cloths = []

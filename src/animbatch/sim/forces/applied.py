@@ -59,13 +59,13 @@ class AppliedForce(ForceTerm):
                 + (" off their centres of mass" if np.any(self.offset) else ""))
 
 
-def build_force(bodies: BodyTable, index: np.ndarray | None, *, force: np.ndarray, frame: str,
+def build_force(bodies: BodyTable, index: np.ndarray | None, *, force: np.ndarray, frame: Literal["world", "body"],
                 at: np.ndarray | None = None) -> AppliedForce:
     """A constant ``force`` [N] (3,) in ``frame`` ('world' or 'body') axes on the selected points; on rigid bodies
     at the shape-frame point ``at`` [m] (3,) when given, else at their centres of mass."""
     points = np.arange(bodies.count) if index is None else np.asarray(index)
     rigid = rigid_selection(bodies, index)
-    if at is not None and len(rigid):
+    if at is not None and len(rigid) and bodies.rigid is not None:
         offset = np.asarray(at, float)[None, :] - bodies.rigid.centre[rigid]
     else:
         offset = np.zeros((len(rigid), 3))
@@ -106,7 +106,8 @@ class AppliedTorque(_RigidLoad):
         return f"τ = {vector_text(self.torque)} N·m ({self.frame} axes) on {self.on_bodies()}"
 
 
-def build_torque(bodies: BodyTable, index: np.ndarray | None, *, torque: np.ndarray, frame: str) -> AppliedTorque:
+def build_torque(bodies: BodyTable, index: np.ndarray | None, *, torque: np.ndarray,
+                 frame: Literal["world", "body"]) -> AppliedTorque:
     """A constant ``torque`` [N·m] (3,) in ``frame`` axes on the selected rigid bodies."""
     return AppliedTorque(rigid_selection(bodies, index), bodies.first_rigid, bodies.names,
                          torque=np.asarray(torque, float), frame=frame)

@@ -134,6 +134,7 @@ def build_buoyancy(bodies: BodyTable, index: np.ndarray | None, *, density: floa
     for position in np.flatnonzero(selected >= bodies.first_rigid):  # rigid bodies: few, and built once
         point = selected[position]
         rigid = point - bodies.first_rigid
+        assert bodies.rigid is not None  # there are rigid points
         geometry = bodies.rigid.geometry[rigid]
         centre = bodies.rigid.centre[rigid]
         spheres = geometry.spheres

@@ -171,6 +171,7 @@ class Controllers(ForceTerm):
                 damping_blocks.append(-kd * across)
             else:
                 tangent, velocity = goal.tangent, state.v[point]
+                assert goal.position_gradient is not None and goal.tangent_gradient is not None  # set on curves
                 turn = (np.dot(velocity, tangent) * identity + np.outer(tangent, velocity)) @ goal.tangent_gradient
                 stiffness_blocks.append(ks * (goal.position_gradient - identity) + kd * turn)
                 damping_blocks.append(-kd * (identity - np.outer(tangent, tangent)))

@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from animbatch.quaternion import cross
-from animbatch.sim.deformable.vertices import PARTICLE
+from animbatch.sim.deformable.vertices import PARTICLE, DeformableSet
 from animbatch.sim.forces.base import ForceJacobian, ForceTerm, Kinematics
 
 
@@ -64,7 +64,7 @@ class DihedralSprings(ForceTerm):
     kind = "dihedral"
     has_potential = True
 
-    deformables: object  # DeformableSet
+    deformables: DeformableSet
     hinges: np.ndarray  # (H, 4) vertex indices a, b, c, d
     stiffness: np.ndarray  # (H,) [N·m/rad]
     damping: np.ndarray  # (H,) [N·m·s/rad]
@@ -72,18 +72,18 @@ class DihedralSprings(ForceTerm):
     gather: sp.csr_matrix  # (V, 4H): scatters per-hinge-vertex forces onto vertices
 
     @classmethod
-    def build(cls, deformables: object, settings: list[tuple[float, float] | None]) -> DihedralSprings:
+    def build(cls, deformables: DeformableSet, settings: list[tuple[float, float] | None]) -> DihedralSprings:
         """The term for the deformables whose ``settings`` (per body: (k, c) or None) ask for dihedral springs;
         rest angles are the angles at the start."""
         hinges, stiffness, damping = [], [], []
-        for body, setting in zip(deformables.bodies, settings):  # type: ignore[attr-defined]
+        for body, setting in zip(deformables.bodies, settings):
             if setting is None or not len(body.hinges):
                 continue
             hinges.append(body.hinges)
             stiffness.append(np.full(len(body.hinges), setting[0]))
             damping.append(np.full(len(body.hinges), setting[1]))
         hinge_array = np.concatenate(hinges) if hinges else np.zeros((0, 4), np.intp)
-        vertex_map = deformables.vertex_map  # type: ignore[attr-defined]
+        vertex_map = deformables.vertex_map
         count = len(hinge_array)
         gather = sp.csr_matrix((np.ones(4 * count), (hinge_array.ravel(), np.arange(4 * count))),
                                shape=(vertex_map.count, 4 * count))
@@ -92,9 +92,9 @@ class DihedralSprings(ForceTerm):
                    np.concatenate(damping) if damping else np.zeros(0), hinge_angles(start), gather)
 
     @staticmethod
-    def _initial_positions(deformables: object) -> np.ndarray:
+    def _initial_positions(deformables: DeformableSet) -> np.ndarray:
         """Vertex positions at the start, from the rest data the vertex map was built from."""
-        return deformables.initial_positions  # type: ignore[attr-defined]
+        return deformables.initial_positions
 
     def hinge_forces(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Forces (H, 4, 3) [N] on each hinge's vertices for their positions and velocities (H, 4, 3)."""
@@ -104,8 +104,8 @@ class DihedralSprings(ForceTerm):
         return -magnitude[:, None, None] * gradient
 
     def accumulate(self, t: float, state: Kinematics, force: np.ndarray, torque: np.ndarray | None) -> None:
-        vertices = self.deformables.vertex_map  # type: ignore[attr-defined]
-        x, v = vertices.positions_velocities(state, self.deformables.anchors)  # type: ignore[attr-defined]
+        vertices = self.deformables.vertex_map
+        x, v = vertices.positions_velocities(state, self.deformables.anchors)
         forces = self.hinge_forces(x[self.hinges], v[self.hinges])
         vertices.scatter(self.gather @ forces.reshape(-1, 3), state, force, torque)
 
@@ -117,8 +117,8 @@ class DihedralSprings(ForceTerm):
 
         Definite form (``out.definite``): the Gauss–Newton part ``∂f_i/∂x_k = -k ∂θ/∂x_i ∂θ/∂x_kᵀ`` only (the
         part with ``(θ - θ₀)`` times the Hessian of θ is indefinite)."""
-        vertices = self.deformables.vertex_map  # type: ignore[attr-defined]
-        x, v = vertices.positions_velocities(state, self.deformables.anchors)  # type: ignore[attr-defined]
+        vertices = self.deformables.vertex_map
+        x, v = vertices.positions_velocities(state, self.deformables.anchors)
         hinge_x, hinge_v = x[self.hinges], v[self.hinges]
         gradient = hinge_gradients(hinge_x)
         outer = np.einsum("hia,hkb->hiakb", gradient, gradient)
@@ -149,8 +149,8 @@ class DihedralSprings(ForceTerm):
         return dfdx
 
     def potential_energy(self, state: Kinematics) -> float:
-        vertices = self.deformables.vertex_map  # type: ignore[attr-defined]
-        x, _ = vertices.positions_velocities(state, self.deformables.anchors)  # type: ignore[attr-defined]
+        vertices = self.deformables.vertex_map
+        x, _ = vertices.positions_velocities(state, self.deformables.anchors)
         bend = wrapped(hinge_angles(x[self.hinges]) - self.rest_angle)
         return float(0.5 * np.sum(self.stiffness * bend**2))
 

@@ -78,11 +78,12 @@ class Drag(ForceTerm):
         def law_coefficient(points: np.ndarray | None) -> float | np.ndarray:
             if law != "stokes":
                 return float(coefficient)  # type: ignore[arg-type]
+            assert viscosity is not None  # set above for stokes
             radius = bodies.radius if points is None else bodies.radius[points]
             return (6.0 * np.pi * viscosity * radius)[:, None]  # Stokes' law for a sphere
 
         wind_vector = None if wind is None or not np.any(wind) else np.asarray(wind, float)
-        if at is None or bodies.rigid_count == 0:
+        if at is None or bodies.rigid is None:
             return cls(law, law_coefficient(index), wind_vector, index, bodies.names, viscosity)
         rigid = rigid_selection(bodies, index)
         points = np.arange(bodies.count) if index is None else np.asarray(index)
@@ -112,6 +113,7 @@ class Drag(ForceTerm):
             add_at(force, self.index, drag_force(self.law, self.coefficient, relative))
         if self.at_points is not None and len(self.at_points):
             assert torque is not None and state.omega is not None
+            assert self.at_rigid is not None and self.at_offset is not None  # set with at_points
             lever = state.lever(self.at_rigid, self.at_offset)
             relative = state.v[self.at_points] + cross(state.omega[self.at_rigid], lever)
             if self.wind is not None:
@@ -149,6 +151,7 @@ class Drag(ForceTerm):
         wind = f", wind {vector_text(self.wind)} m/s" if self.wind is not None else ""
         if self.at_points is None:
             return f"{law}{wind} on {selection_text(self.index, self.names)}"
+        assert self.index is not None and self.at is not None  # both set with at_points
         selected = np.sort(np.concatenate([self.index, self.at_points]))
         return (f"{law}{wind} on {selection_text(selected, self.names)}; rigid bodies at their point "
                 f"{vector_text(self.at)} m")

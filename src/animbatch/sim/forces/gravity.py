@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,3 +55,8 @@ class UniformGravity(ForceTerm):
 def build_gravity(bodies: BodyTable, index: np.ndarray | None, *, g: np.ndarray) -> UniformGravity:
     """Uniform gravity ``g`` [m/s²] (3,) on the selected points."""
     return UniformGravity.build(np.asarray(g, float), bodies.mass, index, bodies.names)
+
+
+def gravity_magnitude(terms: Iterable[ForceTerm]) -> float:
+    """The strongest uniform gravity among force terms [m/s²] (0 without gravity): the scale of free-flight speeds."""
+    return max((float(np.linalg.norm(term.g)) for term in terms if isinstance(term, UniformGravity)), default=0.0)

@@ -121,7 +121,8 @@ class SpringForces(ForceTerm):
         levers[attachment.springs] = state.lever(attachment.rigid, attachment.offset)
         return levers
 
-    def _differences(self, state: Kinematics) -> tuple[np.ndarray, ...]:
+    def _differences(self, state: Kinematics
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
         """``L = p1 - p2`` and ``ṗ1 - ṗ2`` between the attachment points of every spring (S, 3) each, and the levers
         of both ends (or None)."""
         axis, relative = self.difference @ state.x, self.difference @ state.v

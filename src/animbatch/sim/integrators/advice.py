@@ -23,6 +23,7 @@ import numpy as np
 from animbatch.sim.forces import Gravitation
 from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.integrators.stability import stiffest_mode
+from animbatch.sim.model.model import Model
 
 #: Methods that are implicit (or switch to an implicit method when the problem is stiff, as LSODA does).
 IMPLICIT = tuple(name for name, method in METHODS.items() if method.implicit)
@@ -49,7 +50,7 @@ class Encounter:
                 "make their radii match their closest approach")
 
 
-def _collide_hint(model: object) -> str:
+def _collide_hint(model: Model) -> str:
     """What to change in the scene so that bodies collide."""
     world = getattr(model, "contact_world", None)
     if world is None:
@@ -59,20 +60,20 @@ def _collide_hint(model: object) -> str:
     return "remove 'collide: false' from them"
 
 
-def closest_encounter(model: object, positions: np.ndarray, times: np.ndarray | None = None) -> Encounter | None:
+def closest_encounter(model: Model, positions: np.ndarray, times: np.ndarray | None = None) -> Encounter | None:
     """The gravitating pair without softening that comes closest to touching in ``positions`` (P, 3) or (F, P, 3)
     [m] (at the frames ``times`` [s] and on the straight paths between them), if any pair is closer than its radii
     together."""
 
     worst = None
     frames = positions.reshape(-1, *positions.shape[-2:])
-    for term in model.force_terms:  # type: ignore[attr-defined]
+    for term in model.force_terms:
         if not isinstance(term, Gravitation) or term.softening > 0:
             continue
-        index = np.arange(model.body_count) if term.index is None else term.index  # type: ignore[attr-defined]
+        index = np.arange(model.body_count) if term.index is None else term.index
         if len(index) < 2:
             continue
-        radius = model.bodies.radius[index]  # type: ignore[attr-defined]
+        radius = model.bodies.radius[index]
         touching = radius[:, None] + radius[None, :]
         upper = np.triu(np.ones((len(index), len(index)), bool), 1)
         for k in range(len(frames)):
@@ -88,7 +89,7 @@ def closest_encounter(model: object, positions: np.ndarray, times: np.ndarray | 
             ratio = np.where(upper, distance / touching, np.inf)
             i, j = np.unravel_index(int(np.argmin(ratio)), ratio.shape)
             if ratio[i, j] < 1 and (worst is None or ratio[i, j] < worst[0]):
-                names = model.bodies.names  # type: ignore[attr-defined]
+                names = model.bodies.names
                 when = None if times is None else float(times[k] if not k else times[k - 1] + fraction[i, j] * (
                     times[k] - times[k - 1]))
                 worst = (ratio[i, j], Encounter(names[index[i]], names[index[j]], float(distance[i, j]),
@@ -96,12 +97,12 @@ def closest_encounter(model: object, positions: np.ndarray, times: np.ndarray | 
     return None if worst is None else worst[1]
 
 
-def failure_advice(model: object | None, method: str, y: np.ndarray, t: float, fastest: str | None) -> str:
+def failure_advice(model: Model | None, method: str, y: np.ndarray, t: float, fastest: str | None) -> str:
     """What to change after ``method`` failed at time ``t`` [s] in state ``y`` (see the module notes); ``fastest``:
     the body changing fastest, if known."""
     implicit = method in IMPLICIT
     if model is not None:
-        encounter = closest_encounter(model, model.positions(y), np.array([t]))  # type: ignore[attr-defined]
+        encounter = closest_encounter(model, model.positions(y), np.array([t]))
         if encounter is not None:
             return encounter.advice()
 

@@ -35,12 +35,40 @@ class EquationsOfMotion(Protocol):
     def project(self, y: np.ndarray) -> None: ...
 
 
+class StepSettings(Protocol):
+    """How a run is to be integrated, in numbers: the method's name, a fixed step ``dt`` [s] (None: the default),
+    the adaptive methods' ``rtol``, ``atol`` and ``max_step`` [s] (None: no limit). A scene's solver section has
+    this shape."""
+
+    @property
+    def method(self) -> str: ...
+
+    @property
+    def dt(self) -> float | None: ...
+
+    @property
+    def rtol(self) -> float: ...
+
+    @property
+    def atol(self) -> float: ...
+
+    @property
+    def max_step(self) -> float | None: ...
+
+
+class ImpactRecord(Protocol):
+    """The impacts a constraint logged, as (time [s], body index) pairs in time order."""
+
+    def as_list(self) -> list[tuple[float, int]]: ...
+
+
 class VelocityConstraint(Protocol):
     """Velocity-level constraints a fixed-step scheme applies between its kick and its drift (contacts; next,
     joints): they change the motion so that the constraints hold over the step. Schemes that can take one say so
     with ``takes_constraints``; the integrator is given a factory and never imports the constraint's code."""
 
-    impacts: Any  # what it logged (an ImpactLog for contacts: .as_list() -> [(time [s], body)])
+    @property
+    def impacts(self) -> ImpactRecord: ...  # what it logged
 
     def resolve(self, config: np.ndarray, motion: np.ndarray, h: float, *, bounce: bool = True,
                 t: float = 0.0) -> np.ndarray | None:

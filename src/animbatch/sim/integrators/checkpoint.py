@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from animbatch.files import atomic_path
-from animbatch.sim.integrators import IntegrationResult, SolverStats
+from animbatch.sim.integrators import IntegrationResult, Integrator, SolverStats
+from animbatch.sim.integrators.base import EquationsOfMotion, FrameCallback
 
 
 def _load(path: Path, size: int) -> tuple[np.ndarray, SolverStats] | None:
@@ -36,8 +37,8 @@ def _save(path: Path, states: np.ndarray, stats: SolverStats) -> None:
         np.savez(stream, states=states, stats=np.str_(json.dumps(asdict(stats))))
 
 
-def integrate_with_checkpoints(integrator, system, y0: np.ndarray, times: np.ndarray, *, every: int,  # type: ignore[no-untyped-def]
-                               path: Path, on_frame=None) -> IntegrationResult:
+def integrate_with_checkpoints(integrator: Integrator, system: EquationsOfMotion, y0: np.ndarray, times: np.ndarray,
+                               *, every: int, path: Path, on_frame: FrameCallback | None = None) -> IntegrationResult:
     """Integrate over ``times`` in segments of ``every`` frames, saving the states after each to ``path`` and
     resuming from it when it holds a valid prefix; the checkpoint is deleted once the run is complete."""
     states = np.empty((len(times), len(y0)))

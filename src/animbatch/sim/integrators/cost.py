@@ -21,18 +21,19 @@ the run goes, by the same budget (:mod:`animbatch.sim.integrators.budget`).
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from animbatch.errors import SimulationError
 from animbatch.sim.forces import Gravitation
+from animbatch.sim.integrators.base import StepSettings
 from animbatch.sim.integrators.budget import format_seconds
 from animbatch.sim.integrators.fixed_step import DEFAULT_DT, substeps
-from animbatch.sim.integrators.methods import METHODS
-from animbatch.sim.integrators.preflight import EXPLICIT_LIMITS
+from animbatch.sim.integrators.methods import EXPLICIT_LIMITS, METHODS
 from animbatch.sim.integrators.stability import stiffest_mode
-from animbatch.sim.model import Dynamics
+from animbatch.sim.model import Dynamics, Model
 
 #: Cost of advancing one emitted particle by one step [s], births and records included: the fountain (gravity, drag,
 #: box colliders) measured 0.35-0.7 µs per particle-step on a 2-core machine; the bare stepping benchmark ~40 ns.
@@ -78,15 +79,15 @@ class CostEstimate:
         return max(self.terms, key=lambda term: getattr(term, kind))
 
 
-def estimate_cost(model: object, solver: object, particle_pools: list[tuple[str, int, float]] = (),
+def estimate_cost(model: Model, solver: StepSettings, particle_pools: Sequence[tuple[str, int, float]] = (),
                   particle_steps: int = 0, rhs_seconds: float | None = None) -> CostEstimate:
-    """The estimated cost of integrating ``model`` with ``solver`` settings (a SolverSpec-like object), and of the
+    """The estimated cost of integrating ``model`` with ``solver`` settings, and of the
     emitted particles ``particle_pools``: (emitter name, pool capacity, particles born over the run), each advanced
     ``particle_steps`` times. ``rhs_seconds``: time of one right-hand side [s] (measured here when not given)."""
-    times = np.asarray(model.frame_times)  # type: ignore[attr-defined]
+    times = np.asarray(model.frame_times)
     frames = len(times)
-    states = int(np.size(model.y0))  # type: ignore[attr-defined]
-    method = solver.method  # type: ignore[attr-defined]
+    states = int(np.size(model.y0))
+    method = solver.method
     terms = [CostTerm("trajectory", bytes=frames * states * 8 * 3.0,
                       detail=f"{frames} frames × {states} state variables")]
     steps, why = _steps(model, solver, times)
@@ -107,7 +108,7 @@ def estimate_cost(model: object, solver: object, particle_pools: list[tuple[str,
     return CostEstimate(terms)
 
 
-def _steps(model: object, solver: object, times: np.ndarray) -> tuple[float, str]:
+def _steps(model: Model, solver: StepSettings, times: np.ndarray) -> tuple[float, str]:
     """Steps the method will take over ``times``, and the reason in words."""
 
     frames = len(times)
@@ -115,34 +116,34 @@ def _steps(model: object, solver: object, times: np.ndarray) -> tuple[float, str
         return 0.0, "a single frame"
     duration = float(times[-1] - times[0])
     interval = duration / (frames - 1)
-    method = solver.method  # type: ignore[attr-defined]
+    method = solver.method
     if method not in METHODS or METHODS[method].fixed_step:
-        per_frame = substeps(interval, solver.dt or DEFAULT_DT)  # type: ignore[attr-defined]
+        per_frame = substeps(interval, solver.dt or DEFAULT_DT)
         return float(per_frame * (frames - 1)), f"{per_frame} per frame × {frames - 1} frames"
     candidates = [(float(frames - 1), "one per frame at least")]
-    if solver.max_step:  # type: ignore[attr-defined]
-        candidates.append((duration / solver.max_step, f"max_step {solver.max_step:g} s"))  # type: ignore[attr-defined]
+    if solver.max_step:
+        candidates.append((duration / solver.max_step, f"max_step {solver.max_step:g} s"))
     for omega, what in _fastest_motions(model):
         if method in EXPLICIT_LIMITS:
             candidates.append((omega * duration / EXPLICIT_LIMITS[method],
                                f"stability of the {what}, ω = {omega:.3g} rad/s"))
         if "spring" in what:
             continue  # a stiff spring rarely vibrates visibly: it costs explicit methods stability, not accuracy
-        per_radian = solver.rtol ** (-1.0 / (METHODS[method].order + 1))  # type: ignore[attr-defined]
+        per_radian = solver.rtol ** (-1.0 / (METHODS[method].order + 1))
         candidates.append((omega * duration * per_radian,
-                           f"accuracy on the {what}, ω = {omega:.3g} rad/s at rtol {solver.rtol:g}"))  # type: ignore[attr-defined]
+                           f"accuracy on the {what}, ω = {omega:.3g} rad/s at rtol {solver.rtol:g}"))
     return max(candidates)
 
 
-def _fastest_motions(model: object) -> list[tuple[float, str]]:
+def _fastest_motions(model: Model) -> list[tuple[float, str]]:
     """(ω [rad/s], description) of the stiffest spring and of the tightest gravitational pair at the start."""
     found = []
     mode = stiffest_mode(model)
     if mode is not None and mode.omega > 0:
         found.append((float(mode.omega), f"stiffest spring (around {mode.body!r})"))
 
-    positions = np.asarray(model.positions(model.y0[None])[0])  # type: ignore[attr-defined]
-    for term in model.force_terms:  # type: ignore[attr-defined]
+    positions = np.asarray(model.positions(model.y0[None])[0])
+    for term in model.force_terms:
         if not isinstance(term, Gravitation) or len(term.mass) < 2:
             continue
         index = np.arange(len(positions)) if term.index is None else term.index
@@ -153,13 +154,13 @@ def _fastest_motions(model: object) -> list[tuple[float, str]]:
             omega2 = term.G * (mass[:, None] + mass[None, :]) / r2 ** 1.5
         omega2 = np.nan_to_num(omega2, nan=0.0, posinf=1e300)
         i, j = np.unravel_index(int(np.argmax(omega2)), omega2.shape)
-        names = model.bodies.names  # type: ignore[attr-defined]
+        names = model.bodies.names
         found.append((float(np.sqrt(omega2[i, j])),
                       f"tightest gravitating pair ({names[index[i]]!r} and {names[index[j]]!r})"))
     return found
 
 
-def _implicit_terms(model: object, method: str, steps: float, states: int, rhs: float) -> list[CostTerm]:
+def _implicit_terms(model: Model, method: str, steps: float, states: int, rhs: float) -> list[CostTerm]:
     if method not in ("Radau", "BDF", "LSODA"):
         return []
     analytic = method in ("Radau", "BDF") and getattr(model, "has_jacobian", False)
@@ -176,12 +177,12 @@ def _implicit_terms(model: object, method: str, steps: float, states: int, rhs: 
     return terms
 
 
-def measure_rhs(model: object, repeats: int = 3) -> float:
+def measure_rhs(model: Model, repeats: int = 3) -> float:
     """Wall time of one evaluation of the model's right-hand side [s] (the fastest of a few)."""
 
-    dynamics = Dynamics(model)  # type: ignore[arg-type]
-    y = np.array(model.y0, dtype=float)  # type: ignore[attr-defined]
-    t = float(model.frame_times[0])  # type: ignore[attr-defined]
+    dynamics = Dynamics(model)
+    y = np.array(model.y0, dtype=np.float64)
+    t = float(model.frame_times[0])
     best = np.inf
     with np.errstate(all="ignore"):
         for _ in range(repeats + 1):  # the first call warms caches and is not counted

@@ -6,10 +6,13 @@ import numpy as np
 
 from animbatch.errors import SimulationError
 from animbatch.sim.forces import Gravitation
+from animbatch.sim.forces.gravity import gravity_magnitude
 from animbatch.sim.integrators.advice import closest_encounter, failure_advice
+from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.integrators.stability import largest_stable_step, stiffest_mode
 from animbatch.sim.invariants import kinetic_energy, total_energy
 from animbatch.sim.model.layout import StateLayout
+from animbatch.sim.model.model import Model
 
 
 def first_non_finite(y: np.ndarray) -> int | None:
@@ -20,7 +23,7 @@ def first_non_finite(y: np.ndarray) -> int | None:
 
 
 def divergence_error(layout: StateLayout | None, y: np.ndarray, index: int, t: float, *, method: str,
-                     dt: float | None = None, step: int | None = None, model: object = None,
+                     dt: float | None = None, step: int | None = None, model: Model | None = None,
                      last_finite: np.ndarray | None = None) -> SimulationError:
     """The error for state component ``index`` of ``y`` having become non-finite at time ``t`` [s]; with the
     ``model`` and the ``last_finite`` state before it, an adaptive method's advice fits the cause
@@ -39,7 +42,8 @@ def divergence_error(layout: StateLayout | None, y: np.ndarray, index: int, t: f
                            time=t, body=body, details={"quantity": quantity, "method": method, "dt": dt})
 
 
-def fastest_body(layout: StateLayout | None, rate: np.ndarray, y: np.ndarray, atol: float, rtol: float) -> str:
+def fastest_body(layout: StateLayout | None, rate: np.ndarray, y: np.ndarray, atol: float | np.ndarray,
+                 rtol: float) -> str:
     """The body whose state changes fastest relative to the tolerances: usually the culprit of a stalled solver."""
     if layout is None:
         return "?"
@@ -54,28 +58,25 @@ def fastest_body(layout: StateLayout | None, rate: np.ndarray, y: np.ndarray, at
 #: energy scale (see :func:`check_energy_growth`): far above what any stable method's error gives, and reached soon
 #: by an unstable one, whose energy grows geometrically.
 ENERGY_GROWTH_LIMIT = 1.0
-#: Methods that conserve a modified energy on springs (their energy error oscillates and does not drift).
-SYMPLECTIC = ("symplectic_euler", "verlet")
 #: The rise must hold over this long [s] (every frame in it), so that a stable symplectic method, whose energy
 #: oscillates (widely near its step limit) but always comes back, is never stopped.
 ENERGY_WINDOW = 0.5
 
 
-def energy_scale(model: object) -> float:
+def energy_scale(model: Model) -> float:
     """The energy a scene has to play with [J], from its initial state: the largest of |E₀|, the kinetic energy and
     ``M |g| L`` (total mass, strongest uniform gravity, size of the initial configuration or the largest body)."""
 
-    y0 = model.y0  # type: ignore[attr-defined]
-    x0 = model.positions(y0[None])[0]  # type: ignore[attr-defined]
+    y0 = model.y0
+    x0 = model.positions(y0[None])[0]
     size = max(float(np.linalg.norm(np.ptp(x0, axis=0))) if len(x0) else 0.0,
-               float(np.max(model.bodies.radius, initial=0.0)))  # type: ignore[attr-defined]
-    gravity = max((float(np.linalg.norm(term.g)) for term in model.force_terms  # type: ignore[attr-defined]
-                   if term.kind == "gravity"), default=0.0)
-    return max(abs(float(total_energy(model, y0))), float(kinetic_energy(model, y0)),  # type: ignore[arg-type]
-               float(np.sum(model.bodies.mass)) * gravity * size, 1e-12)  # type: ignore[attr-defined]
+               float(np.max(model.bodies.radius, initial=0.0)))
+    gravity = gravity_magnitude(model.force_terms)
+    return max(abs(float(total_energy(model, y0))), float(kinetic_energy(model, y0)),
+               float(np.sum(model.bodies.mass)) * gravity * size, 1e-12)
 
 
-def check_energy_growth(model: object, states: np.ndarray, method: str, dt: float | None,
+def check_energy_growth(model: Model, states: np.ndarray, method: str, dt: float | None,
                         limit: float = ENERGY_GROWTH_LIMIT) -> None:
     """Raise SimulationError when the total energy of a scene that has no energy input (no wind, applied forces,
     moving anchors or targets) stays above ``E₀ + limit × scale`` (:func:`energy_scale`) at every frame of a window
@@ -86,12 +87,12 @@ def check_energy_growth(model: object, states: np.ndarray, method: str, dt: floa
     stable step, and what to change.
     """
 
-    if len(states) < 2 or any(term.adds_energy for term in model.force_terms):  # type: ignore[attr-defined]
+    if len(states) < 2 or any(term.adds_energy for term in model.force_terms):
         return
-    if getattr(model.anchors, "moving", False):  # type: ignore[attr-defined]
+    if getattr(model.anchors, "moving", False):
         return
-    times = model.frame_times  # type: ignore[attr-defined]
-    energy = total_energy(model, states)  # type: ignore[arg-type]
+    times = model.frame_times
+    energy = total_energy(model, states)
     scale = energy_scale(model)
     # A run shorter than the window is judged on all its frames after the first. In a longer one, windows near the
     # end are cut short by it: a rise in the last half window must stay high to the end, over half a window at least
@@ -102,7 +103,7 @@ def check_energy_growth(model: object, states: np.ndarray, method: str, dt: floa
     padded = np.concatenate([energy[1:], np.full(window - 1, np.inf)])
     sustained = np.lib.stride_tricks.sliding_window_view(padded, window).min(axis=1)[: len(energy) - shortest]
     mode = stiffest_mode(model)
-    if dt and mode is not None and method in SYMPLECTIC and mode.omega * dt < 2:
+    if dt and mode is not None and METHODS[method].symplectic and mode.omega * dt < 2:
         # a stable symplectic step keeps a modified energy; the true one swings within 1 / (1 - (ω h / 2)²) of it
         limit = max(limit, 2 / (1 - (mode.omega * dt / 2) ** 2))
     over = np.flatnonzero(sustained - energy[0] > limit * scale)
@@ -111,10 +112,10 @@ def check_energy_growth(model: object, states: np.ndarray, method: str, dt: floa
     first = int(over[0]) + 1  # the first frame of the first window that stayed high
     frame = min(first + window - 1, len(energy) - 1)  # and its last
     t = float(times[frame])
-    velocities = model.velocities(states[[0, frame]])  # type: ignore[attr-defined]
+    velocities = model.velocities(states[[0, frame]])
     speed2 = np.sum(velocities**2, axis=2)  # (2, P)
-    gained = 0.5 * model.bodies.mass * (speed2[1] - speed2[0])  # type: ignore[attr-defined]
-    body = model.bodies.names[int(np.argmax(gained))]  # type: ignore[attr-defined]
+    gained = 0.5 * model.bodies.mass * (speed2[1] - speed2[0])
+    body = model.bodies.names[int(np.argmax(gained))]
     rise = energy[frame] - energy[0]
     message = (f"the total energy rose by {rise:.4g} J ({rise / scale:.3g} × its scale {scale:.4g} J, and stayed "
                f"that high for {(frame - first + 1) * interval:.3g} s"
@@ -133,10 +134,10 @@ def check_energy_growth(model: object, states: np.ndarray, method: str, dt: floa
     else:
         remedies.append("a smaller solver.dt" if dt else "tighter solver.rtol and solver.atol")
     remedies += ["solver.method Radau or BDF", "backward_euler"]
-    terms = model.force_terms  # type: ignore[attr-defined]
+    terms = model.force_terms
     if any(isinstance(term, Gravitation) and term.softening == 0 for term in terms):
 
-        encounter = closest_encounter(model, model.positions(states[: frame + 1]),  # type: ignore[attr-defined]
+        encounter = closest_encounter(model, model.positions(states[: frame + 1]),
                                       times[: frame + 1])
         if encounter is not None:
             message += " " + encounter.advice() + "."

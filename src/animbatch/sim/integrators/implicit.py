@@ -46,6 +46,7 @@ from animbatch.sim.forces.base import ForceTerm
 from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.fixed_step import PartitionedScheme, kick_constrain_drift
 from animbatch.sim.integrators.linear_algebra import factor_symmetric
+from animbatch.sim.model.dynamics import Dynamics
 
 #: How many times a step may be halved to keep a scene without inputs from gaining energy.
 MAX_HALVINGS = 10
@@ -63,12 +64,13 @@ class BackwardEuler(PartitionedScheme):
     order = 1
     evaluations_per_step = 1
     takes_constraints = True
+    system: Dynamics  # the linear solve needs the force Jacobian, the masses and the energy
 
-    def __init__(self, system) -> None:  # noqa: ANN001 - a Dynamics
+    def __init__(self, system: Dynamics) -> None:
         super().__init__(system)
         model = system.model
         self._particle_dofs = 3 * system.particles
-        self._mass = sp.diags(np.repeat(np.asarray(model.bodies.mass[: system.particles], float), 3), format="csr")
+        self._mass = sp.diags(np.repeat(np.asarray(model.bodies.mass[: system.particles], np.float64), 3), format="csr")
         self.explicit_terms: list[str] = []
         # forces without derivatives (gravitation, aerodynamics, …) enter explicitly: then the step is partly
         # symplectic Euler, whose energy oscillates every step, and halving would chase that down to h / 2^10
@@ -110,7 +112,7 @@ class BackwardEuler(PartitionedScheme):
         if springs is None or not springs.count:
             return SimulationError(f"backward_euler could not solve its step at t = {t:.6g} s: the step's matrix is "
                                    "singular. Check the scene's masses and the forces on them", time=t)
-        mass = np.asarray(self.system.model.bodies.mass, float)
+        mass = np.asarray(self.system.model.bodies.mass, np.float64)
         lightest = np.where(springs.second_is_anchor, mass[springs.first],
                             np.minimum(mass[springs.first],
                                        mass[np.where(springs.second_is_anchor, 0, springs.second)]))

@@ -105,3 +105,6 @@ METHODS: dict[str, Method] = {method.name: method for method in (
 #: Fixed-step method name -> scheme class; adaptive method name -> scipy solver class.
 FIXED_STEP_SCHEMES: dict[str, type[Scheme]] = {name: m.scheme for name, m in METHODS.items() if m.scheme is not None}
 SCIPY_METHODS: dict[str, type[OdeSolver]] = {name: m.solver for name, m in METHODS.items() if m.solver is not None}
+
+#: Stability limit ``|h λ|`` along the negative real axis of each explicit Runge–Kutta pair.
+EXPLICIT_LIMITS = {name: m.stability_limit for name, m in METHODS.items() if m.stability_limit is not None}

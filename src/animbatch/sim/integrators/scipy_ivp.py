@@ -34,6 +34,7 @@ from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.guard import divergence_error, fastest_body, first_non_finite
 from animbatch.sim.integrators.linear_algebra import use_second_order_factors
 from animbatch.sim.integrators.methods import SCIPY_METHODS
+from animbatch.sim.model.dynamics import Dynamics
 
 #: A solver whose steps stay shorter than this fraction of the frame interval for more than STALL_STEPS steps in a
 #: row has stalled (LSODA crawled through 5.6 million steps of 1e-16 s for 5 minutes at the centre of a gravitational
@@ -118,14 +119,13 @@ class ScipyIntegrator(Integrator):
              states: np.ndarray, stats: SolverStats, layout: Any, on_frame: FrameCallback | None) -> None:
         if len(times) > 1:
             options = {}
-            if self.method in JACOBIAN_METHODS and getattr(system, "has_jacobian", False):
+            if self.method in JACOBIAN_METHODS and isinstance(system, Dynamics) and system.has_jacobian:
                 options["jac"] = system.jacobian  # analytic and sparse: no finite differences, sparse LU
             solver = SCIPY_METHODS[self.method](fun, float(times[0]), np.array(y0, dtype=float), float(times[-1]),
                                                 rtol=self.rtol, atol=self.atol,
                                                 max_step=self.max_step if self.max_step else np.inf, **options)
-            if "jac" in options:
-
-                mass = np.repeat(np.asarray(system.model.bodies.mass[: system.particles], float), 3)
+            if isinstance(system, Dynamics) and "jac" in options:
+                mass = np.repeat(np.asarray(system.model.bodies.mass[: system.particles], np.float64), 3)
                 use_second_order_factors(solver, mass)
             cap = NewtonStepCap(solver, self.max_step or np.inf) if self.method == "BDF" else None
             frame = 1

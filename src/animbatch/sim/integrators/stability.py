@@ -20,7 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from animbatch.errors import SimulationError
+from animbatch.sim.forces.controllers import Controllers
 from animbatch.sim.integrators.methods import METHODS
+from animbatch.sim.model.model import Model
 
 #: Largest amplitude growth of the stiffest mode tolerated over a whole run.
 GROWTH_LIMIT = 1e6
@@ -50,20 +52,19 @@ class StiffestMode:
                 f"and {other})")
 
 
-def stiffest_mode(model: object) -> StiffestMode | None:
+def stiffest_mode(model: Model) -> StiffestMode | None:
     """The stiffest spring vibration of a model, counting PD controllers as springs to their targets (None without
     either)."""
-    springs = model.springs  # type: ignore[attr-defined]
-    controllers = next((term for term in model.force_terms if term.kind == "controller"), None)  # type: ignore[attr-defined]
-    has_springs = springs is not None and springs.count > 0
-    if not has_springs and controllers is None:
+    springs = model.springs
+    controllers = next((term for term in model.force_terms if isinstance(term, Controllers)), None)
+    if (springs is None or springs.count == 0) and controllers is None:
         return None
-    bodies = model.bodies  # type: ignore[attr-defined]
+    bodies = model.bodies
     mass = np.asarray(bodies.mass, float)
     stiffness_sum = np.zeros(len(mass))
     damping_sum = np.zeros(len(mass))
     candidates = []  # (ω, name, ks, masses, kind) of the stiffest spring and of the stiffest controller
-    if has_springs:
+    if springs is not None and springs.count > 0:
         first, second, anchored = springs.first, springs.second, springs.second_is_anchor
         mass_first = mass[first]
         mass_second = np.where(anchored, np.inf, mass[np.where(anchored, 0, second)])
@@ -124,7 +125,7 @@ def largest_stable_step(method: str, omega: float, decay: float) -> float | None
     return low
 
 
-def check_fixed_step(model: object, method: str, h: float, steps: int) -> None:
+def check_fixed_step(model: Model, method: str, h: float, steps: int) -> None:
     """Raise SimulationError before the run when ``method`` at step ``h`` [s] would let the stiffest spring
     vibration grow by more than GROWTH_LIMIT over ``steps`` steps."""
     if METHODS[method].implicit:  # stable at any step

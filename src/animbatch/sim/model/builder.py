@@ -20,8 +20,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -57,7 +55,6 @@ class _Rigid:
     orientation: np.ndarray  # unit quaternion
     velocity: np.ndarray
     angular_velocity: np.ndarray
-    shape: Any
 
 
 @dataclass
@@ -103,8 +100,7 @@ class _Deformable:
 class ModelBuilder:
     """Collects bodies, anchors, springs and fields; :meth:`finalize` turns them into an immutable Model."""
 
-    def __init__(self, base_dir: str | Path = ".") -> None:
-        self.base_dir = Path(base_dir)
+    def __init__(self) -> None:
         self._particle_names: list[str] = []
         self._particle_owners: list[str] = []  # the scene body each particle belongs to (a cloth, for its vertices)
         self._chunks: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []  # mass, radius, x, v
@@ -160,13 +156,13 @@ class ModelBuilder:
     def add_rigid_body(self, name: str, geometry: BodyGeometry, *, position: Sequence[float] = (0.0, 0.0, 0.0),
                        orientation: Sequence[float] = (1.0, 0.0, 0.0, 0.0),
                        velocity: Sequence[float] = (0.0, 0.0, 0.0),
-                       angular_velocity: Sequence[float] = (0.0, 0.0, 0.0), shape: Any = None) -> int:
+                       angular_velocity: Sequence[float] = (0.0, 0.0, 0.0)) -> int:
         """Add a rigid body; ``position`` places its shape origin [m], ``orientation`` is a quaternion [w, x, y, z],
         ``velocity`` [m/s] is its centre of mass's, ``angular_velocity`` [rad/s] in world axes. Returns its handle."""
         q = quaternion.normalized(np.asarray(orientation, float))
         centre = np.asarray(position, float) + quaternion.rotate(q, geometry.properties.centre)
         self._rigid.append(_Rigid(name, geometry, centre, q, np.asarray(velocity, float),
-                                  np.asarray(angular_velocity, float), shape))
+                                  np.asarray(angular_velocity, float)))
         return int(self._new_handles(1, True, len(self._rigid) - 1)[0])
 
     def add_anchor(self, name: str, position: Sequence[float], *, path: KeyframePath | None = None,
@@ -420,7 +416,7 @@ class ModelBuilder:
         return RigidBodySet(tuple(b.name for b in self._rigid), _readonly(np.array([p.mass for p in properties])),
                             _readonly(inertia), _readonly(np.linalg.inv(inertia)),
                             _readonly(np.array([p.centre for p in properties])),
-                            tuple(b.geometry for b in self._rigid), tuple(b.shape for b in self._rigid), self.base_dir)
+                            tuple(b.geometry for b in self._rigid))
 
     def _spring_set(self, x0: np.ndarray, anchors: np.ndarray) -> SpringSet | None:
         if not self._springs:

@@ -11,7 +11,7 @@ mass. Per-body arrays (trajectory files included) use this order; ``body_names``
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,6 +21,9 @@ from animbatch.sim.forces import BodyTable, ForceTerm, SpringSet
 from animbatch.sim.model.layout import StateLayout
 from animbatch.sim.model.rigid_set import RigidBodySet
 from animbatch.sim.motion import AnchorMotion
+
+if TYPE_CHECKING:  # contacts sit above the model (they read it); only their types are named here
+    from animbatch.sim.contact.detection import ContactSettings, ContactWorld
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,8 +55,8 @@ class Model:
     layout: StateLayout
     y0: np.ndarray
     frame_times: np.ndarray
-    contact_world: Any = None  # ContactWorld, only when the scene has colliders or contacts
-    contact_settings: Any = None  # ContactSettings, likewise
+    contact_world: ContactWorld | None = None  # only when the scene has colliders or contacts
+    contact_settings: ContactSettings | None = None  # likewise
     anchors: AnchorMotion | None = None
     anchor_visible: np.ndarray | None = None
     owners: tuple[str, ...] | None = None

@@ -1,10 +1,8 @@
-"""The rigid bodies of a model: mass, inertia, where the centre of mass sits in the shape, and display shape."""
+"""The rigid bodies of a model: mass, inertia, where the centre of mass sits in the shape, and its geometry."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -23,7 +21,6 @@ class RigidBodySet:
         centre: centre of mass in the shape frame [m], (B, 3): a point p given in shape coordinates is at
             ``p - centre`` from the centre of mass, in body axes.
         geometry: mass properties and buoyancy geometry per body, in the shape frame.
-        shapes: the scene's shape specs (for drawing), and ``base_dir`` to find their mesh files.
     """
 
     names: tuple[str, ...]
@@ -32,8 +29,6 @@ class RigidBodySet:
     inverse_inertia: np.ndarray
     centre: np.ndarray
     geometry: tuple[BodyGeometry, ...]
-    shapes: tuple[Any, ...]
-    base_dir: Path
 
     @property
     def count(self) -> int:

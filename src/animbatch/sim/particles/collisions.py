@@ -17,6 +17,7 @@ to ``r (√3 - 1)`` early). Mesh colliders and rigid bodies are not obstacles fo
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,23 +100,24 @@ class ParticleColliders:
                 _keep(best, normal, material, fraction, local @ rotation.T, m)
         return Hits(best, normal, material)
 
+    def _distances(self, x: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """Signed distances (K,) [m] and outward normals (K, 3) of ``x`` to each collider in turn, each computed when
+        asked for (so after the pushes out of the colliders before it)."""
+        s = self.statics
+        for point, n in zip(s.plane_point, s.plane_normal):
+            yield to_plane(x, point, n)
+        for centre, r in zip(s.sphere_centre, s.sphere_radius):
+            yield to_sphere(x, np.broadcast_to(centre, x.shape), np.full(len(x), r))
+        for centre, rotation, half in zip(s.box_centre, s.box_rotation, s.box_half):
+            yield to_box(x, np.broadcast_to(centre, x.shape), np.broadcast_to(rotation, (len(x), 3, 3)),
+                         np.broadcast_to(half, x.shape))
+
     def push_out(self, x: np.ndarray, v: np.ndarray, radius: np.ndarray) -> np.ndarray:
         """Move particles found inside a collider onto its surface and stop their motion into it; return which
         were moved (K,)."""
 
         moved = np.zeros(len(x), bool)
-        s = self.statics
-        candidates = []
-        for point, n in zip(s.plane_point, s.plane_normal):
-            candidates.append(lambda p, point=point, n=n: to_plane(p, point, n))
-        for centre, r in zip(s.sphere_centre, s.sphere_radius):
-            candidates.append(lambda p, centre=centre, r=r: to_sphere(p, np.broadcast_to(centre, p.shape),
-                                                                        np.full(len(p), r)))
-        for centre, rotation, half in zip(s.box_centre, s.box_rotation, s.box_half):
-            candidates.append(lambda p, c=centre, rot=rotation, h=half: to_box(
-                p, np.broadcast_to(c, p.shape), np.broadcast_to(rot, (len(p), 3, 3)), np.broadcast_to(h, p.shape)))
-        for distance_to in candidates:
-            distance, normal = distance_to(x)
+        for distance, normal in self._distances(x):
             inside = distance < radius
             if not inside.any():
                 continue

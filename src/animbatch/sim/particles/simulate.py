@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from animbatch.errors import SimulationError
+from animbatch.sim.integrators.base import StepSettings
 from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.particles.body_motion import BodyMotion
@@ -62,7 +63,7 @@ class ParticleStats:
 class EmitterRun:
     """The running state of one emitter: its pool, and how it steps."""
 
-    def __init__(self, emitter: Emitter, colliders: ParticleColliders | None, method: str, solver: object,
+    def __init__(self, emitter: Emitter, colliders: ParticleColliders | None, method: str, solver: StepSettings,
                  motion: BodyMotion | None) -> None:
         self.emitter = emitter
         self.pool = ParticlePool(emitter.capacity)
@@ -72,7 +73,7 @@ class EmitterRun:
         self.solver = solver
         self.motion = motion
         self.acceleration = Accelerations(emitter.fields)
-        gravity = sum((f.g for f in emitter.fields if f.kind == "gravity"), np.zeros(3))
+        gravity = sum((f.g for f in emitter.fields if f.kind == "gravity" and f.g is not None), np.zeros(3))
         self._gravity = float(np.linalg.norm(gravity))
         self.collisions = 0
         self.steps = 0
@@ -96,8 +97,8 @@ class EmitterRun:
             self.steps += 1
         else:
             moving = np.flatnonzero(~frozen)
-            x, v, steps = adaptive_segment(self.method, self.solver.rtol, self.solver.atol,  # type: ignore[attr-defined]
-                                           self.solver.max_step, self.acceleration, pool.x[moving], pool.v[moving],  # type: ignore[attr-defined]
+            x, v, steps = adaptive_segment(self.method, self.solver.rtol, self.solver.atol,
+                                           self.solver.max_step, self.acceleration, pool.x[moving], pool.v[moving],
                                            pool.mass[moving], pool.radius[moving], t0, t1)
             pool.x[moving], pool.v[moving] = x, v
             self.steps += steps
@@ -201,7 +202,7 @@ def _check_budget(t: float, stats: ParticleStats) -> None:
 
 
 def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, ParticleColliders | None],
-                       times: np.ndarray, solver: object, motion: BodyMotion | None, *, dt: float,
+                       times: np.ndarray, solver: StepSettings, motion: BodyMotion | None, *, dt: float,
                        on_frame: Callable[[int, float], None] | None = None, record: bool = True
                        ) -> tuple[list[ParticleFrames], ParticleStats]:
     """Simulate every emitter over the frame ``times`` (F,) [s]; fixed-step methods step at most ``dt`` [s].
@@ -209,7 +210,7 @@ def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, Parti
     Returns the particles at each frame (unless ``record`` is False: then only the statistics, for measuring) and the
     statistics. Raises SimulationError when a particle's state stops being finite."""
     started = time.perf_counter()
-    method = solver.method  # type: ignore[attr-defined]
+    method = solver.method
     runs = [EmitterRun(e, colliders.get(e.name), method, solver, motion) for e in emitters]
     frames = len(times)
     records = [ParticleFrames(run.emitter.name,

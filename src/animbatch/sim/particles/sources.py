@@ -67,14 +67,16 @@ class Source:
             radius = np.full(count, self.radius) if self.surface_only else self.radius * np.cbrt(c)  # even in volume
             return self.centre + directions * radius[:, None], directions
         if self.kind == "disc":
-            first, second = perpendicular_bases(self.normal[None, :])  # type: ignore[index]
+            assert self.normal is not None  # every disc has one
+            first, second = perpendicular_bases(self.normal[None, :])
             r = self.radius * np.sqrt(a)  # evenly by area
             phi = 2.0 * np.pi * b
             points = self.centre + (r * np.cos(phi))[:, None] * first + (r * np.sin(phi))[:, None] * second
             return points, np.tile(self.normal, (count, 1))
         if self.kind == "box":
+            assert self.half is not None and self.rotation is not None  # every box has both
             local = (2.0 * np.stack([a, b, c], axis=1) - 1.0) * self.half
-            return self.centre + local @ self.rotation.T, np.zeros((count, 3))  # type: ignore[union-attr]
+            return self.centre + local @ self.rotation.T, np.zeros((count, 3))
         return self._sample_surface(u)
 
     def _sample_surface(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -67,7 +67,8 @@ class Accelerations:
 
 
 def fixed_step(method: str, acceleration: Accelerations, x: np.ndarray, v: np.ndarray, cached: np.ndarray,
-               mass: np.ndarray, radius: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               mass: np.ndarray, radius: np.ndarray, h: float | np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One step ``h`` [s] of ``method`` for slots at ``x``, ``v`` (K, 3) (its kernel in
     :mod:`animbatch.sim.integrators.particle_kernels`); ``cached``: each slot's acceleration at the start of the step
     (Verlet). ``h`` may also be one step per slot, shape (K, 1). Returns the new positions, velocities and

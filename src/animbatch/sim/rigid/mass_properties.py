@@ -52,8 +52,8 @@ def parallel_axis(inertia: np.ndarray, mass: float, displacement: np.ndarray) ->
 def combine(parts: list[MassProperties]) -> MassProperties:
     """Mass properties of rigidly joined parts, each given in the common frame."""
     mass = sum(p.mass for p in parts)
-    centre = sum(p.mass * p.centre for p in parts) / mass
-    inertia = sum(parallel_axis(p.inertia, p.mass, p.centre - centre) for p in parts)
+    centre = np.sum([p.mass * p.centre for p in parts], axis=0) / mass
+    inertia = np.sum([parallel_axis(p.inertia, p.mass, p.centre - centre) for p in parts], axis=0)
     return MassProperties(mass, sum(p.volume for p in parts), centre, inertia)
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -42,10 +43,10 @@ class BodyGeometry:
 
 @functools.lru_cache(maxsize=32)
 def _read_mesh(path: str, modified: float) -> TriangleMesh:
-    import trimesh
+    import trimesh  # heavy: imported only when a mesh file is read
 
     try:
-        loaded = trimesh.load(path, force="mesh", process=True)
+        loaded = cast("trimesh.Trimesh", trimesh.load(path, force="mesh", process=True))  # force: one Trimesh
     except Exception as error:  # trimesh raises many kinds for unreadable files
         raise ValueError(f"cannot read the mesh: {error}") from None
     if len(loaded.faces) == 0:
@@ -70,10 +71,11 @@ def load_mesh(path: Path, scale: float | list[float] = 1.0) -> TriangleMesh:
 
 @functools.lru_cache(maxsize=32)
 def _read_surface(path: str, modified: float) -> TriangleMesh:
-    import trimesh
+    import trimesh  # heavy: imported only when a mesh file is read
 
     try:
-        loaded = trimesh.load(path, force="mesh", process=True)  # process: merge the duplicated vertices of STL
+        # force: one Trimesh; process: merge the duplicated vertices of STL
+        loaded = cast("trimesh.Trimesh", trimesh.load(path, force="mesh", process=True))
     except Exception as error:  # trimesh raises many kinds for unreadable files
         raise ValueError(f"cannot read the mesh: {error}") from None
     if len(loaded.faces) == 0:

@@ -22,9 +22,12 @@ import warnings
 import numpy as np
 
 from animbatch.errors import AnimbatchWarning
+from animbatch.sim.contact.detection import STATIC_BOX, STATIC_SPHERE, ContactWorld
+from animbatch.sim.forces.gravity import gravity_magnitude
 from animbatch.sim.integrators.fixed_step import DEFAULT_DT, substeps
-from animbatch.sim.integrators.methods import METHODS
+from animbatch.sim.integrators.methods import EXPLICIT_LIMITS, METHODS
 from animbatch.sim.integrators.stability import GROWTH_LIMIT, amplification, largest_stable_step, stiffest_mode
+from animbatch.sim.model.model import Model
 
 #: Steps an explicit adaptive method may be forced to take by stability before we suggest an implicit one.
 STIFF_STEPS = 1e6
@@ -32,21 +35,18 @@ STIFF_STEPS = 1e6
 WARN_GROWTH = 2.0
 #: State variables above which LSODA's finite-difference, dense Jacobians make it slow on springs (a 10×10 cloth).
 LSODA_DENSE_STATES = 600
-#: Stability limit ``|h λ|`` along the negative real axis of each explicit Runge–Kutta pair.
-EXPLICIT_LIMITS = {name: m.stability_limit for name, m in METHODS.items() if m.stability_limit is not None}
 
 
 class StabilityWarning(AnimbatchWarning):
     """A setting likely to give a wrong or slow run, found before it starts."""
 
 
-def _spring_warnings(model: object, solver: object, steps: int, h: float | None) -> list[str]:
+def _spring_warnings(model: Model, method: str, steps: int, h: float | None) -> list[str]:
     mode = stiffest_mode(model)
     if mode is None:
         return []
-    method = solver.method  # type: ignore[attr-defined]
     zeta = mode.decay / mode.omega if mode.omega > 0 else 0.0
-    duration = float(model.frame_times[-1])  # type: ignore[attr-defined]
+    duration = float(model.frame_times[-1])
     if h is not None and not METHODS[method].implicit:  # implicit fixed-step methods are stable at any step
         growth = amplification(method, h, mode.omega, mode.decay)
         if growth > 1 + 1e-9 and steps * np.log(growth) > np.log(GROWTH_LIMIT):
@@ -64,7 +64,7 @@ def _spring_warnings(model: object, solver: object, steps: int, h: float | None)
             return [f"{method} will need about {forced:.2g} steps for stability alone: the springs around "
                     f"{mode.body!r} vibrate at ω = {mode.omega:.4g} rad/s (ζ = {zeta:.3g}) over {duration:g} s. "
                     "Radau or BDF (with the analytic Jacobian) or backward_euler take far fewer."]
-    states = int(np.size(model.y0))  # type: ignore[attr-defined]
+    states = int(np.size(model.y0))
     if method == "LSODA" and states > LSODA_DENSE_STATES:
         return [f"LSODA gets no analytic Jacobian: when the springs around {mode.body!r} (ω = {mode.omega:.4g} rad/s) "
                 f"make it switch to its stiff mode, each Jacobian costs {states} right-hand sides (finite "
@@ -73,54 +73,50 @@ def _spring_warnings(model: object, solver: object, steps: int, h: float | None)
     return []
 
 
-def _thinnest_collider(spec: object) -> tuple[str, float] | None:
-    thinnest = None
-    for number, collider in enumerate(spec.colliders):  # type: ignore[attr-defined]
-        if collider.type == "box":
-            thickness = float(min(collider.size))
-        elif collider.type == "sphere":
-            thickness = 2 * float(collider.radius)
-        else:
-            continue  # planes are infinitely thick; meshes are surfaces, caught by the swept test alone
-        if thinnest is None or thickness < thinnest[1]:
-            thinnest = (f"colliders[{number}] ({collider.type})", thickness)
-    return thinnest
+def _thinnest_collider(world: ContactWorld) -> tuple[str, float] | None:
+    """The thinnest box or sphere collider, named as the scene numbers it, and its thickness [m]; planes are
+    infinitely thick and meshes are surfaces (caught by the swept test alone)."""
+    statics = world.statics
+    sources = world.collider_source or {}
+    found = [(STATIC_SPHERE, "sphere", k, 2 * float(radius)) for k, radius in enumerate(statics.sphere_radius)]
+    found += [(STATIC_BOX, "box", k, 2 * float(half.min())) for k, half in enumerate(statics.box_half)]
+    if not found:
+        return None
+    kind, label, k, thickness = min(found, key=lambda item: item[3])
+    return (f"colliders[{sources[kind][k]}] ({label})" if kind in sources else f"a {label} collider"), thickness
 
 
-def _contact_warnings(spec: object, model: object, h: float) -> list[str]:
-    thinnest = _thinnest_collider(spec)
-    if thinnest is None or model.body_count == 0:  # type: ignore[attr-defined]
+def _contact_warnings(model: Model, world: ContactWorld, h: float) -> list[str]:
+    thinnest = _thinnest_collider(world)
+    if thinnest is None or model.body_count == 0:
         return []
-    velocities = model.velocities(model.y0[None])[0]  # type: ignore[attr-defined]
-    gravity = max((float(np.linalg.norm(term.g)) for term in model.force_terms  # type: ignore[attr-defined]
-                   if term.kind == "gravity"), default=0.0)
-    duration = float(model.frame_times[-1])  # type: ignore[attr-defined]
-    speed = np.linalg.norm(velocities, axis=1) + gravity * duration  # a bound for free flight under gravity
+    velocities = model.velocities(model.y0[None])[0]
+    duration = float(model.frame_times[-1])
+    speed = np.linalg.norm(velocities, axis=1) + gravity_magnitude(model.force_terms) * duration  # free flight bound
     fastest = int(np.argmax(speed))
     reach = float(speed[fastest]) * h
     name, thickness = thinnest
     if reach <= thickness:
         return []
-    body = model.bodies.names[fastest]  # type: ignore[attr-defined]
+    body = model.bodies.names[fastest]
     return [f"body {body!r} may reach {speed[fastest]:.3g} m/s and so move {reach:.3g} m "
             f"in one step of {h:.3g} s, more than the {thickness:.3g} m thickness of {name}. Speculative contacts "
             f"still stop it, to the accuracy of one step; solver.dt ≤ {0.9 * thickness / speed[fastest]:.3g} s "
             "resolves the wall."]
 
 
-def preflight(spec: object, model: object) -> list[str]:
-    """Warnings for running ``model`` with ``spec.solver``; each is also issued as a StabilityWarning."""
-
-    solver = spec.solver  # type: ignore[attr-defined]
-    times = model.frame_times  # type: ignore[attr-defined]
+def preflight(model: Model, method: str, dt: float | None = None) -> list[str]:
+    """Warnings for running ``model`` with ``method`` (at step ``dt`` [s] for a fixed-step method; None: its
+    default); each is also issued as a StabilityWarning."""
+    times = model.frame_times
     h = steps = None
-    if not solver.is_adaptive and len(times) > 1:
+    if METHODS[method].fixed_step and len(times) > 1:
         interval = float(times[1] - times[0])
-        count = substeps(interval, solver.dt if solver.dt is not None else DEFAULT_DT)
+        count = substeps(interval, dt if dt is not None else DEFAULT_DT)
         h, steps = interval / count, count * (len(times) - 1)
-    messages = _spring_warnings(model, solver, steps or 0, h)
-    if h is not None and model.contact_world is not None:  # type: ignore[attr-defined]
-        messages += _contact_warnings(spec, model, h)
+    messages = _spring_warnings(model, method, steps or 0, h)
+    if h is not None and model.contact_world is not None:
+        messages += _contact_warnings(model, model.contact_world, h)
     for message in messages:
         warnings.warn(message, StabilityWarning, stacklevel=2)
     return messages
