@@ -11,9 +11,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from animbatch.compile.model import compile_scene
 from animbatch.scene.schema import ADAPTIVE_METHODS, FIXED_STEP_METHODS, SolverSpec
-from animbatch.sim.integrators import METHODS, FixedStepIntegrator, ScipyIntegrator
+from animbatch.sim.integrators import FIXED_STEP_SCHEMES, METHODS, FixedStepIntegrator, ScipyIntegrator
+from animbatch.sim.integrators.fixed_step import ButcherTableau
+from animbatch.sim.integrators.methods import runge_kutta
 from animbatch.sim.integrators.stability import amplification
+from animbatch.sim.model import Dynamics
+from conftest import scene
+from test_closed_forms import oscillator_exact, oscillator_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -41,6 +47,36 @@ def test_every_fixed_step_method_is_complete_in_the_table(name):
         errors.append(np.linalg.norm((matrix @ state)[:2] - exact @ np.array([1.0, 0.0])))
     assert np.log2(errors[0] / errors[1]) == pytest.approx(method.order + 1, abs=0.3)
     assert amplification(name, 1e-3, 1.0, 0.0) == pytest.approx(1.0, abs=1e-2)
+
+
+def test_an_explicit_runge_kutta_method_is_one_entry_made_from_its_tableau(monkeypatch):
+    """The recipe of docs/architecture.md holds: classic RK4, added as one table entry built from its Butcher
+    tableau and nothing else, steps a damped oscillator at fourth order (halving dt divides the error by 16), its
+    step matrix is I + Z + Z²/2 + Z³/6 + Z⁴/24, and its particle kernel steps a pool the same way as the scheme."""
+    rk4 = ButcherTableau(a=((), (0.5,), (0.0, 0.5), (0.0, 0.0, 1.0)), b=(1 / 6, 1 / 3, 1 / 3, 1 / 6),
+                         c=(0.0, 0.5, 0.5, 1.0), order=4)
+    method = runge_kutta("rk4", "classic Runge–Kutta", rk4)
+    monkeypatch.setitem(METHODS, "rk4", method)
+    monkeypatch.setitem(FIXED_STEP_SCHEMES, "rk4", method.scheme)
+    z = 0.1 * np.array([[0.0, 1.0], [-4.0, -0.4]])  # h = 0.1 s, ω = 2 rad/s, decay 0.2 /s
+    taylor = np.eye(2) + z + z @ z / 2 + z @ z @ z / 6 + z @ z @ z @ z / 24
+    assert method.step_matrix is not None and np.allclose(method.step_matrix(0.1, 2.0, 0.2), taylor, atol=1e-15)
+
+    model = compile_scene(scene(oscillator_scene(0.2, method="verlet", duration=2.0, fps=10)).spec)
+    errors = []
+    for dt in (0.1 / 8, 0.1 / 16, 0.1 / 32):
+        result = FixedStepIntegrator("rk4", dt=dt).integrate(Dynamics(model), model.y0, model.frame_times)
+        x = model.positions(result.states)[:, 0, 0] - 1.0
+        errors.append(np.abs(x - oscillator_exact(model.frame_times, 0.2, 5.0, 0.2)).max())
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all(np.abs(orders - 4) < 0.3), orders
+
+    def spring(x, v, mass, radius):  # ẍ = -4 x - 0.4 ẋ, per particle
+        return -4.0 * x - 0.4 * v
+    x0, v0 = np.array([[1.0, 0.0, 0.0]]), np.zeros((1, 3))
+    assert method.particle_step is not None
+    x1, v1, _ = method.particle_step(spring, x0, v0, spring(x0, v0, None, None), np.ones(1), np.ones(1), 0.1)
+    assert np.allclose([x1[0, 0], v1[0, 0]], method.step_matrix(0.1, 2.0, 0.2) @ np.array([1.0, 0.0]))
 
 
 @pytest.mark.parametrize("name", [name for name, m in METHODS.items() if not m.fixed_step])

@@ -216,3 +216,17 @@ def test_yaml_merge_keys_override_without_being_duplicates():
               - &bead {name: b1, mass: 0.1, radius: 0.04, position: [0.2, 2, 0]}
               - {<<: *bead, name: b2, position: [0.4, 2, 0], mass: -1}
         """)
+
+
+def test_a_method_that_cannot_keep_contacts_is_refused_where_it_is_named(tmp_path):
+    """Explicit Euler and midpoint move positions with the velocities from before the step, so bodies would sink
+    into a collider: a scene with contacts that asks for one (by any alias) is refused at solver.method, with the
+    methods that can. Without contacts, or with the ball out of collisions, the same method is fine."""
+    with_floor = GOOD + "colliders:\n  - type: plane\n"
+    line = first_error(tmp_path, with_floor + "solver:\n  method: RK2\n")
+    assert line.startswith("scene.yaml:12:11: solver.method: midpoint cannot keep contacts")
+    assert "Use symplectic_euler or verlet" in line
+    assert validate(tmp_path, with_floor + "solver:\n  method: verlet\n")[0] == 0
+    assert validate(tmp_path, GOOD + "solver:\n  method: euler\n")[0] == 0
+    unfloored = with_floor.replace("    position: [0, 1, 0]", "    position: [0, 1, 0]\n    collide: false")
+    assert validate(tmp_path, unfloored + "solver:\n  method: euler\n")[0] == 0

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from animbatch import __version__
-from animbatch.compile.checks import check_files
+from animbatch.compile.checks import compile_checks
 from animbatch.compile.frame_geometry import body_extents, collider_points
 from animbatch.compile.frame_geometry import frame_geometry as compile_frame_geometry
 from animbatch.compile.model import compile_scene
@@ -49,14 +49,14 @@ from animbatch.trajectory import Trajectory
 def load_scene(path: str | Path, overrides: Sequence[Override] = ()) -> LoadedScene:
     """Read and validate the scene file at ``path`` (``--set`` style ``overrides`` first), with every check: format,
     names and references, and the geometry (mesh files, pin selections). SceneError lists every problem."""
-    return scene_loader.load_scene(path, overrides, geometry_checks=check_files)
+    return scene_loader.load_scene(path, overrides, geometry_checks=compile_checks)
 
 
 def parse_scene(text: str, *, filename: str = "<scene>", overrides: Sequence[Override] = (),
                 default_name: str = "scene", path: Path | None = None) -> LoadedScene:
     """Validate scene text (YAML) with every check; ``path``'s folder finds mesh files (default: the current one)."""
     return scene_loader.parse_scene(text, filename=filename, overrides=overrides, default_name=default_name,
-                                    path=path, geometry_checks=check_files)
+                                    path=path, geometry_checks=compile_checks)
 
 
 def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progress | None = None,

@@ -1,6 +1,7 @@
-"""Checks of a validated scene that need geometry: mesh files that exist, are readable and closed, and pins that
-select vertices of their cloth or lattice. The scene layer cannot build geometry, so the loader takes these as its
-``geometry_checks`` (:func:`animbatch.stages.load_scene` passes them)."""
+"""Checks of a validated scene that need the simulation's knowledge: mesh files that exist, are readable and closed,
+pins that select vertices of their cloth or lattice, and an integration method that can keep the scene's contacts.
+The scene layer cannot build geometry nor read the method table, so the loader takes these as its
+``geometry_checks`` (:func:`animbatch.stages.load_scene` passes :func:`compile_checks`)."""
 
 from __future__ import annotations
 
@@ -20,7 +21,27 @@ from animbatch.scene.schema import (
     SceneSpec,
 )
 from animbatch.scene.yaml_source import KeyPath
+from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.rigid.shapes import load_mesh, load_surface
+
+
+def compile_checks(spec: SceneSpec, base_dir: Path) -> list[Problem]:
+    """Every check of this module, each problem with the key path it is about."""
+    return check_method(spec) + check_files(spec, base_dir)
+
+
+def check_method(spec: SceneSpec) -> list[Problem]:
+    """A fixed-step method that cannot apply contacts between its kick and its drift (an explicit Runge–Kutta
+    method moves positions with the velocities from before the step) is refused for a scene with contacts."""
+    scheme = METHODS[spec.solver.method].scheme
+    colliding = any(getattr(body, "collide", True) for body in spec.bodies)
+    has_contacts = (bool(spec.colliders) or spec.contacts is not None) and colliding
+    if not has_contacts or scheme is None or scheme.takes_constraints:
+        return []
+    return [(("solver", "method"), (
+        f"{spec.solver.method} cannot keep contacts: it moves positions with the velocities from before the step, so "
+        "bodies would sink into colliders. Use symplectic_euler or verlet (fixed step), or an adaptive method such "
+        "as RK45"))]
 
 
 def check_files(spec: SceneSpec, base_dir: Path) -> list[Problem]:

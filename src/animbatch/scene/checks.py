@@ -27,8 +27,7 @@ def check_references(data: dict[str, Any]) -> list[Problem]:
     deformable = _of_type(data, DEFORMABLE_TYPES)
     return [*_body_list(data), *_duplicate_names(data), *_springs(data, bodies, anchors, rigid, deformable),
             *_fields(data, bodies, anchors, rigid, deformable, emitters), *_pins(data, bodies, rigid),
-            *_controllers(data, bodies, rigid, deformable), *_emitters(data, bodies, rigid), *_materials(data),
-            *_contact_method(data)]
+            *_controllers(data, bodies, rigid, deformable), *_emitters(data, bodies, rigid), *_materials(data)]
 
 
 #: Body types made of many vertices (each a particle in the model).
@@ -207,21 +206,6 @@ def _materials(data: dict[str, Any]) -> Iterator[Problem]:
         if isinstance(names, list):
             for position, name in enumerate(names):
                 yield from unknown(("material_pairs", index, "materials", position), name)
-
-
-def _contact_method(data: dict[str, Any]) -> Iterator[Problem]:
-    """Explicit Euler and midpoint move positions with the old velocities: they cannot keep contacts."""
-    solver = data.get("solver")
-    method = solver.get("method") if isinstance(solver, dict) else None
-    bodies = data.get("bodies") if isinstance(data.get("bodies"), list) else []
-    colliding = any(not isinstance(body, dict) or body.get("collide", True) is not False for body in bodies)
-    has_contacts = (bool(data.get("colliders")) or "contacts" in data) and colliding
-    if has_contacts and isinstance(method, str) and method.lower().replace("-", "_") in (
-            "euler", "explicit_euler", "forward_euler", "midpoint", "rk2"):
-        yield ("solver", "method"), (
-            f"{method} cannot keep contacts: it moves positions with the velocities from before the step, so bodies "
-            "would sink into colliders. Use symplectic_euler or verlet (fixed step), or an adaptive method such as "
-            "RK45")
 
 
 def _duplicate_names(data: dict[str, Any]) -> Iterator[Problem]:

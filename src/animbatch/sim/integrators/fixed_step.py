@@ -93,9 +93,14 @@ MIDPOINT = ButcherTableau(a=((), (0.5,)), b=(0.0, 1.0), c=(0.0, 0.5), order=2)
 
 
 class ExplicitRungeKutta(Scheme):
-    """Any explicit Runge–Kutta method, from its tableau."""
+    """Any explicit Runge–Kutta method, from its tableau (one subclass per tableau: :meth:`of`)."""
 
     tableau: ButcherTableau
+
+    @classmethod
+    def of(cls, name: str, tableau: ButcherTableau) -> type[ExplicitRungeKutta]:
+        """The scheme class of ``tableau``: what the method table lists for an explicit Runge–Kutta method."""
+        return type(f"ExplicitRungeKutta[{name}]", (cls,), {"tableau": tableau})
 
     def __init__(self, system: EquationsOfMotion) -> None:
         super().__init__(system)
@@ -116,14 +121,6 @@ class ExplicitRungeKutta(Scheme):
             if b_i:
                 y += (h * b_i) * k_i
         self.system.project(y)
-
-
-class ExplicitEuler(ExplicitRungeKutta):
-    tableau = EULER
-
-
-class Midpoint(ExplicitRungeKutta):
-    tableau = MIDPOINT
 
 
 class PartitionedScheme(Scheme):

@@ -4,8 +4,9 @@ step, its stability matrix and its kernel for particle pools.
 Everything else reads this table: the fixed-step loop and the scipy adapter look up their scheme or solver, the
 pre-flight and the step refusal use the stability matrices, the ledger and the cost estimate the orders and costs,
 the particle pools the kernels, and the advice which methods are implicit or symplectic. A test checks that the
-scene schema's method names are exactly these. Adding a fixed-step method: write its scheme (a Butcher tableau is
-enough for an explicit Runge–Kutta method), its particle kernel and its step matrix, and add one entry here.
+scene schema's method names are exactly these. Adding an explicit Runge–Kutta method is one entry here made by
+:func:`runge_kutta` from its Butcher tableau (scheme, step matrix and particle kernel all follow from it); any other
+fixed-step method brings its scheme, its particle kernel and its step matrix.
 """
 
 from __future__ import annotations
@@ -18,7 +19,15 @@ import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
 
 from animbatch.sim.integrators import particle_kernels as kernels
-from animbatch.sim.integrators.fixed_step import ExplicitEuler, Midpoint, Scheme, SymplecticEuler, VelocityVerlet
+from animbatch.sim.integrators.fixed_step import (
+    EULER,
+    MIDPOINT,
+    ButcherTableau,
+    ExplicitRungeKutta,
+    Scheme,
+    SymplecticEuler,
+    VelocityVerlet,
+)
 from animbatch.sim.integrators.implicit import BackwardEuler
 from animbatch.sim.integrators.particle_kernels import ParticleKernel
 
@@ -30,13 +39,18 @@ def _rate(omega: float, decay: float) -> np.ndarray:
     return np.array([[0.0, 1.0], [-omega**2, -2 * decay]])
 
 
-def _euler_matrix(h: float, omega: float, decay: float) -> np.ndarray:
-    return np.eye(2) + h * _rate(omega, decay)
+def _runge_kutta_matrix(tableau: ButcherTableau) -> StepMatrix:
+    """The step matrix of an explicit Runge–Kutta method: with Z = h A, stage ``K_i = Z (I + Σ_j a_ij K_j)`` and
+    ``R = I + Σ_i b_i K_i`` (for Euler I + Z; for the midpoint method I + Z + Z²/2)."""
 
+    def matrix(h: float, omega: float, decay: float) -> np.ndarray:
+        z = h * _rate(omega, decay)
+        stages: list[np.ndarray] = []
+        for row in tableau.a:
+            stages.append(z @ (np.eye(2) + sum((a_ij * stages[j] for j, a_ij in enumerate(row)), np.zeros((2, 2)))))
+        return np.eye(2) + sum((b_i * k for b_i, k in zip(tableau.b, stages)), np.zeros((2, 2)))
 
-def _midpoint_matrix(h: float, omega: float, decay: float) -> np.ndarray:
-    hr = h * _rate(omega, decay)
-    return np.eye(2) + hr + 0.5 * hr @ hr
+    return matrix
 
 
 def _symplectic_euler_matrix(h: float, omega: float, decay: float) -> np.ndarray:
@@ -83,6 +97,14 @@ class Method:
     def fixed_step(self) -> bool:
         return self.family == "fixed-step"
 
+
+def runge_kutta(name: str, summary: str, tableau: ButcherTableau) -> Method:
+    """An explicit Runge–Kutta method, all from its tableau: its scheme, step matrix and particle kernel."""
+    return Method(name, "fixed-step", tableau.order, len(tableau.b), summary,
+                  scheme=ExplicitRungeKutta.of(name, tableau), step_matrix=_runge_kutta_matrix(tableau),
+                  particle_step=kernels.runge_kutta(tableau))
+
+
 METHODS: dict[str, Method] = {method.name: method for method in (
     Method("RK23", "adaptive", 2, 3, "Bogacki–Shampine 3(2)", solver=RK23, stability_limit=2.5),
     Method("RK45", "adaptive", 4, 6, "Dormand–Prince 5(4)", solver=RK45, stability_limit=3.3),
@@ -90,10 +112,8 @@ METHODS: dict[str, Method] = {method.name: method for method in (
     Method("Radau", "adaptive", 5, 8, "implicit Runge–Kutta (Radau IIA), order 5", solver=Radau, implicit=True),
     Method("BDF", "adaptive", 3, 3, "backward differentiation, orders 1–5", solver=BDF, implicit=True),
     Method("LSODA", "adaptive", 4, 3, "Adams / BDF, switching on stiffness", solver=LSODA, implicit=True),
-    Method("euler", "fixed-step", 1, 1, "explicit Euler", scheme=ExplicitEuler, step_matrix=_euler_matrix,
-           particle_step=kernels.euler),
-    Method("midpoint", "fixed-step", 2, 2, "explicit midpoint (RK2)", scheme=Midpoint, step_matrix=_midpoint_matrix,
-           particle_step=kernels.midpoint),
+    runge_kutta("euler", "explicit Euler", EULER),
+    runge_kutta("midpoint", "explicit midpoint (RK2)", MIDPOINT),
     Method("symplectic_euler", "fixed-step", 1, 1, "semi-implicit Euler", scheme=SymplecticEuler,
            step_matrix=_symplectic_euler_matrix, particle_step=kernels.symplectic_euler, symplectic=True),
     Method("verlet", "fixed-step", 2, 1, "velocity Verlet", scheme=VelocityVerlet, step_matrix=_verlet_matrix,

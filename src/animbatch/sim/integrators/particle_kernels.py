@@ -14,25 +14,38 @@ from typing import Any
 
 import numpy as np
 
+from animbatch.sim.integrators.fixed_step import ButcherTableau
+
 Step = tuple[np.ndarray, np.ndarray, np.ndarray]
 #: (acceleration, x, v, cached a, mass, radius, h) -> (x', v', a to cache)
 ParticleKernel = Callable[[Any, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, Any], Step]
 
 
-def euler(acceleration: Any, x: np.ndarray, v: np.ndarray, cached: np.ndarray, mass: np.ndarray,
-          radius: np.ndarray, h: Any) -> Step:
-    """``x' = x + h v``, ``v' = v + h a``."""
-    a = acceleration(x, v, mass, radius)
-    return x + h * v, v + h * a, a
+def runge_kutta(tableau: ButcherTableau) -> ParticleKernel:
+    """The particle step of an explicit Runge–Kutta method on ``x' = v``, ``v' = a(x, v)``: stage i is at
+    ``x + h Σ a_ij v_j``, ``v + h Σ a_ij a_j``; the step adds ``h Σ b_i`` of the stages' (v_i, a_i). Euler is
+    ``x + h v``, ``v + h a``; the midpoint method evaluates a again at the half step."""
 
-
-def midpoint(acceleration: Any, x: np.ndarray, v: np.ndarray, cached: np.ndarray, mass: np.ndarray,
+    def step(acceleration: Any, x: np.ndarray, v: np.ndarray, cached: np.ndarray, mass: np.ndarray,
              radius: np.ndarray, h: Any) -> Step:
-    """The same as Euler from the half-step state."""
-    a = acceleration(x, v, mass, radius)
-    v_half = v + 0.5 * h * a
-    a_half = acceleration(x + 0.5 * h * v, v_half, mass, radius)
-    return x + h * v_half, v + h * a_half, a_half
+        velocities: list[np.ndarray] = []
+        accelerations: list[np.ndarray] = []
+        for row in tableau.a:
+            x_stage, v_stage = x, v
+            for j, a_ij in enumerate(row):
+                if a_ij:
+                    x_stage = x_stage + (h * a_ij) * velocities[j]
+                    v_stage = v_stage + (h * a_ij) * accelerations[j]
+            velocities.append(v_stage)
+            accelerations.append(acceleration(x_stage, v_stage, mass, radius))
+        x_new, v_new = x, v
+        for b_i, v_i, a_i in zip(tableau.b, velocities, accelerations):
+            if b_i:
+                x_new = x_new + (h * b_i) * v_i
+                v_new = v_new + (h * b_i) * a_i
+        return x_new, v_new, accelerations[-1]
+
+    return step
 
 
 def symplectic_euler(acceleration: Any, x: np.ndarray, v: np.ndarray, cached: np.ndarray, mass: np.ndarray,
