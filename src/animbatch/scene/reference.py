@@ -199,7 +199,7 @@ def key_paths() -> Iterator[str]:
 
 def generate() -> str:
     lines = [BEGIN, "", "## Key reference", "",
-             "Generated from the schema (`src/animbatch/scene/schema.py`). Units are SI; '—' means none.", ""]
+             "Generated from the schema (`src/animbatch/scene/schema/`). Units are SI; '—' means none.", ""]
     for heading, prefix, model in SECTIONS:
         lines += [f"### {heading}", "", " ".join((model.__doc__ or "").split()), "",
                   "| key | type | unit | default | limits | meaning |", "|---|---|---|---|---|---|"]

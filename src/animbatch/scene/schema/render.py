@@ -1,0 +1,123 @@
+"""The ``render`` section: camera, lights, overlays, output."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+import annotated_types as at
+from pydantic import (
+    Field,
+    field_validator,
+    model_validator,
+)
+
+from animbatch.scene.schema.base import Color, SceneModel, Vec3, key, rule_error
+
+
+class CameraSpec(SceneModel):
+    """The camera. Without position and focal point it is fitted to the bounding box of the whole motion."""
+
+    position: Vec3 | None = key(None, "Camera position (give together with focal_point; default: fitted).", "m")
+    focal_point: Vec3 | None = key(None, "Point the camera looks at (default: centre of the motion).", "m")
+    up: Vec3 = key([0.0, 1.0, 0.0], "Up direction on screen; also the ground normal.", "1")
+    view_angle: float = key(30.0, "Vertical field of view.", "deg", gt=0, lt=180)
+    direction: Vec3 = key([0.4, 0.35, 1.0], "When fitted: direction from the focal point towards the camera.", "1")
+    fit_margin: float = key(1.15, "When fitted: how much room to leave around the motion (1 = tight).", "1",
+                            ge=1, le=10)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "CameraSpec":
+        if (self.position is None) != (self.focal_point is None):
+            given = "position" if self.position is not None else "focal_point"
+            raise rule_error("give both position and focal_point, or neither (then the camera is fitted to the "
+                             "motion)", given)
+        if self.position is not None and self.position == self.focal_point:
+            raise rule_error("must differ from the camera position", "focal_point")
+        for name in ("up", "direction"):
+            if not any(getattr(self, name)):
+                raise rule_error("must not be the zero vector", name)
+        return self
+
+
+class GroundSpec(SceneModel):
+    """A ground plane drawn perpendicular to ``camera.up`` (display only: it does not collide)."""
+
+    level: float = key(0.0, "Height of the ground along camera.up.", "m")
+    size: float | None = key(None, "Side length of the ground square (default: fitted to the motion).", "m", gt=0)
+    color: Color = key("#d8d8d8", "Ground colour.")
+    grid: bool = key(True, "Draw grid lines on the ground.")
+
+
+VideoPreset = Literal["ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower", "veryslow"]
+
+
+class VideoSpec(SceneModel):
+    """H.264 MP4 encoding (yuv420p, plays in browsers)."""
+
+    preset: VideoPreset = key("veryfast", "x264 speed preset. 'veryfast' keeps up with the renderer; slower presets "
+                                          "give smaller files at equal quality.")
+    crf: int = key(20, "x264 constant rate factor: 0 lossless, 18 visually lossless, 23 x264's default, 51 worst.",
+                   "1", ge=0, le=51)
+
+
+class RenderSpec(SceneModel):
+    """How frames are drawn and written."""
+
+    resolution: Annotated[list[Annotated[int, Field(ge=16, le=7680)]], at.Len(2, 2)] = key(
+        [1280, 720], "Frame size [width, height]; both even (required by H.264 yuv420p).", "px")
+    background: Color = key("white", "Background colour.")
+    anti_aliasing: Literal["fxaa", "msaa", "none"] = key(
+        "fxaa", "Edge smoothing: fxaa (default), msaa (smoother, slower) or none (fastest).")
+    msaa_samples: int = key(4, "Samples per pixel when anti_aliasing is msaa.", "1", ge=2, le=16)
+    particles: Literal["auto", "mesh", "sprite"] = key(
+        "auto", "How particles are drawn: sphere meshes, point sprites (fast for many), or auto "
+                "(meshes up to 200 particles, sprites beyond).")
+    sphere_resolution: int = key(32, "Segments around a sphere mesh.", "1", ge=8, le=256)
+    springs: Literal["tube", "line", "hidden"] = key("tube", "How springs are drawn.")
+    spring_width: float = key(3.0, "Width of spring lines and tubes on screen.", "px", gt=0, le=50)
+    mesh_springs: Literal["hidden", "line"] = key(
+        "hidden", "The springs of cloth and lattices: hidden (their surface shows them) or line (every spring, "
+                  "drawn over the surface).")
+    surface_opacity: float = key(1.0, "Opacity of cloth and lattice surfaces (lower it to see springs inside).", "1",
+                                 gt=0, le=1)
+    show_anchors: bool = key(True, "Draw anchors as small dark cubes.")
+    show_targets: bool = key(True, "Draw what PD controllers pull towards: curves as thin lines (the wire of a "
+                                   "bead), point and keyframed targets as small grey spheres.")
+    show_axes: bool = key(False, "Draw each rigid body's axes (x red, y green, z blue), turning with it.")
+    show_vectors: Literal["none", "angular_velocity", "angular_momentum"] = key(
+        "none", "Draw an arrow from each rigid body's centre of mass along ω or L, scaled so that the largest over "
+                "the animation is twice the body's size.")
+    fluid_color: Color = key("#3a7bd5", "Colour of the surfaces of buoyancy fluids (drawn translucent).")
+    ground: GroundSpec | None = key(None, "Ground plane (omit for none; 'ground: {}' for the defaults).")
+    show_time: bool = key(True, "Overlay the simulated time.")
+    time_label: str = key("t = {t:.2f} s", "Format of the time overlay; {t} is the simulated time in s.")
+    camera: CameraSpec = key(CameraSpec(), "Camera.")
+    formats: Annotated[list[Literal["mp4", "png", "webm", "gif"]], at.Len(1, 4)] = key(
+        ["mp4"], "Outputs: mp4 (H.264), webm (VP9), gif (256 colours; GIF times are in 1/100 s, so 30 fps plays "
+        "at 33.3), and png (keep the frame files; they are the render's resumable state and are otherwise deleted "
+        "once every video is encoded).")
+    video: VideoSpec = key(VideoSpec(), "MP4 encoding settings.")
+    max_cost: float = key(3600.0, "Wall-time budget of drawing the frames (each render process gets it). After "
+                                  "two frames the time of the rest is projected, and a render that would take "
+                                  "longer stops with exit code 4, saying what it would take; the frames drawn stay "
+                                  "on disk, and a run with a larger budget goes on from them. 0 = no limit.",
+                          "s", ge=0)
+
+    @field_validator("resolution")
+    @classmethod
+    def _even(cls, size: list[int]) -> list[int]:
+        for index, value in enumerate(size):
+            if value % 2:
+                raise rule_error(f"must be even (got {value}): H.264 with yuv420p halves the colour resolution; "
+                                 f"try {value + 1}", index)
+        return size
+
+    @field_validator("time_label")
+    @classmethod
+    def _formattable(cls, label: str) -> str:
+        try:
+            label.format(t=1.0)
+        except (KeyError, IndexError, ValueError) as error:
+            raise rule_error(f"is not a valid format string ({error}); use {{t}} for the time, e.g. "
+                             "'t = {t:.2f} s'") from None
+        return label

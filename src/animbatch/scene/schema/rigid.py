@@ -1,0 +1,166 @@
+"""Rigid bodies: their shapes (spheres, shells, boxes, cylinders, rods, compounds, meshes) and orientations."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+import annotated_types as at
+from pydantic import (
+    Field,
+    field_validator,
+    model_validator,
+)
+
+from animbatch.scene.schema.base import Color, Name, PositiveVec3, SceneModel, Vec3, key, rule_error
+
+
+class SphereShape(SceneModel):
+    """Solid sphere, centred on the body origin: ``I = 2/5 m r²``."""
+
+    type: Literal["sphere"] = key(description="Shape type.")
+    radius: float = key(description="Radius.", unit="m", gt=0)
+
+
+class ShellShape(SceneModel):
+    """Spherical shell, centred on the body origin. Thin (``I = 2/3 m r²``, give a mass) unless a thickness is given
+    (hollow sphere, ``I = 2/5 m (R⁵ - r⁵)/(R³ - r³)``)."""
+
+    type: Literal["shell"] = key(description="Shape type.")
+    radius: float = key(description="Outer radius.", unit="m", gt=0)
+    thickness: float | None = key(None, "Wall thickness (default: infinitely thin, so the body needs a mass, not a "
+                                        "density).", "m", gt=0)
+
+
+class BoxShape(SceneModel):
+    """Cuboid centred on the body origin, edges along the body axes: ``I = m/12 diag(b² + c², a² + c², a² + b²)``."""
+
+    type: Literal["box"] = key(description="Shape type.")
+    size: PositiveVec3 = key(description="Side lengths [a, b, c] along the body x, y, z axes.", unit="m")
+
+
+class CylinderShape(SceneModel):
+    """Solid cylinder along the body z axis, centred on the origin: ``I_xx = I_yy = ¼ m r² + 1/12 m l²``,
+    ``I_zz = ½ m r²``."""
+
+    type: Literal["cylinder"] = key(description="Shape type.")
+    radius: float = key(description="Radius.", unit="m", gt=0)
+    length: float = key(description="Length along the body z axis.", unit="m", gt=0)
+
+
+class RodShape(SceneModel):
+    """Thin rod along the body z axis, centred on the origin: ``I_xx = I_yy ≈ 1/12 m l²``. It is a cylinder of small
+    radius, so that the moment about its own axis (``½ m r²``) is small but not zero."""
+
+    type: Literal["rod"] = key(description="Shape type.")
+    length: float = key(description="Length along the body z axis.", unit="m", gt=0)
+    radius: float | None = key(None, "Radius (default: length / 100).", "m", gt=0)
+
+
+class MeshShape(SceneModel):
+    """A closed triangle mesh from an STL, OBJ or PLY file; volume, centre of mass and inertia are computed exactly
+    from its surface (divergence theorem)."""
+
+    type: Literal["mesh"] = key(description="Shape type.")
+    file: str = key(description="Mesh file, relative to the scene file.", example="meshes/bunny.stl")
+    scale: float | PositiveVec3 = key(1.0, "Scale factor, or factors [sx, sy, sz], applied to the file's "
+                                           "coordinates (e.g. 0.001 for a file in millimetres).", "1")
+
+    @field_validator("scale")
+    @classmethod
+    def _positive(cls, scale: float | list[float]) -> float | list[float]:
+        if isinstance(scale, float | int) and scale <= 0:
+            raise rule_error(f"must be > 0 (got {scale})")
+        return scale
+
+
+class OrientationSpec(SceneModel):
+    """A rotation from body to world axes, given one way: axis and angle, a quaternion, or Euler angles."""
+
+    axis: Vec3 | None = key(None, "Rotation axis (with angle).", "1")
+    angle: float | None = key(None, "Rotation angle about the axis (with axis).", "deg")
+    quaternion: Annotated[list[float], at.Len(4, 4)] | None = key(None, "Unit quaternion [w, x, y, z] (normalised "
+                                                                        "if it is not).", "1")
+    euler: Vec3 | None = key(None, "Rotations about the world x, then y, then z axes (extrinsic xyz).", "deg")
+
+    @model_validator(mode="after")
+    def _one_way(self) -> "OrientationSpec":
+        given = [name for name in ("axis", "angle", "quaternion", "euler") if getattr(self, name) is not None]
+        ways = ["axis" in given or "angle" in given, "quaternion" in given, "euler" in given]
+        if sum(ways) != 1 or (("axis" in given) != ("angle" in given)):  # an empty mapping is no orientation either
+            raise rule_error("give the orientation one way: axis and angle together, or quaternion, or euler "
+                             f"(got {', '.join(given) or 'none of them'})")
+        if self.axis is not None and not any(self.axis):
+            raise rule_error("must not be the zero vector", "axis")
+        if self.quaternion is not None and not any(self.quaternion):
+            raise rule_error("must not be zero", "quaternion")
+        return self
+
+
+PRIMITIVE_SHAPES: tuple[type[SceneModel], ...] = (SphereShape, ShellShape, BoxShape, CylinderShape, RodShape,
+                                                  MeshShape)
+PrimitiveShape = Annotated[Union[*PRIMITIVE_SHAPES], Field(discriminator="type")]  # type: ignore[valid-type]
+
+
+class CompoundPart(SceneModel):
+    """One primitive of a compound body, placed in the body's frame, with its own density or mass."""
+
+    shape: PrimitiveShape = key(description="The part's shape (any shape except compound).")  # type: ignore[valid-type]
+    offset: Vec3 = key([0.0, 0.0, 0.0], "Position of the part's origin in the body frame.", "m")
+    orientation: OrientationSpec | None = key(None, "Rotation of the part in the body frame (default none).")
+    density: float | None = key(None, "Density of this part (default: the body's density).", "kg/m³", gt=0)
+    mass: float | None = key(None, "Mass of this part, instead of a density.", "kg", gt=0)
+
+    @model_validator(mode="after")
+    def _not_both(self) -> "CompoundPart":
+        if self.density is not None and self.mass is not None:
+            raise rule_error("give density or mass, not both", "mass")
+        return self
+
+
+class CompoundShape(SceneModel):
+    """Several primitives joined rigidly: ``M = Σ mᵢ``, ``c = Σ mᵢ cᵢ / M``, inertia by parallel axes and rotations."""
+
+    type: Literal["compound"] = key(description="Shape type.")
+    parts: Annotated[list[CompoundPart], at.Len(1, 1000)] = key(description="The parts.")
+
+
+SHAPES: tuple[type[SceneModel], ...] = (*PRIMITIVE_SHAPES, CompoundShape)
+ShapeSpec = Annotated[Union[*SHAPES], Field(discriminator="type")]  # type: ignore[valid-type]
+
+
+class RigidBodySpec(SceneModel):
+    """A rigid body: a shape with mass properties from its density (or a given mass), state ``[x, q, P, L]``.
+
+    ``position`` places the shape's origin (the centre of primitives); the body moves about its centre of mass.
+    """
+
+    type: Literal["rigid"] = key(description="Body type.")
+    name: Name = key(description="Unique name.", example="crate")
+    shape: ShapeSpec = key(description="Shape; gives volume, centre of mass and inertia.")  # type: ignore[valid-type]
+    density: float | None = key(None, "Density: mass = density × volume.", "kg/m³", gt=0)
+    mass: float | None = key(None, "Mass, instead of a density (for a compound: the total, distributed as the "
+                                    "parts' densities say, or uniformly where they give none).", "kg", gt=0)
+    position: Vec3 = key([0.0, 0.0, 0.0], "Initial position of the shape's origin.", "m")
+    orientation: OrientationSpec | None = key(None, "Initial orientation (default: body axes = world axes).")
+    velocity: Vec3 = key([0.0, 0.0, 0.0], "Initial velocity of the centre of mass.", "m/s")
+    angular_velocity: Vec3 = key([0.0, 0.0, 0.0], "Initial angular velocity ω, world axes.", "rad/s")
+    material: Name = key("default", "Material, for collisions (see the particle's 'material').")
+    collide: bool = key(True, "Take part in collisions (when the scene has colliders or a 'contacts' section).")
+    color: Color | None = key(None, "Display colour (default: from a palette, by body index).")
+
+    @model_validator(mode="after")
+    def _mass_given_once(self) -> "RigidBodySpec":
+        if self.density is not None and self.mass is not None:
+            raise rule_error("give density or mass, not both", "mass")
+        if isinstance(self.shape, CompoundShape):
+            unspecified = any(p.density is None and p.mass is None for p in self.shape.parts)
+            if self.density is None and self.mass is None and unspecified:
+                raise rule_error("every part needs a density or mass, or the body a density or mass", "density")
+        elif self.density is None and self.mass is None:
+            raise rule_error("required key missing: give density (kg/m³, mass = density × volume) or mass (kg)",
+                             "density")
+        thin = isinstance(self.shape, ShellShape) and self.shape.thickness is None
+        if thin and self.density is not None:
+            raise rule_error("a thin shell has no volume, so a density gives no mass: give mass, or shape.thickness",
+                             "density")
+        return self

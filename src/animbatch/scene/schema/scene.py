@@ -1,0 +1,85 @@
+"""The whole scene: :class:`SceneSpec`, with the checks that span its sections."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from pydantic import (
+    Field,
+)
+
+from animbatch.scene.schema.base import Name, SceneModel, key
+from animbatch.scene.schema.bodies import AnchorSpec
+from animbatch.scene.schema.contacts import ColliderSpec, ContactSpec, MaterialPairSpec, MaterialSpec
+from animbatch.scene.schema.controllers import ControllerSpec
+from animbatch.scene.schema.deformable import BodySpec, SpringSpec
+from animbatch.scene.schema.emitters import EmitterSpec
+from animbatch.scene.schema.fields import FieldSpec
+from animbatch.scene.schema.render import RenderSpec
+from animbatch.scene.schema.solver import Method, SolverSpec
+
+
+class StudySpec(SceneModel):
+    """Settings of ``animbatch study``: the work-precision study of this scene (no effect on a render)."""
+
+    closed_form: bool = key(False, "Measure errors against closed-form solutions instead of a tight reference run. "
+                                   "Every body must have one: a projectile (uniform gravity only), a fall with "
+                                   "linear drag (and gravity, optionally wind), a mass on one spring to a fixed "
+                                   "anchor moving along the spring (gravity allowed along it), or one of a pair "
+                                   "attracting each other by gravitation alone (Kepler orbit).")
+    methods: list[Method] | None = key(None, "Integrators to study (default: every one that applies to the scene).",
+                                       example=["RK45", "DOP853", "verlet"])
+    rtols: list[Annotated[float, Field(gt=0, lt=1)]] = key(
+        [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10],
+        "Relative tolerances swept for adaptive methods; atol is rtol times each component's scale (the scene's "
+        "length for positions, its speed for velocities).", "1", min_length=1)
+    dt_levels: int = key(6, "Steps swept for fixed-step methods: dt = frame interval / 2^k for k = 0 … dt_levels-1.",
+                         "1", ge=1, le=16)
+    repeats: int = key(3, "Timed repeats per run after an untimed one that measures the errors; the minimum wall "
+                          "time is reported.", "1", ge=1, le=20)
+    timeout: float = key(60.0, "Wall-time limit per run; a run that exceeds it is reported as a timeout.", "s", gt=0)
+
+
+class SceneSpec(SceneModel):
+    """A whole scene: what exists, what acts on it, how to integrate it and how to draw it."""
+
+    name: Name | None = key(None, "Scene name; output goes to renders/<name>/ (default: the file name).")
+    description: str = key("", "Free text, shown by 'animbatch info'.")
+    duration: float = key(5.0, "Length of the animation; frames are at t = k/fps for k = 0 … ceil(duration·fps)-1.",
+                          "s", gt=0, le=86400)
+    fps: int = key(30, "Frames per second of the animation (and of the trajectory samples).", "Hz", ge=1, le=240)
+    solver: SolverSpec = key(SolverSpec(), "Integrator settings.")
+    bodies: list[BodySpec] = key([], "Simulated bodies: particles (the default type) and rigid bodies.")
+    anchors: list[AnchorSpec] = key([], "Fixed points for springs.")
+    springs: list[SpringSpec] = key([], "Springs and dampers.")
+    controllers: list[ControllerSpec] = key([], "PD controllers (virtual springs) pulling bodies towards targets.")
+    emitters: list[EmitterSpec] = key([], "Particle emitters (particle systems).")
+    seed: int = key(0, "Seed of every random draw (the attributes of emitted particles): the same seed gives the "
+                       "same particles, bit for bit.", "1", ge=0, lt=2**63)
+    fields: list[FieldSpec] = key([], "Force fields; only the declared ones are compiled.")  # type: ignore[valid-type]
+    materials: dict[Name, MaterialSpec] = key({}, "Materials of your own, by name (added to the built-in ones).")
+    material_pairs: list[MaterialPairSpec] = key([], "Coefficients for particular pairs of materials.")
+    colliders: list[ColliderSpec] = key([], "Fixed obstacles: planes, boxes, spheres, meshes.")  # type: ignore[valid-type]
+    contacts: ContactSpec | None = key(None, "Contact settings; collisions are on when this or colliders exist.")
+    render: RenderSpec = key(RenderSpec(), "Rendering and output settings.")
+    study: StudySpec = key(StudySpec(), "Settings of 'animbatch study' (error against work per integrator).")
+    sweep: dict[str, list[Any]] = key(
+        {}, "Values to sweep with 'animbatch batch' (key path -> list of values): one variant per combination, as "
+        "with --sweep; ignored by the other commands.", example={"springs[0].stiffness": [100, 1000, 10000]})
+
+    @property
+    def has_contacts(self) -> bool:
+        """Whether collisions are simulated at all: only when the scene asks for them (colliders or a ``contacts``
+        section) and some body takes part (colliders that nothing touches are scenery, and cost no contact pass)."""
+        return (bool(self.colliders) or self.contacts is not None) and any(body.collide for body in self.bodies)
+
+    @property
+    def frame_count(self) -> int:
+        """Number of frames: ``ceil(duration · fps)`` (at least 1), so that the video lasts ``duration``."""
+        import math
+
+        return max(1, math.ceil(self.duration * self.fps - 1e-9))
+
+
+#: Top-level keys that do not change the physics (excluded from the physics hash).
+PRESENTATION_KEYS = frozenset({"name", "description", "render", "solver", "study", "sweep"})

@@ -1,0 +1,62 @@
+"""The ``solver`` section: the integration method and its settings."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BeforeValidator
+
+from animbatch.scene.schema.base import SceneModel, key
+
+ADAPTIVE_METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
+FIXED_STEP_METHODS = ("euler", "midpoint", "symplectic_euler", "verlet", "backward_euler")
+METHOD_ALIASES = {
+    "explicit_euler": "euler",
+    "forward_euler": "euler",
+    "rk2": "midpoint",
+    "semi_implicit_euler": "symplectic_euler",
+    "velocity_verlet": "verlet",
+    "implicit_euler": "backward_euler",
+}
+
+
+def _canonical_method(value: Any) -> Any:
+    """Method names are case-insensitive, and ``-`` may stand for ``_``; aliases map to canonical names."""
+    if not isinstance(value, str):
+        return value
+    folded = value.strip().lower().replace("-", "_")
+    for name in (*ADAPTIVE_METHODS, *FIXED_STEP_METHODS):
+        if name.lower() == folded:
+            return name
+    return METHOD_ALIASES.get(folded, value)
+
+
+Method = Annotated[Literal[*ADAPTIVE_METHODS, *FIXED_STEP_METHODS], BeforeValidator(_canonical_method)]  # type: ignore[valid-type]
+
+
+class SolverSpec(SceneModel):
+    """How the equations of motion are integrated."""
+
+    method: Method = key("RK45", "Integrator: an adaptive solve_ivp method (RK23, RK45, DOP853, Radau, BDF, LSODA) "
+                                 "or a fixed-step one (euler, midpoint, symplectic_euler, verlet, backward_euler).",
+                         example="DOP853")
+    rtol: float = key(1e-6, "Relative tolerance of adaptive methods (ignored by fixed-step ones).", "1",
+                      gt=0, lt=1)
+    atol: float = key(1e-9, "Absolute tolerance of adaptive methods, in the units of each state component "
+                            "(m for positions, m/s for velocities).", "m, m/s", gt=0)
+    max_step: float | None = key(None, "Largest step an adaptive method may take (default: no limit).", "s", gt=0)
+    dt: float | None = key(None, "Step of fixed-step methods (default 1e-3 s). The step used is the largest one "
+                                 "<= dt that divides the frame interval 1/fps, so that frames fall on steps (to 1e-6: "
+                                 "dt 0.008333333 counts as 1/120 s).",
+                           "s", gt=0)
+    max_cost: float = key(3600.0, "Wall-time budget of one simulation. Before it starts, a run estimated to take "
+                                  "longer is refused, naming what makes it expensive; a run that reaches it anyway "
+                                  "stops with exit code 3, saying how far it got. 0 = no limit. The command line's "
+                                  "--max-cost takes seconds or 30min, 2h.", "s", ge=0)
+    drift_warning: float = key(0.01, "Relative drift of a conserved quantity (energy, momentum, angular momentum) "
+                                     "above which a run warns, naming the quantity and what to change; 0.01 is 1 % "
+                                     "of the quantity's scale in the scene (see the accuracy ledger).", "1", gt=0)
+
+    @property
+    def is_adaptive(self) -> bool:
+        return self.method in ADAPTIVE_METHODS
