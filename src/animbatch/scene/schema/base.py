@@ -7,14 +7,7 @@ import difflib
 from typing import Annotated, Any
 
 import annotated_types as at
-from pydantic import (
-    AfterValidator,
-    BaseModel,
-    ConfigDict,
-    Field,
-    PlainValidator,
-    WithJsonSchema,
-)
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PlainValidator, WithJsonSchema
 from pydantic_core import PydanticCustomError, PydanticUndefined
 
 NAME_PATTERN = r"^[A-Za-z_][A-Za-z0-9_.\-]*$"

@@ -5,10 +5,7 @@ from __future__ import annotations
 from typing import Annotated, Any, Literal
 
 import annotated_types as at
-from pydantic import (
-    AfterValidator,
-    model_validator,
-)
+from pydantic import AfterValidator, model_validator
 
 from animbatch.scene.schema.base import Color, Name, SceneModel, Vec3, key, rule_error
 

@@ -5,10 +5,7 @@ from __future__ import annotations
 from typing import Annotated, Literal, Union
 
 import annotated_types as at
-from pydantic import (
-    Field,
-    field_validator,
-)
+from pydantic import Field, field_validator
 
 from animbatch.curves import ExpressionError, compile_expression
 from animbatch.scene.schema.base import Name, SceneModel, Vec3, key, rule_error

@@ -5,13 +5,7 @@ from __future__ import annotations
 from typing import Annotated, Any, Literal, Union
 
 import annotated_types as at
-from pydantic import (
-    Discriminator,
-    Field,
-    Tag,
-    field_validator,
-    model_validator,
-)
+from pydantic import Discriminator, Field, Tag, field_validator, model_validator
 
 from animbatch.scene.schema.base import Color, Name, PositiveVec3, SceneModel, Vec3, key, rule_error
 from animbatch.scene.schema.bodies import Interpolation, ParticleSpec, _keyframe_list

@@ -5,11 +5,7 @@ from __future__ import annotations
 from typing import Annotated, Literal, Union
 
 import annotated_types as at
-from pydantic import (
-    AfterValidator,
-    Field,
-    model_validator,
-)
+from pydantic import AfterValidator, Field, model_validator
 
 from animbatch.scene.schema.base import Color, Name, NonZeroVec3, PositiveVec3, SceneModel, Vec3, key, rule_error
 from animbatch.scene.schema.bodies import _increasing_times

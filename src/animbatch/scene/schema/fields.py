@@ -4,10 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal, Union
 
-from pydantic import (
-    Field,
-    model_validator,
-)
+from pydantic import Field, model_validator
 
 from animbatch.scene.annotations import tag_of
 from animbatch.scene.schema.base import Name, NonZeroVec3, SceneModel, Vec3, key, rule_error

@@ -5,11 +5,7 @@ from __future__ import annotations
 from typing import Annotated, Literal
 
 import annotated_types as at
-from pydantic import (
-    Field,
-    field_validator,
-    model_validator,
-)
+from pydantic import Field, field_validator, model_validator
 
 from animbatch.scene.schema.base import Color, SceneModel, Vec3, key, rule_error
 

@@ -4,9 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from pydantic import (
-    Field,
-)
+from pydantic import Field
 
 from animbatch.scene.schema.base import Name, SceneModel, key
 from animbatch.scene.schema.bodies import AnchorSpec
