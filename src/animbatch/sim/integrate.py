@@ -1,21 +1,20 @@
 """The integrator for a model: where contacts plug into the integration methods.
 
 The methods (:mod:`animbatch.sim.integrators`) know nothing of contacts: a fixed-step scheme applies whatever
-velocity constraint it is given between its kick and its drift, and an adaptive method hands its stepping to an
-event integration when given one. This module gives them the contact ones when the model has contacts, so that
+velocity constraint it is given between its kick and its drift, and an adaptive method stops at the events it is
+given (:class:`~animbatch.sim.integrators.base.StepEvents`: it asks for the first event in each step, and lets the
+events act there before it restarts). This module gives them the contact ones when the model has contacts, so that
 ``integrators`` never imports ``contact`` (contact code imports the integrators, one way).
 """
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
-from animbatch.sim.contact.events import integrate_with_events
+from animbatch.sim.contact.events import ContactEvents
 from animbatch.sim.contact.stepping import ContactResolver
 from animbatch.sim.integrators import DEFAULT_DT, SCIPY_METHODS, FixedStepIntegrator, Integrator, ScipyIntegrator
-from animbatch.sim.integrators.base import EquationsOfMotion, FrameCallback, IntegrationResult
+from animbatch.sim.integrators.base import EquationsOfMotion
 from animbatch.sim.model.dynamics import Dynamics
 from animbatch.sim.model.model import Model
 
@@ -31,10 +30,9 @@ def contact_constraint(system: EquationsOfMotion) -> ContactResolver:
     return ContactResolver(_dynamics(system))
 
 
-def contact_events(method: str, solver_class: Any, options: dict[str, Any], system: EquationsOfMotion,
-                   y0: np.ndarray, times: np.ndarray, on_frame: FrameCallback | None) -> IntegrationResult:
-    """The event integration of an adaptive method: stop at every impact and change of contact mode."""
-    return integrate_with_events(method, solver_class, options, _dynamics(system), y0, times, on_frame)
+def contact_events(system: EquationsOfMotion) -> ContactEvents:
+    """The events of an adaptive method: it stops at every impact and change of contact mode."""
+    return ContactEvents(_dynamics(system))
 
 
 def integrator_for(model: Model | None, method: str, *, dt: float | None = None, rtol: float = 1e-6,

@@ -25,7 +25,6 @@ robust choice; this path suits scenes with few contacts where exact impact times
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -47,10 +46,6 @@ from animbatch.sim.contact.impacts import ImpactLog
 from animbatch.sim.contact.solver import BodyVelocities, ContactRows, solve_forces, solve_impulses
 from animbatch.sim.contact.stepping import DEFAULT_REST_SPEED
 from animbatch.sim.forces import Kinematics
-from animbatch.sim.integrators.advice import failure_advice
-from animbatch.sim.integrators.base import CountingRhs, FrameCallback, IntegrationResult, SolverStats
-from animbatch.sim.integrators.budget import budget_spent
-from animbatch.sim.integrators.guard import divergence_error, fastest_body, first_non_finite
 from animbatch.sim.model.dynamics import Dynamics
 
 SAMPLES = 24  # points per step at which impact candidates are evaluated
@@ -118,6 +113,60 @@ class ContactEvents:
         self.impacts = ImpactLog()
         #: Probe–solid pairs whose rebound was too small for the solver to follow; the next settle lands them.
         self.landing: Contacts | None = None
+        self._modes: np.ndarray | None = None  # mode functions at the end of the last step (resting contacts)
+        self._impact_first = False  # whether the pending event is an impact (else a change of contact modes)
+        self._last_event = 0.0  # s
+        self._stalled = 0  # consecutive events that did not move time forward
+        self._budget = 0
+        self._method = ""
+
+    # ------------------------------------------------------------------------------------- as StepEvents
+
+    label = "contacts"
+    advice = "A fixed-step method (symplectic_euler) is more robust for scenes with many contacts."
+
+    def start(self, t: float, y: np.ndarray, frames: int, method: str) -> None:
+        """Settle the contacts touching at the start: impacts, and which contacts rest."""
+        self._budget, self._method, self._last_event = MAX_EVENTS_PER_FRAME * frames, method, t
+        self.settle(y, t)
+
+    def restart(self, t: float, y: np.ndarray) -> float | None:
+        """With resting contacts, steps stay below :data:`RESTING_MAX_STEP` and their modes are watched."""
+        self._modes = self._mode_functions(t, y) if self.resting.count else None
+        return RESTING_MAX_STEP if self.resting.count else None
+
+    def first_event(self, solver: Any, before: np.ndarray) -> float | None:
+        """The first impact or change of a resting contact's mode within the solver's last step, or None."""
+        impact = self._first_impact(solver, *self._impact_candidates(before, solver.y, solver.t - solver.t_old,
+                                                                     solver.t))
+        change = None
+        if self._modes is not None:
+            after = self._mode_functions(solver.t, solver.y)
+            change = self._first_mode_change(solver, self._modes, after)
+            self._modes = after
+        self._impact_first = impact is not None and (change is None or impact <= change)
+        return min((e for e in (impact, change) if e is not None), default=None)
+
+    def handle(self, t: float, y: np.ndarray) -> None:
+        """Apply the pending event at ``t`` [s]: impacts (settle) or a change of modes; stop when events no longer
+        advance time (a safety net) or never settle."""
+        # events a few ulps apart are the same instant: count them as no progress
+        last = self._last_event
+        self._stalled = self._stalled + 1 if t <= last + 1e-12 * max(1.0, abs(last)) else 0
+        if self._stalled > MAX_STALLED_EVENTS:
+            raise SimulationError(
+                f"contact events stopped advancing at t = {last:.9g} s ({self._stalled} events at that time): "
+                f"{self._method} cannot resolve these contacts. Use a fixed-step method (solver.method: "
+                "symplectic_euler), or tighter solver.rtol and solver.atol.", time=last)
+        self._last_event = t
+        if self._impact_first:
+            self.settle(y, t)
+        else:
+            self.change_modes(t, y)
+        self.events += 1
+        if self.events > self._budget:
+            raise SimulationError(f"more than {self._budget} contact events: the contacts do not settle. Use a "
+                                  "fixed-step method (symplectic_euler) for this scene.", time=t)
 
     # ------------------------------------------------------------------------------------- bodies
 
@@ -523,102 +572,3 @@ class ContactEvents:
             self.resting = Resting(resting.probe, resting.kind, resting.index, sticking, direction)
         self.resting = self.resting.keep(keep)
         self._warm_forces = None
-
-
-def _stopped(solver: Any, fun: CountingRhs, system: Dynamics, layout: Any, method: str, options: dict[str, Any],
-             what: str, after: str) -> SimulationError:
-    """Why an adaptive run with contacts stopped (``what``), with the advice that fits its state (the closest
-    gravitational encounter, the stiffest spring or the fastest-changing body), then ``after``."""
-    body = fastest_body(layout, fun(solver.t, solver.y), solver.y, float(np.max(options["atol"])), options["rtol"])
-    return SimulationError(f"{method} {what} " + failure_advice(system.model, method, solver.y, solver.t, body)
-                           + after, time=solver.t, body=body)
-
-
-def integrate_with_events(method: str, solver_class: Any, options: dict[str, Any], system: Dynamics,
-                          y0: np.ndarray, times: np.ndarray, on_frame: FrameCallback | None) -> IntegrationResult:
-    """Integrate ``system`` with a scipy solver class, stopping at every contact event (see the module notes)."""
-    started = time.perf_counter()
-    events = ContactEvents(system)
-    layout = system.model.layout
-    stats = SolverStats(method)
-    states = np.empty((len(times), len(y0)))
-    y = np.array(y0, dtype=float)
-    t = float(times[0])
-    fun = CountingRhs(events.rhs)
-    budget = MAX_EVENTS_PER_FRAME * len(times)
-    stalled = 0  # consecutive events that did not move time forward
-    frame = 1
-    with np.errstate(all="ignore"):
-        events.settle(y, t)
-        states[0] = y
-        if on_frame is not None:
-            on_frame(0, t)
-        while frame < len(times):
-            settings = dict(options)
-            if events.resting.count:
-                settings["max_step"] = min(options.get("max_step", np.inf), RESTING_MAX_STEP)
-            solver = solver_class(fun, t, y.copy(), float(times[-1]), **settings)
-            modes = events._mode_functions(t, y) if events.resting.count else None
-            while frame < len(times):
-                before = solver.y.copy()
-                message = solver.step()
-                if solver.status == "failed":
-                    raise _stopped(solver, fun, system, layout, method, options, f"failed at t = {solver.t:.6g} s "
-                                   f"with contacts: {message}", ". A fixed-step method (symplectic_euler) is more "
-                                   "robust for scenes with many contacts.")
-                stats.count_step(solver.t - solver.t_old)
-                spent = budget_spent(solver.t)
-                if spent is not None:
-                    raise _stopped(solver, fun, system, layout, method, options, f"stopped at t = {solver.t:.6g} s "
-                                   f"with contacts: {spent} ({stats.steps} steps, {events.events} contact events so "
-                                   "far).", ".")
-                bad = first_non_finite(solver.y)
-                if bad is not None:
-                    raise divergence_error(layout, solver.y, bad, solver.t, method=method, step=stats.steps,
-                                           model=system.model, last_finite=before)
-                impact = events._first_impact(solver, *events._impact_candidates(before, solver.y,
-                                                                                 solver.t - solver.t_old, solver.t))
-                change = None
-                if modes is not None:
-                    after = events._mode_functions(solver.t, solver.y)
-                    change = events._first_mode_change(solver, modes, after)
-                    modes = after
-                event_time = min((e for e in (impact, change) if e is not None), default=None)
-                end = solver.t if event_time is None else event_time
-                interpolant = solver.dense_output()
-                while frame < len(times) and times[frame] <= end:
-                    exact = times[frame] == solver.t and event_time is None
-                    states[frame] = solver.y if exact else interpolant(times[frame])
-                    system.project(states[frame])
-                    if on_frame is not None:
-                        on_frame(frame, float(times[frame]))
-                    frame += 1
-                if event_time is not None:
-                    # events a few ulps apart are the same instant: count them as no progress
-                    stalled = stalled + 1 if event_time <= t + 1e-12 * max(1.0, abs(t)) else 0
-                    if stalled > MAX_STALLED_EVENTS:  # a safety net: the same event again and again, no progress
-                        raise SimulationError(
-                            f"contact events stopped advancing at t = {t:.9g} s ({stalled} events at that time): "
-                            f"{method} cannot resolve these contacts. Use a fixed-step method (solver.method: "
-                            "symplectic_euler), or tighter solver.rtol and solver.atol.", time=t)
-                    t, y = float(event_time), interpolant(event_time)
-                    system.project(y)
-                    if impact is not None and (change is None or impact <= change):
-                        events.settle(y, t)
-                    else:
-                        events.change_modes(t, y)
-                    events.events += 1
-                    if events.events > budget:
-                        raise SimulationError(f"more than {budget} contact events: the contacts do not settle. Use "
-                                              "a fixed-step method (symplectic_euler) for this scene.", time=t)
-                    break  # restart the solver from the event
-                if solver.status == "finished":
-                    break
-            stats.jacobian_evaluations += int(solver.njev)
-            stats.lu_decompositions += int(solver.nlu)
-            if event_time is None:
-                break
-    stats.rhs_evaluations = fun.count
-    stats.impacts = events.impacts.as_list()
-    stats.wall_time = time.perf_counter() - started
-    return IntegrationResult(states, stats)

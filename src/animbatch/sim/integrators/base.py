@@ -81,13 +81,44 @@ class VelocityConstraint(Protocol):
 ConstraintFactory = Callable[[EquationsOfMotion], VelocityConstraint]
 
 
-class EventIntegration(Protocol):
-    """Integration with events between the frames (collisions for the adaptive methods), given the scipy method's
-    name, its ``OdeSolver`` class and options (rtol, atol, max_step); how an adaptive integrator is told about
-    contacts."""
+class StepEvents(Protocol):
+    """Events an adaptive method stops at between its steps (for contacts: impacts and changes of contact mode).
 
-    def __call__(self, method: str, solver_class: Any, options: dict[str, Any], system: EquationsOfMotion,
-                 y0: np.ndarray, times: np.ndarray, on_frame: FrameCallback | None) -> IntegrationResult: ...
+    The integrator steps the scipy solver; after each step it asks for the first event inside it, writes the frames
+    before it from the step's dense output, lets the events act on the state at that instant, and restarts the
+    solver there. How an adaptive integrator is told about contacts, without importing them."""
+
+    #: What the events are about and what to try when they cannot be resolved, for messages ("contacts", …).
+    label: str
+    advice: str
+
+    @property
+    def impacts(self) -> ImpactRecord: ...  # what was logged
+
+    def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        """The right-hand side to integrate between events (with the forces of resting contacts)."""
+        ...
+
+    def start(self, t: float, y: np.ndarray, frames: int, method: str) -> None:
+        """Act on the initial state ``y`` in place (touching contacts settle) before a run of ``frames`` frames."""
+        ...
+
+    def restart(self, t: float, y: np.ndarray) -> float | None:
+        """A solver (re)starts from ``y`` at ``t`` [s]: the largest step it may take from there [s], or None."""
+        ...
+
+    def first_event(self, solver: Any, before: np.ndarray) -> float | None:
+        """The time [s] of the first event within the solver's last step (from ``before``), or None."""
+        ...
+
+    def handle(self, t: float, y: np.ndarray) -> None:
+        """Act on the state ``y`` in place at the event time ``t`` [s]; raise SimulationError when events stop
+        advancing time or never settle."""
+        ...
+
+
+#: (equations of motion) -> their events; how an adaptive integrator is told about contacts.
+EventsFactory = Callable[[EquationsOfMotion], StepEvents]
 
 
 @dataclass

@@ -9,12 +9,15 @@ Radau and BDF get the model's analytic sparse Jacobian (:meth:`Dynamics.jacobian
 without it scipy estimates a dense one by finite differences, one right-hand side per state component, which for a
 cloth costs thousands of evaluations per Jacobian and a dense LU. Their Newton matrices are then factored through the
 half-size velocity system (:mod:`animbatch.sim.integrators.linear_algebra`), not as 6N × 6N general sparse matrices.
+
+Given events (:class:`~animbatch.sim.integrators.base.StepEvents`; contacts, :mod:`animbatch.sim.contact.events`),
+the same loop asks after each step for the first event inside it, writes the frames before it from the step's dense
+output, lets the events act on the state at that instant, and restarts the solver from there.
 """
 
 from __future__ import annotations
 
 import time
-from typing import Any
 
 import numpy as np
 from scipy.integrate import OdeSolver
@@ -24,11 +27,12 @@ from animbatch.sim.integrators.advice import failure_advice
 from animbatch.sim.integrators.base import (
     CountingRhs,
     EquationsOfMotion,
-    EventIntegration,
+    EventsFactory,
     FrameCallback,
     IntegrationResult,
     Integrator,
     SolverStats,
+    StepEvents,
 )
 from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.guard import divergence_error, fastest_body, first_non_finite
@@ -81,8 +85,8 @@ class ScipyIntegrator(Integrator):
     optional ``max_step`` [s]."""
 
     def __init__(self, method: str, *, rtol: float = 1e-6, atol: float | np.ndarray = 1e-9,
-                 max_step: float | None = None, events: EventIntegration | None = None) -> None:
-        """``events``: integrates with events between frames (collisions), or None for plain stepping."""
+                 max_step: float | None = None, events: EventsFactory | None = None) -> None:
+        """``events``: makes the events (collisions) the solver stops at between frames, or None for none."""
         if method not in SCIPY_METHODS:
             raise ValueError(f"unknown adaptive method {method!r}; choose from {', '.join(SCIPY_METHODS)}")
         self.method = method
@@ -99,83 +103,118 @@ class ScipyIntegrator(Integrator):
     def integrate(self, system: EquationsOfMotion, y0: np.ndarray, times: np.ndarray, *,
                   on_frame: FrameCallback | None = None) -> IntegrationResult:
         started = time.perf_counter()
-        if self.events is not None:
-            options = {"rtol": self.rtol, "atol": self.atol, "max_step": self.max_step if self.max_step else np.inf}
-            return self.events(self.method, SCIPY_METHODS[self.method], options, system, y0, times, on_frame)
-        layout = getattr(getattr(system, "model", None), "layout", None)
+        events = self.events(system) if self.events is not None else None
         stats = SolverStats(self.method)
         states = np.empty((len(times), len(y0)))
-        states[0] = y0
-        if on_frame is not None:
-            on_frame(0, float(times[0]))
-        fun = CountingRhs(system.rhs)
+        fun = CountingRhs(events.rhs if events is not None else system.rhs)
         with np.errstate(all="ignore"):  # overflow is detected and reported by the checks below, not as warnings
-            self._run(system, fun, y0, times, states, stats, layout, on_frame)
+            self._run(system, events, fun, np.array(y0, dtype=float), times, states, stats, on_frame)
         stats.rhs_evaluations = fun.count
+        if events is not None:
+            stats.impacts = events.impacts.as_list()
         stats.wall_time = time.perf_counter() - started
         return IntegrationResult(states, stats)
 
-    def _run(self, system: EquationsOfMotion, fun: CountingRhs, y0: np.ndarray, times: np.ndarray,
-             states: np.ndarray, stats: SolverStats, layout: Any, on_frame: FrameCallback | None) -> None:
-        if len(times) > 1:
-            options = {}
-            if self.method in JACOBIAN_METHODS and isinstance(system, Dynamics) and system.has_jacobian:
-                options["jac"] = system.jacobian  # analytic and sparse: no finite differences, sparse LU
-            solver = SCIPY_METHODS[self.method](fun, float(times[0]), np.array(y0, dtype=float), float(times[-1]),
-                                                rtol=self.rtol, atol=self.atol,
-                                                max_step=self.max_step if self.max_step else np.inf, **options)
-            if isinstance(system, Dynamics) and "jac" in options:
-                mass = np.repeat(np.asarray(system.model.bodies.mass[: system.particles], np.float64), 3)
-                use_second_order_factors(solver, mass)
-            cap = NewtonStepCap(solver, self.max_step or np.inf) if self.method == "BDF" else None
-            frame = 1
-            tiny, stall_step = 0, STALL_FRACTION * float(times[1] - times[0])
+    def _solver(self, system: EquationsOfMotion, events: StepEvents | None, fun: CountingRhs, t: float,
+                y: np.ndarray, end: float) -> OdeSolver:
+        """A solver from ``y`` at ``t`` [s] to ``end``: with the analytic Jacobian where it helps (not with events,
+        whose forces it leaves out), and the step the events allow from here."""
+        max_step = self.max_step or np.inf
+        if events is not None:
+            allowed = events.restart(t, y)
+            max_step = min(max_step, allowed) if allowed is not None else max_step
+        options = {}
+        # analytic and sparse: no finite differences, and a Newton matrix factored at half size
+        analytic = (system if events is None and self.method in JACOBIAN_METHODS and isinstance(system, Dynamics)
+                    and system.has_jacobian else None)
+        if analytic is not None:
+            options["jac"] = analytic.jacobian
+        solver = SCIPY_METHODS[self.method](fun, t, y.copy(), end, rtol=self.rtol, atol=self.atol, max_step=max_step,
+                                            **options)
+        if analytic is not None:
+            use_second_order_factors(solver, np.repeat(np.asarray(analytic.model.bodies.mass[: analytic.particles],
+                                                                  np.float64), 3))
+        return solver
+
+    def _run(self, system: EquationsOfMotion, events: StepEvents | None, fun: CountingRhs, y: np.ndarray,
+             times: np.ndarray, states: np.ndarray, stats: SolverStats, on_frame: FrameCallback | None) -> None:
+        """Step solvers over ``times``, writing frames from their dense output; at each event (if any) write the
+        frames before it, let the events act at that instant, and restart from there."""
+        layout = getattr(getattr(system, "model", None), "layout", None)
+        t = float(times[0])
+        if events is not None:
+            events.start(t, y, len(times), self.method)
+        states[0] = y
+        if on_frame is not None:
+            on_frame(0, t)
+        frame = 1
+        stall_step = STALL_FRACTION * float(times[1] - times[0]) if len(times) > 1 else 0.0
+        while frame < len(times):
+            solver = self._solver(system, events, fun, t, y, float(times[-1]))
+            cap = NewtonStepCap(solver, self.max_step or np.inf) if self.method == "BDF" and events is None else None
+            tiny, event_time = 0, None
             while frame < len(times):
                 before = solver.y.copy()  # the last finite state, for advice should this step diverge
                 message = solver.step()
                 if solver.status == "failed":
-                    raise self._failure(solver, fun, system, message)
+                    raise self._failure(solver, fun, system, events, "failed", message)
                 if cap is not None:
                     cap.after_step()
                 stats.count_step(solver.t - solver.t_old)
-                tiny = tiny + 1 if solver.t - solver.t_old < stall_step else 0
+                # steps end at events, which may be close together: a stall is only judged without events
+                tiny = tiny + 1 if events is None and solver.t - solver.t_old < stall_step else 0
                 if tiny > STALL_STEPS:
-                    raise self._failure(solver, fun, system, f"its last {STALL_STEPS} steps were all shorter than "
-                                        f"{stall_step:.2g} s, so it has stalled ({stats.steps} steps so far).")
+                    raise self._failure(solver, fun, system, events, "failed", f"its last {STALL_STEPS} steps were "
+                                        f"all shorter than {stall_step:.2g} s, so it has stalled ({stats.steps} "
+                                        "steps so far).")
                 spent = budget_spent(solver.t)
                 if spent is not None:
-                    raise self._failure(solver, fun, system, f"{spent} ({stats.steps} steps so far, the last "
-                                        f"{solver.t - solver.t_old:.3g} s long).")
+                    raise self._failure(solver, fun, system, events, "stopped", f"{spent} ({stats.steps} steps so "
+                                        f"far, the last {solver.t - solver.t_old:.3g} s long).")
                 bad = first_non_finite(solver.y)
                 if bad is not None:
                     raise divergence_error(layout, solver.y, bad, solver.t, method=self.method, step=stats.steps,
                                            model=getattr(system, "model", None), last_finite=before)
-                if times[frame] <= solver.t:
-                    interpolant = solver.dense_output()
-                    while frame < len(times) and times[frame] <= solver.t:
-                        states[frame] = solver.y if times[frame] == solver.t else interpolant(times[frame])
-                        system.project(states[frame])  # unit quaternions in every output
-                        if on_frame is not None:
-                            on_frame(frame, float(times[frame]))
-                        frame += 1
-            stats.jacobian_evaluations = int(solver.njev)
-            stats.lu_decompositions = int(solver.nlu)
-            stats.scipy_nfev = int(solver.nfev)
+                event_time = events.first_event(solver, before) if events is not None else None
+                end = solver.t if event_time is None else event_time
+                interpolant = solver.dense_output() if times[frame] <= end or event_time is not None else None
+                while frame < len(times) and times[frame] <= end:
+                    exact = times[frame] == solver.t and event_time is None
+                    states[frame] = solver.y if exact or interpolant is None else interpolant(times[frame])
+                    system.project(states[frame])  # unit quaternions in every output
+                    if on_frame is not None:
+                        on_frame(frame, float(times[frame]))
+                    frame += 1
+                if events is not None and event_time is not None and interpolant is not None:
+                    t, y = float(event_time), interpolant(event_time)
+                    system.project(y)
+                    events.handle(t, y)
+                    break  # restart the solver from the event
+                if solver.status == "finished":
+                    break
+            stats.jacobian_evaluations += int(solver.njev)
+            stats.lu_decompositions += int(solver.nlu)
+            stats.scipy_nfev = (stats.scipy_nfev or 0) + int(solver.nfev)
+            if event_time is None:
+                break
 
-    def _failure(self, solver: OdeSolver, fun: CountingRhs, system: EquationsOfMotion,
-                 message: str | None) -> SimulationError:
+    def _failure(self, solver: OdeSolver, fun: CountingRhs, system: EquationsOfMotion, events: StepEvents | None,
+                 verb: str, message: str | None) -> SimulationError:
         """Why the solver gave up: non-finite forces if any were seen, else advice that fits what happened (a close
-        gravitational encounter, a stiff spring, the fastest-changing body; :mod:`animbatch.sim.integrators.advice`)."""
+        gravitational encounter, a stiff spring, the fastest-changing body; :mod:`animbatch.sim.integrators.advice`),
+        and with events what to try for them."""
         model = getattr(system, "model", None)
         layout = getattr(model, "layout", None)
+        when = f"at t = {solver.t:.6g} s" + (f" with {events.label}" if events is not None else "")
         if fun.first_non_finite is not None and layout is not None:
             seen_at, index = fun.first_non_finite
             body, quantity = layout.describe_index(index)
             return SimulationError(
-                f"{self.method} failed at t = {solver.t:.6g} s: the rate of change of body {body!r} {quantity} "
-                f"became non-finite (first at t = {seen_at:.6g} s), so no step could be accepted. Check that body's "
-                "springs and fields for extreme values.", time=solver.t, body=body)
+                f"{self.method} {verb} {when}: the rate of change of body {body!r} {quantity} became non-finite "
+                f"(first at t = {seen_at:.6g} s), so no step could be accepted. Check that body's springs and fields "
+                "for extreme values.", time=solver.t, body=body)
         body = fastest_body(layout, fun(solver.t, solver.y), solver.y, self.atol, self.rtol)
         advice = failure_advice(model, self.method, solver.y, solver.t, body)
-        return SimulationError(f"{self.method} failed at t = {solver.t:.6g} s: {message} {advice}.", time=solver.t,
-                               body=body)
+        return SimulationError(f"{self.method} {verb} {when}: {message} {advice}."
+                               + (f" {events.advice}" if events is not None and verb == "failed" else ""),
+                               time=solver.t, body=body)
