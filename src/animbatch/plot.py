@@ -28,10 +28,10 @@ def _title(name: str, ledger: dict[str, Any]) -> str:
 
 def plot_quantities(series: QuantitySeries, target: str | Path, *, scene: str, ledger: dict[str, Any]) -> Path:
     """Draw the series into a PNG at ``target`` (written atomically); returns the path."""
-    import matplotlib
+    import matplotlib  # heavy (about 0.3 s): only when plotting
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # heavy (about 0.3 s): only when plotting
 
     figure, axes = plt.subplots(4, 1, figsize=(9, 11), dpi=100, sharex=True)
     t = series.times

@@ -28,7 +28,7 @@ class Progress:
         if not self.enabled:
             yield _ignore
             return
-        from tqdm import tqdm
+        from tqdm import tqdm  # optional: only when progress bars are shown
 
         # Some terminals (and bare ptys) report a size of 0×0, which makes tqdm draw nothing; fall back to 100×24.
         width, height = shutil.get_terminal_size((100, 24))

@@ -171,7 +171,7 @@ def largest_vector(model: Model, trajectory: Trajectory, kind: str) -> float:
 
 
 def frame_geometry(scene: LoadedScene, model: Model, trajectory: Trajectory) -> Any:
-    """What the renderer draws for this scene and trajectory (a :class:`~animbatch.render.frames.FrameGeometry`),
+    """What the renderer draws for this scene and trajectory (a :class:`~animbatch.render.geometry.FrameGeometry`),
     with the camera fitted to the whole motion: bodies, anchors, colliders and emitted particles."""
 
     spec = scene.spec

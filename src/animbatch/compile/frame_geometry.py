@@ -1,4 +1,4 @@
-"""What the renderer draws, compiled from the scene and its model: a :class:`~animbatch.render.frames.FrameGeometry`.
+"""What the renderer draws, compiled from the scene and its model: a :class:`~animbatch.render.geometry.FrameGeometry`.
 
 Rendering never reads the Model or recompiles anything: everything it needs about bodies, springs, fluids,
 controllers and mesh files is gathered here, once per render.
@@ -11,7 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.render.frames import MESH_SPRING_COLOR, PALETTE, SPRING_COLOR, FrameGeometry, darker, mesh_key
+from animbatch.render.colors import MESH_SPRING_COLOR, PALETTE, SPRING_COLOR, darker
+from animbatch.render.geometry import FrameGeometry, mesh_key
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (
     BoxCollider,

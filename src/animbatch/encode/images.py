@@ -9,7 +9,7 @@ import collections
 import contextlib
 import time
 from collections.abc import Callable
-from concurrent.futures import Future
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +21,6 @@ FRAME_PATTERN = "frame_{index:05d}.png"
 
 class PngSequenceWriter:
     """Writes frame ``k`` to ``folder/frame_0000k.png``."""
-
     def __init__(self, folder: str | Path) -> None:
         self.folder = Path(folder)
         self.frames_written = 0
@@ -56,9 +55,7 @@ class BackgroundPngWriter:
     even on an error or Ctrl-C, first finishes the frames already handed over, so every frame drawn is either whole
     on disk or absent, and an error from a write is raised.
     """
-
     def __init__(self, writer: PngSequenceWriter, on_written: Callable[[int, float], None], depth: int = 2) -> None:
-        from concurrent.futures import ThreadPoolExecutor
 
         self.writer, self.on_written, self.depth = writer, on_written, depth
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="png-writer")

@@ -50,7 +50,7 @@ class VideoWriter:
         self._writer: Any = None
 
     def open(self) -> VideoWriter:
-        import imageio_ffmpeg
+        import imageio_ffmpeg  # finds the ffmpeg binary: only when encoding
 
         self.path.parent.mkdir(parents=True, exist_ok=True)
         codec, pixels, options = VIDEO_KINDS[self.kind]

@@ -9,7 +9,11 @@ A scene that fails does not stop the others; the batch reports every job and the
 
 from __future__ import annotations
 
+import datetime
+import logging
 import os
+import platform
+import shutil
 import time
 import uuid
 from collections.abc import Callable, Sequence
@@ -36,7 +40,6 @@ WORKER_ENV = {"LP_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
 @dataclass(frozen=True)
 class Job:
     """One scene to render: its file, ``--set`` style overrides, and a label for the summary."""
-
     scene_path: str
     overrides: tuple[Any, ...] = ()
     label: str = ""
@@ -46,7 +49,6 @@ class Job:
 class JobResult:
     """How a job ended: ``status`` ok or failed (with ``error``), its frame count, wall time [s], outputs and
     report file."""
-
     label: str
     status: str
     frames: int = 0
@@ -62,7 +64,6 @@ class JobResult:
 
 def bake_task(scene_path: str, overrides: Sequence[Any], out_dir: str) -> dict[str, Any]:
     """Simulate (or reuse the cache) and prepare the frames folder; what the render tasks need to know."""
-
     scene = stages.load_scene(scene_path, list(overrides))
     started = time.perf_counter()
     try:
@@ -93,11 +94,6 @@ def render_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
 def encode_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: dict[str, Any],
                 *chunks: dict[str, Any]) -> dict[str, Any]:
     """Encode the videos and write the job's report.json; returns the report."""
-    import datetime
-    import platform
-    import shutil
-
-
     scene = stages.load_scene(scene_path, list(overrides))
     kinds = tuple(kind for kind in scene.spec.render.formats if kind != "png")
     outputs: list[str] = []
@@ -134,7 +130,6 @@ def encode_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
 
 def frame_count(job: Job) -> tuple[str, int]:
     """The scene's name and number of frames, read on the client to plan the render chunks (raises SceneError)."""
-
     scene = stages.load_scene(job.scene_path, list(job.overrides))
     return scene.name, len(frame_times(scene.spec.duration, scene.spec.fps))
 
@@ -156,9 +151,7 @@ def submit(client: Any, job: Job, out_dir: str, *, chunk_size: int, backend: str
 def connect(workers: int | None, scheduler: str | None) -> tuple[Any, Any]:
     """A Dask client: to ``scheduler`` when given, else to a new LocalCluster of ``workers`` single-threaded worker
     processes (default: one per core). Returns (client, cluster or None)."""
-    import logging
-
-    from distributed import Client, LocalCluster
+    from distributed import Client, LocalCluster  # optional and heavy: only for Dask batches
 
     if scheduler:
         return Client(scheduler), None
@@ -172,7 +165,7 @@ def run_batch(jobs: Sequence[Job], *, out_dir: str | Path = "renders", workers: 
               scheduler: str | None = None, chunk_size: int = CHUNK_SIZE, backend: str = "auto", retries: int = 2,
               client: Any = None, on_result: Callable[[JobResult], None] | None = None) -> list[JobResult]:
     """Run every job to the end (a failed one does not stop the others); one result per job, in job order."""
-    from distributed import as_completed
+    from distributed import as_completed  # optional and heavy: only for Dask batches
 
     own = client is None
     cluster = None

@@ -15,6 +15,7 @@ import contextlib
 import dataclasses
 import hashlib
 import json
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,7 +37,6 @@ def simulation_settings(solver: dict) -> dict:
 
 def bake_key(scene: LoadedScene) -> str:
     """16 hex digits naming the simulation a scene asks for (physics, solver settings, package version)."""
-
     content = {"physics": scene_fingerprint(scene),
                "solver": simulation_settings(scene.spec.solver.model_dump(mode="json")), "version": __version__}
     return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:16]
@@ -50,7 +50,6 @@ def cache_file(scene: LoadedScene, out_dir: str | Path = "renders") -> Path:
 @dataclass
 class BakeResult:
     """The baked trajectory, its cache file, and whether it was reused rather than simulated [``seconds``]."""
-
     trajectory: Trajectory
     path: Path
     reused: bool
@@ -85,9 +84,6 @@ def bake(scene: LoadedScene, *, out_dir: str | Path = "renders", model: object =
     """The scene's trajectory from the cache, or simulated and cached (raises SimulationError as simulate does).
     With ``checkpoint_every`` N, the states are saved every N frames to ``cache/checkpoint-<key>.npz``, and an
     interrupted bake resumes from there."""
-    import time
-
-
     path = cache_file(scene, out_dir)
     started = time.perf_counter()
     cached = None if force else load_cached(scene, path)

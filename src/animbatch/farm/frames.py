@@ -13,6 +13,8 @@ encoding, colours, the package version). When it differs, the old frames are del
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import json
 import re
 import time
 from dataclasses import dataclass, field
@@ -34,7 +36,6 @@ from animbatch.trajectory import Trajectory
 @dataclass(frozen=True)
 class FrameRange:
     """Frames ``start`` … ``stop - 1`` (0-based, like ``range``)."""
-
     start: int
     stop: int
 
@@ -88,7 +89,6 @@ def frame_is_complete(path: Path, size: tuple[int, int]) -> bool:
 class RangeResult:
     """Frames of a range that were drawn (in order, once on disk) and that were already complete; the time spent
     drawing and, overlapping it on a background thread, writing PNGs [s]."""
-
     drawn: list[int] = field(default_factory=list)
     skipped: list[int] = field(default_factory=list)
     render_seconds: float = 0.0
@@ -105,10 +105,6 @@ KEY_FILE = "render-key.txt"
 
 def render_key(scene: LoadedScene, trajectory: Trajectory) -> str:
     """A hash of everything that decides a frame's pixels (see the module notes)."""
-    import hashlib
-    import json
-
-
     spec = scene.spec.model_dump(mode="json", exclude={"study", "description"})
     spec["solver"] = simulation_settings(spec["solver"])  # budgets and warning thresholds draw nothing
     for key in ("formats", "video", "max_cost"):
@@ -121,7 +117,6 @@ def render_key(scene: LoadedScene, trajectory: Trajectory) -> str:
 def prepare_frames(scene: LoadedScene, trajectory: Trajectory, out_dir: str | Path) -> Path:
     """Make the frames folder hold only frames of this picture: when its key differs (or is missing), delete the
     frames in it and write the new key. Returns the folder."""
-
     folder = frames_folder(scene, out_dir)
     key = render_key(scene, trajectory)
     stamp = folder / KEY_FILE
@@ -137,7 +132,6 @@ def prepare_frames(scene: LoadedScene, trajectory: Trajectory, out_dir: str | Pa
 def render_frames(scene: LoadedScene, trajectory: Trajectory, frames: FrameRange, *, out_dir: str | Path = "renders",
                   backend: str = "auto", model: object = None, on_frame=None) -> RangeResult:  # type: ignore[no-untyped-def]
     """Draw the frames of ``frames`` that are not complete on disk; ``on_frame(index)`` after each frame."""
-
     if frames.stop > trajectory.frame_count:
         raise ValueError(f"frames {frames} asked for; the trajectory has {trajectory.frame_count} (0-"
                          f"{trajectory.frame_count - 1})")
@@ -180,7 +174,6 @@ class RenderBudget:
     """``render.max_cost`` [s] for one render process drawing ``frames`` frames: after the second frame (the first
     one also builds the scene's actors) the rest is projected at that pace, and a render that would exceed the
     budget stops there; one that runs over anyway stops when the budget is spent. Frames drawn are kept."""
-
     def __init__(self, seconds: float, frames: int) -> None:
         self.seconds, self.frames = seconds, frames
         self.started = time.perf_counter()

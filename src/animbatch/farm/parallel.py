@@ -13,6 +13,7 @@ one core, but only 1.07× faster than one free process, since llvmpipe already r
 from __future__ import annotations
 
 import math
+import multiprocessing
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -40,7 +41,6 @@ def _limit_rasteriser_threads() -> None:
 def _render_chunk(scene_path: str, overrides: Sequence[tuple[str, str]], trajectory_path: str, chunk: FrameRange,
                   out_dir: str, backend: str) -> RangeResult:
     """In a worker: load the scene and the trajectory, render one chunk."""
-
     scene = stages.load_scene(scene_path, list(overrides))
     trajectory = Trajectory.load(trajectory_path)
     return render_frames(scene, trajectory, chunk, out_dir=out_dir, backend=backend)
@@ -50,8 +50,6 @@ def render_in_parallel(scene_path: str | Path, overrides: Sequence[tuple[str, st
                        frames: FrameRange, *, workers: int, out_dir: str | Path, backend: str,
                        on_chunk: Callable[[RangeResult], None] | None = None) -> RangeResult:
     """Render ``frames`` in ``workers`` processes, one contiguous chunk each; the merged result."""
-    import multiprocessing
-
     size = math.ceil(len(frames) / workers)
     chunks = frames.chunks(size)
     total = RangeResult()

@@ -107,7 +107,7 @@ def contact_sheet(rows: Sequence[tuple[JobResult, dict[str, str]]], target: Path
                   columns: int = 4) -> Path:
     """A grid of one frame (the middle one) of each variant's video, labelled with its values; failed variants
     are grey tiles with "failed"."""
-    import imageio_ffmpeg
+    import imageio_ffmpeg  # finds the ffmpeg binary: only when encoding
     from PIL import Image, ImageDraw
 
 

@@ -16,8 +16,6 @@ silently switches to SSAA on OSMesa/EGL builds, which is several times slower.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -26,136 +24,27 @@ from animbatch import quaternion
 from animbatch.errors import RenderError
 from animbatch.render.backend import Backend, activate
 from animbatch.render.camera import CameraPlacement, nice_spacing, place_camera, plane_axes
+from animbatch.render.colors import (
+    ANCHOR_COLOR,
+    AXIS_COLORS,
+    COLLIDER_COLOR,
+    TARGET_COLOR,
+    hex_to_rgb,
+)
 from animbatch.render.emitted import EmitterLayer
+from animbatch.render.geometry import FrameGeometry
+from animbatch.render.shapes import arrow_basis, shape_mesh, vertex_normals
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (
     BoxCollider,
-    BoxShape,
-    CompoundShape,
-    CylinderShape,
     MeshCollider,
-    MeshShape,
     PlaneCollider,
     RenderSpec,
-    RodShape,
-    ShellShape,
     SphereCollider,
-    SphereShape,
 )
 
 #: Above this many particles, ``particles: auto`` draws point sprites instead of sphere meshes.
 SPRITE_THRESHOLD = 200
-
-#: Body colours by index when the scene gives none (Tableau 10).
-PALETTE = ("#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948", "#b07aa1", "#ff9da7", "#9c755f",
-           "#bab0ac")
-ANCHOR_COLOR = "#333333"
-COLLIDER_COLOR = "#c8c8c8"
-SPRING_COLOR = "#808080"
-MESH_SPRING_COLOR = "#505050"
-TARGET_COLOR = "#6b6b6b"
-AXIS_COLORS = ("#d62728", "#2ca02c", "#1f77b4")
-
-
-def hex_to_rgb(color: str) -> tuple[float, float, float]:
-    """``'#rrggbb'`` -> (r, g, b) in 0…1."""
-    value = color.lstrip("#")
-    return tuple(int(value[i:i + 2], 16) / 255 for i in (0, 2, 4))  # type: ignore[return-value]
-
-
-@dataclass(frozen=True)
-class FrameGeometry:
-    """What the renderer draws, independent of the scene file: sizes, shapes, colours, springs, fluids, bounds."""
-
-    particle_radius: np.ndarray  # (N,) [m]
-    colors: list[str]  # (P,) '#rrggbb', bodies in model order
-    rigid_shapes: tuple[Any, ...]  # (B,) scene shape specs
-    rigid_centre: np.ndarray  # (B, 3) centre of mass in shape coordinates [m]
-    rigid_inertia: np.ndarray  # (B, 3, 3) body axes [kg·m²]
-    rigid_extent: np.ndarray  # (B,) [m]
-    base_dir: Path
-    anchor_positions: np.ndarray  # (A, 3) [m]
-    spring_first: np.ndarray  # (S,) body indices
-    spring_second: np.ndarray  # (S,) body or anchor indices
-    spring_to_anchor: np.ndarray  # (S,) bool
-    spring_first_offset: np.ndarray  # (S, 3) body axes from the centre of mass
-    spring_second_offset: np.ndarray
-    spring_colors: list[str]
-    fluids: list[tuple[float, np.ndarray]]  # (level, up) of each buoyancy fluid
-    bounds: np.ndarray  # (2, 3) [m], whole motion
-    vector_scale: float = 0.0  # arrow length per unit of |ω| or |L| [m per unit]
-    colliders: tuple[Any, ...] = ()  # the scene's collider specs
-    scene_dir: Path = Path(".")  # where the scene's mesh files are
-    anchors: Any = None  # AnchorMotion: where anchors are at a frame's time
-    anchor_visible: np.ndarray | None = None  # (A,) bool
-    drawn_particles: np.ndarray | None = None  # (N,) bool: particles drawn as themselves (not cloth vertices)
-    deformables: Any = None  # DeformableSet, or None
-    surface_colors: tuple[tuple[str, str], ...] = ()  # (front, back) per deformable body
-    target_segments: np.ndarray | None = None  # (S, 2, 3) [m]: the curves PD controllers keep bodies on
-    target_points: tuple[Any, ...] = ()  # point and keyframe targets (forces.controllers.Target), drawn as markers
-    emitters: tuple[Any, ...] = ()  # compiled emitters whose particles are drawn (render.emitted.ParticleLooks)
-    meshes: dict[tuple[str, str], Any] = field(default_factory=dict)  # mesh files read: (file, scale) -> mesh
-
-def darker(color: str, factor: float = 0.7) -> str:
-    """The same hue, darker (for the back of a cloth)."""
-    return "#{:02x}{:02x}{:02x}".format(*(round(255 * factor * c) for c in hex_to_rgb(color)))
-
-
-def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Area-weighted unit normals (V, 3) of a triangle surface, for smooth shading of a moving cloth."""
-    a, b, c = points[triangles[:, 0]], points[triangles[:, 1]], points[triangles[:, 2]]
-    face = np.cross(b - a, c - a)  # length = twice the area: weights larger faces more
-    normals = np.zeros_like(points)
-    for k in range(3):
-        np.add.at(normals, triangles[:, k], face)
-    length = np.linalg.norm(normals, axis=1, keepdims=True)
-    return np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
-
-
-def mesh_key(shape: Any) -> tuple[str, str]:
-    """How :attr:`FrameGeometry.meshes` names the mesh file of a mesh shape or collider."""
-    return shape.file, repr(shape.scale)
-
-
-def shape_mesh(shape: Any, meshes: dict[tuple[str, str], Any], resolution: int) -> Any:
-    """A PyVista surface of a scene shape, in shape coordinates; ``meshes`` holds the mesh files already read
-    (vertices (V, 3) [m], faces (F, 3))."""
-    import pyvista as pv
-
-    if isinstance(shape, SphereShape | ShellShape):
-        return pv.Sphere(radius=shape.radius, theta_resolution=resolution, phi_resolution=resolution)
-    if isinstance(shape, BoxShape):
-        a, b, c = (s / 2 for s in shape.size)
-        return pv.Box(bounds=(-a, a, -b, b, -c, c)).triangulate()
-    if isinstance(shape, CylinderShape | RodShape):
-        radius = shape.radius if shape.radius is not None else shape.length / 100
-        return pv.Cylinder(center=(0, 0, 0), direction=(0, 0, 1), radius=radius, height=shape.length,
-                           resolution=resolution).triangulate()
-    if isinstance(shape, MeshShape | MeshCollider):
-        mesh = meshes[mesh_key(shape)]
-        faces = np.hstack([np.full((len(mesh.faces), 1), 3), mesh.faces]).ravel()
-        return pv.PolyData(mesh.vertices, faces)
-    if isinstance(shape, CompoundShape):
-        merged = None
-        for part in shape.parts:
-            transform = np.eye(4)
-            transform[:3, :3] = orientation_matrix(part.orientation)
-            transform[:3, 3] = part.offset
-            piece = shape_mesh(part.shape, meshes, resolution).transform(transform, inplace=False)
-            merged = piece if merged is None else merged.merge(piece)
-        return merged
-    raise TypeError(f"cannot draw shape {shape!r}")
-
-
-def arrow_basis(vectors: np.ndarray) -> np.ndarray:
-    """Rotation matrices (K, 3, 3) taking the x axis to each vector's direction (identity for zero vectors)."""
-    length = np.linalg.norm(vectors, axis=1, keepdims=True)
-    x = np.divide(vectors, length, out=np.tile([1.0, 0.0, 0.0], (len(vectors), 1)), where=length > 0)
-    helper = np.where(np.abs(x[:, [2]]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
-    y = np.cross(helper, x)
-    y /= np.linalg.norm(y, axis=1, keepdims=True)
-    return np.stack([x, y, np.cross(x, y)], axis=2)
-
 
 class FrameRenderer:
     """Renders frames of one scene. Create once, call :meth:`draw` per frame, then :meth:`close`."""
@@ -163,8 +52,8 @@ class FrameRenderer:
     def __init__(self, render: RenderSpec, geometry: FrameGeometry, backend: Backend) -> None:
         activate(backend)
         try:
-            import pyvista as pv
-            from vtkmodules.vtkCommonMath import vtkMatrix4x4
+            import pyvista as pv  # heavy (VTK): only when drawing
+            from vtkmodules.vtkCommonMath import vtkMatrix4x4  # heavy (VTK): only when drawing
         except ImportError as error:  # pragma: no cover - dependency missing
             raise RenderError(f"pyvista is not installed ({error}); run 'bash scripts/dev.sh setup'") from None
         self.pv = pv
@@ -508,8 +397,8 @@ class FrameRenderer:
         return ends.reshape(-1, 3)
 
     def _read_pixels(self) -> np.ndarray:
-        from vtkmodules.util.numpy_support import vtk_to_numpy
-        from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
+        from vtkmodules.util.numpy_support import vtk_to_numpy  # heavy (VTK): only when drawing
+        from vtkmodules.vtkCommonCore import vtkUnsignedCharArray  # heavy (VTK): only when drawing
 
         if self._pixels is None:
             self._pixels = vtkUnsignedCharArray()

@@ -20,7 +20,7 @@ def orientation_quaternion(spec: OrientationSpec | None) -> np.ndarray:
     if spec.quaternion is not None:
         return quaternion.normalized(np.asarray(spec.quaternion, float))
     if spec.euler is not None:
-        from scipy.spatial.transform import Rotation
+        from scipy.spatial.transform import Rotation  # kept off the start-up path of validate and --help
 
         x, y, z, w = Rotation.from_euler("xyz", spec.euler, degrees=True).as_quat()  # scipy: scalar last
         return np.array([w, x, y, z])

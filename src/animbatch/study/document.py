@@ -15,6 +15,7 @@ import os
 import platform
 import sys
 import time
+import warnings
 from pathlib import Path
 
 from animbatch import stages
@@ -108,9 +109,6 @@ LEDGER_RUNS = [("euler", ["solver.dt=1.0e-3"]), ("symplectic_euler", ["solver.dt
 
 def ledger_table(root: Path) -> str:
     """The ledger of the two-body orbit over ten orbits under :data:`LEDGER_RUNS`, as a Markdown table."""
-    import warnings
-
-
     lines = ["| method | setting | steps | wall time | energy drift | angular momentum drift | warning |",
              "|---|---|---|---|---|---|---|"]
     for method, settings in LEDGER_RUNS:

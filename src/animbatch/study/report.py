@@ -70,10 +70,10 @@ def csv_text(result: StudyResult) -> str:
 def plot(result: StudyResult, target: str | Path) -> None:
     """Log–log error against wall time, one line per method; hollow markers for points limited by the reference,
     the reference's accuracy as a dashed line, failed runs counted in the legend."""
-    import matplotlib
+    import matplotlib  # heavy (about 0.3 s): only when plotting
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # heavy (about 0.3 s): only when plotting
 
     figure, axes = plt.subplots(figsize=(8, 5.5), dpi=110)
     markers = "osD^v<>ph*"

@@ -125,7 +125,7 @@ def execute(model: Model, setting: RunSetting, tolerance_scale: np.ndarray, *, r
     """Run one setting: untimed for its frames, then ``repeats`` timed runs (only one when a run takes longer than
     a few seconds: its time is then far above the timer's noise; none with ``repeats`` 0, when only the frames
     matter, as for a reference)."""
-    from threadpoolctl import threadpool_limits
+    from threadpoolctl import threadpool_limits  # only when studies run in parallel
 
     with threadpool_limits(limits=1):
         try:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Any
 
 from pydantic import Field
@@ -19,7 +20,6 @@ from animbatch.scene.schema.solver import Method, SolverSpec
 
 class StudySpec(SceneModel):
     """Settings of ``animbatch study``: the work-precision study of this scene (no effect on a render)."""
-
     closed_form: bool = key(False, "Measure errors against closed-form solutions instead of a tight reference run. "
                                    "Every body must have one: a projectile (uniform gravity only), a fall with "
                                    "linear drag (and gravity, optionally wind), a mass on one spring to a fixed "
@@ -40,7 +40,6 @@ class StudySpec(SceneModel):
 
 class SceneSpec(SceneModel):
     """A whole scene: what exists, what acts on it, how to integrate it and how to draw it."""
-
     name: Name | None = key(None, "Scene name; output goes to renders/<name>/ (default: the file name).")
     description: str = key("", "Free text, shown by 'animbatch info'.")
     duration: float = key(5.0, "Length of the animation; frames are at t = k/fps for k = 0 … ceil(duration·fps)-1.",
@@ -74,8 +73,6 @@ class SceneSpec(SceneModel):
     @property
     def frame_count(self) -> int:
         """Number of frames: ``ceil(duration · fps)`` (at least 1), so that the video lasts ``duration``."""
-        import math
-
         return max(1, math.ceil(self.duration * self.fps - 1e-9))
 
 

@@ -20,6 +20,7 @@ the run goes, by the same budget (:mod:`animbatch.sim.integrators.budget`).
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -53,7 +54,6 @@ MEMORY_SHARE = 0.8
 @dataclass(frozen=True)
 class CostTerm:
     """One part of a run's cost: ``seconds`` of wall time [s] or ``bytes`` of memory, and what it comes from."""
-
     name: str
     seconds: float = 0.0
     bytes: float = 0.0
@@ -63,7 +63,6 @@ class CostTerm:
 @dataclass(frozen=True)
 class CostEstimate:
     """The cost of a run, by term."""
-
     terms: list[CostTerm] = field(default_factory=list)
 
     @property
@@ -110,7 +109,6 @@ def estimate_cost(model: Model, solver: StepSettings, particle_pools: Sequence[t
 
 def _steps(model: Model, solver: StepSettings, times: np.ndarray) -> tuple[float, str]:
     """Steps the method will take over ``times``, and the reason in words."""
-
     frames = len(times)
     if frames < 2:
         return 0.0, "a single frame"
@@ -179,7 +177,6 @@ def _implicit_terms(model: Model, method: str, steps: float, states: int, rhs: f
 
 def measure_rhs(model: Model, repeats: int = 3) -> float:
     """Wall time of one evaluation of the model's right-hand side [s] (the fastest of a few)."""
-
     dynamics = Dynamics(model)
     y = np.array(model.y0, dtype=np.float64)
     t = float(model.frame_times[0])
@@ -202,7 +199,6 @@ def available_memory() -> float:
     except OSError:
         pass
     try:
-        import os
 
         return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
     except (ValueError, OSError, AttributeError):

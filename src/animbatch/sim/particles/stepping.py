@@ -83,7 +83,7 @@ def adaptive_segment(method: str, rtol: float, atol: float, max_step: float | No
                      x: np.ndarray, v: np.ndarray, mass: np.ndarray, radius: np.ndarray, t0: float, t1: float
                      ) -> tuple[np.ndarray, np.ndarray, int]:
     """Integrate slots (K, 3) from ``t0`` to ``t1`` [s] with a solve_ivp method; returns x, v and the steps taken."""
-    from scipy.integrate import solve_ivp
+    from scipy.integrate import solve_ivp  # kept off the start-up path of validate and --help
 
     count = len(mass)
     if count == 0 or t1 <= t0:

@@ -1,0 +1,24 @@
+"""The renderer's colours: the palette bodies take when the scene gives none, and the colours of the rest."""
+
+from __future__ import annotations
+
+#: Body colours by index when the scene gives none (Tableau 10).
+PALETTE = ("#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948", "#b07aa1", "#ff9da7", "#9c755f",
+           "#bab0ac")
+ANCHOR_COLOR = "#333333"
+COLLIDER_COLOR = "#c8c8c8"
+SPRING_COLOR = "#808080"
+MESH_SPRING_COLOR = "#505050"
+TARGET_COLOR = "#6b6b6b"
+AXIS_COLORS = ("#d62728", "#2ca02c", "#1f77b4")
+
+
+def hex_to_rgb(color: str) -> tuple[float, float, float]:
+    """``'#rrggbb'`` -> (r, g, b) in 0…1."""
+    value = color.lstrip("#")
+    return tuple(int(value[i:i + 2], 16) / 255 for i in (0, 2, 4))  # type: ignore[return-value]
+
+
+def darker(color: str, factor: float = 0.7) -> str:
+    """The same hue, darker (for the back of a cloth)."""
+    return "#{:02x}{:02x}{:02x}".format(*(round(255 * factor * c) for c in hex_to_rgb(color)))

@@ -1,0 +1,49 @@
+"""What the renderer draws, as data: :class:`FrameGeometry`, compiled from a scene and its model by
+:mod:`animbatch.compile.frame_geometry` (the renderer never reads the model)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class FrameGeometry:
+    """What the renderer draws, independent of the scene file: sizes, shapes, colours, springs, fluids, bounds."""
+
+    particle_radius: np.ndarray  # (N,) [m]
+    colors: list[str]  # (P,) '#rrggbb', bodies in model order
+    rigid_shapes: tuple[Any, ...]  # (B,) scene shape specs
+    rigid_centre: np.ndarray  # (B, 3) centre of mass in shape coordinates [m]
+    rigid_inertia: np.ndarray  # (B, 3, 3) body axes [kg·m²]
+    rigid_extent: np.ndarray  # (B,) [m]
+    base_dir: Path
+    anchor_positions: np.ndarray  # (A, 3) [m]
+    spring_first: np.ndarray  # (S,) body indices
+    spring_second: np.ndarray  # (S,) body or anchor indices
+    spring_to_anchor: np.ndarray  # (S,) bool
+    spring_first_offset: np.ndarray  # (S, 3) body axes from the centre of mass
+    spring_second_offset: np.ndarray
+    spring_colors: list[str]
+    fluids: list[tuple[float, np.ndarray]]  # (level, up) of each buoyancy fluid
+    bounds: np.ndarray  # (2, 3) [m], whole motion
+    vector_scale: float = 0.0  # arrow length per unit of |ω| or |L| [m per unit]
+    colliders: tuple[Any, ...] = ()  # the scene's collider specs
+    scene_dir: Path = Path(".")  # where the scene's mesh files are
+    anchors: Any = None  # AnchorMotion: where anchors are at a frame's time
+    anchor_visible: np.ndarray | None = None  # (A,) bool
+    drawn_particles: np.ndarray | None = None  # (N,) bool: particles drawn as themselves (not cloth vertices)
+    deformables: Any = None  # DeformableSet, or None
+    surface_colors: tuple[tuple[str, str], ...] = ()  # (front, back) per deformable body
+    target_segments: np.ndarray | None = None  # (S, 2, 3) [m]: the curves PD controllers keep bodies on
+    target_points: tuple[Any, ...] = ()  # point and keyframe targets (forces.controllers.Target), drawn as markers
+    emitters: tuple[Any, ...] = ()  # compiled emitters whose particles are drawn (render.emitted.ParticleLooks)
+    meshes: dict[tuple[str, str], Any] = field(default_factory=dict)  # mesh files read: (file, scale) -> mesh
+
+
+def mesh_key(shape: Any) -> tuple[str, str]:
+    """How :attr:`FrameGeometry.meshes` names the mesh file of a mesh shape or collider."""
+    return shape.file, repr(shape.scale)
