@@ -74,6 +74,24 @@ def test_cache_is_reused_for_a_new_camera_and_redone_for_new_physics_or_solver(t
     assert len(simulated) == 4
 
 
+def test_a_render_checks_its_trajectory_and_prepares_its_frames_folder_once(throw, tmp_cwd, monkeypatch):
+    """run (bake then draw) and render (a given trajectory) check the trajectory against the scene at most once and
+    prepare the frames folder once, whatever path the frames take to the renderer."""
+    from animbatch.farm import frames as farm_frames
+    from animbatch.farm import run as farm_run
+
+    checked = counting(monkeypatch, farm_run, "check_trajectory")
+    checked_in_frames = counting(monkeypatch, farm_frames, "check_trajectory")
+    prepared = counting(monkeypatch, farm_run, "prepare_frames")
+    prepared_in_frames = counting(monkeypatch, farm_frames, "prepare_frames")
+    api.run(throw, overrides=["render.resolution=[64, 48]", "render.formats=[png]", "duration=0.2"], out_dir="renders")
+    assert len(checked) + len(checked_in_frames) <= 1 and len(prepared) + len(prepared_in_frames) == 1
+    scene = api.load_scene(throw, ["render.resolution=[64, 48]", "render.formats=[png]", "duration=0.2"])
+    checked.clear(), prepared.clear()
+    api.render(scene, api.simulate(scene), out_dir="other")
+    assert len(checked) + len(checked_in_frames) == 1 and len(prepared) + len(prepared_in_frames) == 1
+
+
 def test_chunked_rendering_gives_the_pixels_of_a_single_pass(throw, tmp_cwd):
     """Three chunks (0-16, 17-33, 34-49) in three renderers draw exactly the pixels of one pass over all frames: the
     camera is fitted to the whole trajectory, never to a chunk."""

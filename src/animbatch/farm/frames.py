@@ -17,6 +17,7 @@ import hashlib
 import json
 import re
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,6 +30,7 @@ from animbatch.render.backend import select_backend
 from animbatch.render.frames import FrameRenderer
 from animbatch.scene import LoadedScene
 from animbatch.sim.integrators.budget import format_seconds
+from animbatch.sim.model import Model
 from animbatch.stages import check_trajectory, compile_model, frame_geometry
 from animbatch.trajectory import Trajectory
 
@@ -130,14 +132,25 @@ def prepare_frames(scene: LoadedScene, trajectory: Trajectory, out_dir: str | Pa
 
 
 def render_frames(scene: LoadedScene, trajectory: Trajectory, frames: FrameRange, *, out_dir: str | Path = "renders",
-                  backend: str = "auto", model: object = None, on_frame=None) -> RangeResult:  # type: ignore[no-untyped-def]
-    """Draw the frames of ``frames`` that are not complete on disk; ``on_frame(index)`` after each frame."""
+                  backend: str = "auto", model: Model | None = None,
+                  on_frame: Callable[[int], None] | None = None) -> RangeResult:
+    """Draw the frames of ``frames`` that are not complete on disk, on their own: check that the trajectory is this
+    scene's and that the frames folder holds only this picture first (a worker, a farm task); ``on_frame(index)``
+    after each frame."""
+    model = model if model is not None else compile_model(scene)
+    check_trajectory(scene, model, trajectory)
+    folder = prepare_frames(scene, trajectory, out_dir)
+    return draw_frames(scene, trajectory, frames, folder, model=model, backend=backend, on_frame=on_frame)
+
+
+def draw_frames(scene: LoadedScene, trajectory: Trajectory, frames: FrameRange, folder: Path, *, model: Model,
+                backend: str = "auto", on_frame: Callable[[int], None] | None = None) -> RangeResult:
+    """Draw the frames of ``frames`` that are not complete in ``folder``, for a trajectory already checked against
+    the scene and a folder already prepared (:func:`render_frames` does both)."""
     if frames.stop > trajectory.frame_count:
         raise ValueError(f"frames {frames} asked for; the trajectory has {trajectory.frame_count} (0-"
                          f"{trajectory.frame_count - 1})")
-    model = model if model is not None else compile_model(scene)
-    check_trajectory(scene, model, trajectory)  # type: ignore[arg-type]
-    writer = PngSequenceWriter(prepare_frames(scene, trajectory, out_dir))
+    writer = PngSequenceWriter(folder)
     size = tuple(scene.spec.render.resolution)
     result = RangeResult()
     todo = []
@@ -147,7 +160,7 @@ def render_frames(scene: LoadedScene, trajectory: Trajectory, frames: FrameRange
         return result
     chosen = select_backend(backend)
     result.backend = chosen.name
-    geometry = frame_geometry(scene, model, trajectory)  # type: ignore[arg-type]
+    geometry = frame_geometry(scene, model, trajectory)
 
     def written(index: int, seconds: float) -> None:
         result.write_seconds += seconds

@@ -16,7 +16,7 @@ from animbatch.encode import PngSequenceWriter
 from animbatch.errors import SimulationError
 from animbatch.farm.cache import bake
 from animbatch.farm.encode import encode
-from animbatch.farm.frames import FrameRange, frames_folder, parse_frames, prepare_frames, render_frames
+from animbatch.farm.frames import FrameRange, draw_frames, frames_folder, parse_frames, prepare_frames
 from animbatch.farm.parallel import render_in_parallel, worker_count
 from animbatch.files import write_json_atomic
 from animbatch.progress import Progress
@@ -53,12 +53,11 @@ def render(scene: LoadedScene, trajectory: Trajectory, *, model: Model | None = 
     """
     model = model if model is not None else compile_model(scene)
     check_trajectory(scene, model, trajectory)
-    prepare_frames(scene, trajectory, out_dir)
+    folder = prepare_frames(scene, trajectory, out_dir)
     progress = progress or Progress(enabled=False)
     with progress.task("render", trajectory.frame_count) as on_frame:
-        rendered = render_frames(scene, trajectory, FrameRange(0, trajectory.frame_count), out_dir=out_dir,
-                                 backend=backend, model=model,
-                                 on_frame=lambda i: on_frame(i, float(trajectory.times[i])))
+        rendered = draw_frames(scene, trajectory, FrameRange(0, trajectory.frame_count), folder, model=model,
+                               backend=backend, on_frame=lambda i: on_frame(i, float(trajectory.times[i])))
     outputs, encode_seconds = finish_outputs(scene, trajectory.frame_count, out_dir)
     return RenderResult(outputs, trajectory.frame_count, rendered.backend or "(none: frames were complete)",
                         rendered.render_seconds, encode_seconds, tuple(scene.spec.render.resolution),  # type: ignore[arg-type]
@@ -169,7 +168,7 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
         watch.add("load_cache" if baked.reused else "simulate", baked.seconds)
         trajectory, source, cache = baked.trajectory, baked.path, baked
     span = parse_frames(frames, trajectory.frame_count)
-    prepare_frames(scene, trajectory, out_dir)  # before any worker starts: stale frames of another picture go
+    folder = prepare_frames(scene, trajectory, out_dir)  # before any worker starts: stale frames of another picture go
     workers = worker_count(jobs, len(span))
     # the stage's wall time: with worker processes the frames' own times add up to more than the stage took
     with watch.stage("render"), progress.task("render", len(span)) as on_frame:
@@ -178,8 +177,9 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
                                           backend=backend, on_chunk=lambda chunk: [
                                               on_frame(i, float(trajectory.times[i])) for i in chunk.drawn])
         else:
-            rendered = render_frames(scene, trajectory, span, out_dir=out_dir, backend=backend, model=model,
-                                     on_frame=lambda i: on_frame(i, float(trajectory.times[i])))
+            # checked above (a baked trajectory is this scene's by its cache key), and the folder just prepared
+            rendered = draw_frames(scene, trajectory, span, folder, model=model, backend=backend,
+                                   on_frame=lambda i: on_frame(i, float(trajectory.times[i])))
     spec = scene.spec
     if frames is None:
         outputs, encode_seconds = finish_outputs(scene, trajectory.frame_count, out_dir)
