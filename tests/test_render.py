@@ -169,7 +169,7 @@ def test_interrupted_render_leaves_no_video_or_partial_file_and_resumes(slide_sc
 
 def test_no_backend_gives_one_clear_message(slide_scene, monkeypatch):
     """Without EGL or OSMesa libraries, the render stops with what to install, exit code 4, no traceback."""
-    monkeypatch.setattr(backend_module, "_loads", lambda library: False)
+    monkeypatch.setattr(backend_module, "library_loads", lambda library: False)
     result = CliRunner().invoke(cli, ["render", str(slide_scene)])
     assert result.exit_code == 4
     assert "no off-screen OpenGL library found" in result.output and "apt-get install libosmesa6" in result.output

@@ -140,6 +140,20 @@ def validate(scenes: tuple[Path, ...], settings: tuple[str, ...]) -> None:
 
 
 @cli.command()
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+@click.option("--no-frames", is_flag=True, help="Check libraries only: draw no test frame, encode no test video.")
+def doctor(as_json: bool, no_frames: bool) -> None:
+    """Check this machine: Python libraries, off-screen backends (EGL, OSMesa) with a timed test frame each, ffmpeg
+    and its encoders; print the exact command for anything missing. Exit 1 when frames cannot be rendered."""
+    from animbatch.doctor import diagnose, format_report
+
+    report = diagnose(probe=not no_frames, encode=not no_frames)
+    click.echo(json.dumps(report.as_dict(), indent=2) if as_json else format_report(report))
+    if not report.can_render and not no_frames:
+        sys.exit(1)
+
+
+@cli.command()
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), help="Write to a file.")
 def schema(output: Path | None) -> None:
     """Print the JSON Schema of the scene format (for editor completion and checks)."""

@@ -33,13 +33,15 @@ BACKENDS: dict[str, Backend] = {
 AUTO_ORDER = ("egl", "osmesa")
 BACKEND_CHOICES = ("auto", *BACKENDS)
 
-NO_BACKEND_MESSAGE = (
+#: What to install when no backend's libraries load (``animbatch doctor`` prints it too).
+NO_BACKEND_INSTALL = (
     "no off-screen OpenGL library found, so frames cannot be rendered. Install OSMesa (Debian/Ubuntu: "
     "'apt-get install libosmesa6'; Fedora: 'dnf install mesa-libOSMesa') or EGL with Mesa ('apt-get install libegl1 "
     "libegl-mesa0 libgl1-mesa-dri'). 'bash scripts/dev.sh setup' installs OSMesa when run as root.")
+NO_BACKEND_MESSAGE = NO_BACKEND_INSTALL + " 'animbatch doctor' says what this machine has."
 
 
-def _loads(library: str) -> bool:
+def library_loads(library: str) -> bool:
     try:
         ctypes.CDLL(library)
     except OSError:
@@ -49,7 +51,7 @@ def _loads(library: str) -> bool:
 
 def is_available(backend: Backend) -> bool:
     """True when every library the backend needs can be loaded."""
-    return all(any(_loads(lib) for lib in alternatives) for alternatives in backend.libraries)
+    return all(any(library_loads(lib) for lib in alternatives) for alternatives in backend.libraries)
 
 
 def select_backend(requested: str = "auto") -> Backend:
