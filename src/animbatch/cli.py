@@ -86,7 +86,7 @@ def _overrides(settings: tuple[str, ...], **shortcuts: str | None) -> list[Overr
     # Values stay text here: they are read as YAML and validated with the scene, like --set.
     keys = {"method": "solver.method", "dt": "solver.dt", "rtol": "solver.rtol", "atol": "solver.atol",
             "max_step": "solver.max_step", "fps": "fps", "max_cost": "solver.max_cost",
-            "resolution": "render.resolution", "formats": "render.formats"}
+            "resolution": "render.resolution", "formats": "render.formats", "quality": "render.quality"}
     result: list[Override] = list(settings)
     for name, value in shortcuts.items():
         if value is None:
@@ -249,6 +249,8 @@ def study(scene: Path, out_dir: Path | None, methods: str | None, repeats: int |
 @click.option("--backend", type=click.Choice(["auto", "egl", "osmesa"]), default="auto", show_default=True,
               help="Off-screen OpenGL backend.")
 @click.option("--resolution", metavar="WxH", help="Frame size, e.g. 1920x1080 (render.resolution).")
+@click.option("--quality", metavar="PRESET", help="draft, preview or final (render.quality): frame size, "
+              "anti-aliasing, tessellation and shadows, where the scene does not set them.")
 @click.option("--formats", metavar="LIST", help="Outputs: mp4, webm, gif, png, comma-separated (render.formats).")
 @click.option("--frames", metavar="FIRST-LAST", help="Render only these frames (e.g. 120-239) from the cache, and "
               "encode nothing; complete frames are skipped.")

@@ -33,6 +33,7 @@ from animbatch.render.colors import (
 )
 from animbatch.render.emitted import EmitterLayer
 from animbatch.render.geometry import FrameGeometry
+from animbatch.render.shadows import GroundShadows
 from animbatch.render.shapes import arrow_basis, shape_mesh, vertex_normals
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (
@@ -72,6 +73,7 @@ class FrameRenderer:
         self.plotter.set_background(render.background)
         self.camera = place_camera(render.camera, geometry.bounds, self.width / self.height)
         self._add_ground()
+        self._shadows = self._make_shadows()
         self._add_colliders()
         self._add_fluids()
         self._add_particles()
@@ -86,6 +88,16 @@ class FrameRenderer:
         self._pixels = None
 
     # ------------------------------------------------------------------ setup
+
+    def _make_shadows(self) -> GroundShadows | None:
+        """Contact shadows on the ground, when asked for and there is a ground to fall on."""
+        spec = self.render_spec
+        if not spec.shadows or spec.ground is None:
+            return None
+        _, _, size = self._plane_square(spec.ground.level, self.camera.up, spec.ground.size)
+        view = self.camera.position - self.camera.focal_point
+        return GroundShadows(self.pv, self.plotter, self._matrix_class, self.camera.up, spec.ground.level,
+                             view / np.linalg.norm(view), lift=3e-3 * size)  # clear of depth-test ties
 
     def _configure_quality(self) -> None:
         window = self.plotter.ren_win
@@ -103,6 +115,7 @@ class FrameRenderer:
         colors = [geometry.colors[k] for k in self._drawn]
         self.use_sprites = spec.particles == "sprite" or (spec.particles == "auto" and count > SPRITE_THRESHOLD)
         self._particle_actors = []
+        self._particle_shadows = []
         if count and self.use_sprites:
             cloud = self.pv.PolyData(np.zeros((count, 3)))
             cloud.point_data["radius"] = geometry.particle_radius[self._drawn]
@@ -118,6 +131,8 @@ class FrameRenderer:
                 sphere = self.pv.Sphere(radius=float(radius), theta_resolution=resolution, phi_resolution=resolution)
                 self._particle_actors.append(self.plotter.add_mesh(sphere, color=color, smooth_shading=True,
                                                                    specular=0.3, specular_power=20))
+                if self._shadows is not None:  # sprites (many particles) cast none
+                    self._particle_shadows.append(self._shadows.add(sphere))
 
     def _add_emitted(self) -> None:
         """One point cloud per emitter (see :mod:`animbatch.render.emitted`)."""
@@ -151,6 +166,7 @@ class FrameRenderer:
         geometry, spec = self.geometry, self.render_spec
         first = len(geometry.particle_radius)
         self._rigid_matrices = []
+        self._rigid_shadows = []
         self._vector_actors = []
         for b, shape in enumerate(geometry.rigid_shapes):
             mesh = shape_mesh(shape, geometry.meshes, spec.sphere_resolution).translate(-geometry.rigid_centre[b])
@@ -174,6 +190,8 @@ class FrameRenderer:
                 self.plotter.add_mesh(arrow, color="#ffbf00").SetUserMatrix(vector_matrix)
                 self._vector_actors.append(vector_matrix)
             self._rigid_matrices.append(matrix)
+            if self._shadows is not None:
+                self._rigid_shadows.append(self._shadows.add(mesh))
 
     def _add_springs(self) -> None:
         geometry = self.geometry
@@ -265,6 +283,8 @@ class FrameRenderer:
             if isinstance(collider, PlaneCollider):
                 normal = np.asarray(collider.normal, float) / np.linalg.norm(collider.normal)
                 level = float(np.dot(collider.point, normal))
+                if self._is_ground(normal, level):
+                    continue  # the ground draws it: two squares in one plane would fight over every pixel
                 mesh, _, _ = self._plane_square(level, normal, collider.size)
             elif isinstance(collider, SphereCollider):
                 mesh = self.pv.Sphere(radius=collider.radius, center=collider.position,
@@ -286,6 +306,13 @@ class FrameRenderer:
                 continue
             mesh = mesh.compute_normals(split_vertices=True, feature_angle=40.0)
             self.plotter.add_mesh(mesh, color=color, smooth_shading=True, ambient=0.15)
+
+    def _is_ground(self, normal: np.ndarray, level: float) -> bool:
+        """Whether the plane ``normal · p = level`` is the drawn ground's."""
+        ground = self.render_spec.ground
+        up = self.camera.up / np.linalg.norm(self.camera.up)
+        return (ground is not None and float(np.dot(normal, up)) > 1 - 1e-9
+                and abs(level - ground.level) <= 1e-9 * max(1.0, abs(level)))
 
     def _add_fluids(self) -> None:
         for level, up in self.geometry.fluids:
@@ -339,6 +366,8 @@ class FrameRenderer:
         else:
             for actor, position in zip(self._particle_actors, drawn):
                 actor.SetPosition(*position)
+            for matrix, position in zip(self._particle_shadows, drawn):
+                self._shadows.place(matrix, None, position)  # type: ignore[union-attr]
         anchor_positions = geometry.anchors.positions(t) if geometry.anchors is not None else geometry.anchor_positions
         if geometry.anchors is not None and geometry.anchors.moving:
             for index, actor in self._anchor_actors:
@@ -348,6 +377,8 @@ class FrameRenderer:
             rotation = quaternion.to_matrix(orientations[n:])
             for b, matrix in enumerate(self._rigid_matrices):
                 self._set_matrix(matrix, rotation[b], positions[n + b])
+            for b, matrix in enumerate(self._rigid_shadows):
+                self._shadows.place(matrix, rotation[b], positions[n + b])  # type: ignore[union-attr]
             if self._vector_actors and angular_velocities is not None:
                 vectors = angular_velocities[n:]
                 if self.render_spec.show_vectors == "angular_momentum":

@@ -100,8 +100,10 @@ from animbatch.scene.schema.fields import (
     field_type_names,
 )
 from animbatch.scene.schema.render import (
+    QUALITY_PRESETS,
     CameraSpec,
     GroundSpec,
+    Quality,
     RenderSpec,
     VideoPreset,
     VideoSpec,
@@ -136,6 +138,8 @@ from animbatch.scene.schema.solver import (
 )
 
 __all__ = [
+    "QUALITY_PRESETS",
+    "Quality",
     "ADAPTIVE_METHODS",
     "AerodynamicsSpec",
     "AnchorSpec",

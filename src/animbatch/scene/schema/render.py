@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import annotated_types as at
 from pydantic import Field, field_validator, model_validator
@@ -56,9 +56,25 @@ class VideoSpec(SceneModel):
                    "1", ge=0, le=51)
 
 
+Quality = Literal["draft", "preview", "final"]
+
+#: What each ``render.quality`` sets, for every key of these the scene does not set itself. ``preview`` is the
+#: default look; ``draft`` drops anti-aliasing and halves the tessellation and the frame size; ``final`` draws
+#: 1080p with 8× multisampling, finer spheres and contact shadows.
+QUALITY_PRESETS: dict[str, dict[str, Any]] = {
+    "draft": {"resolution": [640, 360], "anti_aliasing": "none", "sphere_resolution": 16, "shadows": False},
+    "preview": {"resolution": [1280, 720], "anti_aliasing": "fxaa", "sphere_resolution": 32, "shadows": False},
+    "final": {"resolution": [1920, 1080], "anti_aliasing": "msaa", "msaa_samples": 8, "sphere_resolution": 64,
+              "shadows": True},
+}
+
+
 class RenderSpec(SceneModel):
     """How frames are drawn and written."""
 
+    quality: Quality = key("preview", "Preset for the keys it lists (resolution, anti_aliasing, msaa_samples, "
+                                      "sphere_resolution, shadows) that the scene does not set itself: draft "
+                                      "(fastest), preview or final (see Render quality).")
     resolution: Annotated[list[Annotated[int, Field(ge=16, le=7680)]], at.Len(2, 2)] = key(
         [1280, 720], "Frame size [width, height]; both even (required by H.264 yuv420p).", "px")
     background: Color = key("white", "Background colour.")
@@ -76,6 +92,8 @@ class RenderSpec(SceneModel):
                   "drawn over the surface).")
     surface_opacity: float = key(1.0, "Opacity of cloth and lattice surfaces (lower it to see springs inside).", "1",
                                  gt=0, le=1)
+    shadows: bool = key(False, "Contact shadows: each body and particle sphere casts its shape onto the ground "
+                               "along the key light (needs a ground; on with quality: final).")
     show_anchors: bool = key(True, "Draw anchors as small dark cubes.")
     show_targets: bool = key(True, "Draw what PD controllers pull towards: curves as thin lines (the wire of a "
                                    "bead), point and keyframed targets as small grey spheres.")
@@ -98,6 +116,18 @@ class RenderSpec(SceneModel):
                                   "longer stops with exit code 4, saying what it would take; the frames drawn stay "
                                   "on disk, and a run with a larger budget goes on from them. 0 = no limit.",
                           "s", ge=0)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _preset(cls, data: Any) -> Any:
+        """Fill the keys the quality preset lists and the scene leaves out (before validation, so that a preset's
+        values are checked like the scene's own)."""
+        if not isinstance(data, dict):
+            return data
+        preset = QUALITY_PRESETS.get(data.get("quality", "preview"))
+        if preset is None:
+            return data  # an unknown quality: reported by the field's own validation
+        return {**{name: value for name, value in preset.items() if name not in data}, **data}
 
     @field_validator("resolution")
     @classmethod

@@ -1,0 +1,143 @@
+"""Quality presets and contact shadows, checked by pixels: presets change what they say they change, and a shadow
+darkens the ground where the key light projects the body, and moves with it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from animbatch import api, stages
+from animbatch.cli import cli
+from animbatch.render.backend import select_backend
+from animbatch.render.frames import FrameRenderer
+from animbatch.scene.schema import QUALITY_PRESETS, RenderSpec
+
+pytestmark = pytest.mark.render
+
+# A ball held 0.8 m above the ground (no gravity) by the camera's default three-quarter view.
+HOVER = """
+name: hover
+duration: 0.1
+fps: 30
+bodies: [{{name: ball, radius: 0.2, position: [{x}, 1.0, 0], color: "#ff0000"}}]
+render:
+  resolution: [320, 180]
+  show_time: false
+  ground: {{level: 0, size: 6, grid: false}}
+  camera: {{position: [0.0, 3.0, 6.0], focal_point: [0.0, 0.5, 0.0]}}
+  shadows: {shadows}
+"""
+
+
+@pytest.mark.parametrize("quality", sorted(QUALITY_PRESETS))
+def test_a_preset_sets_exactly_its_keys_where_the_scene_is_silent(quality):
+    """Each preset fills every key it lists; a key the scene sets wins over the preset; other keys keep their own
+    defaults."""
+    preset = QUALITY_PRESETS[quality]
+    spec = RenderSpec.model_validate({"quality": quality})
+    assert {name: getattr(spec, name) for name in preset} == preset
+    mine = RenderSpec.model_validate({"quality": quality, "resolution": [320, 240], "anti_aliasing": "fxaa"})
+    assert mine.resolution == [320, 240] and mine.anti_aliasing == "fxaa"
+    assert spec.background == RenderSpec().background and spec.springs == RenderSpec().springs
+
+
+def test_the_default_quality_is_the_preview_look():
+    """Without a quality, a scene renders as before presets existed: preview's values are the keys' defaults."""
+    spec = RenderSpec()
+    assert spec.quality == "preview"
+    assert {name: getattr(spec, name) for name in QUALITY_PRESETS["preview"]} == QUALITY_PRESETS["preview"]
+
+
+def test_quality_on_the_command_line_sets_the_frame_size_and_a_wrong_one_is_named(tmp_path):
+    """--quality draft renders 640×360 frames where the scene gives no size; a misspelt preset gets the allowed
+    values and a suggestion, naming the setting."""
+    scene = tmp_path / "hover.yaml"
+    scene.write_text(HOVER.format(x=0.0, shadows="false").replace("  resolution: [320, 180]\n", ""))
+    result = CliRunner().invoke(cli, ["render", str(scene), "--quality", "draft", "--formats", "png",
+                                      "--out", str(tmp_path / "out"), "--no-progress"])
+    assert result.exit_code == 0, result.output
+    frame = Image.open(tmp_path / "out" / "hover" / "frames" / "frame_00000.png")
+    assert frame.size == (640, 360)
+    wrong = CliRunner().invoke(cli, ["validate", str(scene), "--set", "render.quality=fnial"])
+    assert wrong.exit_code == 1
+    assert "render.quality: must be one of draft, preview, final (got 'fnial'); did you mean 'final'?" in wrong.output
+
+
+def hover_frame(x: float, shadows: bool) -> tuple[np.ndarray, tuple[float, float]]:
+    """The hovering ball at ``x`` [m] drawn, and where on screen (column, row) its shadow's centre must fall: the
+    ball's centre projected onto the ground along the key light, then through the camera."""
+    scene = stages.parse_scene(HOVER.format(x=x, shadows=str(shadows).lower()))
+    model = api.compile_model(scene)
+    trajectory = api.simulate(scene, model=model)
+    geometry = stages.frame_geometry(scene, model, trajectory)
+    with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
+        image = renderer.draw(0.0, trajectory.positions[0], trajectory.orientations[0])
+        expected = (np.nan, np.nan)
+        if renderer._shadows is not None:
+            light = renderer._shadows.direction  # travelling down: from the ball's centre to the ground (y = 0)
+            assert light[1] < 0
+            centre = np.array([x, 1.0, 0.0]) + (1.0 / -light[1]) * light
+            display = renderer.plotter.renderer
+            display.SetWorldPoint(*centre, 1.0)
+            display.WorldToDisplay()
+            column, row, _ = display.GetDisplayPoint()
+            expected = (column, image.shape[0] - 1 - row)  # display rows count from the bottom
+    return image.astype(int), expected
+
+
+def test_a_shadow_darkens_the_ground_where_the_key_light_projects_the_body_and_moves_with_it():
+    """With shadows on, ground pixels darken (and nothing else changes) in a blob centred where the ball's centre
+    projects onto the ground along the key light, to within a few pixels; moved 1 m to the right, the ball takes
+    its shadow with it."""
+    centres = []
+    for x in (-0.5, 0.5):
+        lit, expected = hover_frame(x, shadows=True)
+        plain, _ = hover_frame(x, shadows=False)
+        darker = (plain - lit).sum(axis=2)
+        rows, columns = np.nonzero(darker > 60)
+        assert len(rows) > 80, "no shadow on the ground"
+        assert (lit - plain).max() <= 3, "a shadow only darkens"
+        centre = (columns.mean(), rows.mean())
+        assert abs(centre[0] - expected[0]) < 4 and abs(centre[1] - expected[1]) < 4, (centre, expected)
+        red = (plain[..., 0] > 150) & (plain[..., 1] < 100)
+        assert rows.mean() > np.nonzero(red)[0].mean(), "the shadow lies below the ball on screen"
+        centres.append(centre)
+    assert centres[1][0] - centres[0][0] > 20, "the shadow follows the ball"
+
+
+def test_the_shadow_matrix_lands_points_on_the_ground_along_the_light():
+    """For any ground plane and light: every point lands on the plane (n · p' = c), moved along the light only, and
+    points already on the plane stay put."""
+    from animbatch.render.shadows import key_light_direction, planar_projection
+
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        normal = rng.normal(size=3)
+        normal /= np.linalg.norm(normal)
+        light = key_light_direction(normal, rng.normal(size=3))
+        assert np.dot(light, normal) < -0.5  # downwards
+        matrix = planar_projection(normal, 0.3, light)
+        points = rng.normal(size=(20, 3))
+        landed = (np.c_[points, np.ones(20)] @ matrix.T)[:, :3]
+        assert np.allclose(landed @ normal, 0.3)
+        moved = landed - points
+        assert np.allclose(np.cross(moved, light), 0.0, atol=1e-12)
+        assert np.allclose((np.c_[landed, np.ones(20)] @ matrix.T)[:, :3], landed)
+
+
+def test_a_plane_collider_in_the_ground_is_drawn_once_as_the_ground():
+    """A floor collider at the ground's level is the ground: drawing both squares in one plane made them fight over
+    every pixel (a blotchy floor). The collider's own colour appears nowhere; the ground's does."""
+    text = HOVER.format(x=0.0, shadows="false") + 'colliders: [{type: plane, color: "#00ff00"}]\n'
+    scene = stages.parse_scene(text)
+    model = api.compile_model(scene)
+    trajectory = api.simulate(scene, model=model)
+    geometry = stages.frame_geometry(scene, model, trajectory)
+    with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
+        image = renderer.draw(0.0, trajectory.positions[0], trajectory.orientations[0]).astype(int)
+    green = (image[..., 1] > 150) & (image[..., 0] < 100) & (image[..., 2] < 100)
+    assert green.sum() == 0
+    ground = np.abs(image - np.array([0xd8, 0xd8, 0xd8])).sum(axis=2) < 60
+    assert ground.sum() > 0.1 * image.shape[0] * image.shape[1]
