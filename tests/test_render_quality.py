@@ -141,3 +141,81 @@ def test_a_plane_collider_in_the_ground_is_drawn_once_as_the_ground():
     assert green.sum() == 0
     ground = np.abs(image - np.array([0xd8, 0xd8, 0xd8])).sum(axis=2) < 60
     assert ground.sum() > 0.1 * image.shape[0] * image.shape[1]
+
+
+THROW = """
+name: throw
+duration: 1.2
+fps: 30
+solver: {method: RK45, rtol: 1.0e-9, atol: 1.0e-11}
+bodies: [{name: ball, radius: 0.08, position: [-1.5, 0, 0], velocity: [2.5, 5.0, 0], color: "#ff0000"}]
+fields: [{type: gravity, g: [0, -9.81, 0]}]
+render:
+  resolution: [480, 270]
+  show_time: false
+  camera: {position: [0, 1.0, 7.0], focal_point: [0, 1.0, 0]}
+  trails: {length: 0.6, width: 2, fade: false}
+"""
+
+
+def test_a_trail_follows_the_closed_form_path_over_its_length_only():
+    """At t = 1 s the trail of a thrown ball covers the parabola x = x0 + vx t, y = vy t − g t²/2 from t = 0.4 s to
+    1 s, as the camera projects it: every trail pixel lies within 2.5 px of that curve, the curve is drawn along
+    its whole length, and the path before 0.4 s is not drawn."""
+    scene = stages.parse_scene(THROW)
+    model = api.compile_model(scene)
+    trajectory = api.simulate(scene, model=model)
+    geometry = stages.frame_geometry(scene, model, trajectory)
+    frame = 30  # t = 1 s
+
+    def path(t: np.ndarray) -> np.ndarray:
+        return np.stack([-1.5 + 2.5 * t, 5.0 * t - 9.81 * t**2 / 2, 0 * t], axis=1)
+
+    with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
+        image = renderer.draw(float(trajectory.times[frame]), trajectory.positions[frame],
+                              trajectory.orientations[frame]).astype(int)
+        display = renderer.plotter.renderer
+
+        def on_screen(points: np.ndarray) -> np.ndarray:
+            pixels = []
+            for point in points:
+                display.SetWorldPoint(*point, 1.0)
+                display.WorldToDisplay()
+                column, row, _ = display.GetDisplayPoint()
+                pixels.append((column, image.shape[0] - 1 - row))
+            return np.array(pixels)
+
+        curve = on_screen(path(np.linspace(0.4, 1.0, 400)))
+        older = on_screen(path(np.linspace(0.05, 0.3, 50)))
+        ball = on_screen(path(np.array([1.0])))[0]
+    red = (image[..., 0] > 150) & (image[..., 1] < 120) & (image[..., 2] < 120)
+    rows, columns = np.nonzero(red)
+    pixels = np.stack([columns, rows], axis=1).astype(float)
+    radius_px = 8.0  # the ball's disc on screen is about 6 px across: leave it out
+    trail = pixels[np.linalg.norm(pixels - ball, axis=1) > radius_px]
+    assert len(trail) > 100
+    nearest = np.min(np.linalg.norm(trail[:, None, :] - curve[None, :, :], axis=2), axis=1)
+    assert nearest.max() < 2.5, f"a trail pixel {nearest.max():.1f} px off the closed-form path"
+    along = curve[np.linalg.norm(curve - ball, axis=1) > radius_px]
+    reach = np.min(np.linalg.norm(along[:, None, :] - pixels[None, :, :], axis=2), axis=1)
+    assert reach.max() < 2.0, "the trail has a gap"
+    before = np.min(np.linalg.norm(older[:, None, :] - pixels[None, :, :], axis=2), axis=1)
+    assert before.min() > 4.0, "the trail reaches further back than its length"
+
+
+def test_a_trail_of_an_unknown_body_or_of_a_cloth_is_refused_where_it_is_named(tmp_path):
+    """render.trails.bodies names particles or rigid bodies: a misspelt name gets a suggestion, a cloth is refused
+    with the reason, both at the list item, with file, line and column."""
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(THROW + "  # trails of\n")
+    result = CliRunner().invoke(cli, ["validate", str(scene), "--set", "render.trails.bodies=[bal]"])
+    assert result.exit_code == 1
+    assert "render.trails.bodies[0]: unknown body 'bal'; did you mean 'ball'? Particles and rigid bodies: ball" in (
+        result.output)
+    cloth = THROW.replace('color: "#ff0000"}]', 'color: "#ff0000"}, {name: sheet, type: cloth, density: 0.15, '
+                                                 'grid: {size: [1, 1], resolution: [3, 3]}, position: [0, 2, 0]}]')
+    scene.write_text(cloth)
+    result = CliRunner().invoke(cli, ["validate", str(scene), "--set", "render.trails.bodies=[sheet]"])
+    assert result.exit_code == 1 and result.output.count("\n") == 1  # this problem only
+    assert "render.trails.bodies[0]: unknown body 'sheet' (a cloth or lattice has no one point to follow" in (
+        result.output)

@@ -184,7 +184,7 @@ def frame_geometry(scene: LoadedScene, model: Model, trajectory: Trajectory) -> 
 
         emitters = compile_particles(spec, model, scene_folder(scene)).emitters  # type: ignore[union-attr]
     return compile_frame_geometry(spec, model, bounds, largest_vector(model, trajectory, spec.render.show_vectors),
-                                    scene_folder(scene), emitters)
+                                    scene_folder(scene), emitters, (trajectory.positions, trajectory.times))
 
 
 def particle_extent(trajectory: Trajectory) -> np.ndarray:

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from animbatch.render.colors import MESH_SPRING_COLOR, PALETTE, SPRING_COLOR, darker
-from animbatch.render.geometry import FrameGeometry, mesh_key
+from animbatch.render.geometry import FrameGeometry, TrailPaths, mesh_key
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (
     BoxCollider,
@@ -66,9 +66,11 @@ def collider_points(spec: SceneSpec, scene_dir: Path = Path(".")) -> np.ndarray:
 
 
 def frame_geometry(spec: SceneSpec, model: Model, bounds: np.ndarray, largest_vector: float = 0.0,
-                   scene_dir: Path = Path("."), emitters: tuple[Any, ...] = ()) -> FrameGeometry:
+                   scene_dir: Path = Path("."), emitters: tuple[Any, ...] = (),
+                   motion: tuple[np.ndarray, np.ndarray] | None = None) -> FrameGeometry:
     """What the renderer draws for a scene and its model: colours, shapes, springs, fluids, colliders, targets and
-    the mesh files read, within ``bounds`` (2, 3) [m]; ``largest_vector`` scales the ω/L arrows."""
+    the mesh files read, within ``bounds`` (2, 3) [m]; ``largest_vector`` scales the ω/L arrows; ``motion``: the
+    bodies' positions (F, P, 3) [m] at the frame times (F,) [s], which trails follow."""
     # palette colours follow the scene's order of bodies; the model orders them particles first
     by_name = {body.name: (index, body) for index, body in enumerate(spec.bodies)}
     colors = [by_name[name][1].color or PALETTE[by_name[name][0] % len(PALETTE)] for name in model.owners]
@@ -108,7 +110,23 @@ def frame_geometry(spec: SceneSpec, model: Model, bounds: np.ndarray, largest_ve
                          *spring_parts, spring_colors, fluids, bounds, scale,
                          tuple(c for c in spec.colliders if c.visible), scene_dir, model.anchors,
                          np.asarray(model.anchor_visible), drawn_particles, deformables, tuple(surface_colors),
-                         segments, points, emitters, _mesh_files(spec, scene_dir))
+                         segments, points, emitters, _mesh_files(spec, scene_dir),
+                         trail_paths(spec, model, colors, motion) if motion is not None else None)
+
+
+def trail_paths(spec: SceneSpec, model: Model, colors: list[str],
+                motion: tuple[np.ndarray, np.ndarray]) -> TrailPaths | None:
+    """The paths of the bodies ``render.trails`` names (default: every particle and rigid body, not the vertices of
+    cloth and lattices), or None without trails."""
+    trails = spec.render.trails
+    if trails is None:
+        return None
+    positions, times = motion
+    assert model.owners is not None  # set by the Model
+    own = {name: k for k, (name, owner) in enumerate(zip(model.body_names, model.owners)) if name == owner}
+    index = [own[name] for name in trails.bodies] if trails.bodies else list(own.values())
+    return TrailPaths(np.asarray(positions)[:, index], np.asarray(times), tuple(colors[k] for k in index),
+                      trails.length, trails.width, trails.fade)
 
 
 def controller_targets(model: Model) -> tuple[np.ndarray | None, tuple[Any, ...]]:

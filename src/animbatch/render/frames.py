@@ -35,6 +35,7 @@ from animbatch.render.emitted import EmitterLayer
 from animbatch.render.geometry import FrameGeometry
 from animbatch.render.shadows import GroundShadows
 from animbatch.render.shapes import arrow_basis, shape_mesh, vertex_normals
+from animbatch.render.trails import TrailLayer
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (
     BoxCollider,
@@ -78,6 +79,7 @@ class FrameRenderer:
         self._add_fluids()
         self._add_particles()
         self._add_emitted()
+        self._trails = TrailLayer(self.pv, self.plotter, geometry.trails) if geometry.trails is not None else None
         self._add_surfaces()
         self._add_rigid_bodies()
         self._add_springs()
@@ -401,6 +403,8 @@ class FrameRenderer:
         if self._spring_mesh is not None:
             self._spring_mesh.points[:] = self._spring_ends(positions, rotation, anchor_positions)
             self._spring_mesh.GetPoints().Modified()
+        if self._trails is not None:
+            self._trails.update(t)
         if self._label is not None:
             self._label.SetInput(self.render_spec.time_label.format(t=t))
         # The window itself, not plotter.render(): PyVista skips rendering until the plotter was first shown.

@@ -11,6 +11,19 @@ import numpy as np
 
 
 @dataclass(frozen=True)
+class TrailPaths:
+    """Where the trailed bodies were at every frame: ``positions`` (F, T, 3) [m] at ``times`` (F,) [s], one colour
+    per body (T,); a trail reaches ``length`` [s] back, ``width`` [px] wide, fading towards its tail if ``fade``."""
+
+    positions: np.ndarray
+    times: np.ndarray
+    colors: tuple[str, ...]
+    length: float
+    width: float
+    fade: bool
+
+
+@dataclass(frozen=True)
 class FrameGeometry:
     """What the renderer draws, independent of the scene file: sizes, shapes, colours, springs, fluids, bounds."""
 
@@ -42,6 +55,7 @@ class FrameGeometry:
     target_points: tuple[Any, ...] = ()  # point and keyframe targets (forces.controllers.Target), drawn as markers
     emitters: tuple[Any, ...] = ()  # compiled emitters whose particles are drawn (render.emitted.ParticleLooks)
     meshes: dict[tuple[str, str], Any] = field(default_factory=dict)  # mesh files read: (file, scale) -> mesh
+    trails: TrailPaths | None = None
 
 
 def mesh_key(shape: Any) -> tuple[str, str]:

@@ -27,7 +27,8 @@ def check_references(data: dict[str, Any]) -> list[Problem]:
     deformable = _of_type(data, DEFORMABLE_TYPES)
     return [*_body_list(data), *_duplicate_names(data), *_springs(data, bodies, anchors, rigid, deformable),
             *_fields(data, bodies, anchors, rigid, deformable, emitters), *_pins(data, bodies, rigid),
-            *_controllers(data, bodies, rigid, deformable), *_emitters(data, bodies, rigid), *_materials(data)]
+            *_controllers(data, bodies, rigid, deformable), *_emitters(data, bodies, rigid), *_materials(data),
+            *_trails(data, bodies, deformable)]
 
 
 #: Body types made of many vertices (each a particle in the model).
@@ -151,6 +152,20 @@ def _emitters(data: dict[str, Any], bodies: dict[str, KeyPath], rigid: set[str])
                       "follow)" if name in bodies else did_you_mean(name, sorted(rigid)))
             yield ("emitters", index, "body"), (
                 f"unknown rigid body {name!r}{reason} Rigid bodies: {', '.join(sorted(rigid)) or '(none)'}")
+
+
+def _trails(data: dict[str, Any], bodies: dict[str, KeyPath], deformable: set[str]) -> Iterator[Problem]:
+    """Trails follow particles and rigid bodies (a cloth has no one point to follow)."""
+    render = data.get("render")
+    trails = render.get("trails") if isinstance(render, dict) else None
+    names = trails.get("bodies") if isinstance(trails, dict) else None
+    followable = sorted(set(bodies) - deformable)
+    for position, name in _strings(names) if isinstance(names, list) else []:
+        if name not in followable:
+            reason = (" (a cloth or lattice has no one point to follow; give one of its pinned bodies instead)"
+                      if name in deformable else did_you_mean(name, followable) or ".")
+            yield ("render", "trails", "bodies", position), (
+                f"unknown body {name!r}{reason} Particles and rigid bodies: {', '.join(followable) or '(none)'}")
 
 
 def _pins(data: dict[str, Any], bodies: dict[str, KeyPath], rigid: set[str]) -> Iterator[Problem]:

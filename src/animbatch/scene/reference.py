@@ -68,6 +68,7 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
     ("`render`", "render.", schema.RenderSpec),
     ("`render.camera`", "render.camera.", schema.CameraSpec),
     ("`render.ground`", "render.ground.", schema.GroundSpec),
+    ("`render.trails`", "render.trails.", schema.TrailSpec),
     ("`render.video`", "render.video.", schema.VideoSpec),
     ("`study`", "study.", schema.StudySpec),
 ]

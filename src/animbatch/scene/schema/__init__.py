@@ -105,6 +105,7 @@ from animbatch.scene.schema.render import (
     GroundSpec,
     Quality,
     RenderSpec,
+    TrailSpec,
     VideoPreset,
     VideoSpec,
 )
@@ -138,6 +139,7 @@ from animbatch.scene.schema.solver import (
 )
 
 __all__ = [
+    "TrailSpec",
     "QUALITY_PRESETS",
     "Quality",
     "ADAPTIVE_METHODS",

@@ -7,7 +7,7 @@ from typing import Annotated, Any, Literal
 import annotated_types as at
 from pydantic import Field, field_validator, model_validator
 
-from animbatch.scene.schema.base import Color, SceneModel, Vec3, key, rule_error
+from animbatch.scene.schema.base import Color, Name, SceneModel, Vec3, key, rule_error
 
 
 class CameraSpec(SceneModel):
@@ -42,6 +42,16 @@ class GroundSpec(SceneModel):
     size: float | None = key(None, "Side length of the ground square (default: fitted to the motion).", "m", gt=0)
     color: Color = key("#d8d8d8", "Ground colour.")
     grid: bool = key(True, "Draw grid lines on the ground.")
+
+
+class TrailSpec(SceneModel):
+    """Trails: a line behind each moving body through where it was over the last ``length`` seconds."""
+
+    bodies: list[Name] | None = key(None, "Bodies that leave a trail: particles and rigid bodies (default: all of "
+                                          "them).")
+    length: float = key(1.0, "How far back in time a trail reaches.", "s", gt=0)
+    width: float = key(3.0, "Line width.", "px", gt=0, le=50)
+    fade: bool = key(True, "Fade each trail out towards its tail (else one solid colour).")
 
 
 VideoPreset = Literal["ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower", "veryslow"]
@@ -92,6 +102,8 @@ class RenderSpec(SceneModel):
                   "drawn over the surface).")
     surface_opacity: float = key(1.0, "Opacity of cloth and lattice surfaces (lower it to see springs inside).", "1",
                                  gt=0, le=1)
+    trails: TrailSpec | None = key(None, "Trails behind moving bodies (omit for none; 'trails: {}' for every "
+                                         "particle and rigid body).")
     shadows: bool = key(False, "Contact shadows: each body and particle sphere casts its shape onto the ground "
                                "along the key light (needs a ground; on with quality: final).")
     show_anchors: bool = key(True, "Draw anchors as small dark cubes.")
