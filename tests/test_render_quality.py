@@ -219,3 +219,56 @@ def test_a_trail_of_an_unknown_body_or_of_a_cloth_is_refused_where_it_is_named(t
     assert result.exit_code == 1 and result.output.count("\n") == 1  # this problem only
     assert "render.trails.bodies[0]: unknown body 'sheet' (a cloth or lattice has no one point to follow" in (
         result.output)
+
+
+HUD_LABEL = "t = {t:.2f} s, frame {frame}/{frames} at {fps:g} fps\\nE = {E:.4f} J, KE = {KE:.4f} J, v = {speed[ball]:.3f} m/s"
+
+
+def test_the_text_overlay_shows_the_frame_energies_and_speeds_of_the_closed_form():
+    """The overlay's fields at t = 0.5 s of the throw: frame 15 of 36 (1.2 s at 30 fps), total energy m (v0²/2) (the ground
+    of potential energy is y = 0, where the ball starts), kinetic energy m v²/2 and speed |v| of the closed form."""
+    scene = stages.parse_scene(THROW.replace("  show_time: false\n", f'  time_label: "{HUD_LABEL}"\n'))
+    model = api.compile_model(scene)
+    trajectory = api.simulate(scene, model=model)
+    geometry = stages.frame_geometry(scene, model, trajectory)
+    with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
+        renderer.draw(0.5, trajectory.positions[15], trajectory.orientations[15])
+        text = renderer._label.GetInput()
+    mass = float(model.bodies.mass[0])
+    speed = np.hypot(2.5, 5.0 - 9.81 * 0.5)
+    assert text == (f"t = 0.50 s, frame 15/36 at 30 fps\nE = {mass * (2.5**2 + 5**2) / 2:.4f} J, "
+                    f"KE = {mass * speed**2 / 2:.4f} J, v = {speed:.3f} m/s")
+
+
+@pytest.mark.parametrize("corner", ["upper_left", "upper_right", "lower_left", "lower_right"])
+def test_the_overlay_sits_in_its_corner_and_scales_with_the_frame(corner):
+    """The overlay's dark pixels lie in the quadrant of its corner only, and its font size is label_size of the
+    frame height: the text is the same fraction of the frame tall at 240 and at 960 rows (within rounding)."""
+    heights = []
+    for width, height in ((320, 240), (1280, 960)):
+        text = (THROW.replace("  show_time: false\n", f"  label_corner: {corner}\n  label_size: 0.05\n")
+                .replace("resolution: [480, 270]", f"resolution: [{width}, {height}]"))
+        scene = stages.parse_scene(text.replace("trails: {length: 0.6, width: 2, fade: false}", "ground: null"))
+        model = api.compile_model(scene)
+        trajectory = api.simulate(scene, model=model)
+        geometry = stages.frame_geometry(scene, model, trajectory)
+        with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
+            image = renderer.draw(0.0, trajectory.positions[0] + 100.0, trajectory.orientations[0])  # ball away
+        dark = image.sum(axis=2) < 200
+        rows, columns = np.nonzero(dark)
+        assert len(rows), "no text drawn"
+        upper, left = corner.startswith("upper"), corner.endswith("left")
+        assert (rows < height / 2).all() if upper else (rows > height / 2).all()
+        assert (columns < width / 2).all() if left else (columns > width / 2).all()
+        heights.append((rows.max() - rows.min() + 1) / height)
+    assert heights[0] == pytest.approx(heights[1], abs=2.5 / 240)
+    assert 0.05 <= heights[1] < 0.09  # the font size, with the line's ascenders and descenders about 1.5 times it
+
+
+def test_a_speed_of_an_unknown_body_in_the_overlay_is_refused_with_a_suggestion(tmp_path):
+    """{speed[NAME]} names a body: a misspelt one is reported at render.time_label with the closest name."""
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(THROW)
+    result = CliRunner().invoke(cli, ["validate", str(scene), "--set", "render.time_label='{speed[bal]}'"])
+    assert result.exit_code == 1
+    assert "render.time_label: {speed[bal]}: unknown body 'bal'; did you mean 'ball'? Bodies: ball" in result.output

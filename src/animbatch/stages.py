@@ -9,8 +9,10 @@ bake and render without importing the API that drives it.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import platform
+import string
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -29,9 +31,11 @@ from animbatch.files import write_text_atomic
 from animbatch.plot import plot_quantities
 from animbatch.progress import Progress
 from animbatch.render.camera import motion_bounds
+from animbatch.render.geometry import LabelValues
 from animbatch.scene import LoadedScene, physics_fingerprint
 from animbatch.scene import loader as scene_loader
 from animbatch.scene.overrides import Override
+from animbatch.scene.schema import label_speed_names
 from animbatch.sim.integrators import DEFAULT_DT, IntegrationResult, SolverStats
 from animbatch.sim.integrators.budget import wall_budget
 from animbatch.sim.integrators.checkpoint import integrate_with_checkpoints
@@ -183,8 +187,27 @@ def frame_geometry(scene: LoadedScene, model: Model, trajectory: Trajectory) -> 
     if spec.emitters:
 
         emitters = compile_particles(spec, model, scene_folder(scene)).emitters  # type: ignore[union-attr]
-    return compile_frame_geometry(spec, model, bounds, largest_vector(model, trajectory, spec.render.show_vectors),
-                                    scene_folder(scene), emitters, (trajectory.positions, trajectory.times))
+    geometry = compile_frame_geometry(spec, model, bounds,
+                                      largest_vector(model, trajectory, spec.render.show_vectors),
+                                      scene_folder(scene), emitters, (trajectory.positions, trajectory.times))
+    return dataclasses.replace(geometry, label=label_values(scene, model, trajectory))
+
+
+def label_values(scene: LoadedScene, model: Model, trajectory: Trajectory) -> LabelValues:
+    """The numbers the scene's text overlay shows at each frame; energies and speeds only when it asks for them
+    (they cost a pass over the trajectory)."""
+    label = scene.spec.render.time_label
+    fields = {field for _, field, _, _ in string.Formatter().parse(label) if field}
+    speeds = label_speed_names(label)
+    values = LabelValues(np.asarray(trajectory.times), float(scene.spec.fps))
+    if not (fields & {"E", "KE", "PE"} or speeds) or not model.body_count:
+        return values
+    states = model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
+                               trajectory.angular_velocities)
+    series = QuantitySeries.of_states(model, states)
+    values.series.update({"E": series.total, "KE": series.kinetic, "PE": series.potential})
+    values.speeds.update({name: series.speeds[:, series.body_names.index(name)] for name in speeds})
+    return values
 
 
 def particle_extent(trajectory: Trajectory) -> np.ndarray:

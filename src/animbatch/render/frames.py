@@ -325,12 +325,22 @@ class FrameRenderer:
         self._label = None
         if not self.render_spec.show_time:
             return
-        red, green, blue = hex_to_rgb(self.render_spec.background)
+        spec = self.render_spec
+        red, green, blue = hex_to_rgb(spec.background)
         text_color = "black" if 0.299 * red + 0.587 * green + 0.114 * blue > 0.5 else "white"
-        size = max(8, self.height // 36)
-        self._label = self.plotter.add_text(self.render_spec.time_label.format(t=0.0),
-                                            position=(size, self.height - size), font_size=size, color=text_color)
-        self._label.GetTextProperty().SetVerticalJustificationToTop()  # anchor the label by its top edge
+        size = max(8, round(spec.label_size * self.height))  # letters scale with the frame
+        right, lower = spec.label_corner.endswith("right"), spec.label_corner.startswith("lower")
+        self._label = self.plotter.add_text(self._label_text(0.0), font_size=size, color=text_color,
+                                            position=(self.width - size if right else size,
+                                                      size if lower else self.height - size))
+        text = self._label.GetTextProperty()
+        text.SetVerticalJustificationToBottom() if lower else text.SetVerticalJustificationToTop()
+        text.SetJustificationToRight() if right else text.SetJustificationToLeft()
+
+    def _label_text(self, t: float) -> str:
+        """The overlay at time ``t`` [s], with the numbers of its frame."""
+        values = self.geometry.label.at(t) if self.geometry.label is not None else {"t": t}
+        return self.render_spec.time_label.format(**values)
 
     def _apply_camera(self, placement: CameraPlacement) -> None:
         camera = self.plotter.camera
@@ -406,7 +416,7 @@ class FrameRenderer:
         if self._trails is not None:
             self._trails.update(t)
         if self._label is not None:
-            self._label.SetInput(self.render_spec.time_label.format(t=t))
+            self._label.SetInput(self._label_text(t))
         # The window itself, not plotter.render(): PyVista skips rendering until the plotter was first shown.
         self.plotter.ren_win.Render()
         return self._read_pixels()

@@ -24,6 +24,26 @@ class TrailPaths:
 
 
 @dataclass(frozen=True)
+class LabelValues:
+    """What a text overlay can show at each frame: ``times`` (F,) [s], the frames per second, and per-frame series
+    (F,) by name: energies ``E``, ``KE``, ``PE`` [J] when the label asks for them, and ``speeds`` [m/s] of the
+    bodies it names."""
+
+    times: np.ndarray
+    fps: float
+    series: dict[str, np.ndarray] = field(default_factory=dict)
+    speeds: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def at(self, t: float) -> dict[str, Any]:
+        """The label's fields at the frame nearest to time ``t`` [s]."""
+        frame = int(np.argmin(np.abs(self.times - t))) if len(self.times) else 0
+        values: dict[str, Any] = {"t": t, "frame": frame, "frames": len(self.times), "fps": self.fps}
+        values.update({name: float(series[frame]) for name, series in self.series.items()})
+        values["speed"] = {name: float(series[frame]) for name, series in self.speeds.items()}
+        return values
+
+
+@dataclass(frozen=True)
 class FrameGeometry:
     """What the renderer draws, independent of the scene file: sizes, shapes, colours, springs, fluids, bounds."""
 
@@ -56,6 +76,7 @@ class FrameGeometry:
     emitters: tuple[Any, ...] = ()  # compiled emitters whose particles are drawn (render.emitted.ParticleLooks)
     meshes: dict[tuple[str, str], Any] = field(default_factory=dict)  # mesh files read: (file, scale) -> mesh
     trails: TrailPaths | None = None
+    label: LabelValues | None = None
 
 
 def mesh_key(shape: Any) -> tuple[str, str]:

@@ -12,7 +12,7 @@ from typing import Any
 
 from animbatch.materials import BUILT_IN
 from animbatch.scene.diagnostics import did_you_mean
-from animbatch.scene.schema import PARTICLE_FIELD_TYPES
+from animbatch.scene.schema import PARTICLE_FIELD_TYPES, label_speed_names
 from animbatch.scene.yaml_source import KeyPath, format_path
 
 Problem = tuple[KeyPath, str]
@@ -28,7 +28,7 @@ def check_references(data: dict[str, Any]) -> list[Problem]:
     return [*_body_list(data), *_duplicate_names(data), *_springs(data, bodies, anchors, rigid, deformable),
             *_fields(data, bodies, anchors, rigid, deformable, emitters), *_pins(data, bodies, rigid),
             *_controllers(data, bodies, rigid, deformable), *_emitters(data, bodies, rigid), *_materials(data),
-            *_trails(data, bodies, deformable)]
+            *_trails(data, bodies, deformable), *_label(data, bodies)]
 
 
 #: Body types made of many vertices (each a particle in the model).
@@ -152,6 +152,23 @@ def _emitters(data: dict[str, Any], bodies: dict[str, KeyPath], rigid: set[str])
                       "follow)" if name in bodies else did_you_mean(name, sorted(rigid)))
             yield ("emitters", index, "body"), (
                 f"unknown rigid body {name!r}{reason} Rigid bodies: {', '.join(sorted(rigid)) or '(none)'}")
+
+
+def _label(data: dict[str, Any], bodies: dict[str, KeyPath]) -> Iterator[Problem]:
+    """A text overlay's ``{speed[NAME]}`` names a body of the scene."""
+    render = data.get("render")
+    label = render.get("time_label") if isinstance(render, dict) else None
+    if not isinstance(label, str):
+        return
+    try:
+        names = label_speed_names(label)
+    except ValueError:
+        return  # a malformed format string: the schema reports it
+    for name in names:
+        if name not in bodies:
+            yield ("render", "time_label"), (f"{{speed[{name}]}}: unknown body {name!r}"
+                                             f"{did_you_mean(name, sorted(bodies)) or '.'} Bodies: "
+                                             f"{', '.join(sorted(bodies)) or '(none)'}")
 
 
 def _trails(data: dict[str, Any], bodies: dict[str, KeyPath], deformable: set[str]) -> Iterator[Problem]:

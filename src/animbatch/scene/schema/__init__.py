@@ -100,6 +100,7 @@ from animbatch.scene.schema.fields import (
     field_type_names,
 )
 from animbatch.scene.schema.render import (
+    LABEL_FIELDS,
     QUALITY_PRESETS,
     CameraSpec,
     GroundSpec,
@@ -108,6 +109,7 @@ from animbatch.scene.schema.render import (
     TrailSpec,
     VideoPreset,
     VideoSpec,
+    label_speed_names,
 )
 from animbatch.scene.schema.rigid import (
     PRIMITIVE_SHAPES,
@@ -139,6 +141,8 @@ from animbatch.scene.schema.solver import (
 )
 
 __all__ = [
+    "LABEL_FIELDS",
+    "label_speed_names",
     "TrailSpec",
     "QUALITY_PRESETS",
     "Quality",

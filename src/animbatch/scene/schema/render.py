@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import string
 from typing import Annotated, Any, Literal
 
 import annotated_types as at
@@ -42,6 +43,23 @@ class GroundSpec(SceneModel):
     size: float | None = key(None, "Side length of the ground square (default: fitted to the motion).", "m", gt=0)
     color: Color = key("#d8d8d8", "Ground colour.")
     grid: bool = key(True, "Draw grid lines on the ground.")
+
+
+#: The numbers a text overlay can show (besides ``{speed[NAME]}``), see :func:`label_speed_names`.
+LABEL_FIELDS = ("t", "frame", "frames", "fps", "E", "KE", "PE")
+
+
+class _AnyBody(dict):  # type: ignore[type-arg]
+    """Stands for the speeds of bodies while a label is checked: any name gives a number."""
+
+    def __missing__(self, name: str) -> float:
+        return 1.0
+
+
+def label_speed_names(label: str) -> list[str]:
+    """The body names a label's ``{speed[NAME]}`` fields ask for, in order."""
+    return [field[len("speed["):-1] for _, field, _, _ in string.Formatter().parse(label)
+            if field is not None and field.startswith("speed[") and field.endswith("]")]
 
 
 class TrailSpec(SceneModel):
@@ -116,7 +134,13 @@ class RenderSpec(SceneModel):
     fluid_color: Color = key("#3a7bd5", "Colour of the surfaces of buoyancy fluids (drawn translucent).")
     ground: GroundSpec | None = key(None, "Ground plane (omit for none; 'ground: {}' for the defaults).")
     show_time: bool = key(True, "Overlay the simulated time.")
-    time_label: str = key("t = {t:.2f} s", "Format of the time overlay; {t} is the simulated time in s.")
+    time_label: str = key("t = {t:.2f} s", "The text overlay (HUD), in Python format syntax: {t} simulated time "
+                                           "[s], {frame}, {frames}, {fps}, energies {E}, {KE}, {PE} [J], "
+                                           "{speed[NAME]} [m/s] of a body (see Render); '\\n' starts a line.")
+    label_corner: Literal["upper_left", "upper_right", "lower_left", "lower_right"] = key(
+        "upper_left", "Where the text overlay sits.")
+    label_size: float = key(1 / 36, "Height of the overlay's letters, as a fraction of the frame height (the same "
+                                    "look at 320×240 and at 4K).", "1", gt=0, le=0.25)
     camera: CameraSpec = key(CameraSpec(), "Camera.")
     formats: Annotated[list[Literal["mp4", "png", "webm", "gif"]], at.Len(1, 4)] = key(
         ["mp4"], "Outputs: mp4 (H.264), webm (VP9), gif (256 colours; GIF times are in 1/100 s, so 30 fps plays "
@@ -154,8 +178,9 @@ class RenderSpec(SceneModel):
     @classmethod
     def _formattable(cls, label: str) -> str:
         try:
-            label.format(t=1.0)
-        except (KeyError, IndexError, ValueError) as error:
-            raise rule_error(f"is not a valid format string ({error}); use {{t}} for the time, e.g. "
+            label.format(**{name: 1.0 for name in LABEL_FIELDS}, speed=_AnyBody())
+        except (KeyError, IndexError, ValueError, AttributeError) as error:
+            raise rule_error(f"is not a valid format string ({error}); its fields are "
+                             f"{', '.join('{' + name + '}' for name in LABEL_FIELDS)} and {{speed[NAME]}}, e.g. "
                              "'t = {t:.2f} s'") from None
         return label
