@@ -272,3 +272,43 @@ def test_a_speed_of_an_unknown_body_in_the_overlay_is_refused_with_a_suggestion(
     result = CliRunner().invoke(cli, ["validate", str(scene), "--set", "render.time_label='{speed[bal]}'"])
     assert result.exit_code == 1
     assert "render.time_label: {speed[bal]}: unknown body 'bal'; did you mean 'ball'? Bodies: ball" in result.output
+
+
+def on_screen_extent(placement, aspect: float, points: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Normalised screen coordinates (…, 2) of spheres at ``points`` (…, 3) [m] by a pinhole camera, grown by each
+    sphere's projected radius: |x|, |y| ≤ 1 is inside the frame."""
+    forward = placement.focal_point - placement.position
+    forward = forward / np.linalg.norm(forward)
+    right = np.cross(forward, placement.up)
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    tangent = np.tan(np.radians(placement.view_angle) / 2)
+    relative = points - placement.position
+    depth = relative @ forward
+    assert (depth > 0).all(), "a body behind the camera"
+    grow = radius / (depth * tangent)
+    x = np.abs(relative @ right) / (depth * tangent * aspect) + grow / aspect
+    y = np.abs(relative @ up) / (depth * tangent) + grow
+    return np.stack([x, y], axis=-1)
+
+
+FRAMED_SCENES = ["projectile", "bouncing_balls", "two_body_orbit", "tumbling_box", "dumbbell"]
+
+
+@pytest.mark.parametrize("name", FRAMED_SCENES)
+def test_the_fitted_camera_keeps_every_body_inside_the_frame_with_a_margin_over_the_whole_run(name):
+    """The default camera is fitted to the whole motion: at every frame of the run every body, with its full
+    extent, stays at least 3 % of the frame away from each edge (a pinhole projection of the trajectory through the
+    camera the renderer uses)."""
+    from animbatch.compile.frame_geometry import body_extents
+    from animbatch.render.camera import place_camera
+
+    scene = stages.load_scene(f"scenes/{name}.yaml")
+    assert scene.spec.render.camera.position is None, "this test is about the fitted camera"
+    model = api.compile_model(scene)
+    trajectory = api.simulate(scene, model=model)
+    geometry = stages.frame_geometry(scene, model, trajectory)
+    width, height = scene.spec.render.resolution
+    placement = place_camera(scene.spec.render.camera, geometry.bounds, width / height)
+    extent = on_screen_extent(placement, width / height, trajectory.positions, body_extents(model)[None, :])
+    assert extent.max() <= 0.97, f"a body reaches {extent.max():.3f} of the half-frame"
