@@ -312,3 +312,21 @@ def test_the_fitted_camera_keeps_every_body_inside_the_frame_with_a_margin_over_
     placement = place_camera(scene.spec.render.camera, geometry.bounds, width / height)
     extent = on_screen_extent(placement, width / height, trajectory.positions, body_extents(model)[None, :])
     assert extent.max() <= 0.97, f"a body reaches {extent.max():.3f} of the half-frame"
+
+
+def test_bars_in_the_overlay_are_drawn_as_bars():
+    """'|v|' is plain text: the overlay '| | | |' shows four separate upright strokes (VTK's default text backend
+    sent any '|' to MathText, which drew the label in another font and dropped the bars)."""
+    scene = stages.parse_scene(THROW.replace("  show_time: false\n", '  time_label: "| | | |"\n  label_size: 0.1\n'))
+    model = api.compile_model(scene)
+    trajectory = api.simulate(scene, model=model)
+    geometry = stages.frame_geometry(scene, model, trajectory)
+    with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
+        image = renderer.draw(0.0, trajectory.positions[0] + 100.0, trajectory.orientations[0]).astype(int)
+    dark = image.sum(axis=2) < 300
+    rows, columns = np.nonzero(dark)
+    inked = np.zeros(image.shape[1], bool)
+    inked[columns] = True
+    strokes = np.count_nonzero(inked[1:] & ~inked[:-1]) + int(inked[0])
+    assert strokes == 4
+    assert rows.max() - rows.min() > 3 * (np.count_nonzero(inked) / 4), "strokes are upright"

@@ -168,9 +168,7 @@ def largest_vector(model: Model, trajectory: Trajectory, kind: str) -> float:
     omega = trajectory.angular_velocities[:, model.particle_count:]
     if kind == "angular_velocity":
         return float(np.max(np.linalg.norm(omega, axis=-1), initial=0.0))
-    states = model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
-                               trajectory.angular_velocities)
-    momentum = model.layout.view(states, "rigid_angular_momentum")
+    momentum = model.layout.view(trajectory_states(model, trajectory), "rigid_angular_momentum")
     return float(np.max(np.linalg.norm(momentum, axis=-1), initial=0.0))
 
 
@@ -202,9 +200,7 @@ def label_values(scene: LoadedScene, model: Model, trajectory: Trajectory) -> La
     values = LabelValues(np.asarray(trajectory.times), float(scene.spec.fps))
     if not (fields & {"E", "KE", "PE"} or speeds) or not model.body_count:
         return values
-    states = model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
-                               trajectory.angular_velocities)
-    series = QuantitySeries.of_states(model, states)
+    series = quantity_series(model, trajectory)
     values.series.update({"E": series.total, "KE": series.kinetic, "PE": series.potential})
     values.speeds.update({name: series.speeds[:, series.body_names.index(name)] for name in speeds})
     return values
@@ -221,16 +217,24 @@ def particle_extent(trajectory: Trajectory) -> np.ndarray:
     return np.array(corners, float).reshape(-1, 3)
 
 
+def quantity_series(model: Model, trajectory: Trajectory) -> QuantitySeries:
+    """The run's energies, momenta and speeds at the frame times (what quantities.csv and the text overlay show)."""
+    return QuantitySeries.of_states(model, trajectory_states(model, trajectory))
+
+
+def trajectory_states(model: Model, trajectory: Trajectory) -> np.ndarray:
+    """The model's flat states (F, n) at the trajectory's frames (from its per-body arrays)."""
+    return model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
+                             trajectory.angular_velocities)
+
+
 def write_quantities(scene: LoadedScene, model: Model, trajectory: Trajectory, folder: str | Path, *,
                      plot: bool = False) -> list[Path]:
     """Write the run's per-frame quantities (energy, momentum, angular momentum, speeds) to ``quantities.csv`` in
     ``folder``, and with ``plot`` draw them to ``quantities.png``; nothing for a scene without bodies."""
     if not model.body_count:
         return []
-
-    states = model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
-                               trajectory.angular_velocities)
-    series = QuantitySeries.of_states(model, states)
+    series = quantity_series(model, trajectory)
     folder = Path(folder)
     written = [folder / "quantities.csv"]
     write_text_atomic(written[0], series.csv())

@@ -81,9 +81,7 @@ def energy_drift(job: Job, cache: str) -> float | None:
     if any(term.adds_energy for term in model.force_terms) or model.anchors.moving:
         return None
     trajectory = Trajectory.load(cache)
-    states = model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
-                               trajectory.angular_velocities)
-    energy = total_energy(model, states)
+    energy = total_energy(model, stages.trajectory_states(model, trajectory))
     return float(np.max(np.abs(energy - energy[0])) / energy_scale(model))
 
 

@@ -326,6 +326,12 @@ class FrameRenderer:
         if not self.render_spec.show_time:
             return
         spec = self.render_spec
+        # Plain text, always: VTK's default backend hands any label with '|' (as in '|v|') to matplotlib's MathText,
+        # which draws it in another font and drops the bars
+        from vtkmodules.vtkRenderingCore import vtkTextRenderer  # heavy (VTK): only when drawing
+        from vtkmodules.vtkRenderingFreeType import vtkFreeTypeTools  # noqa: F401  (registers the text renderer)
+
+        vtkTextRenderer.GetInstance().SetDefaultBackend(vtkTextRenderer.FreeType)
         red, green, blue = hex_to_rgb(spec.background)
         text_color = "black" if 0.299 * red + 0.587 * green + 0.114 * blue > 0.5 else "white"
         size = max(8, round(spec.label_size * self.height))  # letters scale with the frame

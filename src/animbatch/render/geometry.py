@@ -10,6 +10,11 @@ from typing import Any
 import numpy as np
 
 
+def nearest_frame(times: np.ndarray, t: float) -> int:
+    """The index of the frame time (F,) [s] nearest to ``t`` [s] (0 without frames)."""
+    return int(np.argmin(np.abs(times - t))) if len(times) else 0
+
+
 @dataclass(frozen=True)
 class TrailPaths:
     """Where the trailed bodies were at every frame: ``positions`` (F, T, 3) [m] at ``times`` (F,) [s], one colour
@@ -36,7 +41,7 @@ class LabelValues:
 
     def at(self, t: float) -> dict[str, Any]:
         """The label's fields at the frame nearest to time ``t`` [s]."""
-        frame = int(np.argmin(np.abs(self.times - t))) if len(self.times) else 0
+        frame = nearest_frame(self.times, t)
         values: dict[str, Any] = {"t": t, "frame": frame, "frames": len(self.times), "fps": self.fps}
         values.update({name: float(series[frame]) for name, series in self.series.items()})
         values["speed"] = {name: float(series[frame]) for name, series in self.speeds.items()}
