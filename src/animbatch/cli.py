@@ -258,23 +258,31 @@ def study(scene: Path, out_dir: Path | None, methods: str | None, repeats: int |
               "animations).")
 @click.option("--plot", is_flag=True, help="Also draw the per-frame quantities (energy, momentum, angular momentum, "
               "speeds) to quantities.png beside report.json and quantities.csv.")
+@click.option("--camera", metavar="NAME", help="Render through this camera of render.cameras (render.use_camera), "
+              "or 'all': render.camera and every named camera, into separate videos <scene>-<camera>.mp4.")
 @_scene_options
 @click.option("--progress/--no-progress", default=None, help="Progress bars (default: on a terminal).")
 @_reports_errors
 def render(scene: Path, trajectory: Path | None, out_dir: Path, backend: str, settings: tuple[str, ...],
-           progress: bool | None, frames: str | None, jobs: int | None, plot: bool, **shortcuts: str | None) -> None:
+           progress: bool | None, frames: str | None, jobs: int | None, plot: bool, camera: str | None,
+           **shortcuts: str | None) -> None:
     """Bake (or reuse the cached simulation), render the frames off-screen in parallel, and encode the videos into
     renders/<scene>/. Frames already complete on disk are not drawn again."""
     from animbatch import api
     from animbatch.progress import Progress
 
-    try:
-        report = api.run(scene, overrides=_overrides(settings, **shortcuts), out_dir=out_dir, backend=backend,
-                         trajectory_path=trajectory, progress=Progress(enabled=progress), jobs=jobs, frames=frames,
-                         plot=plot)
-    except ValueError as error:  # a --frames range the scene does not have
-        raise click.BadParameter(str(error), param_hint="--frames") from None
-    click.echo(report.summary())
+    overrides = _overrides(settings, **shortcuts)
+    cameras: list[str | None] = [camera]
+    if camera == "all":  # the simulation is baked once; each camera then reuses it from the cache
+        cameras = [None, *api.load_scene(scene, overrides).spec.render.cameras]
+    for name in cameras:
+        chosen = overrides + ([(f"render.use_camera={name}", f"--camera {name}")] if name is not None else [])
+        try:
+            report = api.run(scene, overrides=chosen, out_dir=out_dir, backend=backend, trajectory_path=trajectory,
+                             progress=Progress(enabled=progress), jobs=jobs, frames=frames, plot=plot)
+        except ValueError as error:  # a --frames range the scene does not have
+            raise click.BadParameter(str(error), param_hint="--frames") from None
+        click.echo(report.summary())
 
 
 @cli.command()

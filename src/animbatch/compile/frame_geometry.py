@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from animbatch.render.colors import MESH_SPRING_COLOR, PALETTE, SPRING_COLOR, darker
-from animbatch.render.geometry import FrameGeometry, TrailPaths, mesh_key
+from animbatch.render.geometry import BodyPath, FrameGeometry, TrailPaths, mesh_key
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (
     BoxCollider,
@@ -111,7 +111,24 @@ def frame_geometry(spec: SceneSpec, model: Model, bounds: np.ndarray, largest_ve
                          tuple(c for c in spec.colliders if c.visible), scene_dir, model.anchors,
                          np.asarray(model.anchor_visible), drawn_particles, deformables, tuple(surface_colors),
                          segments, points, emitters, _mesh_files(spec, scene_dir),
-                         trail_paths(spec, model, colors, motion) if motion is not None else None)
+                         trail_paths(spec, model, colors, motion) if motion is not None else None,
+                         followed=followed_path(spec, model, motion) if motion is not None else None)
+
+
+def _own_bodies(model: Model) -> dict[str, int]:
+    """Particles and rigid bodies (not the vertices of cloth and lattices) by name -> index in the model."""
+    assert model.owners is not None  # set by the Model
+    return {name: k for k, (name, owner) in enumerate(zip(model.body_names, model.owners)) if name == owner}
+
+
+def followed_path(spec: SceneSpec, model: Model, motion: tuple[np.ndarray, np.ndarray]) -> BodyPath | None:
+    """The path of the body the render's camera follows, or None."""
+    name = spec.render.active_camera.follow
+    if name is None:
+        return None
+    index = _own_bodies(model)[name]
+    positions, times = motion
+    return BodyPath(np.asarray(positions)[:, index], np.asarray(times), float(body_extents(model)[index]))
 
 
 def trail_paths(spec: SceneSpec, model: Model, colors: list[str],
@@ -122,8 +139,7 @@ def trail_paths(spec: SceneSpec, model: Model, colors: list[str],
     if trails is None:
         return None
     positions, times = motion
-    assert model.owners is not None  # set by the Model
-    own = {name: k for k, (name, owner) in enumerate(zip(model.body_names, model.owners)) if name == owner}
+    own = _own_bodies(model)
     index = [own[name] for name in trails.bodies] if trails.bodies else list(own.values())
     return TrailPaths(np.asarray(positions)[:, index], np.asarray(times), tuple(colors[k] for k in index),
                       trails.length, trails.width, trails.fade)

@@ -17,7 +17,7 @@ import numpy as np
 from animbatch.encode.images import PngSequenceWriter
 from animbatch.encode.video import VIDEO_KINDS, VideoWriter
 from animbatch.errors import RenderError
-from animbatch.farm.frames import frame_is_complete, frames_folder
+from animbatch.farm.frames import frame_is_complete, frames_folder, output_stem
 from animbatch.scene import LoadedScene
 
 
@@ -42,7 +42,8 @@ def _ranges(indices: list[int]) -> str:
 
 def encode(scene: LoadedScene, frame_count: int, *, out_dir: str | Path = "renders",
            kinds: tuple[str, ...] = ("mp4",)) -> EncodeResult:
-    """Encode frames 0 … ``frame_count - 1`` of ``scene`` into ``out_dir/<scene>/<scene>.<kind>`` for each kind."""
+    """Encode frames 0 … ``frame_count - 1`` of ``scene`` into ``out_dir/<scene>/<stem>.<kind>`` for each kind (the
+    stem is the scene's name, with ``-<camera>`` for a named camera)."""
     from PIL import Image
 
     started = time.perf_counter()
@@ -59,7 +60,7 @@ def encode(scene: LoadedScene, frame_count: int, *, out_dir: str | Path = "rende
                           f"{missing[0]}-{missing[-1]}")
     folder = Path(out_dir) / scene.name
     video = scene.spec.render.video
-    writers = [VideoWriter(folder / f"{scene.name}.{kind}", size, scene.spec.fps, preset=video.preset,
+    writers = [VideoWriter(folder / f"{output_stem(scene)}.{kind}", size, scene.spec.fps, preset=video.preset,
                            crf=video.crf, kind=kind) for kind in kinds]
     with contextlib.ExitStack() as stack:
         for writer in writers:

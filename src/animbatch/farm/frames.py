@@ -98,8 +98,17 @@ class RangeResult:
     backend: str = ""
 
 
+def output_stem(scene: LoadedScene) -> str:
+    """The name of a render's videos: the scene's, with ``-<camera>`` when drawn through a named camera."""
+    camera = scene.spec.render.use_camera
+    return scene.name if camera is None else f"{scene.name}-{camera}"
+
+
 def frames_folder(scene: LoadedScene, out_dir: str | Path) -> Path:
-    return Path(out_dir) / scene.name / "frames"
+    """Where a render's frames go: ``out_dir/<scene>/frames`` (``frames-<camera>`` for a named camera, so that the
+    cameras of one scene render side by side)."""
+    camera = scene.spec.render.use_camera
+    return Path(out_dir) / scene.name / ("frames" if camera is None else f"frames-{camera}")
 
 
 KEY_FILE = "render-key.txt"

@@ -198,5 +198,6 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
     if frames is None:
         folder = Path(out_dir) / scene.name
         report.quantities = [str(path) for path in write_quantities(scene, model, trajectory, folder, plot=plot)]
-        write_json_atomic(folder / "report.json", report.__dict__)
+        camera = spec.render.use_camera
+        write_json_atomic(folder / ("report.json" if camera is None else f"report-{camera}.json"), report.__dict__)
     return report

@@ -1,4 +1,5 @@
-"""Camera placement: as given in the scene, or fitted to the bounding box of the whole motion.
+"""Camera placement: as given in the scene, or fitted to the bounding box of the whole motion; and its path over
+time (:class:`CameraPath`: keyframes, following a body, orbiting).
 
 Pure geometry (no VTK), so it is cheap to test.
 """
@@ -7,9 +8,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from animbatch.render.geometry import BodyPath
 from animbatch.scene.schema import CameraSpec
 
 
@@ -42,15 +45,16 @@ def motion_bounds(positions: np.ndarray, radius: np.ndarray, extra_points: np.nd
     return np.stack([low, high])
 
 
-def place_camera(spec: CameraSpec, bounds: np.ndarray, aspect: float = 16 / 9) -> CameraPlacement:
+def place_camera(spec: CameraSpec, bounds: np.ndarray, aspect: float = 16 / 9,
+                 any_azimuth: bool = False) -> CameraPlacement:
     """Where the camera goes for ``bounds`` (2, 3) and frame ``aspect`` (width / height).
 
     Fitted unless the scene gives position and focal point: the camera looks at the centre of the box from
     ``spec.direction`` and backs off until all eight corners of the box fit the frame, in both the vertical field of
-    view and the horizontal one (wider by ``aspect``), with ``fit_margin`` to spare.
+    view and the horizontal one (wider by ``aspect``), with ``fit_margin`` to spare; with ``any_azimuth`` (an orbiting
+    camera) far enough for every direction turned about ``up``.
     """
     centre = bounds.mean(axis=0)
-    size = max(float(np.linalg.norm(bounds[1] - bounds[0])), 1e-3)  # a point-like motion still gets a size
     up = _unit(np.asarray(spec.up, float))
     tan_vertical = math.tan(math.radians(spec.view_angle) / 2)
     if spec.position is not None and spec.focal_point is not None:
@@ -60,21 +64,126 @@ def place_camera(spec: CameraSpec, bounds: np.ndarray, aspect: float = 16 / 9) -
         direction = _unit(np.asarray(spec.direction, float))
         if abs(float(np.dot(direction, up))) > 0.999:  # looking straight along 'up': tilt slightly
             direction = _unit(direction + 0.05 * _any_perpendicular(up))
-        right = _unit(np.cross(up, direction))
-        screen_up = np.cross(direction, right)
         corners = np.array([[bounds[i][0], bounds[j][1], bounds[k][2]] for i in (0, 1) for j in (0, 1)
                             for k in (0, 1)]) - centre
         corners *= spec.fit_margin
-        toward_camera = corners @ direction  # a corner nearer the camera needs more distance
-        distance = max(float(np.max(toward_camera + np.abs(corners @ screen_up) / tan_vertical)),
-                       float(np.max(toward_camera + np.abs(corners @ right) / (tan_vertical * aspect))),
-                       1e-3)
+        turns = np.linspace(0, 2 * np.pi, 24, endpoint=False) if any_azimuth else np.zeros(1)
+        distance = max(_fit_distance(corners, _turn(direction, up, angle), up, tan_vertical, aspect)
+                       for angle in turns)
         focal = centre
         position = centre + direction * distance
-    to_centre = float(np.linalg.norm(centre - position))
-    near = max(to_centre - 1.5 * size, to_centre * 1e-3, 1e-4)
-    far = to_centre + 4.0 * size  # room for the ground plane behind the motion
-    return CameraPlacement(position, focal, up, float(spec.view_angle), (near, far))
+    return CameraPlacement(position, focal, up, float(spec.view_angle), clipping_range(position, focal, bounds))
+
+
+def _fit_distance(corners: np.ndarray, direction: np.ndarray, up: np.ndarray, tan_vertical: float,
+                  aspect: float) -> float:
+    """How far along ``direction`` from the centre the camera must stand to see every corner (8, 3) [m]."""
+    right = _unit(np.cross(up, direction))
+    screen_up = np.cross(direction, right)
+    toward_camera = corners @ direction  # a corner nearer the camera needs more distance
+    return max(float(np.max(toward_camera + np.abs(corners @ screen_up) / tan_vertical)),
+               float(np.max(toward_camera + np.abs(corners @ right) / (tan_vertical * aspect))), 1e-3)
+
+
+def clipping_range(position: np.ndarray, focal: np.ndarray, bounds: np.ndarray) -> tuple[float, float]:
+    """Near and far clipping distances [m] that keep the whole motion ``bounds`` (2, 3) and the ground behind it."""
+    size = max(float(np.linalg.norm(bounds[1] - bounds[0])), 1e-3)
+    distances = (float(np.linalg.norm(bounds.mean(axis=0) - position)), float(np.linalg.norm(focal - position)))
+    near = max(min(distances) - 1.5 * size, min(distances) * 1e-3, 1e-4)
+    return near, max(distances) + 4.0 * size  # room for the ground plane behind the motion
+
+
+def _turn(vector: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
+    """``vector`` turned by ``angle`` [rad] about the unit ``axis`` (Rodrigues)."""
+    cos, sin = math.cos(angle), math.sin(angle)
+    return vector * cos + np.cross(axis, vector) * sin + axis * np.dot(axis, vector) * (1 - cos)
+
+
+def follower(path: BodyPath, lag: float) -> np.ndarray:
+    """Where a critically damped follower of the body is at each frame (F, 3) [m], starting on the body at rest.
+
+    Two first-order lags of time constant τ = ``lag`` / 2 in series (a critically damped second-order system),
+    solved exactly for a body path that is straight between frames; so at constant velocity the follower trails the
+    body by exactly ``lag`` seconds once settled, and it never overshoots.
+    """
+    body = np.asarray(path.positions, float)
+    if lag <= 0 or len(body) < 2:
+        return body.copy()
+    tau = lag / 2
+    first, second = body[0].copy(), body[0].copy()  # the two stages' outputs
+    result = np.empty_like(body)
+    result[0] = second
+    for k in range(1, len(body)):
+        step = float(path.times[k] - path.times[k - 1])
+        slope = (body[k] - body[k - 1]) / step if step > 0 else np.zeros(3)
+        # particular solutions for a ramp input u: u − τ s and u − 2 τ s; the rest decays as e^(−t/τ) (and t e^(−t/τ))
+        c1 = first - (body[k - 1] - tau * slope)
+        c2 = second - (body[k - 1] - 2 * tau * slope)
+        decay = math.exp(-step / tau)
+        first = body[k] - tau * slope + c1 * decay
+        second = body[k] - 2 * tau * slope + (c2 + c1 * step / tau) * decay
+        result[k] = second
+    return result
+
+
+class CameraPath:
+    """Where the camera is at any time: its own placement (fitted or given), moved by keyframes, then by a followed
+    body (focal point on the smoothed body, same offset), then turned about the orbit's axis."""
+
+    def __init__(self, spec: CameraSpec, bounds: np.ndarray, aspect: float = 16 / 9,
+                 followed: BodyPath | None = None) -> None:
+        self.spec, self.bounds = spec, bounds
+        self.up = _unit(np.asarray(spec.up, float))
+        fit = bounds
+        if followed is not None and spec.position is None:
+            # frame the neighbourhood of the body, not the whole motion: a quarter of the motion, at least 8 sizes
+            half = max(4 * followed.extent, float(np.max(bounds[1] - bounds[0])) / 8)
+            start = np.asarray(followed.positions[0], float)
+            fit = np.stack([start - half, start + half])
+        self.base = place_camera(spec, fit, aspect, any_azimuth=spec.orbit is not None)
+        self.splines = self._keyframe_splines(spec)
+        self.followed = followed
+        self.track = follower(followed, spec.follow_lag) if followed is not None else None
+        self.moves = spec.moves
+
+    def _keyframe_splines(self, spec: CameraSpec) -> dict[str, Any]:
+        """One clamped cubic spline (at rest at both ends) per keyframed quantity, over the keyframes giving it."""
+        from scipy.interpolate import CubicSpline  # only for keyframed cameras
+
+        splines: dict[str, Any] = {}
+        for name in ("position", "focal_point", "view_angle"):
+            given = [(frame.t, getattr(frame, name)) for frame in spec.keyframes or [] if getattr(frame, name)
+                     is not None]
+            if len(given) == 1:
+                value = np.asarray(given[0][1], float)
+                splines[name] = lambda t, value=value: value
+            elif given:
+                times, values = zip(*given)
+                splines[name] = _held(CubicSpline(times, np.asarray(values, float), bc_type="clamped"),
+                                      times[0], times[-1])
+        return splines
+
+    def at(self, t: float) -> CameraPlacement:
+        """The camera at time ``t`` [s]."""
+        base, splines = self.base, self.splines
+        position = np.asarray(splines["position"](t) if "position" in splines else base.position, float)
+        focal = np.asarray(splines["focal_point"](t) if "focal_point" in splines else base.focal_point, float)
+        view_angle = float(splines["view_angle"](t)) if "view_angle" in splines else base.view_angle
+        if self.track is not None and self.followed is not None:
+            body = np.array([np.interp(t, self.followed.times, self.track[:, k]) for k in range(3)])
+            position, focal = position + body - focal, body
+        orbit = self.spec.orbit
+        if orbit is not None:
+            centre = np.asarray(orbit.center, float) if orbit.center is not None else focal
+            angle = 2 * math.pi * t / orbit.period
+            position = centre + _turn(position - centre, self.up, angle)
+            focal = centre + _turn(focal - centre, self.up, angle)
+        return CameraPlacement(position, focal, self.up, view_angle, clipping_range(position, focal, self.bounds))
+
+
+def _held(spline: Any, first: float, last: float) -> Any:
+    """``spline`` inside [first, last], its end values outside."""
+    return lambda t: spline(min(max(t, first), last))
 
 
 def _unit(vector: np.ndarray) -> np.ndarray:

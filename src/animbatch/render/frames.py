@@ -23,7 +23,7 @@ import numpy as np
 from animbatch import quaternion
 from animbatch.errors import RenderError
 from animbatch.render.backend import Backend, activate
-from animbatch.render.camera import CameraPlacement, nice_spacing, place_camera, plane_axes
+from animbatch.render.camera import CameraPath, CameraPlacement, nice_spacing, plane_axes
 from animbatch.render.colors import (
     ANCHOR_COLOR,
     AXIS_COLORS,
@@ -72,7 +72,10 @@ class FrameRenderer:
                               "backend; install VTK >= 9.4 ('bash scripts/dev.sh setup') or try another --backend")
         self._configure_quality()
         self.plotter.set_background(render.background)
-        self.camera = place_camera(render.camera, geometry.bounds, self.width / self.height)
+        self.camera_path = CameraPath(render.active_camera, geometry.bounds, self.width / self.height,
+                                      geometry.followed)
+        self.camera = self.camera_path.at(float(geometry.label.times[0]) if geometry.label is not None
+                                          and len(geometry.label.times) else 0.0)
         self._add_ground()
         self._shadows = self._make_shadows()
         self._add_colliders()
@@ -423,6 +426,8 @@ class FrameRenderer:
             self._trails.update(t)
         if self._label is not None:
             self._label.SetInput(self._label_text(t))
+        if self.camera_path.moves:
+            self._apply_camera(self.camera_path.at(t))
         # The window itself, not plotter.render(): PyVista skips rendering until the plotter was first shown.
         self.plotter.ren_win.Render()
         return self._read_pixels()

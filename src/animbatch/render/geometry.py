@@ -29,6 +29,16 @@ class TrailPaths:
 
 
 @dataclass(frozen=True)
+class BodyPath:
+    """Where one body was at every frame: ``positions`` (F, 3) [m] at ``times`` (F,) [s]; ``extent`` [m]: its size
+    (radius of its bounding sphere)."""
+
+    positions: np.ndarray
+    times: np.ndarray
+    extent: float
+
+
+@dataclass(frozen=True)
 class LabelValues:
     """What a text overlay can show at each frame: ``times`` (F,) [s], the frames per second, and per-frame series
     (F,) by name: energies ``E``, ``KE``, ``PE`` [J] when the label asks for them, and ``speeds`` [m/s] of the
@@ -82,6 +92,7 @@ class FrameGeometry:
     meshes: dict[tuple[str, str], Any] = field(default_factory=dict)  # mesh files read: (file, scale) -> mesh
     trails: TrailPaths | None = None
     label: LabelValues | None = None
+    followed: BodyPath | None = None  # the body the camera follows
 
 
 def mesh_key(shape: Any) -> tuple[str, str]:

@@ -172,17 +172,27 @@ def _label(data: dict[str, Any], bodies: dict[str, KeyPath]) -> Iterator[Problem
 
 
 def _trails(data: dict[str, Any], bodies: dict[str, KeyPath], deformable: set[str]) -> Iterator[Problem]:
-    """Trails follow particles and rigid bodies (a cloth has no one point to follow)."""
+    """Trails and followed cameras track particles and rigid bodies (a cloth has no one point to follow)."""
     render = data.get("render")
-    trails = render.get("trails") if isinstance(render, dict) else None
+    if not isinstance(render, dict):
+        return
+    trails = render.get("trails")
     names = trails.get("bodies") if isinstance(trails, dict) else None
+    wanted = [(("render", "trails", "bodies", position), name)
+              for position, name in (_strings(names) if isinstance(names, list) else [])]
+    cameras = render.get("cameras")
+    for path, camera in [(("render", "camera"), render.get("camera")),
+                         *[(("render", "cameras", name), camera)
+                           for name, camera in (cameras.items() if isinstance(cameras, dict) else [])]]:
+        name = camera.get("follow") if isinstance(camera, dict) else None
+        if isinstance(name, str):
+            wanted.append(((*path, "follow"), name))
     followable = sorted(set(bodies) - deformable)
-    for position, name in _strings(names) if isinstance(names, list) else []:
+    for path, name in wanted:
         if name not in followable:
             reason = (" (a cloth or lattice has no one point to follow; give one of its pinned bodies instead)"
                       if name in deformable else did_you_mean(name, followable) or ".")
-            yield ("render", "trails", "bodies", position), (
-                f"unknown body {name!r}{reason} Particles and rigid bodies: {', '.join(followable) or '(none)'}")
+            yield path, f"unknown body {name!r}{reason} Particles and rigid bodies: {', '.join(followable) or '(none)'}"
 
 
 def _pins(data: dict[str, Any], bodies: dict[str, KeyPath], rigid: set[str]) -> Iterator[Problem]:

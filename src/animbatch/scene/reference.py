@@ -67,6 +67,8 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
     ("`contacts`", "contacts.", schema.ContactSpec),
     ("`render`", "render.", schema.RenderSpec),
     ("`render.camera`", "render.camera.", schema.CameraSpec),
+    ("`render.camera.keyframes[]`", "render.camera.keyframes[].", schema.CameraKeyframe),
+    ("`render.camera.orbit`", "render.camera.orbit.", schema.OrbitSpec),
     ("`render.ground`", "render.ground.", schema.GroundSpec),
     ("`render.trails`", "render.trails.", schema.TrailSpec),
     ("`render.video`", "render.video.", schema.VideoSpec),

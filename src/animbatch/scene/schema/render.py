@@ -8,11 +8,36 @@ from typing import Annotated, Any, Literal
 import annotated_types as at
 from pydantic import Field, field_validator, model_validator
 
+from animbatch.scene.diagnostics import did_you_mean
 from animbatch.scene.schema.base import Color, Name, SceneModel, Vec3, key, rule_error
 
 
+class CameraKeyframe(SceneModel):
+    """Where the camera is at one time; the keys a keyframe leaves out keep the camera's own (fitted or given)."""
+
+    t: float = key(description="Time of the keyframe.", unit="s", ge=0)
+    position: Vec3 | None = key(None, "Camera position.", "m")
+    focal_point: Vec3 | None = key(None, "Point looked at.", "m")
+    view_angle: float | None = key(None, "Vertical field of view.", "deg", gt=0, lt=180)
+
+
+class OrbitSpec(SceneModel):
+    """The camera circles a vertical axis (along ``up``) at a constant rate, keeping its height and distance."""
+
+    period: float = key(description="Time of one full turn (negative: turn the other way).", unit="s")
+    center: Vec3 | None = key(None, "A point on the axis (default: the focal point).", "m")
+
+    @field_validator("period")
+    @classmethod
+    def _turns(cls, period: float) -> float:
+        if period == 0:
+            raise rule_error("must not be zero: the time of one full turn (negative turns the other way)")
+        return period
+
+
 class CameraSpec(SceneModel):
-    """The camera. Without position and focal point it is fitted to the bounding box of the whole motion."""
+    """The camera. Without position and focal point it is fitted to the bounding box of the whole motion; it can
+    move by keyframes, follow a body, or orbit (applied in that order)."""
 
     position: Vec3 | None = key(None, "Camera position (give together with focal_point; default: fitted).", "m")
     focal_point: Vec3 | None = key(None, "Point the camera looks at (default: centre of the motion).", "m")
@@ -21,6 +46,15 @@ class CameraSpec(SceneModel):
     direction: Vec3 = key([0.4, 0.35, 1.0], "When fitted: direction from the focal point towards the camera.", "1")
     fit_margin: float = key(1.15, "When fitted: how much room to leave around the motion (1 = tight).", "1",
                             ge=1, le=10)
+    keyframes: list[CameraKeyframe] | None = key(
+        None, "Camera keyframes {t, position, focal_point, view_angle}, in increasing t; between them the camera "
+              "moves on a smooth cubic spline that starts and ends at rest, and before the first and after the last "
+              "it holds still.")
+    follow: Name | None = key(None, "A particle or rigid body the camera tracks: the focal point follows it "
+                                    "(smoothed by follow_lag) and the camera keeps its offset from it.")
+    follow_lag: float = key(0.25, "How far the followed view lags behind the body: the time constant of a "
+                                  "critically damped follower (0: locked on).", "s", ge=0)
+    orbit: OrbitSpec | None = key(None, "Circle around a vertical axis: {period, center}.")
 
     @model_validator(mode="after")
     def _consistent(self) -> "CameraSpec":
@@ -34,6 +68,23 @@ class CameraSpec(SceneModel):
             if not any(getattr(self, name)):
                 raise rule_error("must not be the zero vector", name)
         return self
+
+    @field_validator("keyframes")
+    @classmethod
+    def _increasing(cls, keyframes: list[CameraKeyframe] | None) -> list[CameraKeyframe] | None:
+        if keyframes is not None:
+            if not keyframes:
+                raise rule_error("give at least one keyframe, or leave the key out")
+            for index in range(1, len(keyframes)):
+                if keyframes[index].t <= keyframes[index - 1].t:
+                    raise rule_error(f"keyframe times must increase (t = {keyframes[index].t:g} after "
+                                     f"t = {keyframes[index - 1].t:g})", index)
+        return keyframes
+
+    @property
+    def moves(self) -> bool:
+        """Whether the camera moves during the animation."""
+        return bool(self.keyframes and len(self.keyframes) > 1) or self.follow is not None or self.orbit is not None
 
 
 class GroundSpec(SceneModel):
@@ -142,6 +193,11 @@ class RenderSpec(SceneModel):
     label_size: float = key(1 / 36, "Height of the overlay's letters, as a fraction of the frame height (the same "
                                     "look at 320×240 and at 4K).", "1", gt=0, le=0.25)
     camera: CameraSpec = key(CameraSpec(), "Camera.")
+    cameras: dict[Name, CameraSpec] = key({}, "More cameras, by name: each a camera block like render.camera. "
+                                              "'render --camera NAME' renders through one, '--camera all' through "
+                                              "render.camera and each of these, into separate videos.")
+    use_camera: Name | None = key(None, "Render through this camera of render.cameras (default: render.camera); "
+                                        "its outputs are named <scene>-<camera>.")
     formats: Annotated[list[Literal["mp4", "png", "webm", "gif"]], at.Len(1, 4)] = key(
         ["mp4"], "Outputs: mp4 (H.264), webm (VP9), gif (256 colours; GIF times are in 1/100 s, so 30 fps plays "
         "at 33.3), and png (keep the frame files; they are the render's resumable state and are otherwise deleted "
@@ -164,6 +220,19 @@ class RenderSpec(SceneModel):
         if preset is None:
             return data  # an unknown quality: reported by the field's own validation
         return {**{name: value for name, value in preset.items() if name not in data}, **data}
+
+    @model_validator(mode="after")
+    def _known_camera(self) -> "RenderSpec":
+        if self.use_camera is not None and self.use_camera not in self.cameras:
+            hint = did_you_mean(self.use_camera, list(self.cameras)) or "."
+            raise rule_error(f"no camera {self.use_camera!r} in render.cameras{hint} Cameras: "
+                             f"{', '.join(self.cameras) or '(none: add render.cameras)'}", "use_camera")
+        return self
+
+    @property
+    def active_camera(self) -> CameraSpec:
+        """The camera frames are drawn through: ``cameras[use_camera]``, or ``camera``."""
+        return self.cameras[self.use_camera] if self.use_camera is not None else self.camera
 
     @field_validator("resolution")
     @classmethod
