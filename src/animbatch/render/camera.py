@@ -18,13 +18,13 @@ from animbatch.scene.schema import CameraSpec
 
 @dataclass(frozen=True)
 class CameraPlacement:
-    """Position, focal point [m], up vector, vertical view angle [deg] and near/far clipping distances [m]."""
+    """Position, focal point [m], up vector and vertical view angle [deg]. (The renderer fits the near and far
+    clipping planes to everything it draws, ground included, at each frame.)"""
 
     position: np.ndarray
     focal_point: np.ndarray
     up: np.ndarray
     view_angle: float
-    clipping_range: tuple[float, float]
 
 
 def motion_bounds(positions: np.ndarray, radius: np.ndarray, extra_points: np.ndarray | None = None) -> np.ndarray:
@@ -72,7 +72,7 @@ def place_camera(spec: CameraSpec, bounds: np.ndarray, aspect: float = 16 / 9,
                        for angle in turns)
         focal = centre
         position = centre + direction * distance
-    return CameraPlacement(position, focal, up, float(spec.view_angle), clipping_range(position, focal, bounds))
+    return CameraPlacement(position, focal, up, float(spec.view_angle))
 
 
 def _fit_distance(corners: np.ndarray, direction: np.ndarray, up: np.ndarray, tan_vertical: float,
@@ -83,14 +83,6 @@ def _fit_distance(corners: np.ndarray, direction: np.ndarray, up: np.ndarray, ta
     toward_camera = corners @ direction  # a corner nearer the camera needs more distance
     return max(float(np.max(toward_camera + np.abs(corners @ screen_up) / tan_vertical)),
                float(np.max(toward_camera + np.abs(corners @ right) / (tan_vertical * aspect))), 1e-3)
-
-
-def clipping_range(position: np.ndarray, focal: np.ndarray, bounds: np.ndarray) -> tuple[float, float]:
-    """Near and far clipping distances [m] that keep the whole motion ``bounds`` (2, 3) and the ground behind it."""
-    size = max(float(np.linalg.norm(bounds[1] - bounds[0])), 1e-3)
-    distances = (float(np.linalg.norm(bounds.mean(axis=0) - position)), float(np.linalg.norm(focal - position)))
-    near = max(min(distances) - 1.5 * size, min(distances) * 1e-3, 1e-4)
-    return near, max(distances) + 4.0 * size  # room for the ground plane behind the motion
 
 
 def _turn(vector: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
@@ -132,7 +124,7 @@ class CameraPath:
 
     def __init__(self, spec: CameraSpec, bounds: np.ndarray, aspect: float = 16 / 9,
                  followed: BodyPath | None = None) -> None:
-        self.spec, self.bounds = spec, bounds
+        self.spec = spec
         self.up = _unit(np.asarray(spec.up, float))
         fit = bounds
         if followed is not None and spec.position is None:
@@ -178,7 +170,7 @@ class CameraPath:
             angle = 2 * math.pi * t / orbit.period
             position = centre + _turn(position - centre, self.up, angle)
             focal = centre + _turn(focal - centre, self.up, angle)
-        return CameraPlacement(position, focal, self.up, view_angle, clipping_range(position, focal, self.bounds))
+        return CameraPlacement(position, focal, self.up, view_angle)
 
 
 def _held(spline: Any, first: float, last: float) -> Any:

@@ -23,7 +23,7 @@ import numpy as np
 from animbatch import quaternion
 from animbatch.errors import RenderError
 from animbatch.render.backend import Backend, activate
-from animbatch.render.camera import CameraPath, CameraPlacement, nice_spacing, plane_axes
+from animbatch.render.camera import CameraPath, CameraPlacement, plane_axes
 from animbatch.render.colors import (
     ANCHOR_COLOR,
     AXIS_COLORS,
@@ -35,10 +35,12 @@ from animbatch.render.emitted import EmitterLayer
 from animbatch.render.geometry import FrameGeometry
 from animbatch.render.shadows import GroundShadows
 from animbatch.render.shapes import arrow_basis, shape_mesh, vertex_normals
+from animbatch.render.studio import GROUND_REACH, StudioGround, add_lights, backdrop_color, three_point_rig
 from animbatch.render.trails import TrailLayer
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (
     BoxCollider,
+    GroundSpec,
     MeshCollider,
     PlaneCollider,
     RenderSpec,
@@ -64,18 +66,26 @@ class FrameRenderer:
         self.geometry = geometry
         self.backend = backend
         self.width, self.height = render.resolution
-        self.plotter = pv.Plotter(off_screen=True, window_size=[self.width, self.height], lighting="light kit")
+        lighting = "light kit" if render.lights == "light_kit" else "none"
+        self.plotter = pv.Plotter(off_screen=True, window_size=[self.width, self.height], lighting=lighting)
         created = self.plotter.ren_win.GetClassName()
         if created != backend.vtk_window_class:  # e.g. a VTK build without runtime window selection
             self.plotter.close()
             raise RenderError(f"VTK created a {created} instead of {backend.vtk_window_class} for the {backend.name} "
                               "backend; install VTK >= 9.4 ('bash scripts/dev.sh setup') or try another --backend")
         self._configure_quality()
-        self.plotter.set_background(render.background)
         self.camera_path = CameraPath(render.active_camera, geometry.bounds, self.width / self.height,
                                       geometry.followed)
         self.camera = self.camera_path.at(float(geometry.label.times[0]) if geometry.label is not None
                                           and len(geometry.label.times) else 0.0)
+        self._backdrop = (np.asarray(hex_to_rgb(render.background)),
+                          np.asarray(hex_to_rgb(render.background_top)) if render.background_top else None)
+        self.plotter.set_background(render.background, top=render.background_top)
+        if render.lights == "three_point":
+            view = self.camera.position - self.camera.focal_point
+            add_lights(self.pv, self.plotter, three_point_rig(self.camera.up, view / np.linalg.norm(view)),
+                       self.camera.focal_point, float(np.linalg.norm(view)))
+        self._ground = self._find_ground()
         self._add_ground()
         self._shadows = self._make_shadows()
         self._add_colliders()
@@ -96,13 +106,27 @@ class FrameRenderer:
 
     def _make_shadows(self) -> GroundShadows | None:
         """Contact shadows on the ground, when asked for and there is a ground to fall on."""
-        spec = self.render_spec
-        if not spec.shadows or spec.ground is None:
+        ground = self._ground
+        if not self.render_spec.shadows or ground is None:
             return None
-        _, _, size = self._plane_square(spec.ground.level, self.camera.up, spec.ground.size)
+        _, _, size = self._plane_square(ground.level, self.camera.up, ground.size)
         view = self.camera.position - self.camera.focal_point
-        return GroundShadows(self.pv, self.plotter, self._matrix_class, self.camera.up, spec.ground.level,
+        return GroundShadows(self.pv, self.plotter, self._matrix_class, self.camera.up, ground.level,
                              view / np.linalg.norm(view), lift=3e-3 * size)  # clear of depth-test ties
+
+    def _find_ground(self) -> GroundSpec | None:
+        """The ground drawn: ``render.ground``, or else the first plane collider facing up (drawn as a ground in its
+        own colour, since it is the floor bodies land on)."""
+        if self.render_spec.ground is not None:
+            return self.render_spec.ground
+        up = self.camera.up / np.linalg.norm(self.camera.up)
+        for collider in self.geometry.colliders:
+            if isinstance(collider, PlaneCollider):
+                normal = np.asarray(collider.normal, float) / np.linalg.norm(collider.normal)
+                if float(np.dot(normal, up)) > 1 - 1e-9:
+                    return GroundSpec(level=float(np.dot(collider.point, normal)), size=collider.size,
+                                      **({"color": collider.color} if collider.color else {}))
+        return None
 
     def _configure_quality(self) -> None:
         window = self.plotter.ren_win
@@ -260,25 +284,13 @@ class FrameRenderer:
         return self.pv.Plane(center=origin, direction=up, i_size=side, j_size=side), origin, side
 
     def _add_ground(self) -> None:
-        ground = self.render_spec.ground
+        ground = self._ground
         if ground is None:
             return
-        up = self.camera.up
-        plane, origin, size = self._plane_square(ground.level, up, ground.size)
-        self.plotter.add_mesh(plane, color=ground.color, ambient=0.2)
-        if ground.grid:
-            first, second = plane_axes(up)
-            spacing = nice_spacing(size, 12)
-            ticks = np.arange(-size / 2, size / 2 + 1e-9, spacing)
-            lift = up * 1e-3 * size  # just above the plane, so the lines win the depth test
-            segments = []
-            for offset in ticks:
-                for along, across in ((first, second), (second, first)):
-                    start = origin + lift + along * offset - across * size / 2
-                    segments.append((start, start + across * size))
-            points = np.array(segments).reshape(-1, 3)
-            cells = np.hstack([np.full((len(segments), 1), 2), np.arange(len(points)).reshape(-1, 2)]).ravel()
-            self.plotter.add_mesh(self.pv.PolyData(points, lines=cells), color="#a0a0a0", line_width=1)
+        _, origin, side = self._plane_square(ground.level, self.camera.up, ground.size)
+        StudioGround(self.pv, self.plotter, origin=origin, up=self.camera.up, side=side,
+                     reach=GROUND_REACH * side if ground.fade else side, color=ground.color, grid=ground.grid,
+                     fade=ground.fade, camera=self.camera, backdrop=self._backdrop)
 
     def _add_colliders(self) -> None:
         """Fixed colliders, built once: planes as squares around the motion, boxes, spheres and meshes."""
@@ -314,7 +326,7 @@ class FrameRenderer:
 
     def _is_ground(self, normal: np.ndarray, level: float) -> bool:
         """Whether the plane ``normal · p = level`` is the drawn ground's."""
-        ground = self.render_spec.ground
+        ground = self._ground
         up = self.camera.up / np.linalg.norm(self.camera.up)
         return (ground is not None and float(np.dot(normal, up)) > 1 - 1e-9
                 and abs(level - ground.level) <= 1e-9 * max(1.0, abs(level)))
@@ -335,10 +347,10 @@ class FrameRenderer:
         from vtkmodules.vtkRenderingFreeType import vtkFreeTypeTools  # noqa: F401  (registers the text renderer)
 
         vtkTextRenderer.GetInstance().SetDefaultBackend(vtkTextRenderer.FreeType)
-        red, green, blue = hex_to_rgb(spec.background)
-        text_color = "black" if 0.299 * red + 0.587 * green + 0.114 * blue > 0.5 else "white"
         size = max(8, round(spec.label_size * self.height))  # letters scale with the frame
         right, lower = spec.label_corner.endswith("right"), spec.label_corner.startswith("lower")
+        red, green, blue = backdrop_color(*self._backdrop, np.array(0.05 if lower else 0.95))
+        text_color = "black" if 0.299 * red + 0.587 * green + 0.114 * blue > 0.5 else "white"
         self._label = self.plotter.add_text(self._label_text(0.0), font_size=size, color=text_color,
                                             position=(self.width - size if right else size,
                                                       size if lower else self.height - size))
@@ -357,7 +369,7 @@ class FrameRenderer:
         camera.focal_point = tuple(placement.focal_point)
         camera.up = tuple(placement.up)
         camera.view_angle = placement.view_angle
-        camera.clipping_range = placement.clipping_range
+        self.plotter.renderer.ResetCameraClippingRange()  # near and far around all that is drawn
 
     # ------------------------------------------------------------------ per frame
 

@@ -17,7 +17,7 @@ import numpy as np
 SHADOW_COLOR = "#1e1e24"
 SHADOW_OPACITY = 0.38
 #: The key light's tilt from straight down, towards the camera's right and away from it [rad each].
-KEY_LIGHT_TILT = (0.35, 0.25)
+KEY_LIGHT_TILT = (0.55, 0.45)
 
 
 def key_light_direction(up: np.ndarray, camera_direction: np.ndarray) -> np.ndarray:

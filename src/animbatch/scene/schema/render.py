@@ -93,7 +93,9 @@ class GroundSpec(SceneModel):
     level: float = key(0.0, "Height of the ground along camera.up.", "m")
     size: float | None = key(None, "Side length of the ground square (default: fitted to the motion).", "m", gt=0)
     color: Color = key("#d8d8d8", "Ground colour.")
-    grid: bool = key(True, "Draw grid lines on the ground.")
+    grid: bool = key(True, "Draw grid lines on the ground (a darker shade of its colour, spaced 1, 2 or 5 × 10^k m).")
+    fade: bool = key(True, "Reach out towards the horizon and fade into the backdrop (else a square with hard "
+                           "edges).")
 
 
 #: The numbers a text overlay can show (besides ``{speed[NAME]}``), see :func:`label_speed_names`.
@@ -156,7 +158,14 @@ class RenderSpec(SceneModel):
                                       "(fastest), preview or final (see Render quality).")
     resolution: Annotated[list[Annotated[int, Field(ge=16, le=7680)]], at.Len(2, 2)] = key(
         [1280, 720], "Frame size [width, height]; both even (required by H.264 yuv420p).", "px")
-    background: Color = key("white", "Background colour.")
+    background: Color = key("#eef0f3", "Backdrop colour (at the bottom of the frame when background_top is set).")
+    background_top: Color | None = key("#a9b6c6", "Backdrop colour at the top of the frame, for a vertical "
+                                                   "gradient; null for a plain backdrop. A scene that sets "
+                                                   "background but not this gets a plain backdrop.")
+    lights: Literal["three_point", "light_kit"] = key(
+        "three_point", "Lighting: three_point (a key light that also casts the contact shadows, a fill and a rim "
+                       "light, fixed in the world, so a moving camera sees the bodies lit the same way) or "
+                       "light_kit (VTK's light kit, riding with the camera).")
     anti_aliasing: Literal["fxaa", "msaa", "none"] = key(
         "fxaa", "Edge smoothing: fxaa (default), msaa (smoother, slower) or none (fastest).")
     msaa_samples: int = key(4, "Samples per pixel when anti_aliasing is msaa.", "1", ge=2, le=16)
@@ -216,6 +225,8 @@ class RenderSpec(SceneModel):
         values are checked like the scene's own)."""
         if not isinstance(data, dict):
             return data
+        if "background" in data and "background_top" not in data:  # a colour of one's own: plain, as asked
+            data = {**data, "background_top": None}
         preset = QUALITY_PRESETS.get(data.get("quality", "preview"))
         if preset is None:
             return data  # an unknown quality: reported by the field's own validation

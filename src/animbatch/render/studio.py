@@ -1,0 +1,141 @@
+"""The studio a scene is shot in: a gradient backdrop, a three-point light rig fixed in the world, and a ground that
+shows scale with a grid and fades into the backdrop towards the horizon.
+
+The lights are scene lights (fixed in the world, like the contact shadows' key light), not lights that ride on the
+camera, so that an orbiting or following camera sees the bodies lit and shadowed consistently. The ground's fade is
+a per-vertex colour blend into the backdrop's colour at the height where each vertex appears on screen (through the
+first frame's camera): the ground stays opaque, so it costs no translucent pass, and its edge disappears.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from animbatch.render.camera import CameraPlacement, nice_spacing, plane_axes
+from animbatch.render.colors import hex_to_rgb
+from animbatch.render.shadows import key_light_direction
+
+#: How far the ground reaches, as a multiple of the fitted square around the motion, and where its fade starts and
+#: ends (radii as fractions of that square's side).
+GROUND_REACH = 4.0
+FADE_RADII = (0.6, 1.9)
+#: The grid fades sooner: far away its lines crowd together into a band at the horizon.
+GRID_FADE_RADII = (0.45, 1.2)
+#: Points along each grid line, so that its colour can fade along it.
+GRID_LINE_POINTS = 48
+
+
+@dataclass(frozen=True)
+class RigLight:
+    """One light of the rig: where it shines from (unit vector from the subject towards the light) and how bright."""
+
+    name: str
+    toward_light: np.ndarray
+    intensity: float
+
+
+def three_point_rig(up: np.ndarray, toward_camera: np.ndarray) -> list[RigLight]:
+    """A key light from above, on the camera's side and to its left (the light the contact shadows fall from), a
+    softer fill from the camera's right and low, and a rim light from behind, above and to the right that outlines
+    the bodies against the backdrop. ``up``, ``toward_camera``: unit vectors (from the subject towards the
+    camera)."""
+    up = up / np.linalg.norm(up)
+    level = toward_camera - np.dot(toward_camera, up) * up
+    level = level / np.linalg.norm(level) if np.linalg.norm(level) > 1e-9 else plane_axes(up)[0]
+    right = np.cross(up, level)  # the camera's right, seen from the camera
+
+    def unit(vector: np.ndarray) -> np.ndarray:
+        return vector / np.linalg.norm(vector)
+
+    return [RigLight("key", -key_light_direction(up, toward_camera), 0.8),
+            RigLight("fill", unit(level + 0.9 * right + 0.35 * up), 0.4),
+            RigLight("rim", unit(-level + 0.4 * right + 0.8 * up), 0.3)]
+
+
+def add_lights(pv: Any, plotter: Any, rig: list[RigLight], focal: np.ndarray, distance: float) -> None:
+    """Add the rig as directional scene lights aimed at ``focal`` [m]."""
+    for light in rig:
+        plotter.add_light(pv.Light(position=tuple(focal + distance * light.toward_light), focal_point=tuple(focal),
+                                   intensity=light.intensity, light_type="scene light", positional=False))
+
+
+def backdrop_color(bottom: np.ndarray, top: np.ndarray | None, height: np.ndarray) -> np.ndarray:
+    """The backdrop's colour (…, 3) in 0…1 at screen ``height`` (…,), 0 at the bottom edge and 1 at the top."""
+    if top is None:
+        return np.broadcast_to(bottom, (*np.shape(height), 3)).copy()
+    fraction = np.clip(height, 0.0, 1.0)[..., None]
+    return bottom * (1 - fraction) + top * fraction
+
+
+def screen_height(camera: CameraPlacement, points: np.ndarray) -> np.ndarray:
+    """Where ``points`` (…, 3) [m] appear on screen through ``camera``: 0 at the bottom edge, 1 at the top (points
+    behind the camera count as the top, the sky)."""
+    forward = camera.focal_point - camera.position
+    forward = forward / np.linalg.norm(forward)
+    right = np.cross(forward, camera.up)
+    right /= np.linalg.norm(right)
+    screen_up = np.cross(right, forward)
+    relative = points - camera.position
+    depth = relative @ forward
+    tangent = math.tan(math.radians(camera.view_angle) / 2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        height = 0.5 + 0.5 * (relative @ screen_up) / (np.maximum(depth, 1e-12) * tangent)
+    return np.where(depth > 0, height, 1.0)
+
+
+def smoothstep(edge0: float, edge1: float, x: np.ndarray) -> np.ndarray:
+    t = np.clip((x - edge0) / (edge1 - edge0), 0.0, 1.0)
+    return t * t * (3 - 2 * t)
+
+
+class StudioGround:
+    """The ground: an opaque square around the motion, with an optional grid, both fading into the backdrop."""
+
+    def __init__(self, pv: Any, plotter: Any, *, origin: np.ndarray, up: np.ndarray, side: float, reach: float,
+                 color: str, grid: bool, fade: bool, camera: CameraPlacement, backdrop: tuple[np.ndarray, Any]
+                 ) -> None:
+        """``side`` [m]: the square around the motion that the grid's spacing is chosen for; ``reach`` [m]: the
+        side of the drawn ground (fading out from 0.6 to 1.9 ``side`` from the centre when ``fade``)."""
+        first, second = plane_axes(up)
+        self.origin, self.side, self.reach = origin, side, reach
+        resolution = 96 if fade else 1
+        plane = pv.Plane(center=origin, direction=up, i_size=reach, j_size=reach, i_resolution=resolution,
+                         j_resolution=resolution)
+        base = np.asarray(hex_to_rgb(color))
+        plane.point_data["rgb"] = self._faded(np.asarray(plane.points), base, fade, camera, backdrop, FADE_RADII)
+        # unlit: directional lights shade a flat plane evenly anyway, and its faded rim must match the backdrop
+        plotter.add_mesh(plane, scalars="rgb", rgb=True, show_scalar_bar=False, lighting=False)
+        if grid:
+            spacing = nice_spacing(side, 12)
+            half = reach / 2
+            ticks = np.arange(-math.floor(half / spacing), math.floor(half / spacing) + 1) * spacing
+            lift = up * 1e-3 * side  # just above the plane, so the lines win the depth test
+            along = np.linspace(-half, half, GRID_LINE_POINTS)
+            lines = []
+            for offset in ticks:
+                for axis, across in ((first, second), (second, first)):
+                    lines.append(origin + lift + axis * offset + along[:, None] * across)
+            points = np.concatenate(lines)
+            count = len(lines)
+            index = np.arange(count * GRID_LINE_POINTS).reshape(count, GRID_LINE_POINTS)
+            cells = np.concatenate([np.full((count, 1), GRID_LINE_POINTS), index], axis=1).ravel()
+            mesh = pv.PolyData(points, lines=cells)
+            line_color = base * 0.72  # a darker shade of the ground: subtle, in any ground colour
+            mesh.point_data["rgb"] = self._faded(points, line_color, fade, camera, backdrop, GRID_FADE_RADII)
+            plotter.add_mesh(mesh, scalars="rgb", rgb=True, show_scalar_bar=False, line_width=1, lighting=False)
+
+    def _faded(self, points: np.ndarray, color: np.ndarray, fade: bool, camera: CameraPlacement,
+               backdrop: tuple[np.ndarray, Any], radii: tuple[float, float]) -> np.ndarray:
+        """Per-point colours (K, 3) uint8: ``color`` near the centre, the backdrop behind each point towards the
+        edge."""
+        colors = np.broadcast_to(color, (len(points), 3)).astype(float)
+        if fade:
+            radius = np.linalg.norm(points - self.origin, axis=1)
+            weight = smoothstep(radii[0] * self.side, radii[1] * self.side, radius)[:, None]
+            behind = backdrop_color(*backdrop, screen_height(camera, points))
+            colors = colors * (1 - weight) + behind * weight
+        return np.round(255 * np.clip(colors, 0, 1)).astype(np.uint8)
