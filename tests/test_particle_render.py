@@ -110,3 +110,17 @@ def test_many_particles_make_no_mesh_per_particle(polydata_built):
         draw(loaded, [0, 1])
         counts.append(len(built))
     assert counts[0] == counts[1]
+
+
+def test_glowing_sprites_add_their_light_where_they_overlap():
+    """Sprites are emitted light: four dim particles in one spot are several times as bright as one (additive
+    blending), where ordinary alpha blending would leave a stack of opaque dim particles as dim as one."""
+    one_spot = STILL.replace("source: {{type: box, size: [1.2, 0.6, 0.01]}}", "source: {{type: point}}")
+    centres = []
+    for count in (1, 4):
+        text = one_spot.format(duration=0.1, style="sprite", size="[1]", opacity="[1]")
+        loaded = scene(text.replace("count: 40", f"count: {count}").replace("color: white", 'color: "#303030"'))
+        (image,) = draw(loaded, [0])
+        centres.append(float(image.astype(float).sum(axis=2).max()))
+    assert centres[0] > 20
+    assert centres[1] > 2.5 * centres[0], centres

@@ -11,8 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.render.colors import MESH_SPRING_COLOR, PALETTE, SPRING_COLOR, darker
-from animbatch.render.geometry import BodyPath, FrameGeometry, TrailPaths, mesh_key
+from animbatch.materials import BUILT_IN_LOOKS
+from animbatch.render.colors import COLLIDER_COLOR, MESH_SPRING_COLOR, PALETTE, SPRING_COLOR, darker
+from animbatch.render.geometry import BodyPath, Finish, FrameGeometry, TrailPaths, mesh_key
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (
     BoxCollider,
@@ -73,7 +74,8 @@ def frame_geometry(spec: SceneSpec, model: Model, bounds: np.ndarray, largest_ve
     bodies' positions (F, P, 3) [m] at the frame times (F,) [s], which trails follow."""
     # palette colours follow the scene's order of bodies; the model orders them particles first
     by_name = {body.name: (index, body) for index, body in enumerate(spec.bodies)}
-    colors = [by_name[name][1].color or PALETTE[by_name[name][0] % len(PALETTE)] for name in model.owners]
+    looks = {body.name: surface_look(spec, body) for body in spec.bodies}
+    colors = [looks[name][0] or PALETTE[by_name[name][0] % len(PALETTE)] for name in model.owners]
     n, rigid, springs = model.particle_count, model.rigid, model.springs
     extents = body_extents(model)
     none = np.zeros(0, np.intp)
@@ -98,7 +100,7 @@ def frame_geometry(spec: SceneSpec, model: Model, bounds: np.ndarray, largest_ve
         drawn_particles = np.array([owner not in names for owner in owners], bool)
         for body in deformables.bodies:
             index, body_spec = by_name[body.name]
-            front = body_spec.color or PALETTE[index % len(PALETTE)]
+            front = looks[body.name][0] or PALETTE[index % len(PALETTE)]
             back = getattr(body_spec, "back_color", None) or darker(front)
             surface_colors.append((front, back))
     segments, points = controller_targets(model)
@@ -112,7 +114,26 @@ def frame_geometry(spec: SceneSpec, model: Model, bounds: np.ndarray, largest_ve
                          np.asarray(model.anchor_visible), drawn_particles, deformables, tuple(surface_colors),
                          segments, points, emitters, _mesh_files(spec, scene_dir),
                          trail_paths(spec, model, colors, motion) if motion is not None else None,
-                         followed=followed_path(spec, model, motion) if motion is not None else None)
+                         followed=followed_path(spec, model, motion) if motion is not None else None,
+                         finishes=tuple(looks[name][1] for name in model.owners),
+                         surface_finishes=tuple(looks[body.name][1] for body in deformables.bodies)
+                         if deformables is not None else (),
+                         collider_looks=tuple((look[0] or COLLIDER_COLOR, look[1]) for look in
+                                              (surface_look(spec, c) for c in spec.colliders if c.visible)))
+
+
+def surface_look(spec: SceneSpec, item: Any) -> tuple[str | None, Finish | None]:
+    """The colour and physically based finish of a body or collider: its own keys first, then its material's (from
+    the scene's materials, or the built-in table); a finish only when either gives metallic or roughness."""
+    material: Any = spec.materials.get(item.material) or BUILT_IN_LOOKS.get(item.material)
+    def own_or_material(name: str) -> Any:
+        value = getattr(item, name, None)
+        return value if value is not None else getattr(material, name, None)
+
+    metallic, roughness = own_or_material("metallic"), own_or_material("roughness")
+    finish = None if metallic is None and roughness is None else (
+        float(metallic if metallic is not None else 0.0), float(roughness if roughness is not None else 0.5))
+    return own_or_material("color"), finish
 
 
 def _own_bodies(model: Model) -> dict[str, int]:

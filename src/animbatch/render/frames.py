@@ -32,10 +32,18 @@ from animbatch.render.colors import (
     hex_to_rgb,
 )
 from animbatch.render.emitted import EmitterLayer
-from animbatch.render.geometry import FrameGeometry
+from animbatch.render.geometry import Finish, FrameGeometry
 from animbatch.render.shadows import GroundShadows
 from animbatch.render.shapes import arrow_basis, shape_mesh, vertex_normals
-from animbatch.render.studio import GROUND_REACH, StudioGround, add_lights, backdrop_color, three_point_rig
+from animbatch.render.studio import (
+    GROUND_REACH,
+    StudioGround,
+    add_lights,
+    backdrop_color,
+    environment_faces,
+    three_point_rig,
+    use_environment,
+)
 from animbatch.render.trails import TrailLayer
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (
@@ -86,6 +94,7 @@ class FrameRenderer:
             add_lights(self.pv, self.plotter, three_point_rig(self.camera.up, view / np.linalg.norm(view)),
                        self.camera.focal_point, float(np.linalg.norm(view)))
         self._ground = self._find_ground()
+        self._environment = False  # set up when the first physically based surface needs it
         self._add_ground()
         self._shadows = self._make_shadows()
         self._add_colliders()
@@ -128,6 +137,23 @@ class FrameRenderer:
                                       **({"color": collider.color} if collider.color else {}))
         return None
 
+    def _finish(self, body: int) -> Finish | None:
+        finishes = self.geometry.finishes
+        return finishes[body] if finishes else None
+
+    def _shading(self, finish: Finish | None) -> dict[str, Any]:
+        """How add_mesh shades a surface: physically based with a finish (lit by the studio's environment too),
+        else plain Phong shading with a small highlight."""
+        if finish is None:
+            return {"smooth_shading": True, "specular": 0.3, "specular_power": 20}
+        if not self._environment:
+            ground = self._ground.color if self._ground is not None else self.render_spec.background
+            use_environment(self.pv, self.plotter, environment_faces(self.camera.up, self._backdrop,
+                                                                     np.asarray(hex_to_rgb(ground))))
+            self._environment = True
+        metallic, roughness = finish
+        return {"smooth_shading": True, "pbr": True, "metallic": metallic, "roughness": roughness}
+
     def _configure_quality(self) -> None:
         window = self.plotter.ren_win
         mode = self.render_spec.anti_aliasing
@@ -156,10 +182,10 @@ class FrameRenderer:
             self._cloud = cloud
         elif count:
             resolution = spec.sphere_resolution
-            for radius, color in zip(geometry.particle_radius[self._drawn], colors):
+            finishes = [self._finish(k) for k in self._drawn]
+            for radius, color, finish in zip(geometry.particle_radius[self._drawn], colors, finishes):
                 sphere = self.pv.Sphere(radius=float(radius), theta_resolution=resolution, phi_resolution=resolution)
-                self._particle_actors.append(self.plotter.add_mesh(sphere, color=color, smooth_shading=True,
-                                                                   specular=0.3, specular_power=20))
+                self._particle_actors.append(self.plotter.add_mesh(sphere, color=color, **self._shading(finish)))
                 if self._shadows is not None:  # sprites (many particles) cast none
                     self._particle_shadows.append(self._shadows.add(sphere))
 
@@ -174,7 +200,8 @@ class FrameRenderer:
         self._surfaces = []
         if geometry.deformables is None:
             return
-        for body, (front, back) in zip(geometry.deformables.bodies, geometry.surface_colors):
+        finishes = geometry.surface_finishes or (None,) * len(geometry.surface_colors)
+        for body, (front, back), finish in zip(geometry.deformables.bodies, geometry.surface_colors, finishes):
             start = body.vertices.start
             triangles = body.triangles - start
             points = np.zeros((body.vertices.stop - start, 3))
@@ -182,9 +209,11 @@ class FrameRenderer:
             mesh = self.pv.PolyData(points, faces)
             mesh.point_data["Normals"] = np.zeros_like(points)
             mesh.point_data.active_normals_name = "Normals"
-            actor = self.plotter.add_mesh(mesh, color=front, smooth_shading=False, specular=0.15,
-                                          opacity=self.render_spec.surface_opacity)
-            actor.prop.interpolation = "gouraud"  # shade with our normals, smoothly
+            shading = self._shading(finish) if finish is not None else {"specular": 0.15}
+            actor = self.plotter.add_mesh(mesh, color=front, opacity=self.render_spec.surface_opacity,
+                                          **{**shading, "smooth_shading": False})
+            if finish is None:
+                actor.prop.interpolation = "gouraud"  # shade with our normals, smoothly
             back_side = actor.prop.copy()
             back_side.color = back
             actor.SetBackfaceProperty(back_side)
@@ -202,8 +231,8 @@ class FrameRenderer:
             # split vertices at sharp edges so boxes stay crisp while spheres and cylinders look smooth
             mesh = mesh.compute_normals(split_vertices=True, feature_angle=40.0)
             matrix = self._matrix_class()
-            actor = self.plotter.add_mesh(mesh, color=geometry.colors[first + b], smooth_shading=True,
-                                          specular=0.3, specular_power=20)
+            actor = self.plotter.add_mesh(mesh, color=geometry.colors[first + b],
+                                          **self._shading(self._finish(first + b)))
             actor.SetUserMatrix(matrix)
             if spec.show_axes:
                 length = 1.3 * float(geometry.rigid_extent[b])
@@ -295,8 +324,9 @@ class FrameRenderer:
     def _add_colliders(self) -> None:
         """Fixed colliders, built once: planes as squares around the motion, boxes, spheres and meshes."""
 
-        for collider in self.geometry.colliders:
-            color = collider.color or COLLIDER_COLOR
+        colliders = self.geometry.colliders
+        looks = self.geometry.collider_looks or tuple((c.color or COLLIDER_COLOR, None) for c in colliders)
+        for collider, (color, finish) in zip(colliders, looks):
             if isinstance(collider, PlaneCollider):
                 normal = np.asarray(collider.normal, float) / np.linalg.norm(collider.normal)
                 level = float(np.dot(collider.point, normal))
@@ -322,7 +352,8 @@ class FrameRenderer:
             else:  # pragma: no cover - every collider type is drawn above
                 continue
             mesh = mesh.compute_normals(split_vertices=True, feature_angle=40.0)
-            self.plotter.add_mesh(mesh, color=color, smooth_shading=True, ambient=0.15)
+            shading = self._shading(finish) if finish is not None else {"smooth_shading": True, "ambient": 0.15}
+            self.plotter.add_mesh(mesh, color=color, **shading)
 
     def _is_ground(self, normal: np.ndarray, level: float) -> bool:
         """Whether the plane ``normal · p = level`` is the drawn ground's."""

@@ -9,6 +9,9 @@ from typing import Any
 
 import numpy as np
 
+#: A physically based finish: (metallic, roughness), each in 0…1; None draws with plain (Phong) shading.
+Finish = tuple[float, float]
+
 
 def nearest_frame(times: np.ndarray, t: float) -> int:
     """The index of the frame time (F,) [s] nearest to ``t`` [s] (0 without frames)."""
@@ -93,6 +96,9 @@ class FrameGeometry:
     trails: TrailPaths | None = None
     label: LabelValues | None = None
     followed: BodyPath | None = None  # the body the camera follows
+    finishes: tuple[Finish | None, ...] = ()  # (P,) per body in model order, like colors
+    surface_finishes: tuple[Finish | None, ...] = ()  # per deformable body, like surface_colors
+    collider_looks: tuple[tuple[str, Finish | None], ...] = ()  # (colour, finish) per drawn collider
 
 
 def mesh_key(shape: Any) -> tuple[str, str]:

@@ -146,9 +146,13 @@ def _digest(path: Path) -> str:
         return "missing"
 
 
+#: Keys that change how a thing looks and never how it moves (``look``: an emitter's particles').
+LOOK_KEYS = ("color", "look", "metallic", "roughness")
+
+
 def _without_colors(value: Any) -> Any:
     if isinstance(value, dict):
-        return {k: _without_colors(v) for k, v in value.items() if k not in ("color", "look")}  # emitters' look
+        return {k: _without_colors(v) for k, v in value.items() if k not in LOOK_KEYS}
     if isinstance(value, list):
         return [_without_colors(v) for v in value]
     return value

@@ -23,7 +23,12 @@ class ParticleSpec(SceneModel):
                                     "teflon, wood, ice, oiled_steel, default) or one from 'materials'.")
     collide: bool = key(True, "Take part in collisions (when the scene has colliders or a 'contacts' section).")
     color: Color | None = key(None, "Display colour: CSS name, '#rrggbb' or [r, g, b] in 0..1 "
-                                    "(default: from a palette, by body index).", example="tomato")
+                                    "(default: its material's colour, else from a palette, by body index).",
+                              example="tomato")
+    metallic: float | None = key(None, "Physically based look: 0 a dielectric (plastic, paint, wood), 1 a metal "
+                                         "(default: its material's, else plain shading).", "1", ge=0, le=1)
+    roughness: float | None = key(None, "Physically based look: 0 mirror-smooth, 1 fully matte (default: its "
+                                          "material's, else plain shading).", "1", ge=0, le=1)
 
 
 Interpolation = Literal["linear", "cubic"]

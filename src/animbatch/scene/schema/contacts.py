@@ -20,6 +20,12 @@ class MaterialSpec(SceneModel):
                                  ge=0)
     kinetic_friction: float = key(description="Kinetic friction coefficient μk: |f| = μk N while sliding.", unit="1",
                                   ge=0)
+    color: Color | None = key(None, "How bodies of this material look when they give no colour of their own "
+                                    "(display only).")
+    metallic: float | None = key(None, "Physically based look of bodies of this material: 0 a dielectric, 1 a metal "
+                                       "(display only).", "1", ge=0, le=1)
+    roughness: float | None = key(None, "Physically based look of bodies of this material: 0 mirror-smooth, 1 fully "
+                                        "matte (display only).", "1", ge=0, le=1)
 
     @model_validator(mode="after")
     def _kinetic_not_above_static(self) -> "MaterialSpec":
@@ -41,7 +47,11 @@ class MaterialPairSpec(SceneModel):
 
 class _ColliderBase(SceneModel):
     material: Name = key("default", "Material of the surface (built-in or from 'materials').")
-    color: Color | None = key(None, "Display colour (default light grey).")
+    color: Color | None = key(None, "Display colour (default: its material's colour, else light grey).")
+    metallic: float | None = key(None, "Physically based look: 0 a dielectric (plastic, paint, wood), 1 a metal "
+                                         "(default: its material's, else plain shading).", "1", ge=0, le=1)
+    roughness: float | None = key(None, "Physically based look: 0 mirror-smooth, 1 fully matte (default: its "
+                                          "material's, else plain shading).", "1", ge=0, le=1)
     visible: bool = key(True, "Draw it.")
 
 

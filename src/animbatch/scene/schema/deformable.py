@@ -111,7 +111,12 @@ class _DeformableBase(SceneModel):
                                      "length).", "m", gt=0)
     material: Name = key("default", "Material, for collisions and friction.")
     collide: bool = key(True, "Take part in collisions (its vertices never collide with each other).")
-    color: Color | None = key(None, "Display colour (default: from a palette, by body index).")
+    color: Color | None = key(None, "Display colour (default: its material's colour, else from a palette, by body "
+                                    "index).")
+    metallic: float | None = key(None, "Physically based look: 0 a dielectric (plastic, paint, wood), 1 a metal "
+                                         "(default: its material's, else plain shading).", "1", ge=0, le=1)
+    roughness: float | None = key(None, "Physically based look: 0 mirror-smooth, 1 fully matte (default: its "
+                                          "material's, else plain shading).", "1", ge=0, le=1)
 
 
 class ClothSpec(_DeformableBase):

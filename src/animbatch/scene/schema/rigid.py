@@ -142,7 +142,12 @@ class RigidBodySpec(SceneModel):
     angular_velocity: Vec3 = key([0.0, 0.0, 0.0], "Initial angular velocity ω, world axes.", "rad/s")
     material: Name = key("default", "Material, for collisions (see the particle's 'material').")
     collide: bool = key(True, "Take part in collisions (when the scene has colliders or a 'contacts' section).")
-    color: Color | None = key(None, "Display colour (default: from a palette, by body index).")
+    color: Color | None = key(None, "Display colour (default: its material's colour, else from a palette, by body "
+                                    "index).")
+    metallic: float | None = key(None, "Physically based look: 0 a dielectric (plastic, paint, wood), 1 a metal "
+                                         "(default: its material's, else plain shading).", "1", ge=0, le=1)
+    roughness: float | None = key(None, "Physically based look: 0 mirror-smooth, 1 fully matte (default: its "
+                                          "material's, else plain shading).", "1", ge=0, le=1)
 
     @model_validator(mode="after")
     def _mass_given_once(self) -> "RigidBodySpec":
