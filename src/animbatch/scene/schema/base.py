@@ -78,3 +78,15 @@ Color = Annotated[
                               {"type": "array", "items": {"type": "number", "minimum": 0, "maximum": 1},
                                "minItems": 3, "maxItems": 3}]}),
 ]
+
+
+def metallic_key() -> Any:
+    """The ``metallic`` key of a body or collider (display only)."""
+    return key(None, "Physically based look: 0 a dielectric (plastic, paint, wood), 1 a metal (default: its "
+                     "material's, else plain shading).", "1", ge=0, le=1)
+
+
+def roughness_key() -> Any:
+    """The ``roughness`` key of a body or collider (display only)."""
+    return key(None, "Physically based look: 0 mirror-smooth, 1 fully matte (default: its material's, else plain "
+                     "shading).", "1", ge=0, le=1)

@@ -7,7 +7,7 @@ from typing import Annotated, Any, Literal
 import annotated_types as at
 from pydantic import AfterValidator, model_validator
 
-from animbatch.scene.schema.base import Color, Name, SceneModel, Vec3, key, rule_error
+from animbatch.scene.schema.base import Color, Name, SceneModel, Vec3, key, metallic_key, roughness_key, rule_error
 
 
 class ParticleSpec(SceneModel):
@@ -25,10 +25,8 @@ class ParticleSpec(SceneModel):
     color: Color | None = key(None, "Display colour: CSS name, '#rrggbb' or [r, g, b] in 0..1 "
                                     "(default: its material's colour, else from a palette, by body index).",
                               example="tomato")
-    metallic: float | None = key(None, "Physically based look: 0 a dielectric (plastic, paint, wood), 1 a metal "
-                                         "(default: its material's, else plain shading).", "1", ge=0, le=1)
-    roughness: float | None = key(None, "Physically based look: 0 mirror-smooth, 1 fully matte (default: its "
-                                          "material's, else plain shading).", "1", ge=0, le=1)
+    metallic: float | None = metallic_key()
+    roughness: float | None = roughness_key()
 
 
 Interpolation = Literal["linear", "cubic"]

@@ -7,7 +7,18 @@ from typing import Annotated, Literal, Union
 import annotated_types as at
 from pydantic import Field, model_validator
 
-from animbatch.scene.schema.base import Color, Name, NonZeroVec3, PositiveVec3, SceneModel, Vec3, key, rule_error
+from animbatch.scene.schema.base import (
+    Color,
+    Name,
+    NonZeroVec3,
+    PositiveVec3,
+    SceneModel,
+    Vec3,
+    key,
+    metallic_key,
+    roughness_key,
+    rule_error,
+)
 from animbatch.scene.schema.rigid import OrientationSpec
 
 
@@ -48,10 +59,8 @@ class MaterialPairSpec(SceneModel):
 class _ColliderBase(SceneModel):
     material: Name = key("default", "Material of the surface (built-in or from 'materials').")
     color: Color | None = key(None, "Display colour (default: its material's colour, else light grey).")
-    metallic: float | None = key(None, "Physically based look: 0 a dielectric (plastic, paint, wood), 1 a metal "
-                                         "(default: its material's, else plain shading).", "1", ge=0, le=1)
-    roughness: float | None = key(None, "Physically based look: 0 mirror-smooth, 1 fully matte (default: its "
-                                          "material's, else plain shading).", "1", ge=0, le=1)
+    metallic: float | None = metallic_key()
+    roughness: float | None = roughness_key()
     visible: bool = key(True, "Draw it.")
 
 

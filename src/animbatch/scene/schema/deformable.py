@@ -7,7 +7,17 @@ from typing import Annotated, Any, Literal, Union
 import annotated_types as at
 from pydantic import Discriminator, Field, Tag, field_validator, model_validator
 
-from animbatch.scene.schema.base import Color, Name, PositiveVec3, SceneModel, Vec3, key, rule_error
+from animbatch.scene.schema.base import (
+    Color,
+    Name,
+    PositiveVec3,
+    SceneModel,
+    Vec3,
+    key,
+    metallic_key,
+    roughness_key,
+    rule_error,
+)
 from animbatch.scene.schema.bodies import Interpolation, ParticleSpec, _keyframe_list
 from animbatch.scene.schema.rigid import OrientationSpec, RigidBodySpec
 
@@ -113,10 +123,8 @@ class _DeformableBase(SceneModel):
     collide: bool = key(True, "Take part in collisions (its vertices never collide with each other).")
     color: Color | None = key(None, "Display colour (default: its material's colour, else from a palette, by body "
                                     "index).")
-    metallic: float | None = key(None, "Physically based look: 0 a dielectric (plastic, paint, wood), 1 a metal "
-                                         "(default: its material's, else plain shading).", "1", ge=0, le=1)
-    roughness: float | None = key(None, "Physically based look: 0 mirror-smooth, 1 fully matte (default: its "
-                                          "material's, else plain shading).", "1", ge=0, le=1)
+    metallic: float | None = metallic_key()
+    roughness: float | None = roughness_key()
 
 
 class ClothSpec(_DeformableBase):

@@ -7,7 +7,17 @@ from typing import Annotated, Literal, Union
 import annotated_types as at
 from pydantic import Field, field_validator, model_validator
 
-from animbatch.scene.schema.base import Color, Name, PositiveVec3, SceneModel, Vec3, key, rule_error
+from animbatch.scene.schema.base import (
+    Color,
+    Name,
+    PositiveVec3,
+    SceneModel,
+    Vec3,
+    key,
+    metallic_key,
+    roughness_key,
+    rule_error,
+)
 
 
 class SphereShape(SceneModel):
@@ -144,10 +154,8 @@ class RigidBodySpec(SceneModel):
     collide: bool = key(True, "Take part in collisions (when the scene has colliders or a 'contacts' section).")
     color: Color | None = key(None, "Display colour (default: its material's colour, else from a palette, by body "
                                     "index).")
-    metallic: float | None = key(None, "Physically based look: 0 a dielectric (plastic, paint, wood), 1 a metal "
-                                         "(default: its material's, else plain shading).", "1", ge=0, le=1)
-    roughness: float | None = key(None, "Physically based look: 0 mirror-smooth, 1 fully matte (default: its "
-                                          "material's, else plain shading).", "1", ge=0, le=1)
+    metallic: float | None = metallic_key()
+    roughness: float | None = roughness_key()
 
     @model_validator(mode="after")
     def _mass_given_once(self) -> "RigidBodySpec":
