@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from animbatch import __version__
+from animbatch.compile.arrows import arrow_series
 from animbatch.compile.checks import compile_checks
 from animbatch.compile.frame_geometry import body_extents, collider_points
 from animbatch.compile.frame_geometry import frame_geometry as compile_frame_geometry
@@ -188,7 +189,11 @@ def frame_geometry(scene: LoadedScene, model: Model, trajectory: Trajectory) -> 
     geometry = compile_frame_geometry(spec, model, bounds,
                                       largest_vector(model, trajectory, spec.render.show_vectors),
                                       scene_folder(scene), emitters, (trajectory.positions, trajectory.times))
-    return dataclasses.replace(geometry, label=label_values(scene, model, trajectory))
+    arrows = None
+    if spec.render.arrows is not None:
+        arrows = arrow_series(spec, model, trajectory_states(model, trajectory), np.asarray(trajectory.times),
+                              np.asarray(trajectory.velocities), bounds)
+    return dataclasses.replace(geometry, label=label_values(scene, model, trajectory), arrows=arrows)
 
 
 def label_values(scene: LoadedScene, model: Model, trajectory: Trajectory) -> LabelValues:

@@ -22,3 +22,13 @@ def hex_to_rgb(color: str) -> tuple[float, float, float]:
 def darker(color: str, factor: float = 0.7) -> str:
     """The same hue, darker (for the back of a cloth)."""
     return "#{:02x}{:02x}{:02x}".format(*(round(255 * factor * c) for c in hex_to_rgb(color)))
+
+
+def linear_rgb(color: str) -> tuple[float, float, float]:
+    """``'#rrggbb'`` (sRGB, as colours are written) -> linear (r, g, b) in 0…1, what VTK's physically based shading
+    takes: it lights in linear space and gamma-encodes its output, so an sRGB colour passed as is comes out pale."""
+    def decode(channel: float) -> float:
+        return channel / 12.92 if channel <= 0.04045 else ((channel + 0.055) / 1.055) ** 2.4
+
+    red, green, blue = hex_to_rgb(color)
+    return decode(red), decode(green), decode(blue)

@@ -22,6 +22,7 @@ import numpy as np
 
 from animbatch import quaternion
 from animbatch.errors import RenderError
+from animbatch.render.arrows import ArrowLayer
 from animbatch.render.backend import Backend, activate
 from animbatch.render.camera import CameraPath, CameraPlacement, plane_axes
 from animbatch.render.colors import (
@@ -30,6 +31,7 @@ from animbatch.render.colors import (
     COLLIDER_COLOR,
     TARGET_COLOR,
     hex_to_rgb,
+    linear_rgb,
 )
 from animbatch.render.emitted import EmitterLayer
 from animbatch.render.geometry import Finish, FrameGeometry
@@ -102,6 +104,7 @@ class FrameRenderer:
         self._add_particles()
         self._add_emitted()
         self._trails = TrailLayer(self.pv, self.plotter, geometry.trails) if geometry.trails is not None else None
+        self._arrows = ArrowLayer(self.pv, self.plotter, geometry.arrows) if geometry.arrows else None
         self._add_surfaces()
         self._add_rigid_bodies()
         self._add_springs()
@@ -141,18 +144,19 @@ class FrameRenderer:
         finishes = self.geometry.finishes
         return finishes[body] if finishes else None
 
-    def _shading(self, finish: Finish | None) -> dict[str, Any]:
-        """How add_mesh shades a surface: physically based with a finish (lit by the studio's environment too),
-        else plain Phong shading with a small highlight."""
+    def _shading(self, finish: Finish | None, color: str) -> dict[str, Any]:
+        """How add_mesh shades a surface of ``color``: physically based with a finish (lit by the studio's
+        environment too; the colour in linear RGB), else plain Phong shading with a small highlight."""
         if finish is None:
-            return {"smooth_shading": True, "specular": 0.3, "specular_power": 20}
+            return {"color": color, "smooth_shading": True, "specular": 0.3, "specular_power": 20}
         if not self._environment:
             ground = self._ground.color if self._ground is not None else self.render_spec.background
             use_environment(self.pv, self.plotter, environment_faces(self.camera.up, self._backdrop,
                                                                      np.asarray(hex_to_rgb(ground))))
             self._environment = True
         metallic, roughness = finish
-        return {"smooth_shading": True, "pbr": True, "metallic": metallic, "roughness": roughness}
+        return {"color": linear_rgb(color), "smooth_shading": True, "pbr": True, "metallic": metallic,
+                "roughness": roughness}
 
     def _configure_quality(self) -> None:
         window = self.plotter.ren_win
@@ -185,7 +189,7 @@ class FrameRenderer:
             finishes = [self._finish(k) for k in self._drawn]
             for radius, color, finish in zip(geometry.particle_radius[self._drawn], colors, finishes):
                 sphere = self.pv.Sphere(radius=float(radius), theta_resolution=resolution, phi_resolution=resolution)
-                self._particle_actors.append(self.plotter.add_mesh(sphere, color=color, **self._shading(finish)))
+                self._particle_actors.append(self.plotter.add_mesh(sphere, **self._shading(finish, color)))
                 if self._shadows is not None:  # sprites (many particles) cast none
                     self._particle_shadows.append(self._shadows.add(sphere))
 
@@ -209,8 +213,8 @@ class FrameRenderer:
             mesh = self.pv.PolyData(points, faces)
             mesh.point_data["Normals"] = np.zeros_like(points)
             mesh.point_data.active_normals_name = "Normals"
-            shading = self._shading(finish) if finish is not None else {"specular": 0.15}
-            actor = self.plotter.add_mesh(mesh, color=front, opacity=self.render_spec.surface_opacity,
+            shading = self._shading(finish, front) if finish is not None else {"color": front, "specular": 0.15}
+            actor = self.plotter.add_mesh(mesh, opacity=self.render_spec.surface_opacity,
                                           **{**shading, "smooth_shading": False})
             if finish is None:
                 actor.prop.interpolation = "gouraud"  # shade with our normals, smoothly
@@ -231,8 +235,7 @@ class FrameRenderer:
             # split vertices at sharp edges so boxes stay crisp while spheres and cylinders look smooth
             mesh = mesh.compute_normals(split_vertices=True, feature_angle=40.0)
             matrix = self._matrix_class()
-            actor = self.plotter.add_mesh(mesh, color=geometry.colors[first + b],
-                                          **self._shading(self._finish(first + b)))
+            actor = self.plotter.add_mesh(mesh, **self._shading(self._finish(first + b), geometry.colors[first + b]))
             actor.SetUserMatrix(matrix)
             if spec.show_axes:
                 length = 1.3 * float(geometry.rigid_extent[b])
@@ -352,8 +355,9 @@ class FrameRenderer:
             else:  # pragma: no cover - every collider type is drawn above
                 continue
             mesh = mesh.compute_normals(split_vertices=True, feature_angle=40.0)
-            shading = self._shading(finish) if finish is not None else {"smooth_shading": True, "ambient": 0.15}
-            self.plotter.add_mesh(mesh, color=color, **shading)
+            shading = (self._shading(finish, color) if finish is not None
+                       else {"color": color, "smooth_shading": True, "ambient": 0.15})
+            self.plotter.add_mesh(mesh, **shading)
 
     def _is_ground(self, normal: np.ndarray, level: float) -> bool:
         """Whether the plane ``normal · p = level`` is the drawn ground's."""
@@ -467,6 +471,8 @@ class FrameRenderer:
             self._spring_mesh.GetPoints().Modified()
         if self._trails is not None:
             self._trails.update(t)
+        if self._arrows is not None:
+            self._arrows.update(t, positions)
         if self._label is not None:
             self._label.SetInput(self._label_text(t))
         if self.camera_path.moves:

@@ -42,6 +42,24 @@ class BodyPath:
 
 
 @dataclass(frozen=True)
+class ArrowSeries:
+    """Arrows from bodies' centres of mass at every frame: for each quantity ``names[k]`` (drawn in ``colors[k]``,
+    measured in ``units[k]``), ``vectors[k]`` (F, A, 3) at ``times`` (F,) [s] for the bodies ``bodies`` (A,) (indices
+    into the positions drawn), drawn ``scales[k]`` metres long per unit, so that a quantity's typical longest arrow
+    is ``length`` [m] long; with a legend if ``legend``."""
+
+    times: np.ndarray
+    bodies: np.ndarray
+    names: tuple[str, ...]
+    colors: tuple[str, ...]
+    units: tuple[str, ...]
+    vectors: tuple[np.ndarray, ...]
+    scales: tuple[float, ...]
+    length: float
+    legend: bool = True
+
+
+@dataclass(frozen=True)
 class LabelValues:
     """What a text overlay can show at each frame: ``times`` (F,) [s], the frames per second, and per-frame series
     (F,) by name: energies ``E``, ``KE``, ``PE`` [J] when the label asks for them, and ``speeds`` [m/s] of the
@@ -96,6 +114,7 @@ class FrameGeometry:
     trails: TrailPaths | None = None
     label: LabelValues | None = None
     followed: BodyPath | None = None  # the body the camera follows
+    arrows: ArrowSeries | None = None
     finishes: tuple[Finish | None, ...] = ()  # (P,) per body in model order, like colors
     surface_finishes: tuple[Finish | None, ...] = ()  # per deformable body, like surface_colors
     collider_looks: tuple[tuple[str, Finish | None], ...] = ()  # (colour, finish) per drawn collider

@@ -172,14 +172,16 @@ def _label(data: dict[str, Any], bodies: dict[str, KeyPath]) -> Iterator[Problem
 
 
 def _trails(data: dict[str, Any], bodies: dict[str, KeyPath], deformable: set[str]) -> Iterator[Problem]:
-    """Trails and followed cameras track particles and rigid bodies (a cloth has no one point to follow)."""
+    """Trails, arrows and followed cameras track particles and rigid bodies (a cloth has no one point to follow)."""
     render = data.get("render")
     if not isinstance(render, dict):
         return
-    trails = render.get("trails")
-    names = trails.get("bodies") if isinstance(trails, dict) else None
-    wanted = [(("render", "trails", "bodies", position), name)
-              for position, name in (_strings(names) if isinstance(names, list) else [])]
+    wanted = []
+    for section in ("trails", "arrows"):
+        block = render.get(section)
+        names = block.get("bodies") if isinstance(block, dict) else None
+        wanted += [(("render", section, "bodies", position), name)
+                   for position, name in (_strings(names) if isinstance(names, list) else [])]
     cameras = render.get("cameras")
     for path, camera in [(("render", "camera"), render.get("camera")),
                          *[(("render", "cameras", name), camera)

@@ -71,6 +71,7 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
     ("`render.camera.orbit`", "render.camera.orbit.", schema.OrbitSpec),
     ("`render.ground`", "render.ground.", schema.GroundSpec),
     ("`render.trails`", "render.trails.", schema.TrailSpec),
+    ("`render.arrows`", "render.arrows.", schema.ArrowSpec),
     ("`render.video`", "render.video.", schema.VideoSpec),
     ("`study`", "study.", schema.StudySpec),
 ]

@@ -100,8 +100,10 @@ from animbatch.scene.schema.fields import (
     field_type_names,
 )
 from animbatch.scene.schema.render import (
+    FORCE_ARROW_KINDS,
     LABEL_FIELDS,
     QUALITY_PRESETS,
+    ArrowSpec,
     CameraKeyframe,
     CameraSpec,
     GroundSpec,
@@ -162,6 +164,8 @@ __all__ = [
     "BurstSpec",
     "COLLIDER_SPECS",
     "CameraSpec",
+    "ArrowSpec",
+    "FORCE_ARROW_KINDS",
     "CameraKeyframe",
     "OrbitSpec",
     "ClothMeshSpec",

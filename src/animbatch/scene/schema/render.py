@@ -125,6 +125,28 @@ class TrailSpec(SceneModel):
     fade: bool = key(True, "Fade each trail out towards its tail (else one solid colour).")
 
 
+#: The kinds of force an arrow can show: each force term's label, and 'contact' (what contacts and constraints add).
+FORCE_ARROW_KINDS = ("gravity", "gravitation", "drag", "wind", "aerodynamics", "buoyancy", "spring", "dihedral",
+                     "controller", "force", "contact")
+ForceArrowKind = Literal["gravity", "gravitation", "drag", "wind", "aerodynamics", "buoyancy", "spring", "dihedral",
+                         "controller", "force", "contact"]
+
+
+class ArrowSpec(SceneModel):
+    """Arrows from bodies' centres of mass: velocity, acceleration, and one per kind of force, with a legend."""
+
+    show: list[Literal["velocity", "acceleration", "forces"]] = key(
+        ["velocity"], "What to draw: velocity v, acceleration a, and forces (one arrow per kind of force acting).")
+    forces: list[ForceArrowKind] | None = key(
+        None, "Which kinds of force (default: every kind acting in the scene): gravity, gravitation, drag, wind, "
+              "aerodynamics, buoyancy, spring, dihedral, controller, force, and contact (contact and constraint "
+              "forces, m·a minus the rest).")
+    bodies: list[Name] | None = key(None, "Bodies with arrows: particles and rigid bodies (default: all of them).")
+    length: float | None = key(None, "Length of the longest arrow of each quantity over the run (all forces share "
+                                     "one scale, so they compare); default a fifth of the motion's size.", "m", gt=0)
+    legend: bool = key(True, "A legend of the arrows' colours in the lower right corner.")
+
+
 VideoPreset = Literal["ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower", "veryslow"]
 
 
@@ -188,6 +210,8 @@ class RenderSpec(SceneModel):
     show_targets: bool = key(True, "Draw what PD controllers pull towards: curves as thin lines (the wire of a "
                                    "bead), point and keyframed targets as small grey spheres.")
     show_axes: bool = key(False, "Draw each rigid body's axes (x red, y green, z blue), turning with it.")
+    arrows: ArrowSpec | None = key(None, "Velocity, acceleration and force arrows with a legend (omit for none; "
+                                         "'arrows: {}' for every body's velocity).")
     show_vectors: Literal["none", "angular_velocity", "angular_momentum"] = key(
         "none", "Draw an arrow from each rigid body's centre of mass along ω or L, scaled so that the largest over "
                 "the animation is twice the body's size.")

@@ -92,6 +92,18 @@ class Dynamics:
             term.accumulate(t, state, force, torque)
         return force, torque
 
+    def loads_by_term(self, t: float, y: np.ndarray) -> dict[str, np.ndarray]:
+        """The force [N] (P, 3) of each kind of term on every body at state ``y``, summed by label (two gravity
+        fields give one 'gravity'); new arrays, for drawing and inspection rather than stepping."""
+        config, motion = self.split(y)
+        state = self.kinematics(config, motion, t=t)
+        by_label: dict[str, np.ndarray] = {}
+        torque = np.zeros((self.rigid, 3)) if self.rigid else None
+        for term in self.terms:
+            force = by_label.setdefault(term.label, np.zeros_like(self._force))
+            term.accumulate(t, state, force, torque)
+        return by_label
+
     # ------------------------------------------------------------------------------------------ the forms
 
     def motion_rate(self, t: float, config: np.ndarray, motion: np.ndarray,
