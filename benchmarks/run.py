@@ -10,7 +10,9 @@ Prints one table. Measures:
    vectorised over bodies;
 3. contacts: 1e3 and 1e4 steel balls poured into a box (symplectic Euler): wall time per simulated second,
    the cost per step while the pile forms and once it rests, and the state at the end (speeds, overlaps);
-4. rendered frames per second at 1280×720 for one sphere and for 1e4 particles (sprites), with FXAA and without;
+4. rendered frames per second at 1280×720 at each quality preset (a sphere over a ground; 1000 spheres at final;
+   1e5 sprites at preview), next to a bare PyVista loop drawing the same geometry at the same settings in the same
+   run, with the targets of issue 20;
 5. encoding frames per second (H.264 at several presets, and PNG);
 7. the fountain scene at 100 000 live particles: simulation steps per second in steady state, and rendered frames
    per second at 1280×720;
@@ -315,28 +317,37 @@ def bench_cloth(quick: bool, budget: float | None = None, only: list[str] | None
     return rows
 
 
-def render_frames(count: int, anti_aliasing: str, frames: int) -> tuple[float, list[np.ndarray], str]:
-    """Frames per second of drawing ``count`` particles at 1280×720, a few of the images, and the backend's name."""
+def render_case(count: int, quality: str, sprites: bool = False) -> tuple[object, object, np.ndarray]:
+    """The render settings, frame geometry and positions (count, 3) of ``count`` particles at 1280×720 at a quality
+    preset, over a ground: built by the code renders use (a one-particle scene widened to ``count`` particles), so
+    the benchmark follows it, without validating a scene file of 100 000 bodies."""
     import dataclasses
 
     from animbatch import api
     from animbatch.compile.frame_geometry import frame_geometry
-    from animbatch.render.backend import select_backend
-    from animbatch.render.frames import FrameRenderer
     from animbatch.stages import parse_scene
 
     rng = np.random.default_rng(1)
-    positions = rng.normal(size=(count, 3)) * (0.0 if count == 1 else 1.0)
-    radius = np.full(count, 0.5 if count == 1 else 0.02)
+    positions = rng.uniform(-1.0, 1.0, size=(count, 3)) * (0.0 if count == 1 else 1.0) + [0.0, 1.2, 0.0]
+    radius = np.full(count, 0.5 if count == 1 else min(0.05, 0.4 / count ** (1 / 3)))
     bounds = np.array([positions.min(axis=0) - 1, positions.max(axis=0) + 1])
-    # the geometry of a one-particle scene, widened to ``count`` particles: built by the code renders use, so the
-    # benchmark follows it, without validating a scene file of 10 000 bodies
-    ground = ", ground: {}" if count == 1 else ""
-    loaded = parse_scene(f"duration: 1\nbodies: [{{name: p, radius: 0.5}}]\n"
-                         f"render: {{anti_aliasing: {anti_aliasing}{ground}}}\n")
+    particles = "sprite" if sprites else "mesh"
+    loaded = parse_scene(f"duration: 1\nbodies: [{{name: p, radius: 0.5}}]\nrender: {{quality: {quality}, "
+                         f"resolution: [1280, 720], particles: {particles}, ground: {{}}, show_time: false}}\n")
     geometry = dataclasses.replace(frame_geometry(loaded.spec, api.compile_model(loaded), bounds),
-                                   particle_radius=radius, colors=["#e15759"] * count)
-    spec = loaded.spec.render
+                                   particle_radius=radius, colors=["#e15759"] * count, finishes=(None,) * count,
+                                   drawn_particles=np.ones(count, bool))
+    return loaded.spec.render, geometry, positions
+
+
+def render_frames(count: int, quality: str, frames: int, sprites: bool = False
+                  ) -> tuple[float, list[np.ndarray], str]:
+    """Frames per second of the renderer drawing ``count`` particles at 1280×720 (moving them every frame and
+    reading the pixels back), a few of the images, and the backend's name."""
+    from animbatch.render.backend import select_backend
+    from animbatch.render.frames import FrameRenderer
+
+    spec, geometry, positions = render_case(count, quality, sprites)
     images = []
     with FrameRenderer(spec, geometry, select_backend("auto")) as renderer:
         renderer.draw(0.0, positions)  # warm-up: shader compilation
@@ -350,21 +361,95 @@ def render_frames(count: int, anti_aliasing: str, frames: int) -> tuple[float, l
     return frames / seconds, images, backend
 
 
+def bare_frames(count: int, quality: str, frames: int, sprites: bool = False) -> float:
+    """Frames per second of a bare PyVista loop drawing the same geometry at the same settings: one plotter, the
+    particles (sphere actors moved by SetPosition, or one point-sprite cloud) over a plane, the same anti-aliasing,
+    pixels read back the same way. The anchor the renderer is measured against."""
+    import pyvista as pv
+    from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
+
+    from animbatch.render.backend import activate, select_backend
+
+    spec, geometry, positions = render_case(count, quality, sprites)
+    activate(select_backend("auto"))
+    plotter = pv.Plotter(off_screen=True, window_size=[1280, 720])
+    plotter.ren_win.SetMultiSamples(spec.msaa_samples if spec.anti_aliasing == "msaa" else 0)
+    if spec.anti_aliasing == "fxaa":
+        plotter.renderer.SetUseFXAA(True)
+    plotter.add_mesh(pv.Plane(center=(0, 0, 0), direction=(0, 1, 0), i_size=10, j_size=10), color="#d8d8d8")
+    actors = []
+    cloud = None
+    if sprites:
+        cloud = pv.PolyData(positions.copy())
+        cloud.point_data["radius"] = geometry.particle_radius
+        actor = plotter.add_mesh(cloud, style="points_gaussian", render_points_as_spheres=True, emissive=False,
+                                 color="#e15759")
+        actor.mapper.SetScaleArray("radius")
+    else:
+        for radius in geometry.particle_radius:
+            sphere = pv.Sphere(radius=float(radius), theta_resolution=spec.sphere_resolution,
+                               phi_resolution=spec.sphere_resolution)
+            actors.append(plotter.add_mesh(sphere, color="#e15759", smooth_shading=True))
+    plotter.camera.position, plotter.camera.focal_point = (0.0, 3.0, 8.0), (0.0, 1.0, 0.0)
+    pixels = vtkUnsignedCharArray()
+
+    def draw(k: int) -> None:
+        moved = positions + 0.01 * k
+        if cloud is not None:
+            cloud.points[:] = moved
+            cloud.GetPoints().Modified()
+        for actor, position in zip(actors, moved):
+            actor.SetPosition(*position)
+        plotter.ren_win.Render()
+        plotter.ren_win.GetPixelData(0, 0, 1279, 719, 0, pixels, 0)
+
+    draw(0)
+    started = time.perf_counter()
+    for k in range(frames):
+        draw(k)
+    seconds = time.perf_counter() - started
+    plotter.close()
+    return frames / seconds
+
+
+#: The render cases and their targets (issue 20): (label, particles, quality, sprites, target fps or None, the
+#: least ratio to the bare loop or None, frames timed).
+RENDER_CASES = [
+    ("simple scene (1 sphere), draft", 1, "draft", False, None, 0.9, 60),
+    ("simple scene (1 sphere), preview", 1, "preview", False, None, None, 60),
+    ("simple scene (1 sphere), final", 1, "final", False, 10.0, None, 40),
+    ("1000 spheres, final", 1000, "final", False, 3.0, None, 10),
+    ("1e5 particles (sprites), preview", 100_000, "preview", True, 10.0, None, 20),
+]
+
+
 def bench_render(quick: bool) -> list[Row]:
+    """Each case drawn by the renderer and by a bare PyVista loop of the same geometry and settings, in the same
+    run, at 1280×720: frames per second, the ratio, and the target."""
     rows = []
-    frames = 30 if quick else 120
-    for count, label in ((1, "one sphere (mesh)"), (10_000, "1e4 particles (sprites)")):
-        for anti_aliasing in ("none", "fxaa"):
-            fps, _, backend = render_frames(count, anti_aliasing, frames)
-            rows.append({"benchmark": "render 1280×720", "case": f"{label}, {anti_aliasing}, {backend}",
-                         "value": fps, "unit": "frames/s"})
+    for label, count, quality, sprites, target, least_ratio, frames in RENDER_CASES:
+        if quick:
+            count, frames = min(count, 200), 6
+        fps, _, backend = render_frames(count, quality, frames, sprites)
+        bare = bare_frames(count, quality, frames, sprites)
+        goal = []
+        if target is not None:
+            goal.append(f"target ≥ {target:g} fps: {'met' if fps >= target else 'MISSED'}")
+        if least_ratio is not None:
+            goal.append(f"target ≥ {least_ratio:g}× bare: {'met' if fps >= least_ratio * bare else 'MISSED'}")
+        rows.append({"benchmark": "render 1280×720", "case": f"{label}, {backend}", "value": fps,
+                     "unit": "frames/s"})
+        rows.append({"benchmark": "render 1280×720", "case": f"{label}: bare PyVista loop", "value": bare,
+                     "unit": "frames/s"})
+        rows.append({"benchmark": "render 1280×720", "case": f"{label}: renderer / bare", "value": fps / bare,
+                     "unit": "; ".join(goal) or "×"})
     return rows
 
 
 def bench_encode(quick: bool) -> list[Row]:
     from animbatch.encode import Mp4Writer, PngSequenceWriter
 
-    _, images, _ = render_frames(10_000, "none", 16)
+    _, images, _ = render_frames(10_000, "draft", 16, sprites=True)
     frames = 60 if quick else 240
     rows = []
     with tempfile.TemporaryDirectory() as folder:

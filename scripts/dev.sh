@@ -4,6 +4,7 @@
 #   bash scripts/dev.sh demo    set up, then render scenes/projectile.yaml into renders/
 #   bash scripts/dev.sh test    set up, then run the whole test suite (what CI runs)
 #   bash scripts/dev.sh bench   set up, then run the benchmark suite and print its table
+#   bash scripts/dev.sh gallery set up, then redraw docs/gallery.md: one still per bundled scene at final quality
 #   bash scripts/dev.sh accuracy  set up, then regenerate docs/accuracy.md (studies of the bundled scenes)
 #   bash scripts/dev.sh fuzz    set up, then run 10 000 mutated scenes through validate and simulate (a table)
 #   bash scripts/dev.sh setup   only set up
@@ -110,6 +111,10 @@ case "$command" in
         setup
         exec "$venv/bin/python" benchmarks/run.py "$@"
         ;;
+    gallery)
+        setup
+        exec "$venv/bin/python" scripts/gallery.py "$@"
+        ;;
     fuzz)
         setup
         exec "$venv/bin/python" benchmarks/fuzz.py "$@"
@@ -119,7 +124,7 @@ case "$command" in
         exec "$venv/bin/python" -m animbatch.study.document "$@"
         ;;
     *)
-        echo "usage: bash scripts/dev.sh {demo|test|bench|fuzz|accuracy|setup} [extra arguments]" >&2
+        echo "usage: bash scripts/dev.sh {demo|test|bench|gallery|fuzz|accuracy|setup} [extra arguments]" >&2
         exit 2
         ;;
 esac

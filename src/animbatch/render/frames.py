@@ -320,9 +320,14 @@ class FrameRenderer:
         if ground is None:
             return
         _, origin, side = self._plane_square(ground.level, self.camera.up, ground.size)
-        StudioGround(self.pv, self.plotter, origin=origin, up=self.camera.up, side=side,
-                     reach=GROUND_REACH * side if ground.fade else side, color=ground.color, grid=ground.grid,
-                     fade=ground.fade, camera=self.camera, backdrop=self._backdrop)
+        reach = side
+        if ground.fade:  # far enough to fade out, and to run under the camera to the frame's bottom edge
+            to_camera = self.camera.position - origin
+            level = to_camera - np.dot(to_camera, self.camera.up) * self.camera.up
+            reach = max(GROUND_REACH * side, 2.5 * float(np.linalg.norm(level)))
+        StudioGround(self.pv, self.plotter, origin=origin, up=self.camera.up, side=side, reach=reach,
+                     color=ground.color, grid=ground.grid, fade=ground.fade, camera=self.camera,
+                     backdrop=self._backdrop)
 
     def _add_colliders(self) -> None:
         """Fixed colliders, built once: planes as squares around the motion, boxes, spheres and meshes."""

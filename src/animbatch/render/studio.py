@@ -25,8 +25,9 @@ GROUND_REACH = 4.0
 FADE_RADII = (0.6, 1.9)
 #: The grid fades sooner: far away its lines crowd together into a band at the horizon.
 GRID_FADE_RADII = (0.45, 1.2)
-#: Points along each grid line, so that its colour can fade along it.
+#: Points along each grid line, so that its colour can fade along it; and the most lines in each direction.
 GRID_LINE_POINTS = 48
+MAX_GRID_LINES = 240
 
 
 @dataclass(frozen=True)
@@ -99,10 +100,12 @@ class StudioGround:
                  color: str, grid: bool, fade: bool, camera: CameraPlacement, backdrop: tuple[np.ndarray, Any]
                  ) -> None:
         """``side`` [m]: the square around the motion that the grid's spacing is chosen for; ``reach`` [m]: the
-        side of the drawn ground (fading out from 0.6 to 1.9 ``side`` from the centre when ``fade``)."""
+        side of the drawn ground (fading out from 0.6 to 1.9 ``side`` from the centre when ``fade``, beyond the
+        motion and to its sides, never between it and the camera)."""
         first, second = plane_axes(up)
-        self.origin, self.side, self.reach = origin, side, reach
-        resolution = 96 if fade else 1
+        self.origin, self.side, self.reach, self.up = origin, side, reach, up / np.linalg.norm(up)
+        # fine enough for the fade to stay smooth however far the ground reaches (it runs under the camera)
+        resolution = int(np.clip(8 * reach / side, 32, 192)) if fade else 1
         plane = pv.Plane(center=origin, direction=up, i_size=reach, j_size=reach, i_resolution=resolution,
                          j_resolution=resolution)
         base = np.asarray(hex_to_rgb(color))
@@ -111,7 +114,7 @@ class StudioGround:
         plotter.add_mesh(plane, scalars="rgb", rgb=True, show_scalar_bar=False, lighting=False)
         if grid:
             spacing = nice_spacing(side, 12)
-            half = reach / 2
+            half = min(reach / 2, MAX_GRID_LINES / 2 * spacing)
             ticks = np.arange(-math.floor(half / spacing), math.floor(half / spacing) + 1) * spacing
             lift = up * 1e-3 * side  # just above the plane, so the lines win the depth test
             along = np.linspace(-half, half, GRID_LINE_POINTS)
@@ -134,7 +137,14 @@ class StudioGround:
         edge."""
         colors = np.broadcast_to(color, (len(points), 3)).astype(float)
         if fade:
-            radius = np.linalg.norm(points - self.origin, axis=1)
+            # towards the horizon and the sides only: the ground between the motion and the camera never fades
+            offset = points - self.origin
+            view = camera.focal_point - camera.position
+            away = view - np.dot(view, self.up) * self.up
+            away = away / np.linalg.norm(away) if np.linalg.norm(away) > 1e-12 else np.zeros(3)
+            depth = offset @ away
+            lateral = offset - np.outer(depth, away) - np.outer(offset @ self.up, self.up)
+            radius = np.hypot(np.maximum(depth, 0.0), np.linalg.norm(lateral, axis=1))
             weight = smoothstep(radii[0] * self.side, radii[1] * self.side, radius)[:, None]
             behind = backdrop_color(*backdrop, screen_height(camera, points))
             colors = colors * (1 - weight) + behind * weight
