@@ -43,9 +43,9 @@ class ArrowLayer:
             glyph.ColorGlyphsOff()
             glyph.ThreeGlyphsOff()
             # mostly ambient: an arrow is a diagram, its colour must read the same on its lit and its shaded side
-            actor = plotter.add_mesh(pv.PolyData(), color=color, smooth_shading=True, ambient=0.5, diffuse=0.6,
+            actor = plotter.add_mesh(arrow, color=color, smooth_shading=True, ambient=0.5, diffuse=0.6,
                                      specular=0.15)
-            actor.mapper.SetInputConnection(glyph.GetOutputPort())
+            actor.mapper.SetInputConnection(glyph.GetOutputPort())  # the glyphs replace the placeholder arrow
             self.clouds.append(cloud)
         if series.legend and series.names:
             entries = [[f"{name} (1 m = {1 / scale:.3g} {unit})" if scale > 0 else name, color]

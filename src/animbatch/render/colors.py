@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 #: Body colours by index when the scene gives none (Tableau 10).
 PALETTE = ("#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948", "#b07aa1", "#ff9da7", "#9c755f",
            "#bab0ac")
@@ -24,11 +26,14 @@ def darker(color: str, factor: float = 0.7) -> str:
     return "#{:02x}{:02x}{:02x}".format(*(round(255 * factor * c) for c in hex_to_rgb(color)))
 
 
-def linear_rgb(color: str) -> tuple[float, float, float]:
-    """``'#rrggbb'`` (sRGB, as colours are written) -> linear (r, g, b) in 0…1, what VTK's physically based shading
+def srgb_to_linear(rgb: np.ndarray) -> np.ndarray:
+    """sRGB channel values (…) in 0…1 (as colours are written) -> linear ones, what VTK's physically based shading
     takes: it lights in linear space and gamma-encodes its output, so an sRGB colour passed as is comes out pale."""
-    def decode(channel: float) -> float:
-        return channel / 12.92 if channel <= 0.04045 else ((channel + 0.055) / 1.055) ** 2.4
+    rgb = np.asarray(rgb, float)
+    return np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
 
-    red, green, blue = hex_to_rgb(color)
-    return decode(red), decode(green), decode(blue)
+
+def linear_rgb(color: str) -> tuple[float, float, float]:
+    """``'#rrggbb'`` -> linear (r, g, b) in 0…1 (see :func:`srgb_to_linear`)."""
+    red, green, blue = srgb_to_linear(np.array(hex_to_rgb(color)))
+    return float(red), float(green), float(blue)

@@ -4,8 +4,8 @@ Measured on a 2-core machine with Mesa llvmpipe at 1280×720 (see ``benchmarks/`
 simple scene at well over 100 fps without anti-aliasing, while re-creating it per frame drops to about 10 fps; so
 every actor is created once here and a frame only moves things:
 
-* particles are sphere meshes (one actor each, moved by its position) up to ``SPRITE_THRESHOLD`` particles, and point
-  sprites (one actor, shaded as spheres of their radius) beyond, since meshes cost 10–30× more per particle;
+* particles are sphere meshes up to ``SPRITE_THRESHOLD`` particles (instanced: one actor per look, see
+  :mod:`animbatch.render.spheres`), and point sprites (one actor, shaded as spheres of their radius) beyond;
 * each rigid body is its own mesh, built once in its centre-of-mass frame; a frame only rewrites the 4×4 transform
   ``[R | x]`` that its actor (and its axes) share;
 * springs are one line set whose end points are rewritten.
@@ -37,6 +37,7 @@ from animbatch.render.emitted import EmitterLayer
 from animbatch.render.geometry import Finish, FrameGeometry
 from animbatch.render.shadows import GroundShadows
 from animbatch.render.shapes import arrow_basis, shape_mesh, vertex_normals
+from animbatch.render.spheres import SphereGroup, group_by_finish, sphere_segments
 from animbatch.render.studio import (
     GROUND_REACH,
     StudioGround,
@@ -164,6 +165,13 @@ class FrameRenderer:
         window.SetMultiSamples(self.render_spec.msaa_samples if mode == "msaa" else 0)
         if mode == "fxaa":
             self.plotter.renderer.SetUseFXAA(True)
+        if self.render_spec.ambient_occlusion:
+            # the occlusion radius follows the scene's size: half the median body size, at least 1 % of the motion
+            bounds = self.geometry.bounds
+            size = float(np.linalg.norm(bounds[1] - bounds[0]))
+            extents = np.concatenate([self.geometry.particle_radius, self.geometry.rigid_extent])
+            radius = max(0.5 * float(np.median(extents)) if len(extents) else 0.0, 0.01 * size)
+            self.plotter.enable_ssao(radius=radius, bias=0.002 * size, kernel_size=32, blur=True)
 
     def _add_particles(self) -> None:
         geometry, spec = self.geometry, self.render_spec
@@ -173,8 +181,7 @@ class FrameRenderer:
         count = len(self._drawn)
         colors = [geometry.colors[k] for k in self._drawn]
         self.use_sprites = spec.particles == "sprite" or (spec.particles == "auto" and count > SPRITE_THRESHOLD)
-        self._particle_actors = []
-        self._particle_shadows = []
+        self._sphere_groups: list[tuple[np.ndarray, SphereGroup]] = []
         if count and self.use_sprites:
             cloud = self.pv.PolyData(np.zeros((count, 3)))
             cloud.point_data["radius"] = geometry.particle_radius[self._drawn]
@@ -185,13 +192,15 @@ class FrameRenderer:
             actor.mapper.SetScaleFactor(1.0)
             self._cloud = cloud
         elif count:
-            resolution = spec.sphere_resolution
-            finishes = [self._finish(k) for k in self._drawn]
-            for radius, color, finish in zip(geometry.particle_radius[self._drawn], colors, finishes):
-                sphere = self.pv.Sphere(radius=float(radius), theta_resolution=resolution, phi_resolution=resolution)
-                self._particle_actors.append(self.plotter.add_mesh(sphere, **self._shading(finish, color)))
-                if self._shadows is not None:  # sprites (many particles) cast none
-                    self._particle_shadows.append(self._shadows.add(sphere))
+            radius = geometry.particle_radius[self._drawn]
+            distance = float(np.linalg.norm(geometry.bounds.mean(axis=0) - self.camera.position))
+            segments = sphere_segments(spec.sphere_resolution, float(np.median(radius)), distance,
+                                       self.camera.view_angle, self.height)
+            shadow = (self._shadows.projection, GroundShadows.LOOK) if self._shadows is not None else None
+            for finish, members in group_by_finish([self._finish(k) for k in self._drawn]).items():
+                group = SphereGroup(self.pv, self.plotter, radius[members], [colors[k] for k in members], segments,
+                                    self._shading(finish, colors[members[0]]), shadow)
+                self._sphere_groups.append((members, group))
 
     def _add_emitted(self) -> None:
         """One point cloud per emitter (see :mod:`animbatch.render.emitted`)."""
@@ -437,10 +446,8 @@ class FrameRenderer:
             self._cloud.points[:] = drawn
             self._cloud.GetPoints().Modified()
         else:
-            for actor, position in zip(self._particle_actors, drawn):
-                actor.SetPosition(*position)
-            for matrix, position in zip(self._particle_shadows, drawn):
-                self._shadows.place(matrix, None, position)  # type: ignore[union-attr]
+            for members, group in self._sphere_groups:
+                group.update(drawn[members])
         anchor_positions = geometry.anchors.positions(t) if geometry.anchors is not None else geometry.anchor_positions
         if geometry.anchors is not None and geometry.anchors.moving:
             for index, actor in self._anchor_actors:

@@ -52,10 +52,13 @@ class GroundShadows:
         self.projection = planar_projection(up, level + lift, self.direction)
         self.up, self.level = up / np.linalg.norm(up), level
 
+    #: How a shadow is drawn (add_mesh keywords): translucent dark grey, unlit.
+    LOOK: dict[str, Any] = {"color": SHADOW_COLOR, "opacity": SHADOW_OPACITY, "lighting": False,
+                            "smooth_shading": False}
+
     def add(self, mesh: Any) -> Any:
         """A shadow actor for ``mesh`` (in its body's frame); returns the 4×4 matrix that places it."""
-        actor = self.plotter.add_mesh(mesh, color=SHADOW_COLOR, opacity=SHADOW_OPACITY, lighting=False,
-                                      smooth_shading=False)
+        actor = self.plotter.add_mesh(mesh, **self.LOOK)
         actor.prop.backface_culling = False
         matrix = self.matrix_class()
         actor.SetUserMatrix(matrix)

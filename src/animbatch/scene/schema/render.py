@@ -207,6 +207,8 @@ class RenderSpec(SceneModel):
                                          "particle and rigid body).")
     shadows: bool = key(False, "Contact shadows: each body and particle sphere casts its shape onto the ground "
                                "along the key light (needs a ground; on with quality: final).")
+    ambient_occlusion: bool = key(False, "Screen-space ambient occlusion: creases and contacts between bodies "
+                                         "darken softly (costs frame rate; see Render quality).")
     show_anchors: bool = key(True, "Draw anchors as small dark cubes.")
     show_targets: bool = key(True, "Draw what PD controllers pull towards: curves as thin lines (the wire of a "
                                    "bead), point and keyframed targets as small grey spheres.")
