@@ -369,6 +369,7 @@ def bare_frames(count: int, quality: str, frames: int, sprites: bool = False) ->
     from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
 
     from animbatch.render.backend import activate, select_backend
+    from animbatch.render.camera import CameraPath
 
     spec, geometry, positions = render_case(count, quality, sprites)
     activate(select_backend("auto"))
@@ -385,12 +386,17 @@ def bare_frames(count: int, quality: str, frames: int, sprites: bool = False) ->
         actor = plotter.add_mesh(cloud, style="points_gaussian", render_points_as_spheres=True, emissive=False,
                                  color="#e15759")
         actor.mapper.SetScaleArray("radius")
+        actor.mapper.SetScaleFactor(1.0)  # sprites of the particles' own radius, as the renderer draws them
     else:
         for radius in geometry.particle_radius:
             sphere = pv.Sphere(radius=float(radius), theta_resolution=spec.sphere_resolution,
                                phi_resolution=spec.sphere_resolution)
             actors.append(plotter.add_mesh(sphere, color="#e15759", smooth_shading=True))
-    plotter.camera.position, plotter.camera.focal_point = (0.0, 3.0, 8.0), (0.0, 1.0, 0.0)
+    # the renderer's own fitted camera: what is on screen, and how large, decides the cost of a frame
+    camera = CameraPath(spec.active_camera, geometry.bounds, 1280 / 720, geometry.followed).at(0.0)
+    plotter.camera.position, plotter.camera.focal_point = tuple(camera.position), tuple(camera.focal_point)
+    plotter.camera.up, plotter.camera.view_angle = tuple(camera.up), camera.view_angle
+    plotter.renderer.ResetCameraClippingRange()
     pixels = vtkUnsignedCharArray()
 
     def draw(k: int) -> None:

@@ -87,3 +87,34 @@ def test_the_key_light_is_the_light_the_shadows_fall_from_and_the_rig_lights_fro
     assert key.intensity > fill.intensity and key.intensity > rim.intensity
     right = np.cross(up, level)
     assert (key.toward_light @ right) * (fill.toward_light @ right) < 0, "key and fill on opposite sides"
+
+
+def test_ambient_occlusion_darkens_the_ground_where_a_body_touches_it_and_nothing_far_from_it():
+    """A ball resting on the ground: with ambient occlusion the ground right around the contact darkens, less with
+    distance from it, while the ground far from the ball, the ball itself and the backdrop keep their colour."""
+    resting = EMPTY.replace("position: [0, 0.5, 0]", "position: [0, 0.2, 0]")
+    render = '  ground: {size: 4, grid: false}\n  camera: {position: [0, 0.9, 2.2], focal_point: [0, 0.2, 0]}\n'
+
+    def frame(occlusion: str) -> np.ndarray:
+        scene = stages.parse_scene(resting.replace("  camera: {{position: [0, 1.2, 6], focal_point: [0, 0.5, 0]}}\n",
+                                                   "").format(render=render + f"  ambient_occlusion: {occlusion}\n"))
+        model = api.compile_model(scene)
+        trajectory = api.simulate(scene, model=model)
+        geometry = stages.frame_geometry(scene, model, trajectory)
+        with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
+            return renderer.draw(0.0, trajectory.positions[0]).astype(int)
+
+    plain, occluded = frame("false"), frame("true")
+    darker = (plain - occluded).sum(axis=2)
+    ball = (plain[..., 0] - plain[..., 1]) > 20
+    rows, columns = np.nonzero(ball)
+    middle = int(round(columns.mean()))
+    below = [darker[row, middle - 3: middle + 4].mean() for row in range(rows.max() + 3, rows.max() + 40, 6)]
+    assert below[0] > 60, "the ground at the contact darkens"
+    assert all(a >= b for a, b in zip(below, below[1:])) and below[-1] < below[0] / 3, "less further away"
+    inside = ball.copy()  # the ball less its outline, whose pixels blend with the ground's
+    for shift in (-3, 3):
+        inside &= np.roll(ball, shift, axis=0) & np.roll(ball, shift, axis=1)
+    assert np.abs(darker[inside]).max() <= 3, "the ball does not"
+    assert np.abs(darker[:20]).max() == 0, "nor the backdrop"
+    assert np.abs(darker[-10:, :40]).max() <= 3, "nor the ground far from the ball"

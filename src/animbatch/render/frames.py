@@ -35,6 +35,7 @@ from animbatch.render.colors import (
 )
 from animbatch.render.emitted import EmitterLayer
 from animbatch.render.geometry import Finish, FrameGeometry
+from animbatch.render.occlusion import GroundOcclusion
 from animbatch.render.shadows import GroundShadows
 from animbatch.render.shapes import arrow_basis, shape_mesh, vertex_normals
 from animbatch.render.spheres import SphereGroup, group_by_finish, sphere_segments
@@ -100,6 +101,7 @@ class FrameRenderer:
         self._environment = False  # set up when the first physically based surface needs it
         self._add_ground()
         self._shadows = self._make_shadows()
+        self._occlusion = self._make_occlusion()
         self._add_colliders()
         self._add_fluids()
         self._add_particles()
@@ -126,6 +128,15 @@ class FrameRenderer:
         view = self.camera.position - self.camera.focal_point
         return GroundShadows(self.pv, self.plotter, self._matrix_class, self.camera.up, ground.level,
                              view / np.linalg.norm(view), lift=3e-3 * size)  # clear of depth-test ties
+
+    def _make_occlusion(self) -> GroundOcclusion | None:
+        """Ambient occlusion of the ground around the motion, when asked for and there is a ground."""
+        ground = self._ground
+        if not self.render_spec.ambient_occlusion or ground is None:
+            return None
+        _, origin, side = self._plane_square(ground.level, self.camera.up, ground.size)
+        return GroundOcclusion(self.pv, self.plotter, origin=origin, up=self.camera.up, side=side,
+                               lift=1.5e-3 * side)  # under the shadows, over the grid
 
     def _find_ground(self) -> GroundSpec | None:
         """The ground drawn: ``render.ground``, or else the first plane collider facing up (drawn as a ground in its
@@ -165,13 +176,6 @@ class FrameRenderer:
         window.SetMultiSamples(self.render_spec.msaa_samples if mode == "msaa" else 0)
         if mode == "fxaa":
             self.plotter.renderer.SetUseFXAA(True)
-        if self.render_spec.ambient_occlusion:
-            # the occlusion radius follows the scene's size: half the median body size, at least 1 % of the motion
-            bounds = self.geometry.bounds
-            size = float(np.linalg.norm(bounds[1] - bounds[0]))
-            extents = np.concatenate([self.geometry.particle_radius, self.geometry.rigid_extent])
-            radius = max(0.5 * float(np.median(extents)) if len(extents) else 0.0, 0.01 * size)
-            self.plotter.enable_ssao(radius=radius, bias=0.002 * size, kernel_size=32, blur=True)
 
     def _add_particles(self) -> None:
         geometry, spec = self.geometry, self.render_spec
@@ -239,6 +243,7 @@ class FrameRenderer:
         self._rigid_matrices = []
         self._rigid_shadows = []
         self._vector_actors = []
+        self._rigid_occluder_radius = np.zeros(len(geometry.rigid_shapes))
         for b, shape in enumerate(geometry.rigid_shapes):
             mesh = shape_mesh(shape, geometry.meshes, spec.sphere_resolution).translate(-geometry.rigid_centre[b])
             # split vertices at sharp edges so boxes stay crisp while spheres and cylinders look smooth
@@ -260,6 +265,10 @@ class FrameRenderer:
                 self.plotter.add_mesh(arrow, color="#ffbf00").SetUserMatrix(vector_matrix)
                 self._vector_actors.append(vector_matrix)
             self._rigid_matrices.append(matrix)
+            # for ambient occlusion, a body counts as the sphere of its volume (its reach would overstate a rod)
+            volume = float(mesh.volume) if mesh.n_cells else 0.0
+            reach = float(geometry.rigid_extent[b])
+            self._rigid_occluder_radius[b] = min(reach, (3 * volume / (4 * np.pi)) ** (1 / 3)) if volume > 0 else reach
             if self._shadows is not None:
                 self._rigid_shadows.append(self._shadows.add(mesh))
 
@@ -481,6 +490,11 @@ class FrameRenderer:
         if self._spring_mesh is not None:
             self._spring_mesh.points[:] = self._spring_ends(positions, rotation, anchor_positions)
             self._spring_mesh.GetPoints().Modified()
+        if self._occlusion is not None:
+            spheres = np.empty((0, 3)) if self.use_sprites else drawn
+            radius = np.zeros(0) if self.use_sprites else geometry.particle_radius[self._drawn]
+            self._occlusion.update(np.concatenate([spheres, positions[n:n + len(self._rigid_occluder_radius)]]),
+                                   np.concatenate([radius, self._rigid_occluder_radius]))
         if self._trails is not None:
             self._trails.update(t)
         if self._arrows is not None:

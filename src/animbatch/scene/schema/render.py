@@ -164,12 +164,12 @@ Quality = Literal["draft", "preview", "final"]
 #: What each ``render.quality`` sets, for every key of these the scene does not set itself. ``preview`` is the
 #: default look; ``draft`` drops anti-aliasing and halves the tessellation and the frame size; ``final`` draws
 #: 1080p with 4× multisampling (8× costs half the frame rate under llvmpipe for a barely visible gain), finer
-#: spheres and contact shadows.
+#: spheres, contact shadows and ambient occlusion on the ground.
 QUALITY_PRESETS: dict[str, dict[str, Any]] = {
     "draft": {"resolution": [640, 360], "anti_aliasing": "none", "sphere_resolution": 16, "shadows": False},
     "preview": {"resolution": [1280, 720], "anti_aliasing": "fxaa", "sphere_resolution": 32, "shadows": False},
     "final": {"resolution": [1920, 1080], "anti_aliasing": "msaa", "msaa_samples": 4, "sphere_resolution": 64,
-              "shadows": True},
+              "shadows": True, "ambient_occlusion": True},
 }
 
 
@@ -177,7 +177,8 @@ class RenderSpec(SceneModel):
     """How frames are drawn and written."""
 
     quality: Quality = key("preview", "Preset for the keys it lists (resolution, anti_aliasing, msaa_samples, "
-                                      "sphere_resolution, shadows) that the scene does not set itself: draft "
+                                      "sphere_resolution, shadows, ambient_occlusion) that the scene does not set "
+                                      "itself: draft "
                                       "(fastest), preview or final (see Render quality).")
     resolution: Annotated[list[Annotated[int, Field(ge=16, le=7680)]], at.Len(2, 2)] = key(
         [1280, 720], "Frame size [width, height]; both even (required by H.264 yuv420p).", "px")
@@ -207,8 +208,8 @@ class RenderSpec(SceneModel):
                                          "particle and rigid body).")
     shadows: bool = key(False, "Contact shadows: each body and particle sphere casts its shape onto the ground "
                                "along the key light (needs a ground; on with quality: final).")
-    ambient_occlusion: bool = key(False, "Screen-space ambient occlusion: creases and contacts between bodies "
-                                         "darken softly (costs frame rate; see Render quality).")
+    ambient_occlusion: bool = key(False, "Ambient occlusion: the ground darkens softly around where bodies rest on "
+                                         "it or pass close (needs a ground; on with quality: final).")
     show_anchors: bool = key(True, "Draw anchors as small dark cubes.")
     show_targets: bool = key(True, "Draw what PD controllers pull towards: curves as thin lines (the wire of a "
                                    "bead), point and keyframed targets as small grey spheres.")
