@@ -107,9 +107,12 @@ def test_a_force_arrow_points_along_its_force_and_the_legend_names_it():
     pixels_per_metre = 240 / (2 * 4 * np.tan(np.radians(15)))
     assert abs(columns.mean() - 159.5) < 2, "straight down, under the ball"
     assert rows.min() >= 119.5 - 2 and rows.max() == pytest.approx(119.5 + 0.6 * pixels_per_metre, abs=4)
-    corner = with_legend[:60, 220:]
+    corner = with_legend[:60, 100:]
     swatch = (corner[..., 2] > corner[..., 1] + 30) & (corner[..., 0] > corner[..., 1] + 10)
     assert swatch.sum() > 6, "the legend's purple swatch"
+    text = np.nonzero(np.abs(with_legend[:60] - 255).sum(axis=2) > 60)[1]  # its letters, on the white backdrop
+    assert len(text) > 40 and text.max() <= 320 - 4, "the legend's text ends inside the frame, not cut off by it"
+    assert np.ptp(text) > 80, "and is wide enough to read"
     assert (np.abs(image[:60, 220:] - 255).sum(axis=2) < 10).all(), "no legend when it is off"
 
 

@@ -21,6 +21,12 @@ from animbatch.render.shapes import arrow_basis
 CAP = 2.0
 
 
+#: Gap between the legend and the frame's top and right edges, as a fraction of the frame.
+LEGEND_MARGIN = 0.02
+#: The least height of a legend line [px], so that a small frame's legend stays readable.
+LEGEND_LINE_PIXELS = 12
+
+
 class ArrowLayer:
     """The arrows of every quantity, and a legend naming each with its scale."""
 
@@ -52,9 +58,17 @@ class ArrowLayer:
                        for name, unit, scale, color in zip(series.names, series.units, series.scales,
                                                            series.colors)]
             # upper right: the sky is the emptiest part of most frames (the HUD text sits upper left)
-            size = (0.26, min(0.042 * len(entries), 0.5))
-            plotter.add_legend(entries, bcolor=tuple(hex_to_rgb("#ffffff")), border=False, size=size,
-                               loc="upper right", face="rectangle")
+            # wide enough for the longest entry: a letter is ~0.45 of a line's height, plus the swatch and margins
+            width, height = plotter.window_size
+            line = min(max(0.042, LEGEND_LINE_PIXELS / height), 0.5 / len(entries))  # readable at 320×240 too
+            letters = max(len(text) for text, _ in entries)
+            # VTK pads the box by a few pixels, which a one-line legend's letters would lose
+            size = (min(0.9, (0.45 * letters + 2.5) * line * height / width), line * len(entries) + 8 / height)
+            legend = plotter.add_legend(entries, bcolor=tuple(hex_to_rgb("#ffffff")), border=False, size=size,
+                                        loc="upper right", face="rectangle")
+            # placed here: PyVista's 'upper right' offsets the box from the right edge by its height, not its
+            # width, so a legend wider than tall ran off the frame
+            legend.SetPosition(1 - size[0] - LEGEND_MARGIN, 1 - size[1] - LEGEND_MARGIN)
 
     def update(self, t: float, positions: np.ndarray) -> None:
         """Place the arrows of the frame nearest to ``t`` [s] at the bodies' ``positions`` (P, 3) [m]."""
