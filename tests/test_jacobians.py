@@ -18,7 +18,7 @@ SCENE = """
     bodies:
       - {name: a, mass: 0.3, position: [0, 1, 0]}
       - {name: b, mass: 0.7, position: [0.4, 0.8, 0.1]}
-      - {name: bead, mass: 0.2, position: [0.5, 0.1, 0]}
+      - {name: bead, mass: 0.2, position: [0.5, 0.1, 0], charge: 0.3}
       - {name: crate, type: rigid, shape: {type: box, size: [0.2, 0.2, 0.2]}, density: 300, position: [2, 1, 0]}
       - name: sheet
         type: cloth
@@ -46,6 +46,7 @@ SCENE = """
       - {type: gravity}
       - {type: drag, model: quadratic, coefficient: 0.05, bodies: [a, b]}
       - {type: wind, model: linear, coefficient: 0.02, velocity: [1, 0, 0], bodies: [bead]}
+      - {type: electromagnetic, E: [0.5, 0, 0], B: [0.2, -0.4, 1.0]}
 """
 
 
@@ -78,7 +79,7 @@ def finite_difference(dynamics: Dynamics, term, t: float, y: np.ndarray, which: 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_every_analytic_jacobian_matches_finite_differences(seed):
     """Springs (to particles, anchors, moving anchors and body points), dampers, quadratic and linear drag, wind, PD
-    controllers (point, keyframes, polyline and parametric curve) and dihedral springs: ∂f/∂x and ∂f/∂v agree with central differences at a
+    controllers (point, keyframes, polyline and parametric curve), dihedral springs and the Lorentz force: ∂f/∂x and ∂f/∂v agree with central differences at a
     random state (positions moved by up to 10 cm, random velocities)."""
     model = compile_scene(scene(SCENE).spec)
     dynamics = Dynamics(model)
@@ -101,7 +102,7 @@ def test_every_analytic_jacobian_matches_finite_differences(seed):
             numeric = finite_difference(dynamics, term, t, y, which)
             scale = max(1.0, np.abs(numeric).max())
             assert np.abs(analytic - numeric).max() < 1e-5 * scale, (term.kind, which)
-    assert checked >= {"gravity", "spring", "drag", "controller", "dihedral"}
+    assert checked >= {"gravity", "spring", "drag", "controller", "dihedral", "electromagnetic"}
 
 
 def test_system_jacobian_has_the_first_order_form():

@@ -15,10 +15,13 @@ import numpy as np
 from pydantic import TypeAdapter
 
 from animbatch.scene.schema import (
+    CHARGED_FIELD_TYPES,
     AerodynamicsSpec,
     AngularDragSpec,
     BuoyancySpec,
+    CoulombSpec,
     DragSpec,
+    ElectromagneticSpec,
     FieldSpec,
     ForceSpec,
     GravitationSpec,
@@ -31,7 +34,8 @@ from animbatch.sim.forces.applied import build_angular_drag, build_force, build_
 from animbatch.sim.forces.base import BodyTable, ForceTerm, TermFactory
 from animbatch.sim.forces.buoyancy import build_buoyancy
 from animbatch.sim.forces.drag import Drag
-from animbatch.sim.forces.gravitation import build_gravitation
+from animbatch.sim.forces.electromagnetic import FieldHistory, build_lorentz
+from animbatch.sim.forces.gravitation import build_coulomb, build_gravitation
 from animbatch.sim.forces.gravity import build_gravity
 
 Index = np.ndarray | None
@@ -74,6 +78,30 @@ def _buoyancy(spec: BuoyancySpec, bodies: BodyTable, index: Index) -> ForceTerm:
                           angular_damping=spec.angular_damping)
 
 
+def _charges(charges: dict[str, float], bodies: BodyTable, index: Index) -> np.ndarray:
+    """The charge [C] of each selected point (all points when ``index`` is None), from the scene's bodies."""
+    points = range(bodies.count) if index is None else index
+    return np.array([charges.get(bodies.names[i], 0.0) for i in points], float)  # once, at compile time
+
+
+def _history(spec: ElectromagneticSpec, which: str) -> FieldHistory:
+    """E or B over time: from the keyframes that give it, else the field's constant value."""
+    keys = [(k.time, getattr(k, which)) for k in spec.keyframes or () if getattr(k, which) is not None]
+    if not keys:
+        return FieldHistory(np.zeros(1), np.asarray([getattr(spec, which)], float))
+    return FieldHistory(np.array([t for t, _ in keys], float), np.array([v for _, v in keys], float))
+
+
+def _electromagnetic(spec: ElectromagneticSpec, bodies: BodyTable, index: Index, *,
+                     charges: dict[str, float]) -> ForceTerm:
+    return build_lorentz(bodies, index, charge=_charges(charges, bodies, index), electric=_history(spec, "E"),
+                         magnetic=_history(spec, "B"))
+
+
+def _coulomb(spec: CoulombSpec, bodies: BodyTable, index: Index, *, charges: dict[str, float]) -> ForceTerm:
+    return build_coulomb(bodies, index, k=spec.k, softening=spec.softening, charge=_charges(charges, bodies, index))
+
+
 def _aerodynamics(spec: AerodynamicsSpec, bodies: BodyTable, index: Index) -> ForceTerm:
     gust = spec.gust
     return build_aerodynamics(bodies, index, wind=np.asarray(spec.wind, float),
@@ -93,13 +121,18 @@ FIELD_TERMS: dict[str, Callable[[Any, BodyTable, Index], ForceTerm]] = {
     "wind": _wind,
     "gravitation": _gravitation,
     "gravity": _gravity,
+    "electromagnetic": _electromagnetic,
+    "coulomb": _coulomb,
 }
 
 _FIELD_ADAPTER: TypeAdapter[Any] = TypeAdapter(FieldSpec)
 
 
-def field_term(spec: Any) -> TermFactory:
-    """The term factory of a field spec (a dict is validated first, with the scene's rules and messages)."""
+def field_term(spec: Any, charges: dict[str, float] | None = None) -> TermFactory:
+    """The term factory of a field spec (a dict is validated first, with the scene's rules and messages).
+    ``charges``: body name -> charge [C], for the fields that act on charges (electromagnetic, coulomb)."""
     if isinstance(spec, dict):
         spec = _FIELD_ADAPTER.validate_python(spec)
+    if spec.type in CHARGED_FIELD_TYPES:
+        return partial(FIELD_TERMS[spec.type], spec, charges=charges or {})
     return partial(FIELD_TERMS[spec.type], spec)

@@ -13,7 +13,7 @@ from animbatch.compile import deformables as build
 from animbatch.compile.bodies import body_geometry, orientation_matrix, orientation_quaternion
 from animbatch.compile.forces import field_term
 from animbatch.curves import ParametricCurve, Polyline
-from animbatch.scene.schema import DEFORMABLE_SPECS, ClothSpec, RigidBodySpec, SceneSpec
+from animbatch.scene.schema import CHARGED_FIELD_TYPES, DEFORMABLE_SPECS, ClothSpec, RigidBodySpec, SceneSpec
 from animbatch.sim.forces.controllers import ControllerSetting, CurveTarget, FixedTarget, PathTarget, Target
 from animbatch.sim.model.builder import ModelBuilder, Pin
 from animbatch.sim.model.model import Model
@@ -52,7 +52,12 @@ def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
         builder.add_controller(handles[controller.body][0], ControllerSetting(
             controller.stiffness, controller.damping, controller_target(controller.target),
             None if controller.point is None else np.asarray(controller.point, float), controller.name))
+    charges = {body.name: body.charge for body in spec.bodies if getattr(body, "charge", 0.0)}
     for field in spec.fields if handles else ():  # a scene of emitters only has no body to act on
+        if field.type in CHARGED_FIELD_TYPES:  # only the charged bodies feel it
+            chosen = [name for name in (field.bodies or handles) if name in charges]
+            builder.add_field(field_term(field, charges), [handle for name in chosen for handle in handles[name]])
+            continue
         if field.bodies is None:
             builder.add_field(field_term(field))
             continue

@@ -12,7 +12,7 @@ from typing import Any
 
 from animbatch.materials import BUILT_IN
 from animbatch.scene.diagnostics import did_you_mean
-from animbatch.scene.schema import PARTICLE_FIELD_TYPES, label_speed_names
+from animbatch.scene.schema import CHARGED_FIELD_TYPES, PARTICLE_FIELD_TYPES, label_speed_names
 from animbatch.scene.yaml_source import KeyPath, format_path
 
 Problem = tuple[KeyPath, str]
@@ -99,6 +99,7 @@ def _springs(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str
 def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath],
             rigid: set[str], deformable: set[str], emitters: dict[str, KeyPath]) -> Iterator[Problem]:
     cloths = _of_type(data, ("cloth",))
+    charges = _charges(data)
     for index, field in _items(data, "fields"):
         selection = field.get("bodies")
         if isinstance(selection, list):
@@ -141,6 +142,28 @@ def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str,
             if count < 2:
                 yield ("fields", index, "bodies" if isinstance(selection, list) else "type"), (
                     f"gravitation acts between bodies and needs at least 2 (got {count})")
+        if field.get("type") in CHARGED_FIELD_TYPES:
+            yield from _charged(field, index, charges)
+
+
+def _charges(data: dict[str, Any]) -> dict[str, float]:
+    """Name -> charge [C] of the bodies that give a numeric charge."""
+    return {item["name"]: float(item["charge"]) for _, item in _items(data, "bodies")
+            if isinstance(item.get("name"), str) and isinstance(item.get("charge"), int | float)
+            and not isinstance(item.get("charge"), bool)}
+
+
+def _charged(field: dict[str, Any], index: int, charges: dict[str, float]) -> Iterator[Problem]:
+    """An electromagnetic field acts on at least one charged body, Coulomb's law between at least two."""
+    kind, selection = field["type"], field.get("bodies")
+    chosen = [n for n in selection if isinstance(n, str)] if isinstance(selection, list) else list(charges)
+    charged = [name for name in chosen if charges.get(name, 0.0) != 0.0]
+    needed = 2 if kind == "coulomb" else 1
+    if len(charged) < needed:
+        where = ("fields", index, "bodies") if isinstance(selection, list) else ("fields", index, "type")
+        have = f"only {charged[0]!r} has one" if charged else "none has one"
+        yield where, (f"{kind} acts on charged bodies and needs at least {needed}: of the bodies it acts on, {have}. "
+                      "Give bodies a charge, e.g. 'charge: 1.0e-6' (coulombs)")
 
 
 def _emitters(data: dict[str, Any], bodies: dict[str, KeyPath], rigid: set[str]) -> Iterator[Problem]:

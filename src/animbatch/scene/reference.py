@@ -53,6 +53,7 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
     *[(f"`fields[]` — `type: {schema.field_type_names()[i]}`", "fields[].", spec)
       for i, spec in enumerate(schema.FIELD_SPECS)],
     ("`fields[].gust` (aerodynamics)", "gust.", schema.GustSpec),
+    ("`fields[].keyframes[]` (electromagnetic)", "keyframes[].", schema.FieldKeyframeSpec),
     ("`emitters[]`", "emitters[].", schema.EmitterSpec),
     *[(f"`emitters[].source` — `type: {tag_of(spec)}`", "source.", spec) for spec in schema.SOURCE_SPECS],
     ("`emitters[].direction`", "direction.", schema.DirectionSpec),

@@ -31,8 +31,9 @@ import numpy as np
 
 from animbatch.errors import AccuracyWarning
 from animbatch.sim.contact.audit import Overlap, OverlapAudit
-from animbatch.sim.forces import Gravitation, SpringForces
+from animbatch.sim.forces import SpringForces
 from animbatch.sim.forces.dihedral import DihedralSprings
+from animbatch.sim.forces.gravitation import InverseSquarePairs
 from animbatch.sim.integrators.advice import Encounter, closest_encounter
 from animbatch.sim.integrators.guard import energy_scale
 from animbatch.sim.integrators.methods import METHODS
@@ -116,7 +117,7 @@ def conservation_laws(model: Model) -> dict[str, Law]:
         if isinstance(term, SpringForces):
             if term.springs.second_is_anchor.any():
                 external.append("springs to anchors or pins hold the bodies")
-        elif not isinstance(term, Gravitation | DihedralSprings):
+        elif not isinstance(term, InverseSquarePairs | DihedralSprings):
             external.append(f"{term.label} is an external force")
     if _has_fixed_colliders(model):
         external.append("fixed colliders push the bodies")

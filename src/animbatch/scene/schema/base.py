@@ -90,3 +90,9 @@ def roughness_key() -> Any:
     """The ``roughness`` key of a body or collider (display only)."""
     return key(None, "Physically based look: 0 mirror-smooth, 1 fully matte (default: its material's, else plain "
                      "shading).", "1", ge=0, le=1)
+
+
+def charge_key() -> Any:
+    """The ``charge`` key of a particle or rigid body."""
+    return key(0.0, "Electric charge, felt by electromagnetic and coulomb fields (a rigid body's sits at its centre "
+                    "of mass).", "C")

@@ -7,7 +7,17 @@ from typing import Annotated, Any, Literal
 import annotated_types as at
 from pydantic import AfterValidator, model_validator
 
-from animbatch.scene.schema.base import Color, Name, SceneModel, Vec3, key, metallic_key, roughness_key, rule_error
+from animbatch.scene.schema.base import (
+    Color,
+    Name,
+    SceneModel,
+    Vec3,
+    charge_key,
+    key,
+    metallic_key,
+    roughness_key,
+    rule_error,
+)
 
 
 class ParticleSpec(SceneModel):
@@ -19,6 +29,7 @@ class ParticleSpec(SceneModel):
     radius: float = key(0.05, "Radius for display, Stokes drag and collisions.", "m", gt=0)
     position: Vec3 = key([0.0, 0.0, 0.0], "Initial position [x, y, z].", "m")
     velocity: Vec3 = key([0.0, 0.0, 0.0], "Initial velocity [vx, vy, vz].", "m/s")
+    charge: float = charge_key()
     material: Name = key("default", "Material, for collisions: a built-in one (glass, iron, rubber, pavement, steel, "
                                     "teflon, wood, ice, oiled_steel, default) or one from 'materials'.")
     collide: bool = key(True, "Take part in collisions (when the scene has colliders or a 'contacts' section).")

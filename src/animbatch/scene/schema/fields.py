@@ -8,6 +8,7 @@ from pydantic import Field, model_validator
 
 from animbatch.scene.annotations import tag_of
 from animbatch.scene.schema.base import Name, NonZeroVec3, SceneModel, Vec3, key, rule_error
+from animbatch.scene.schema.bodies import _keyframe_list
 
 BodySelection = list[Name] | None
 _BODIES_DESCRIPTION = "Names of the bodies this field acts on (default: all bodies)."
@@ -32,6 +33,47 @@ class GravitationSpec(SceneModel):
                    "m³/(kg·s²)", gt=0)
     softening: float = key(0.0, "Plummer softening length ε; keeps close encounters finite.", "m", ge=0)
     bodies: BodySelection = key(None, _BODIES_DESCRIPTION)
+
+
+#: Coulomb's constant k = 1 / (4 π ε₀) [N·m²/C²] (CODATA 2018).
+COULOMB_CONSTANT = 8.9875517923e9
+
+
+class CoulombSpec(SceneModel):
+    """Coulomb's law between every pair of selected charged bodies, with Plummer softening: like charges repel,
+    opposite ones attract.
+
+    ``f_i = -Σ_j k q_i q_j (x_j - x_i) / (|x_j - x_i|² + ε²)^(3/2)``.
+    """
+
+    type: Literal["coulomb"] = key(description="Field type.")
+    k: float = key(COULOMB_CONSTANT, "Coulomb's constant 1/(4 π ε₀) (scenes may use k = 1 with scaled charges).",
+                   "N·m²/C²", gt=0)
+    softening: float = key(0.0, "Plummer softening length ε; keeps close encounters finite.", "m", ge=0)
+    bodies: BodySelection = key(None, "Names of the bodies this field acts on (default: every body with a charge).")
+
+
+class FieldKeyframeSpec(SceneModel):
+    """The electric and/or magnetic field at a time; each is linear between the keyframes that give it."""
+
+    time: float = key(description="Time of the key.", unit="s", ge=0)
+    E: Vec3 | None = key(None, "Electric field at that time (default: this key leaves E to the others).", "V/m")
+    B: Vec3 | None = key(None, "Magnetic field at that time (default: this key leaves B to the others).", "T")
+
+
+class ElectromagneticSpec(SceneModel):
+    """Uniform electric and magnetic fields acting on charged bodies: the Lorentz force ``f = q (E + v × B)``.
+
+    With ``keyframes``, E and B change in time: each is linear between the keyframes that give it, and held before
+    the first and after the last of them.
+    """
+
+    type: Literal["electromagnetic"] = key(description="Field type.")
+    E: Vec3 = key([0.0, 0.0, 0.0], "Electric field (unless keyframes give it).", "V/m")
+    B: Vec3 = key([0.0, 0.0, 0.0], "Magnetic field (unless keyframes give it).", "T")
+    keyframes: _keyframe_list(FieldKeyframeSpec) | None = key(  # type: ignore[valid-type]
+        None, "E and B over time (times increasing).")
+    bodies: BodySelection = key(None, "Names of the bodies this field acts on (default: every body with a charge).")
 
 
 DragModel = Literal["linear", "quadratic", "stokes"]
@@ -161,7 +203,10 @@ class AerodynamicsSpec(SceneModel):
 
 
 FIELD_SPECS: tuple[type[SceneModel], ...] = (GravitySpec, GravitationSpec, DragSpec, WindSpec, ForceSpec, TorqueSpec,
-                                             AngularDragSpec, BuoyancySpec, AerodynamicsSpec)
+                                             AngularDragSpec, BuoyancySpec, AerodynamicsSpec, ElectromagneticSpec,
+                                             CoulombSpec)
+#: Field types that act on charged bodies only.
+CHARGED_FIELD_TYPES = ("electromagnetic", "coulomb")
 #: Field types that act on emitted particles too (the others act on bodies only).
 PARTICLE_FIELD_TYPES = ("gravity", "drag", "wind", "buoyancy")
 FieldSpec = Annotated[Union[*FIELD_SPECS], Field(discriminator="type")]  # type: ignore[valid-type]

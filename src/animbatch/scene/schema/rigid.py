@@ -13,6 +13,7 @@ from animbatch.scene.schema.base import (
     PositiveVec3,
     SceneModel,
     Vec3,
+    charge_key,
     key,
     metallic_key,
     roughness_key,
@@ -149,6 +150,7 @@ class RigidBodySpec(SceneModel):
     position: Vec3 = key([0.0, 0.0, 0.0], "Initial position of the shape's origin.", "m")
     orientation: OrientationSpec | None = key(None, "Initial orientation (default: body axes = world axes).")
     velocity: Vec3 = key([0.0, 0.0, 0.0], "Initial velocity of the centre of mass.", "m/s")
+    charge: float = charge_key()
     angular_velocity: Vec3 = key([0.0, 0.0, 0.0], "Initial angular velocity ω, world axes.", "rad/s")
     material: Name = key("default", "Material, for collisions (see the particle's 'material').")
     collide: bool = key(True, "Take part in collisions (when the scene has colliders or a 'contacts' section).")

@@ -138,6 +138,11 @@ class ForceTerm(ABC):
         """Potential energy [J]; only for terms with ``has_potential``."""
         raise NotImplementedError(f"{self.kind} has no potential energy")
 
+    def energy_scale(self, size: float) -> float:
+        """The energy [J] this term can trade over a distance ``size`` [m] (the scene's size), when its potential
+        can start at zero (as ``-q E · x`` does); 0 when the scene's other scales cover it."""
+        return 0.0
+
     def jacobian(self, t: float, state: Kinematics, out: ForceJacobian) -> bool:
         """Add this term's ``∂f/∂x`` and ``∂f/∂v`` on particles to ``out``; return False when the term gives none
         (implicit methods then treat its force explicitly, as evaluated at the start of the step)."""

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from animbatch.sim.forces import Gravitation
+from animbatch.sim.forces.gravitation import InverseSquarePairs
 from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.integrators.stability import stiffest_mode
 from animbatch.sim.model.model import Model
@@ -31,8 +31,8 @@ IMPLICIT = tuple(name for name, method in METHODS.items() if method.implicit)
 
 @dataclass(frozen=True)
 class Encounter:
-    """Two gravitating bodies ``first`` and ``second`` ``distance`` [m] apart, with radii summing to ``touching``
-    [m], under a field without softening; at ``time`` [s] when known."""
+    """Two gravitating (or charged) bodies ``first`` and ``second`` ``distance`` [m] apart, with radii summing to
+    ``touching`` [m], under a field without softening; at ``time`` [s] when known."""
 
     first: str
     second: str
@@ -40,12 +40,13 @@ class Encounter:
     touching: float
     time: float | None = None
     collide: str = "a 'contacts: {}' section"  # what makes them collide in this scene
+    field: str = "gravitation"  # the field type: gravitation or coulomb
 
     def advice(self) -> str:
         when = f" at t ≈ {self.time:.4g} s" if self.time is not None else ""
         return (f"Bodies {self.first!r} and {self.second!r} come {self.distance:.3g} m apart{when}, closer than "
-                f"their radii together ({self.touching:.3g} m), and the gravitation field has no softening, so the "
-                f"1/r² force between them grows without bound. Give the gravitation field a softening length "
+                f"their radii together ({self.touching:.3g} m), and the {self.field} field has no softening, so the "
+                f"1/r² force between them grows without bound. Give the {self.field} field a softening length "
                 f"(softening: {max(0.5 * self.touching, 1e-12):.3g}), let the bodies collide ({self.collide}), or "
                 "make their radii match their closest approach")
 
@@ -61,14 +62,14 @@ def _collide_hint(model: Model) -> str:
 
 
 def closest_encounter(model: Model, positions: np.ndarray, times: np.ndarray | None = None) -> Encounter | None:
-    """The gravitating pair without softening that comes closest to touching in ``positions`` (P, 3) or (F, P, 3)
-    [m] (at the frames ``times`` [s] and on the straight paths between them), if any pair is closer than its radii
-    together."""
+    """The gravitating or charged pair without softening that comes closest to touching in ``positions`` (P, 3) or
+    (F, P, 3) [m] (at the frames ``times`` [s] and on the straight paths between them), if any pair is closer than
+    its radii together."""
 
     worst = None
     frames = positions.reshape(-1, *positions.shape[-2:])
     for term in model.force_terms:
-        if not isinstance(term, Gravitation) or term.softening > 0:
+        if not isinstance(term, InverseSquarePairs) or term.softening > 0:
             continue
         index = np.arange(model.body_count) if term.index is None else term.index
         if len(index) < 2:
@@ -93,7 +94,7 @@ def closest_encounter(model: Model, positions: np.ndarray, times: np.ndarray | N
                 when = None if times is None else float(times[k] if not k else times[k - 1] + fraction[i, j] * (
                     times[k] - times[k - 1]))
                 worst = (ratio[i, j], Encounter(names[index[i]], names[index[j]], float(distance[i, j]),
-                                                float(touching[i, j]), when, _collide_hint(model)))
+                                                float(touching[i, j]), when, _collide_hint(model), term.kind))
     return None if worst is None else worst[1]
 
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from animbatch.errors import SimulationError
-from animbatch.sim.forces import Gravitation
+from animbatch.sim.forces.gravitation import InverseSquarePairs
 from animbatch.sim.integrators.base import StepSettings
 from animbatch.sim.integrators.budget import format_seconds
 from animbatch.sim.integrators.fixed_step import DEFAULT_DT, substeps
@@ -134,7 +134,7 @@ def _steps(model: Model, solver: StepSettings, times: np.ndarray) -> tuple[float
 
 
 def _fastest_motions(model: Model) -> list[tuple[float, str]]:
-    """(ω [rad/s], description) of the stiffest spring and of the tightest gravitational pair at the start."""
+    """(ω [rad/s], description) of the stiffest spring and of the tightest gravitating or charged pair at the start."""
     found = []
     mode = stiffest_mode(model)
     if mode is not None and mode.omega > 0:
@@ -142,19 +142,21 @@ def _fastest_motions(model: Model) -> list[tuple[float, str]]:
 
     positions = np.asarray(model.positions(model.y0[None])[0])
     for term in model.force_terms:
-        if not isinstance(term, Gravitation) or len(term.mass) < 2:
+        if not isinstance(term, InverseSquarePairs) or len(term.mass) < 2:
             continue
         index = np.arange(len(positions)) if term.index is None else term.index
-        points, mass = positions[index][:2000], np.asarray(term.mass, float)[:2000]  # the first 2000 suffice
+        points = positions[index][:2000]  # the first 2000 suffice
         r2 = np.sum((points[:, None, :] - points[None, :, :]) ** 2, axis=-1) + term.softening ** 2
         np.fill_diagonal(r2, np.inf)
+        first = np.arange(len(points))
         with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-            omega2 = term.G * (mass[:, None] + mass[None, :]) / r2 ** 1.5
+            omega2 = term.pair_frequency(r2, first[:, None], first[None, :])
         omega2 = np.nan_to_num(omega2, nan=0.0, posinf=1e300)
         i, j = np.unravel_index(int(np.argmax(omega2)), omega2.shape)
         names = model.bodies.names
         found.append((float(np.sqrt(omega2[i, j])),
-                      f"tightest gravitating pair ({names[index[i]]!r} and {names[index[j]]!r})"))
+                      f"tightest {'gravitating' if term.kind == 'gravitation' else 'charged'} pair "
+                      f"({names[index[i]]!r} and {names[index[j]]!r})"))
     return found
 
 

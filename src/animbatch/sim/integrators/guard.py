@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from animbatch.errors import SimulationError
-from animbatch.sim.forces import Gravitation
+from animbatch.sim.forces.gravitation import InverseSquarePairs
 from animbatch.sim.forces.gravity import gravity_magnitude
 from animbatch.sim.integrators.advice import closest_encounter, failure_advice
 from animbatch.sim.integrators.methods import METHODS
@@ -64,8 +64,9 @@ ENERGY_WINDOW = 0.5
 
 
 def energy_scale(model: Model) -> float:
-    """The energy a scene has to play with [J], from its initial state: the largest of |E₀|, the kinetic energy and
-    ``M |g| L`` (total mass, strongest uniform gravity, size of the initial configuration or the largest body)."""
+    """The energy a scene has to play with [J], from its initial state: the largest of |E₀|, the kinetic energy,
+    ``M |g| L`` (total mass, strongest uniform gravity, size of the initial configuration or the largest body) and
+    what a term can trade over ``L`` (``Σ|q| |E| L`` in an electric field)."""
 
     y0 = model.y0
     x0 = model.positions(y0[None])[0]
@@ -73,7 +74,8 @@ def energy_scale(model: Model) -> float:
                float(np.max(model.bodies.radius, initial=0.0)))
     gravity = gravity_magnitude(model.force_terms)
     return max(abs(float(total_energy(model, y0))), float(kinetic_energy(model, y0)),
-               float(np.sum(model.bodies.mass)) * gravity * size, 1e-12)
+               float(np.sum(model.bodies.mass)) * gravity * size,
+               max((term.energy_scale(size) for term in model.force_terms), default=0.0), 1e-12)
 
 
 def check_energy_growth(model: Model, states: np.ndarray, method: str, dt: float | None,
@@ -135,14 +137,15 @@ def check_energy_growth(model: Model, states: np.ndarray, method: str, dt: float
         remedies.append("a smaller solver.dt" if dt else "tighter solver.rtol and solver.atol")
     remedies += ["solver.method Radau or BDF", "backward_euler"]
     terms = model.force_terms
-    if any(isinstance(term, Gravitation) and term.softening == 0 for term in terms):
+    unsoftened = [term.kind for term in terms if isinstance(term, InverseSquarePairs) and term.softening == 0]
+    if unsoftened:
 
         encounter = closest_encounter(model, model.positions(states[: frame + 1]),
                                       times[: frame + 1])
         if encounter is not None:
             message += " " + encounter.advice() + "."
         else:
-            remedies.append("softening on the gravitation field (bodies pass very close)")
+            remedies.append(f"softening on the {unsoftened[0]} field (bodies pass very close)")
     raise SimulationError(message + " Try " + ", ".join(remedies) + ". No frame was written.", time=t, body=body,
                           details={"energy_rise": float(rise), "method": method, "dt": dt,
                                    "spring": mode.spring if mode else None})

@@ -97,7 +97,8 @@ class BackwardEuler(PartitionedScheme):
             stiffness, damping = derivatives.matrix("x"), derivatives.matrix("v")
             velocity = motion[:size]
             force = self._mass @ rate[:size]
-            matrix = self._mass - h * damping - (h * h) * stiffness  # symmetric positive definite
+            # positive definite; symmetric too, unless a magnetic field adds its antisymmetric ∂f/∂v
+            matrix = self._mass - h * damping - (h * h) * stiffness
             try:
                 factors = factor_symmetric(matrix)
             except RuntimeError:  # SuperLU: "Factor is exactly singular"
