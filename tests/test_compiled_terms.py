@@ -77,7 +77,7 @@ def test_info_lists_compiled_terms_layout_and_masses(tmp_path):
     assert "y[0:9]  particle_position  (3 × 3) [m]" in out and "y[9:18]  particle_velocity  (3 × 3) [m/s]" in out
     assert "1. gravity" in out and "2. spring" in out and "1 spring (1 body–body, 0 body–anchor)" in out
     assert ("not compiled (not declared): aerodynamics, force, torque, angular_drag, buoyancy, drag, wind, "
-            "gravitation, controller, dihedral") in out
+            "gravitation, electromagnetic, coulomb, controller, dihedral") in out
     assert "a                         1        0.05" in out
 
 

@@ -69,7 +69,8 @@ def test_unknown_field_type(tmp_path):
     """A misspelt field type suggests the right one and lists all of them."""
     line = first_error(tmp_path, GOOD.replace("type: gravity", "type: gravty"))
     assert line == ("scene.yaml:8:11: fields[0].type: unknown field type 'gravty'; did you mean 'gravity'? "
-                    "Allowed: gravity, gravitation, drag, wind, force, torque, angular_drag, buoyancy, aerodynamics")
+                    "Allowed: gravity, gravitation, drag, wind, force, torque, angular_drag, buoyancy, aerodynamics, "
+                    "electromagnetic, coulomb")
 
 
 def test_malformed_yaml(tmp_path):
@@ -116,7 +117,8 @@ def test_all_errors_of_a_file_are_reported_at_once(tmp_path):
         "scene.yaml:3:21: bodies[0].mass: must be > 0 kg (got 0)",
         "scene.yaml:4:12: bodies[1].name: name 'a' is already used by bodies[0]; names must be unique",
         "scene.yaml:4:15: bodies[1].radious: unknown key 'radious'; did you mean 'radius'? "
-        "Allowed keys here: type, name, mass, radius, position, velocity, material, collide, color, metallic, roughness",
+        "Allowed keys here: type, name, mass, radius, position, velocity, charge, material, collide, color, metallic, "
+        "roughness",
         "scene.yaml:6:19: springs[0].between[1]: unknown body or anchor 'b' Known: a",
         "scene.yaml:8:5: fields[0].coefficient: required key missing: the linear drag law needs 'coefficient' "
         "(C in N·s/m)",
