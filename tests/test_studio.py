@@ -118,3 +118,21 @@ def test_ambient_occlusion_darkens_the_ground_where_a_body_touches_it_and_nothin
     assert np.abs(darker[inside]).max() <= 3, "the ball does not"
     assert np.abs(darker[:20]).max() == 0, "nor the backdrop"
     assert np.abs(darker[-10:, :40]).max() <= 3, "nor the ground far from the ball"
+
+
+def test_the_overlay_draws_the_notes_symbols():
+    """π, ω, τ, γ and ≈ (proper time, periods, γ factors) are drawn, not dropped: VTK's own fonts lack them."""
+    def ink(label: str) -> int:
+        text = EMPTY.replace("show_time: false", "show_time: true").format(
+            render=f'  time_label: "{label}"\n  label_size: 0.2\n')
+        scene = stages.parse_scene(text)
+        model = api.compile_model(scene)
+        trajectory = api.simulate(scene, model=model)
+        geometry = stages.frame_geometry(scene, model, trajectory)
+        with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
+            corner = renderer.draw(0.0, trajectory.positions[0]).astype(int)[:60, :120]
+        return int((np.abs(corner - corner[-1:, -1:]).sum(axis=2) > 150).sum())
+
+    blank = ink("x")
+    for symbol in "πωτγ≈":
+        assert ink("x" + symbol) > blank + 20, symbol

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from animbatch.compile.builder import ModelBuilder
 from animbatch.compile.model import compile_scene
+from animbatch.compile.stopwatches import StopwatchReading, stopwatch_readings
 from animbatch.farm.run import RenderResult, RunReport, finish_outputs, render, run
 from animbatch.scene import physics_fingerprint
 from animbatch.stages import (
@@ -30,6 +31,7 @@ from animbatch.stages import (
                               write_quantities,
 )
 
-__all__ = ["ModelBuilder", "RenderResult", "RunReport", "check_trajectory", "compile_model", "compile_scene",
-           "failure_report", "finish_outputs", "frame_geometry", "load_scene", "parse_scene", "physics_fingerprint",
-           "render", "run", "scene_fingerprint", "scene_folder", "simulate", "simulate_emitters", "write_quantities"]
+__all__ = ["ModelBuilder", "RenderResult", "RunReport", "StopwatchReading", "check_trajectory", "compile_model",
+           "compile_scene", "failure_report", "finish_outputs", "frame_geometry", "load_scene", "parse_scene",
+           "physics_fingerprint", "render", "run", "scene_fingerprint", "scene_folder", "simulate", "simulate_emitters",
+           "stopwatch_readings", "write_quantities"]

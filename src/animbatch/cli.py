@@ -204,8 +204,10 @@ def simulate(scene: Path, output: Path | None, settings: tuple[str, ...], progre
 
     target = trajectory.save(output or Path("renders") / loaded.name / f"{loaded.name}.npz")
     seconds = trajectory.solver_stats.get("wall_time", 0.0) + trajectory.particle_stats.get("wall_time", 0.0)
+    watches = "".join(f" | {reading.describe()}"
+                      for reading in api.stopwatch_readings(loaded.spec.stopwatches, trajectory))
     click.echo(f"{loaded.name}: {trajectory.frame_count} frames -> {target} | {summary(trajectory.ledger)} | "
-               f"{seconds:.3f} s")
+               f"{seconds:.3f} s{watches}")
 
 
 @cli.command()

@@ -27,6 +27,7 @@ from animbatch.compile.frame_geometry import frame_geometry as compile_frame_geo
 from animbatch.compile.model import compile_scene
 from animbatch.compile.particles import compile_particles, pool_sizes
 from animbatch.compile.solver import make_integrator
+from animbatch.compile.stopwatches import stopwatch_readings
 from animbatch.errors import SimulationError, TrajectoryError
 from animbatch.files import write_text_atomic
 from animbatch.plot import plot_quantities
@@ -36,7 +37,7 @@ from animbatch.render.geometry import LabelValues
 from animbatch.scene import LoadedScene, physics_fingerprint
 from animbatch.scene import loader as scene_loader
 from animbatch.scene.overrides import Override
-from animbatch.scene.schema import label_speed_names
+from animbatch.scene.schema import label_names, label_speed_names
 from animbatch.sim.integrators import DEFAULT_DT, IntegrationResult, SolverStats
 from animbatch.sim.integrators.budget import wall_budget
 from animbatch.sim.integrators.checkpoint import integrate_with_checkpoints
@@ -202,7 +203,10 @@ def label_values(scene: LoadedScene, model: Model, trajectory: Trajectory) -> La
     label = scene.spec.render.time_label
     fields = {field for _, field, _, _ in string.Formatter().parse(label) if field}
     speeds = label_speed_names(label)
-    values = LabelValues(np.asarray(trajectory.times), float(scene.spec.fps))
+    watches = {reading.name: reading for reading in stopwatch_readings(scene.spec.stopwatches, trajectory)
+               if reading.name in label_names(label, "stopwatch")}
+    values = LabelValues(np.asarray(trajectory.times), float(scene.spec.fps), stopwatches=watches,
+                         wall_simulate=float(trajectory.solver_stats.get("wall_time", 0.0)))
     if not (fields & {"E", "KE", "PE"} or speeds) or not model.body_count:
         return values
     series = quantity_series(model, trajectory)

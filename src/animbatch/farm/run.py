@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from animbatch import __version__
+from animbatch.compile.stopwatches import stopwatch_line, stopwatch_readings
 from animbatch.encode import PngSequenceWriter
 from animbatch.errors import SimulationError
 from animbatch.farm.cache import bake
@@ -114,6 +115,7 @@ class RunReport:
     cache_reused: bool = False
     ledger: dict[str, Any] = field(default_factory=dict)  # the accuracy ledger (see animbatch.sim.ledger)
     quantities: list[str] = field(default_factory=list)  # quantities.csv (and .png) beside the report
+    stopwatches: dict[str, dict[str, Any]] = field(default_factory=dict)  # name -> start, stop, elapsed, expected
 
     def summary(self) -> str:
         """One line for logs: outputs, frames, timings, solver work and the accuracy ledger."""
@@ -126,8 +128,9 @@ class RunReport:
         timings = ", ".join(f"{stage} {seconds:.2f} s" for stage, seconds in self.stages.items())
         width, height = self.resolution
         target = self.outputs[0] if self.outputs else "(no output)"
+        watches = "".join(f" | {stopwatch_line(name, reading)}" for name, reading in self.stopwatches.items())
         return (f"{self.scene}: {self.frame_count} frames {width}×{height} @ {self.fps} fps -> {target} | "
-                f"{timings} | {solver} | {self.backend}")
+                f"{timings} | {solver} | {self.backend}{watches}")
 
 
 def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: str | Path = "renders",
@@ -194,7 +197,9 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
                        trajectory.particle_stats, frames=str(span), frames_drawn=len(rendered.drawn),
                        frames_skipped=len(rendered.skipped), workers=workers,
                        cache=str(cache.path) if cache else None, cache_reused=bool(cache and cache.reused),
-                       ledger=trajectory.ledger)
+                       ledger=trajectory.ledger,
+                       stopwatches={reading.name: reading.as_dict()
+                                    for reading in stopwatch_readings(spec.stopwatches, trajectory)})
     if frames is None:
         folder = Path(out_dir) / scene.name
         report.quantities = [str(path) for path in write_quantities(scene, model, trajectory, folder, plot=plot)]

@@ -16,6 +16,9 @@ silently switches to SSAA on OSMesa/EGL builds, which is several times slower.
 
 from __future__ import annotations
 
+import importlib.util
+import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -61,6 +64,20 @@ from animbatch.scene.schema import (
 
 #: Above this many particles, ``particles: auto`` draws point sprites instead of sphere meshes.
 SPRITE_THRESHOLD = 200
+
+#: vtkTextProperty's font family that reads a font file (VTK_FONT_FILE in vtkSystemIncludes.h).
+VTK_FONT_FILE = 4
+
+
+def overlay_font() -> Path | None:
+    """DejaVu Sans, which matplotlib (a dependency) ships, found without importing matplotlib; None if absent."""
+    spec = importlib.util.find_spec("matplotlib")
+    for folder in (spec.submodule_search_locations or []) if spec is not None else []:
+        path = Path(folder) / "mpl-data" / "fonts" / "ttf" / "DejaVuSans.ttf"
+        if path.is_file():
+            return path
+    return None
+
 
 class FrameRenderer:
     """Renders frames of one scene. Create once, call :meth:`draw` per frame, then :meth:`close`."""
@@ -113,6 +130,7 @@ class FrameRenderer:
         self._add_springs()
         self._add_anchors()
         self._add_targets()
+        self._drawing_seconds = self._last_frame_seconds = 0.0
         self._add_time_label()
         self._apply_camera(self.camera)
         self._pixels = None
@@ -413,13 +431,19 @@ class FrameRenderer:
                                             position=(self.width - size if right else size,
                                                       size if lower else self.height - size))
         text = self._label.GetTextProperty()
+        font = overlay_font()
+        if font is not None:  # VTK's own fonts have no π, ω, τ, γ, ≈: the notes' symbols need a fuller one
+            text.SetFontFamily(VTK_FONT_FILE)
+            text.SetFontFile(str(font))
         text.SetVerticalJustificationToBottom() if lower else text.SetVerticalJustificationToTop()
         text.SetJustificationToRight() if right else text.SetJustificationToLeft()
 
     def _label_text(self, t: float) -> str:
-        """The overlay at time ``t`` [s], with the numbers of its frame."""
+        """The overlay at time ``t`` [s], with the numbers of its frame, and the wall-clock seconds this renderer
+        has spent drawing (so far, and on the frame before)."""
         values = self.geometry.label.at(t) if self.geometry.label is not None else {"t": t}
-        return self.render_spec.time_label.format(**values)
+        return self.render_spec.time_label.format(**values, wall_render=self._drawing_seconds,
+                                                  wall_frame=self._last_frame_seconds)
 
     def _apply_camera(self, placement: CameraPlacement) -> None:
         camera = self.plotter.camera
@@ -444,6 +468,7 @@ class FrameRenderer:
         quaternions and ``angular_velocities`` (P, 3) [rad/s]; ``emitted``: the trajectory's particle frames (one
         :class:`~animbatch.trajectory.ParticleFrames` per emitter) and the index of this frame. Returns an
         RGB image (H, W, 3) uint8."""
+        started = time.perf_counter()
         geometry = self.geometry
         if emitted is not None:
             records, frame = emitted
@@ -505,7 +530,10 @@ class FrameRenderer:
             self._apply_camera(self.camera_path.at(t))
         # The window itself, not plotter.render(): PyVista skips rendering until the plotter was first shown.
         self.plotter.ren_win.Render()
-        return self._read_pixels()
+        pixels = self._read_pixels()
+        self._last_frame_seconds = time.perf_counter() - started
+        self._drawing_seconds += self._last_frame_seconds
+        return pixels
 
     def _spring_ends(self, positions: np.ndarray, rigid_rotation: np.ndarray | None,
                      anchor_positions: np.ndarray) -> np.ndarray:

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -60,15 +61,62 @@ class ArrowSeries:
 
 
 @dataclass(frozen=True)
+class StopwatchReading:
+    """A stopwatch over one run: ``start`` and ``stop`` [s] (None: never started, or still running at the end),
+    ``end`` [s] the run's last frame time, and the closed form's ``expected`` time [s], if any."""
+
+    name: str
+    start: float | None
+    stop: float | None
+    end: float
+    expected: float | None = None
+
+    @property
+    def elapsed(self) -> float | None:
+        """Seconds between start and stop (None when either never happened)."""
+        return None if self.start is None or self.stop is None else self.stop - self.start
+
+    def at(self, t: float) -> float:
+        """What the stopwatch shows at time ``t`` [s]: 0 before it starts, running, then held once stopped."""
+        if self.start is None or t <= self.start:
+            return 0.0
+        return min(t, self.stop if self.stop is not None else math.inf) - self.start
+
+    def as_dict(self) -> dict[str, float | None]:
+        error = None if self.elapsed is None or self.expected is None else self.elapsed - self.expected
+        return {"start": self.start, "stop": self.stop, "elapsed": self.elapsed, "expected": self.expected,
+                "error": error}
+
+    def describe(self) -> str:
+        return stopwatch_line(self.name, self.as_dict())
+
+
+def stopwatch_line(name: str, reading: dict[str, float | None]) -> str:
+    """"stopwatch 'fall' 0.6386 s (expected 0.6386 s, error 2e-09 s)", or why there is no reading, from
+    :meth:`StopwatchReading.as_dict`."""
+    start, stop, elapsed, expected = (reading.get(key) for key in ("start", "stop", "elapsed", "expected"))
+    if start is None:
+        return f"stopwatch {name!r} never started"
+    if stop is None or elapsed is None:
+        return f"stopwatch {name!r} started at {start:.6g} s and never stopped"
+    text = f"stopwatch {name!r} {elapsed:.6g} s"
+    if expected is not None:
+        text += f" (expected {expected:.6g} s, error {elapsed - expected:.2g} s)"
+    return text
+
+
+@dataclass(frozen=True)
 class LabelValues:
     """What a text overlay can show at each frame: ``times`` (F,) [s], the frames per second, and per-frame series
-    (F,) by name: energies ``E``, ``KE``, ``PE`` [J] when the label asks for them, and ``speeds`` [m/s] of the
-    bodies it names."""
+    (F,) by name: energies ``E``, ``KE``, ``PE`` [J] when the label asks for them, ``speeds`` [m/s] of the
+    bodies it names, the scene's stopwatches and the simulation's wall time [s]."""
 
     times: np.ndarray
     fps: float
     series: dict[str, np.ndarray] = field(default_factory=dict)
     speeds: dict[str, np.ndarray] = field(default_factory=dict)
+    stopwatches: dict[str, StopwatchReading] = field(default_factory=dict)
+    wall_simulate: float = 0.0  # [s] the simulation's wall time, for {wall_simulate}
 
     def at(self, t: float) -> dict[str, Any]:
         """The label's fields at the frame nearest to time ``t`` [s]."""
@@ -76,6 +124,8 @@ class LabelValues:
         values: dict[str, Any] = {"t": t, "frame": frame, "frames": len(self.times), "fps": self.fps}
         values.update({name: float(series[frame]) for name, series in self.series.items()})
         values["speed"] = {name: float(series[frame]) for name, series in self.speeds.items()}
+        values["stopwatch"] = {name: reading.at(t) for name, reading in self.stopwatches.items()}
+        values["wall_simulate"] = self.wall_simulate
         return values
 
 

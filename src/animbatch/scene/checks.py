@@ -12,7 +12,7 @@ from typing import Any
 
 from animbatch.materials import BUILT_IN
 from animbatch.scene.diagnostics import did_you_mean
-from animbatch.scene.schema import CHARGED_FIELD_TYPES, PARTICLE_FIELD_TYPES, label_speed_names
+from animbatch.scene.schema import CHARGED_FIELD_TYPES, PARTICLE_FIELD_TYPES, label_names, label_speed_names
 from animbatch.scene.yaml_source import KeyPath, format_path
 
 Problem = tuple[KeyPath, str]
@@ -28,7 +28,7 @@ def check_references(data: dict[str, Any]) -> list[Problem]:
     return [*_body_list(data), *_duplicate_names(data), *_springs(data, bodies, anchors, rigid, deformable),
             *_fields(data, bodies, anchors, rigid, deformable, emitters), *_pins(data, bodies, rigid),
             *_controllers(data, bodies, rigid, deformable), *_emitters(data, bodies, rigid), *_materials(data),
-            *_trails(data, bodies, deformable), *_label(data, bodies)]
+            *_trails(data, bodies, deformable), *_label(data, bodies), *_stopwatches(data, bodies, deformable)]
 
 
 #: Body types made of many vertices (each a particle in the model).
@@ -192,6 +192,29 @@ def _label(data: dict[str, Any], bodies: dict[str, KeyPath]) -> Iterator[Problem
             yield ("render", "time_label"), (f"{{speed[{name}]}}: unknown body {name!r}"
                                              f"{did_you_mean(name, sorted(bodies)) or '.'} Bodies: "
                                              f"{', '.join(sorted(bodies)) or '(none)'}")
+    watches = sorted(_names(data, "stopwatches"))
+    for name in label_names(label, "stopwatch"):
+        if name not in watches:
+            yield ("render", "time_label"), (f"{{stopwatch[{name}]}}: unknown stopwatch {name!r}"
+                                             f"{did_you_mean(name, watches) or '.'} Stopwatches: "
+                                             f"{', '.join(watches) or '(none: declare them under stopwatches:)'}")
+
+
+def _stopwatches(data: dict[str, Any], bodies: dict[str, KeyPath], deformable: set[str]) -> Iterator[Problem]:
+    """A stopwatch event's body is a particle or rigid body of the scene."""
+    for index, watch in _items(data, "stopwatches"):
+        for which in ("start", "stop"):
+            event = watch.get(which)
+            name = event.get("body") if isinstance(event, dict) else None
+            if not isinstance(name, str):
+                continue
+            if name in deformable:
+                yield ("stopwatches", index, which, "body"), (
+                    f"{name!r} is a cloth or lattice, which has no one centre to follow: name a particle or rigid body")
+            elif name not in bodies:
+                yield ("stopwatches", index, which, "body"), (
+                    f"unknown body {name!r}{did_you_mean(name, sorted(bodies)) or '.'} Bodies: "
+                    f"{', '.join(sorted(bodies)) or '(none)'}")
 
 
 def _trails(data: dict[str, Any], bodies: dict[str, KeyPath], deformable: set[str]) -> Iterator[Problem]:
@@ -276,8 +299,8 @@ def _materials(data: dict[str, Any]) -> Iterator[Problem]:
 
 
 def _duplicate_names(data: dict[str, Any]) -> Iterator[Problem]:
-    """Bodies, anchors and emitters share one namespace; springs have their own."""
-    for sections in (("bodies", "anchors", "emitters"), ("springs",)):
+    """Bodies, anchors and emitters share one namespace; springs and stopwatches have their own."""
+    for sections in (("bodies", "anchors", "emitters"), ("springs",), ("stopwatches",)):
         first: dict[str, KeyPath] = {}
         for section in sections:
             for index, item in _items(data, section):

@@ -54,6 +54,8 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
       for i, spec in enumerate(schema.FIELD_SPECS)],
     ("`fields[].gust` (aerodynamics)", "gust.", schema.GustSpec),
     ("`fields[].keyframes[]` (electromagnetic)", "keyframes[].", schema.FieldKeyframeSpec),
+    ("`stopwatches[]`", "stopwatches[].", schema.StopwatchSpec),
+    ("`stopwatches[].start`, `stopwatches[].stop`", "start.", schema.EventSpec),
     ("`emitters[]`", "emitters[].", schema.EmitterSpec),
     *[(f"`emitters[].source` — `type: {tag_of(spec)}`", "source.", spec) for spec in schema.SOURCE_SPECS],
     ("`emitters[].direction`", "direction.", schema.DirectionSpec),

@@ -118,6 +118,7 @@ from animbatch.scene.schema.render import (
     TrailSpec,
     VideoPreset,
     VideoSpec,
+    label_names,
     label_speed_names,
 )
 from animbatch.scene.schema.rigid import (
@@ -148,10 +149,14 @@ from animbatch.scene.schema.solver import (
     Method,
     SolverSpec,
 )
+from animbatch.scene.schema.stopwatches import EventSpec, StopwatchSpec
 
 __all__ = [
     "LABEL_FIELDS",
+    "label_names",
     "label_speed_names",
+    "EventSpec",
+    "StopwatchSpec",
     "TrailSpec",
     "QUALITY_PRESETS",
     "Quality",

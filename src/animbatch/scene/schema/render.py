@@ -99,7 +99,9 @@ class GroundSpec(SceneModel):
 
 
 #: The numbers a text overlay can show (besides ``{speed[NAME]}``), see :func:`label_speed_names`.
-LABEL_FIELDS = ("t", "frame", "frames", "fps", "E", "KE", "PE")
+LABEL_FIELDS = ("t", "frame", "frames", "fps", "E", "KE", "PE", "wall_simulate", "wall_render", "wall_frame")
+#: The fields of a text overlay that name something: ``{speed[BODY]}`` and ``{stopwatch[NAME]}``.
+LABEL_NAMED_FIELDS = ("speed", "stopwatch")
 
 
 class _AnyBody(dict):  # type: ignore[type-arg]
@@ -109,10 +111,16 @@ class _AnyBody(dict):  # type: ignore[type-arg]
         return 1.0
 
 
+def label_names(label: str, kind: str = "speed") -> list[str]:
+    """The names a label's ``{speed[NAME]}`` (or ``{stopwatch[NAME]}``, for ``kind`` stopwatch) fields ask for, in
+    order."""
+    return [field[len(kind) + 1:-1] for _, field, _, _ in string.Formatter().parse(label)
+            if field is not None and field.startswith(kind + "[") and field.endswith("]")]
+
+
 def label_speed_names(label: str) -> list[str]:
     """The body names a label's ``{speed[NAME]}`` fields ask for, in order."""
-    return [field[len("speed["):-1] for _, field, _, _ in string.Formatter().parse(label)
-            if field is not None and field.startswith("speed[") and field.endswith("]")]
+    return label_names(label, "speed")
 
 
 class TrailSpec(SceneModel):
@@ -224,7 +232,9 @@ class RenderSpec(SceneModel):
     show_time: bool = key(True, "Overlay the simulated time.")
     time_label: str = key("t = {t:.2f} s", "The text overlay (HUD), in Python format syntax: {t} simulated time "
                                            "[s], {frame}, {frames}, {fps}, energies {E}, {KE}, {PE} [J], "
-                                           "{speed[NAME]} [m/s] of a body (see Render); '\\n' starts a line.")
+                                           "{speed[NAME]} [m/s] of a body, {stopwatch[NAME]} [s], wall-clock "
+                                           "times {wall_simulate}, {wall_render}, {wall_frame} [s] (see Render); "
+                                           "'\\n' starts a line.")
     label_corner: Literal["upper_left", "upper_right", "lower_left", "lower_right"] = key(
         "upper_left", "Where the text overlay sits.")
     label_size: float = key(1 / 36, "Height of the overlay's letters, as a fraction of the frame height (the same "
@@ -286,9 +296,9 @@ class RenderSpec(SceneModel):
     @classmethod
     def _formattable(cls, label: str) -> str:
         try:
-            label.format(**{name: 1.0 for name in LABEL_FIELDS}, speed=_AnyBody())
+            label.format(**{name: 1.0 for name in LABEL_FIELDS}, **{name: _AnyBody() for name in LABEL_NAMED_FIELDS})
         except (KeyError, IndexError, ValueError, AttributeError) as error:
             raise rule_error(f"is not a valid format string ({error}); its fields are "
-                             f"{', '.join('{' + name + '}' for name in LABEL_FIELDS)} and {{speed[NAME]}}, e.g. "
-                             "'t = {t:.2f} s'") from None
+                             f"{', '.join('{' + name + '}' for name in LABEL_FIELDS)}, {{speed[BODY]}} and "
+                             "{stopwatch[NAME]}, e.g. 't = {t:.2f} s'") from None
         return label

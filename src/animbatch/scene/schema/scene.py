@@ -16,6 +16,7 @@ from animbatch.scene.schema.emitters import EmitterSpec
 from animbatch.scene.schema.fields import FieldSpec
 from animbatch.scene.schema.render import RenderSpec
 from animbatch.scene.schema.solver import Method, SolverSpec
+from animbatch.scene.schema.stopwatches import StopwatchSpec
 
 
 class StudySpec(SceneModel):
@@ -58,6 +59,8 @@ class SceneSpec(SceneModel):
     material_pairs: list[MaterialPairSpec] = key([], "Coefficients for particular pairs of materials.")
     colliders: list[ColliderSpec] = key([], "Fixed obstacles: planes, boxes, spheres, meshes.")  # type: ignore[valid-type]
     contacts: ContactSpec | None = key(None, "Contact settings; collisions are on when this or colliders exist.")
+    stopwatches: list[StopwatchSpec] = key([], "Stopwatches that time events of the run (a fall, a period), shown "
+                                               "on the frame and reported.")
     render: RenderSpec = key(RenderSpec(), "Rendering and output settings.")
     study: StudySpec = key(StudySpec(), "Settings of 'animbatch study' (error against work per integrator).")
     sweep: dict[str, list[Any]] = key(
@@ -77,4 +80,4 @@ class SceneSpec(SceneModel):
 
 
 #: Top-level keys that do not change the physics (excluded from the physics hash).
-PRESENTATION_KEYS = frozenset({"name", "description", "render", "solver", "study", "sweep"})
+PRESENTATION_KEYS = frozenset({"name", "description", "render", "solver", "study", "sweep", "stopwatches"})
