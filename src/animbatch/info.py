@@ -94,6 +94,9 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
         span = block.span
         shape = " × ".join(map(str, block.shape))
         lines.append(f"           y[{span.start}:{span.stop}]  {block.name}  ({shape}) [{block.unit}]  {block.role}")
+    if model.clocks is not None:
+        lines.append(f"clocks     proper time dτ/dt = √(1 − v²/c²), c = {model.clocks.c:g} m/s, carried by "
+                     + ", ".join(model.clocks.names))
     lines.append(f"terms      {_plural(len(model.force_terms), 'force term')} compiled, evaluated in this order:")
     for number, term in enumerate(model.force_terms, 1):
         lines.append(f"           {number}. {term.label:<12} {term.describe()}")

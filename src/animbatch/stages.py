@@ -96,7 +96,8 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
         physics_hash=scene_fingerprint(scene), scene_name=scene.name, package_version=__version__,
         solver={**spec.solver.model_dump(), "description": integrator.describe()},
         solver_stats={**stats, "warnings": warnings}, particles=tuple(particles), particle_stats=particle_stats,
-        ledger=ledger.as_dict())
+        ledger=ledger.as_dict(), clock_names=model.clocks.names if model.clocks is not None else (),
+        proper_times=model.proper_times(states) if model.clocks is not None else None)
 
 
 def _integrate(scene: LoadedScene, model: Model, integrator: Any, progress: Progress,
@@ -205,8 +206,10 @@ def label_values(scene: LoadedScene, model: Model, trajectory: Trajectory) -> La
     speeds = label_speed_names(label)
     watches = {reading.name: reading for reading in stopwatch_readings(scene.spec.stopwatches, trajectory)
                if reading.name in label_names(label, "stopwatch")}
+    clocks = {name: trajectory.proper_times[:, trajectory.clock_names.index(name)]
+              for name in label_names(label, "proper_time") if trajectory.proper_times is not None}
     values = LabelValues(np.asarray(trajectory.times), float(scene.spec.fps), stopwatches=watches,
-                         wall_simulate=float(trajectory.solver_stats.get("wall_time", 0.0)))
+                         wall_simulate=float(trajectory.solver_stats.get("wall_time", 0.0)), proper_times=clocks)
     if not (fields & {"E", "KE", "PE"} or speeds) or not model.body_count:
         return values
     series = quantity_series(model, trajectory)
@@ -234,7 +237,7 @@ def quantity_series(model: Model, trajectory: Trajectory) -> QuantitySeries:
 def trajectory_states(model: Model, trajectory: Trajectory) -> np.ndarray:
     """The model's flat states (F, n) at the trajectory's frames (from its per-body arrays)."""
     return model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
-                             trajectory.angular_velocities)
+                             trajectory.angular_velocities, trajectory.proper_times)
 
 
 def write_quantities(scene: LoadedScene, model: Model, trajectory: Trajectory, folder: str | Path, *,

@@ -94,6 +94,8 @@ class Trajectory:
     particles: tuple[ParticleFrames, ...] = ()
     particle_stats: dict[str, Any] = field(default_factory=dict)
     ledger: dict[str, Any] = field(default_factory=dict)
+    clock_names: tuple[str, ...] = ()  # bodies that carry proper-time clocks
+    proper_times: np.ndarray | None = None  # (F, K) [s] their proper times
 
     @property
     def frame_count(self) -> int:
@@ -114,8 +116,13 @@ class Trajectory:
                      solver=np.str_(json.dumps(self.solver)), solver_stats=np.str_(json.dumps(self.solver_stats)),
                      emitter_names=np.array([p.name for p in self.particles], dtype=str),
                      particle_stats=np.str_(json.dumps(self.particle_stats)), ledger=np.str_(json.dumps(self.ledger)),
-                     **self._particle_arrays())
+                     **self._particle_arrays(), **self._clock_arrays())
         return path
+
+    def _clock_arrays(self) -> dict[str, np.ndarray]:
+        if self.proper_times is None:
+            return {}
+        return {"clock_names": np.array(self.clock_names, dtype=str), "proper_times": self.proper_times}
 
     def _particle_arrays(self) -> dict[str, np.ndarray]:
         arrays = {}
@@ -171,4 +178,16 @@ class Trajectory:
                    str(arrays.get("package_version", "")),
                    json.loads(str(arrays.get("solver", "{}"))), json.loads(str(arrays.get("solver_stats", "{}"))),
                    tuple(particles), json.loads(str(arrays.get("particle_stats", "{}"))),
-                   json.loads(str(arrays.get("ledger", "{}"))))
+                   json.loads(str(arrays.get("ledger", "{}"))), *cls._clocks_of(arrays, len(times), path))
+
+    @staticmethod
+    def _clocks_of(arrays: dict[str, np.ndarray], frames: int, path: Path
+                   ) -> tuple[tuple[str, ...], np.ndarray | None]:
+        """The clocks' names and proper times (F, K) of a file, if it has clocks."""
+        if "proper_times" not in arrays:
+            return (), None
+        names = tuple(str(n) for n in arrays.get("clock_names", ()))
+        times = arrays["proper_times"]
+        if times.shape != (frames, len(names)):
+            raise TrajectoryError(f"{path}: proper_times has shape {times.shape}, expected {(frames, len(names))}")
+        return names, times

@@ -64,6 +64,10 @@ def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
         chosen = [name for name in field.bodies if name in handles]  # the others are emitters
         if chosen:
             builder.add_field(field_term(field), [handle for name in chosen for handle in handles[name]])
+    if spec.clocks is not None:  # only then does the state carry proper times
+        carriers = spec.clocks.bodies if spec.clocks.bodies is not None else [
+            body.name for body in spec.bodies if body.type in ("particle", "rigid")]
+        builder.add_clocks([handles[name][0] for name in carriers], c=spec.clocks.c)
     model = builder.finalize(duration=spec.duration, fps=spec.fps)
     if not spec.has_contacts:
         return model

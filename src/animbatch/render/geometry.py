@@ -109,13 +109,15 @@ def stopwatch_line(name: str, reading: dict[str, float | None]) -> str:
 class LabelValues:
     """What a text overlay can show at each frame: ``times`` (F,) [s], the frames per second, and per-frame series
     (F,) by name: energies ``E``, ``KE``, ``PE`` [J] when the label asks for them, ``speeds`` [m/s] of the
-    bodies it names, the scene's stopwatches and the simulation's wall time [s]."""
+    bodies it names, the scene's stopwatches, the proper times of the clocks it names and the simulation's wall time
+    [s]."""
 
     times: np.ndarray
     fps: float
     series: dict[str, np.ndarray] = field(default_factory=dict)
     speeds: dict[str, np.ndarray] = field(default_factory=dict)
     stopwatches: dict[str, StopwatchReading] = field(default_factory=dict)
+    proper_times: dict[str, np.ndarray] = field(default_factory=dict)  # (F,) [s] per body with a clock
     wall_simulate: float = 0.0  # [s] the simulation's wall time, for {wall_simulate}
 
     def at(self, t: float) -> dict[str, Any]:
@@ -125,6 +127,7 @@ class LabelValues:
         values.update({name: float(series[frame]) for name, series in self.series.items()})
         values["speed"] = {name: float(series[frame]) for name, series in self.speeds.items()}
         values["stopwatch"] = {name: reading.at(t) for name, reading in self.stopwatches.items()}
+        values["proper_time"] = {name: float(series[frame]) for name, series in self.proper_times.items()}
         values["wall_simulate"] = self.wall_simulate
         return values
 

@@ -28,7 +28,8 @@ def check_references(data: dict[str, Any]) -> list[Problem]:
     return [*_body_list(data), *_duplicate_names(data), *_springs(data, bodies, anchors, rigid, deformable),
             *_fields(data, bodies, anchors, rigid, deformable, emitters), *_pins(data, bodies, rigid),
             *_controllers(data, bodies, rigid, deformable), *_emitters(data, bodies, rigid), *_materials(data),
-            *_trails(data, bodies, deformable), *_label(data, bodies), *_stopwatches(data, bodies, deformable)]
+            *_trails(data, bodies, deformable), *_label(data, bodies), *_stopwatches(data, bodies, deformable),
+            *_clocks(data, bodies, deformable)]
 
 
 #: Body types made of many vertices (each a particle in the model).
@@ -198,6 +199,38 @@ def _label(data: dict[str, Any], bodies: dict[str, KeyPath]) -> Iterator[Problem
             yield ("render", "time_label"), (f"{{stopwatch[{name}]}}: unknown stopwatch {name!r}"
                                              f"{did_you_mean(name, watches) or '.'} Stopwatches: "
                                              f"{', '.join(watches) or '(none: declare them under stopwatches:)'}")
+
+
+def _clocks(data: dict[str, Any], bodies: dict[str, KeyPath], deformable: set[str]) -> Iterator[Problem]:
+    """Clocks are carried by particles and rigid bodies of the scene; the overlay's ``{proper_time[NAME]}`` names
+    one that carries a clock."""
+    clocks = data.get("clocks")
+    carriers = [name for name in bodies if name not in deformable]
+    if isinstance(clocks, dict) and isinstance(clocks.get("bodies"), list):
+        for position, name in _strings(clocks["bodies"]):
+            if name in deformable:
+                yield ("clocks", "bodies", position), (
+                    f"{name!r} is a cloth or lattice, which has no one velocity to time: name a particle or rigid body")
+            elif name not in bodies:
+                yield ("clocks", "bodies", position), (f"unknown body {name!r}{did_you_mean(name, carriers) or '.'} "
+                                                       f"Bodies: {', '.join(carriers) or '(none)'}")
+        carriers = [n for n in clocks["bodies"] if isinstance(n, str)]
+    render = data.get("render")
+    label = render.get("time_label") if isinstance(render, dict) else None
+    if not isinstance(label, str):
+        return
+    try:
+        names = label_names(label, "proper_time")
+    except ValueError:
+        return  # a malformed format string: the schema reports it
+    for name in names:
+        if not isinstance(clocks, dict):
+            yield ("render", "time_label"), (f"{{proper_time[{name}]}}: no body carries a clock; add 'clocks: {{}}' "
+                                             "(every particle and rigid body) or 'clocks: {bodies: [" + name + "]}'")
+        elif name not in carriers:
+            yield ("render", "time_label"), (f"{{proper_time[{name}]}}: {name!r} carries no clock"
+                                             f"{did_you_mean(name, carriers) or '.'} Clocks: "
+                                             f"{', '.join(carriers) or '(none)'}")
 
 
 def _stopwatches(data: dict[str, Any], bodies: dict[str, KeyPath], deformable: set[str]) -> Iterator[Problem]:

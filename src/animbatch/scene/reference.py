@@ -54,6 +54,7 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
       for i, spec in enumerate(schema.FIELD_SPECS)],
     ("`fields[].gust` (aerodynamics)", "gust.", schema.GustSpec),
     ("`fields[].keyframes[]` (electromagnetic)", "keyframes[].", schema.FieldKeyframeSpec),
+    ("`clocks`", "clocks.", schema.ClocksSpec),
     ("`stopwatches[]`", "stopwatches[].", schema.StopwatchSpec),
     ("`stopwatches[].start`, `stopwatches[].stop`", "start.", schema.EventSpec),
     ("`emitters[]`", "emitters[].", schema.EmitterSpec),

@@ -138,7 +138,7 @@ class QuantitySeries:
     """The scene's mechanical quantities at the frame times: ``times`` (F,) [s]; kinetic, potential and total energy
     (F,) [J]; linear momentum (F, 3) [kg·m/s]; angular momentum about the scene's centre of mass (F, 3) [kg·m²/s];
     the speed of each scene body's centre of mass (F, B) [m/s] (a cloth or lattice: of its vertices' centre of
-    mass), named by ``body_names`` (B,)."""
+    mass), named by ``body_names`` (B,); and the proper times (F, K) [s] of the clocks some bodies carry."""
 
     times: np.ndarray
     kinetic: np.ndarray
@@ -147,6 +147,8 @@ class QuantitySeries:
     angular_momentum: np.ndarray
     body_names: tuple[str, ...]
     speeds: np.ndarray
+    clock_names: tuple[str, ...] = ()
+    proper_times: np.ndarray | None = None  # (F, K) [s], the clocks' proper times
 
     @property
     def total(self) -> np.ndarray:
@@ -169,8 +171,10 @@ class QuantitySeries:
         np.add.at(weighted, (slice(None), owner), model.velocities(states) * mass[:, None])  # type: ignore[arg-type]
         totals = np.bincount(owner, weights=mass, minlength=len(names))
         speeds = np.linalg.norm(weighted / totals[None, :, None], axis=2)[:, order]
+        clocks = model.clocks.names if model.clocks is not None else ()
         return cls(times, kinetic_energy(model, states), potential_energy(model, states),
-                   linear_momentum(model, states), spin, tuple(str(n) for n in names[order]), speeds)
+                   linear_momentum(model, states), spin, tuple(str(n) for n in names[order]), speeds, clocks,
+                   model.proper_times(states))
 
     def csv(self) -> str:
         """The series as CSV text: one row per frame, SI units in the column names."""
@@ -178,8 +182,10 @@ class QuantitySeries:
                    "momentum_y_kg_m_s", "momentum_z_kg_m_s", "angular_momentum_x_kg_m2_s",
                    "angular_momentum_y_kg_m2_s", "angular_momentum_z_kg_m2_s"]
         columns += [f"speed_{name}_m_s" for name in self.body_names]
+        columns += [f"proper_time_{name}_s" for name in self.clock_names]
+        clocks = self.proper_times if self.proper_times is not None else np.zeros((len(self.times), 0))
         table = np.column_stack([self.times, self.kinetic, self.potential, self.total, self.momentum,
-                                 self.angular_momentum, self.speeds])
+                                 self.angular_momentum, self.speeds, clocks])
         out = io.StringIO()
         out.write(",".join(columns) + "\n")
         np.savetxt(out, table, delimiter=",", fmt="%.10g")

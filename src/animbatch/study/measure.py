@@ -47,12 +47,14 @@ class Scales:
 
     def tolerance_scale(self, model: Model) -> np.ndarray:
         """Per state component (n,), what ``atol = rtol × scale`` should be relative to: L for positions, 1 for
-        quaternions, V for velocities, M_body V for momenta and I_body V / L for angular momenta."""
+        quaternions, V for velocities, M_body V for momenta, I_body V / L for angular momenta and L / V for proper
+        times."""
         scale = np.ones(model.layout.size)
         per_block = {"particle_position": lambda b: np.full(b.size, self.length),
                      "rigid_position": lambda b: np.full(b.size, self.length),
                      "rigid_orientation": lambda b: np.ones(b.size),
-                     "particle_velocity": lambda b: np.full(b.size, self.speed)}
+                     "particle_velocity": lambda b: np.full(b.size, self.speed),
+                     "proper_time": lambda b: np.full(b.size, self.length / self.speed)}  # a time: L / V
         if model.rigid is not None:
             mass = model.rigid.mass
             inertia = np.trace(model.rigid.inertia, axis1=1, axis2=2) / 3

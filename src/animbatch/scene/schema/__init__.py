@@ -149,13 +149,15 @@ from animbatch.scene.schema.solver import (
     Method,
     SolverSpec,
 )
-from animbatch.scene.schema.stopwatches import EventSpec, StopwatchSpec
+from animbatch.scene.schema.stopwatches import SPEED_OF_LIGHT, ClocksSpec, EventSpec, StopwatchSpec
 
 __all__ = [
     "LABEL_FIELDS",
     "label_names",
     "label_speed_names",
     "EventSpec",
+    "ClocksSpec",
+    "SPEED_OF_LIGHT",
     "StopwatchSpec",
     "TrailSpec",
     "QUALITY_PRESETS",

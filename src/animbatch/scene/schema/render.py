@@ -100,8 +100,9 @@ class GroundSpec(SceneModel):
 
 #: The numbers a text overlay can show (besides ``{speed[NAME]}``), see :func:`label_speed_names`.
 LABEL_FIELDS = ("t", "frame", "frames", "fps", "E", "KE", "PE", "wall_simulate", "wall_render", "wall_frame")
-#: The fields of a text overlay that name something: ``{speed[BODY]}`` and ``{stopwatch[NAME]}``.
-LABEL_NAMED_FIELDS = ("speed", "stopwatch")
+#: The fields of a text overlay that name something: ``{speed[BODY]}``, ``{stopwatch[NAME]}`` and
+#: ``{proper_time[BODY]}``.
+LABEL_NAMED_FIELDS = ("speed", "stopwatch", "proper_time")
 
 
 class _AnyBody(dict):  # type: ignore[type-arg]
@@ -232,7 +233,8 @@ class RenderSpec(SceneModel):
     show_time: bool = key(True, "Overlay the simulated time.")
     time_label: str = key("t = {t:.2f} s", "The text overlay (HUD), in Python format syntax: {t} simulated time "
                                            "[s], {frame}, {frames}, {fps}, energies {E}, {KE}, {PE} [J], "
-                                           "{speed[NAME]} [m/s] of a body, {stopwatch[NAME]} [s], wall-clock "
+                                           "{speed[NAME]} [m/s] of a body, {stopwatch[NAME]} [s], "
+                                           "{proper_time[NAME]} [s] of a body's clock, wall-clock "
                                            "times {wall_simulate}, {wall_render}, {wall_frame} [s] (see Render); "
                                            "'\\n' starts a line.")
     label_corner: Literal["upper_left", "upper_right", "lower_left", "lower_right"] = key(
@@ -299,6 +301,6 @@ class RenderSpec(SceneModel):
             label.format(**{name: 1.0 for name in LABEL_FIELDS}, **{name: _AnyBody() for name in LABEL_NAMED_FIELDS})
         except (KeyError, IndexError, ValueError, AttributeError) as error:
             raise rule_error(f"is not a valid format string ({error}); its fields are "
-                             f"{', '.join('{' + name + '}' for name in LABEL_FIELDS)}, {{speed[BODY]}} and "
-                             "{stopwatch[NAME]}, e.g. 't = {t:.2f} s'") from None
+                             f"{', '.join('{' + name + '}' for name in LABEL_FIELDS)}, {{speed[BODY]}}, "
+                             "{stopwatch[NAME]} and {proper_time[BODY]}, e.g. 't = {t:.2f} s'") from None
         return label

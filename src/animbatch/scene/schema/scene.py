@@ -16,7 +16,7 @@ from animbatch.scene.schema.emitters import EmitterSpec
 from animbatch.scene.schema.fields import FieldSpec
 from animbatch.scene.schema.render import RenderSpec
 from animbatch.scene.schema.solver import Method, SolverSpec
-from animbatch.scene.schema.stopwatches import StopwatchSpec
+from animbatch.scene.schema.stopwatches import ClocksSpec, StopwatchSpec
 
 
 class StudySpec(SceneModel):
@@ -59,6 +59,7 @@ class SceneSpec(SceneModel):
     material_pairs: list[MaterialPairSpec] = key([], "Coefficients for particular pairs of materials.")
     colliders: list[ColliderSpec] = key([], "Fixed obstacles: planes, boxes, spheres, meshes.")  # type: ignore[valid-type]
     contacts: ContactSpec | None = key(None, "Contact settings; collisions are on when this or colliders exist.")
+    clocks: ClocksSpec | None = key(None, "Proper-time clocks that bodies carry (time dilation); omit for none.")
     stopwatches: list[StopwatchSpec] = key([], "Stopwatches that time events of the run (a fall, a period), shown "
                                                "on the frame and reported.")
     render: RenderSpec = key(RenderSpec(), "Rendering and output settings.")

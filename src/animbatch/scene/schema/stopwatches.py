@@ -1,5 +1,6 @@
-"""Stopwatches: time between two events of a run (a body crossing a plane, or a given time), shown on the frame and
-reported with the run, beside the value a closed form predicts."""
+"""Clocks of a run: stopwatches that time the interval between two events (a body crossing a plane, or a given
+time), shown on the frame and reported beside the value a closed form predicts; and proper-time clocks that bodies
+carry (special relativity's time dilation)."""
 
 from __future__ import annotations
 
@@ -42,3 +43,16 @@ class StopwatchSpec(SceneModel):
     stop: EventSpec | None = key(None, "When it stops (default: it runs to the end).")
     expected: float | None = key(None, "What a closed form predicts for the time between start and stop; the run "
                                         "reports the difference.", "s")
+
+
+#: The speed of light in vacuum [m/s] (exact, by the definition of the metre).
+SPEED_OF_LIGHT = 299_792_458.0
+
+
+class ClocksSpec(SceneModel):
+    """Proper-time clocks carried by bodies: each ticks at dτ/dt = √(1 − v²/c²) of its body's speed v, integrated
+    with the motion (which stays Newtonian). The text overlay shows one as ``{proper_time[NAME]}``."""
+
+    c: float = key(SPEED_OF_LIGHT, "The speed of light (lower it so that dilation shows at the scene's speeds).",
+                   "m/s", gt=0)
+    bodies: list[Name] | None = key(None, "The particles and rigid bodies that carry a clock (default: all of them).")

@@ -29,6 +29,7 @@ from animbatch.sim.deformable.vertices import ANCHOR, BODY_POINT, PARTICLE, Defo
 from animbatch.sim.forces import BodyTable, ForceTerm, SpringForces, SpringSet, TermFactory
 from animbatch.sim.forces.controllers import ControllerSetting, controllers_term
 from animbatch.sim.forces.dihedral import DihedralSprings
+from animbatch.sim.model.clocks import ProperClocks
 from animbatch.sim.model.layout import StateLayout
 from animbatch.sim.model.model import Model
 from animbatch.sim.model.rigid_set import RigidBodySet
@@ -115,6 +116,7 @@ class ModelBuilder:
         self._fields: list[tuple[TermFactory, np.ndarray | None]] = []
         self._deformables: list[_Deformable] = []
         self._controllers: list[tuple[int, ControllerSetting]] = []  # (body handle, setting)
+        self._clocks: tuple[np.ndarray | None, float] | None = None  # (body handles or None for all, c)
 
     @property
     def particle_count(self) -> int:
@@ -297,6 +299,12 @@ class ModelBuilder:
         """Add a PD controller pulling body ``body`` (a handle) towards its setting's target."""
         self._controllers.append((body, setting))
 
+    def add_clocks(self, bodies: Sequence[int] | np.ndarray | None = None, *, c: float = 299_792_458.0) -> None:
+        """Give ``bodies`` (handles; default all) proper-time clocks ticking at √(1 − v²/c²), ``c`` [m/s]."""
+        if c <= 0:
+            raise ValueError(f"the speed of light must be positive, got {c}")
+        self._clocks = (None if bodies is None else np.asarray(bodies, dtype=np.intp), float(c))
+
     def add_field(self, term: TermFactory, bodies: Sequence[int] | np.ndarray | None = None) -> None:
         """Add a force term, made once the bodies are known by ``term(bodies, selected points or None)``, acting on
         ``bodies`` (handles; default all). From a scene field spec or dict:
@@ -360,7 +368,13 @@ class ModelBuilder:
 
             terms.append(DihedralSprings.build(deformables, [d.dihedral for d in self._deformables]))
 
-        layout = StateLayout.for_bodies(tuple(self._particle_names), tuple(body.name for body in self._rigid))
+        clocks = None
+        if self._clocks is not None:
+            handles, c = self._clocks
+            points = np.unique(self._points(handles)) if handles is not None else np.arange(len(names))
+            clocks = ProperClocks(_readonly(points), tuple(names[p] for p in points), c) if len(points) else None
+        layout = StateLayout.for_bodies(tuple(self._particle_names), tuple(body.name for body in self._rigid),
+                                        clocks.names if clocks is not None else ())
         parts = [x0.ravel()]
         motion = [v0.ravel()]
         if rigid is not None:
@@ -370,11 +384,13 @@ class ModelBuilder:
             parts += [np.ravel([b.centre_position for b in self._rigid]),
                       np.ravel([b.orientation for b in self._rigid])]
             motion += [np.ravel([b.velocity * m for b, m in zip(self._rigid, rigid.mass)]), angular_momentum.ravel()]
+        if clocks is not None:
+            parts.append(np.zeros(clocks.count))  # every clock reads 0 at the start
         y0 = _readonly(np.concatenate(parts + motion))
         owners = tuple(self._particle_owners) + tuple(body.name for body in self._rigid)
         return Model(bodies, tuple(self._anchor_names), anchors.rest, springs, tuple(terms), layout, y0,
                      _readonly(frame_times(duration, fps)), anchors=anchors,
-                     anchor_visible=_readonly(np.array(self._anchor_visible, bool)), owners=owners)
+                     anchor_visible=_readonly(np.array(self._anchor_visible, bool)), owners=owners, clocks=clocks)
 
     def _deformable_set(self, anchors: AnchorMotion, point_count: int) -> DeformableSet | None:
         """The vertex map of all deformable bodies (model point numbers, anchors, body points)."""

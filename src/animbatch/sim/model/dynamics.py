@@ -1,7 +1,8 @@
 """The equations of motion of a Model, in the forms the integrators need.
 
-State (see :mod:`animbatch.sim.model.layout`): configuration ``c = [x_particles, x_rigid, q]`` and motion
-``m = [v_particles, P, L]``. The lecture notes' rigid-body equations::
+State (see :mod:`animbatch.sim.model.layout`): configuration ``c = [x_particles, x_rigid, q, τ]`` and motion
+``m = [v_particles, P, L]`` (τ: the proper times of the clocks bodies carry, ``dτ/dt = √(1 − v²/c²)``, only when
+the scene has clocks). The lecture notes' rigid-body equations::
 
     dx/dt = v = P / M        dq/dt = ½ (0, ω) ⊗ q,  ω = I(t)⁻¹ L,  I(t)⁻¹ = R I_body⁻¹ Rᵀ
     dP/dt = F                dL/dt = τ
@@ -36,7 +37,9 @@ class Dynamics:
         self.particles = model.particle_count
         self.rigid = model.rigid_count
         n, b = self.particles, self.rigid
-        self._config_size = 3 * n + 7 * b
+        self.clocks = model.clocks
+        self._clock_start = 3 * n + 7 * b  # the clocks' proper times close the configuration
+        self._config_size = self._clock_start + (self.clocks.count if self.clocks is not None else 0)
         self._inverse_mass = (1.0 / model.bodies.mass[:n])[:, None]
         self._force = np.zeros((n + b, 3))
         self._torque = np.zeros((b, 3)) if b else None
@@ -57,7 +60,7 @@ class Dynamics:
 
     def _rigid_views(self, config: np.ndarray, motion: np.ndarray) -> tuple[np.ndarray, ...]:
         n, b = self.particles, self.rigid
-        return (config[3 * n: 3 * n + 3 * b].reshape(b, 3), config[3 * n + 3 * b:].reshape(b, 4),
+        return (config[3 * n: 3 * n + 3 * b].reshape(b, 3), config[3 * n + 3 * b: 3 * n + 7 * b].reshape(b, 4),
                 motion[3 * n: 3 * n + 3 * b].reshape(b, 3), motion[3 * n + 3 * b:].reshape(b, 3))
 
     def kinematics(self, config: np.ndarray, motion: np.ndarray, *, t: float = 0.0, copy: bool = False) -> Kinematics:
@@ -128,9 +131,11 @@ class Dynamics:
         if self.rigid:
             b = self.rigid
             assert state.omega is not None
-            orientation = config[3 * n + 3 * b:].reshape(b, 4)
+            orientation = config[3 * n + 3 * b: 3 * n + 7 * b].reshape(b, 4)
             out[3 * n: 3 * n + 3 * b] = state.v[n:].ravel()
-            out[3 * n + 3 * b:] = quaternion.rate(orientation, state.omega).ravel()
+            out[3 * n + 3 * b: 3 * n + 7 * b] = quaternion.rate(orientation, state.omega).ravel()
+        if self.clocks is not None:
+            out[self._clock_start:] = self.clocks.rate(state.v[self.clocks.index], state.t)
 
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         """``dy/dt`` as a new array (solve_ivp keeps references to the arrays it receives)."""
@@ -148,6 +153,8 @@ class Dynamics:
         half-turned orientation (a midpoint rule, second-order accurate, and norm-preserving).
         """
         n = self.particles
+        if self.clocks is not None:  # at the motion held fixed, like the positions
+            config[self._clock_start:] += h * self.clocks.rate(self._clock_velocities(motion))
         config[: 3 * n] += h * motion[: 3 * n]
         if self.rigid:
             position, orientation, momentum, angular_momentum = self._rigid_views(config, motion)
@@ -158,6 +165,18 @@ class Dynamics:
             omega = world_inverse_inertia_times(quaternion.to_matrix(halfway), self._inverse_inertia,
                                                 angular_momentum)
             orientation[...] = quaternion.multiply(quaternion.from_rotation_vector(h * omega), orientation)
+
+    def _clock_velocities(self, motion: np.ndarray) -> np.ndarray:
+        """Velocities (K, 3) [m/s] of the bodies that carry clocks, from the motion (rigid: P / M)."""
+        assert self.clocks is not None
+        n, index = self.particles, self.clocks.index
+        velocities = np.empty((len(index), 3))
+        particles = index < n
+        velocities[particles] = motion[: 3 * n].reshape(n, 3)[index[particles]]
+        if self.rigid:
+            momentum = motion[3 * n: 3 * n + 3 * self.rigid].reshape(self.rigid, 3)
+            velocities[~particles] = momentum[index[~particles] - n] * self._rigid_inverse_mass[index[~particles] - n]
+        return velocities
 
     def energy(self, t: float, config: np.ndarray, motion: np.ndarray) -> tuple[float, float]:
         """Total mechanical energy [J] (kinetic, plus the potentials of the terms that have one) at time ``t``, and
@@ -190,8 +209,8 @@ class Dynamics:
 
     @property
     def has_jacobian(self) -> bool:
-        """Whether :meth:`jacobian` can give ``∂(dy/dt)/∂y``: for models of particles only."""
-        return self.rigid == 0
+        """Whether :meth:`jacobian` can give ``∂(dy/dt)/∂y``: for models of particles only (without clocks)."""
+        return self.rigid == 0 and self.clocks is None
 
     def jacobian(self, t: float, y: np.ndarray) -> sp.csr_matrix:
         """``∂(dy/dt)/∂y`` for a model of particles (for Radau, BDF and LSODA)::

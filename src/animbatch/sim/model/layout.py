@@ -6,6 +6,7 @@ left out, so a scene of particles only has just the first and fourth)::
     configuration:  particle_position      (N×3, m)
                     rigid_position         (B×3, m)        centre of mass x
                     rigid_orientation      (B×4, 1)        unit quaternion q = [w, x, y, z]
+                    proper_time            (K×1, s)        clocks' proper time τ, only when a scene has clocks
     motion:         particle_velocity      (N×3, m/s)
                     rigid_momentum         (B×3, kg·m/s)   P = M v
                     rigid_angular_momentum (B×3, kg·m²/s)  L = I(t) ω, world axes
@@ -50,11 +51,13 @@ class StateLayout:
     blocks: tuple[StateBlock, ...]
 
     @classmethod
-    def for_bodies(cls, particles: tuple[str, ...], rigid: tuple[str, ...] = ()) -> StateLayout:
-        """The layout for N particles and B rigid bodies (names in state order)."""
+    def for_bodies(cls, particles: tuple[str, ...], rigid: tuple[str, ...] = (),
+                   clocks: tuple[str, ...] = ()) -> StateLayout:
+        """The layout for N particles and B rigid bodies (names in state order), and K clocks they carry."""
         specs = [("particle_position", particles, 3, "m", "config"),
                  ("rigid_position", rigid, 3, "m", "config"),
                  ("rigid_orientation", rigid, 4, "1", "config"),
+                 ("proper_time", clocks, 1, "s", "config"),
                  ("particle_velocity", particles, 3, "m/s", "motion"),
                  ("rigid_momentum", rigid, 3, "kg·m/s", "motion"),
                  ("rigid_angular_momentum", rigid, 3, "kg·m²/s", "motion")]
@@ -103,6 +106,6 @@ class StateLayout:
             if block.offset <= index < block.offset + block.size:
                 row, column = divmod(index - block.offset, block.shape[-1])
                 quantity = block.name.split("_", 1)[-1].replace("_", " ")
-                components = "xyz" if block.shape[-1] == 3 else "wxyz"
-                return block.owners[row], f"{quantity} {components[column]}"
+                components = {1: " ", 3: "xyz", 4: "wxyz"}[block.shape[-1]]
+                return block.owners[row], f"{quantity} {components[column]}".rstrip()
         raise IndexError(f"state index {index} is outside the state (size {self.size})")

@@ -18,6 +18,7 @@ import numpy as np
 from animbatch import quaternion
 from animbatch.sim.deformable.vertices import DeformableSet
 from animbatch.sim.forces import BodyTable, ForceTerm, SpringSet
+from animbatch.sim.model.clocks import ProperClocks
 from animbatch.sim.model.layout import StateLayout
 from animbatch.sim.model.rigid_set import RigidBodySet
 from animbatch.sim.motion import AnchorMotion
@@ -45,6 +46,7 @@ class Model:
         anchors: where the anchors are at any time (fixed or following keyframes); ``anchor_position`` is where they
             start. ``anchor_visible`` (A,): drawn (cloth pins are anchors too, and are not).
         owners: (P,) the scene body each point belongs to: its own name, or the cloth or lattice of a vertex.
+        clocks: the proper-time clocks some bodies carry, or None (then the state has no proper-time block).
     """
 
     bodies: BodyTable
@@ -60,6 +62,7 @@ class Model:
     anchors: AnchorMotion | None = None
     anchor_visible: np.ndarray | None = None
     owners: tuple[str, ...] | None = None
+    clocks: ProperClocks | None = None
 
     def __post_init__(self) -> None:
         if self.anchors is None:
@@ -141,10 +144,20 @@ class Model:
                                                                                momentum)
         return result
 
+    def proper_times(self, y: np.ndarray) -> np.ndarray:
+        """The clocks' proper times τ [s]: (K,) or (F, K); empty without clocks."""
+        if self.clocks is None:
+            return np.zeros((*y.shape[:-1], 0))
+        return np.array(self.layout.view(y, "proper_time")[..., 0])
+
     def states_from(self, positions: np.ndarray, velocities: np.ndarray, orientations: np.ndarray | None = None,
-                    angular_velocities: np.ndarray | None = None) -> np.ndarray:
-        """The flat states (…, n) of per-body arrays (as in a trajectory file): the inverse of the views above."""
+                    angular_velocities: np.ndarray | None = None, proper_times: np.ndarray | None = None
+                    ) -> np.ndarray:
+        """The flat states (…, n) of per-body arrays (as in a trajectory file): the inverse of the views above.
+        ``proper_times`` (…, K): the clocks' readings, when the model has clocks (default 0)."""
         y = np.zeros((*positions.shape[:-2], self.layout.size))
+        if self.clocks is not None and proper_times is not None:
+            y[..., self.layout.block("proper_time").span] = proper_times
         n = self.particle_count
         if self.layout.has("particle_position"):
             y[..., self.layout.block("particle_position").span] = positions[..., :n, :].reshape(*y.shape[:-1], -1)
