@@ -115,6 +115,8 @@ def cli() -> None:
     animbatch render scenes/projectile.yaml            # -> renders/projectile/projectile.mp4
     animbatch simulate scenes/projectile.yaml -o run.npz
     animbatch render scenes/projectile.yaml --trajectory run.npz --resolution 640x360
+    animbatch new --list                               # assignment templates
+    animbatch grade mine.yaml --reference solution.yaml
     """
 
 
@@ -136,6 +138,59 @@ def validate(scenes: tuple[Path, ...], settings: tuple[str, ...]) -> None:
     if failed:
         if len(scenes) > 1:
             click.echo(f"{failed} of {len(scenes)} scene files are invalid", err=True)
+        sys.exit(1)
+
+
+@cli.command()
+@click.argument("template", required=False)
+@click.argument("destination", required=False, type=click.Path(path_type=Path))
+@click.option("--list", "listing", is_flag=True, help="List the templates, each with what it teaches.")
+@click.option("--force", is_flag=True, help="Replace DESTINATION if it exists.")
+@_reports_errors
+def new(template: str | None, destination: Path | None, listing: bool, force: bool) -> None:
+    """Start an assignment from a template: copy TEMPLATE (see --list) to DESTINATION (a file or folder; default
+    ./TEMPLATE.yaml). Its TODO markers say what to change; 'animbatch grade' scores it."""
+    from animbatch.teaching.templates import start, templates
+
+    if listing or template is None:
+        found = templates()
+        width = max(len(t.name) for t in found)
+        for item in found:
+            click.echo(f"{item.name:<{width}}  {item.description}")
+        if template is None and not listing:
+            click.echo("\nanimbatch new TEMPLATE [DESTINATION] copies one.", err=True)
+        return
+    target = start(template, destination, force=force)
+    click.echo(f"wrote {target}: edit the lines marked TODO, then 'animbatch render {target}'")
+
+
+@cli.command()
+@click.argument("submission", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--reference", "-r", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="The teacher's solved scene (its 'assignment' lists the checks), or a trajectory file (.npz).")
+@click.option("--checks", type=click.Path(dir_okay=False, path_type=Path),
+              help="A scene whose 'assignment' lists the checks (needed when the reference is a trajectory).")
+@click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Also write the result as JSON (Gradescope's results.json shape).")
+@click.option("--junit", "junit_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Also write the result as JUnit XML.")
+@_reports_errors
+def grade(submission: Path, reference: Path, checks: Path | None, json_path: Path | None,
+          junit_path: Path | None) -> None:
+    """Grade SUBMISSION (a scene or trajectory) against the reference: a table of the assignment's checks, each
+    with what was compared; exit 0 when every check passes, 1 otherwise, 2 when the grading cannot run."""
+    import warnings as _warnings
+
+    from animbatch.teaching.grade import grade as run_grade
+    from animbatch.teaching.grade import summary_line
+
+    with _warnings.catch_warnings():  # accuracy warnings of the two runs are not the student's grade
+        _warnings.simplefilter("ignore")
+        report = run_grade(submission, reference, checks_from=checks)
+    click.echo(report.table())
+    click.echo(summary_line(report))
+    report.write(json_path, junit_path)
+    if not report.passed:
         sys.exit(1)
 
 

@@ -38,29 +38,29 @@ class ExpressionError(ValueError):
     """A formula that is not valid or uses something not allowed."""
 
 
-def parse_expression(text: str) -> ast.expr:
-    """The checked syntax tree of a formula of ``s``."""
+def parse_expression(text: str, variable: str = "s") -> ast.expr:
+    """The checked syntax tree of a formula of ``variable`` (``s`` for curves, ``t`` for closed forms of time)."""
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as error:
         raise ExpressionError(f"not a valid formula: {text!r} ({error.msg})") from None
-    _check(tree.body, text)
+    _check(tree.body, text, variable)
     return tree.body
 
 
-def compile_expression(text: str) -> Callable[[np.ndarray], np.ndarray]:
-    """A vectorised function of ``s`` from a formula such as ``"0.5 * cos(2 * pi * s)"``."""
-    return compile_tree(parse_expression(text))
+def compile_expression(text: str, variable: str = "s") -> Callable[[np.ndarray], np.ndarray]:
+    """A vectorised function of ``variable`` from a formula such as ``"0.5 * cos(2 * pi * s)"``."""
+    return compile_tree(parse_expression(text, variable), variable)
 
 
-def compile_tree(node: ast.expr) -> Callable[[np.ndarray], np.ndarray]:
-    """A function of ``s`` from a checked tree (or a derivative built from one: never an unchecked tree)."""
-    evaluate_all = _compile_all([node])
+def compile_tree(node: ast.expr, variable: str = "s") -> Callable[[np.ndarray], np.ndarray]:
+    """A function of ``variable`` from a checked tree (or a derivative built from one: never an unchecked tree)."""
+    evaluate_all = _compile_all([node], variable)
     return lambda s: evaluate_all(s)[..., 0]
 
 
-def _compile_all(nodes: list[ast.expr]) -> Callable[[np.ndarray], np.ndarray]:
-    """One function of ``s`` giving all the trees' values at once, shape s.shape + (len(nodes),)."""
+def _compile_all(nodes: list[ast.expr], variable: str = "s") -> Callable[[np.ndarray], np.ndarray]:
+    """One function of ``variable`` giving all the trees' values at once, shape s.shape + (len(nodes),)."""
     tree = ast.Expression(ast.Tuple(list(nodes), ast.Load()))
     code = compile(ast.fix_missing_locations(tree), "<formula>", "eval")
     namespace = {"__builtins__": {}, **FUNCTIONS, **_HIDDEN_FUNCTIONS, **CONSTANTS}
@@ -68,32 +68,32 @@ def _compile_all(nodes: list[ast.expr]) -> Callable[[np.ndarray], np.ndarray]:
     def evaluate(s: np.ndarray) -> np.ndarray:
         s = np.asarray(s, float)
         out = np.empty(s.shape + (len(nodes),))
-        for index, value in enumerate(eval(code, namespace, {"s": s})):  # noqa: S307 (a checked tree)
+        for index, value in enumerate(eval(code, namespace, {variable: s})):  # noqa: S307 (a checked tree)
             out[..., index] = value  # constants broadcast
         return out
 
     return evaluate
 
 
-def _check(node: ast.AST, text: str) -> None:
-    allowed = f"use s, numbers, + - * / **, {', '.join(CONSTANTS)} and {', '.join(FUNCTIONS)}"
+def _check(node: ast.AST, text: str, variable: str = "s") -> None:
+    allowed = f"use {variable}, numbers, + - * / **, {', '.join(CONSTANTS)} and {', '.join(FUNCTIONS)}"
     if isinstance(node, ast.Constant) and isinstance(node.value, int | float) and not isinstance(node.value, bool):
         return
     if isinstance(node, ast.Name):
-        if node.id == "s" or node.id in CONSTANTS:
+        if node.id == variable or node.id in CONSTANTS:
             return
         raise ExpressionError(f"unknown name {node.id!r} in {text!r}: {allowed}")
     if isinstance(node, ast.BinOp) and isinstance(node.op, _OPERATORS):
-        _check(node.left, text)
-        _check(node.right, text)
+        _check(node.left, text, variable)
+        _check(node.right, text, variable)
         return
     if isinstance(node, ast.UnaryOp) and isinstance(node.op, _OPERATORS):
-        _check(node.operand, text)
+        _check(node.operand, text, variable)
         return
     if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in FUNCTIONS
             and not node.keywords and len(node.args) == (2 if node.func.id == "atan2" else 1)):
         for argument in node.args:
-            _check(argument, text)
+            _check(argument, text, variable)
         return
     raise ExpressionError(f"{ast.unparse(node)!r} is not allowed in {text!r}: {allowed}")
 

@@ -29,7 +29,7 @@ def check_references(data: dict[str, Any]) -> list[Problem]:
             *_fields(data, bodies, anchors, rigid, deformable, emitters), *_pins(data, bodies, rigid),
             *_controllers(data, bodies, rigid, deformable), *_emitters(data, bodies, rigid), *_materials(data),
             *_trails(data, bodies, deformable), *_label(data, bodies), *_stopwatches(data, bodies, deformable),
-            *_clocks(data, bodies, deformable)]
+            *_clocks(data, bodies, deformable), *_assignment(data, bodies, emitters)]
 
 
 #: Body types made of many vertices (each a particle in the model).
@@ -231,6 +231,27 @@ def _clocks(data: dict[str, Any], bodies: dict[str, KeyPath], deformable: set[st
             yield ("render", "time_label"), (f"{{proper_time[{name}]}}: {name!r} carries no clock"
                                              f"{did_you_mean(name, carriers) or '.'} Clocks: "
                                              f"{', '.join(carriers) or '(none)'}")
+
+
+def _assignment(data: dict[str, Any], bodies: dict[str, KeyPath], emitters: dict[str, KeyPath]) -> Iterator[Problem]:
+    """An assignment's checks name bodies (or, for field checks, emitters) and stopwatches of the scene."""
+    assignment = data.get("assignment")
+    checks = assignment.get("checks") if isinstance(assignment, dict) else None
+    if not isinstance(checks, list):
+        return
+    watches = sorted(_names(data, "stopwatches"))
+    for index, check in enumerate(checks):
+        if not isinstance(check, dict):
+            continue
+        body, watch = check.get("body"), check.get("stopwatch")
+        known = [*bodies, *emitters] if check.get("quantity") == "field" else list(bodies)
+        if isinstance(body, str) and body not in known:
+            yield ("assignment", "checks", index, "body"), (
+                f"unknown body {body!r}{did_you_mean(body, known) or '.'} Bodies: {', '.join(known) or '(none)'}")
+        if isinstance(watch, str) and watch not in watches:
+            yield ("assignment", "checks", index, "stopwatch"), (
+                f"unknown stopwatch {watch!r}{did_you_mean(watch, watches) or '.'} Stopwatches: "
+                f"{', '.join(watches) or '(none: declare them under stopwatches:)'}")
 
 
 def _stopwatches(data: dict[str, Any], bodies: dict[str, KeyPath], deformable: set[str]) -> Iterator[Problem]:

@@ -76,3 +76,26 @@ def _impacts(times: np.ndarray, height: np.ndarray, rate: np.ndarray, direction:
         if len(roots):
             found.append(float(times[k] + min(roots.min(), times[k + 1] - times[k])))
     return found
+
+
+def hermite_sample(times: np.ndarray, positions: np.ndarray, velocities: np.ndarray, at: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and velocities (T, …, 3) at the times ``at`` (T,) [s] within ``times`` (F,), from the cubic
+    Hermite curve through ``positions`` and ``velocities`` (F, …, 3) of the frames around each time (exact under
+    constant acceleration; the velocity is the curve's derivative)."""
+    times = np.asarray(times, float)
+    at = np.asarray(at, float)
+    if len(times) == 1:
+        return np.repeat(positions[:1], len(at), axis=0), np.repeat(velocities[:1], len(at), axis=0)
+    k = np.clip(np.searchsorted(times, at, side="right") - 1, 0, len(times) - 2)
+    h = times[k + 1] - times[k]
+    tau = (at - times[k]) / h
+    shape = (-1,) + (1,) * (positions.ndim - 1)
+    tau, h = tau.reshape(shape), h.reshape(shape)
+    x0, x1, v0, v1 = positions[k], positions[k + 1], velocities[k] * h, velocities[k + 1] * h
+    h00, h10 = 2 * tau**3 - 3 * tau**2 + 1, tau**3 - 2 * tau**2 + tau
+    h01, h11 = -2 * tau**3 + 3 * tau**2, tau**3 - tau**2
+    d00, d10, d01, d11 = 6 * tau**2 - 6 * tau, 3 * tau**2 - 4 * tau + 1, -6 * tau**2 + 6 * tau, 3 * tau**2 - 2 * tau
+    x = h00 * x0 + h10 * v0 + h01 * x1 + h11 * v1
+    v = (d00 * x0 + d10 * v0 + d01 * x1 + d11 * v1) / h
+    return x, v

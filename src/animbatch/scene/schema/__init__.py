@@ -10,6 +10,8 @@ default (gravity ``[0, -9.81, 0]``), though nothing but the default camera and g
 One module per section of a scene file; everything is importable from here.
 """
 
+from animbatch.scene.schema.assignment import SAMPLED as SAMPLED_QUANTITIES
+from animbatch.scene.schema.assignment import AssignmentSpec, CheckSpec, PartialCreditSpec
 from animbatch.scene.schema.base import (
     NAME_PATTERN,
     Color,
@@ -156,6 +158,10 @@ __all__ = [
     "label_names",
     "label_speed_names",
     "EventSpec",
+    "AssignmentSpec",
+    "SAMPLED_QUANTITIES",
+    "CheckSpec",
+    "PartialCreditSpec",
     "ClocksSpec",
     "SPEED_OF_LIGHT",
     "StopwatchSpec",

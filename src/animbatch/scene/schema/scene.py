@@ -7,6 +7,7 @@ from typing import Annotated, Any
 
 from pydantic import Field
 
+from animbatch.scene.schema.assignment import AssignmentSpec
 from animbatch.scene.schema.base import Name, SceneModel, key
 from animbatch.scene.schema.bodies import AnchorSpec
 from animbatch.scene.schema.contacts import ColliderSpec, ContactSpec, MaterialPairSpec, MaterialSpec
@@ -59,6 +60,8 @@ class SceneSpec(SceneModel):
     material_pairs: list[MaterialPairSpec] = key([], "Coefficients for particular pairs of materials.")
     colliders: list[ColliderSpec] = key([], "Fixed obstacles: planes, boxes, spheres, meshes.")  # type: ignore[valid-type]
     contacts: ContactSpec | None = key(None, "Contact settings; collisions are on when this or colliders exist.")
+    assignment: AssignmentSpec | None = key(None, "For teaching: the task and the checks 'animbatch grade' scores "
+                                                  "(see docs/teaching.md).")
     clocks: ClocksSpec | None = key(None, "Proper-time clocks that bodies carry (time dilation); omit for none.")
     stopwatches: list[StopwatchSpec] = key([], "Stopwatches that time events of the run (a fall, a period), shown "
                                                "on the frame and reported.")
@@ -81,4 +84,5 @@ class SceneSpec(SceneModel):
 
 
 #: Top-level keys that do not change the physics (excluded from the physics hash).
-PRESENTATION_KEYS = frozenset({"name", "description", "render", "solver", "study", "sweep", "stopwatches"})
+PRESENTATION_KEYS = frozenset({"name", "description", "render", "solver", "study", "sweep", "stopwatches",
+                               "assignment"})

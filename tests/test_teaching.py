@@ -1,0 +1,183 @@
+"""Assignments: templates to start from ('animbatch new'), and grading against a reference ('animbatch grade'):
+a solved template passes every check, and a submission with a wrong constant, a wrong integrator or a missing
+force fails the check that names it."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+from xml.etree import ElementTree
+
+import pytest
+import yaml
+
+from animbatch.errors import AnimbatchError
+from animbatch.stages import load_scene
+from animbatch.teaching.grade import GradeError, grade
+from animbatch.teaching.templates import find, start, templates
+
+ROOT = Path(__file__).resolve().parents[1]
+L_SECONDS = 9.81 * 4 / (4 * math.pi**2)  # the length of a pendulum with a 2 s period
+
+#: What a student changes in each template to solve it (key path -> value, applied to the YAML data).
+SOLUTIONS: dict[str, dict[tuple, object]] = {
+    "projectile_drag": {("fields", 1, "coefficient"): 0.5 * 1.2 * 0.47 * math.pi * 0.11**2},
+    "spring_damper": {("springs", 0, "damping"): 20.0},
+    "pendulum": {("bodies", 0, "position"): [0, 2 - L_SECONDS, 0], ("springs", 0, "rest_length"): L_SECONDS},
+    "kepler_orbit": {("solver", "method"): "verlet", ("bodies", 1, "velocity"): [0, 1.0, 0]},
+    "collision_lab": {("materials", "cart", "restitution"): 1 / 3},
+    "friction_slope": {("bodies", 0, "material"): "ice"},
+    "buoyancy": {("bodies", 0, "density"): 500.0},
+    "hanging_chain": {("springs", k, "stiffness"): 49.05 for k in range(4)},
+    "particle_system": {("solver", "method"): "verlet",
+                        ("fields",): [{"type": "gravity"},
+                                      {"type": "drag", "model": "quadratic", "coefficient": 2e-5,
+                                       "bodies": ["fountain"]}]},
+}
+
+
+def write(folder: Path, name: str, changes: dict[tuple, object], file: str) -> Path:
+    """The template ``name`` with ``changes`` applied, written to ``folder/file``."""
+    data = yaml.safe_load(find(name).text)
+    for path, value in changes.items():
+        target = data
+        for key in path[:-1]:
+            target = target[key]
+        target[path[-1]] = value
+    out = folder / file
+    out.write_text(yaml.safe_dump(data, allow_unicode=True, sort_keys=False))
+    return out
+
+
+def test_there_are_templates_for_the_notes_topics_each_with_a_line_saying_what_it_teaches():
+    found = {t.name: t for t in templates()}
+    assert len(found) >= 8 and set(SOLUTIONS) <= set(found)
+    for template in found.values():
+        assert template.description and template.title and template.task, template.name
+        assert "TODO" in template.text, f"{template.name} marks what to change"
+
+
+@pytest.mark.parametrize("name", sorted(SOLUTIONS))
+def test_every_template_validates_as_it_is(name, tmp_path):
+    assert load_scene(start(name, tmp_path)).spec.assignment is not None
+
+
+def test_templates_ship_as_package_data_so_an_installed_wheel_has_them():
+    data = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["animbatch"]
+    assert "teaching/templates/*.yaml" in data
+    folder = ROOT / "src" / "animbatch" / "teaching" / "templates"
+    assert {p.stem for p in folder.glob("*.yaml")} == {t.name for t in templates()}
+
+
+@pytest.mark.parametrize("name", sorted(SOLUTIONS))
+def test_a_solved_template_passes_and_the_template_as_given_does_not(name, tmp_path):
+    reference = write(tmp_path, name, SOLUTIONS[name], "solution.yaml")
+    solved = grade(write(tmp_path, name, SOLUTIONS[name], "mine.yaml"), reference)
+    assert solved.passed and solved.score == solved.max_score > 0, solved.table()
+    unsolved = grade(start(name, tmp_path / "as_given.yaml"), reference)
+    assert not unsolved.passed and unsolved.score < unsolved.max_score, unsolved.table()
+
+
+def test_a_wrong_spring_constant_fails_the_check_that_depends_on_it(tmp_path):
+    reference = write(tmp_path, "hanging_chain", SOLUTIONS["hanging_chain"], "solution.yaml")
+    wrong = dict(SOLUTIONS["hanging_chain"])
+    wrong[("springs", 2, "stiffness")] = 40.0
+    result = grade(write(tmp_path, "hanging_chain", wrong, "mine.yaml"), reference)
+    (check,) = result.results
+    assert not check.passed and check.name == "lowest bead at rest"
+    assert "position of 'b4'" in check.output and "tolerance 0.005 m" in check.output and "Hint: k = " in check.output
+
+
+def test_a_wrong_integrator_fails_the_method_check_naming_what_is_asked(tmp_path):
+    reference = write(tmp_path, "kepler_orbit", SOLUTIONS["kepler_orbit"], "solution.yaml")
+    euler = {**SOLUTIONS["kepler_orbit"], ("solver", "method"): "euler"}
+    result = {r.name: r for r in grade(write(tmp_path, "kepler_orbit", euler, "mine.yaml"), reference).results}
+    assert not result["symplectic method"].passed
+    assert "solver.method is euler; this assignment asks for verlet or symplectic_euler" in result[
+        "symplectic method"].output
+    assert not result["energy kept"].passed  # Euler's energy drifts over ten orbits
+    assert result["circular orbit"].score == 2.0 or not result["circular orbit"].passed
+
+
+def test_a_missing_drag_term_fails_the_drag_check_and_the_path_in_air(tmp_path):
+    reference = write(tmp_path, "projectile_drag", SOLUTIONS["projectile_drag"], "solution.yaml")
+    no_drag = {("fields",): [{"type": "gravity"}]}
+    result = {r.name: r for r in grade(write(tmp_path, "projectile_drag", no_drag, "mine.yaml"), reference).results}
+    assert result["vacuum path"].passed  # the closed form: gravity only
+    assert not result["drag declared"].passed
+    assert result["drag declared"].output == "the scene declares no drag field acting on 'air'"
+    assert not result["path in air"].passed and "against the reference run" in result["path in air"].output
+
+
+def test_a_submission_that_does_not_validate_gets_the_declared_partial_credit_and_the_error(tmp_path):
+    changes = {("assignment", "partial_credit"): {"invalid": 0.25}}
+    reference = write(tmp_path, "spring_damper", {**SOLUTIONS["spring_damper"], **changes}, "solution.yaml")
+    broken = tmp_path / "mine.yaml"
+    broken.write_text(find("spring_damper").text.replace("stiffness: 100", "stifness: 100"))
+    result = grade(broken, reference)
+    assert not result.passed and result.score == pytest.approx(0.25 * 3)
+    assert "does not validate" in result.message and "did you mean 'stiffness'?" in result.message
+
+
+def test_a_submission_whose_run_fails_gets_the_failed_credit(tmp_path):
+    reference = write(tmp_path, "spring_damper", SOLUTIONS["spring_damper"], "solution.yaml")
+    diverging = write(tmp_path, "spring_damper", {("solver",): {"method": "euler", "dt": 0.5}}, "mine.yaml")
+    result = grade(diverging, reference)
+    assert result.score == 0 and "simulation failed" in result.message
+
+
+def test_a_reference_without_checks_is_refused(tmp_path):
+    reference = tmp_path / "plain.yaml"
+    reference.write_text("bodies: [{name: a}]\nduration: 0.1\n")
+    with pytest.raises(GradeError, match="declares no checks"):
+        grade(reference, reference)
+
+
+def test_the_command_prints_a_table_writes_json_and_junit_and_exits_by_the_result(tmp_path):
+    reference = write(tmp_path, "projectile_drag", SOLUTIONS["projectile_drag"], "solution.yaml")
+    mine = start("projectile_drag", tmp_path / "mine.yaml")  # drag left at 0: the path in air fails
+    command = [sys.executable, "-m", "animbatch", "grade", str(mine), "--reference", str(reference),
+               "--json", str(tmp_path / "results.json"), "--junit", str(tmp_path / "junit.xml")]
+    result = subprocess.run(command, capture_output=True, text=True)
+    assert result.returncode == 1, result.stderr
+    assert "FAIL  path in air" in result.stdout and "PASS  vacuum path" in result.stdout
+    assert "2 / 5 points" in result.stdout
+    results = json.loads((tmp_path / "results.json").read_text())
+    assert results["score"] == 2 and results["max_score"] == 5
+    assert {t["name"]: t["status"] for t in results["tests"]}["path in air"] == "failed"
+    suite = ElementTree.parse(tmp_path / "junit.xml").getroot()
+    assert suite.get("tests") == "3" and suite.get("failures") == "1"
+    assert [case.get("name") for case in suite.iter("testcase") if case.find("failure") is not None] == ["path in air"]
+    solved = write(tmp_path, "projectile_drag", SOLUTIONS["projectile_drag"], "solved.yaml")
+    command[4] = str(solved)
+    assert subprocess.run(command, capture_output=True, text=True).returncode == 0
+
+
+def test_new_lists_copies_and_refuses_to_overwrite(tmp_path):
+    listing = subprocess.run([sys.executable, "-m", "animbatch", "new", "--list"], capture_output=True, text=True,
+                             check=True).stdout
+    assert "kepler_orbit" in listing and "circular orbit" in listing
+    target = start("pendulum", tmp_path)
+    assert target == tmp_path / "pendulum.yaml" and "TODO" in target.read_text()
+    with pytest.raises(AnimbatchError, match="exists"):
+        start("pendulum", tmp_path)
+    with pytest.raises(AnimbatchError, match="did you mean 'pendulum'"):
+        find("pendulm")
+
+
+def test_a_check_naming_an_unknown_body_or_stopwatch_is_refused_with_the_fix(tmp_path):
+    text = find("pendulum").text.replace("body: bob, tolerance: 0.01}", "body: bobb, tolerance: 0.01}").replace(
+        "stopwatch: period, expected", "stopwatch: perod, expected")
+    path = tmp_path / "teacher.yaml"
+    path.write_text(text)
+    from animbatch.errors import SceneError
+
+    with pytest.raises(SceneError) as error:
+        load_scene(path)
+    message = str(error.value)
+    assert "assignment.checks[1].body: unknown body 'bobb'; did you mean 'bob'?" in message
+    assert "assignment.checks[0].stopwatch: unknown stopwatch 'perod'; did you mean 'period'?" in message
