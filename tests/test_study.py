@@ -15,9 +15,9 @@ from PIL import Image
 from animbatch.cli import cli
 from animbatch.compile.model import compile_scene
 from animbatch.errors import SceneError
+from animbatch.sim.closed_forms import exact_motion
 from animbatch.sim.invariants import angular_momentum, total_energy
 from animbatch.study import run_study, write_outputs
-from animbatch.study.closed_forms import exact_motion
 from animbatch.study.merit import Point, observed_order, time_to
 from animbatch.study.report import csv_text, table
 from conftest import body, run, scene

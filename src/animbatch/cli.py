@@ -142,6 +142,20 @@ def validate(scenes: tuple[Path, ...], settings: tuple[str, ...]) -> None:
 
 
 @cli.command()
+@click.argument("videos", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="The video to write (mp4).")
+@click.option("--gap", default=4, show_default=True, help="Pixels between the videos.")
+@_reports_errors
+def compose(videos: tuple[Path, ...], output: Path, gap: int) -> None:
+    """Put VIDEOS side by side in one video (e.g. a kinematic and a dynamic render of the same scene). They must
+    share a frame rate; a shorter one holds its last frame."""
+    from animbatch.encode.compose import side_by_side
+
+    click.echo(f"wrote {side_by_side(list(videos), output, gap=gap)}")
+
+
+@cli.command()
 @click.argument("template", required=False)
 @click.argument("destination", required=False, type=click.Path(path_type=Path))
 @click.option("--list", "listing", is_flag=True, help="List the templates, each with what it teaches.")

@@ -75,7 +75,7 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
         f"k = 0 … {len(times) - 1} (last frame at {times[-1]:.6g} s)",
         f"solver     {make_integrator(spec.solver).describe()}",
     ]
-    if not spec.solver.is_adaptive and len(times) > 1:
+    if not spec.solver.is_adaptive and spec.solver.method != "analytic" and len(times) > 1:
         interval = float(times[1] - times[0])
         requested = spec.solver.dt or DEFAULT_DT
         count = substeps(interval, requested)

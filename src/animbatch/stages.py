@@ -76,15 +76,19 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
     integrator = make_integrator(spec.solver, model)
     progress = progress or Progress(enabled=False)
     # risky settings, with numbers (what is certain to fail is refused)
-    warnings = preflight(model, spec.solver.method, spec.solver.dt)
-    frame_steps = steps_per_frame(1.0 / spec.fps, spec.solver.method, spec.solver.dt or DEFAULT_DT)
-    cost = estimate_cost(model, spec.solver, pool_sizes(spec), frame_steps * (len(model.frame_times) - 1))
-    check_cost(cost, spec.solver.max_cost)  # refuse what would run for hours or cannot fit, before it starts
+    warnings: list[str] = []
+    estimated = 0.0
+    if spec.solver.method != "analytic":  # closed forms cost nothing to speak of, and cannot go unstable
+        warnings = preflight(model, spec.solver.method, spec.solver.dt)
+        frame_steps = steps_per_frame(1.0 / spec.fps, spec.solver.method, spec.solver.dt or DEFAULT_DT)
+        cost = estimate_cost(model, spec.solver, pool_sizes(spec), frame_steps * (len(model.frame_times) - 1))
+        check_cost(cost, spec.solver.max_cost)  # refuse what would run for hours or cannot fit, before it starts
+        estimated = cost.seconds
     with wall_budget(spec.solver.max_cost, float(model.frame_times[0]), float(model.frame_times[-1])):
         result, particles, particle_stats = _integrate(scene, model, integrator, progress, checkpoint)
     states = result.states
     kinds = ("particle",) * model.particle_count + ("rigid",) * model.rigid_count
-    stats = {**result.stats.as_dict(), "estimated_seconds": cost.seconds}
+    stats = {**result.stats.as_dict(), "estimated_seconds": estimated}
     ledger = build_ledger(model, states, stats, particle_stats, method=spec.solver.method,
                           adaptive=spec.solver.is_adaptive, requested_dt=spec.solver.dt or DEFAULT_DT,
                           rtol=spec.solver.rtol, drift_warning=spec.solver.drift_warning)

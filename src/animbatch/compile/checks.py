@@ -21,6 +21,7 @@ from animbatch.scene.schema import (
     SceneSpec,
 )
 from animbatch.scene.yaml_source import KeyPath
+from animbatch.sim.closed_forms import NoClosedForm, check_closed_form
 from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.rigid.shapes import load_mesh, load_surface
 
@@ -32,7 +33,10 @@ def compile_checks(spec: SceneSpec, base_dir: Path) -> list[Problem]:
 
 def check_method(spec: SceneSpec) -> list[Problem]:
     """A fixed-step method that cannot apply contacts between its kick and its drift (an explicit Runge–Kutta
-    method moves positions with the velocities from before the step) is refused for a scene with contacts."""
+    method moves positions with the velocities from before the step) is refused for a scene with contacts; the
+    analytic method, for a scene with anything that has no closed form."""
+    if spec.solver.method == "analytic":
+        return check_analytic(spec)
     scheme = METHODS[spec.solver.method].scheme
     colliding = any(getattr(body, "collide", True) for body in spec.bodies)
     has_contacts = (bool(spec.colliders) or spec.contacts is not None) and colliding
@@ -107,3 +111,24 @@ def _pin_selections(spec: Any, base_dir: Path) -> list[Problem]:
             problems.append((("bodies", index, "pin"), f"the pins hold all {topology.vertex_count} vertices of "
                                                        f"{body.name!r}, so nothing is left to simulate"))
     return problems
+
+
+def check_analytic(spec: SceneSpec) -> list[Problem]:
+    """``solver.method: analytic`` moves bodies by closed forms only: a scene with anything else is refused, naming
+    it (compiling the model is cheap next to the run the scene would need)."""
+    if spec.emitters:
+        return [(("emitters", 0), "emitted particles are integrated step by step; solver.method analytic moves "
+                                  "only the scene's bodies by closed forms: remove the emitters or choose a method "
+                                  "that integrates (RK45, verlet, …)")]
+    from animbatch.compile.model import compile_scene  # the model, to match each body to its closed form
+
+    try:
+        check_closed_form(compile_scene(spec))
+    except NoClosedForm as error:
+        return [(("solver", "method"), f"analytic: {error}. Closed forms cover uniform gravity (a projectile), "
+                                       "linear drag with gravity, one spring to a fixed anchor (a damped "
+                                       "oscillator) and two bodies under mutual gravitation (Kepler); choose a "
+                                       "method that integrates (RK45, DOP853, verlet, …) for anything else")]
+    except Exception:  # noqa: BLE001 - a scene the model cannot be built from: its own checks report why
+        return []
+    return []

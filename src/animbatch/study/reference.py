@@ -1,6 +1,6 @@
 """The reference a study measures errors against, and how accurate that reference itself is.
 
-* With ``study.closed_form``, the exact motion (:mod:`animbatch.study.closed_forms`); its accuracy is that of
+* With ``study.closed_form``, the exact motion (:mod:`animbatch.sim.closed_forms`); its accuracy is that of
   floating point (:data:`ROUND_OFF`).
 * Otherwise two tight runs: DOP853 at the tightest tolerance that succeeds (1e-12, else 1e-11, 1e-10), checked
   against DOP853 one decade looser, or, for a stiff scene (springs faster than ten radians per frame), against
@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from animbatch.errors import StudyError
+from animbatch.sim.closed_forms import exact_motion
 from animbatch.sim.integrators.stability import stiffest_mode
 from animbatch.sim.model import Model
-from animbatch.study.closed_forms import exact_motion
 from animbatch.study.measure import Motion, Scales, final_error, position_error
 from animbatch.study.runs import RunOutcome, RunSetting, execute
 

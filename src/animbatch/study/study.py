@@ -17,8 +17,8 @@ from typing import Any
 from animbatch.compile.model import compile_scene
 from animbatch.errors import SceneError, SceneIssue
 from animbatch.scene import LoadedScene
+from animbatch.sim.closed_forms import NoClosedForm
 from animbatch.sim.model import Model
-from animbatch.study.closed_forms import NoClosedForm
 from animbatch.study.measure import Motion, conserved, contact_time_error, drifts, final_error, position_error
 from animbatch.study.merit import Point, TimeTo, observed_order, time_to
 from animbatch.study.reference import REFERENCE_MARGIN, Reference, find_reference
@@ -158,7 +158,8 @@ def run_study(scene: LoadedScene, *, model: Model | None = None, methods: list[s
                                    progress=progress)
     except NoClosedForm as error:
         raise SceneError([SceneIssue(scene.source.source_of(("study", "closed_form")), "study.closed_form",
-                                     str(error))]) from None
+                                     f"{error}. Remove study.closed_form to measure errors against a tight "
+                                     "reference run instead.")]) from None
     chosen, skipped = applicable_methods(model, methods or settings.methods)
     frame_interval = float(model.frame_times[1] - model.frame_times[0]) if len(model.frame_times) > 1 else 0.1
     plan = plan_settings(chosen, settings.rtols, frame_interval, settings.dt_levels)

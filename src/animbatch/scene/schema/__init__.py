@@ -147,6 +147,7 @@ from animbatch.scene.schema.scene import (
 from animbatch.scene.schema.solver import (
     ADAPTIVE_METHODS,
     FIXED_STEP_METHODS,
+    KINEMATIC_METHODS,
     METHOD_ALIASES,
     Method,
     SolverSpec,
@@ -158,6 +159,7 @@ __all__ = [
     "label_names",
     "label_speed_names",
     "EventSpec",
+    "KINEMATIC_METHODS",
     "AssignmentSpec",
     "SAMPLED_QUANTITIES",
     "CheckSpec",

@@ -10,6 +10,8 @@ from animbatch.scene.schema.base import SceneModel, key
 
 ADAPTIVE_METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
 FIXED_STEP_METHODS = ("euler", "midpoint", "symplectic_euler", "verlet", "backward_euler")
+#: Methods that do not integrate: the bodies move by closed forms (the lecture notes' kinematic simulation).
+KINEMATIC_METHODS = ("analytic",)
 METHOD_ALIASES = {
     "explicit_euler": "euler",
     "forward_euler": "euler",
@@ -25,20 +27,22 @@ def _canonical_method(value: Any) -> Any:
     if not isinstance(value, str):
         return value
     folded = value.strip().lower().replace("-", "_")
-    for name in (*ADAPTIVE_METHODS, *FIXED_STEP_METHODS):
+    for name in (*ADAPTIVE_METHODS, *FIXED_STEP_METHODS, *KINEMATIC_METHODS):
         if name.lower() == folded:
             return name
     return METHOD_ALIASES.get(folded, value)
 
 
-Method = Annotated[Literal[*ADAPTIVE_METHODS, *FIXED_STEP_METHODS], BeforeValidator(_canonical_method)]  # type: ignore[valid-type]
+Method = Annotated[Literal[*ADAPTIVE_METHODS, *FIXED_STEP_METHODS, *KINEMATIC_METHODS],
+                   BeforeValidator(_canonical_method)]  # type: ignore[valid-type]
 
 
 class SolverSpec(SceneModel):
     """How the equations of motion are integrated."""
 
     method: Method = key("RK45", "Integrator: an adaptive solve_ivp method (RK23, RK45, DOP853, Radau, BDF, LSODA) "
-                                 "or a fixed-step one (euler, midpoint, symplectic_euler, verlet, backward_euler).",
+                                 "or a fixed-step one (euler, midpoint, symplectic_euler, verlet, backward_euler), or "
+                                 "analytic (closed forms, no integration; see Kinematic mode).",
                          example="DOP853")
     rtol: float = key(1e-6, "Relative tolerance of adaptive methods (ignored by fixed-step ones).", "1",
                       gt=0, lt=1)
