@@ -33,7 +33,7 @@ from animbatch.files import write_text_atomic
 from animbatch.plot import plot_quantities
 from animbatch.progress import Progress
 from animbatch.render.camera import motion_bounds
-from animbatch.render.geometry import LabelValues
+from animbatch.render.geometry import LabelValues, PanelSeries
 from animbatch.scene import LoadedScene, physics_fingerprint
 from animbatch.scene import loader as scene_loader
 from animbatch.scene.overrides import Override
@@ -199,7 +199,23 @@ def frame_geometry(scene: LoadedScene, model: Model, trajectory: Trajectory) -> 
     if spec.render.arrows is not None:
         arrows = arrow_series(spec, model, trajectory_states(model, trajectory), np.asarray(trajectory.times),
                               np.asarray(trajectory.velocities), bounds)
-    return dataclasses.replace(geometry, label=label_values(scene, model, trajectory), arrows=arrows)
+    return dataclasses.replace(geometry, label=label_values(scene, model, trajectory), arrows=arrows,
+                               panel=panel_series(scene, model, trajectory))
+
+
+def panel_series(scene: LoadedScene, model: Model, trajectory: Trajectory) -> PanelSeries | None:
+    """The series the energy panel plots, when the scene asks for one (from the same quantities as quantities.csv)."""
+    panel = scene.spec.render.energy_panel
+    if panel is None or not model.body_count:
+        return None
+    quantities = quantity_series(model, trajectory)
+    series: dict[str, tuple[np.ndarray, str]] = {}
+    if "energy" in panel.quantities:
+        series.update({"kinetic [J]": (quantities.kinetic, "left"), "potential [J]": (quantities.potential, "left"),
+                       "total [J]": (quantities.total, "left")})
+    if "momentum" in panel.quantities:
+        series["|p| [kg·m/s]"] = (np.linalg.norm(quantities.momentum, axis=1), "right")
+    return PanelSeries(np.asarray(trajectory.times, float), series, panel.height)
 
 
 def label_values(scene: LoadedScene, model: Model, trajectory: Trajectory) -> LabelValues:

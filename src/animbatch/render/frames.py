@@ -95,6 +95,14 @@ class FrameRenderer:
         self.geometry = geometry
         self.backend = backend
         self.width, self.height = render.resolution
+        self.frame_height = self.height  # the frame's; the 3D view's is less by the energy panel, if any
+        self._panel = None
+        if geometry.panel is not None:
+            from animbatch.render.panel import EnergyPanel
+
+            panel_height = 2 * round(geometry.panel.height * self.height / 2)  # even, as the frame is
+            self._panel = EnergyPanel(geometry.panel, self.width, panel_height)
+            self.height -= panel_height
         lighting = "light kit" if render.lights == "light_kit" else "none"
         self.plotter = pv.Plotter(off_screen=True, window_size=[self.width, self.height], lighting=lighting)
         created = self.plotter.ren_win.GetClassName()
@@ -531,6 +539,8 @@ class FrameRenderer:
         # The window itself, not plotter.render(): PyVista skips rendering until the plotter was first shown.
         self.plotter.ren_win.Render()
         pixels = self._read_pixels()
+        if self._panel is not None:
+            pixels = np.concatenate([pixels, self._panel.draw(t)], axis=0)
         self._last_frame_seconds = time.perf_counter() - started
         self._drawing_seconds += self._last_frame_seconds
         return pixels

@@ -133,6 +133,16 @@ class LabelValues:
 
 
 @dataclass(frozen=True)
+class PanelSeries:
+    """What the energy panel plots: ``times`` (F,) [s] and, by label, series (F,) with their axis ('left' for
+    energies [J], 'right' for momentum [kg·m/s]); ``height``: the panel's share of the frame height."""
+
+    times: np.ndarray
+    series: dict[str, tuple[np.ndarray, str]]
+    height: float
+
+
+@dataclass(frozen=True)
 class FrameGeometry:
     """What the renderer draws, independent of the scene file: sizes, shapes, colours, springs, fluids, bounds."""
 
@@ -168,6 +178,7 @@ class FrameGeometry:
     label: LabelValues | None = None
     followed: BodyPath | None = None  # the body the camera follows
     arrows: ArrowSeries | None = None
+    panel: PanelSeries | None = None
     finishes: tuple[Finish | None, ...] = ()  # (P,) per body in model order, like colors
     surface_finishes: tuple[Finish | None, ...] = ()  # per deformable body, like surface_colors
     collider_looks: tuple[tuple[str, Finish | None], ...] = ()  # (colour, finish) per drawn collider

@@ -79,6 +79,7 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
     ("`render.ground`", "render.ground.", schema.GroundSpec),
     ("`render.trails`", "render.trails.", schema.TrailSpec),
     ("`render.arrows`", "render.arrows.", schema.ArrowSpec),
+    ("`render.energy_panel`", "render.energy_panel.", schema.EnergyPanelSpec),
     ("`render.video`", "render.video.", schema.VideoSpec),
     ("`study`", "study.", schema.StudySpec),
 ]

@@ -141,6 +141,17 @@ ForceArrowKind = Literal["gravity", "gravitation", "drag", "wind", "aerodynamics
                          "controller", "force", "electromagnetic", "coulomb", "contact"]
 
 
+class EnergyPanelSpec(SceneModel):
+    """A plot under the 3D view of the run's energies (and, optionally, momentum) over time, with a cursor at the
+    frame's time: the run's quantities.csv, drawn into the video."""
+
+    height: float = key(0.3, "Share of the frame height the panel takes (the 3D view keeps the rest).", "1",
+                        gt=0.1, le=0.6)
+    quantities: list[Literal["energy", "momentum"]] = key(
+        ["energy"], "What it plots: energy (kinetic, potential and total [J]), momentum (|p| [kg·m/s], on a second "
+                    "axis).")
+
+
 class ArrowSpec(SceneModel):
     """Arrows from bodies' centres of mass: velocity, acceleration, and one per kind of force, with a legend."""
 
@@ -223,6 +234,9 @@ class RenderSpec(SceneModel):
     show_targets: bool = key(True, "Draw what PD controllers pull towards: curves as thin lines (the wire of a "
                                    "bead), point and keyframed targets as small grey spheres.")
     show_axes: bool = key(False, "Draw each rigid body's axes (x red, y green, z blue), turning with it.")
+    energy_panel: EnergyPanelSpec | None = key(None, "A plot of the energies over time under the 3D view, with a "
+                                                     "cursor at each frame's time (omit for none; "
+                                                     "'energy_panel: {}' for the defaults).")
     arrows: ArrowSpec | None = key(None, "Velocity, acceleration and force arrows with a legend (omit for none; "
                                          "'arrows: {}' for every body's velocity).")
     show_vectors: Literal["none", "angular_velocity", "angular_momentum"] = key(
