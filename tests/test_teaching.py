@@ -181,3 +181,15 @@ def test_a_check_naming_an_unknown_body_or_stopwatch_is_refused_with_the_fix(tmp
     message = str(error.value)
     assert "assignment.checks[1].body: unknown body 'bobb'; did you mean 'bob'?" in message
     assert "assignment.checks[0].stopwatch: unknown stopwatch 'perod'; did you mean 'period'?" in message
+
+
+def test_conserved_quantities_are_checked_by_their_drift(tmp_path):
+    """The solved orbit keeps momentum and angular momentum to round-off, so tight drift checks pass; energy with
+    Euler drifts and fails."""
+    changes = {**SOLUTIONS["kepler_orbit"], ("assignment", "checks"): [
+        {"name": "momentum", "quantity": "momentum_drift", "tolerance": 1e-9},
+        {"name": "angular momentum", "quantity": "angular_momentum_drift", "tolerance": 1e-6}]}
+    reference = write(tmp_path, "kepler_orbit", changes, "solution.yaml")
+    result = {r.name: r for r in grade(reference, reference).results}
+    assert result["momentum"].passed and result["angular momentum"].passed
+    assert "momentum drift" in result["momentum"].output

@@ -31,7 +31,7 @@ from animbatch.scene.schema import SAMPLED_QUANTITIES, AssignmentSpec, CheckSpec
 from animbatch.sim.events import hermite_sample
 from animbatch.trajectory import Trajectory
 
-UNITS = {"position": "m", "velocity": "m/s", "speed": "m/s", "stopwatch": "s", "energy_drift": ""}
+UNITS = {"position": "m", "velocity": "m/s", "speed": "m/s", "stopwatch": "s"}
 
 
 class GradeError(AnimbatchError):
@@ -192,8 +192,9 @@ def _judge(check: CheckSpec, run: Run, reference: Run) -> tuple[bool, str]:
     try:
         if check.quantity in SAMPLED_QUANTITIES:
             return _sampled(check, run.trajectory, reference.trajectory)
-        return {"stopwatch": _stopwatch, "energy_drift": _energy, "method": _method, "field": _field}[
-            check.quantity](check, run, reference)
+        if check.quantity.endswith("_drift"):
+            return _drift(check, run)
+        return {"stopwatch": _stopwatch, "method": _method, "field": _field}[check.quantity](check, run, reference)
     except _CannotCheck as reason:
         return False, str(reason)
 
@@ -287,14 +288,16 @@ def _stopwatch(check: CheckSpec, run: Run, reference: Run) -> tuple[bool, str]:
                                            f"{check.tolerance:g} s)")
 
 
-def _energy(check: CheckSpec, run: Run, reference: Run) -> tuple[bool, str]:
-    energy = run.trajectory.ledger.get("conservation", {}).get("energy", {})
-    drift = energy.get("drift")
+def _drift(check: CheckSpec, run: Run) -> tuple[bool, str]:
+    quantity = check.quantity.removesuffix("_drift")
+    law = run.trajectory.ledger.get("conservation", {}).get(quantity, {})
+    drift = law.get("drift")
+    shown = quantity.replace("_", " ")
     if drift is None:
-        raise _CannotCheck(f"the submission does not conserve energy ({energy.get('reason', 'no ledger')}), so its "
+        raise _CannotCheck(f"the submission does not conserve {shown} ({law.get('reason', 'no ledger')}), so its "
                            "drift is not measured")
     method = run.trajectory.ledger.get("method", "?")
-    return drift <= check.tolerance, (f"energy drift {drift:.3g} of its scale with {method} (tolerance "
+    return drift <= check.tolerance, (f"{shown} drift {drift:.3g} of its scale with {method} (tolerance "
                                       f"{check.tolerance:g})")
 
 

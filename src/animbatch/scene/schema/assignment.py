@@ -10,7 +10,8 @@ from animbatch.curves import ExpressionError, compile_expression
 from animbatch.scene.schema.base import Name, SceneModel, key, rule_error
 from animbatch.scene.schema.solver import Method
 
-Quantity = Literal["position", "velocity", "speed", "stopwatch", "energy_drift", "method", "field"]
+Quantity = Literal["position", "velocity", "speed", "stopwatch", "energy_drift", "momentum_drift",
+                   "angular_momentum_drift", "method", "field"]
 #: The quantities compared with a value at times (the others are judged once per run).
 SAMPLED = ("position", "velocity", "speed")
 
@@ -18,7 +19,8 @@ SAMPLED = ("position", "velocity", "speed")
 class CheckSpec(SceneModel):
     """One graded check. ``position``, ``velocity`` and ``speed`` of a ``body`` are compared at the times ``at``
     with ``expected`` (default: the reference run's); ``stopwatch`` compares a stopwatch's interval;
-    ``energy_drift`` asks that the run's relative energy drift stay within ``tolerance``; ``method`` that the
+    ``energy_drift`` (``momentum_drift``, ``angular_momentum_drift``) asks that the run's relative drift of that
+    conserved quantity stay within ``tolerance``; ``method`` that the
     solver is one of ``methods``; ``field`` that the scene declares a field of type ``field``."""
 
     name: str = key(description="What the check is called in the grade's table and reports.",
@@ -32,8 +34,8 @@ class CheckSpec(SceneModel):
         None, "The right answer: a number (speed, stopwatch), three numbers (position, velocity), or formulas of t "
               "(one, or three for a vector), e.g. ['3 * t', '2 + 7 * t - 4.905 * t**2', '0']; default: the "
               "reference run's values.")
-    tolerance: float = key(1e-3, "Largest accepted difference (in the quantity's unit; a fraction for "
-                                 "energy_drift).", gt=0)
+    tolerance: float = key(1e-3, "Largest accepted difference (in the quantity's unit; a fraction for the "
+                                 "drifts).", gt=0)
     stopwatch: Name | None = key(None, "The stopwatch whose interval is checked (quantity stopwatch).")
     methods: list[Method] | None = key(None, "Solver methods accepted (quantity method).")
     field: str | None = key(None, "Field type the scene must declare (quantity field), e.g. drag.")
