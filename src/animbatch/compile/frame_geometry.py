@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from animbatch.materials import BUILT_IN_LOOKS
-from animbatch.render.colors import COLLIDER_COLOR, MESH_SPRING_COLOR, PALETTE, SPRING_COLOR, darker
+from animbatch.render.colors import COLLIDER_COLOR, MESH_SPRING_COLOR, PALETTE, ROD_COLOR, SPRING_COLOR, darker
 from animbatch.render.geometry import BodyPath, Finish, FrameGeometry, TrailPaths, mesh_key
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (
@@ -88,6 +88,12 @@ def frame_geometry(spec: SceneSpec, model: Model, bounds: np.ndarray, largest_ve
                                                             springs.first_offset, springs.second_offset))
         scene_colors = iter([s.color or SPRING_COLOR for s in spec.springs])
         spring_colors = [MESH_SPRING_COLOR if is_mesh else next(scene_colors) for is_mesh in mesh[drawn]]
+    if model.joints is not None:  # rods are drawn as the springs are, in a dark steel
+        joints = model.joints
+        zero = np.zeros((joints.count, 3))
+        spring_parts = tuple(np.concatenate([a, b]) for a, b in zip(
+            spring_parts, (joints.first, joints.second, joints.second_is_anchor, zero, zero)))
+        spring_colors = spring_colors + [ROD_COLOR] * joints.count
     fluids = [(term.level, term.up) for term in model.force_terms if isinstance(term, Buoyancy)]
     rigid_extent = extents[n:]
     scale = 2 * float(np.max(rigid_extent)) / largest_vector if largest_vector > 0 and len(rigid_extent) else 0.0

@@ -48,6 +48,13 @@ def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
                            stiffness=spring.stiffness, damping=spring.damping, rest_length=spring.rest_length,
                            second_is_anchor=second in anchor, name=spring.name or "--".join(spring.between),
                            first_point=first_point, second_point=second_point)
+    for joint in spec.joints:
+        first, second = joint.between
+        if first in anchor:  # the first end is always a particle
+            first, second = second, first
+        builder.add_distance_joint(handles[first][0], anchor[second] if second in anchor else handles[second][0],
+                                   second_is_anchor=second in anchor, length=joint.length,
+                                   name=joint.name or "--".join(joint.between))
     for controller in spec.controllers:
         builder.add_controller(handles[controller.body][0], ControllerSetting(
             controller.stiffness, controller.damping, controller_target(controller.target),

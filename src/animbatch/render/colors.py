@@ -11,6 +11,7 @@ ANCHOR_COLOR = "#333333"
 COLLIDER_COLOR = "#c8c8c8"
 SPRING_COLOR = "#808080"
 MESH_SPRING_COLOR = "#505050"
+ROD_COLOR = "#3d4451"  # distance joints: rigid rods, darker than springs
 TARGET_COLOR = "#6b6b6b"
 AXIS_COLORS = ("#d62728", "#2ca02c", "#1f77b4")
 

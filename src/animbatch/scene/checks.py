@@ -26,6 +26,7 @@ def check_references(data: dict[str, Any]) -> list[Problem]:
     rigid = _of_type(data, ("rigid",))
     deformable = _of_type(data, DEFORMABLE_TYPES)
     return [*_body_list(data), *_duplicate_names(data), *_springs(data, bodies, anchors, rigid, deformable),
+            *_joints(data, bodies, anchors, rigid, deformable),
             *_fields(data, bodies, anchors, rigid, deformable, emitters), *_pins(data, bodies, rigid),
             *_controllers(data, bodies, rigid, deformable), *_emitters(data, bodies, rigid), *_materials(data),
             *_trails(data, bodies, deformable), *_label(data, bodies), *_stopwatches(data, bodies, deformable),
@@ -69,24 +70,37 @@ def _body_list(data: dict[str, Any]) -> Iterator[Problem]:
         yield ("bodies",), "a scene needs at least one body (a list under 'bodies:') or emitter ('emitters:')"
 
 
+def _pairs(data: dict[str, Any], section: str) -> Iterator[tuple[int, dict[str, Any], list[str]]]:
+    """The items of ``section`` (springs, joints) whose ``between`` names two ends, with those names."""
+    for index, item in _items(data, section):
+        ends = item.get("between")
+        if isinstance(ends, list) and len(ends) == 2 and all(isinstance(e, str) for e in ends):
+            yield index, item, ends
+
+
+def _unknown_ends(section: str, index: int, ends: list[str], bodies: dict[str, KeyPath],
+                  anchors: dict[str, KeyPath]) -> Iterator[Problem]:
+    """Ends that name no body or anchor (with 'did you mean'), and two anchors joined to each other."""
+    known = sorted(bodies.keys() | anchors.keys())
+    for end, name in enumerate(ends):
+        if name not in bodies and name not in anchors:
+            yield (section, index, "between", end), (
+                f"unknown body or anchor {name!r}{did_you_mean(name, known)} Known: {', '.join(known) or '(none)'}")
+    if ends[0] != ends[1] and ends[0] in anchors and ends[1] in anchors:
+        what = "spring" if section == "springs" else "joint"
+        yield (section, index, "between"), (f"both ends ({ends[0]!r}, {ends[1]!r}) are anchors; a {what} needs "
+                                            "at least one body")
+
+
 def _springs(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath],
              rigid: set[str], deformable: set[str]) -> Iterator[Problem]:
-    known = sorted(bodies.keys() | anchors.keys())
-    for index, spring in _items(data, "springs"):
-        ends = spring.get("between")
-        if not (isinstance(ends, list) and len(ends) == 2 and all(isinstance(e, str) for e in ends)):
-            continue
+    for index, spring, ends in _pairs(data, "springs"):
+        yield from _unknown_ends("springs", index, ends, bodies, anchors)
         for end, name in enumerate(ends):
-            if name not in bodies and name not in anchors:
-                yield ("springs", index, "between", end), (
-                    f"unknown body or anchor {name!r}{did_you_mean(name, known)} Known: {', '.join(known) or '(none)'}")
-            elif name in deformable:
+            if name in deformable:
                 yield ("springs", index, "between", end), (
                     f"{name!r} is a cloth or lattice, made of many vertices; a spring joins one point to another. "
                     "Attach its vertices to a body or anchor with its 'pin' key instead")
-        if ends[0] != ends[1] and ends[0] in anchors and ends[1] in anchors:
-            yield ("springs", index, "between"), (f"both ends ({ends[0]!r}, {ends[1]!r}) are anchors; "
-                                                  "a spring needs at least one body")
         attach = spring.get("attach")
         if isinstance(attach, list) and len(attach) == 2:
             for end, (name, point) in enumerate(zip(ends, attach)):
@@ -95,6 +109,26 @@ def _springs(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str
                     yield ("springs", index, "attach", end), (
                         f"{name!r} is {kind}, which has no body points; use null for this end (attachment points "
                         "are for rigid bodies)")
+
+
+def _joints(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath],
+            rigid: set[str], deformable: set[str]) -> Iterator[Problem]:
+    """A distance joint joins two particles, or a particle and a fixed anchor, of the scene."""
+    moving = {item.get("name") for _, item in _items(data, "anchors") if item.get("keyframes")}
+    for index, _, ends in _pairs(data, "joints"):
+        yield from _unknown_ends("joints", index, ends, bodies, anchors)
+        for end, name in enumerate(ends):
+            if name in rigid or name in deformable:
+                kind = "a rigid body" if name in rigid else "a cloth or lattice"
+                yield ("joints", index, "between", end), (
+                    f"{name!r} is {kind}: distance joints join particles (and anchors) so far. For a rigid body, "
+                    "use a stiff spring with 'attach' points; for a cloth, its 'pin' key")
+            elif name in moving:
+                yield ("joints", index, "between", end), (
+                    f"anchor {name!r} follows keyframes; rods hang from fixed anchors so far. Use a stiff spring "
+                    "to a moving anchor instead")
+        if ends[0] == ends[1]:
+            yield ("joints", index, "between"), f"both ends are {ends[0]!r}; a joint joins two different points"
 
 
 def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath],

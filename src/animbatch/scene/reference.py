@@ -47,6 +47,7 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
     ("`pin[].keyframes[]`", "pin[].keyframes[].", schema.OffsetKeyframeSpec),
     ("`anchors[]`", "anchors[].", schema.AnchorSpec),
     ("`anchors[].keyframes[]`, `target.keyframes[]`", "keyframes[].", schema.KeyframeSpec),
+    ("`joints[]` — `type: distance`", "joints[].", schema.DistanceJointSpec),
     ("`springs[]`", "springs[].", schema.SpringSpec),
     ("`controllers[]`", "controllers[].", schema.ControllerSpec),
     *[(f"`controllers[].target` — `type: {tag_of(spec)}`", "target.", spec) for spec in schema.TARGET_SPECS],

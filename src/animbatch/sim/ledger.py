@@ -119,6 +119,8 @@ def conservation_laws(model: Model) -> dict[str, Law]:
                 external.append("springs to anchors or pins hold the bodies")
         elif not isinstance(term, InverseSquarePairs | DihedralSprings):
             external.append(f"{term.label} is an external force")
+    if model.joints is not None and model.joints.second_is_anchor.any():
+        external.append("rods to anchors hold the bodies")
     if _has_fixed_colliders(model):
         external.append("fixed colliders push the bodies")
     if model.anchors is not None and model.anchors.moving:
@@ -262,6 +264,7 @@ class Ledger:
     drift_warning: float
     contacts: dict[str, Any] | None = None
     encounter: dict[str, Any] | None = None  # two gravitating bodies closer than their radii, without softening
+    joints: dict[str, Any] | None = None  # rods: the largest violation |C| [m] over the frames, and which rod
     warnings: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
@@ -374,6 +377,12 @@ def build_ledger(model: Model, states: np.ndarray, stats: dict[str, Any], partic
                     step_record(adaptive, stepped, requested_dt, interval, float(times[-1] - times[0])), work,
                     conservation, drift_warning, contacts,
                     encounter=dataclasses.asdict(encounter) if encounter is not None else None)
+    if model.joints is not None and len(states):
+        violation = np.abs(np.stack([model.joints.violation(x) for x in model.positions(states)
+                                     [:, : model.particle_count]]))
+        frame, rod = np.unravel_index(int(np.argmax(violation)), violation.shape)
+        ledger.joints = {"max_violation": float(violation[frame, rod]), "rod": model.joints.names[rod],
+                         "time": float(times[frame])}
     ledger.warnings = judge(ledger.as_dict())
     for message in ledger.warnings:
         warnings.warn(message, AccuracyWarning, stacklevel=2)
@@ -411,6 +420,9 @@ def summary(ledger: dict[str, Any]) -> str:
     lost = [name.replace("_", " ") for name, entry in conservation.items() if not entry.get("conserved")]
     if lost and "bodies" in work:
         parts.append("not conserved: " + ", ".join(lost))
+    joints = ledger.get("joints")
+    if joints:
+        parts.append(f"rods: |C| ≤ {_number(joints['max_violation'])} m")
     count = len(ledger.get("warnings", []))
     if count:
         parts.append(f"{count} accuracy warning{'s' if count > 1 else ''} (above)")

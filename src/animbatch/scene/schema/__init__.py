@@ -106,6 +106,7 @@ from animbatch.scene.schema.fields import (
     WindSpec,
     field_type_names,
 )
+from animbatch.scene.schema.joints import DistanceJointSpec, JointSpec
 from animbatch.scene.schema.render import (
     FORCE_ARROW_KINDS,
     LABEL_FIELDS,
@@ -160,6 +161,8 @@ __all__ = [
     "label_names",
     "label_speed_names",
     "EventSpec",
+    "DistanceJointSpec",
+    "JointSpec",
     "EnergyPanelSpec",
     "KINEMATIC_METHODS",
     "AssignmentSpec",

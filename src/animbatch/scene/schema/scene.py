@@ -15,6 +15,7 @@ from animbatch.scene.schema.controllers import ControllerSpec
 from animbatch.scene.schema.deformable import BodySpec, SpringSpec
 from animbatch.scene.schema.emitters import EmitterSpec
 from animbatch.scene.schema.fields import FieldSpec
+from animbatch.scene.schema.joints import JointSpec
 from animbatch.scene.schema.render import RenderSpec
 from animbatch.scene.schema.solver import Method, SolverSpec
 from animbatch.scene.schema.stopwatches import ClocksSpec, StopwatchSpec
@@ -51,6 +52,8 @@ class SceneSpec(SceneModel):
     bodies: list[BodySpec] = key([], "Simulated bodies: particles (the default type) and rigid bodies.")
     anchors: list[AnchorSpec] = key([], "Fixed points for springs.")
     springs: list[SpringSpec] = key([], "Springs and dampers.")
+    joints: list[JointSpec] = key([], "Joints between bodies: rigid rods between particles or to anchors (see "
+                                      "Joints).")
     controllers: list[ControllerSpec] = key([], "PD controllers (virtual springs) pulling bodies towards targets.")
     emitters: list[EmitterSpec] = key([], "Particle emitters (particle systems).")
     seed: int = key(0, "Seed of every random draw (the attributes of emitted particles): the same seed gives the "

@@ -181,7 +181,7 @@ class ScipyIntegrator(Integrator):
                 while frame < len(times) and times[frame] <= end:
                     exact = times[frame] == solver.t and event_time is None
                     states[frame] = solver.y if exact or interpolant is None else interpolant(times[frame])
-                    system.project(states[frame])  # unit quaternions in every output
+                    system.project(states[frame], joints=False)  # unit quaternions in every output
                     if on_frame is not None:
                         on_frame(frame, float(times[frame]))
                     frame += 1

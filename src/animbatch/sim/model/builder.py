@@ -29,6 +29,7 @@ from animbatch.sim.deformable.vertices import ANCHOR, BODY_POINT, PARTICLE, Defo
 from animbatch.sim.forces import BodyTable, ForceTerm, SpringForces, SpringSet, TermFactory
 from animbatch.sim.forces.controllers import ControllerSetting, controllers_term
 from animbatch.sim.forces.dihedral import DihedralSprings
+from animbatch.sim.joints import DistanceJoints
 from animbatch.sim.model.clocks import ProperClocks
 from animbatch.sim.model.layout import StateLayout
 from animbatch.sim.model.model import Model
@@ -117,6 +118,7 @@ class ModelBuilder:
         self._deformables: list[_Deformable] = []
         self._controllers: list[tuple[int, ControllerSetting]] = []  # (body handle, setting)
         self._clocks: tuple[np.ndarray | None, float] | None = None  # (body handles or None for all, c)
+        self._joints: list[tuple[int, int, bool, float | None, str]] = []  # (first, second, to anchor, length, name)
 
     @property
     def particle_count(self) -> int:
@@ -299,6 +301,12 @@ class ModelBuilder:
         """Add a PD controller pulling body ``body`` (a handle) towards its setting's target."""
         self._controllers.append((body, setting))
 
+    def add_distance_joint(self, first: int, second: int, *, second_is_anchor: bool = False,
+                           length: float | None = None, name: str = "") -> None:
+        """A rigid rod of ``length`` [m] (default: the distance at the start) between particle handles ``first`` and
+        ``second``, or from ``first`` to anchor ``second`` when ``second_is_anchor``."""
+        self._joints.append((first, second, second_is_anchor, length, name))
+
     def add_clocks(self, bodies: Sequence[int] | np.ndarray | None = None, *, c: float = 299_792_458.0) -> None:
         """Give ``bodies`` (handles; default all) proper-time clocks ticking at √(1 − v²/c²), ``c`` [m/s]."""
         if c <= 0:
@@ -390,7 +398,31 @@ class ModelBuilder:
         owners = tuple(self._particle_owners) + tuple(body.name for body in self._rigid)
         return Model(bodies, tuple(self._anchor_names), anchors.rest, springs, tuple(terms), layout, y0,
                      _readonly(frame_times(duration, fps)), anchors=anchors,
-                     anchor_visible=_readonly(np.array(self._anchor_visible, bool)), owners=owners, clocks=clocks)
+                     anchor_visible=_readonly(np.array(self._anchor_visible, bool)), owners=owners, clocks=clocks,
+                     joints=self._joint_set(x0, anchors.rest))
+
+    def _joint_set(self, x0: np.ndarray, anchor_rest: np.ndarray) -> DistanceJoints | None:
+        """The rods, between particles' model points (particles only: rigid bodies are not joined yet)."""
+        if not self._joints:
+            return None
+        first = self._points(np.array([j[0] for j in self._joints], np.intp))
+        to_anchor = np.array([j[2] for j in self._joints], bool)
+        second = np.array([j[1] for j in self._joints], np.intp)
+        if (~to_anchor).any():
+            second[~to_anchor] = self._points(second[~to_anchor])
+        if np.any(first >= self.particle_count) or np.any(second[~to_anchor] >= self.particle_count):
+            raise ValueError("distance joints join particles (and anchors); rigid bodies are not joined yet")
+        far = np.empty((len(first), 3))
+        far[to_anchor] = np.asarray(anchor_rest, float).reshape(-1, 3)[second[to_anchor]]
+        far[~to_anchor] = x0[second[~to_anchor]]
+        start = np.linalg.norm(x0[first] - far, axis=1)
+        length = np.array([start[k] if j[3] is None else j[3] for k, j in enumerate(self._joints)], float)
+        if np.any(length <= 0):
+            k = int(np.argmin(length))
+            raise ValueError(f"joint {self._joints[k][4]!r} has length {length[k]:g} m: a rod needs a positive length")
+        return DistanceJoints(_readonly(first), _readonly(second), _readonly(to_anchor), _readonly(length),
+                              _readonly(np.asarray(anchor_rest, float).reshape(-1, 3)),
+                              tuple(j[4] for j in self._joints))
 
     def _deformable_set(self, anchors: AnchorMotion, point_count: int) -> DeformableSet | None:
         """The vertex map of all deformable bodies (model point numbers, anchors, body points)."""

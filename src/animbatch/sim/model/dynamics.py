@@ -38,6 +38,7 @@ class Dynamics:
         self.rigid = model.rigid_count
         n, b = self.particles, self.rigid
         self.clocks = model.clocks
+        self.joints = model.joints
         self._clock_start = 3 * n + 7 * b  # the clocks' proper times close the configuration
         self._config_size = self._clock_start + (self.clocks.count if self.clocks is not None else 0)
         self._inverse_mass = (1.0 / model.bodies.mass[:n])[:, None]
@@ -118,6 +119,8 @@ class Dynamics:
     def _motion_rate(self, t: float, state: Kinematics, out: np.ndarray) -> np.ndarray:
         force, torque = self.loads(t, state)
         n = self.particles
+        if self.joints is not None:  # the rods' tensions, from the other forces (see animbatch.sim.joints)
+            force[:n] += self.joints.forces(state.x[:n], state.v[:n], force[:n], self._inverse_mass[:, 0])
         np.multiply(force[:n], self._inverse_mass, out=out[: 3 * n].reshape(n, 3))
         if self.rigid:
             out[3 * n: 3 * n + 3 * self.rigid] = force[n:].ravel()
@@ -209,8 +212,9 @@ class Dynamics:
 
     @property
     def has_jacobian(self) -> bool:
-        """Whether :meth:`jacobian` can give ``∂(dy/dt)/∂y``: for models of particles only (without clocks)."""
-        return self.rigid == 0 and self.clocks is None
+        """Whether :meth:`jacobian` can give ``∂(dy/dt)/∂y``: for models of particles only (without clocks or
+        joints)."""
+        return self.rigid == 0 and self.clocks is None and self.joints is None
 
     def jacobian(self, t: float, y: np.ndarray) -> sp.csr_matrix:
         """``∂(dy/dt)/∂y`` for a model of particles (for Radau, BDF and LSODA)::
@@ -229,8 +233,15 @@ class Dynamics:
                         [inverse_mass @ derivatives.matrix("x"), inverse_mass @ derivatives.matrix("v")]],
                        format="csr")
 
-    def project(self, y: np.ndarray) -> None:
-        """Re-normalise the quaternions of a state (…, n) in place (nothing to do without rigid bodies)."""
+    def project(self, y: np.ndarray, *, joints: bool = True) -> None:
+        """Re-normalise the quaternions of a state (…, n) in place, and with ``joints`` move a state (n,) back onto
+        its rods (fixed-step methods, after every step; adaptive ones keep to them by Baumgarte stabilisation, so
+        that their outputs show their true drift)."""
+        if joints and self.joints is not None and y.ndim == 1:
+            config, motion = self.split(y)
+            n = self.particles
+            self.joints.project(config[: 3 * n].reshape(n, 3), motion[: 3 * n].reshape(n, 3),
+                                self._inverse_mass[:, 0])
         if self.rigid:
             block = self.model.layout.block("rigid_orientation")
             q = y[..., block.span].reshape(*y.shape[:-1], self.rigid, 4)
