@@ -142,3 +142,25 @@ def test_bad_joints_are_refused_with_the_fix(text, fragment):
               "{time: 1, position: [1, 0, 0]}]}]\nbodies: [{name: bob, position: [1, 0, 0]}, {name: box, "
               "type: rigid, shape: {type: box, size: [1, 1, 1]}, density: 1, position: [3, 0, 0]}]\n" + text)
     assert fragment in str(error.value) and "test.yaml:" in str(error.value)
+
+
+def test_a_rods_tension_is_a_force_of_its_own_in_the_arrows():
+    """A bob hanging at rest on a rod: the rod pulls up with m g, gravity down with m g, and the acceleration is
+    zero (the rod's force counts in Σ F)."""
+    loaded = scene("""
+        duration: 0.5
+        fps: 10
+        solver: {method: DOP853, rtol: 1.0e-10}
+        anchors: [{name: pivot, position: [0, 1, 0]}]
+        bodies: [{name: bob, mass: 0.4, position: [0, 0, 0]}]
+        joints: [{type: distance, between: [pivot, bob]}]
+        fields: [{type: gravity}]
+        render: {arrows: {show: [forces, acceleration]}}
+    """)
+    model = api.compile_model(loaded)
+    trajectory = api.simulate(loaded, model=model)
+    arrows = api.frame_geometry(loaded, model, trajectory).arrows
+    vectors = dict(zip(arrows.names, arrows.vectors))
+    np.testing.assert_allclose(vectors["joint"][:, 0], np.broadcast_to([0, 0.4 * G, 0], (5, 3)), atol=1e-6)
+    np.testing.assert_allclose(vectors["gravity"][:, 0], np.broadcast_to([0, -0.4 * G, 0], (5, 3)), atol=1e-9)
+    np.testing.assert_allclose(vectors["acceleration"][:, 0], 0.0, atol=1e-6)

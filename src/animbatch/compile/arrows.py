@@ -20,7 +20,7 @@ from animbatch.sim.model import Dynamics, Model
 ARROW_COLORS = {"velocity": "#2b7bba", "acceleration": "#e66101", "gravity": "#6a3d9a", "gravitation": "#7570b3",
                 "drag": "#1b9e77", "wind": "#66a61e", "aerodynamics": "#d95f02", "buoyancy": "#1f78b4",
                 "spring": "#e7298a", "dihedral": "#b15928", "controller": "#a6761d", "force": "#c9a100",
-                "electromagnetic": "#0096c7", "coulomb": "#e63946", "contact": "#404040"}
+                "electromagnetic": "#0096c7", "coulomb": "#e63946", "joint": "#3d4451", "contact": "#404040"}
 assert set(FORCE_ARROW_KINDS) <= set(ARROW_COLORS)
 
 

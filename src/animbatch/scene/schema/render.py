@@ -136,9 +136,9 @@ class TrailSpec(SceneModel):
 
 #: The kinds of force an arrow can show: each force term's label, and 'contact' (what contacts and constraints add).
 FORCE_ARROW_KINDS = ("gravity", "gravitation", "drag", "wind", "aerodynamics", "buoyancy", "spring", "dihedral",
-                     "controller", "force", "electromagnetic", "coulomb", "contact")
+                     "controller", "force", "electromagnetic", "coulomb", "joint", "contact")
 ForceArrowKind = Literal["gravity", "gravitation", "drag", "wind", "aerodynamics", "buoyancy", "spring", "dihedral",
-                         "controller", "force", "electromagnetic", "coulomb", "contact"]
+                         "controller", "force", "electromagnetic", "coulomb", "joint", "contact"]
 
 
 class EnergyPanelSpec(SceneModel):

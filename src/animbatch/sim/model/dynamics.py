@@ -106,6 +106,12 @@ class Dynamics:
         for term in self.terms:
             force = by_label.setdefault(term.label, np.zeros_like(self._force))
             term.accumulate(t, state, force, torque)
+        if self.joints is not None:  # the rods' tensions answer the sum of the others
+            n = self.particles
+            total = np.sum(list(by_label.values()), axis=0) if by_label else np.zeros_like(self._force)
+            rods = np.zeros_like(self._force)
+            rods[:n] = self.joints.forces(state.x[:n], state.v[:n], total[:n], self._inverse_mass[:, 0])
+            by_label["joint"] = rods
         return by_label
 
     # ------------------------------------------------------------------------------------------ the forms
