@@ -677,9 +677,47 @@ def bench_ledger(quick: bool) -> list[Row]:
     return rows
 
 
+def chain_model(count: int, jointed: bool) -> Dynamics:
+    """A chain of ``count`` beads 5 cm apart hanging from an anchor, joined by rods (or free, for comparison),
+    under gravity, started swinging."""
+    builder = ModelBuilder()
+    anchor = builder.add_anchor("hook", (0.0, 0.0, 0.0))
+    positions = np.stack([0.05 * np.arange(1, count + 1), np.zeros(count), np.zeros(count)], axis=1)
+    beads = builder.add_particles(positions, mass=0.01, radius=0.01, names=[f"b{i}" for i in range(count)])
+    if jointed:
+        builder.add_distance_joint(int(beads[0]), anchor, second_is_anchor=True, name="r0")
+        for i in range(1, count):
+            builder.add_distance_joint(int(beads[i]), int(beads[i - 1]), name=f"r{i}")
+    builder.add_field({"type": "gravity"})
+    return Dynamics(builder.finalize(duration=1.0, fps=30))
+
+
+def bench_joints(quick: bool) -> list[Row]:
+    """Steps per second of a chain of rods (Verlet with projection after every step, and one right-hand side with
+    the rods' tensions) next to the same number of free beads: what the constraints cost."""
+    rows = []
+    for count in ([100] if quick else [100, 1000]):
+        for jointed in (True, False):
+            system = chain_model(count, jointed)
+            y = system.model.y0.copy()
+            scheme = VelocityVerlet(system)
+            scheme.start(0.0, y)
+            steps = 20 if quick else 200
+
+            def work() -> None:
+                for i in range(steps):
+                    scheme.step(i * 1e-3, y, 1e-3)
+
+            seconds = best_of(1 if quick else 3, work)
+            what = f"chain of {count} rods" if jointed else f"{count} free beads"
+            rows.append({"benchmark": "joints", "case": f"{what}, verlet dt 1 ms (with projection)" if jointed
+                         else f"{what}, verlet dt 1 ms", "value": steps / seconds, "unit": "steps/s"})
+    return rows
+
+
 BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "rigid": bench_rigid, "contacts": bench_contacts,
               "render": bench_render, "encode": bench_encode, "cloth": bench_cloth, "fountain": bench_fountain,
-              "lean": bench_lean, "farm": bench_farm, "ledger": bench_ledger}
+              "lean": bench_lean, "farm": bench_farm, "ledger": bench_ledger, "joints": bench_joints}
 
 
 def main() -> int:
