@@ -164,3 +164,44 @@ def test_a_rods_tension_is_a_force_of_its_own_in_the_arrows():
     np.testing.assert_allclose(vectors["joint"][:, 0], np.broadcast_to([0, 0.4 * G, 0], (5, 3)), atol=1e-6)
     np.testing.assert_allclose(vectors["gravity"][:, 0], np.broadcast_to([0, -0.4 * G, 0], (5, 3)), atol=1e-9)
     np.testing.assert_allclose(vectors["acceleration"][:, 0], 0.0, atol=1e-6)
+
+
+def test_a_chain_of_twenty_links_comes_to_rest_as_the_catenary():
+    """Twenty rods of 5 cm between anchors 0.8 m apart, settled by light drag. At rest the horizontal tension H is
+    the same in every link and each bead turns the chain by its weight, tan θ_k = tan θ₁ + (k − 1) m g / H (the
+    discrete catenary, H from the span); the continuous catenary of the same length, 2a sinh(0.4/a) = 1, is within
+    the discretisation."""
+    from scipy.optimize import brentq
+
+    links, ell, span, m = 20, 0.05, 0.8, 0.01
+    alpha = np.arccos(span / (links * ell))  # start as a V with the right link lengths
+    corners = np.cumsum([[ell * np.cos(alpha), (-1 if k < links // 2 else 1) * ell * np.sin(alpha), 0]
+                         for k in range(links)], axis=0)
+    beads = "\n".join(f"  - {{name: b{k}, mass: {m}, position: [{float(corners[k - 1][0])!r}, "
+                      f"{float(corners[k - 1][1])!r}, 0]}}" for k in range(1, links))
+    ends = ["left"] + [f"b{k}" for k in range(1, links)] + ["right"]
+    joints = "\n".join(f"  - {{type: distance, between: [{a}, {b}], length: {ell}}}" for a, b in zip(ends, ends[1:]))
+    trajectory = api.simulate(scene(f"""
+duration: 8
+fps: 10
+solver: {{method: verlet, dt: 0.002}}
+anchors: [{{name: left, position: [0, 0, 0]}}, {{name: right, position: [{span}, 0, 0]}}]
+bodies:
+{beads}
+joints:
+{joints}
+fields: [{{type: gravity}}, {{type: drag, model: linear, coefficient: 0.02}}]
+"""))
+    at_rest = trajectory.positions[-1][:, :2]
+    assert np.abs(trajectory.velocities[-1]).max() < 1e-3
+
+    def slopes(tension: float) -> np.ndarray:
+        return (np.arange(links) - (links - 1) / 2) * m * G / tension
+
+    tension = brentq(lambda h: np.sum(ell / np.sqrt(1 + slopes(h) ** 2)) - span, 1e-4, 100)
+    theta = np.arctan(slopes(tension))
+    discrete = np.cumsum(np.stack([ell * np.cos(theta), ell * np.sin(theta)], axis=1), axis=0)[:-1]
+    np.testing.assert_allclose(at_rest, discrete, atol=5e-5)
+    a = brentq(lambda a: 2 * a * np.sinh(span / 2 / a) - links * ell, 0.05, 10)
+    catenary = a * np.cosh((at_rest[:, 0] - span / 2) / a) - a * np.cosh(span / 2 / a)
+    assert np.abs(at_rest[:, 1] - catenary).max() < 0.1 * ell  # the discretisation's error, not the solver's
