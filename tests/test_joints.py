@@ -233,3 +233,15 @@ def test_a_closed_four_bar_linkage_keeps_its_loop_closed_and_its_energy(solver):
         + G * trajectory.positions[:, :, 1] @ mass
     assert np.abs(e - e[0]).max() < (1e-6 if "DOP853" in solver else 5e-3) * 10
     assert np.ptp(trajectory.positions[:, 0, 0]) > 0.1, "it moves"
+
+
+def test_info_lists_the_rods_and_how_they_are_held(tmp_path):
+    import subprocess
+    import sys
+
+    path = tmp_path / "rods.yaml"
+    path.write_text("duration: 1\nanchors: [{name: pivot, position: [0, 0, 0]}]\nbodies: [{name: bob, position: [0, -0.5, 0]}]\n"
+                    "joints: [{type: distance, between: [pivot, bob]}]\n")
+    out = subprocess.run([sys.executable, "-m", "animbatch", "info", str(path)], capture_output=True, text=True,
+                         check=True).stdout
+    assert "joints     1 distance rod: pivot--bob (0.5 m)" in out

@@ -94,6 +94,12 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
         span = block.span
         shape = " × ".join(map(str, block.shape))
         lines.append(f"           y[{span.start}:{span.stop}]  {block.name}  ({shape}) [{block.unit}]  {block.role}")
+    if model.joints is not None:
+        rods = model.joints
+        shown = ", ".join(f"{name} ({length:g} m)" for name, length in zip(rods.names[:6], rods.length[:6]))
+        lines.append(f"joints     {rods.count} distance rod{'s' if rods.count != 1 else ''}: {shown}"
+                     + (" …" if rods.count > 6 else "") + "; held by Baumgarte-stabilised tensions (adaptive "
+                     "methods) or projection after every step (fixed-step)")
     if model.clocks is not None:
         lines.append(f"clocks     proper time dτ/dt = √(1 − v²/c²), c = {model.clocks.c:g} m/s, carried by "
                      + ", ".join(model.clocks.names))
