@@ -135,6 +135,9 @@ def test_a_free_rod_keeps_its_length_momentum_and_angular_momentum():
     ("joints: [{type: distance, between: [pivot, bob], length: -1}]", "must be > 0"),
     ("joints: [{type: hinge, between: [pivot, bob]}]", "distance"),
     ("joints: [{type: distance, between: [rail, bob]}]", "anchor 'rail' follows keyframes"),
+    ("joints: [{type: pulley, between: [bob, pivot], over: [pivot, pivot]}]", "'pivot' is an anchor; a pulley's rope"),
+    ("joints: [{type: pulley, between: [bob, box], over: [pivot, pulle]}]", "unknown anchor 'pulle'"),
+    ("joints: [{type: pulley, between: [bob, box], over: [pivot, rail]}]", "pulleys are fixed so far"),
 ])
 def test_bad_joints_are_refused_with_the_fix(text, fragment):
     with pytest.raises(SceneError) as error:
@@ -244,4 +247,33 @@ def test_info_lists_the_rods_and_how_they_are_held(tmp_path):
                     "joints: [{type: distance, between: [pivot, bob]}]\n")
     out = subprocess.run([sys.executable, "-m", "animbatch", "info", str(path)], capture_output=True, text=True,
                          check=True).stdout
-    assert "joints     1 distance rod: pivot--bob (0.5 m)" in out
+    assert "joints     1 joint (rods, ropes): pivot--bob (0.5 m)" in out
+
+
+@pytest.mark.parametrize("solver, tolerance", [("{method: DOP853, rtol: 1.0e-10, atol: 1.0e-12}", 1e-8),
+                                               ("{method: verlet, dt: 0.001}", 1e-9)])
+def test_an_atwood_machine_accelerates_at_the_closed_form_rate(solver, tolerance):
+    """Masses of 3 kg and 1 kg on a rope over two pulleys: the heavy one falls at a = (m₁ − m₂) g / (m₁ + m₂) =
+    g/2 and the rope's tension is 2 m₁ m₂ g / (m₁ + m₂) = 1.5 g, upwards on each."""
+    loaded = scene(f"""
+        duration: 0.8
+        fps: 20
+        solver: {solver}
+        anchors: [{{name: p1, position: [-0.2, 2, 0]}}, {{name: p2, position: [0.2, 2, 0]}}]
+        bodies:
+          - {{name: heavy, mass: 3, position: [-0.2, 1.0, 0]}}
+          - {{name: light, mass: 1, position: [0.2, 0.5, 0]}}
+        joints: [{{type: pulley, between: [heavy, light], over: [p1, p2]}}]
+        fields: [{{type: gravity}}]
+        render: {{arrows: {{show: [forces]}}}}
+    """)
+    model = api.compile_model(loaded)
+    trajectory = api.simulate(loaded, model=model)
+    t = trajectory.times
+    a = (3 - 1) * G / (3 + 1)
+    np.testing.assert_allclose(trajectory.positions[:, 0, 1], 1.0 - 0.5 * a * t**2, atol=tolerance)
+    np.testing.assert_allclose(trajectory.positions[:, 1, 1], 0.5 + 0.5 * a * t**2, atol=tolerance)
+    np.testing.assert_allclose(trajectory.positions[:, :, 0], np.broadcast_to([-0.2, 0.2], (len(t), 2)), atol=1e-9)
+    drawn = api.frame_geometry(loaded, model, trajectory).arrows
+    arrows = dict(zip(drawn.names, drawn.vectors))
+    np.testing.assert_allclose(arrows["joint"][:, :, 1], 1.5 * G, atol=1e-5)

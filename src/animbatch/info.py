@@ -97,7 +97,7 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
     if model.joints is not None:
         rods = model.joints
         shown = ", ".join(f"{name} ({length:g} m)" for name, length in zip(rods.names[:6], rods.length[:6]))
-        lines.append(f"joints     {rods.count} distance rod{'s' if rods.count != 1 else ''}: {shown}"
+        lines.append(f"joints     {rods.count} joint{'s' if rods.count != 1 else ''} (rods, ropes): {shown}"
                      + (" …" if rods.count > 6 else "") + "; held by Baumgarte-stabilised tensions (adaptive "
                      "methods) or projection after every step (fixed-step)")
     if model.clocks is not None:

@@ -88,12 +88,14 @@ def frame_geometry(spec: SceneSpec, model: Model, bounds: np.ndarray, largest_ve
                                                             springs.first_offset, springs.second_offset))
         scene_colors = iter([s.color or SPRING_COLOR for s in spec.springs])
         spring_colors = [MESH_SPRING_COLOR if is_mesh else next(scene_colors) for is_mesh in mesh[drawn]]
-    if model.joints is not None:  # rods are drawn as the springs are, in a dark steel
+    if model.joints is not None:  # rods and ropes are drawn as the springs are, in a dark steel
         joints = model.joints
-        zero = np.zeros((joints.count, 3))
+        to_anchor = joints.segment_to < 0
+        zero = np.zeros((len(to_anchor), 3))
         spring_parts = tuple(np.concatenate([a, b]) for a, b in zip(
-            spring_parts, (joints.first, joints.second, joints.second_is_anchor, zero, zero)))
-        spring_colors = spring_colors + [ROD_COLOR] * joints.count
+            spring_parts, (joints.segment_from, np.where(to_anchor, joints.segment_anchor_index, joints.segment_to),
+                           to_anchor, zero, zero)))
+        spring_colors = spring_colors + [ROD_COLOR] * len(to_anchor)
     fluids = [(term.level, term.up) for term in model.force_terms if isinstance(term, Buoyancy)]
     rigid_extent = extents[n:]
     scale = 2 * float(np.max(rigid_extent)) / largest_vector if largest_vector > 0 and len(rigid_extent) else 0.0

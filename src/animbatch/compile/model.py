@@ -49,6 +49,11 @@ def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
                            second_is_anchor=second in anchor, name=spring.name or "--".join(spring.between),
                            first_point=first_point, second_point=second_point)
     for joint in spec.joints:
+        if joint.type == "pulley":
+            builder.add_pulley_joint(handles[joint.between[0]][0], handles[joint.between[1]][0], anchor[joint.over[0]],
+                                     anchor[joint.over[1]], length=joint.length,
+                                     name=joint.name or "--".join(joint.between))
+            continue
         first, second = joint.between
         if first in anchor:  # the first end is always a particle
             first, second = second, first

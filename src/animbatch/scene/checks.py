@@ -129,6 +129,22 @@ def _joints(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str,
                     "to a moving anchor instead")
         if ends[0] == ends[1]:
             yield ("joints", index, "between"), f"both ends are {ends[0]!r}; a joint joins two different points"
+    for index, joint in _items(data, "joints"):
+        if joint.get("type") != "pulley":
+            continue
+        for position, name in _strings(joint.get("between") or []):
+            if name in anchors:
+                yield ("joints", index, "between", position), (
+                    f"{name!r} is an anchor; a pulley's rope ends at particles (the anchors go under 'over')")
+        for position, name in _strings(joint.get("over") or []):
+            if name not in anchors:
+                known = sorted(anchors)
+                yield ("joints", index, "over", position), (
+                    f"unknown anchor {name!r}{did_you_mean(name, known)} The rope runs over fixed anchors: "
+                    f"{', '.join(known) or '(none: declare them under anchors:)'}")
+            elif name in moving:
+                yield ("joints", index, "over", position), (f"anchor {name!r} follows keyframes; pulleys are "
+                                                            "fixed so far")
 
 
 def _fields(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath],

@@ -48,6 +48,7 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
     ("`anchors[]`", "anchors[].", schema.AnchorSpec),
     ("`anchors[].keyframes[]`, `target.keyframes[]`", "keyframes[].", schema.KeyframeSpec),
     ("`joints[]` — `type: distance`", "joints[].", schema.DistanceJointSpec),
+    ("`joints[]` — `type: pulley`", "joints[].", schema.PulleyJointSpec),
     ("`springs[]`", "springs[].", schema.SpringSpec),
     ("`controllers[]`", "controllers[].", schema.ControllerSpec),
     *[(f"`controllers[].target` — `type: {tag_of(spec)}`", "target.", spec) for spec in schema.TARGET_SPECS],

@@ -119,8 +119,8 @@ def conservation_laws(model: Model) -> dict[str, Law]:
                 external.append("springs to anchors or pins hold the bodies")
         elif not isinstance(term, InverseSquarePairs | DihedralSprings):
             external.append(f"{term.label} is an external force")
-    if model.joints is not None and model.joints.second_is_anchor.any():
-        external.append("rods to anchors hold the bodies")
+    if model.joints is not None and model.joints.anchored:
+        external.append("joints to anchors hold the bodies")
     if _has_fixed_colliders(model):
         external.append("fixed colliders push the bodies")
     if model.anchors is not None and model.anchors.moving:
@@ -422,7 +422,7 @@ def summary(ledger: dict[str, Any]) -> str:
         parts.append("not conserved: " + ", ".join(lost))
     joints = ledger.get("joints")
     if joints:
-        parts.append(f"rods: |C| ≤ {_number(joints['max_violation'])} m")
+        parts.append(f"joints: |C| ≤ {_number(joints['max_violation'])} m")
     count = len(ledger.get("warnings", []))
     if count:
         parts.append(f"{count} accuracy warning{'s' if count > 1 else ''} (above)")

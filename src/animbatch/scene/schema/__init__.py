@@ -106,7 +106,7 @@ from animbatch.scene.schema.fields import (
     WindSpec,
     field_type_names,
 )
-from animbatch.scene.schema.joints import DistanceJointSpec, JointSpec
+from animbatch.scene.schema.joints import DistanceJointSpec, JointSpec, PulleyJointSpec
 from animbatch.scene.schema.render import (
     FORCE_ARROW_KINDS,
     LABEL_FIELDS,
@@ -162,6 +162,7 @@ __all__ = [
     "label_speed_names",
     "EventSpec",
     "DistanceJointSpec",
+    "PulleyJointSpec",
     "JointSpec",
     "EnergyPanelSpec",
     "KINEMATIC_METHODS",

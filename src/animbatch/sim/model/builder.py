@@ -29,7 +29,7 @@ from animbatch.sim.deformable.vertices import ANCHOR, BODY_POINT, PARTICLE, Defo
 from animbatch.sim.forces import BodyTable, ForceTerm, SpringForces, SpringSet, TermFactory
 from animbatch.sim.forces.controllers import ControllerSetting, controllers_term
 from animbatch.sim.forces.dihedral import DihedralSprings
-from animbatch.sim.joints import DistanceJoints
+from animbatch.sim.joints import Joints
 from animbatch.sim.model.clocks import ProperClocks
 from animbatch.sim.model.layout import StateLayout
 from animbatch.sim.model.model import Model
@@ -118,7 +118,8 @@ class ModelBuilder:
         self._deformables: list[_Deformable] = []
         self._controllers: list[tuple[int, ControllerSetting]] = []  # (body handle, setting)
         self._clocks: tuple[np.ndarray | None, float] | None = None  # (body handles or None for all, c)
-        self._joints: list[tuple[int, int, bool, float | None, str]] = []  # (first, second, to anchor, length, name)
+        # joints: ([(particle, other end, other end is an anchor) per segment], length or None, name)
+        self._joints: list[tuple[list[tuple[int, int, bool]], float | None, str]] = []
 
     @property
     def particle_count(self) -> int:
@@ -305,7 +306,14 @@ class ModelBuilder:
                            length: float | None = None, name: str = "") -> None:
         """A rigid rod of ``length`` [m] (default: the distance at the start) between particle handles ``first`` and
         ``second``, or from ``first`` to anchor ``second`` when ``second_is_anchor``."""
-        self._joints.append((first, second, second_is_anchor, length, name))
+        self._joints.append(([(first, second, second_is_anchor)], length, name))
+
+    def add_pulley_joint(self, first: int, second: int, first_pulley: int, second_pulley: int, *,
+                         length: float | None = None, name: str = "") -> None:
+        """A rope of ``length`` [m] (default: at the start) from particle ``first`` up to anchor ``first_pulley``,
+        over to anchor ``second_pulley`` and down to particle ``second`` (the part between the pulleys is fixed and
+        not counted): |x₁ − p₁| + |x₂ − p₂| stays ``length``."""
+        self._joints.append(([(first, first_pulley, True), (second, second_pulley, True)], length, name))
 
     def add_clocks(self, bodies: Sequence[int] | np.ndarray | None = None, *, c: float = 299_792_458.0) -> None:
         """Give ``bodies`` (handles; default all) proper-time clocks ticking at √(1 − v²/c²), ``c`` [m/s]."""
@@ -401,28 +409,33 @@ class ModelBuilder:
                      anchor_visible=_readonly(np.array(self._anchor_visible, bool)), owners=owners, clocks=clocks,
                      joints=self._joint_set(x0, anchors.rest))
 
-    def _joint_set(self, x0: np.ndarray, anchor_rest: np.ndarray) -> DistanceJoints | None:
-        """The rods, between particles' model points (particles only: rigid bodies are not joined yet)."""
+    def _joint_set(self, x0: np.ndarray, anchor_rest: np.ndarray) -> Joints | None:
+        """The joints' segments, between particles' model points (rigid bodies are not joined yet)."""
         if not self._joints:
             return None
-        first = self._points(np.array([j[0] for j in self._joints], np.intp))
-        to_anchor = np.array([j[2] for j in self._joints], bool)
-        second = np.array([j[1] for j in self._joints], np.intp)
+        rows = [(k, near, far, to_anchor) for k, (segments, _, _) in enumerate(self._joints)
+                for near, far, to_anchor in segments]
+        joint = np.array([r[0] for r in rows], np.intp)
+        to_anchor = np.array([r[3] for r in rows], bool)
+        near = self._points(np.array([r[1] for r in rows], np.intp))
+        far = np.array([r[2] for r in rows], np.intp)
         if (~to_anchor).any():
-            second[~to_anchor] = self._points(second[~to_anchor])
-        if np.any(first >= self.particle_count) or np.any(second[~to_anchor] >= self.particle_count):
-            raise ValueError("distance joints join particles (and anchors); rigid bodies are not joined yet")
-        far = np.empty((len(first), 3))
-        far[to_anchor] = np.asarray(anchor_rest, float).reshape(-1, 3)[second[to_anchor]]
-        far[~to_anchor] = x0[second[~to_anchor]]
-        start = np.linalg.norm(x0[first] - far, axis=1)
-        length = np.array([start[k] if j[3] is None else j[3] for k, j in enumerate(self._joints)], float)
+            far[~to_anchor] = self._points(far[~to_anchor])
+        if np.any(near >= self.particle_count) or np.any(far[~to_anchor] >= self.particle_count):
+            raise ValueError("joints join particles (and anchors); rigid bodies are not joined yet")
+        anchors = np.asarray(anchor_rest, float).reshape(-1, 3)
+        anchor_point = np.zeros((len(rows), 3))
+        anchor_point[to_anchor] = anchors[far[to_anchor]]
+        far_point = anchor_point.copy()
+        far_point[~to_anchor] = x0[far[~to_anchor]]
+        start = np.bincount(joint, weights=np.linalg.norm(x0[near] - far_point, axis=1), minlength=len(self._joints))
+        length = np.array([start[k] if given is None else given for k, (_, given, _) in enumerate(self._joints)])
         if np.any(length <= 0):
             k = int(np.argmin(length))
-            raise ValueError(f"joint {self._joints[k][4]!r} has length {length[k]:g} m: a rod needs a positive length")
-        return DistanceJoints(_readonly(first), _readonly(second), _readonly(to_anchor), _readonly(length),
-                              _readonly(np.asarray(anchor_rest, float).reshape(-1, 3)),
-                              tuple(j[4] for j in self._joints))
+            raise ValueError(f"joint {self._joints[k][2]!r} has length {length[k]:g} m: it needs a positive length")
+        return Joints(_readonly(joint), _readonly(near), _readonly(np.where(to_anchor, -1, far)),
+                      _readonly(anchor_point), _readonly(np.where(to_anchor, far, -1)), _readonly(length),
+                      tuple(name for _, _, name in self._joints))
 
     def _deformable_set(self, anchors: AnchorMotion, point_count: int) -> DeformableSet | None:
         """The vertex map of all deformable bodies (model point numbers, anchors, body points)."""

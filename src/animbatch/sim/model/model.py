@@ -18,7 +18,7 @@ import numpy as np
 from animbatch import quaternion
 from animbatch.sim.deformable.vertices import DeformableSet
 from animbatch.sim.forces import BodyTable, ForceTerm, SpringSet
-from animbatch.sim.joints import DistanceJoints
+from animbatch.sim.joints import Joints
 from animbatch.sim.model.clocks import ProperClocks
 from animbatch.sim.model.layout import StateLayout
 from animbatch.sim.model.rigid_set import RigidBodySet
@@ -48,7 +48,7 @@ class Model:
             start. ``anchor_visible`` (A,): drawn (cloth pins are anchors too, and are not).
         owners: (P,) the scene body each point belongs to: its own name, or the cloth or lattice of a vertex.
         clocks: the proper-time clocks some bodies carry, or None (then the state has no proper-time block).
-        joints: rigid rods between particles or to anchors, or None (then no constraint code runs).
+        joints: rods and ropes over pulleys between particles, or None (then no constraint code runs).
     """
 
     bodies: BodyTable
@@ -65,7 +65,7 @@ class Model:
     anchor_visible: np.ndarray | None = None
     owners: tuple[str, ...] | None = None
     clocks: ProperClocks | None = None
-    joints: DistanceJoints | None = None
+    joints: Joints | None = None
 
     def __post_init__(self) -> None:
         if self.anchors is None:
