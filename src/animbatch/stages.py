@@ -199,16 +199,19 @@ def frame_geometry(scene: LoadedScene, model: Model, trajectory: Trajectory) -> 
     if spec.render.arrows is not None:
         arrows = arrow_series(spec, model, trajectory_states(model, trajectory), np.asarray(trajectory.times),
                               np.asarray(trajectory.velocities), bounds)
-    return dataclasses.replace(geometry, label=label_values(scene, model, trajectory), arrows=arrows,
-                               panel=panel_series(scene, model, trajectory))
+    quantities = (quantity_series(model, trajectory) if model.body_count and
+                  (spec.render.energy_panel is not None or label_asks_for_quantities(spec.render.time_label))
+                  else None)  # one pass over the trajectory, shared by the overlay and the panel
+    return dataclasses.replace(geometry, label=label_values(scene, model, trajectory, quantities), arrows=arrows,
+                               panel=panel_series(scene, quantities, trajectory))
 
 
-def panel_series(scene: LoadedScene, model: Model, trajectory: Trajectory) -> PanelSeries | None:
-    """The series the energy panel plots, when the scene asks for one (from the same quantities as quantities.csv)."""
+def panel_series(scene: LoadedScene, quantities: QuantitySeries | None, trajectory: Trajectory
+                 ) -> PanelSeries | None:
+    """The series the energy panel plots, when the scene asks for one (the quantities of quantities.csv)."""
     panel = scene.spec.render.energy_panel
-    if panel is None or not model.body_count:
+    if panel is None or quantities is None:
         return None
-    quantities = quantity_series(model, trajectory)
     series: dict[str, tuple[np.ndarray, str]] = {}
     if "energy" in panel.quantities:
         series.update({"kinetic [J]": (quantities.kinetic, "left"), "potential [J]": (quantities.potential, "left"),
@@ -218,23 +221,29 @@ def panel_series(scene: LoadedScene, model: Model, trajectory: Trajectory) -> Pa
     return PanelSeries(np.asarray(trajectory.times, float), series, panel.height)
 
 
-def label_values(scene: LoadedScene, model: Model, trajectory: Trajectory) -> LabelValues:
-    """The numbers the scene's text overlay shows at each frame; energies and speeds only when it asks for them
-    (they cost a pass over the trajectory)."""
-    label = scene.spec.render.time_label
+def label_asks_for_quantities(label: str) -> bool:
+    """Whether a text overlay shows energies or speeds (which cost a pass over the trajectory)."""
     fields = {field for _, field, _, _ in string.Formatter().parse(label) if field}
-    speeds = label_speed_names(label)
+    return bool(fields & {"E", "KE", "PE"} or label_speed_names(label))
+
+
+def label_values(scene: LoadedScene, model: Model, trajectory: Trajectory,
+                 quantities: QuantitySeries | None = None) -> LabelValues:
+    """The numbers the scene's text overlay shows at each frame; energies and speeds only when it asks for them
+    (from ``quantities``, or a pass over the trajectory)."""
+    label = scene.spec.render.time_label
+    shown = set(label_names(label, "stopwatch"))
     watches = {reading.name: reading for reading in stopwatch_readings(scene.spec.stopwatches, trajectory)
-               if reading.name in label_names(label, "stopwatch")}
+               if reading.name in shown}
     clocks = {name: trajectory.proper_times[:, trajectory.clock_names.index(name)]
               for name in label_names(label, "proper_time") if trajectory.proper_times is not None}
     values = LabelValues(np.asarray(trajectory.times), float(scene.spec.fps), stopwatches=watches,
                          wall_simulate=float(trajectory.solver_stats.get("wall_time", 0.0)), proper_times=clocks)
-    if not (fields & {"E", "KE", "PE"} or speeds) or not model.body_count:
+    if not label_asks_for_quantities(label) or not model.body_count:
         return values
-    series = quantity_series(model, trajectory)
+    series = quantities if quantities is not None else quantity_series(model, trajectory)
     values.series.update({"E": series.total, "KE": series.kinetic, "PE": series.potential})
-    values.speeds.update({name: series.speeds[:, series.body_names.index(name)] for name in speeds})
+    values.speeds.update({name: series.speeds[:, series.body_names.index(name)] for name in label_speed_names(label)})
     return values
 
 

@@ -127,7 +127,8 @@ def frame_geometry(spec: SceneSpec, model: Model, bounds: np.ndarray, largest_ve
                          surface_finishes=tuple(looks[body.name][1] for body in deformables.bodies)
                          if deformables is not None else (),
                          collider_looks=tuple((look[0] or COLLIDER_COLOR, look[1]) for look in
-                                              (surface_look(spec, c) for c in spec.colliders if c.visible)))
+                                              (surface_look(spec, c) for c in spec.colliders if c.visible)),
+                         rigid_volume_radius=np.asarray(model.bodies.radius[n:]))
 
 
 def surface_look(spec: SceneSpec, item: Any) -> tuple[str | None, Finish | None]:

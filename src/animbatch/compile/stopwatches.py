@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from animbatch.render.geometry import StopwatchReading, stopwatch_line
-
-__all__ = ["StopwatchReading", "stopwatch_line", "stopwatch_readings"]
 from animbatch.scene.schema import EventSpec, StopwatchSpec
 from animbatch.sim.events import plane_crossings
 from animbatch.trajectory import Trajectory
+
+__all__ = ["StopwatchReading", "stopwatch_line", "stopwatch_readings"]
 
 
 def _event_time(event: EventSpec, trajectory: Trajectory, after: float) -> float | None:
@@ -28,10 +28,9 @@ def _event_time(event: EventSpec, trajectory: Trajectory, after: float) -> float
 
 def stopwatch_readings(stopwatches: list[StopwatchSpec], trajectory: Trajectory) -> list[StopwatchReading]:
     """The readings of the scene's stopwatches on ``trajectory``."""
-    end = float(trajectory.times[-1])
     readings = []
     for watch in stopwatches:
         start = _event_time(watch.start, trajectory, -np.inf)
         stop = None if start is None or watch.stop is None else _event_time(watch.stop, trajectory, start)
-        readings.append(StopwatchReading(watch.name, start, stop, end, watch.expected))
+        readings.append(StopwatchReading(watch.name, start, stop, watch.expected))
     return readings

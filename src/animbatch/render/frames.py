@@ -95,7 +95,6 @@ class FrameRenderer:
         self.geometry = geometry
         self.backend = backend
         self.width, self.height = render.resolution
-        self.frame_height = self.height  # the frame's; the 3D view's is less by the energy panel, if any
         self._panel = None
         if geometry.panel is not None:
             from animbatch.render.panel import EnergyPanel
@@ -126,10 +125,10 @@ class FrameRenderer:
         self._environment = False  # set up when the first physically based surface needs it
         self._add_ground()
         self._shadows = self._make_shadows()
-        self._occlusion = self._make_occlusion()
         self._add_colliders()
         self._add_fluids()
         self._add_particles()
+        self._occlusion = self._make_occlusion()  # after the particles: it needs how they are drawn
         self._add_emitted()
         self._trails = TrailLayer(self.pv, self.plotter, geometry.trails) if geometry.trails is not None else None
         self._arrows = ArrowLayer(self.pv, self.plotter, geometry.arrows) if geometry.arrows else None
@@ -156,10 +155,18 @@ class FrameRenderer:
                              view / np.linalg.norm(view), lift=3e-3 * size)  # clear of depth-test ties
 
     def _make_occlusion(self) -> GroundOcclusion | None:
-        """Ambient occlusion of the ground around the motion, when asked for and there is a ground."""
+        """Ambient occlusion of the ground around the motion, when asked for and there is a ground. The occluders'
+        radii are fixed: particles drawn as spheres, and each rigid body as the sphere of its volume (its reach
+        would overstate a rod)."""
         ground = self._ground
         if not self.render_spec.ambient_occlusion or ground is None:
             return None
+        geometry = self.geometry
+        rigid = (geometry.rigid_volume_radius if geometry.rigid_volume_radius is not None
+                 else geometry.rigid_extent)
+        self._occluder_radius = np.concatenate([
+            np.zeros(0) if self.use_sprites else geometry.particle_radius[self._drawn],
+            np.minimum(rigid, geometry.rigid_extent)])
         _, origin, side = self._plane_square(ground.level, self.camera.up, ground.size)
         return GroundOcclusion(self.pv, self.plotter, origin=origin, up=self.camera.up, side=side,
                                lift=1.5e-3 * side)  # under the shadows, over the grid
@@ -269,7 +276,6 @@ class FrameRenderer:
         self._rigid_matrices = []
         self._rigid_shadows = []
         self._vector_actors = []
-        self._rigid_occluder_radius = np.zeros(len(geometry.rigid_shapes))
         for b, shape in enumerate(geometry.rigid_shapes):
             mesh = shape_mesh(shape, geometry.meshes, spec.sphere_resolution).translate(-geometry.rigid_centre[b])
             # split vertices at sharp edges so boxes stay crisp while spheres and cylinders look smooth
@@ -291,10 +297,6 @@ class FrameRenderer:
                 self.plotter.add_mesh(arrow, color="#ffbf00").SetUserMatrix(vector_matrix)
                 self._vector_actors.append(vector_matrix)
             self._rigid_matrices.append(matrix)
-            # for ambient occlusion, a body counts as the sphere of its volume (its reach would overstate a rod)
-            volume = float(mesh.volume) if mesh.n_cells else 0.0
-            reach = float(geometry.rigid_extent[b])
-            self._rigid_occluder_radius[b] = min(reach, (3 * volume / (4 * np.pi)) ** (1 / 3)) if volume > 0 else reach
             if self._shadows is not None:
                 self._rigid_shadows.append(self._shadows.add(mesh))
 
@@ -525,9 +527,8 @@ class FrameRenderer:
             self._spring_mesh.GetPoints().Modified()
         if self._occlusion is not None:
             spheres = np.empty((0, 3)) if self.use_sprites else drawn
-            radius = np.zeros(0) if self.use_sprites else geometry.particle_radius[self._drawn]
-            self._occlusion.update(np.concatenate([spheres, positions[n:n + len(self._rigid_occluder_radius)]]),
-                                   np.concatenate([radius, self._rigid_occluder_radius]))
+            self._occlusion.update(np.concatenate([spheres, positions[n:n + len(geometry.rigid_shapes)]]),
+                                   self._occluder_radius)
         if self._trails is not None:
             self._trails.update(t)
         if self._arrows is not None:

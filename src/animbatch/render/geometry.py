@@ -63,12 +63,11 @@ class ArrowSeries:
 @dataclass(frozen=True)
 class StopwatchReading:
     """A stopwatch over one run: ``start`` and ``stop`` [s] (None: never started, or still running at the end),
-    ``end`` [s] the run's last frame time, and the closed form's ``expected`` time [s], if any."""
+    and the closed form's ``expected`` time [s], if any."""
 
     name: str
     start: float | None
     stop: float | None
-    end: float
     expected: float | None = None
 
     @property
@@ -182,6 +181,7 @@ class FrameGeometry:
     finishes: tuple[Finish | None, ...] = ()  # (P,) per body in model order, like colors
     surface_finishes: tuple[Finish | None, ...] = ()  # per deformable body, like surface_colors
     collider_looks: tuple[tuple[str, Finish | None], ...] = ()  # (colour, finish) per drawn collider
+    rigid_volume_radius: np.ndarray | None = None  # (B,) [m] the radius of the sphere of each rigid body's volume
 
 
 def mesh_key(shape: Any) -> tuple[str, str]:

@@ -4,7 +4,7 @@ A sphere of radius ``r`` centred at ``c`` hides, from a point ``p`` of a plane w
 ``(n · d / |d|) · r² / |d|²`` of its sky (``d = c − p``; exact for a sphere wholly above the plane's horizon, e.g.
 Quilez, "sphere ambient occlusion"). Several bodies hide independent parts of the sky, so the light that reaches
 ``p`` is ``Π (1 − occlusionₖ)``. Each frame writes that, for every body near the ground, into the alpha of a black
-texture laid over the ground; a rigid body counts as a sphere of its extent.
+texture laid over the ground; a rigid body counts as the sphere of its volume.
 
 Screen-space ambient occlusion (VTK's SSAO pass) was tried first: under Mesa's software rasteriser it stippled the
 far ground with patches and greyed a flat ground where nothing was near it, differently from frame to frame.
@@ -93,8 +93,7 @@ class GroundOcclusion:
         self.v_axis = points[np.argmax(uv[:, 1] - uv[:, 0])] - corner
         self.texel = side / TEXTURE_SIZE
         self.image = pv.ImageData(dimensions=(TEXTURE_SIZE, TEXTURE_SIZE, 1))
-        self.rgba = np.zeros((TEXTURE_SIZE * TEXTURE_SIZE, 4), np.uint8)
-        self.image.point_data["rgba"] = self.rgba
+        self.image.point_data["rgba"] = np.zeros((TEXTURE_SIZE * TEXTURE_SIZE, 4), np.uint8)  # black
         self.alpha = self.image.point_data["rgba"]  # VTK's own array: written in place each frame
         texture = vtkTexture()
         texture.SetInputDataObject(self.image)
@@ -104,7 +103,7 @@ class GroundOcclusion:
         actor.prop.backface_culling = False
 
     def update(self, centres: np.ndarray, radius: np.ndarray) -> None:
-        """Darken the ground under bodies at ``centres`` (K, 3) [m] of ``radius`` (K,) [m] (their extents)."""
+        """Darken the ground under bodies at ``centres`` (K, 3) [m] of ``radius`` (K,) [m]."""
         offset = centres - self.corner
         uv = np.stack([offset @ self.u_axis / (self.u_axis @ self.u_axis),
                        offset @ self.v_axis / (self.v_axis @ self.v_axis)], axis=1) * TEXTURE_SIZE

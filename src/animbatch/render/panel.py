@@ -20,10 +20,7 @@ class EnergyPanel:
     """The panel for frames ``width`` × ``height`` [px]."""
 
     def __init__(self, series: PanelSeries, width: int, height: int) -> None:
-        import matplotlib
-
-        matplotlib.use("Agg", force=False)
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.backends.backend_agg import FigureCanvasAgg  # a canvas of its own: no global backend
         from matplotlib.figure import Figure
 
         dpi = 100

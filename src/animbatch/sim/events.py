@@ -16,6 +16,12 @@ import numpy as np
 Direction = Literal["any", "along", "against"]
 
 
+def hermite_cubic(x0: np.ndarray, x1: np.ndarray, d0: np.ndarray, d1: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Coefficients (a, b, c, d) of the cubic ``a τ³ + b τ² + c τ + d`` on τ ∈ [0, 1] with values ``x0``, ``x1`` and
+    slopes ``d0``, ``d1`` (velocities times the interval) at its ends: the Hermite curve between two frames."""
+    return 2 * (x0 - x1) + d0 + d1, 3 * (x1 - x0) - 2 * d0 - d1, d0, x0
+
+
 def plane_crossings(times: np.ndarray, positions: np.ndarray, velocities: np.ndarray, point: np.ndarray,
                     normal: np.ndarray, direction: Direction = "any", *, impacts: bool = False) -> np.ndarray:
     """Times [s] (K,), increasing, at which a point moving through ``positions`` (F, 3) [m] with ``velocities``
@@ -31,8 +37,7 @@ def plane_crossings(times: np.ndarray, positions: np.ndarray, velocities: np.nda
     rate = np.asarray(velocities, float) @ unit
     step = np.diff(times)
     s0, s1, d0, d1 = height[:-1], height[1:], rate[:-1] * step, rate[1:] * step  # per interval, τ ∈ [0, 1]
-    # s(τ) = a τ³ + b τ² + c τ + d, the Hermite cubic of the interval
-    a, b, c, d = 2 * (s0 - s1) + d0 + d1, 3 * (s1 - s0) - 2 * d0 - d1, d0, s0
+    a, b, c, d = hermite_cubic(s0, s1, d0, d1)  # s(τ) on each interval
     # intervals where the cubic can reach zero: the ends differ in sign, the end is on the plane, or it turns
     # inside the interval (a dip through the plane and back)
     candidates = np.flatnonzero((s0 * s1 < 0) | (s1 == 0) | (d0 * d1 < 0))
@@ -92,10 +97,5 @@ def hermite_sample(times: np.ndarray, positions: np.ndarray, velocities: np.ndar
     tau = (at - times[k]) / h
     shape = (-1,) + (1,) * (positions.ndim - 1)
     tau, h = tau.reshape(shape), h.reshape(shape)
-    x0, x1, v0, v1 = positions[k], positions[k + 1], velocities[k] * h, velocities[k + 1] * h
-    h00, h10 = 2 * tau**3 - 3 * tau**2 + 1, tau**3 - 2 * tau**2 + tau
-    h01, h11 = -2 * tau**3 + 3 * tau**2, tau**3 - tau**2
-    d00, d10, d01, d11 = 6 * tau**2 - 6 * tau, 3 * tau**2 - 4 * tau + 1, -6 * tau**2 + 6 * tau, 3 * tau**2 - 2 * tau
-    x = h00 * x0 + h10 * v0 + h01 * x1 + h11 * v1
-    v = (d00 * x0 + d10 * v0 + d01 * x1 + d11 * v1) / h
-    return x, v
+    a, b, c, d = hermite_cubic(positions[k], positions[k + 1], velocities[k] * h, velocities[k + 1] * h)
+    return ((a * tau + b) * tau + c) * tau + d, ((3 * a * tau + 2 * b) * tau + c) / h

@@ -163,7 +163,7 @@ class Dynamics:
         """
         n = self.particles
         if self.clocks is not None:  # at the motion held fixed, like the positions
-            config[self._clock_start:] += h * self.clocks.rate(self._clock_velocities(motion))
+            config[self._clock_start:] += h * self.clocks.rate(self.kinematics(config, motion).v[self.clocks.index])
         config[: 3 * n] += h * motion[: 3 * n]
         if self.rigid:
             position, orientation, momentum, angular_momentum = self._rigid_views(config, motion)
@@ -174,18 +174,6 @@ class Dynamics:
             omega = world_inverse_inertia_times(quaternion.to_matrix(halfway), self._inverse_inertia,
                                                 angular_momentum)
             orientation[...] = quaternion.multiply(quaternion.from_rotation_vector(h * omega), orientation)
-
-    def _clock_velocities(self, motion: np.ndarray) -> np.ndarray:
-        """Velocities (K, 3) [m/s] of the bodies that carry clocks, from the motion (rigid: P / M)."""
-        assert self.clocks is not None
-        n, index = self.particles, self.clocks.index
-        velocities = np.empty((len(index), 3))
-        particles = index < n
-        velocities[particles] = motion[: 3 * n].reshape(n, 3)[index[particles]]
-        if self.rigid:
-            momentum = motion[3 * n: 3 * n + 3 * self.rigid].reshape(self.rigid, 3)
-            velocities[~particles] = momentum[index[~particles] - n] * self._rigid_inverse_mass[index[~particles] - n]
-        return velocities
 
     def energy(self, t: float, config: np.ndarray, motion: np.ndarray) -> tuple[float, float]:
         """Total mechanical energy [J] (kinetic, plus the potentials of the terms that have one) at time ``t``, and
