@@ -10,6 +10,7 @@ from scipy.special import ellipk
 
 from animbatch import api
 from animbatch.errors import SceneError
+from animbatch.stages import parse_scene
 from conftest import scene
 
 G = 9.81
@@ -130,10 +131,18 @@ def test_a_free_rod_keeps_its_length_momentum_and_angular_momentum():
 
 @pytest.mark.parametrize("text, fragment", [
     ("joints: [{type: distance, between: [pivot, bobb]}]", "unknown body or anchor 'bobb'; did you mean 'bob'?"),
-    ("joints: [{type: distance, between: [pivot, box]}]", "'box' is a rigid body: distance joints join particles"),
+    ("joints: [{type: hinge, between: [bob], axis: [0, 0, 1]}]", "'bob' is a particle, which has no orientation"),
+    ("joints: [{type: ball, between: [pivot, box]}]", "'pivot' is an anchor; put the body first"),
+    ("joints: [{type: hinge, between: [box]}]", "axis"),
+    ("joints: [{type: hinge, between: [box], axis: [0, 0, 1], limits: [0.2, 1]}]", "must contain 0"),
+    ("joints: [{type: hinge, between: [box], axis: [0, 0, 1], motor: {target: 1}}]", "needs stiffness > 0"),
+    ("joints: [{type: slider, between: [box], axis: [1, 0, 0], motor: {damping: 1, max_torque: 2}}]",
+     "max_force"),
+    ("joints: [{type: ball, between: [box, bob], attach: [[-0.5, 0, 0], null]}]", "1.5 m apart at the start"),
+    ("joints: [{type: distance, between: [bob, pivot], attach: [[0, 0, 0], null]}]", "'bob' is a particle"),
+    ("joints: [{type: hing, between: [box]}]", "did you mean 'hinge'"),
     ("joints: [{type: distance, between: [bob, bob]}]", "both ends are 'bob'"),
     ("joints: [{type: distance, between: [pivot, bob], length: -1}]", "must be > 0"),
-    ("joints: [{type: hinge, between: [pivot, bob]}]", "distance"),
     ("joints: [{type: distance, between: [rail, bob]}]", "anchor 'rail' follows keyframes"),
     ("joints: [{type: pulley, between: [bob, pivot], over: [pivot, pivot]}]", "'pivot' is an anchor; a pulley's rope"),
     ("joints: [{type: pulley, between: [bob, box], over: [pivot, pulle]}]", "unknown anchor 'pulle'"),
@@ -141,9 +150,10 @@ def test_a_free_rod_keeps_its_length_momentum_and_angular_momentum():
 ])
 def test_bad_joints_are_refused_with_the_fix(text, fragment):
     with pytest.raises(SceneError) as error:
-        scene("duration: 1\nanchors: [{name: pivot}, {name: rail, keyframes: [{time: 0, position: [0, 0, 0]}, "
+        parse_scene("duration: 1\nanchors: [{name: pivot, position: [0, 0, 0]}, {name: rail, keyframes: [{time: 0, position: [0, 0, 0]}, "
               "{time: 1, position: [1, 0, 0]}]}]\nbodies: [{name: bob, position: [1, 0, 0]}, {name: box, "
-              "type: rigid, shape: {type: box, size: [1, 1, 1]}, density: 1, position: [3, 0, 0]}]\n" + text)
+              "type: rigid, shape: {type: box, size: [1, 1, 1]}, density: 1, position: [3, 0, 0]}]\n" + text,
+                    filename="test.yaml")
     assert fragment in str(error.value) and "test.yaml:" in str(error.value)
 
 
@@ -247,7 +257,7 @@ def test_info_lists_the_rods_and_how_they_are_held(tmp_path):
                     "joints: [{type: distance, between: [pivot, bob]}]\n")
     out = subprocess.run([sys.executable, "-m", "animbatch", "info", str(path)], capture_output=True, text=True,
                          check=True).stdout
-    assert "joints     1 joint (rods, ropes): pivot--bob (0.5 m)" in out
+    assert "joints     1 joint: pivot--bob (rod 0.5 m)" in out
 
 
 @pytest.mark.parametrize("solver, tolerance", [("{method: DOP853, rtol: 1.0e-10, atol: 1.0e-12}", 1e-8),

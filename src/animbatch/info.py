@@ -95,11 +95,11 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
         shape = " × ".join(map(str, block.shape))
         lines.append(f"           y[{span.start}:{span.stop}]  {block.name}  ({shape}) [{block.unit}]  {block.role}")
     if model.joints is not None:
-        rods = model.joints
-        shown = ", ".join(f"{name} ({length:g} m)" for name, length in zip(rods.names[:6], rods.length[:6]))
-        lines.append(f"joints     {rods.count} joint{'s' if rods.count != 1 else ''} (rods, ropes): {shown}"
-                     + (" …" if rods.count > 6 else "") + "; held by Baumgarte-stabilised tensions (adaptive "
-                     "methods) or projection after every step (fixed-step)")
+        joints = model.joints
+        shown = ", ".join(f"{name} ({text})" for name, text in zip(joints.names[:6], joints.descriptions[:6]))
+        lines.append(f"joints     {joints.count} joint{'s' if joints.count != 1 else ''}: {shown}"
+                     + (" …" if joints.count > 6 else "") + "; held by Baumgarte-stabilised constraint forces "
+                     "(adaptive methods) or projection after every step (fixed-step)")
     if model.clocks is not None:
         lines.append(f"clocks     proper time dτ/dt = √(1 − v²/c²), c = {model.clocks.c:g} m/s, carried by "
                      + ", ".join(model.clocks.names))

@@ -92,6 +92,9 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
     ledger = build_ledger(model, states, stats, particle_stats, method=spec.solver.method,
                           adaptive=spec.solver.is_adaptive, requested_dt=spec.solver.dt or DEFAULT_DT,
                           rtol=spec.solver.rtol, drift_warning=spec.solver.drift_warning)
+    reactions: tuple[np.ndarray | None, ...] = (None, None, None)
+    if model.joints is not None and len(states):
+        reactions = Dynamics(model).joint_reactions(model.frame_times, states)
     return Trajectory(
         times=model.frame_times.copy(), body_names=model.body_names, positions=model.positions(states),
         velocities=model.velocities(states), orientations=model.orientations(states),
@@ -101,7 +104,10 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
         solver={**spec.solver.model_dump(), "description": integrator.describe()},
         solver_stats={**stats, "warnings": warnings}, particles=tuple(particles), particle_stats=particle_stats,
         ledger=ledger.as_dict(), clock_names=model.clocks.names if model.clocks is not None else (),
-        proper_times=model.proper_times(states) if model.clocks is not None else None)
+        proper_times=model.proper_times(states) if model.clocks is not None else None,
+        joint_names=model.joints.names if model.joints is not None else (), joint_forces=reactions[0],
+        joint_torques=reactions[1], motor_efforts=reactions[2] if model.joints is not None
+        and model.joints.motors is not None else None)
 
 
 def _integrate(scene: LoadedScene, model: Model, integrator: Any, progress: Progress,

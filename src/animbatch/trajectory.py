@@ -96,6 +96,10 @@ class Trajectory:
     ledger: dict[str, Any] = field(default_factory=dict)
     clock_names: tuple[str, ...] = ()  # bodies that carry proper-time clocks
     proper_times: np.ndarray | None = None  # (F, K) [s] their proper times
+    joint_names: tuple[str, ...] = ()  # the scene's joints, in order
+    joint_forces: np.ndarray | None = None  # (F, J, 3) [N] each joint's constraint force on its first body
+    joint_torques: np.ndarray | None = None  # (F, J, 3) [N·m] and its torque, about the joint's point
+    motor_efforts: np.ndarray | None = None  # (F, M) [N·m or N] the motors' torques or forces, in joint order
 
     @property
     def frame_count(self) -> int:
@@ -116,13 +120,22 @@ class Trajectory:
                      solver=np.str_(json.dumps(self.solver)), solver_stats=np.str_(json.dumps(self.solver_stats)),
                      emitter_names=np.array([p.name for p in self.particles], dtype=str),
                      particle_stats=np.str_(json.dumps(self.particle_stats)), ledger=np.str_(json.dumps(self.ledger)),
-                     **self._particle_arrays(), **self._clock_arrays())
+                     **self._particle_arrays(), **self._clock_arrays(), **self._joint_arrays())
         return path
 
     def _clock_arrays(self) -> dict[str, np.ndarray]:
         if self.proper_times is None:
             return {}
         return {"clock_names": np.array(self.clock_names, dtype=str), "proper_times": self.proper_times}
+
+    def _joint_arrays(self) -> dict[str, np.ndarray]:
+        if self.joint_forces is None:
+            return {}
+        arrays = {"joint_names": np.array(self.joint_names, dtype=str), "joint_forces": self.joint_forces,
+                  "joint_torques": self.joint_torques}
+        if self.motor_efforts is not None:
+            arrays["motor_efforts"] = self.motor_efforts
+        return arrays
 
     def _particle_arrays(self) -> dict[str, np.ndarray]:
         arrays = {}
@@ -178,7 +191,20 @@ class Trajectory:
                    str(arrays.get("package_version", "")),
                    json.loads(str(arrays.get("solver", "{}"))), json.loads(str(arrays.get("solver_stats", "{}"))),
                    tuple(particles), json.loads(str(arrays.get("particle_stats", "{}"))),
-                   json.loads(str(arrays.get("ledger", "{}"))), *cls._clocks_of(arrays, len(times), path))
+                   json.loads(str(arrays.get("ledger", "{}"))), *cls._clocks_of(arrays, len(times), path),
+                   *cls._joints_of(arrays, len(times), path))
+
+    @staticmethod
+    def _joints_of(arrays: dict[str, np.ndarray], frames: int, path: Path) -> tuple[Any, ...]:
+        """The joints' names, reactions (F, J, 3) and motor efforts (F, M) of a file, if it has joints."""
+        if "joint_forces" not in arrays:
+            return (), None, None, None
+        names = tuple(str(n) for n in arrays.get("joint_names", ()))
+        for key in ("joint_forces", "joint_torques"):
+            if arrays.get(key) is None or arrays[key].shape != (frames, len(names), 3):
+                raise TrajectoryError(f"{path}: {key} is missing or has the wrong shape, expected "
+                                      f"{(frames, len(names), 3)}")
+        return names, arrays["joint_forces"], arrays["joint_torques"], arrays.get("motor_efforts")
 
     @staticmethod
     def _clocks_of(arrays: dict[str, np.ndarray], frames: int, path: Path

@@ -8,7 +8,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from animbatch.compile import deformables as build
+from animbatch.compile.bodies import orientation_matrix
 from animbatch.scene.checks import Problem
 from animbatch.scene.schema import (
     DEFORMABLE_SPECS,
@@ -76,7 +79,37 @@ def check_files(spec: SceneSpec, base_dir: Path) -> list[Problem]:
                                  if "no such file" in str(error) else str(error)))
     if not problems:
         problems += _pin_selections(spec, base_dir)
+    return problems + _joint_points(spec)
+
+
+def _joint_points(spec: Any) -> list[Problem]:
+    """Ball, hinge, slider and fixed joints given by a point on each body ('attach'): the points coincide at the
+    start (else the joint would snap them together)."""
+    problems: list[Problem] = []
+    places = {anchor.name: np.asarray(anchor.start, float) for anchor in spec.anchors}
+    for body in spec.bodies:
+        if hasattr(body, "position"):
+            places[body.name] = np.asarray(body.position, float)
+    turns = {body.name: orientation_matrix(body.orientation) for body in spec.bodies
+             if isinstance(body, RigidBodySpec)}
+    for index, joint in enumerate(spec.joints):
+        if joint.type not in ("ball", "hinge", "slider", "fixed") or joint.attach is None or len(joint.between) < 2:
+            continue
+        ends = []
+        for name, point in zip(joint.between, joint.attach):
+            offset = np.zeros(3) if point is None or name not in turns else turns[name] @ np.asarray(point, float)
+            ends.append(places[name] + offset)
+        gap = float(np.linalg.norm(ends[0] - ends[1]))
+        if gap > 1e-9 * max(1.0, float(np.max(np.abs(ends)))):
+            problems.append((("joints", index, "attach"), (
+                f"the two points are {gap:.4g} m apart at the start ({_vector(ends[0])} and {_vector(ends[1])}), "
+                f"and a {joint.type} joint holds them together: move a body, or give one world point with 'anchor' "
+                "instead of attach")))
     return problems
+
+
+def _vector(point: np.ndarray) -> str:
+    return "(" + ", ".join(f"{c:.4g}" for c in point) + ")"
 
 
 def _outside_scene_folder(name: str, base_dir: Path) -> str | None:

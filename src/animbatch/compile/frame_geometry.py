@@ -89,13 +89,16 @@ def frame_geometry(spec: SceneSpec, model: Model, bounds: np.ndarray, largest_ve
         scene_colors = iter([s.color or SPRING_COLOR for s in spec.springs])
         spring_colors = [MESH_SPRING_COLOR if is_mesh else next(scene_colors) for is_mesh in mesh[drawn]]
     if model.joints is not None:  # rods and ropes are drawn as the springs are, in a dark steel
-        joints = model.joints
-        to_anchor = joints.segment_to < 0
-        zero = np.zeros((len(to_anchor), 3))
+        near, far, near_offset, far_offset = model.joints.segments()
+        fixed = far < 0
+        anchors = np.asarray(model.anchor_position).reshape(-1, 3)
+        if fixed.any():  # a fixed end is at one of the scene's anchors
+            nearest = np.linalg.norm(far_offset[fixed][:, None] - anchors[None], axis=2).argmin(axis=1)
+            far = far.copy()
+            far[fixed] = nearest
         spring_parts = tuple(np.concatenate([a, b]) for a, b in zip(
-            spring_parts, (joints.segment_from, np.where(to_anchor, joints.segment_anchor_index, joints.segment_to),
-                           to_anchor, zero, zero)))
-        spring_colors = spring_colors + [ROD_COLOR] * len(to_anchor)
+            spring_parts, (near, far, fixed, near_offset, np.where(fixed[:, None], 0.0, far_offset))))
+        spring_colors = spring_colors + [ROD_COLOR] * len(near)
     fluids = [(term.level, term.up) for term in model.force_terms if isinstance(term, Buoyancy)]
     rigid_extent = extents[n:]
     scale = 2 * float(np.max(rigid_extent)) / largest_vector if largest_vector > 0 and len(rigid_extent) else 0.0

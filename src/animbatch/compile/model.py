@@ -15,6 +15,8 @@ from animbatch.compile.forces import field_term
 from animbatch.curves import ParametricCurve, Polyline
 from animbatch.scene.schema import CHARGED_FIELD_TYPES, DEFORMABLE_SPECS, ClothSpec, RigidBodySpec, SceneSpec
 from animbatch.sim.forces.controllers import ControllerSetting, CurveTarget, FixedTarget, PathTarget, Target
+from animbatch.sim.joints import MotorTarget
+from animbatch.sim.joints.assembly import MotorSetting
 from animbatch.sim.model.builder import ModelBuilder, Pin
 from animbatch.sim.model.model import Model
 from animbatch.sim.motion import KeyframePath
@@ -49,17 +51,7 @@ def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
                            second_is_anchor=second in anchor, name=spring.name or "--".join(spring.between),
                            first_point=first_point, second_point=second_point)
     for joint in spec.joints:
-        if joint.type == "pulley":
-            builder.add_pulley_joint(handles[joint.between[0]][0], handles[joint.between[1]][0], anchor[joint.over[0]],
-                                     anchor[joint.over[1]], length=joint.length,
-                                     name=joint.name or "--".join(joint.between))
-            continue
-        first, second = joint.between
-        if first in anchor:  # the first end is always a particle
-            first, second = second, first
-        builder.add_distance_joint(handles[first][0], anchor[second] if second in anchor else handles[second][0],
-                                   second_is_anchor=second in anchor, length=joint.length,
-                                   name=joint.name or "--".join(joint.between))
+        _add_joint(builder, joint, handles, anchor)
     for controller in spec.controllers:
         builder.add_controller(handles[controller.body][0], ControllerSetting(
             controller.stiffness, controller.damping, controller_target(controller.target),
@@ -129,3 +121,37 @@ def _add_deformable(builder: ModelBuilder, body: object, handles: dict[str, list
         position=body.position, rotation=orientation_matrix(body.orientation),  # type: ignore[attr-defined]
         velocity=body.velocity, radius=body.radius, springs=build.spring_families(body),  # type: ignore[attr-defined]
         pins=pins, dihedral=(dihedral.stiffness, dihedral.damping) if dihedral is not None else None)
+
+
+def _add_joint(builder: ModelBuilder, joint: Any, handles: dict[str, list[int]], anchor: dict[str, int]) -> None:
+    """One scene joint into the builder: names become handles (anchors: the world at that point)."""
+    ends = list(joint.between)
+    attach = list(getattr(joint, "attach", None) or (None, None))
+    if joint.type in ("distance", "rope") and ends[0] in anchor:  # the first end is always a body
+        ends.reverse()
+        attach.reverse()
+    first = handles[ends[0]][0]
+    second = ends[1] if len(ends) == 2 else None
+    motor = getattr(joint, "motor", None)
+    builder.add_joint(
+        joint.type, first, None if second is None else anchor[second] if second in anchor else handles[second][0],
+        second_is_anchor=second in anchor, anchor=getattr(joint, "anchor", None),
+        attach=(attach[0], attach[1]), axis=getattr(joint, "axis", None), length=getattr(joint, "length", None),
+        limits=None if getattr(joint, "limits", None) is None else tuple(joint.limits),
+        motor=None if motor is None else _motor(motor),
+        over=(anchor[joint.over[0]], anchor[joint.over[1]]) if joint.type == "pulley" else None,
+        name=joint.name or "--".join(joint.between))
+
+
+def _motor(motor: Any) -> MotorSetting:
+    """A scene motor as the builder takes it: its target as keyframes in x, and its effort limit."""
+    target = motor.target
+    path = None
+    if isinstance(target, (int, float)):
+        path = KeyframePath(np.zeros(1), np.array([[float(target), 0.0, 0.0]]))
+    elif target is not None:
+        path = KeyframePath(np.array([key.time for key in target]),
+                            np.array([[key.value, 0.0, 0.0] for key in target]), motor.interpolation)
+    limit = motor.max_torque if motor.max_torque is not None else motor.max_force
+    return MotorSetting(MotorTarget(path, motor.speed), motor.stiffness, motor.damping,
+                        np.inf if limit is None else limit)

@@ -78,7 +78,7 @@ def energy_drift(job: Job, cache: str) -> float | None:
 
     scene = stages.load_scene(job.scene_path, list(job.overrides))
     model = stages.compile_model(scene)
-    if any(term.adds_energy for term in model.force_terms) or model.anchors.moving:
+    if model.adds_energy or model.anchors.moving:
         return None
     trajectory = Trajectory.load(cache)
     energy = total_energy(model, stages.trajectory_states(model, trajectory))

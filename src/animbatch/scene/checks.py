@@ -71,10 +71,10 @@ def _body_list(data: dict[str, Any]) -> Iterator[Problem]:
 
 
 def _pairs(data: dict[str, Any], section: str) -> Iterator[tuple[int, dict[str, Any], list[str]]]:
-    """The items of ``section`` (springs, joints) whose ``between`` names two ends, with those names."""
+    """The items of ``section`` (springs, joints) whose ``between`` names one or two ends, with those names."""
     for index, item in _items(data, section):
         ends = item.get("between")
-        if isinstance(ends, list) and len(ends) == 2 and all(isinstance(e, str) for e in ends):
+        if isinstance(ends, list) and len(ends) in (1, 2) and all(isinstance(e, str) for e in ends):
             yield index, item, ends
 
 
@@ -86,7 +86,7 @@ def _unknown_ends(section: str, index: int, ends: list[str], bodies: dict[str, K
         if name not in bodies and name not in anchors:
             yield (section, index, "between", end), (
                 f"unknown body or anchor {name!r}{did_you_mean(name, known)} Known: {', '.join(known) or '(none)'}")
-    if ends[0] != ends[1] and ends[0] in anchors and ends[1] in anchors:
+    if len(ends) == 2 and ends[0] != ends[1] and ends[0] in anchors and ends[1] in anchors:
         what = "spring" if section == "springs" else "joint"
         yield (section, index, "between"), (f"both ends ({ends[0]!r}, {ends[1]!r}) are anchors; a {what} needs "
                                             "at least one body")
@@ -101,41 +101,58 @@ def _springs(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str
                 yield ("springs", index, "between", end), (
                     f"{name!r} is a cloth or lattice, made of many vertices; a spring joins one point to another. "
                     "Attach its vertices to a body or anchor with its 'pin' key instead")
-        attach = spring.get("attach")
-        if isinstance(attach, list) and len(attach) == 2:
-            for end, (name, point) in enumerate(zip(ends, attach)):
-                if point is not None and name not in rigid and (name in bodies or name in anchors):
-                    kind = "an anchor" if name in anchors else "a particle"
-                    yield ("springs", index, "attach", end), (
-                        f"{name!r} is {kind}, which has no body points; use null for this end (attachment points "
-                        "are for rigid bodies)")
+        yield from _attach_points("springs", index, ends, spring.get("attach"), bodies, anchors, rigid)
+
+
+def _attach_points(section: str, index: int, ends: list[str], attach: Any, bodies: dict[str, KeyPath],
+                   anchors: dict[str, KeyPath], rigid: set[str]) -> Iterator[Problem]:
+    """Attachment points (``attach``) are given only for the ends that are rigid bodies."""
+    if not isinstance(attach, list):
+        return
+    for end, (name, point) in enumerate(zip(ends, attach)):
+        if point is not None and name not in rigid and (name in bodies or name in anchors):
+            kind = "an anchor" if name in anchors else "a particle"
+            yield (section, index, "attach", end), (
+                f"{name!r} is {kind}, which has no body points; use null for this end (attachment points are for "
+                "rigid bodies)")
 
 
 def _joints(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str, KeyPath],
             rigid: set[str], deformable: set[str]) -> Iterator[Problem]:
-    """A distance joint joins two particles, or a particle and a fixed anchor, of the scene."""
+    """Joints join bodies of the scene (rigid ones where orientations are held), fixed anchors and the world."""
     moving = {item.get("name") for _, item in _items(data, "anchors") if item.get("keyframes")}
-    for index, _, ends in _pairs(data, "joints"):
+    for index, joint, ends in _pairs(data, "joints"):
+        kind = joint.get("type")
         yield from _unknown_ends("joints", index, ends, bodies, anchors)
         for end, name in enumerate(ends):
-            if name in rigid or name in deformable:
-                kind = "a rigid body" if name in rigid else "a cloth or lattice"
+            if name in deformable:
                 yield ("joints", index, "between", end), (
-                    f"{name!r} is {kind}: distance joints join particles (and anchors) so far. For a rigid body, "
-                    "use a stiff spring with 'attach' points; for a cloth, its 'pin' key")
+                    f"{name!r} is a cloth or lattice, made of many vertices; joints join bodies. Attach its "
+                    "vertices to a body or anchor with its 'pin' key instead")
             elif name in moving:
                 yield ("joints", index, "between", end), (
-                    f"anchor {name!r} follows keyframes; rods hang from fixed anchors so far. Use a stiff spring "
-                    "to a moving anchor instead")
-        if ends[0] == ends[1]:
-            yield ("joints", index, "between"), f"both ends are {ends[0]!r}; a joint joins two different points"
+                    f"anchor {name!r} follows keyframes; joints hold on to fixed anchors so far. Use a stiff "
+                    "spring or a controller to a moving anchor instead")
+            elif kind in ("hinge", "slider", "fixed") and name in bodies and name not in rigid:
+                yield ("joints", index, "between", end), (
+                    f"{name!r} is a particle, which has no orientation for a {kind} joint to hold; join it with a "
+                    "ball or distance joint, or make it a rigid body (type: rigid)")
+        if kind in ("ball", "hinge", "slider", "fixed") and ends[0] in anchors:
+            yield ("joints", index, "between", 0), (
+                f"{ends[0]!r} is an anchor; put the body first: between: [body] joins it to the world, "
+                "[body, anchor] to an anchor, [body, other body] to another body")
+        if kind in ("distance", "rope", "pulley") and len(ends) != 2:
+            yield ("joints", index, "between"), f"a {kind} joint has two ends; between: [first, second]"
+        if len(ends) == 2 and ends[0] == ends[1]:
+            yield ("joints", index, "between"), f"both ends are {ends[0]!r}; a joint joins two different bodies"
+        yield from _attach_points("joints", index, ends, joint.get("attach"), bodies, anchors, rigid)
     for index, joint in _items(data, "joints"):
         if joint.get("type") != "pulley":
             continue
         for position, name in _strings(joint.get("between") or []):
             if name in anchors:
                 yield ("joints", index, "between", position), (
-                    f"{name!r} is an anchor; a pulley's rope ends at particles (the anchors go under 'over')")
+                    f"{name!r} is an anchor; a pulley's rope ends at bodies (the anchors go under 'over')")
         for position, name in _strings(joint.get("over") or []):
             if name not in anchors:
                 known = sorted(anchors)

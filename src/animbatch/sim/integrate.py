@@ -15,6 +15,7 @@ from animbatch.sim.contact.events import ContactEvents
 from animbatch.sim.contact.stepping import ContactResolver
 from animbatch.sim.integrators import DEFAULT_DT, SCIPY_METHODS, FixedStepIntegrator, Integrator, ScipyIntegrator
 from animbatch.sim.integrators.base import EquationsOfMotion
+from animbatch.sim.joints.stops import JointStops
 from animbatch.sim.model.dynamics import Dynamics
 from animbatch.sim.model.model import Model
 
@@ -35,13 +36,21 @@ def contact_events(system: EquationsOfMotion) -> ContactEvents:
     return ContactEvents(_dynamics(system))
 
 
+def joint_stops(system: EquationsOfMotion) -> JointStops:
+    """The events of an adaptive method: it stops where joint limits and ropes are reached."""
+    return JointStops(_dynamics(system))
+
+
 def integrator_for(model: Model | None, method: str, *, dt: float | None = None, rtol: float = 1e-6,
                    atol: float | np.ndarray = 1e-9, max_step: float | None = None) -> Integrator:
     """The integrator of ``method`` (an adaptive scipy method with ``rtol``, ``atol``, ``max_step`` [s], or a
     fixed-step one with step at most ``dt`` [s]) for ``model``, with contact handling when the model has contacts."""
     contacts = model is not None and model.contact_world is not None
     if method in SCIPY_METHODS:
+        # joint limits and ropes meet their stops as events too; beside contacts they are left to the Baumgarte
+        # stabilisation (one set of events per run)
+        stops = model is not None and model.joints is not None and model.joints.stopping and not contacts
         return ScipyIntegrator(method, rtol=rtol, atol=atol, max_step=max_step,
-                               events=contact_events if contacts else None)
+                               events=contact_events if contacts else joint_stops if stops else None)
     return FixedStepIntegrator(method, dt=dt if dt is not None else DEFAULT_DT,
                                constraint=contact_constraint if contacts else None)

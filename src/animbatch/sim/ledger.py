@@ -102,6 +102,10 @@ def conservation_laws(model: Model) -> dict[str, Law]:
             energy_culprits.append(f"{DAMPED.get(term.label, term.label)} dissipates it")
     if model.anchors is not None and model.anchors.moving:
         energy_culprits.append("moving anchors do work")
+    if model.joints is not None and model.joints.driven:
+        energy_culprits.append("joint motors do work")
+    if model.joints is not None and model.joints.stopping:
+        energy_culprits.append("joint limits and ropes stop bodies inelastically")
     if model.contact_world is not None and not _elastic_contacts(model):
         energy_culprits.append("collisions lose it: restitution below 1 or friction")
     if energy_culprits:
@@ -264,7 +268,7 @@ class Ledger:
     drift_warning: float
     contacts: dict[str, Any] | None = None
     encounter: dict[str, Any] | None = None  # two gravitating bodies closer than their radii, without softening
-    joints: dict[str, Any] | None = None  # rods: the largest violation |C| [m] over the frames, and which rod
+    joints: dict[str, Any] | None = None  # the joints' largest violations over the frames (see joint_drift)
     warnings: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
@@ -378,15 +382,33 @@ def build_ledger(model: Model, states: np.ndarray, stats: dict[str, Any], partic
                     conservation, drift_warning, contacts,
                     encounter=dataclasses.asdict(encounter) if encounter is not None else None)
     if model.joints is not None and len(states):
-        violation = np.abs(np.stack([model.joints.violation(x) for x in model.positions(states)
-                                     [:, : model.particle_count]]))
-        frame, rod = np.unravel_index(int(np.argmax(violation)), violation.shape)
-        ledger.joints = {"max_violation": float(violation[frame, rod]), "rod": model.joints.names[rod],
-                         "time": float(times[frame])}
+        ledger.joints = joint_drift(model, states, times)
     ledger.warnings = judge(ledger.as_dict())
     for message in ledger.warnings:
         warnings.warn(message, AccuracyWarning, stacklevel=2)
     return ledger
+
+
+def joint_drift(model: Model, states: np.ndarray, times: np.ndarray) -> dict[str, Any]:
+    """How far the joints were from holding over the frames ``states`` (F, n) at ``times`` (F,) [s]: the largest
+    violation of a length [m] (``max_violation``), of an angle [rad] (``max_angle_violation``, for hinges, sliders
+    and welds), the joint and the time of the worst."""
+    joints = model.joints
+    assert joints is not None
+    dynamics = Dynamics(model)
+    violation = np.stack([joints.violation(joints.motion(dynamics.kinematics(*dynamics.split(y), t=float(t))))
+                          for y, t in zip(states, times)])
+    result: dict[str, Any] = {}
+    for key, rows in (("max_violation", ~joints.row_is_angle), ("max_angle_violation", joints.row_is_angle)):
+        if rows.any():
+            part = violation[:, rows]
+            frame, row = np.unravel_index(int(np.argmax(part)), part.shape)
+            result[key] = float(part[frame, row])
+            if key == "max_violation" or result[key] > result.get("max_violation", 0.0):
+                result["joint"] = joints.names[joints.row_joint[np.flatnonzero(rows)[row]]]
+                result["time"] = float(times[frame])
+    result.setdefault("max_violation", 0.0)
+    return result
 
 
 def _number(value: float) -> str:
@@ -422,7 +444,8 @@ def summary(ledger: dict[str, Any]) -> str:
         parts.append("not conserved: " + ", ".join(lost))
     joints = ledger.get("joints")
     if joints:
-        parts.append(f"joints: |C| ≤ {_number(joints['max_violation'])} m")
+        parts.append(f"joints: |C| ≤ {_number(joints['max_violation'])} m"
+                     + (f", {_number(joints['max_angle_violation'])} rad" if "max_angle_violation" in joints else ""))
     count = len(ledger.get("warnings", []))
     if count:
         parts.append(f"{count} accuracy warning{'s' if count > 1 else ''} (above)")

@@ -106,7 +106,19 @@ from animbatch.scene.schema.fields import (
     WindSpec,
     field_type_names,
 )
-from animbatch.scene.schema.joints import DistanceJointSpec, JointSpec, PulleyJointSpec
+from animbatch.scene.schema.joints import (
+    JOINT_SPECS,
+    BallJointSpec,
+    DistanceJointSpec,
+    FixedJointSpec,
+    HingeJointSpec,
+    JointSpec,
+    MotorKeyframe,
+    MotorSpec,
+    PulleyJointSpec,
+    RopeJointSpec,
+    SliderJointSpec,
+)
 from animbatch.scene.schema.render import (
     FORCE_ARROW_KINDS,
     LABEL_FIELDS,
@@ -163,6 +175,14 @@ __all__ = [
     "EventSpec",
     "DistanceJointSpec",
     "PulleyJointSpec",
+    "RopeJointSpec",
+    "BallJointSpec",
+    "HingeJointSpec",
+    "SliderJointSpec",
+    "FixedJointSpec",
+    "MotorSpec",
+    "MotorKeyframe",
+    "JOINT_SPECS",
     "JointSpec",
     "EnergyPanelSpec",
     "KINEMATIC_METHODS",

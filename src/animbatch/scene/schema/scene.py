@@ -52,8 +52,8 @@ class SceneSpec(SceneModel):
     bodies: list[BodySpec] = key([], "Simulated bodies: particles (the default type) and rigid bodies.")
     anchors: list[AnchorSpec] = key([], "Fixed points for springs.")
     springs: list[SpringSpec] = key([], "Springs and dampers.")
-    joints: list[JointSpec] = key([], "Joints between bodies: rigid rods between particles or to anchors, "  # type: ignore[valid-type]
-                                      "ropes over pulleys (see Joints).")
+    joints: list[JointSpec] = key([], "Joints between bodies and to the world: rods, ropes, pulleys, ball "  # type: ignore[valid-type]
+                                      "joints, hinges, sliders and welds (see Joints).")
     controllers: list[ControllerSpec] = key([], "PD controllers (virtual springs) pulling bodies towards targets.")
     emitters: list[EmitterSpec] = key([], "Particle emitters (particle systems).")
     seed: int = key(0, "Seed of every random draw (the attributes of emitted particles): the same seed gives the "

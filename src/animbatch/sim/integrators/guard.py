@@ -89,7 +89,7 @@ def check_energy_growth(model: Model, states: np.ndarray, method: str, dt: float
     stable step, and what to change.
     """
 
-    if len(states) < 2 or any(term.adds_energy for term in model.force_terms):
+    if len(states) < 2 or model.adds_energy:
         return
     if getattr(model.anchors, "moving", False):
         return

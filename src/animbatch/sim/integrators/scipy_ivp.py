@@ -107,8 +107,10 @@ class ScipyIntegrator(Integrator):
         stats = SolverStats(self.method)
         states = np.empty((len(times), len(y0)))
         fun = CountingRhs(events.rhs if events is not None else system.rhs)
+        start = np.array(y0, dtype=float)
+        system.project(start)  # a start that breaks its joints (see EquationsOfMotion.project) is put on them first
         with np.errstate(all="ignore"):  # overflow is detected and reported by the checks below, not as warnings
-            self._run(system, events, fun, np.array(y0, dtype=float), times, states, stats, on_frame)
+            self._run(system, events, fun, start, times, states, stats, on_frame)
         stats.rhs_evaluations = fun.count
         if events is not None:
             stats.impacts = events.impacts.as_list()
@@ -189,6 +191,7 @@ class ScipyIntegrator(Integrator):
                     t, y = float(event_time), interpolant(event_time)
                     system.project(y)
                     events.handle(t, y)
+                    system.project(y)  # impulses can break joints' velocities (a ball hit across its string)
                     break  # restart the solver from the event
                 if solver.status == "finished":
                     break

@@ -56,6 +56,9 @@ class FixedStepIntegrator(Integrator):
             scheme.constraint = self.constraint(system)
         stats = SolverStats(self.method)
         y = np.array(y0, dtype=float)
+        system.project(y)  # a start that breaks its joints (see EquationsOfMotion.project) is put on them first
+        if hasattr(system, "joint_stabilisation"):  # projected after every step, joints need no Baumgarte term
+            system.joint_stabilisation = 0.0
         states = np.empty((len(times), len(y)))
         states[0] = y
         if on_frame is not None:

@@ -30,6 +30,8 @@ from animbatch.sim.forces import BodyTable, ForceTerm, SpringForces, SpringSet, 
 from animbatch.sim.forces.controllers import ControllerSetting, controllers_term
 from animbatch.sim.forces.dihedral import DihedralSprings
 from animbatch.sim.joints import Joints
+from animbatch.sim.joints.assembly import TYPES as JOINT_TYPES
+from animbatch.sim.joints.assembly import WORLD, JointSetting, MotorSetting, assemble
 from animbatch.sim.model.clocks import ProperClocks
 from animbatch.sim.model.layout import StateLayout
 from animbatch.sim.model.model import Model
@@ -57,6 +59,28 @@ class _Rigid:
     orientation: np.ndarray  # unit quaternion
     velocity: np.ndarray
     angular_velocity: np.ndarray
+
+
+@dataclass(frozen=True)
+class _JointRequest:
+    """A joint as :meth:`ModelBuilder.add_joint` received it (body handles, shape coordinates)."""
+
+    type: str
+    first: int
+    second: int | None
+    second_is_anchor: bool
+    anchor: Sequence[float] | None
+    attach: tuple[Sequence[float] | None, Sequence[float] | None]
+    axis: Sequence[float] | None
+    length: float | None
+    limits: tuple[float, float] | None
+    motor: MotorSetting | None
+    over: tuple[int, int] | None
+    name: str
+
+
+#: Joint types whose two points are one point (so ``anchor`` places them).
+HOLDING_TYPES = ("ball", "hinge", "slider", "fixed")
 
 
 @dataclass
@@ -118,8 +142,7 @@ class ModelBuilder:
         self._deformables: list[_Deformable] = []
         self._controllers: list[tuple[int, ControllerSetting]] = []  # (body handle, setting)
         self._clocks: tuple[np.ndarray | None, float] | None = None  # (body handles or None for all, c)
-        # joints: ([(particle, other end, other end is an anchor) per segment], length or None, name)
-        self._joints: list[tuple[list[tuple[int, int, bool]], float | None, str]] = []
+        self._joints: list[_JointRequest] = []
 
     @property
     def particle_count(self) -> int:
@@ -302,18 +325,26 @@ class ModelBuilder:
         """Add a PD controller pulling body ``body`` (a handle) towards its setting's target."""
         self._controllers.append((body, setting))
 
-    def add_distance_joint(self, first: int, second: int, *, second_is_anchor: bool = False,
-                           length: float | None = None, name: str = "") -> None:
-        """A rigid rod of ``length`` [m] (default: the distance at the start) between particle handles ``first`` and
-        ``second``, or from ``first`` to anchor ``second`` when ``second_is_anchor``."""
-        self._joints.append(([(first, second, second_is_anchor)], length, name))
+    def add_joint(self, type: str, first: int, second: int | None = None, *, second_is_anchor: bool = False,
+                  anchor: Sequence[float] | None = None,
+                  attach: tuple[Sequence[float] | None, Sequence[float] | None] = (None, None),
+                  axis: Sequence[float] | None = None, length: float | None = None,
+                  limits: tuple[float, float] | None = None, motor: MotorSetting | None = None,
+                  over: tuple[int, int] | None = None, name: str = "") -> None:
+        """A joint (see :mod:`animbatch.sim.joints`) of ``type`` (one of ``animbatch.sim.joints.assembly.TYPES``)
+        between body handle ``first`` and body handle ``second``, or anchor ``second`` (``second_is_anchor``), or
+        the world (None).
 
-    def add_pulley_joint(self, first: int, second: int, first_pulley: int, second_pulley: int, *,
-                         length: float | None = None, name: str = "") -> None:
-        """A rope of ``length`` [m] (default: at the start) from particle ``first`` up to anchor ``first_pulley``,
-        over to anchor ``second_pulley`` and down to particle ``second`` (the part between the pulleys is fixed and
-        not counted): |x₁ − p₁| + |x₂ − p₂| stays ``length``."""
-        self._joints.append(([(first, first_pulley, True), (second, second_pulley, True)], length, name))
+        Where it holds: ``anchor``, a world point at the start [m] (ball, hinge, slider, fixed; default: an anchor
+        end's position, else the first body's centre of mass), or ``attach``, a point of each end in shape
+        coordinates [m] (None: the centre of mass, the particle or the anchor). ``axis``: hinge or slider axis,
+        world axes at the start. ``length`` [m]: of a rod, rope (its longest) or pulley rope (default: at the
+        start). ``limits`` (lower, upper): hinge angle [rad] or slider travel [m] from the start. ``over``: a pulley
+        rope's two anchors (pulleys)."""
+        if type not in JOINT_TYPES:
+            raise ValueError(f"unknown joint type {type!r}; joint types: {', '.join(JOINT_TYPES)}")
+        self._joints.append(_JointRequest(type, first, second, second_is_anchor, anchor, attach, axis, length,
+                                          limits, motor, over, name))
 
     def add_clocks(self, bodies: Sequence[int] | np.ndarray | None = None, *, c: float = 299_792_458.0) -> None:
         """Give ``bodies`` (handles; default all) proper-time clocks ticking at √(1 − v²/c²), ``c`` [m/s]."""
@@ -410,32 +441,72 @@ class ModelBuilder:
                      joints=self._joint_set(x0, anchors.rest))
 
     def _joint_set(self, x0: np.ndarray, anchor_rest: np.ndarray) -> Joints | None:
-        """The joints' segments, between particles' model points (rigid bodies are not joined yet)."""
+        """The joints, with their points turned into body offsets (see :mod:`animbatch.sim.joints.assembly`)."""
         if not self._joints:
             return None
-        rows = [(k, near, far, to_anchor) for k, (segments, _, _) in enumerate(self._joints)
-                for near, far, to_anchor in segments]
-        joint = np.array([r[0] for r in rows], np.intp)
-        to_anchor = np.array([r[3] for r in rows], bool)
-        near = self._points(np.array([r[1] for r in rows], np.intp))
-        far = np.array([r[2] for r in rows], np.intp)
-        if (~to_anchor).any():
-            far[~to_anchor] = self._points(far[~to_anchor])
-        if np.any(near >= self.particle_count) or np.any(far[~to_anchor] >= self.particle_count):
-            raise ValueError("joints join particles (and anchors); rigid bodies are not joined yet")
+        n = self.particle_count
+        rigid = self._rigid
+        positions = np.concatenate([x0, np.array([b.centre_position for b in rigid]).reshape(-1, 3)])
+        rotations = np.broadcast_to(np.eye(3), (len(positions), 3, 3)).copy()
+        inertia = np.zeros((len(positions), 3, 3))
+        if rigid:
+            rotations[n:] = quaternion.to_matrix(np.array([b.orientation for b in rigid]))
+            inertia[n:] = [b.geometry.properties.inertia for b in rigid]
+        masses = np.concatenate([np.concatenate([c[0] for c in self._chunks]) if self._chunks else np.zeros(0),
+                                 [b.geometry.properties.mass for b in rigid]])
         anchors = np.asarray(anchor_rest, float).reshape(-1, 3)
-        anchor_point = np.zeros((len(rows), 3))
-        anchor_point[to_anchor] = anchors[far[to_anchor]]
-        far_point = anchor_point.copy()
-        far_point[~to_anchor] = x0[far[~to_anchor]]
-        start = np.bincount(joint, weights=np.linalg.norm(x0[near] - far_point, axis=1), minlength=len(self._joints))
-        length = np.array([start[k] if given is None else given for k, (_, given, _) in enumerate(self._joints)])
-        if np.any(length <= 0):
-            k = int(np.argmin(length))
-            raise ValueError(f"joint {self._joints[k][2]!r} has length {length[k]:g} m: it needs a positive length")
-        return Joints(_readonly(joint), _readonly(near), _readonly(np.where(to_anchor, -1, far)),
-                      _readonly(anchor_point), _readonly(np.where(to_anchor, far, -1)), _readonly(length),
-                      tuple(name for _, _, name in self._joints))
+        def offset(point: int, shape_point: Sequence[float] | None) -> np.ndarray:
+            """A point of a body in body axes from its centre of mass, from shape coordinates."""
+            if shape_point is None or point < n:
+                return np.zeros(3)
+            return np.asarray(shape_point, float) - rigid[point - n].geometry.properties.centre
+
+        def at_start(point: int, body_offset: np.ndarray) -> np.ndarray:
+            """Where a body point is at the start (on the world: the point itself)."""
+            return body_offset if point == WORLD else positions[point] + rotations[point] @ body_offset
+
+        settings = []
+        for request in self._joints:
+            first = int(self._points(np.array([request.first]))[0])
+            if request.second is None:
+                second, second_point = WORLD, None
+            elif request.second_is_anchor:
+                second, second_point = WORLD, anchors[request.second]
+            else:
+                second, second_point = int(self._points(np.array([request.second]))[0]), None
+
+            first_offset = offset(first, request.attach[0])
+            if second != WORLD:
+                second_offset = offset(second, request.attach[1])
+            elif second_point is None:  # the world, at the given point or (for a rod) the first end's start
+                given = request.attach[1] if request.attach[1] is not None else request.anchor
+                second_offset = np.asarray(given, float) if given is not None else at_start(first, first_offset)
+            else:
+                second_offset = second_point
+            if request.type in HOLDING_TYPES:  # both points are one world point at the start
+                if request.anchor is not None:
+                    where = np.asarray(request.anchor, float)
+                elif request.attach[0] is not None or request.attach[1] is None:
+                    where = at_start(first, first_offset)
+                else:
+                    where = at_start(second, second_offset)
+                if request.anchor is None and request.attach != (None, None) and not (second == WORLD
+                                                                                     and second_point is None):
+                    gap = float(np.linalg.norm(at_start(first, first_offset) - at_start(second, second_offset)))
+                    if gap > 1e-9 * max(1.0, float(np.max(np.abs(positions)))):
+                        raise ValueError(f"joint {request.name!r}: its two points are {gap:.4g} m apart at the "
+                                         f"start, and a {request.type} joint holds them together. Give one world "
+                                         f"point with 'anchor' instead")
+                if request.anchor is None and request.attach == (None, None) and second_point is not None:
+                    where = second_point  # held at the anchor it names
+                first_offset = rotations[first].T @ (where - positions[first])
+                second_offset = where if second == WORLD else rotations[second].T @ (where - positions[second])
+            over = None if request.over is None else anchors[list(request.over)]
+            settings.append(JointSetting(request.type, first, second, first_offset, np.asarray(second_offset, float),
+                                         request.name, None if request.axis is None else np.asarray(request.axis,
+                                                                                                     float),
+                                         request.length, request.limits, request.motor, over))
+        return assemble(settings, positions, rotations, masses, inertia, n)
 
     def _deformable_set(self, anchors: AnchorMotion, point_count: int) -> DeformableSet | None:
         """The vertex map of all deformable bodies (model point numbers, anchors, body points)."""

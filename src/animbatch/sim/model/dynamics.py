@@ -24,6 +24,7 @@ import scipy.sparse as sp
 from animbatch import quaternion
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.forces.base import ForceJacobian
+from animbatch.sim.joints import STABILISATION_RATE
 from animbatch.sim.model.model import Model, world_inverse_inertia_times
 
 
@@ -39,6 +40,10 @@ class Dynamics:
         n, b = self.particles, self.rigid
         self.clocks = model.clocks
         self.joints = model.joints
+        #: Which joint limits and ropes act, when events decide it (animbatch.sim.joints.stops); None: the state does
+        self.engaged_stops: np.ndarray | None = None
+        #: Baumgarte's ω [1/s] for the joints; fixed-step methods set 0, as they project after every step instead
+        self.joint_stabilisation = STABILISATION_RATE
         self._clock_start = 3 * n + 7 * b  # the clocks' proper times close the configuration
         self._config_size = self._clock_start + (self.clocks.count if self.clocks is not None else 0)
         self._inverse_mass = (1.0 / model.bodies.mass[:n])[:, None]
@@ -106,13 +111,29 @@ class Dynamics:
         for term in self.terms:
             force = by_label.setdefault(term.label, np.zeros_like(self._force))
             term.accumulate(t, state, force, torque)
-        if self.joints is not None:  # the rods' tensions answer the sum of the others
-            n = self.particles
+        if self.joints is not None:  # the joints' forces answer the sum of the others
             total = np.sum(list(by_label.values()), axis=0) if by_label else np.zeros_like(self._force)
-            rods = np.zeros_like(self._force)
-            rods[:n] = self.joints.forces(state.x[:n], state.v[:n], total[:n], self._inverse_mass[:, 0])
-            by_label["joint"] = rods
+            held = np.zeros_like(self._force)
+            held[self.joints.points] = self.joints.loads(state, total, torque).force
+            by_label["joint"] = held
         return by_label
+
+    def joint_reactions(self, times: np.ndarray, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What each joint's constraint does to its first body at each of the states (F, n) at ``times`` (F,) [s]:
+        force [N] and torque [N·m] about the joint's point on it (F, K, 3); and the motors' efforts (F, M)
+        [N·m or N], which act besides. Requires joints."""
+        joints = self.joints
+        assert joints is not None
+        frames = len(times)
+        force, torque = np.zeros((frames, joints.count, 3)), np.zeros((frames, joints.count, 3))
+        efforts = np.zeros((frames, len(joints.motors.joint) if joints.motors is not None else 0))
+        for frame, (t, y) in enumerate(zip(times, states)):
+            config, motion = self.split(y)
+            state = self.kinematics(config, motion, t=float(t))
+            loads = joints.loads(state, *self.loads(float(t), state))
+            force[frame], torque[frame] = joints.reactions(loads, joints.motion(state))
+            efforts[frame] = loads.efforts
+        return force, torque, efforts
 
     # ------------------------------------------------------------------------------------------ the forms
 
@@ -125,8 +146,8 @@ class Dynamics:
     def _motion_rate(self, t: float, state: Kinematics, out: np.ndarray) -> np.ndarray:
         force, torque = self.loads(t, state)
         n = self.particles
-        if self.joints is not None:  # the rods' tensions, from the other forces (see animbatch.sim.joints)
-            force[:n] += self.joints.forces(state.x[:n], state.v[:n], force[:n], self._inverse_mass[:, 0])
+        if self.joints is not None:  # the constraint forces, from the other forces (see animbatch.sim.joints)
+            self.joints.add_loads(state, force, torque, self.engaged_stops, self.joint_stabilisation)
         np.multiply(force[:n], self._inverse_mass, out=out[: 3 * n].reshape(n, 3))
         if self.rigid:
             out[3 * n: 3 * n + 3 * self.rigid] = force[n:].ravel()
@@ -189,8 +210,8 @@ class Dynamics:
 
     @property
     def adds_energy(self) -> bool:
-        """Whether any term can put energy in (see :attr:`ForceTerm.adds_energy`)."""
-        return any(term.adds_energy for term in self.terms)
+        """Whether any term or joint motor can put energy in (see :attr:`Model.adds_energy`)."""
+        return self.model.adds_energy
 
     # ------------------------------------------------------------------------------------------ derivatives
 
@@ -227,15 +248,18 @@ class Dynamics:
                         [inverse_mass @ derivatives.matrix("x"), inverse_mass @ derivatives.matrix("v")]],
                        format="csr")
 
-    def project(self, y: np.ndarray, *, joints: bool = True) -> None:
+    def project(self, y: np.ndarray, *, joints: bool = True, reach: float = 0.0) -> None:
         """Re-normalise the quaternions of a state (…, n) in place, and with ``joints`` move a state (n,) back onto
-        its rods (fixed-step methods, after every step; adaptive ones keep to them by Baumgarte stabilisation, so
-        that their outputs show their true drift)."""
+        its joints: the start of every run, fixed-step methods after every step, adaptive ones only where a limit
+        or rope reaches its stop (within ``reach`` [m or rad]); between those, adaptive methods keep to the joints
+        by Baumgarte stabilisation, so that their outputs show their true drift."""
         if joints and self.joints is not None and y.ndim == 1:
             config, motion = self.split(y)
-            n = self.particles
-            self.joints.project(config[: 3 * n].reshape(n, 3), motion[: 3 * n].reshape(n, 3),
-                                self._inverse_mass[:, 0])
+            points = self.particles + self.rigid  # positions, and velocities then momenta, are contiguous
+            rigid = (config[3 * points: 3 * points + 4 * self.rigid].reshape(-1, 4),
+                     motion[3 * points:].reshape(-1, 3)) if self.rigid else (None, None)
+            self.joints.project(config[: 3 * points].reshape(points, 3), rigid[0],
+                                motion[: 3 * points].reshape(points, 3), rigid[1], reach=reach)
         if self.rigid:
             block = self.model.layout.block("rigid_orientation")
             q = y[..., block.span].reshape(*y.shape[:-1], self.rigid, 4)

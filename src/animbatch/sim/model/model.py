@@ -120,6 +120,12 @@ class Model:
             return np.zeros((*y.shape[:-1], 0, 3))
         return np.concatenate(parts, axis=-2) if len(parts) > 1 else np.array(parts[0])
 
+    @property
+    def adds_energy(self) -> bool:
+        """Whether something can put energy in: a force term (see :attr:`ForceTerm.adds_energy`) or a joint motor."""
+        return any(term.adds_energy for term in self.force_terms) or (self.joints is not None
+                                                                        and self.joints.driven)
+
     def positions(self, y: np.ndarray) -> np.ndarray:
         """Centre-of-mass positions [m] of all bodies: (P, 3) or (F, P, 3)."""
         return self._blocks(y, "particle_position", "rigid_position")

@@ -1,0 +1,336 @@
+"""Joints: holonomic constraints between particles, rigid bodies and the world.
+
+Formulation (the choice issue 22 asks to justify). animbatch integrates maximal coordinates (every body's own
+position, orientation and momenta), and a joint is a few scalar constraints on them, ``C_i = 0`` or, for limits and
+slack ropes, ``C_i ≥ 0`` (see :mod:`animbatch.sim.joints.kinds` for each kind's rows). Maximal coordinates with
+constraint forces take loops (a four-bar linkage, a chain closed on itself) exactly as trees, and leave every
+integrator, contact and force term as it is; reduced coordinates (Featherstone) would be cheaper for trees and
+exact by construction, but cannot close a loop and would need a second state layout.
+
+* **Adaptive methods** integrate the index-1 form: at every right-hand side the multipliers λ solve
+  ``J M⁻¹ Jᵀ λ = −(J a_free + J̇u + 2 ω Ċ + ω² C)`` (Baumgarte stabilisation, critically damped at ω), so that
+  ``C̈ + 2 ω Ċ + ω² C = 0``: the drift that integration error feeds into C decays in ~1/ω instead of growing.
+  ``a_free`` includes the torque-free ``−I⁻¹ (ω × L)`` of spinning bodies.
+* **Fixed-step methods** take the same forces in their kicks, and after every step the state is projected back
+  onto the constraints (as SHAKE and RATTLE do): positions and orientations by Gauss–Newton steps
+  ``Δ = −M⁻¹ Jᵀ (J M⁻¹ Jᵀ)⁻¹ C`` until |C| is below a nanometre-scale tolerance, then velocities by the impulse
+  ``Δu = −M⁻¹ Jᵀ (J M⁻¹ Jᵀ)⁻¹ J u``. The projection is orthogonal in the mass metric, so it never adds kinetic
+  energy.
+* **Unilateral rows** (limits, ropes) take part only while they are reached (C ≤ 0) and only while they push
+  (λ ≥ 0): the rows that would pull are dropped and the rest solved again (an active set). Reaching a limit is an
+  inelastic stop: fixed-step methods remove the approaching velocity in the projection; adaptive ones stop it
+  within the Baumgarte response (overshoot ≈ speed / (e ω)).
+
+Motors (:mod:`animbatch.sim.joints.motors`) are servo torques and forces, applied before the constraints are solved,
+so the joint's reaction includes what holds the motor's reaction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from animbatch import quaternion
+from animbatch.sim.bodies import Kinematics
+from animbatch.sim.joints.kinds import (
+    AngleRows,
+    AxisRows,
+    LockRows,
+    PointRows,
+    RowKind,
+    SegmentRows,
+    SlideRows,
+    hinge_angle,
+)
+from animbatch.sim.joints.motors import Motors, MotorTarget
+from animbatch.sim.joints.rows import Coupling, JoinedMotion, Rows, apply, apply_transpose
+
+__all__ = ["AngleRows", "AxisRows", "JoinedMotion", "JointLoads", "Joints", "LockRows", "MotorTarget", "Motors",
+           "PointRows", "RowKind", "Rows", "SegmentRows", "SlideRows", "hinge_angle"]
+
+#: Baumgarte's stabilisation rate ω [1/s]: constraint drift decays as e^(−ω t) (critically damped).
+STABILISATION_RATE = 20.0
+#: Position projection stops when every row is within this fraction of the scene's joint scale (m, or rad for
+#: angles), or after PROJECTION_ITERATIONS Gauss–Newton steps.
+PROJECTION_TOLERANCE = 1e-13
+PROJECTION_ITERATIONS = 8
+#: At most this many passes of dropping unilateral rows that would pull.
+ACTIVE_SET_PASSES = 4
+
+
+@dataclass(frozen=True)
+class JointLoads:
+    """What the joints do at one instant: forces and torques (J, 3) [N, N·m] on the joined bodies (constraints
+    and motors together), the rows' multipliers λ (R,) and the motors' efforts (M,)."""
+
+    force: np.ndarray
+    torque: np.ndarray
+    multipliers: np.ndarray
+    efforts: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Joints:
+    """K joints between J joined bodies (model points ``points``, particles below ``first_rigid``), made of row
+    kinds; see the module notes.
+
+    ``inverse_mass`` (J,) [1/kg]; ``inertia`` and ``inverse_inertia`` (J, 3, 3) in body axes (zero for particles);
+    ``first_body`` (K,) and ``first_offset`` (K, 3): each joint's point on its first body (for reactions);
+    ``names``, ``types`` and ``descriptions`` (K,) for messages and ``info``; ``scale`` [m]: the joints' size, for
+    tolerances."""
+
+    names: tuple[str, ...]
+    types: tuple[str, ...]
+    descriptions: tuple[str, ...]
+    points: np.ndarray
+    first_rigid: int
+    inverse_mass: np.ndarray
+    inertia: np.ndarray
+    inverse_inertia: np.ndarray
+    kinds: tuple[RowKind, ...]
+    first_body: np.ndarray  # (K,) each joint's first body (index into the joined bodies)
+    first_offset: np.ndarray  # (K, 3) the joint's point on it, body axes from its centre of mass
+    motors: Motors | None = None
+    scale: float = 1.0
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        bodies = np.concatenate([kind.bodies for kind in self.kinds])
+        self._cache.update(
+            bodies=bodies, unilateral=np.concatenate([kind.unilateral for kind in self.kinds]),
+            joint=np.concatenate([kind.joint for kind in self.kinds]),
+            angular=np.concatenate([np.full(len(kind.bodies), kind.unit == "rad") for kind in self.kinds]),
+            coupling=Coupling(bodies, len(self.points), bool(np.any(self.points >= self.first_rigid))),
+            rigid=np.flatnonzero(self.points >= self.first_rigid))
+
+    @property
+    def count(self) -> int:
+        return len(self.names)
+
+    @property
+    def world(self) -> int:
+        """The world's slot in :class:`JoinedMotion`: after the joined bodies."""
+        return len(self.points)
+
+    @property
+    def driven(self) -> bool:
+        """Whether motors drive some joint (they do work no potential accounts for)."""
+        return self.motors is not None
+
+    @property
+    def stopping(self) -> bool:
+        """Whether some rows are limits or ropes, which stop bodies inelastically (they lose energy)."""
+        return bool(self._cache["unilateral"].any())
+
+    @property
+    def anchored(self) -> bool:
+        """Whether some joint holds on to the world (so the joints are not internal to the bodies)."""
+        return bool(np.any(self._cache["bodies"] == self.world))
+
+    @property
+    def row_joint(self) -> np.ndarray:
+        """The joint (R,) each row belongs to."""
+        return self._cache["joint"]
+
+    @property
+    def row_is_unilateral(self) -> np.ndarray:
+        """Whether each row is a limit or rope (C ≥ 0) rather than an equality (R,)."""
+        return self._cache["unilateral"]
+
+    @property
+    def row_is_angle(self) -> np.ndarray:
+        """Whether each row's C is an angle [rad] rather than a length [m] (R,)."""
+        return self._cache["angular"]
+
+    def segments(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The rods', ropes' and pulley ropes' straight pieces, for drawing: near and far model points (S,) (−1:
+        a fixed point), and their offsets (S, 3) (body axes from the centre of mass; a fixed point's position)."""
+        kinds = [kind for kind in self.kinds if isinstance(kind, SegmentRows)]
+        if not kinds:
+            return np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros((0, 3)), np.zeros((0, 3))
+        near, far, near_offset, far_offset = kinds[0].lines()
+        model_point = np.append(self.points, -1)  # compact body index (the world last) → model point
+        return model_point[near], model_point[far], near_offset, far_offset
+
+    # ------------------------------------------------------------------------------------------ state
+
+    def motion(self, state: Kinematics) -> JoinedMotion:
+        """The joined bodies' :class:`JoinedMotion` from the model's kinematics."""
+        count = len(self.points)
+        x = np.zeros((count + 1, 3))
+        v = np.zeros((count + 1, 3))
+        x[:count], v[:count] = state.x[self.points], state.v[self.points]
+        rotation = np.broadcast_to(np.eye(3), (count + 1, 3, 3)).copy()
+        omega = np.zeros((count + 1, 3))
+        rigid = self._cache["rigid"]
+        if len(rigid):
+            assert state.rotation is not None and state.omega is not None
+            index = self.points[rigid] - self.first_rigid
+            rotation[rigid], omega[rigid] = state.rotation[index], state.omega[index]
+        return self._motion(x, v, rotation, omega)
+
+    def _motion(self, x: np.ndarray, v: np.ndarray, rotation: np.ndarray, omega: np.ndarray) -> JoinedMotion:
+        count = len(self.points)
+        inverse_mass = np.zeros(count + 1)
+        inverse_mass[:count] = self.inverse_mass
+        inverse_inertia = np.zeros((count + 1, 3, 3))
+        spin = np.zeros((count + 1, 3))
+        rigid = self._cache["rigid"]
+        if len(rigid):
+            turn = rotation[rigid]
+            turn_t = np.transpose(turn, (0, 2, 1))
+            inverse_inertia[rigid] = turn @ self.inverse_inertia[rigid] @ turn_t
+            momentum = np.einsum("kij,kj->ki", turn @ self.inertia[rigid] @ turn_t, omega[rigid])
+            spin[rigid] = -np.einsum("kij,kj->ki", inverse_inertia[rigid], quaternion.cross(omega[rigid], momentum))
+        return JoinedMotion(x, v, rotation, omega, inverse_mass, inverse_inertia, spin)
+
+    def rows(self, motion: JoinedMotion) -> Rows:
+        return Rows.concatenate([kind.rows(motion) for kind in self.kinds])
+
+    def violation(self, motion: JoinedMotion) -> np.ndarray:
+        """How far each row is from holding (R,) [m or rad], ≥ 0: |C| for bilateral rows, how far past its limit
+        for unilateral ones (a slack rope, a hinge inside its limits: 0)."""
+        c = self.rows(motion).violation
+        return np.where(self._cache["unilateral"], np.maximum(-c, 0.0), np.abs(c))
+
+    # ------------------------------------------------------------------------------------------ forces
+
+    def _solve_active(self, rows: Rows, motion: JoinedMotion, right: np.ndarray, reached: np.ndarray) -> np.ndarray:
+        """λ for ``A λ = right`` over the bilateral rows and the unilateral rows ``reached``, dropping unilateral
+        rows whose λ would pull (λ < 0) and solving again."""
+        unilateral = self._cache["unilateral"]
+        active = ~unilateral | reached
+        coupling: Coupling = self._cache["coupling"]
+        for _ in range(ACTIVE_SET_PASSES):
+            multiplier = coupling.solve(rows, motion, right, active if unilateral.any() else None)
+            pulling = unilateral & active & (multiplier < 0)
+            if not pulling.any():
+                break
+            active = active & ~pulling
+        else:
+            multiplier = np.where(unilateral & (multiplier < 0), 0.0, multiplier)
+        return multiplier
+
+    def loads(self, state: Kinematics, force: np.ndarray, torque: np.ndarray | None,
+              engaged: np.ndarray | None = None, stabilisation: float = STABILISATION_RATE) -> JointLoads:
+        """The joints' forces and torques on the joined bodies, given the other forces ``force`` (P, 3) and torques
+        ``torque`` (B, 3) on all bodies, with Baumgarte stabilisation (see the module notes). ``engaged`` (R,):
+        which unilateral rows act, as events decided (:mod:`animbatch.sim.joints.stops`); by default those at or
+        past their stops that push. ``stabilisation``: Baumgarte's ω [1/s] (0 where a projection after every step
+        keeps the joints instead, which the correction would only fight: a rope would bounce off its stop)."""
+        motion = self.motion(state)
+        count = len(self.points)
+        applied_force = np.zeros((count + 1, 3))
+        applied_torque = np.zeros((count + 1, 3))
+        applied_force[:count] = force[self.points]
+        rigid = self._cache["rigid"]
+        if len(rigid) and torque is not None:
+            applied_torque[rigid] = torque[self.points[rigid] - self.first_rigid]
+        efforts = np.zeros(0)
+        motor_force = motor_torque = None
+        if self.motors is not None:
+            motor_force, motor_torque, efforts = self.motors.loads(state.t, motion)
+            applied_force += motor_force
+            applied_torque += motor_torque
+        bodies = self._cache["bodies"]
+        rows = self.rows(motion)
+        acceleration = applied_force * motion.inverse_mass[:, None]
+        angular_acceleration = np.einsum("kij,kj->ki", motion.inverse_inertia, applied_torque) + motion.spin
+        rate = apply(rows, bodies, (motion.v, motion.omega))
+        omega = stabilisation
+        right = -(apply(rows, bodies, (acceleration, angular_acceleration)) + rows.bias + 2 * omega * rate
+                  + omega**2 * rows.violation)
+        if engaged is None:
+            multiplier = self._solve_active(rows, motion, right, rows.violation <= 0)
+        else:
+            unilateral = self._cache["unilateral"]
+            multiplier = self._cache["coupling"].solve(rows, motion, right,
+                                                       (~unilateral | engaged) if unilateral.any() else None)
+        joint_force, joint_torque = apply_transpose(rows, bodies, multiplier, count + 1)
+        if motor_force is not None and motor_torque is not None:
+            joint_force += motor_force
+            joint_torque += motor_torque
+        return JointLoads(joint_force[:count], joint_torque[:count], multiplier, efforts)
+
+    def add_loads(self, state: Kinematics, force: np.ndarray, torque: np.ndarray | None,
+                  engaged: np.ndarray | None = None, stabilisation: float = STABILISATION_RATE) -> JointLoads:
+        """:meth:`loads`, added to ``force`` and ``torque`` in place."""
+        loads = self.loads(state, force, torque, engaged, stabilisation)
+        force[self.points] += loads.force
+        rigid = self._cache["rigid"]
+        if len(rigid) and torque is not None:
+            torque[self.points[rigid] - self.first_rigid] += loads.torque[rigid]
+        return loads
+
+    def reactions(self, loads: JointLoads, motion: JoinedMotion) -> tuple[np.ndarray, np.ndarray]:
+        """The force [N] and torque [N·m] (K, 3) each joint's constraint exerts on its first body, the torque about
+        the joint's point on that body (a weld's bending moment), from the multipliers of ``loads`` at
+        ``motion``."""
+        rows = self.rows(motion)
+        joint = self.row_joint
+        force = np.zeros((self.count, 3))
+        torque = np.zeros((self.count, 3))
+        np.add.at(force, joint, loads.multipliers[:, None] * rows.linear[:, 0])
+        np.add.at(torque, joint, loads.multipliers[:, None] * rows.angular[:, 0])
+        lever = motion.points(self.first_body, self.first_offset)[0]
+        return force, torque - quaternion.cross(lever, force)
+
+    # ------------------------------------------------------------------------------------------ projection
+
+    def project(self, positions: np.ndarray, orientations: np.ndarray | None, linear: np.ndarray,
+                angular_momentum: np.ndarray | None, *, reach: float = 0.0) -> None:
+        """Move a state back onto the joints, in place (see the module notes): ``positions`` (P, 3) [m] of all
+        bodies, rigid ``orientations`` (B, 4), ``linear`` (P, 3): particles' velocities [m/s] then rigid momenta
+        [kg·m/s], rigid ``angular_momentum`` (B, 3) [kg·m²/s], world axes. Unilateral rows within ``reach`` [m or
+        rad] of their stops count as reached (their approaching velocity is removed)."""
+        count = len(self.points)
+        rigid = self._cache["rigid"]
+        index = self.points[rigid] - self.first_rigid
+        bodies = self._cache["bodies"]
+        coupling: Coupling = self._cache["coupling"]
+        unilateral = self._cache["unilateral"]
+        mass_of_linear = np.ones(count)  # linear = mass_of_linear · v
+        mass_of_linear[rigid] = 1.0 / self.inverse_mass[rigid]
+
+        def current() -> JoinedMotion:
+            x = np.zeros((count + 1, 3))
+            v = np.zeros((count + 1, 3))
+            x[:count] = positions[self.points]
+            v[:count] = linear[self.points] / mass_of_linear[:, None]
+            rotation = np.broadcast_to(np.eye(3), (count + 1, 3, 3)).copy()
+            omega = np.zeros((count + 1, 3))
+            if len(rigid):
+                assert orientations is not None and angular_momentum is not None
+                rotation[rigid] = quaternion.to_matrix(orientations[index])
+                turn = rotation[rigid]
+                inverse = turn @ self.inverse_inertia[rigid] @ np.transpose(turn, (0, 2, 1))
+                omega[rigid] = np.einsum("kij,kj->ki", inverse, angular_momentum[index])
+            return self._motion(x, v, rotation, omega)
+
+        tolerance = PROJECTION_TOLERANCE * max(self.scale, 1.0)
+        for _ in range(PROJECTION_ITERATIONS):
+            motion = current()
+            rows = self.rows(motion)
+            violated = ~unilateral | (rows.violation < 0)
+            if np.max(np.abs(np.where(violated, rows.violation, 0.0)), initial=0.0) <= tolerance:
+                break
+            step = coupling.solve(rows, motion, -rows.violation, violated if unilateral.any() else None)
+            force, torque = apply_transpose(rows, bodies, step, count + 1)
+            positions[self.points] += force[:count] * motion.inverse_mass[:count, None]
+            if len(rigid):
+                assert orientations is not None
+                turn = np.einsum("kij,kj->ki", motion.inverse_inertia[rigid], torque[rigid])
+                orientations[index] = quaternion.normalized(
+                    quaternion.multiply(quaternion.from_rotation_vector(turn), orientations[index]))
+        motion = current()
+        rows = self.rows(motion)
+        rate = apply(rows, bodies, (motion.v, motion.omega))
+        reached = rows.violation <= max(tolerance, reach)
+        # bilateral rows lose all their rate; reached unilateral rows only an approaching one (an inelastic stop)
+        impulse = self._solve_active(rows, motion, -rate, reached & (rate < 0))
+        force, torque = apply_transpose(rows, bodies, impulse, count + 1)
+        linear[self.points] += force[:count] * (mass_of_linear * motion.inverse_mass[:count])[:, None]
+        if len(rigid):
+            assert angular_momentum is not None
+            angular_momentum[index] += torque[rigid]

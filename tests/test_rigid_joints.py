@@ -1,0 +1,280 @@
+"""Joints on rigid bodies (issue 22): ball joints, hinges (limits, motors), sliders (limits), welds and ropes, against
+closed forms (physical pendulum, servo responses, a slide down an incline, free fall on a slack rope) and
+invariants (energy, the vertical angular momentum of a top, the joints' drift)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.special import ellipk
+
+from animbatch import api
+from animbatch.quaternion import to_matrix
+from animbatch.stages import quantity_series
+from conftest import scene
+
+G = 9.81
+ACCURATE = "{method: DOP853, rtol: 1.0e-10, atol: 1.0e-12}"
+# a bar 1 m long, 2 cm square, of water: mass 0.4 kg
+BAR_LENGTH, BAR_WIDTH, BAR_DENSITY = 1.0, 0.02, 1000.0
+BAR_MASS = BAR_DENSITY * BAR_LENGTH * BAR_WIDTH**2
+
+
+def _v(values) -> str:
+    return "[" + ", ".join(repr(float(v)) for v in values) + "]"
+
+
+def hinged_bar(amplitude_deg: float, solver: str, duration: float = 6.0, extra: str = "") -> tuple:
+    """A bar hanging from a hinge at its top end (world origin), released at rest ``amplitude_deg`` from the
+    vertical; the stopwatch times a period between passes through the bottom moving +x."""
+    theta = np.radians(amplitude_deg)
+    centre = 0.5 * BAR_LENGTH * np.array([np.sin(theta), -np.cos(theta), 0.0])
+    loaded = scene(f"""
+        duration: {duration}
+        fps: 50
+        solver: {solver}
+        bodies:
+          - {{name: bar, type: rigid, shape: {{type: box, size: [{BAR_WIDTH}, {BAR_LENGTH}, {BAR_WIDTH}]}},
+              density: {BAR_DENSITY}, position: {_v(centre)}, orientation: {{axis: [0, 0, 1], angle: {amplitude_deg}}}}}
+        joints: [{{type: hinge, between: [bar], anchor: [0, 0, 0], axis: [0, 0, 1]{extra}}}]
+        fields: [{{type: gravity}}]
+        stopwatches:
+          - name: period
+            start: {{body: bar, point: [0, 0, 0], normal: [1, 0, 0], direction: along}}
+            stop: {{body: bar, point: [0, 0, 0], normal: [1, 0, 0], direction: along}}
+    """)
+    trajectory = api.simulate(loaded)
+    (reading,) = api.stopwatch_readings(loaded.spec.stopwatches, trajectory)
+    return trajectory, reading.elapsed, loaded
+
+
+def physical_pendulum_period(amplitude_deg: float) -> float:
+    """T = 4 √(I / (m g d)) K(sin²(θ₀/2)) for the bar about its end: I = m (L² + w²)/12 + m (L/2)², d = L/2."""
+    inertia = (BAR_LENGTH**2 + BAR_WIDTH**2) / 12 + (BAR_LENGTH / 2) ** 2  # per unit mass
+    return 4 * np.sqrt(inertia / (G * BAR_LENGTH / 2)) * ellipk(np.sin(np.radians(amplitude_deg) / 2) ** 2)
+
+
+@pytest.mark.parametrize("amplitude", [5.0, 120.0])
+def test_a_bar_on_a_hinge_swings_with_the_physical_pendulums_period(amplitude):
+    trajectory, period, loaded = hinged_bar(amplitude, ACCURATE)
+    assert period == pytest.approx(physical_pendulum_period(amplitude), rel=1e-7)
+    assert trajectory.ledger["joints"]["max_violation"] < 1e-9
+    assert trajectory.ledger["conservation"]["energy"]["drift"] < 1e-8
+
+
+@pytest.mark.parametrize("method, dt, order", [("verlet", 2e-3, 2), ("symplectic_euler", 1e-3, 1),
+                                              ("backward_euler", 1e-3, 1)])
+def test_fixed_step_methods_hold_the_hinge_exactly_and_any_energy_gain_is_their_error(method, dt, order):
+    """Projected after every step, the hinge holds to rounding; the energy wanders by the method's error, which
+    shrinks as dt^order (backward Euler steps rigid bodies by semi-implicit Euler, so it shares its order)."""
+    rises = []
+    for step in (dt, dt / 2):
+        trajectory, period, loaded = hinged_bar(60.0, f"{{method: {method}, dt: {step}}}", duration=4.0)
+        assert trajectory.ledger["joints"]["max_violation"] < 1e-12
+        assert period == pytest.approx(physical_pendulum_period(60.0), rel=30 * step**order)
+        total = quantity_series(api.compile_scene(loaded.spec), trajectory).total
+        rises.append(max(float(np.max(total - total[0])), 1e-12))
+    assert rises[1] < 1.2 * rises[0] / 2**order
+    omega = 2 * np.pi / physical_pendulum_period(60.0)
+    assert rises[0] < 10 * (omega * dt) ** order * BAR_MASS * G * BAR_LENGTH / 2  # of the energy's scale
+
+
+def test_a_hanging_bar_is_held_by_its_weight_and_a_welded_cantilever_by_its_bending_moment():
+    trajectory, _, _ = hinged_bar(0.0, ACCURATE, duration=0.5)
+    np.testing.assert_allclose(trajectory.joint_forces[:, 0], np.tile([0, BAR_MASS * G, 0], (len(trajectory.times), 1)),
+                               atol=1e-9)
+    np.testing.assert_allclose(trajectory.joint_torques[:, 0], 0, atol=1e-9)
+    loaded = scene(f"""
+        duration: 1
+        solver: {ACCURATE}
+        bodies:
+          - {{name: beam, type: rigid, shape: {{type: box, size: [{BAR_LENGTH}, {BAR_WIDTH}, {BAR_WIDTH}]}},
+              density: {BAR_DENSITY}, position: [0.5, 0, 0]}}
+        joints: [{{type: fixed, between: [beam], anchor: [0, 0, 0]}}]
+        fields: [{{type: gravity}}]
+    """)
+    beam = api.simulate(loaded)
+    np.testing.assert_allclose(beam.positions[:, 0], np.tile([0.5, 0, 0], (len(beam.times), 1)), atol=1e-9)
+    np.testing.assert_allclose(beam.joint_forces[:, 0], np.tile([0, BAR_MASS * G, 0], (len(beam.times), 1)), atol=1e-9)
+    # the wall holds the beam's weight at half its length from the wall: M = m g L/2, turning it up (+z)
+    np.testing.assert_allclose(beam.joint_torques[:, 0], np.tile([0, 0, BAR_MASS * G * 0.5], (len(beam.times), 1)), atol=1e-9)
+
+
+def test_a_chaotic_double_pendulum_of_hinged_bars_keeps_its_energy_and_joints():
+    loaded = scene("""
+        duration: 20
+        fps: 25
+        solver: {method: DOP853, rtol: 1.0e-8, atol: 1.0e-10}
+        bodies:
+          - {name: upper, type: rigid, shape: {type: box, size: [1, 0.04, 0.04]}, density: 500,
+              position: [0.5, 0, 0]}
+          - {name: lower, type: rigid, shape: {type: box, size: [1, 0.04, 0.04]}, density: 500,
+              position: [1.5, 0, 0]}
+        joints:
+          - {type: hinge, between: [upper], anchor: [0, 0, 0], axis: [0, 0, 1]}
+          - {type: hinge, between: [lower, upper], anchor: [1, 0, 0], axis: [0, 0, 1]}
+        fields: [{type: gravity}]
+    """)
+    trajectory = api.simulate(loaded)
+    joints = trajectory.ledger["joints"]
+    assert joints["max_violation"] < 1e-6 and joints["max_angle_violation"] < 1e-6
+    energy = trajectory.ledger["conservation"]["energy"]
+    assert energy["conserved"] and energy["drift"] < 1e-6 * energy["scale"]
+    assert np.ptp(trajectory.positions[:, 1, 1]) > 1.0  # it really swung
+
+
+def test_a_heavy_top_on_a_ball_joint_keeps_its_energy_and_its_vertical_angular_momentum():
+    """A spinning disc on a ball joint, its axis tilted: gravity's torque about the pivot is horizontal, so the
+    vertical component of the angular momentum about the pivot stays, as does the energy."""
+    tilt = np.radians(30)
+    axis = np.array([np.sin(tilt), np.cos(tilt), 0.0])
+    spin = 60.0
+    centre = 0.3 * axis
+    loaded = scene(f"""
+        duration: 2
+        fps: 50
+        solver: {{method: DOP853, rtol: 1.0e-10, atol: 1.0e-12}}
+        bodies:
+          - {{name: top, type: rigid, shape: {{type: cylinder, radius: 0.2, length: 0.04}}, density: 800,
+              position: {_v(centre)}, orientation: {{euler: [-90, 0, -30]}},
+              angular_velocity: {_v(spin * axis)}}}
+        joints: [{{type: ball, between: [top], anchor: [0, 0, 0]}}]
+        fields: [{{type: gravity}}]
+    """)
+    model = api.compile_scene(loaded.spec)
+    rigid = model.rigid
+    trajectory = api.simulate(loaded, model=model)
+    rotation = to_matrix(trajectory.orientations[:, 0])
+    inertia = rotation @ rigid.inertia[0] @ np.transpose(rotation, (0, 2, 1))
+    spin_momentum = np.einsum("fij,fj->fi", inertia, trajectory.angular_velocities[:, 0])
+    mass = float(rigid.mass[0])
+    about_pivot = spin_momentum + mass * np.cross(trajectory.positions[:, 0], trajectory.velocities[:, 0])
+    assert np.ptp(about_pivot[:, 1]) < 1e-7 * np.abs(about_pivot[0]).max()
+    assert np.ptp(about_pivot[:, 0]) > 1e-3 * np.abs(about_pivot[0]).max()  # it precesses
+    np.testing.assert_allclose(np.linalg.norm(trajectory.positions[:, 0], axis=1), 0.3, atol=1e-9)
+    energy = trajectory.ledger["conservation"]["energy"]
+    assert energy["drift"] < 1e-8 * energy["scale"]
+
+
+def wheel(motor: str, duration: float = 2.0) -> tuple:
+    """A disc (radius 0.2 m, 5 cm thick, of water) on a hinge about its own axis, no gravity, driven by ``motor``;
+    returns the trajectory, its angle θ(t) [rad] and its moment of inertia [kg·m²]."""
+    loaded = scene(f"""
+        duration: {duration}
+        fps: 50
+        solver: {ACCURATE}
+        bodies: [{{name: disc, type: rigid, shape: {{type: cylinder, radius: 0.2, length: 0.05}}, density: 1000}}]
+        joints: [{{type: hinge, between: [disc], axis: [0, 0, 1], motor: {motor}}}]
+    """)
+    trajectory = api.simulate(loaded)
+    q = trajectory.orientations[:, 0]
+    angle = np.unwrap(2 * np.arctan2(q[:, 3], q[:, 0]))
+    mass = 1000 * np.pi * 0.2**2 * 0.05
+    return trajectory, angle, 0.5 * mass * 0.2**2
+
+
+def test_a_hinge_motor_reaches_its_target_angle_along_the_critically_damped_response():
+    inertia = 0.5 * 1000 * np.pi * 0.2**2 * 0.05 * 0.2**2
+    omega = 6.0  # rad/s: stiffness I ω², damping 2 I ω
+    trajectory, angle, _ = wheel(f"{{target: 1.0, stiffness: {inertia * omega**2!r}, damping: {2 * inertia * omega!r}}}")
+    t = trajectory.times
+    np.testing.assert_allclose(angle, 1.0 * (1 - (1 + omega * t) * np.exp(-omega * t)), atol=1e-8)
+    assert trajectory.motor_efforts.shape == (len(t), 1)
+    assert trajectory.ledger["joints"]["max_angle_violation"] < 1e-9
+
+
+def test_a_speed_servo_spins_up_exponentially_and_a_torque_limit_caps_its_acceleration():
+    inertia = 0.5 * 1000 * np.pi * 0.2**2 * 0.05 * 0.2**2
+    damping = 2 * inertia
+    trajectory, angle, _ = wheel(f"{{speed: 3.0, damping: {damping!r}}}")
+    t = trajectory.times
+    spin = trajectory.angular_velocities[:, 0, 2]
+    np.testing.assert_allclose(spin, 3.0 * (1 - np.exp(-damping * t / inertia)), atol=1e-8)
+    limited, angle, _ = wheel(f"{{speed: 3.0, damping: {100 * inertia!r}, max_torque: {0.5 * inertia!r}}}")
+    early = limited.times <= 1.0  # 0.5 rad/s² for 6 s would be needed: it is limited throughout
+    np.testing.assert_allclose(angle[early], 0.25 * limited.times[early] ** 2, atol=1e-8)
+    np.testing.assert_allclose(limited.motor_efforts[early, 0], 0.5 * inertia, rtol=1e-12)
+
+
+def sliding_box(solver: str, extra: str = "", duration: float = 1.0) -> tuple:
+    """A 1 kg box on a slider down a frictionless 30° incline (the axis points down the slope), under gravity."""
+    slope = np.radians(30)
+    down = np.array([np.cos(slope), -np.sin(slope), 0.0])
+    loaded = scene(f"""
+        duration: {duration}
+        fps: 50
+        solver: {solver}
+        bodies: [{{name: box, type: rigid, shape: {{type: box, size: [0.1, 0.1, 0.1]}}, mass: 1.0,
+                  orientation: {{axis: [0, 0, 1], angle: -30}}}}]
+        joints: [{{type: slider, between: [box], axis: {_v(down)}{extra}}}]
+        fields: [{{type: gravity}}]
+    """)
+    trajectory = api.simulate(loaded)
+    return trajectory, trajectory.positions[:, 0] @ down, down
+
+
+def test_a_box_on_a_slider_down_an_incline_accelerates_at_g_sin_theta_held_by_the_normal_force():
+    trajectory, travel, down = sliding_box(ACCURATE)
+    t = trajectory.times
+    np.testing.assert_allclose(travel, 0.5 * G * np.sin(np.radians(30)) * t**2, atol=1e-8)
+    across = trajectory.positions[:, 0] - np.outer(travel, down)
+    np.testing.assert_allclose(across, 0, atol=1e-8)
+    normal = np.array([np.sin(np.radians(30)), np.cos(np.radians(30)), 0.0])
+    np.testing.assert_allclose(trajectory.joint_forces[:, 0], np.outer(np.full(len(t), G * np.cos(np.radians(30))),
+                                                                        normal), atol=1e-5)
+    np.testing.assert_allclose(trajectory.angular_velocities[:, 0], 0, atol=1e-9)  # it does not turn
+
+
+@pytest.mark.parametrize("solver, slop", [(ACCURATE, 1e-7), ("{method: verlet, dt: 0.001}", 1e-9)])
+def test_slider_limits_stop_the_box(solver, slop):
+    trajectory, travel, _ = sliding_box(solver, ", limits: [-0.1, 0.5]", duration=1.5)
+    assert travel.max() <= 0.5 + slop  # adaptive methods stop at the instant of reaching it (an event)
+    assert travel[-1] == pytest.approx(0.5, abs=1e-3)  # and it rests against the stop
+    assert travel[5] == pytest.approx(0.5 * G * 0.5 * trajectory.times[5] ** 2, abs=1e-6)  # free before
+
+
+@pytest.mark.parametrize("solver, slop", [(ACCURATE, 1e-7), ("{method: verlet, dt: 0.001}", 1e-9)])
+def test_hinge_limits_stop_the_swing(solver, slop):
+    trajectory, _, _ = hinged_bar(0.0, solver, duration=2.0, extra=", limits: [-0.5, 0.5]")
+    assert np.all(np.abs(trajectory.orientations[:, 0, 3]) < 1e-12)  # at rest it stays at rest, inside the limits
+    loaded = scene(f"""
+        duration: 2
+        fps: 50
+        solver: {solver}
+        bodies:
+          - {{name: bar, type: rigid, shape: {{type: box, size: [{BAR_WIDTH}, {BAR_LENGTH}, {BAR_WIDTH}]}},
+              density: {BAR_DENSITY}, position: [0, -0.5, 0], velocity: [3, 0, 0], angular_velocity: [0, 0, 6]}}
+        joints: [{{type: hinge, between: [bar], anchor: [0, 0, 0], axis: [0, 0, 1], limits: [-0.5, 0.5]}}]
+        fields: [{{type: gravity}}]
+    """)
+    swing = api.simulate(loaded)
+    q = swing.orientations[:, 0]
+    angle = 2 * np.arctan2(q[:, 3], q[:, 0])
+    assert angle.max() <= 0.5 + slop  # without the limit it would swing past 1.6 rad
+    assert angle.max() > 0.5 - 1e-3
+
+
+@pytest.mark.parametrize("solver, slop", [(ACCURATE, 1e-7), ("{method: verlet, dt: 0.001}", 1e-9)])
+def test_a_weight_on_a_slack_rope_falls_freely_until_the_rope_is_taut(solver, slop):
+    loaded = scene(f"""
+        duration: 1.5
+        fps: 100
+        solver: {solver}
+        anchors: [{{name: hook, position: [0, 0, 0]}}]
+        bodies: [{{name: weight, mass: 2.0, position: [0, -0.5, 0], velocity: [0.5, 0, 0]}}]
+        joints: [{{type: rope, between: [hook, weight], length: 1.0}}]
+        fields: [{{type: gravity}}]
+    """)
+    trajectory = api.simulate(loaded)
+    t, position = trajectory.times, trajectory.positions[:, 0]
+    distance = np.linalg.norm(position, axis=1)
+    free = distance < 1.0 - 1e-6
+    taut_at = t[np.argmin(free)]  # the first frame it is taut
+    falling = t < taut_at - 0.01
+    np.testing.assert_allclose(position[falling, 1], -0.5 - 0.5 * G * t[falling] ** 2, atol=1e-9)
+    # free fall from (0, −0.5) at 0.5 m/s sideways reaches the circle of radius 1 when x² + y² = 1
+    from scipy.optimize import brentq
+    expected = brentq(lambda s: (0.5 * s) ** 2 + (0.5 + 0.5 * G * s**2) ** 2 - 1.0, 0.0, 1.0)
+    assert taut_at == pytest.approx(expected, abs=0.011)
+    assert distance.max() <= 1.0 + slop
+    assert trajectory.joint_forces[-1, 0] @ position[-1] < 0  # a rope pulls the weight towards the hook
