@@ -4,6 +4,8 @@ invariants (energy, the vertical angular momentum of a top, the joints' drift)."
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from scipy.special import ellipk
@@ -278,3 +280,113 @@ def test_a_weight_on_a_slack_rope_falls_freely_until_the_rope_is_taut(solver, sl
     assert taut_at == pytest.approx(expected, abs=0.011)
     assert distance.max() <= 1.0 + slop
     assert trajectory.joint_forces[-1, 0] @ position[-1] < 0  # a rope pulls the weight towards the hook
+
+
+def test_a_hinge_motor_tracks_keyframes_with_the_closed_form_lag():
+    """Keyframes rising at ω₀ give the servo a target angle ω₀t and speed ω₀: critically damped, the error
+    e = target − θ obeys I ë + c ė + k e = 0 from e(0) = 0, ė(0) = ω₀, so θ(t) = ω₀ t − ω₀ t e^(−ωt)."""
+    inertia = 0.5 * 1000 * np.pi * 0.2**2 * 0.05 * 0.2**2
+    omega, rate = 8.0, 1.5
+    trajectory, angle, _ = wheel(f"{{target: [{{time: 0, value: 0}}, {{time: 3, value: {3 * rate}}}], "
+                                 f"interpolation: linear, stiffness: {inertia * omega**2!r}, "
+                                 f"damping: {2 * inertia * omega!r}}}", duration=2.0)
+    t = trajectory.times
+    np.testing.assert_allclose(angle, rate * t - rate * t * np.exp(-omega * t), atol=1e-7)
+
+
+def test_a_slider_motor_drives_the_box_to_its_target_critically_damped():
+    mass, omega = 1.0, 5.0
+    loaded = scene(f"""
+        duration: 2
+        fps: 50
+        solver: {ACCURATE}
+        bodies: [{{name: box, type: rigid, shape: {{type: box, size: [0.1, 0.1, 0.1]}}, mass: {mass}}}]
+        joints: [{{type: slider, between: [box], axis: [1, 0, 0],
+                  motor: {{target: 0.3, stiffness: {mass * omega**2}, damping: {2 * mass * omega}}}}}]
+    """)
+    trajectory = api.simulate(loaded)
+    t = trajectory.times
+    np.testing.assert_allclose(trajectory.positions[:, 0, 0], 0.3 * (1 - (1 + omega * t) * np.exp(-omega * t)),
+                               atol=1e-8)
+    np.testing.assert_allclose(trajectory.positions[:, 0, 1:], 0, atol=1e-9)
+
+
+def test_bodies_joined_to_each_other_keep_their_momentum_angular_momentum_and_energy():
+    """Two boxes on a ball joint, and a third welded to the second, thrown spinning with no forces: the joints are
+    internal, so the total momentum and angular momentum stay, and they do no work."""
+    loaded = scene(f"""
+        duration: 3
+        fps: 30
+        solver: {ACCURATE}
+        bodies:
+          - {{name: a, type: rigid, shape: {{type: box, size: [0.4, 0.1, 0.1]}}, density: 1000, position: [-0.2, 0, 0],
+              velocity: [0.3, 1.0, 0], angular_velocity: [0, 0, 2]}}
+          - {{name: b, type: rigid, shape: {{type: box, size: [0.4, 0.1, 0.1]}}, density: 600, position: [0.2, 0, 0],
+              velocity: [0, -0.5, 0.2], angular_velocity: [1, 0, -1]}}
+          - {{name: c, type: rigid, shape: {{type: box, size: [0.1, 0.3, 0.1]}}, density: 900, position: [0.45, 0.1, 0]}}
+        joints:
+          - {{type: ball, between: [b, a], anchor: [0, 0, 0]}}
+          - {{type: fixed, between: [c, b]}}
+    """)
+    model = api.compile_scene(loaded.spec)
+    trajectory = api.simulate(loaded, model=model)
+    series = quantity_series(model, trajectory)
+    np.testing.assert_allclose(series.momentum, np.broadcast_to(series.momentum[0], series.momentum.shape),
+                               atol=1e-9)
+    np.testing.assert_allclose(series.angular_momentum,
+                               np.broadcast_to(series.angular_momentum[0], series.angular_momentum.shape), atol=1e-8)
+    assert np.ptp(series.total) < 1e-8 * abs(series.kinetic[0])
+    assert trajectory.ledger["conservation"]["momentum"]["conserved"]
+    joints = trajectory.ledger["joints"]
+    assert joints["max_violation"] < 1e-8 and joints["max_angle_violation"] < 1e-8
+
+
+def test_a_box_hung_by_a_rod_from_its_corner_rests_with_its_centre_under_the_hook():
+    """A rod from a hook to a box's corner: at rest when the rod's line passes through the centre of mass; the rod
+    then carries the weight."""
+    tilt = np.degrees(np.arctan(np.sqrt(2)))  # turns the (1, 1, 1) corner diagonal onto the vertical
+    loaded = scene(f"""
+        duration: 1
+        solver: {ACCURATE}
+        anchors: [{{name: hook, position: [0, 1, 0]}}]
+        bodies:
+          - {{name: box, type: rigid, shape: {{type: box, size: [0.2, 0.2, 0.2]}}, mass: 2.0,
+              orientation: {{axis: [1, 0, -1], angle: {-tilt}}}, position: [0, {0.5 - np.sqrt(3) * 0.1}, 0]}}
+        joints: [{{type: distance, between: [box, hook], attach: [[0.1, 0.1, 0.1], null]}}]
+        fields: [{{type: gravity}}]
+    """)
+    corner = to_matrix(api.simulate(loaded).orientations[0, 0]) @ np.array([0.1, 0.1, 0.1])
+    np.testing.assert_allclose(corner / np.linalg.norm(corner), [0, 1, 0], atol=1e-12)  # the setup is right
+    trajectory = api.simulate(loaded)
+    np.testing.assert_allclose(trajectory.positions[:, 0], np.broadcast_to(trajectory.positions[0, 0],
+                                                                           trajectory.positions[:, 0].shape), atol=1e-9)
+    np.testing.assert_allclose(trajectory.joint_forces[:, 0], np.tile([0, 2.0 * G, 0], (len(trajectory.times), 1)),
+                               atol=1e-8)
+    assert trajectory.ledger["joints"]["max_violation"] < 1e-9
+
+
+def test_bodies_a_joint_joins_do_not_collide_with_each_other():
+    """Two boxes that overlap where a hinge joins them (as a door's edge sits in its frame): contact between them
+    would fight the joint, so jointed pairs never touch; a third, free box still collides with them."""
+    loaded = scene("""
+        duration: 1
+        solver: {method: symplectic_euler, dt: 1.0e-3}
+        bodies:
+          - {name: post, type: rigid, shape: {type: box, size: [0.2, 1, 0.2]}, density: 500, position: [0, 0.5, 0]}
+          - {name: door, type: rigid, shape: {type: box, size: [0.8, 1, 0.05]}, density: 500,
+             position: [0.45, 0.5, 0], angular_velocity: [0, 1, 0]}
+          - {name: ball, type: rigid, shape: {type: sphere, radius: 0.1}, density: 500, position: [0.6, 2.0, 0]}
+        joints:
+          - {type: fixed, between: [post]}
+          - {type: hinge, between: [door, post], anchor: [0.05, 0.5, 0], axis: [0, 1, 0]}
+        contacts: {}
+        fields: [{type: gravity}]
+    """)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # an overlap between the post and the door would warn
+        trajectory = api.simulate(loaded)
+    q = trajectory.orientations[:, 1]
+    angle = 2 * np.arctan2(q[:, 2], q[:, 0])
+    assert angle[-1] > 0.3  # the door turned through the post's corner, unhindered
+    assert trajectory.ledger["joints"]["max_violation"] < 1e-12
+    assert trajectory.solver_stats["impacts"]  # the ball still lands on the door

@@ -175,5 +175,16 @@ def build_contact_world(spec: SceneSpec, model: Any, centres: dict[str, np.ndarr
         np.array([by_name[n].collide for n in owner_names], bool),
         settings.bodies, tree, reach,
         np.array([deformable_names.index(n) if n in deformable_names else -1 for n in owner_names], np.intp),
-        sources, tuple(model.body_names), np.asarray(model.bodies.mass, float))
+        sources, tuple(model.body_names), np.asarray(model.bodies.mass, float), _jointed_pairs(model))
     return world, ContactSettings(settings.iterations, settings.rest_speed, settings.slop)
+
+
+def _jointed_pairs(model: Any) -> np.ndarray | None:
+    """Keys a·P + b (a < b) of the body pairs a joint joins directly: they do not collide with each other."""
+    if model.joints is None:
+        return None
+    pairs = model.joints.joined_pairs()
+    if not len(pairs):
+        return None
+    low, high = pairs.min(axis=1).astype(np.int64), pairs.max(axis=1).astype(np.int64)
+    return np.unique(low * model.body_count + high)

@@ -68,6 +68,15 @@ class ContactWorld:
     collider_source: dict[int, np.ndarray] | None = None
     body_names: tuple[str, ...] = ()
     body_mass: np.ndarray | None = None
+    excluded: np.ndarray | None = None  # sorted keys a·P + b (a < b) of body pairs that never touch (jointed)
+
+    def allowed(self, first: np.ndarray | int, second: np.ndarray) -> np.ndarray:
+        """Whether bodies ``first`` and ``second`` (K,) may touch: not a pair a joint joins (the joint holds them,
+        and contact would fight it where their shapes meet at the joint)."""
+        if self.excluded is None:
+            return np.ones(np.shape(second), bool)
+        low, high = np.minimum(first, second), np.maximum(first, second)
+        return ~np.isin(low.astype(np.int64) * len(self.body_material) + high, self.excluded)
 
 
 @dataclass(frozen=True)
@@ -301,6 +310,7 @@ def _between_bodies(world: ContactWorld, centres: np.ndarray, tree: cKDTree, act
     if len(pairs):
         i, j = pairs[:, 0], pairs[:, 1]
         keep = (probes.owner[i] != probes.owner[j]) & active[i] & active[j] & (probes.radius[j] > 0)
+        keep &= world.allowed(probes.owner[i], probes.owner[j])
         if world.group is not None:
             group_i, group_j = world.group[probes.owner[i]], world.group[probes.owner[j]]
             keep &= (group_i < 0) | (group_i != group_j)
@@ -316,7 +326,8 @@ def _between_bodies(world: ContactWorld, centres: np.ndarray, tree: cKDTree, act
             continue
         found = np.asarray(tree.query_ball_point(box_centres[k], float(np.linalg.norm(boxes.half[k])) + closing
                                                  + float(probes.radius.max())), dtype=np.intp)
-        chosen = found[(probes.owner[found] != owner) & active[found]] if len(found) else found
+        chosen = (found[(probes.owner[found] != owner) & active[found] & world.allowed(owner, probes.owner[found])]
+                  if len(found) else found)
         if len(chosen):
             parts.append(_box_contacts(world, chosen, centres, box_centres[k], box_rotations[k], boxes.half[k],
                                        owner, world.body_material[owner], margin, (BODY_BOX, BODY_BOX_FACE), k,

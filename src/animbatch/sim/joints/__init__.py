@@ -143,6 +143,12 @@ class Joints:
         """Whether each row's C is an angle [rad] rather than a length [m] (R,)."""
         return self._cache["angular"]
 
+    def joined_pairs(self) -> np.ndarray:
+        """The pairs of model points (K', 2) that some joint joins to each other (joints to the world left out)."""
+        bodies = self._cache["bodies"]
+        pairs = bodies[(bodies != self.world).all(axis=1)]
+        return np.unique(np.sort(self.points[pairs], axis=1), axis=0).reshape(-1, 2)
+
     def segments(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The rods', ropes' and pulley ropes' straight pieces, for drawing: near and far model points (S,) (−1:
         a fixed point), and their offsets (S, 3) (body axes from the centre of mass; a fixed point's position)."""
