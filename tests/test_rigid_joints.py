@@ -390,3 +390,11 @@ def test_bodies_a_joint_joins_do_not_collide_with_each_other():
     assert angle[-1] > 0.3  # the door turned through the post's corner, unhindered
     assert trajectory.ledger["joints"]["max_violation"] < 1e-12
     assert trajectory.solver_stats["impacts"]  # the ball still lands on the door
+
+
+def test_choosing_force_arrows_without_showing_forces_is_an_error_with_the_fix():
+    from animbatch.errors import SceneError
+
+    with pytest.raises(SceneError) as error:
+        scene("duration: 1\nbodies: [{name: a}]\nrender: {arrows: {forces: [joint]}}")
+    assert "show (velocity) does not draw forces: add it, e.g. show: [forces]" in str(error.value)

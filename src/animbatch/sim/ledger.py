@@ -124,7 +124,7 @@ def conservation_laws(model: Model) -> dict[str, Law]:
         elif not isinstance(term, InverseSquarePairs | DihedralSprings):
             external.append(f"{term.label} is an external force")
     if model.joints is not None and model.joints.anchored:
-        external.append("joints to anchors hold the bodies")
+        external.append("joints to the world or anchors hold the bodies")
     if _has_fixed_colliders(model):
         external.append("fixed colliders push the bodies")
     if model.anchors is not None and model.anchors.moving:

@@ -158,13 +158,20 @@ class ArrowSpec(SceneModel):
     show: list[Literal["velocity", "acceleration", "forces"]] = key(
         ["velocity"], "What to draw: velocity v, acceleration a, and forces (one arrow per kind of force acting).")
     forces: list[ForceArrowKind] | None = key(
-        None, "Which kinds of force (default: every kind acting in the scene): gravity, gravitation, drag, wind, "
-              "aerodynamics, buoyancy, spring, dihedral, controller, force, and contact (contact and constraint "
-              "forces, m·a minus the rest).")
+        None, "Which kinds of force, with show: [forces] (default: every kind acting in the scene): "
+              + ", ".join(FORCE_ARROW_KINDS[:-1]) + " (the joints' constraint forces), and contact (m·a minus the "
+              "rest).")
     bodies: list[Name] | None = key(None, "Bodies with arrows: particles and rigid bodies (default: all of them).")
     length: float | None = key(None, "Length of the longest arrow of each quantity over the run (all forces share "
                                      "one scale, so they compare); default a fifth of the motion's size.", "m", gt=0)
     legend: bool = key(True, "A legend of the arrows' colours in the lower right corner.")
+
+    @model_validator(mode="after")
+    def _forces_shown(self) -> "ArrowSpec":
+        if self.forces is not None and "forces" not in self.show:
+            raise rule_error(f"forces picks which forces to draw, but show ({', '.join(self.show)}) does not draw "
+                             "forces: add it, e.g. show: [forces] or show: [velocity, forces]", "forces")
+        return self
 
 
 VideoPreset = Literal["ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower", "veryslow"]
