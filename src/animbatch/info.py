@@ -216,7 +216,10 @@ def _collider_line(collider: Any) -> str:
     else:
         where = f"{collider.file} at {_vector(collider.position)} m"
     hidden = "" if collider.visible else ", hidden"
-    return f"{collider.type:<6} {where}, {collider.material}{hidden}"
+    keys = getattr(collider, "keyframes", None)
+    moving = (f", moving along {len(keys)} keyframe{'s' if len(keys) != 1 else ''} ({collider.interpolation}) "
+              f"from {keys[0].time:g} to {keys[-1].time:g} s" if keys else "")
+    return f"{collider.type:<6} {where}, {collider.material}{hidden}{moving}"
 
 
 def _contact_lines(scene: LoadedScene, model: Model) -> list[str]:

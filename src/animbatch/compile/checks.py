@@ -43,6 +43,15 @@ def check_method(spec: SceneSpec) -> list[Problem]:
     scheme = METHODS[spec.solver.method].scheme
     colliding = any(getattr(body, "collide", True) for body in spec.bodies)
     has_contacts = (bool(spec.colliders) or spec.contacts is not None) and colliding
+    moving = [k for k, c in enumerate(spec.colliders) if getattr(c, "keyframes", None) is not None]
+    if moving and has_contacts and scheme is None:
+        return [(("colliders", moving[0], "keyframes"), (
+            f"colliders on keyframes need a fixed-step method; {spec.solver.method} is adaptive. Use "
+            "solver.method: symplectic_euler or verlet (with a dt that resolves the collider's motion)"))]
+    if moving and any(emitter.collision != "pass" for emitter in spec.emitters):
+        return [(("colliders", moving[0], "keyframes"), (
+            "emitted particles meet only colliders that stay put (so far); this collider moves. Give the emitters "
+            "collision: pass, or keep the collider still"))]
     if not has_contacts or scheme is None or scheme.takes_constraints:
         return []
     return [(("solver", "method"), (

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
 
 from animbatch.compile.bodies import orientation_matrix
 from animbatch.scene.schema import (
@@ -43,6 +44,8 @@ from animbatch.scene.schema import (
 from animbatch.sim.contact.detection import PLANE, STATIC_BOX, STATIC_SPHERE, TRIANGLE, ContactSettings, ContactWorld
 from animbatch.sim.contact.geometry import BodyBoxes, Probes, StaticColliders
 from animbatch.sim.contact.materials import Coefficients, MaterialTable
+from animbatch.sim.contact.moving import ColliderPath, MovingColliders
+from animbatch.sim.motion import KeyframePath
 from animbatch.sim.rigid.shapes import load_mesh
 
 RIM_PROBES = 16
@@ -175,7 +178,8 @@ def build_contact_world(spec: SceneSpec, model: Any, centres: dict[str, np.ndarr
         np.array([by_name[n].collide for n in owner_names], bool),
         settings.bodies, tree, reach,
         np.array([deformable_names.index(n) if n in deformable_names else -1 for n in owner_names], np.intp),
-        sources, tuple(model.body_names), np.asarray(model.bodies.mass, float), _jointed_pairs(model))
+        sources, tuple(model.body_names), np.asarray(model.bodies.mass, float), _jointed_pairs(model),
+        moving_colliders(spec))
     return world, ContactSettings(settings.iterations, settings.rest_speed, settings.slop)
 
 
@@ -188,3 +192,31 @@ def _jointed_pairs(model: Any) -> np.ndarray | None:
         return None
     low, high = pairs.min(axis=1).astype(np.int64), pairs.max(axis=1).astype(np.int64)
     return np.unique(low * model.body_count + high)
+
+
+def collider_path(collider: Any) -> ColliderPath:
+    """The path of a collider on keyframes: its position displaced by the keys' offsets, turned by their
+    rotations."""
+    keys = collider.keyframes
+    times = np.array([k.time for k in keys], float)
+    offsets = KeyframePath(times, np.array([k.offset for k in keys], float), collider.interpolation)
+    turns = Rotation.from_matrix(np.array([orientation_matrix(k.rotation) for k in keys]))
+    return ColliderPath(np.asarray(collider.position, float), times, offsets, turns, collider.interpolation)
+
+
+def moving_colliders(spec: SceneSpec) -> MovingColliders | None:
+    """The scene's colliders on keyframes, and which of the contact world's spheres and boxes each one is."""
+    paths: list[ColliderPath] = []
+    sphere, box = [], []
+    for collider in spec.colliders:
+        moves = getattr(collider, "keyframes", None) is not None
+        if moves:
+            paths.append(collider_path(collider))
+        slot = len(paths) - 1 if moves else -1
+        if isinstance(collider, SphereCollider):
+            sphere.append(slot)
+        elif isinstance(collider, BoxCollider):
+            box.append(slot)
+    if not paths:
+        return None
+    return MovingColliders(tuple(paths), np.array(sphere, np.intp), np.array(box, np.intp))

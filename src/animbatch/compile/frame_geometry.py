@@ -53,12 +53,16 @@ def collider_points(spec: SceneSpec, scene_dir: Path = Path(".")) -> np.ndarray:
     for collider in spec.colliders:
         if not collider.visible:
             continue
+        # a collider on keyframes counts at every key's offset (its turns are covered by its diagonal)
+        keys = getattr(collider, "keyframes", None) or ()
+        shifts = [np.asarray(key.offset, float) for key in keys] or [np.zeros(3)]
         if isinstance(collider, SphereCollider):
-            points += [np.asarray(collider.position) + s * collider.radius for s in (-1, 1)]
+            points += [np.asarray(collider.position) + shift + s * collider.radius for s in (-1, 1) for shift in shifts]
         elif isinstance(collider, BoxCollider):
             half = np.asarray(collider.size) / 2
             corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half
-            points += list(corners @ orientation_matrix(collider.orientation).T + collider.position)
+            for shift in shifts:
+                points += list(corners @ orientation_matrix(collider.orientation).T + collider.position + shift)
         elif isinstance(collider, MeshCollider):
             vertices = load_mesh(scene_dir / collider.file, collider.scale).vertices
             vertices = vertices @ orientation_matrix(collider.orientation).T + collider.position
@@ -131,6 +135,7 @@ def frame_geometry(spec: SceneSpec, model: Model, bounds: np.ndarray, largest_ve
                          if deformables is not None else (),
                          collider_looks=tuple((look[0] or COLLIDER_COLOR, look[1]) for look in
                                               (surface_look(spec, c) for c in spec.colliders if c.visible)),
+                         collider_paths=_collider_paths(spec),
                          rigid_volume_radius=np.asarray(model.bodies.radius[n:]))
 
 
@@ -203,3 +208,13 @@ def _mesh_files(spec: SceneSpec, scene_dir: Path) -> dict[tuple[str, str], Any]:
             shapes += [body.shape] + [part.shape for part in parts]
     return {mesh_key(shape): load_mesh(scene_dir / shape.file, shape.scale)
             for shape in shapes if isinstance(shape, MeshShape | MeshCollider)}
+
+
+def _collider_paths(spec: SceneSpec) -> tuple[Any, ...]:
+    """Per drawn collider, its path if it moves along keyframes, else None."""
+    if not any(getattr(c, "keyframes", None) is not None for c in spec.colliders):
+        return ()
+    from animbatch.compile.contacts import collider_path  # contact code only for scenes that need it
+
+    return tuple(collider_path(c) if getattr(c, "keyframes", None) is not None else None
+                 for c in spec.colliders if c.visible)

@@ -380,7 +380,9 @@ class FrameRenderer:
 
         colliders = self.geometry.colliders
         looks = self.geometry.collider_looks or tuple((c.color or COLLIDER_COLOR, None) for c in colliders)
-        for collider, (color, finish) in zip(colliders, looks):
+        paths = self.geometry.collider_paths or (None,) * len(colliders)
+        self._moving_colliders: list[tuple[Any, Any]] = []  # (actor, path): placed at every frame
+        for collider, (color, finish), path in zip(colliders, looks, paths):
             if isinstance(collider, PlaneCollider):
                 normal = np.asarray(collider.normal, float) / np.linalg.norm(collider.normal)
                 level = float(np.dot(collider.point, normal))
@@ -408,7 +410,9 @@ class FrameRenderer:
             mesh = mesh.compute_normals(split_vertices=True, feature_angle=40.0)
             shading = (self._shading(finish, color) if finish is not None
                        else {"color": color, "smooth_shading": True, "ambient": 0.15})
-            self.plotter.add_mesh(mesh, **shading)
+            actor = self.plotter.add_mesh(mesh, **shading)
+            if path is not None:
+                self._moving_colliders.append((actor, path))
 
     def _is_ground(self, normal: np.ndarray, level: float) -> bool:
         """Whether the plane ``normal · p = level`` is the drawn ground's."""
@@ -496,6 +500,8 @@ class FrameRenderer:
         if geometry.anchors is not None and geometry.anchors.moving:
             for index, actor in self._anchor_actors:
                 actor.SetPosition(*anchor_positions[index])
+        for actor, path in self._moving_colliders:
+            actor.user_matrix = path.matrix(t)
         rotation = None
         if orientations is not None and len(self._rigid_matrices):
             rotation = quaternion.to_matrix(orientations[n:])

@@ -74,6 +74,7 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
     ("`materials.<name>`", "materials.<name>.", schema.MaterialSpec),
     ("`material_pairs[]`", "material_pairs[].", schema.MaterialPairSpec),
     *[(f"`colliders[]` — `type: {tag_of(spec)}`", "colliders[].", spec) for spec in schema.COLLIDER_SPECS],
+    ("`colliders[].keyframes[]` (box, sphere)", "keyframes[].", schema.ColliderKeyframeSpec),
     ("`contacts`", "contacts.", schema.ContactSpec),
     ("`render`", "render.", schema.RenderSpec),
     ("`render.camera`", "render.camera.", schema.CameraSpec),

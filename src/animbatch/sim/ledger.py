@@ -104,6 +104,8 @@ def conservation_laws(model: Model) -> dict[str, Law]:
         energy_culprits.append("moving anchors do work")
     if model.joints is not None and model.joints.driven:
         energy_culprits.append("joint motors do work")
+    if model.contact_world is not None and model.contact_world.moving is not None:
+        energy_culprits.append("moving colliders do work")
     if model.joints is not None and model.joints.stopping:
         energy_culprits.append("joint limits and ropes stop bodies inelastically")
     if model.contact_world is not None and not _elastic_contacts(model):

@@ -32,6 +32,7 @@ from animbatch.scene.schema.bodies import (
 from animbatch.scene.schema.contacts import (
     COLLIDER_SPECS,
     BoxCollider,
+    ColliderKeyframeSpec,
     ColliderSpec,
     ContactSpec,
     MaterialPairSpec,
@@ -175,6 +176,7 @@ __all__ = [
     "EventSpec",
     "DistanceJointSpec",
     "PulleyJointSpec",
+    "ColliderKeyframeSpec",
     "RopeJointSpec",
     "BallJointSpec",
     "HingeJointSpec",

@@ -34,6 +34,7 @@ from animbatch.sim.contact.geometry import (
     to_triangles,
 )
 from animbatch.sim.contact.materials import MaterialTable
+from animbatch.sim.contact.moving import MovingColliders
 
 STATIC = -1  # "solid body" index of fixed colliders
 
@@ -69,6 +70,18 @@ class ContactWorld:
     body_names: tuple[str, ...] = ()
     body_mass: np.ndarray | None = None
     excluded: np.ndarray | None = None  # sorted keys a·P + b (a < b) of body pairs that never touch (jointed)
+    moving: MovingColliders | None = None  # colliders on keyframes (kinematic solids)
+
+    def statics_at(self, t: float) -> StaticColliders:
+        """The fixed solids at time t [s] (moving colliders where their paths put them)."""
+        return self.statics if self.moving is None else self.moving.place(self.statics, t)
+
+    def kinematic_slots(self, contacts: Contacts) -> np.ndarray | None:
+        """For each contact, the moving collider (its path index) it touches, or −1; None without moving ones."""
+        if self.moving is None:
+            return None
+        return self.moving.slots(contacts.solid_kind, contacts.solid_index, STATIC_SPHERE,
+                                 (STATIC_BOX, STATIC_BOX_FACE))
 
     def allowed(self, first: np.ndarray | int, second: np.ndarray) -> np.ndarray:
         """Whether bodies ``first`` and ``second`` (K,) may touch: not a pair a joint joins (the joint holds them,
@@ -220,7 +233,7 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
     check_scale(world, state, travel)
     centres = probe_centres(world, state)
     active = world.collides[world.probes.owner]
-    statics, parts = world.statics, []
+    statics, parts = world.statics_at(state.t), []
     everywhere = np.flatnonzero(active)
     largest_travel = float(travel.max(initial=0.0)) if travel is not None else 0.0
     reach = margin + largest_travel + (float(world.probes.radius.max()) if world.probes.count else 0.0)

@@ -56,16 +56,19 @@ PUSH_ITERATIONS = 50
 
 @dataclass
 class BodyVelocities:
-    """Velocities (or accelerations) and inverse inertias of P bodies plus one fixed "body" at index P (colliders).
+    """Velocities (or accelerations) and inverse inertias of P bodies, then M moving colliders, and one fixed "body"
+    last (the colliders that stay put).
 
-    ``v``, ``omega``: (P + 1, 3); ``inverse_mass``: (P + 1,); ``inverse_inertia``: (P + 1, 3, 3), world axes
-    (zero for particles, which do not turn, and for the fixed body).
+    ``v``, ``omega``: (P + M + 1, 3); ``inverse_mass``: (P + M + 1,); ``inverse_inertia``: (P + M + 1, 3, 3), world
+    axes (zero for particles, which do not turn, for the moving colliders and for the fixed body); ``driven``
+    (P + M + 1,): the moving colliders, whose velocities are prescribed (None: there are none).
     """
 
     v: np.ndarray
     omega: np.ndarray
     inverse_mass: np.ndarray
     inverse_inertia: np.ndarray
+    driven: np.ndarray | None = None
 
 
 def tangent_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -104,12 +107,15 @@ class ContactRows:
     products, one C call each, whatever the number of contacts.
     """
 
-    def __init__(self, contacts: Contacts, bodies: BodyVelocities, x: np.ndarray) -> None:
+    def __init__(self, contacts: Contacts, bodies: BodyVelocities, x: np.ndarray,
+                 kinematic: np.ndarray | None = None) -> None:
         self.bodies = bodies
         self.count = contacts.count
         self.size = len(x)
         self.a = contacts.probe_body
         self.b = np.where(contacts.solid_body < 0, len(x) - 1, contacts.solid_body)
+        if kinematic is not None:  # contacts with moving colliders: their slots in bodies (else −1)
+            self.b = np.where(kinematic >= 0, kinematic, self.b)
         self.n = contacts.normal
         self.t1, self.t2 = tangent_basis(self.n)
         self.r_a, self.r_b = contacts.point - x[self.a], contacts.point - x[self.b]
@@ -137,6 +143,8 @@ class ContactRows:
         k, size, a, b = self.count, self.size, self.a, self.b
         moving = self.bodies.inverse_mass > 0
         turning = np.any(self.bodies.inverse_inertia != 0, axis=(1, 2))
+        if not response and self.bodies.driven is not None:  # moving colliders: their velocity is read, not changed
+            moving, turning = moving | self.bodies.driven, turning | self.bodies.driven
         keep = np.stack([moving[a], turning[a], moving[b], turning[b]], axis=1)  # (K, 4) blocks of 3 entries
         columns = (np.stack([3 * a, 3 * (size + a), 3 * b, 3 * (size + b)], axis=1)[:, :, None] + np.arange(3))
         per_row = 3 * keep.sum(axis=1)
@@ -268,19 +276,21 @@ class SolveResult:
 
 def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h: float, *, iterations: int,
                    rest_speed: float, slop: float, bounce: bool = True,
-                   warm: tuple[np.ndarray, np.ndarray] | None = None) -> SolveResult:
+                   warm: tuple[np.ndarray, np.ndarray] | None = None,
+                   kinematic: np.ndarray | None = None) -> SolveResult:
     """Change ``bodies.v`` and ``bodies.omega`` in place so that the contacts hold, over a step of ``h`` [s].
 
     ``x``: centres of mass (P + 1, 3) [m]. ``bounce``: apply restitution (off when re-projecting velocities that
     were already resolved in this step). ``h = 0`` means an instant: no speculative contacts, no pushing apart.
     ``warm``: normal impulses (K,) and tangential impulse vectors (K, 3) to start from (warm starting: the last
-    step's impulses of the same contacts, so that resting contacts converge over steps).
+    step's impulses of the same contacts, so that resting contacts converge over steps). ``kinematic`` (K,): the
+    slot in ``bodies`` of the moving collider each contact touches (−1: none).
     """
     count = contacts.count
     result = SolveResult(np.zeros(count), np.zeros((count, 2)))
     if count == 0:
         return result
-    rows = ContactRows(contacts, bodies, x)
+    rows = ContactRows(contacts, bodies, x, kinematic)
     n = rows.n
     approach = rows.relative(n)
     sticking = np.linalg.norm(rows.tangential(), axis=1) <= rest_speed

@@ -43,6 +43,9 @@ class ContactResolver:
         self.settings = model.contact_settings
         self.gravity = gravity_magnitude(system.terms)
         self.reach = body_reach(self.world, model.body_count)
+        statics = self.world.statics  # how far a moving collider's surface reaches from its centre
+        self.collider_reach = float(max(np.max(np.linalg.norm(statics.box_half, axis=1), initial=0.0),
+                                        np.max(statics.sphere_radius, initial=0.0)))
         self.contacts_last_step = 0
         self.impacts = ImpactLog()
         # warm starting: last step's impulses per unit time, normal (K,) and tangential vectors (K, 3), for the
@@ -57,21 +60,30 @@ class ContactResolver:
             return self.settings.rest_speed
         return max(DEFAULT_REST_SPEED, 3 * self.gravity * h)
 
-    def _bodies(self, state: Kinematics) -> BodyVelocities:
-        """Velocities and inverse inertias, plus the fixed body at the end."""
+    def _bodies(self, state: Kinematics) -> tuple[BodyVelocities, np.ndarray]:
+        """Velocities and inverse inertias, then the moving colliders' (at ``state.t``), then the fixed body; and
+        the centres of mass of them all (P + M + 1, 3) [m]."""
         model = self.system.model
         count, n = model.body_count, model.particle_count
-        v = np.zeros((count + 1, 3))
-        omega = np.zeros((count + 1, 3))
-        inverse_mass = np.zeros(count + 1)
-        inverse_inertia = np.zeros((count + 1, 3, 3))
-        v[:count] = state.v
+        moving = self.world.moving
+        extra = moving.count if moving is not None else 0
+        v = np.zeros((count + extra + 1, 3))
+        omega = np.zeros((count + extra + 1, 3))
+        x = np.zeros((count + extra + 1, 3))
+        inverse_mass = np.zeros(count + extra + 1)
+        inverse_inertia = np.zeros((count + extra + 1, 3, 3))
+        v[:count], x[:count] = state.v, state.x
         inverse_mass[:count] = 1.0 / model.bodies.mass
         if state.rotation is not None and state.omega is not None and model.rigid is not None:
             omega[n:count] = state.omega
             rotation = state.rotation
             inverse_inertia[n:count] = rotation @ model.rigid.inverse_inertia @ np.transpose(rotation, (0, 2, 1))
-        return BodyVelocities(v, omega, inverse_mass, inverse_inertia)
+        driven = None
+        if moving is not None:  # prescribed motion, no inverse mass: nothing pushes a moving collider back
+            x[count:count + extra], v[count:count + extra], omega[count:count + extra] = moving.motion(state.t)
+            driven = np.zeros(count + extra + 1, bool)
+            driven[count:count + extra] = True
+        return BodyVelocities(v, omega, inverse_mass, inverse_inertia, driven), x
 
     def _write_back(self, motion: np.ndarray, state: Kinematics, bodies: BodyVelocities) -> None:
         model = self.system.model
@@ -111,17 +123,23 @@ class ContactResolver:
         speed = np.linalg.norm(state.v, axis=1)
         if state.omega is not None:
             speed[state.first_rigid:] += np.linalg.norm(state.omega, axis=1) * self.reach[state.first_rigid:]
-        # each body's reach in the step, with room for the velocity to grow; a pair closes the sum of its two
+        # each body's reach in the step, with room for the velocity to grow; a pair closes the sum of its two (and
+        # a moving collider closes on everything at its own speed)
+        if self.world.moving is not None:
+            speed = speed + self.world.moving.largest_speed(t, self.collider_reach)
         contacts = detect(self.world, state, 2 * self.settings.slop + 1e-9, travel=1.5 * h * speed)
         self.contacts_last_step = contacts.count
         if not contacts.count:
             return None
-        bodies = self._bodies(state)
-        x = np.vstack([state.x, np.zeros((1, 3))])
+        bodies, x = self._bodies(state)
+        kinematic = self.world.kinematic_slots(contacts)
+        if kinematic is not None:
+            kinematic = np.where(kinematic >= 0, self.system.model.body_count + kinematic, -1)
         codes = contact_codes(contacts)
         warm = self._warm_start(codes, h)
         result = solve_impulses(contacts, bodies, x, h, iterations=self.settings.iterations,
-                                rest_speed=self.rest_speed(h), slop=self.settings.slop, bounce=bounce, warm=warm)
+                                rest_speed=self.rest_speed(h), slop=self.settings.slop, bounce=bounce, warm=warm,
+                                kinematic=kinematic)
         if bounce:  # remember the impulses of the main solve (not of end-of-step re-projections)
             self.impacts.record(t + result.arrival * h, contacts.probe_body, result.impact)
 

@@ -122,9 +122,11 @@ class Model:
 
     @property
     def adds_energy(self) -> bool:
-        """Whether something can put energy in: a force term (see :attr:`ForceTerm.adds_energy`) or a joint motor."""
-        return any(term.adds_energy for term in self.force_terms) or (self.joints is not None
-                                                                        and self.joints.driven)
+        """Whether something can put energy in: a force term (see :attr:`ForceTerm.adds_energy`), a joint motor or a
+        collider moving along keyframes."""
+        return (any(term.adds_energy for term in self.force_terms)
+                or (self.joints is not None and self.joints.driven)
+                or getattr(self.contact_world, "moving", None) is not None)
 
     def positions(self, y: np.ndarray) -> np.ndarray:
         """Centre-of-mass positions [m] of all bodies: (P, 3) or (F, P, 3)."""

@@ -1,0 +1,134 @@
+"""Colliders on keyframes (issue 22, kinematic solids): their paths, and contacts that act on the velocity relative
+to their moving surface: a paddle bounces a ball at (1 + e) times its speed, a turning paddle at (1 + e) ω r, a
+platform carries a crate by friction without slipping and lets it slip on ice."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from animbatch import api
+from animbatch.compile.contacts import collider_path
+from animbatch.errors import SceneError
+from animbatch.stages import parse_scene
+from conftest import scene
+
+G = 9.81
+
+
+def paddle(speed: float, restitution: float, keys: str | None = None, ball_at: str = "[0.5, 0, 0]") -> tuple:
+    keys = keys or f"[{{time: 0, offset: [0, 0, 0]}}, {{time: 1, offset: [{speed}, 0, 0]}}]"
+    loaded = scene(f"""
+        duration: 1
+        fps: 50
+        solver: {{method: symplectic_euler, dt: 5.0e-4}}
+        materials:
+          bat: {{restitution: {restitution}, static_friction: 0, kinetic_friction: 0}}
+        bodies:
+          - {{name: ball, type: rigid, shape: {{type: sphere, radius: 0.05}}, density: 1000, position: {ball_at},
+             material: bat}}
+        colliders:
+          - {{type: box, position: [0, 0, 0], size: [0.1, 0.4, 1.2], material: bat, interpolation: linear,
+             keyframes: {keys}}}
+    """)
+    return api.simulate(loaded), loaded
+
+
+@pytest.mark.parametrize("restitution", [1.0, 0.5, 0.0])
+def test_a_paddle_moving_at_v_sends_a_ball_at_rest_off_at_1_plus_e_times_v(restitution):
+    trajectory, _ = paddle(2.0, restitution)
+    np.testing.assert_allclose(trajectory.velocities[-1, 0], [(1 + restitution) * 2.0, 0, 0], atol=1e-9)
+    assert trajectory.ledger["conservation"]["energy"]["conserved"] is False  # the paddle does work
+    assert "moving colliders do work" in trajectory.ledger["conservation"]["energy"]["reason"]
+
+
+def test_a_turning_paddle_hits_with_the_speed_of_its_surface_there():
+    """Turning at ω about its centre, the paddle's face at lever r moves at ω r: an elastic ball there leaves at
+    about 2 ω r (the face has turned by a few degrees at the impact, so within 3 %)."""
+    omega, lever = 2.0, 0.4  # rad/s about y; the ball sits 0.4 m along the paddle, 2 mm from its face
+    keys = f"[{{time: 0}}, {{time: 1, rotation: {{axis: [0, 1, 0], angle: {float(np.degrees(omega))!r}}}}}]"
+    trajectory, _ = paddle(0.0, 1.0, keys, ball_at=f"[0.102, 0, {lever}]")
+    speed = np.linalg.norm(trajectory.velocities[-1, 0])
+    assert speed == pytest.approx(2 * omega * lever, rel=0.03)
+
+
+def crate_on_platform(friction: float, distance: float = 1.0) -> tuple:
+    loaded = scene(f"""
+        duration: 2.5
+        fps: 50
+        solver: {{method: symplectic_euler, dt: 1.0e-3}}
+        materials:
+          pad: {{restitution: 0, static_friction: {friction}, kinetic_friction: {friction}}}
+        bodies:
+          - {{name: crate, type: rigid, shape: {{type: box, size: [0.2, 0.2, 0.2]}}, density: 500,
+             position: [0, 0.2, 0], material: pad}}
+        colliders:
+          - {{type: box, position: [0, 0.05, 0], size: [2.0, 0.1, 1.0], material: pad,
+             keyframes: [{{time: 0, offset: [0, 0, 0]}}, {{time: 2, offset: [{distance}, 0, 0]}}]}}
+        fields: [{{type: gravity}}]
+    """)
+    trajectory = api.simulate(loaded)
+    s = np.clip(trajectory.times / 2, 0, 1)
+    return trajectory, distance * (3 * s**2 - 2 * s**3)  # the clamped cubic between two keys
+
+
+def test_a_platform_carries_a_crate_by_friction_when_its_acceleration_is_below_mu_g():
+    trajectory, platform = crate_on_platform(0.5)  # largest acceleration 6 d / T² = 1.5 m/s² < 0.5 g
+    np.testing.assert_allclose(trajectory.positions[:, 0, 0], platform, atol=1e-3)  # within a step's travel
+    np.testing.assert_allclose(trajectory.positions[:, 0, 1], 0.2, atol=2e-4)
+
+
+def test_on_ice_the_platform_slides_out_from_under_the_crate_which_lags_at_mu_g():
+    trajectory, platform = crate_on_platform(0.05)  # 1.5 m/s² > 0.05 g = 0.49 m/s²: it slips at once
+    early = trajectory.times <= 0.4  # slipping forwards relative to it: friction accelerates it at μ g
+    np.testing.assert_allclose(trajectory.positions[early, 0, 0], 0.5 * 0.05 * G * trajectory.times[early] ** 2,
+                               atol=2e-3)
+    assert trajectory.positions[-1, 0, 0] < platform[-1] - 0.05
+
+
+def test_a_collider_path_holds_its_keys_and_its_velocity_is_the_paths_derivative():
+    loaded = parse_scene("""
+        duration: 1
+        solver: {method: verlet}
+        bodies: [{name: ball, position: [0, 1, 0]}]
+        colliders:
+          - type: box
+            position: [1, 0, 0]
+            size: [1, 1, 1]
+            keyframes:
+              - {time: 0, offset: [0, 0, 0]}
+              - {time: 1, offset: [1, 2, 0], rotation: {axis: [0, 0, 1], angle: 90}}
+              - {time: 3, offset: [0, 0, 1], rotation: {axis: [1, 0, 0], angle: 30}}
+    """, filename="test.yaml")
+    path = collider_path(loaded.spec.colliders[0])
+    centre, turn = path.pose(1.0)
+    np.testing.assert_allclose(centre, [2, 2, 0], atol=1e-12)
+    np.testing.assert_allclose(turn @ [1, 0, 0], [0, 1, 0], atol=1e-12)
+    for t in (0.3, 1.7, 2.4):
+        h = 1e-5
+        (ahead, turn_ahead), (behind, turn_behind) = path.pose(t + h), path.pose(t - h)
+        velocity, omega = path.velocity(t)
+        np.testing.assert_allclose(velocity, (ahead - behind) / (2 * h), atol=1e-6)
+        spin = (turn_ahead - turn_behind) / (2 * h) @ path.pose(t)[1].T  # Ṙ Rᵀ = [ω]×
+        np.testing.assert_allclose(omega, [spin[2, 1], spin[0, 2], spin[1, 0]], atol=1e-5)
+    np.testing.assert_allclose(path.velocity(5.0)[0], 0)  # held after the last key
+
+
+def test_moving_colliders_are_refused_with_adaptive_methods_and_with_colliding_emitters():
+    with pytest.raises(SceneError) as error:
+        parse_scene("""
+            duration: 1
+            solver: {method: RK45}
+            bodies: [{name: ball, position: [0, 1, 0]}]
+            colliders: [{type: box, position: [0, 0, 0], size: [1, 1, 1], keyframes: [{time: 0}]}]
+        """, filename="test.yaml")
+    assert "colliders on keyframes need a fixed-step method; RK45 is adaptive" in str(error.value)
+    with pytest.raises(SceneError) as error:
+        parse_scene("""
+            duration: 1
+            solver: {method: verlet}
+            bodies: [{name: ball, position: [0, 1, 0]}]
+            emitters: [{name: spray, rate: 10}]
+            colliders: [{type: sphere, position: [0, 0, 0], radius: 1, keyframes: [{time: 0}]}]
+        """, filename="test.yaml")
+    assert "emitted particles meet only colliders that stay put" in str(error.value)
