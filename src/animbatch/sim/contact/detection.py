@@ -21,6 +21,7 @@ from scipy.spatial import cKDTree
 
 from animbatch.errors import SimulationError
 from animbatch.sim.bodies import Kinematics
+from animbatch.sim.contact.edges import edge_contact
 from animbatch.sim.contact.geometry import (
     BodyBoxes,
     Probes,
@@ -41,6 +42,9 @@ STATIC = -1  # "solid body" index of fixed colliders
 # What a contact's solid is (``Contacts.solid_kind``); ``solid_index`` numbers solids within their kind. A box corner
 # against a box touches one face of it (``*_BOX_FACE``, ``solid_index = 6 box + face``, see geometry.to_box_face).
 PLANE, STATIC_SPHERE, STATIC_BOX, TRIANGLE, BODY_SPHERE, BODY_BOX, STATIC_BOX_FACE, BODY_BOX_FACE = range(8)
+# edge–edge contacts between boxes (fixed-step detection only): solid index 12 box + edge; their "probe" is a number
+# past the probes, 12 box + edge of the moving box (see edge_contacts)
+STATIC_EDGE, BODY_EDGE = 8, 9
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,7 +85,7 @@ class ContactWorld:
         if self.moving is None:
             return None
         return self.moving.slots(contacts.solid_kind, contacts.solid_index, STATIC_SPHERE,
-                                 (STATIC_BOX, STATIC_BOX_FACE))
+                                 (STATIC_BOX, STATIC_BOX_FACE, STATIC_EDGE))
 
     def allowed(self, first: np.ndarray | int, second: np.ndarray) -> np.ndarray:
         """Whether bodies ``first`` and ``second`` (K,) may touch: not a pair a joint joins (the joint holds them,
@@ -227,9 +231,11 @@ def _contacts(world: ContactWorld, probes: np.ndarray, centres: np.ndarray, dist
                     np.broadcast_to(solid_index, keep.shape)[keep].astype(np.intp))
 
 
-def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.ndarray | None = None) -> Contacts:
+def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.ndarray | None = None, *,
+           edges: bool = False) -> Contacts:
     """Every probe–solid pair whose gap is below ``margin`` [m] plus how far both sides can travel (``travel`` (P,)
-    [m] per body, the most any of its points moves in the coming step; None: nothing moves), as contacts."""
+    [m] per body, the most any of its points moves in the coming step; None: nothing moves), as contacts; with
+    ``edges``, also the edge–edge contacts of boxes (:mod:`animbatch.sim.contact.edges`)."""
     check_scale(world, state, travel)
     centres = probe_centres(world, state)
     active = world.collides[world.probes.owner]
@@ -272,7 +278,59 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
                                    statics.triangle_material[triangles], margin, TRIANGLE, triangles, travel))
     if world.bodies_collide and tree is not None:
         parts += _between_bodies(world, centres, tree, active, margin, box_centres, box_rotations, travel)
+    if edges and world.boxes.count:
+        parts.append(edge_contacts(world, statics, box_centres, box_rotations, margin, travel))
     return Contacts.concatenate(parts)
+
+
+def edge_contacts(world: ContactWorld, statics: StaticColliders, box_centres: np.ndarray, box_rotations: np.ndarray,
+                  margin: float, travel: np.ndarray | None) -> Contacts:
+    """Edge–edge contacts of the boxes moving with bodies against the fixed boxes and (when bodies collide) each
+    other, within ``margin`` [m] plus how far the pair can travel."""
+    boxes = world.boxes
+    found: list[tuple] = []  # (box, edge, owner, solid body, solid kind, solid index, material, point, normal, gap)
+    steps = travel if travel is not None else np.zeros(len(world.body_material))
+    for k in range(boxes.count):
+        owner = int(boxes.owner[k])
+        if not world.collides[owner]:
+            continue
+        size_k = float(np.linalg.norm(boxes.half[k]))
+        for j in range(len(statics.box_centre)):
+            reach = margin + float(steps[owner])
+            if np.linalg.norm(box_centres[k] - statics.box_centre[j]) > size_k + np.linalg.norm(statics.box_half[j]) \
+                    + reach:
+                continue
+            hit = edge_contact(box_centres[k], box_rotations[k], boxes.half[k], statics.box_centre[j],
+                               statics.box_rotation[j], statics.box_half[j], reach)
+            if hit is not None:
+                found.append((k, hit[3], owner, STATIC, STATIC_EDGE, 12 * j + hit[4], int(statics.box_material[j]),
+                              *hit[:3]))
+        if not world.bodies_collide:
+            continue
+        for other in range(k + 1, boxes.count):
+            second = int(boxes.owner[other])
+            if second == owner or not world.collides[second] or not world.allowed(owner, np.array([second]))[0]:
+                continue
+            if world.group is not None and world.group[owner] >= 0 and world.group[owner] == world.group[second]:
+                continue
+            reach = margin + float(steps[owner] + steps[second])
+            if np.linalg.norm(box_centres[k] - box_centres[other]) > size_k + np.linalg.norm(boxes.half[other]) \
+                    + reach:
+                continue
+            hit = edge_contact(box_centres[k], box_rotations[k], boxes.half[k], box_centres[other],
+                               box_rotations[other], boxes.half[other], reach)
+            if hit is not None:
+                found.append((k, hit[3], owner, second, BODY_EDGE, 12 * other + hit[4],
+                              int(world.body_material[second]), *hit[:3]))
+    if not found:
+        return Contacts.concatenate([])
+    box, edge, owner_, solid, kind, index, solid_material, point, normal, gap = (np.array(c) for c in zip(*found))
+    table = world.materials
+    a, b = world.body_material[owner_], solid_material
+    return Contacts(owner_.astype(np.intp), solid.astype(np.intp), point.reshape(-1, 3), normal.reshape(-1, 3),
+                    gap.astype(float), table.restitution[a, b], table.static_friction[a, b],
+                    table.kinetic_friction[a, b], (world.probes.count + 12 * box + edge).astype(np.intp),
+                    kind.astype(np.intp), index.astype(np.intp))
 
 
 def body_box_poses(world: ContactWorld, state: Kinematics) -> tuple[np.ndarray, np.ndarray]:

@@ -114,13 +114,15 @@ class MovingColliders:
 
     def slots(self, kind: np.ndarray, index: np.ndarray, sphere_kind: int, box_kinds: tuple[int, ...]) -> np.ndarray:
         """For contacts with solids of ``kind`` and ``index`` (K,): the moving collider (path) each touches, or −1.
-        Box faces count by their box (``index // 6``)."""
+        ``box_kinds``: whole box, box face (``index // 6`` is the box) and box edge (``index // 12``)."""
         slot = np.full(len(kind), -1, np.intp)
         on_sphere = kind == sphere_kind
         slot[on_sphere] = self.sphere[index[on_sphere]]
-        whole, face = box_kinds
+        whole, face, edge = box_kinds
         on_box = kind == whole
         slot[on_box] = self.box[index[on_box]]
         on_face = kind == face
         slot[on_face] = self.box[index[on_face] // 6]
+        on_edge = kind == edge
+        slot[on_edge] = self.box[index[on_edge] // 12]
         return slot

@@ -127,7 +127,7 @@ class ContactResolver:
         # a moving collider closes on everything at its own speed)
         if self.world.moving is not None:
             speed = speed + self.world.moving.largest_speed(t, self.collider_reach)
-        contacts = detect(self.world, state, 2 * self.settings.slop + 1e-9, travel=1.5 * h * speed)
+        contacts = detect(self.world, state, 2 * self.settings.slop + 1e-9, travel=1.5 * h * speed, edges=True)
         self.contacts_last_step = contacts.count
         if not contacts.count:
             return None
