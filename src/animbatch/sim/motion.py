@@ -37,6 +37,13 @@ class KeyframePath:
             return self._spline(self._clamped(t))  # type: ignore[attr-defined]
         return np.array([np.interp(t, self.times, self.positions[:, k]) for k in range(3)])
 
+    def acceleration(self, t: float) -> np.ndarray:
+        """Acceleration (3,) [m/s²] at time ``t`` [s]: the spline's second derivative between cubic keys, zero on
+        linear segments (their kinks are impulses no step can take) and outside the keys."""
+        if self.interpolation != "cubic" or len(self.times) == 1 or t < self.times[0] or t > self.times[-1]:
+            return np.zeros(3)
+        return self._spline(t, 2)  # type: ignore[attr-defined]
+
     def velocity(self, t: float) -> np.ndarray:
         """Velocity (3,) [m/s] at time ``t`` [s] (zero outside the keys)."""
         if len(self.times) == 1 or t < self.times[0] or t > self.times[-1]:

@@ -190,7 +190,7 @@ class OverlapAudit:
         looked = []
         for fraction in fractions:
             y = (1 - fraction) * y0 + fraction * y1
-            self.system.project(y)  # unit quaternions
+            self.system.project(y, joints=False)  # unit quaternions (an interpolated look, not a state to keep)
             looked.append((float(fraction), evaluate_pairs(self.world, self._state(y), candidates.probe,
                                                            candidates.solid_kind, candidates.solid_index)))
         return looked

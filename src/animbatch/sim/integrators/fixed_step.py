@@ -120,7 +120,7 @@ class ExplicitRungeKutta(Scheme):
         for b_i, k_i in zip(tableau.b, k):
             if b_i:
                 y += (h * b_i) * k_i
-        self.system.project(y)
+        self.system.project(y, t=t + h)
 
 
 class PartitionedScheme(Scheme):
@@ -163,7 +163,7 @@ def kick_constrain_drift(scheme: SymplecticEuler | Any, t: float, y: np.ndarray,
     scheme.kick(t, config, motion, h)
     drifting = scheme.constraint.resolve(config, motion, h, t=t) if scheme.constraint is not None else None
     system.drift(config, motion if drifting is None else drifting, h)
-    system.project(y)
+    system.project(y, t=t + h)
 
 
 class VelocityVerlet(PartitionedScheme):
@@ -202,7 +202,7 @@ class VelocityVerlet(PartitionedScheme):
         motion += np.multiply(rate_next, 0.5 * h, out=work)
         if constraint is not None:  # end-of-step velocities back onto the contacts, without bouncing again
             constraint.resolve(config, motion, h, bounce=False)
-        self.system.project(y)
+        self.system.project(y, t=t + h)
         self._rate, self._rate_next = rate_next, rate
 
     def snapshot(self) -> Any:

@@ -108,7 +108,8 @@ class ScipyIntegrator(Integrator):
         states = np.empty((len(times), len(y0)))
         fun = CountingRhs(events.rhs if events is not None else system.rhs)
         start = np.array(y0, dtype=float)
-        system.project(start)  # a start that breaks its joints (see EquationsOfMotion.project) is put on them first
+        # a start that breaks its joints (see EquationsOfMotion.project) is put on them first
+        system.project(start, t=float(times[0]))
         with np.errstate(all="ignore"):  # overflow is detected and reported by the checks below, not as warnings
             self._run(system, events, fun, start, times, states, stats, on_frame)
         stats.rhs_evaluations = fun.count
@@ -189,9 +190,9 @@ class ScipyIntegrator(Integrator):
                     frame += 1
                 if events is not None and event_time is not None and interpolant is not None:
                     t, y = float(event_time), interpolant(event_time)
-                    system.project(y)
+                    system.project(y, t=t)
                     events.handle(t, y)
-                    system.project(y)  # impulses can break joints' velocities (a ball hit across its string)
+                    system.project(y, t=t)  # impulses can break joints' velocities (a ball hit across its string)
                     break  # restart the solver from the event
                 if solver.status == "finished":
                     break

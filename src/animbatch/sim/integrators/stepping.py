@@ -56,7 +56,8 @@ class FixedStepIntegrator(Integrator):
             scheme.constraint = self.constraint(system)
         stats = SolverStats(self.method)
         y = np.array(y0, dtype=float)
-        system.project(y)  # a start that breaks its joints (see EquationsOfMotion.project) is put on them first
+        # a start that breaks its joints (see EquationsOfMotion.project) is put on them first
+        system.project(y, t=float(times[0]))
         if hasattr(system, "joint_stabilisation"):  # projected after every step, joints need no Baumgarte term
             system.joint_stabilisation = 0.0
         states = np.empty((len(times), len(y)))

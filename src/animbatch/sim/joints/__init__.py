@@ -45,6 +45,7 @@ from animbatch.sim.joints.kinds import (
 )
 from animbatch.sim.joints.motors import Motors, MotorTarget
 from animbatch.sim.joints.rows import Coupling, JoinedMotion, Rows, apply, apply_transpose
+from animbatch.sim.motion import KeyframePath
 
 __all__ = ["AngleRows", "AxisRows", "JoinedMotion", "JointLoads", "Joints", "LockRows", "MotorTarget", "Motors",
            "PointRows", "RowKind", "Rows", "SegmentRows", "SlideRows", "hinge_angle"]
@@ -93,6 +94,8 @@ class Joints:
     first_offset: np.ndarray  # (K, 3) the joint's point on it, body axes from its centre of mass
     motors: Motors | None = None
     scale: float = 1.0
+    anchor_paths: tuple[KeyframePath, ...] = ()  # anchors on keyframes that joints hold on to (slots after the bodies)
+    anchor_starts: np.ndarray | None = None  # (M, 3) [m] where they start
     _cache: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -101,7 +104,8 @@ class Joints:
             bodies=bodies, unilateral=np.concatenate([kind.unilateral for kind in self.kinds]),
             joint=np.concatenate([kind.joint for kind in self.kinds]),
             angular=np.concatenate([np.full(len(kind.bodies), kind.unit == "rad") for kind in self.kinds]),
-            coupling=Coupling(bodies, len(self.points), bool(np.any(self.points >= self.first_rigid))),
+            coupling=Coupling(bodies, len(self.points) + len(self.anchor_paths),
+                              bool(np.any(self.points >= self.first_rigid))),
             rigid=np.flatnonzero(self.points >= self.first_rigid))
 
     @property
@@ -110,8 +114,8 @@ class Joints:
 
     @property
     def world(self) -> int:
-        """The world's slot in :class:`JoinedMotion`: after the joined bodies."""
-        return len(self.points)
+        """The world's slot in :class:`JoinedMotion`: after the joined bodies and the moving anchors."""
+        return len(self.points) + len(self.anchor_paths)
 
     @property
     def driven(self) -> bool:
@@ -125,8 +129,8 @@ class Joints:
 
     @property
     def anchored(self) -> bool:
-        """Whether some joint holds on to the world (so the joints are not internal to the bodies)."""
-        return bool(np.any(self._cache["bodies"] == self.world))
+        """Whether some joint holds on to the world or an anchor (so the joints are not internal to the bodies)."""
+        return bool(np.any(self._cache["bodies"] >= len(self.points)))
 
     @property
     def row_joint(self) -> np.ndarray:
@@ -146,7 +150,7 @@ class Joints:
     def joined_pairs(self) -> np.ndarray:
         """The pairs of model points (K', 2) that some joint joins to each other (joints to the world left out)."""
         bodies = self._cache["bodies"]
-        pairs = bodies[(bodies != self.world).all(axis=1)]
+        pairs = bodies[(bodies < len(self.points)).all(axis=1)]
         return np.unique(np.sort(self.points[pairs], axis=1), axis=0).reshape(-1, 2)
 
     def segments(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -156,19 +160,33 @@ class Joints:
         if not kinds:
             return np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros((0, 3)), np.zeros((0, 3))
         near, far, near_offset, far_offset = kinds[0].lines()
-        model_point = np.append(self.points, -1)  # compact body index (the world last) → model point
+        # compact body index → model point (−1 for the moving anchors and the world, which are fixed points to draw)
+        model_point = np.concatenate([self.points, np.full(len(self.anchor_paths) + 1, -1)])
+        far_offset = far_offset.copy()
+        on_anchor = (far >= len(self.points)) & (far < self.world)
+        if on_anchor.any():  # a moving anchor's point, where it starts (drawing finds the anchor by it)
+            assert self.anchor_starts is not None
+            far_offset[on_anchor] += self.anchor_starts[far[on_anchor] - len(self.points)]
         return model_point[near], model_point[far], near_offset, far_offset
 
     # ------------------------------------------------------------------------------------------ state
 
+    def _anchors_at(self, x: np.ndarray, v: np.ndarray, t: float) -> None:
+        """The moving anchors' slots of ``x`` and ``v`` at time ``t`` [s], in place."""
+        first = len(self.points)
+        for m, path in enumerate(self.anchor_paths):
+            x[first + m], v[first + m] = path.position(t), path.velocity(t)
+
     def motion(self, state: Kinematics) -> JoinedMotion:
         """The joined bodies' :class:`JoinedMotion` from the model's kinematics."""
         count = len(self.points)
-        x = np.zeros((count + 1, 3))
-        v = np.zeros((count + 1, 3))
+        slots = self.world + 1
+        x = np.zeros((slots, 3))
+        v = np.zeros((slots, 3))
         x[:count], v[:count] = state.x[self.points], state.v[self.points]
-        rotation = np.broadcast_to(np.eye(3), (count + 1, 3, 3)).copy()
-        omega = np.zeros((count + 1, 3))
+        self._anchors_at(x, v, state.t)
+        rotation = np.broadcast_to(np.eye(3), (slots, 3, 3)).copy()
+        omega = np.zeros((slots, 3))
         rigid = self._cache["rigid"]
         if len(rigid):
             assert state.rotation is not None and state.omega is not None
@@ -177,11 +195,11 @@ class Joints:
         return self._motion(x, v, rotation, omega)
 
     def _motion(self, x: np.ndarray, v: np.ndarray, rotation: np.ndarray, omega: np.ndarray) -> JoinedMotion:
-        count = len(self.points)
-        inverse_mass = np.zeros(count + 1)
+        count, slots = len(self.points), len(x)
+        inverse_mass = np.zeros(slots)
         inverse_mass[:count] = self.inverse_mass
-        inverse_inertia = np.zeros((count + 1, 3, 3))
-        spin = np.zeros((count + 1, 3))
+        inverse_inertia = np.zeros((slots, 3, 3))
+        spin = np.zeros((slots, 3))
         rigid = self._cache["rigid"]
         if len(rigid):
             turn = rotation[rigid]
@@ -227,8 +245,8 @@ class Joints:
         keeps the joints instead, which the correction would only fight: a rope would bounce off its stop)."""
         motion = self.motion(state)
         count = len(self.points)
-        applied_force = np.zeros((count + 1, 3))
-        applied_torque = np.zeros((count + 1, 3))
+        applied_force = np.zeros((self.world + 1, 3))
+        applied_torque = np.zeros((self.world + 1, 3))
         applied_force[:count] = force[self.points]
         rigid = self._cache["rigid"]
         if len(rigid) and torque is not None:
@@ -242,6 +260,8 @@ class Joints:
         bodies = self._cache["bodies"]
         rows = self.rows(motion)
         acceleration = applied_force * motion.inverse_mass[:, None]
+        for m, path in enumerate(self.anchor_paths):  # an anchor's prescribed acceleration enters C̈ as it stands
+            acceleration[count + m] = path.acceleration(state.t)
         angular_acceleration = np.einsum("kij,kj->ki", motion.inverse_inertia, applied_torque) + motion.spin
         rate = apply(rows, bodies, (motion.v, motion.omega))
         omega = stabilisation
@@ -253,7 +273,7 @@ class Joints:
             unilateral = self._cache["unilateral"]
             multiplier = self._cache["coupling"].solve(rows, motion, right,
                                                        (~unilateral | engaged) if unilateral.any() else None)
-        joint_force, joint_torque = apply_transpose(rows, bodies, multiplier, count + 1)
+        joint_force, joint_torque = apply_transpose(rows, bodies, multiplier, self.world + 1)
         if motor_force is not None and motor_torque is not None:
             joint_force += motor_force
             joint_torque += motor_torque
@@ -285,11 +305,12 @@ class Joints:
     # ------------------------------------------------------------------------------------------ projection
 
     def project(self, positions: np.ndarray, orientations: np.ndarray | None, linear: np.ndarray,
-                angular_momentum: np.ndarray | None, *, reach: float = 0.0) -> None:
+                angular_momentum: np.ndarray | None, *, reach: float = 0.0, t: float = 0.0) -> None:
         """Move a state back onto the joints, in place (see the module notes): ``positions`` (P, 3) [m] of all
         bodies, rigid ``orientations`` (B, 4), ``linear`` (P, 3): particles' velocities [m/s] then rigid momenta
         [kg·m/s], rigid ``angular_momentum`` (B, 3) [kg·m²/s], world axes. Unilateral rows within ``reach`` [m or
-        rad] of their stops count as reached (their approaching velocity is removed)."""
+        rad] of their stops count as reached (their approaching velocity is removed). ``t`` [s]: the state's time
+        (where moving anchors are)."""
         count = len(self.points)
         rigid = self._cache["rigid"]
         index = self.points[rigid] - self.first_rigid
@@ -299,13 +320,16 @@ class Joints:
         mass_of_linear = np.ones(count)  # linear = mass_of_linear · v
         mass_of_linear[rigid] = 1.0 / self.inverse_mass[rigid]
 
+        slots = self.world + 1
+
         def current() -> JoinedMotion:
-            x = np.zeros((count + 1, 3))
-            v = np.zeros((count + 1, 3))
+            x = np.zeros((slots, 3))
+            v = np.zeros((slots, 3))
             x[:count] = positions[self.points]
             v[:count] = linear[self.points] / mass_of_linear[:, None]
-            rotation = np.broadcast_to(np.eye(3), (count + 1, 3, 3)).copy()
-            omega = np.zeros((count + 1, 3))
+            self._anchors_at(x, v, t)
+            rotation = np.broadcast_to(np.eye(3), (slots, 3, 3)).copy()
+            omega = np.zeros((slots, 3))
             if len(rigid):
                 assert orientations is not None and angular_momentum is not None
                 rotation[rigid] = quaternion.to_matrix(orientations[index])
@@ -322,7 +346,7 @@ class Joints:
             if np.max(np.abs(np.where(violated, rows.violation, 0.0)), initial=0.0) <= tolerance:
                 break
             step = coupling.solve(rows, motion, -rows.violation, violated if unilateral.any() else None)
-            force, torque = apply_transpose(rows, bodies, step, count + 1)
+            force, torque = apply_transpose(rows, bodies, step, slots)
             positions[self.points] += force[:count] * motion.inverse_mass[:count, None]
             if len(rigid):
                 assert orientations is not None
@@ -335,7 +359,7 @@ class Joints:
         reached = rows.violation <= max(tolerance, reach)
         # bilateral rows lose all their rate; reached unilateral rows only an approaching one (an inelastic stop)
         impulse = self._solve_active(rows, motion, -rate, reached & (rate < 0))
-        force, torque = apply_transpose(rows, bodies, impulse, count + 1)
+        force, torque = apply_transpose(rows, bodies, impulse, slots)
         linear[self.points] += force[:count] * (mass_of_linear * motion.inverse_mass[:count])[:, None]
         if len(rigid):
             assert angular_momentum is not None

@@ -12,8 +12,11 @@ import numpy as np
 from animbatch.sim.joints import Joints
 from animbatch.sim.joints.kinds import AngleRows, AxisRows, LockRows, PointRows, RowKind, SegmentRows, SlideRows
 from animbatch.sim.joints.motors import Motors, MotorTarget
+from animbatch.sim.motion import KeyframePath
 
 WORLD = -1
+#: Joint ends at anchors on keyframes: ``MOVING_ANCHOR − m`` for the m-th (see :func:`assemble`).
+MOVING_ANCHOR = -2
 #: The joint types, and which of them hold orientations (so need rigid bodies).
 TYPES = ("distance", "rope", "pulley", "ball", "hinge", "slider", "fixed")
 TURNING = ("hinge", "slider", "fixed")
@@ -81,15 +84,20 @@ def _across(axis: np.ndarray) -> np.ndarray:
 
 
 def assemble(settings: list[JointSetting], x0: np.ndarray, rotation0: np.ndarray, mass: np.ndarray,
-             inertia: np.ndarray, first_rigid: int) -> Joints:
+             inertia: np.ndarray, first_rigid: int, anchor_paths: tuple[KeyframePath, ...] = (),
+             anchor_starts: np.ndarray | None = None) -> Joints:
     """The :class:`Joints` of ``settings`` for bodies at ``x0`` (P, 3) [m] with rotations ``rotation0`` (P, 3, 3)
-    (identity for particles), masses (P,) [kg] and body-axes inertia (P, 3, 3) [kg·m²] (zero for particles)."""
+    (identity for particles), masses (P,) [kg] and body-axes inertia (P, 3, 3) [kg·m²] (zero for particles).
+    Ends ``MOVING_ANCHOR − m`` are held by the m-th of ``anchor_paths``, which starts at ``anchor_starts[m]``
+    (their offsets are from there)."""
     ends = np.array([[s.first, s.second] for s in settings], np.intp)
-    points = np.unique(ends[ends != WORLD])
-    world = len(points)
+    points = np.unique(ends[ends >= 0])
+    world = len(points) + len(anchor_paths)
     compact = {int(point): k for k, point in enumerate(points)}
+    compact.update({MOVING_ANCHOR - m: len(points) + m for m in range(len(anchor_paths))})
     compact[WORLD] = world
-    turn = lambda point: rotation0[point] if point != WORLD else np.eye(3)  # noqa: E731
+    turn = lambda point: rotation0[point] if point >= 0 else np.eye(3)  # noqa: E731
+    starts = np.zeros((0, 3)) if anchor_starts is None else anchor_starts
 
     segments, balls, axes, locks = _Collected(), _Collected(), _Collected(), _Collected()
     slides, angles = _Collected(), _Collected()
@@ -99,7 +107,7 @@ def assemble(settings: list[JointSetting], x0: np.ndarray, rotation0: np.ndarray
         pair = (compact[s.first], compact[s.second])
         turn_a, turn_b = turn(s.first), turn(s.second)
         if s.type in ("distance", "rope", "pulley"):
-            start = _segment_start(s, x0, turn_a, turn_b)
+            start = _segment_start(s, x0, turn_a, turn_b, starts)
             length = float(np.sum(start)) if s.length is None else float(s.length)
             if length <= 0:
                 raise ValueError(f"joint {s.name!r} has length {length:g} m: it needs a positive length")
@@ -175,17 +183,24 @@ def assemble(settings: list[JointSetting], x0: np.ndarray, rotation0: np.ndarray
     return Joints(tuple(s.name for s in settings), tuple(s.type for s in settings), tuple(descriptions), points,
                   first_rigid, inverse_mass, np.array(inertia[points]), inverse_inertia, tuple(kinds),
                   np.array([compact[s.first] for s in settings]), np.array([s.first_offset for s in settings]),
-                  _motors(motors, compact, rotation0), scale=float(max(distances)))
+                  _motors(motors, compact, rotation0), scale=float(max(distances)), anchor_paths=anchor_paths,
+                  anchor_starts=starts)
 
 
-def _segment_start(s: JointSetting, x0: np.ndarray, turn_a: np.ndarray, turn_b: np.ndarray) -> np.ndarray:
+def _segment_start(s: JointSetting, x0: np.ndarray, turn_a: np.ndarray, turn_b: np.ndarray,
+                   anchor_starts: np.ndarray) -> np.ndarray:
     """The lengths (segments,) [m] of a rod's, rope's or pulley's segments at the start."""
     start_a = x0[s.first] + turn_a @ s.first_offset
     if s.type == "pulley":
         assert s.over is not None
         start_b = x0[s.second] + turn_b @ s.second_offset
         return np.array([np.linalg.norm(start_a - s.over[0]), np.linalg.norm(start_b - s.over[1])])
-    start_b = s.second_offset if s.second == WORLD else x0[s.second] + turn_b @ s.second_offset
+    if s.second == WORLD:
+        start_b = s.second_offset
+    elif s.second < 0:  # a moving anchor: its offset is from where it starts
+        start_b = anchor_starts[MOVING_ANCHOR - s.second] + s.second_offset
+    else:
+        start_b = x0[s.second] + turn_b @ s.second_offset
     return np.array([np.linalg.norm(start_a - start_b)])
 
 
@@ -207,7 +222,7 @@ def _motors(motors: list[tuple[int, bool, JointSetting]], compact: dict[int, int
         assert s.axis is not None
         pair = (compact[s.first], compact[s.second])
         turn_a = rotation0[s.first]
-        turn_b = rotation0[s.second] if s.second != WORLD else np.eye(3)
+        turn_b = rotation0[s.second] if s.second >= 0 else np.eye(3)
         axis = s.axis / np.linalg.norm(s.axis)
         if is_hinge:
             across = _across(axis)

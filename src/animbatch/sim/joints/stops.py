@@ -108,7 +108,7 @@ class JointStops:
         kind, row = self._pending
         if kind == "reach":
             self._engaged[row] = True
-            self.system.project(y, reach=REACH * self.joints.scale)
+            self.system.project(y, reach=REACH * self.joints.scale, t=t)
             joints = self.joints
             self._log.append((float(t), int(joints.points[joints.first_body[joints.row_joint[row]]])))
         else:

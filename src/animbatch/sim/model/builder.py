@@ -30,8 +30,8 @@ from animbatch.sim.forces import BodyTable, ForceTerm, SpringForces, SpringSet, 
 from animbatch.sim.forces.controllers import ControllerSetting, controllers_term
 from animbatch.sim.forces.dihedral import DihedralSprings
 from animbatch.sim.joints import Joints
+from animbatch.sim.joints.assembly import MOVING_ANCHOR, WORLD, JointSetting, MotorSetting, assemble
 from animbatch.sim.joints.assembly import TYPES as JOINT_TYPES
-from animbatch.sim.joints.assembly import WORLD, JointSetting, MotorSetting, assemble
 from animbatch.sim.model.clocks import ProperClocks
 from animbatch.sim.model.layout import StateLayout
 from animbatch.sim.model.model import Model
@@ -466,6 +466,7 @@ class ModelBuilder:
             return body_offset if point == WORLD else positions[point] + rotations[point] @ body_offset
 
         settings = []
+        moving: dict[int, int] = {}  # anchors on keyframes that joints hold on to -> their slot
         for request in self._joints:
             first = int(self._points(np.array([request.first]))[0])
             if request.second is None:
@@ -501,12 +502,17 @@ class ModelBuilder:
                     where = second_point  # held at the anchor it names
                 first_offset = rotations[first].T @ (where - positions[first])
                 second_offset = where if second == WORLD else rotations[second].T @ (where - positions[second])
+            if request.second_is_anchor and request.second in self._anchor_paths:  # held by an anchor that moves:
+                slot = moving.setdefault(int(request.second), len(moving))  # its own slot, from its start
+                second, second_offset = MOVING_ANCHOR - slot, np.asarray(second_offset, float) - second_point
             over = None if request.over is None else anchors[list(request.over)]
             settings.append(JointSetting(request.type, first, second, first_offset, np.asarray(second_offset, float),
                                          request.name, None if request.axis is None else np.asarray(request.axis,
                                                                                                      float),
                                          request.length, request.limits, request.motor, over))
-        return assemble(settings, positions, rotations, masses, inertia, n)
+        order = sorted(moving, key=moving.__getitem__)
+        return assemble(settings, positions, rotations, masses, inertia, n,
+                        tuple(self._anchor_paths[a] for a in order), anchors[order].reshape(-1, 3))
 
     def _deformable_set(self, anchors: AnchorMotion, point_count: int) -> DeformableSet | None:
         """The vertex map of all deformable bodies (model point numbers, anchors, body points)."""

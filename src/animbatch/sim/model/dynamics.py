@@ -248,18 +248,19 @@ class Dynamics:
                         [inverse_mass @ derivatives.matrix("x"), inverse_mass @ derivatives.matrix("v")]],
                        format="csr")
 
-    def project(self, y: np.ndarray, *, joints: bool = True, reach: float = 0.0) -> None:
+    def project(self, y: np.ndarray, *, joints: bool = True, reach: float = 0.0, t: float = 0.0) -> None:
         """Re-normalise the quaternions of a state (…, n) in place, and with ``joints`` move a state (n,) back onto
         its joints: the start of every run, fixed-step methods after every step, adaptive ones only where a limit
         or rope reaches its stop (within ``reach`` [m or rad]); between those, adaptive methods keep to the joints
-        by Baumgarte stabilisation, so that their outputs show their true drift."""
+        by Baumgarte stabilisation, so that their outputs show their true drift. ``t`` [s]: the state's time (where
+        anchors on keyframes are)."""
         if joints and self.joints is not None and y.ndim == 1:
             config, motion = self.split(y)
             points = self.particles + self.rigid  # positions, and velocities then momenta, are contiguous
             rigid = (config[3 * points: 3 * points + 4 * self.rigid].reshape(-1, 4),
                      motion[3 * points:].reshape(-1, 3)) if self.rigid else (None, None)
             self.joints.project(config[: 3 * points].reshape(points, 3), rigid[0],
-                                motion[: 3 * points].reshape(points, 3), rigid[1], reach=reach)
+                                motion[: 3 * points].reshape(points, 3), rigid[1], reach=reach, t=t)
         if self.rigid:
             block = self.model.layout.block("rigid_orientation")
             q = y[..., block.span].reshape(*y.shape[:-1], self.rigid, 4)
