@@ -42,7 +42,7 @@ from animbatch.scene.schema import (
     SphereShape,
 )
 from animbatch.sim.contact.detection import PLANE, STATIC_BOX, STATIC_SPHERE, TRIANGLE, ContactSettings, ContactWorld
-from animbatch.sim.contact.geometry import BodyBoxes, Probes, StaticColliders
+from animbatch.sim.contact.geometry import BodyBoxes, BodyCylinders, Probes, StaticColliders
 from animbatch.sim.contact.materials import Coefficients, MaterialTable
 from animbatch.sim.contact.moving import ColliderPath, MovingColliders
 from animbatch.sim.motion import KeyframePath
@@ -82,6 +82,21 @@ def _shape_features(shape: Any, base: Path) -> tuple[list[tuple[np.ndarray, floa
             boxes += [(rotation @ o + offset, rotation @ rot, half) for o, rot, half in part_boxes]
         return probes, boxes
     raise TypeError(f"no collision geometry for shape {shape!r}")
+
+
+def _cylinders(shape: Any) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
+    """The cylinders and rods of a shape: (centre, unit axis, half length, radius) in shape coordinates."""
+    if isinstance(shape, CylinderShape | RodShape):
+        radius = shape.radius if shape.radius is not None else shape.length / 100
+        return [(np.zeros(3), np.array([0.0, 0.0, 1.0]), shape.length / 2, radius)]
+    if isinstance(shape, CompoundShape):
+        found = []
+        for part in shape.parts:
+            rotation = orientation_matrix(part.orientation)
+            found += [(rotation @ c + np.asarray(part.offset, float), rotation @ a, h, r)
+                      for c, a, h, r in _cylinders(part.shape)]
+        return found
+    return []
 
 
 def _statics(spec: SceneSpec, table: MaterialTable, base: Path) -> tuple[StaticColliders, dict[int, np.ndarray]]:
@@ -141,11 +156,14 @@ def build_contact_world(spec: SceneSpec, model: Any, centres: dict[str, np.ndarr
     deformable_names = [body.name for body in spec.bodies if isinstance(body, DEFORMABLE_SPECS)]
     owners, offsets, radii, corner_of = [], [], [], []
     box_owner, box_offset, box_rotation, box_half = [], [], [], []
+    cylinders: list[tuple] = []  # (owner, centre, axis, half length, radius), body axes from the centre of mass
     for point, name in enumerate(owner_names):
         body = by_name[name]
         if isinstance(body, RigidBodySpec):
             probes, boxes = _shape_features(body.shape, base)
             centre = centres[name]
+            cylinders += [(point, offset - centre, axis, half, radius)
+                          for offset, axis, half, radius in _cylinders(body.shape)]
             first_box = len(box_owner)
             for c, r, box in probes:
                 owners.append(point)
@@ -179,7 +197,9 @@ def build_contact_world(spec: SceneSpec, model: Any, centres: dict[str, np.ndarr
         settings.bodies, tree, reach,
         np.array([deformable_names.index(n) if n in deformable_names else -1 for n in owner_names], np.intp),
         sources, tuple(model.body_names), np.asarray(model.bodies.mass, float), _jointed_pairs(model),
-        moving_colliders(spec))
+        moving_colliders(spec),
+        BodyCylinders(*(np.array([c[k] for c in cylinders], float if k else np.intp) for k in range(5)))
+        if cylinders else None)
     return world, ContactSettings(settings.iterations, settings.rest_speed, settings.slop)
 
 

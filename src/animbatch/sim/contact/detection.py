@@ -24,8 +24,10 @@ from animbatch.sim.bodies import Kinematics
 from animbatch.sim.contact.edges import edge_contact
 from animbatch.sim.contact.geometry import (
     BodyBoxes,
+    BodyCylinders,
     Probes,
     StaticColliders,
+    cylinder_support,
     separating_direction,
     to_box,
     to_box_face,
@@ -45,6 +47,9 @@ PLANE, STATIC_SPHERE, STATIC_BOX, TRIANGLE, BODY_SPHERE, BODY_BOX, STATIC_BOX_FA
 # edge–edge contacts between boxes (fixed-step detection only): solid index 12 box + edge; their "probe" is a number
 # past the probes, 12 box + edge of the moving box (see edge_contacts)
 STATIC_EDGE, BODY_EDGE = 8, 9
+# a cylinder's rim against a plane (fixed-step detection only): solid index the plane; "probe" a number past the
+# edge numbers, one per cylinder (see rim_contacts)
+PLANE_RIM = 10
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,6 +80,7 @@ class ContactWorld:
     body_mass: np.ndarray | None = None
     excluded: np.ndarray | None = None  # sorted keys a·P + b (a < b) of body pairs that never touch (jointed)
     moving: MovingColliders | None = None  # colliders on keyframes (kinematic solids)
+    cylinders: BodyCylinders | None = None  # cylinders and rods moving with bodies (their exact rims on planes)
 
     def statics_at(self, t: float) -> StaticColliders:
         """The fixed solids at time t [s] (moving colliders where their paths put them)."""
@@ -280,7 +286,45 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
         parts += _between_bodies(world, centres, tree, active, margin, box_centres, box_rotations, travel)
     if edges and world.boxes.count:
         parts.append(edge_contacts(world, statics, box_centres, box_rotations, margin, travel))
+    if edges and world.cylinders is not None and len(statics.plane_point):
+        parts.append(rim_contacts(world, state, statics, margin, travel))
     return Contacts.concatenate(parts)
+
+
+def rim_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders, margin: float,
+                 travel: np.ndarray | None) -> Contacts:
+    """The exact contacts of cylinders with planes: at each cylinder's point deepest towards the plane (on a rim), so
+    that a cylinder rolls on a plane as a circle, not as the polygon of its rim probes."""
+    cylinders = world.cylinders
+    assert cylinders is not None and state.rotation is not None
+    rigid = cylinders.owner - state.first_rigid
+    centres = state.x[cylinders.owner] + state.lever(rigid, cylinders.offset)
+    axes = np.einsum("kij,kj->ki", state.rotation[rigid], cylinders.axis)
+    found = []
+    for c in range(cylinders.count):
+        owner = int(cylinders.owner[c])
+        if not world.collides[owner]:
+            continue
+        for k in range(len(statics.plane_point)):
+            normal = statics.plane_normal[k]
+            point = cylinder_support(centres[c], axes[c], float(cylinders.half_length[c]), float(cylinders.radius[c]),
+                                     -normal)
+            if point is None:
+                continue
+            depth = float((point - statics.plane_point[k]) @ normal)
+            if depth < margin + (float(travel[owner]) if travel is not None else 0.0):
+                found.append((c, owner, k, point - 0.5 * depth * normal, normal, depth,
+                              int(statics.plane_material[k])))
+    if not found:
+        return Contacts.concatenate([])
+    cylinder, owner_, plane, point, normal, gap, material = (np.array(v) for v in zip(*found))
+    table = world.materials
+    a = world.body_material[owner_]
+    first = world.probes.count + 12 * world.boxes.count  # past the probes and the box edges
+    return Contacts(owner_.astype(np.intp), np.full(len(owner_), STATIC), point.reshape(-1, 3), normal.reshape(-1, 3),
+                    gap.astype(float), table.restitution[a, material], table.static_friction[a, material],
+                    table.kinetic_friction[a, material], (first + cylinder).astype(np.intp),
+                    np.full(len(owner_), PLANE_RIM), plane.astype(np.intp))
 
 
 def edge_contacts(world: ContactWorld, statics: StaticColliders, box_centres: np.ndarray, box_rotations: np.ndarray,

@@ -158,6 +158,35 @@ class Probes:
 
 
 @dataclass(frozen=True, eq=False)
+class BodyCylinders:
+    """Cylinders (and rods) moving with bodies: ``owner`` (C,), ``offset`` (C, 3) centre and ``axis`` (C, 3) unit
+    axis in body axes from the centre of mass, ``half_length`` (C,) and ``radius`` (C,) [m]."""
+
+    owner: np.ndarray
+    offset: np.ndarray
+    axis: np.ndarray
+    half_length: np.ndarray
+    radius: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return len(self.owner)
+
+
+def cylinder_support(centre: np.ndarray, axis: np.ndarray, half_length: float, radius: float,
+                     direction: np.ndarray) -> np.ndarray | None:
+    """The point (3,) of a cylinder (``centre``, unit ``axis`` (3,)) farthest along ``direction`` (3,): on the rim of
+    the end that way, at the radius along the direction's part across the axis; None when the direction is along
+    the axis (a whole end face is farthest: its rim probes hold that contact)."""
+    along = float(direction @ axis)
+    across = direction - along * axis
+    size = float(np.linalg.norm(across))
+    if size < 1e-9 * max(1.0, float(np.linalg.norm(direction))):
+        return None
+    return centre + np.sign(along) * half_length * axis + radius * across / size
+
+
+@dataclass(frozen=True, eq=False)
 class BodyBoxes:
     """Boxes moving with bodies: ``owner`` (X,), ``offset`` (X, 3) and ``rotation`` (X, 3, 3) in body axes from the
     centre of mass, ``half`` (X, 3) half side lengths."""
