@@ -207,7 +207,7 @@ class Joints:
             inverse_inertia[rigid] = turn @ self.inverse_inertia[rigid] @ turn_t
             momentum = np.einsum("kij,kj->ki", turn @ self.inertia[rigid] @ turn_t, omega[rigid])
             spin[rigid] = -np.einsum("kij,kj->ki", inverse_inertia[rigid], quaternion.cross(omega[rigid], momentum))
-        return JoinedMotion(x, v, rotation, omega, inverse_mass, inverse_inertia, spin)
+        return JoinedMotion(x, v, rotation, omega, inverse_mass, inverse_inertia, spin, bool(len(rigid)))
 
     def rows(self, motion: JoinedMotion) -> Rows:
         return Rows.concatenate([kind.rows(motion) for kind in self.kinds])
@@ -339,11 +339,13 @@ class Joints:
             return self._motion(x, v, rotation, omega)
 
         tolerance = PROJECTION_TOLERANCE * max(self.scale, 1.0)
+        settled = None  # the motion and rows at the final positions, once they hold (the velocities are unchanged)
         for _ in range(PROJECTION_ITERATIONS):
             motion = current()
             rows = self.rows(motion)
             violated = ~unilateral | (rows.violation < 0)
             if np.max(np.abs(np.where(violated, rows.violation, 0.0)), initial=0.0) <= tolerance:
+                settled = motion, rows
                 break
             step = coupling.solve(rows, motion, -rows.violation, violated if unilateral.any() else None)
             force, torque = apply_transpose(rows, bodies, step, slots)
@@ -353,8 +355,11 @@ class Joints:
                 turn = np.einsum("kij,kj->ki", motion.inverse_inertia[rigid], torque[rigid])
                 orientations[index] = quaternion.normalized(
                     quaternion.multiply(quaternion.from_rotation_vector(turn), orientations[index]))
-        motion = current()
-        rows = self.rows(motion)
+        if settled is not None:
+            motion, rows = settled
+        else:
+            motion = current()
+            rows = self.rows(motion)
         rate = apply(rows, bodies, (motion.v, motion.omega))
         reached = rows.violation <= max(tolerance, reach)
         # bilateral rows lose all their rate; reached unilateral rows only an approaching one (an inelastic stop)

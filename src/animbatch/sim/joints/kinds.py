@@ -81,8 +81,11 @@ class SegmentRows(RowKind):
         slots = np.concatenate([2 * self.segment_row + self.near_slot,
                                 2 * self.segment_row[held] + self.far_slot[held]])
         linear = accumulate(slots, np.concatenate([sign * unit, -(sign * unit)[held]]), 2 * count)
-        angular = accumulate(slots, np.concatenate([sign * cross(near[0], unit), -(sign * cross(far[0], unit))[held]]),
-                             2 * count)
+        if motion.turning:
+            angular = accumulate(slots, np.concatenate([sign * cross(near[0], unit),
+                                                        -(sign * cross(far[0], unit))[held]]), 2 * count)
+        else:  # particles and fixed points: no lever
+            angular = np.zeros_like(linear)
         return Rows(self.sign * (per_row(distance) - self.length), linear.reshape(count, 2, 3),
                     angular.reshape(count, 2, 3), bias)
 

@@ -46,11 +46,14 @@ class JoinedMotion:
     inverse_mass: np.ndarray
     inverse_inertia: np.ndarray
     spin: np.ndarray
+    turning: bool = True  # whether any slot turns (else every rotation is the identity and every ω zero)
 
     def points(self, body: np.ndarray, offset: np.ndarray) -> tuple[np.ndarray, ...]:
         """For body points at ``offset`` (K, 3) (body axes, from the centre of mass; for the world: the point
         itself) of bodies ``body`` (K,): levers r, world positions p, velocities ``v + ω × r`` and the centripetal
         accelerations ``ω × (ω × r)``, each (K, 3)."""
+        if not self.turning:  # particles only: no turning to account for
+            return offset, self.x[body] + offset, self.v[body], np.zeros_like(offset)
         lever = np.einsum("kij,kj->ki", self.rotation[body], offset)
         omega = self.omega[body]
         spin = cross(omega, lever)
