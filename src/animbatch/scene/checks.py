@@ -129,9 +129,6 @@ def _joints(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str,
                 yield ("joints", index, "between", end), (
                     f"{name!r} is a cloth or lattice, made of many vertices; joints join bodies. Attach its "
                     "vertices to a body or anchor with its 'pin' key instead")
-            elif name in moving and kind == "pulley":
-                yield ("joints", index, "between", end), (
-                    f"anchor {name!r} follows keyframes; a pulley's rope ends at bodies")
             elif kind in ("hinge", "slider", "fixed") and name in bodies and name not in rigid:
                 yield ("joints", index, "between", end), (
                     f"{name!r} is a particle, which has no orientation for a {kind} joint to hold; join it with a "

@@ -294,37 +294,29 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
 def rim_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders, margin: float,
                  travel: np.ndarray | None) -> Contacts:
     """The exact contacts of cylinders with planes: at each cylinder's point deepest towards the plane (on a rim), so
-    that a cylinder rolls on a plane as a circle, not as the polygon of its rim probes."""
+    that a cylinder rolls on a plane as a circle, not as the polygon of its rim probes. Vectorised over cylinders,
+    one pass per plane."""
     cylinders = world.cylinders
     assert cylinders is not None and state.rotation is not None
     rigid = cylinders.owner - state.first_rigid
     centres = state.x[cylinders.owner] + state.lever(rigid, cylinders.offset)
     axes = np.einsum("kij,kj->ki", state.rotation[rigid], cylinders.axis)
-    found = []
-    for c in range(cylinders.count):
-        owner = int(cylinders.owner[c])
-        if not world.collides[owner]:
-            continue
-        for k in range(len(statics.plane_point)):
-            normal = statics.plane_normal[k]
-            point = cylinder_support(centres[c], axes[c], float(cylinders.half_length[c]), float(cylinders.radius[c]),
-                                     -normal)
-            if point is None:
-                continue
-            depth = float((point - statics.plane_point[k]) @ normal)
-            if depth < margin + (float(travel[owner]) if travel is not None else 0.0):
-                found.append((c, owner, k, point - 0.5 * depth * normal, normal, depth,
-                              int(statics.plane_material[k])))
-    if not found:
-        return Contacts.concatenate([])
-    cylinder, owner_, plane, point, normal, gap, material = (np.array(v) for v in zip(*found))
-    table = world.materials
-    a = world.body_material[owner_]
-    first = world.probes.count + 12 * world.boxes.count  # past the probes and the box edges
-    return Contacts(owner_.astype(np.intp), np.full(len(owner_), STATIC), point.reshape(-1, 3), normal.reshape(-1, 3),
-                    gap.astype(float), table.restitution[a, material], table.static_friction[a, material],
-                    table.kinetic_friction[a, material], (first + cylinder).astype(np.intp),
-                    np.full(len(owner_), PLANE_RIM), plane.astype(np.intp))
+    reach = margin + (travel[cylinders.owner] if travel is not None else 0.0)
+    first = world.probes.count + 12 * world.boxes.count  # "probe" numbers past the probes and the box edges
+    parts = []
+    for k in range(len(statics.plane_point)):
+        normal = statics.plane_normal[k]
+        point, found = cylinder_support(centres, axes, cylinders.half_length, cylinders.radius, -normal)
+        depth = (point - statics.plane_point[k]) @ normal
+        keep = found & (depth < reach) & world.collides[cylinders.owner]
+        owner, depth = cylinders.owner[keep], depth[keep]
+        a, b = world.body_material[owner], statics.plane_material[k]
+        table = world.materials
+        parts.append(Contacts(owner, np.full(len(owner), STATIC), point[keep] - 0.5 * depth[:, None] * normal,
+                              np.broadcast_to(normal, (len(owner), 3)).copy(), depth, table.restitution[a, b],
+                              table.static_friction[a, b], table.kinetic_friction[a, b],
+                              first + np.flatnonzero(keep), np.full(len(owner), PLANE_RIM), np.full(len(owner), k)))
+    return Contacts.concatenate(parts)
 
 
 def edge_contacts(world: ContactWorld, statics: StaticColliders, box_centres: np.ndarray, box_rotations: np.ndarray,

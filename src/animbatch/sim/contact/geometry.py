@@ -173,17 +173,18 @@ class BodyCylinders:
         return len(self.owner)
 
 
-def cylinder_support(centre: np.ndarray, axis: np.ndarray, half_length: float, radius: float,
-                     direction: np.ndarray) -> np.ndarray | None:
-    """The point (3,) of a cylinder (``centre``, unit ``axis`` (3,)) farthest along ``direction`` (3,): on the rim of
-    the end that way, at the radius along the direction's part across the axis; None when the direction is along
-    the axis (a whole end face is farthest: its rim probes hold that contact)."""
-    along = float(direction @ axis)
-    across = direction - along * axis
-    size = float(np.linalg.norm(across))
-    if size < 1e-9 * max(1.0, float(np.linalg.norm(direction))):
-        return None
-    return centre + np.sign(along) * half_length * axis + radius * across / size
+def cylinder_support(centre: np.ndarray, axis: np.ndarray, half_length: np.ndarray, radius: np.ndarray,
+                     direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The points (C, 3) of cylinders (``centre`` (C, 3), unit ``axis`` (C, 3), ``half_length`` and ``radius`` (C,))
+    farthest along ``direction`` (3,): on the rim of the end that way, at the radius along the direction's part
+    across the axis; and whether each is one point (C,) bool: not when the direction is along the axis (a whole end
+    face is farthest, and its rim probes hold that contact)."""
+    along = axis @ direction
+    across = direction - along[:, None] * axis
+    size = np.linalg.norm(across, axis=1)
+    single = size >= 1e-9 * max(1.0, float(np.linalg.norm(direction)))
+    unit = across / np.where(single, size, 1.0)[:, None]
+    return (centre + (np.sign(along) * half_length)[:, None] * axis + radius[:, None] * unit), single
 
 
 @dataclass(frozen=True, eq=False)

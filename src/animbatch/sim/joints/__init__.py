@@ -44,7 +44,7 @@ from animbatch.sim.joints.kinds import (
     hinge_angle,
 )
 from animbatch.sim.joints.motors import Motors, MotorTarget
-from animbatch.sim.joints.rows import Coupling, JoinedMotion, Rows, apply, apply_transpose
+from animbatch.sim.joints.rows import Coupling, JoinedMotion, Rows, accumulate, apply, apply_transpose
 from animbatch.sim.motion import KeyframePath
 
 __all__ = ["AngleRows", "AxisRows", "JoinedMotion", "JointLoads", "Joints", "LockRows", "MotorTarget", "Motors",
@@ -295,10 +295,8 @@ class Joints:
         ``motion``."""
         rows = self.rows(motion)
         joint = self.row_joint
-        force = np.zeros((self.count, 3))
-        torque = np.zeros((self.count, 3))
-        np.add.at(force, joint, loads.multipliers[:, None] * rows.linear[:, 0])
-        np.add.at(torque, joint, loads.multipliers[:, None] * rows.angular[:, 0])
+        force = accumulate(joint, loads.multipliers[:, None] * rows.linear[:, 0], self.count)
+        torque = accumulate(joint, loads.multipliers[:, None] * rows.angular[:, 0], self.count)
         lever = motion.points(self.first_body, self.first_offset)[0]
         return force, torque - quaternion.cross(lever, force)
 
