@@ -10,6 +10,7 @@ import numpy as np
 from animbatch.scene.orientation import orientation_matrix, orientation_quaternion
 from animbatch.scene.schema import (
     BoxShape,
+    CapsuleShape,
     CompoundShape,
     CylinderShape,
     MeshShape,
@@ -19,7 +20,7 @@ from animbatch.scene.schema import (
     SphereShape,
 )
 from animbatch.sim.rigid import mass_properties as mp
-from animbatch.sim.rigid.polyhedra import box_mesh, cylinder_mesh, mesh_mass_properties
+from animbatch.sim.rigid.polyhedra import box_mesh, capsule_mesh, cylinder_mesh, mesh_mass_properties
 from animbatch.sim.rigid.shapes import BodyGeometry, load_mesh
 
 #: Sides of the prism standing in for cylinders and rods when computing submerged volumes (error < 0.1 %).
@@ -54,6 +55,9 @@ def _primitive(shape: object, mass: float | None, density: float | None, base: P
         radius = shape.radius if shape.radius is not None else shape.length / 100
         return (massed(mp.cylinder(1.0, radius, shape.length)), [],
                 [cylinder_mesh(radius, shape.length, BUOYANCY_SEGMENTS).triangles])
+    if isinstance(shape, CapsuleShape):
+        return (massed(mp.capsule(1.0, shape.radius, shape.length)), [],
+                [capsule_mesh(shape.radius, shape.length, BUOYANCY_SEGMENTS // 2).triangles])
     if isinstance(shape, MeshShape):
         mesh = load_mesh(base / shape.file, shape.scale)
         return massed(mesh_mass_properties(mesh)), [], [mesh.triangles]

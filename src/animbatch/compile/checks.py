@@ -26,6 +26,7 @@ from animbatch.scene.schema import (
 from animbatch.scene.yaml_source import KeyPath
 from animbatch.sim.closed_forms import NoClosedForm, check_closed_form
 from animbatch.sim.integrators.methods import METHODS
+from animbatch.sim.rigid.polyhedra import convex_mesh, mesh_mass_properties
 from animbatch.sim.rigid.shapes import load_mesh, load_surface
 
 
@@ -87,8 +88,40 @@ def check_files(spec: SceneSpec, base_dir: Path) -> list[Problem]:
                 problems.append(((*path, "file"), f"{error} (looked in {base_dir.resolve()})"
                                  if "no such file" in str(error) else str(error)))
     if not problems:
-        problems += _pin_selections(spec, base_dir)
+        problems += _pin_selections(spec, base_dir) + _hollow_meshes(spec, base_dir)
     return problems + _joint_points(spec)
+
+
+#: A mesh whose convex hull holds more than this fraction beyond its own volume is hollow: not a convex solid.
+HOLLOW = 0.01
+
+
+def _hollow_meshes(spec: SceneSpec, base_dir: Path) -> list[Problem]:
+    """Mesh bodies that other bodies touch must be convex (others meet them as a convex solid) unless they say
+    ``convex_hull: true``."""
+    colliding = [(index, body) for index, body in enumerate(spec.bodies) if getattr(body, "collide", True)]
+    if not spec.has_contacts or (spec.contacts is not None and not spec.contacts.bodies) or len(colliding) < 2:
+        return []
+    problems: list[Problem] = []
+    for index, body in colliding:
+        if not isinstance(body, RigidBodySpec):
+            continue
+        shapes = ([(("bodies", index, "shape", "parts", k, "shape"), part.shape)
+                   for k, part in enumerate(body.shape.parts)] if isinstance(body.shape, CompoundShape)
+                  else [(("bodies", index, "shape"), body.shape)])
+        for path, shape in shapes:
+            if not isinstance(shape, MeshShape) or shape.convex_hull:
+                continue
+            mesh = load_mesh(base_dir / shape.file, shape.scale)
+            own = mesh_mass_properties(mesh).volume
+            hollow = mesh_mass_properties(convex_mesh(mesh.vertices)).volume / own - 1
+            if hollow > HOLLOW:
+                problems.append((path, (
+                    f"mesh {shape.file!r} is not convex: its convex hull is {100 * hollow:.0f} % larger than it, and "
+                    "other bodies touch a mesh body as a convex solid. Split it into convex meshes (a compound "
+                    "shape with mesh parts), set convex_hull: true to collide as its hull, or set "
+                    "contacts: {bodies: false} if bodies need not touch each other")))
+    return problems
 
 
 def _joint_points(spec: Any) -> list[Problem]:

@@ -8,9 +8,11 @@ What each body contributes (all in body axes from its centre of mass):
 * particle: a probe sphere of its radius;
 * sphere or shell: a probe sphere;
 * box: probes at its 8 corners, and the box as a solid for other bodies' probes;
-* cylinder, rod: probes on both rims (16 each) and along the axis ends — enough to land, roll and rest on colliders
-  (other bodies touching a cylinder's side are not detected);
-* mesh: probes at its vertices (at most ``MESH_PROBES``, evenly chosen);
+* cylinder, rod: probes on both rims (16 each) and at the axis ends, and the cylinder as a round solid for other
+  bodies' probes, with its side against other sides and edges (:mod:`animbatch.sim.contact.sides`);
+* capsule: probe spheres at both cap centres, and the capsule as a round solid, with its side as a cylinder's;
+* mesh: probes at the vertices of its convex hull (at most ``MESH_PROBES``, evenly chosen), and the hull as a solid
+  for other bodies (:mod:`animbatch.sim.contact.hulls`; a hollow mesh must be declared ``convex_hull`` or split);
 * compound: the union of its parts'.
 """
 
@@ -28,6 +30,7 @@ from animbatch.scene.schema import (
     DEFORMABLE_SPECS,
     BoxCollider,
     BoxShape,
+    CapsuleShape,
     CompoundShape,
     ContactSpec,
     CylinderShape,
@@ -41,11 +44,14 @@ from animbatch.scene.schema import (
     SphereCollider,
     SphereShape,
 )
-from animbatch.sim.contact.detection import PLANE, STATIC_BOX, STATIC_SPHERE, TRIANGLE, ContactSettings, ContactWorld
+from animbatch.sim.contact.contacts import PLANE, STATIC_BOX, STATIC_SPHERE, TRIANGLE
+from animbatch.sim.contact.detection import ContactSettings, ContactWorld
 from animbatch.sim.contact.geometry import BodyBoxes, BodyCylinders, Probes, StaticColliders
+from animbatch.sim.contact.hulls import BodyHull
 from animbatch.sim.contact.materials import Coefficients, MaterialTable
 from animbatch.sim.contact.moving import ColliderPath, MovingColliders
 from animbatch.sim.motion import KeyframePath
+from animbatch.sim.rigid.polyhedra import TriangleMesh, convex_mesh
 from animbatch.sim.rigid.shapes import load_mesh
 
 RIM_PROBES = 16
@@ -67,8 +73,11 @@ def _shape_features(shape: Any, base: Path) -> tuple[list[tuple[np.ndarray, floa
         ring = np.stack([radius * np.cos(angles), radius * np.sin(angles), np.zeros(RIM_PROBES)], axis=1)
         ends = [np.array([0.0, 0.0, -shape.length / 2]), np.array([0.0, 0.0, shape.length / 2])]
         return [(p + end, 0.0, -1) for end in ends for p in ring] + [(end, 0.0, -1) for end in ends], []
+    if isinstance(shape, CapsuleShape):
+        half = shape.length / 2 - shape.radius
+        return [(np.array([0.0, 0.0, z]), shape.radius, -1) for z in (-half, half)], []
     if isinstance(shape, MeshShape):
-        vertices = load_mesh(base / shape.file, shape.scale).vertices
+        vertices = mesh_hull(shape, base).vertices
         if len(vertices) > MESH_PROBES:
             vertices = vertices[np.linspace(0, len(vertices) - 1, MESH_PROBES).astype(int)]
         return [(v, 0.0, -1) for v in vertices], []
@@ -84,19 +93,41 @@ def _shape_features(shape: Any, base: Path) -> tuple[list[tuple[np.ndarray, floa
     raise TypeError(f"no collision geometry for shape {shape!r}")
 
 
-def _cylinders(shape: Any) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
-    """The cylinders and rods of a shape: (centre, unit axis, half length, radius) in shape coordinates."""
+def _rounds(shape: Any) -> list[tuple[np.ndarray, np.ndarray, float, float, bool]]:
+    """The cylinders, rods and capsules of a shape: (centre, unit axis, half length of the straight part, radius,
+    whether the ends are hemispheres) in shape coordinates."""
+    z = np.array([0.0, 0.0, 1.0])
     if isinstance(shape, CylinderShape | RodShape):
         radius = shape.radius if shape.radius is not None else shape.length / 100
-        return [(np.zeros(3), np.array([0.0, 0.0, 1.0]), shape.length / 2, radius)]
+        return [(np.zeros(3), z, shape.length / 2, radius, False)]
+    if isinstance(shape, CapsuleShape):
+        return [(np.zeros(3), z, shape.length / 2 - shape.radius, shape.radius, True)]
     if isinstance(shape, CompoundShape):
         found = []
         for part in shape.parts:
             rotation = orientation_matrix(part.orientation)
-            found += [(rotation @ c + np.asarray(part.offset, float), rotation @ a, h, r)
-                      for c, a, h, r in _cylinders(part.shape)]
+            found += [(rotation @ c + np.asarray(part.offset, float), rotation @ a, h, r, rounded)
+                      for c, a, h, r, rounded in _rounds(part.shape)]
         return found
     return []
+
+
+def _hulls(shape: Any, base: Path) -> list[np.ndarray]:
+    """The vertices (V, 3) of each convex hull of a shape (its meshes), in shape coordinates."""
+    if isinstance(shape, MeshShape):
+        return [mesh_hull(shape, base).vertices]
+    if isinstance(shape, CompoundShape):
+        found = []
+        for part in shape.parts:
+            rotation = orientation_matrix(part.orientation)
+            found += [v @ rotation.T + np.asarray(part.offset, float) for v in _hulls(part.shape, base)]
+        return found
+    return []
+
+
+def mesh_hull(shape: MeshShape, base: Path) -> TriangleMesh:
+    """The convex hull of a mesh shape's file, scaled."""
+    return convex_mesh(load_mesh(base / shape.file, shape.scale).vertices)
 
 
 def _statics(spec: SceneSpec, table: MaterialTable, base: Path) -> tuple[StaticColliders, dict[int, np.ndarray]]:
@@ -156,14 +187,16 @@ def build_contact_world(spec: SceneSpec, model: Any, centres: dict[str, np.ndarr
     deformable_names = [body.name for body in spec.bodies if isinstance(body, DEFORMABLE_SPECS)]
     owners, offsets, radii, corner_of = [], [], [], []
     box_owner, box_offset, box_rotation, box_half = [], [], [], []
-    cylinders: list[tuple] = []  # (owner, centre, axis, half length, radius), body axes from the centre of mass
+    rounds: list[tuple] = []  # (owner, centre, axis, half length, radius, rounded), body axes from the centre of mass
+    hulls: list[BodyHull] = []
     for point, name in enumerate(owner_names):
         body = by_name[name]
         if isinstance(body, RigidBodySpec):
             probes, boxes = _shape_features(body.shape, base)
             centre = centres[name]
-            cylinders += [(point, offset - centre, axis, half, radius)
-                          for offset, axis, half, radius in _cylinders(body.shape)]
+            rounds += [(point, offset - centre, axis, half, radius, rounded)
+                       for offset, axis, half, radius, rounded in _rounds(body.shape)]
+            hulls += [BodyHull.of_points(point, vertices - centre) for vertices in _hulls(body.shape, base)]
             first_box = len(box_owner)
             for c, r, box in probes:
                 owners.append(point)
@@ -198,8 +231,9 @@ def build_contact_world(spec: SceneSpec, model: Any, centres: dict[str, np.ndarr
         np.array([deformable_names.index(n) if n in deformable_names else -1 for n in owner_names], np.intp),
         sources, tuple(model.body_names), np.asarray(model.bodies.mass, float), _jointed_pairs(model),
         moving_colliders(spec),
-        BodyCylinders(*(np.array([c[k] for c in cylinders], float if k else np.intp) for k in range(5)))
-        if cylinders else None)
+        BodyCylinders(*(np.array([c[k] for c in rounds], (np.intp, float, float, float, float, bool)[k])
+                        for k in range(6))) if rounds else None,
+        tuple(hulls))
     return world, ContactSettings(settings.iterations, settings.rest_speed, settings.slop)
 
 

@@ -11,6 +11,7 @@ from animbatch.render.geometry import mesh_key
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (
     BoxShape,
+    CapsuleShape,
     CompoundShape,
     CylinderShape,
     MeshCollider,
@@ -35,6 +36,9 @@ def shape_mesh(shape: Any, meshes: dict[tuple[str, str], Any], resolution: int) 
         radius = shape.radius if shape.radius is not None else shape.length / 100
         return pv.Cylinder(center=(0, 0, 0), direction=(0, 0, 1), radius=radius, height=shape.length,
                            resolution=resolution).triangulate()
+    if isinstance(shape, CapsuleShape):
+        return pv.Capsule(center=(0, 0, 0), direction=(0, 0, 1), radius=shape.radius,
+                          cylinder_length=shape.length - 2 * shape.radius, resolution=resolution).triangulate()
     if isinstance(shape, MeshShape | MeshCollider):
         mesh = meshes[mesh_key(shape)]
         faces = np.hstack([np.full((len(mesh.faces), 1), 3), mesh.faces]).ravel()

@@ -22,7 +22,8 @@ import warnings
 import numpy as np
 
 from animbatch.errors import AnimbatchWarning
-from animbatch.sim.contact.detection import STATIC_BOX, STATIC_SPHERE, ContactWorld
+from animbatch.sim.contact.contacts import STATIC_BOX, STATIC_SPHERE
+from animbatch.sim.contact.detection import ContactWorld
 from animbatch.sim.forces.gravity import gravity_magnitude
 from animbatch.sim.integrators.fixed_step import DEFAULT_DT, substeps
 from animbatch.sim.integrators.methods import EXPLICIT_LIMITS, METHODS

@@ -1,4 +1,5 @@
-"""Rigid bodies: their shapes (spheres, shells, boxes, cylinders, rods, compounds, meshes) and orientations."""
+"""Rigid bodies: their shapes (spheres, shells, boxes, cylinders, rods, capsules,
+compounds, meshes) and orientations."""
 
 from __future__ import annotations
 
@@ -63,6 +64,25 @@ class RodShape(SceneModel):
     radius: float | None = key(None, "Radius (default: length / 100).", "m", gt=0)
 
 
+class CapsuleShape(SceneModel):
+    """Solid capsule along the body z axis, centred on the origin: a cylinder of length ``l = length - 2r`` capped by
+    two hemispheres. With ``m_c = ρ π r² l`` and ``m_h = ⅔ ρ π r³`` per cap: ``I_zz = ½ m_c r² + ⅘ m_h r²``,
+    ``I_xx = I_yy = m_c (l²/12 + r²/4) + 2 m_h (⅖ r² + l²/4 + ⅜ l r)``."""
+
+    type: Literal["capsule"] = key(description="Shape type.")
+    radius: float = key(description="Radius of the cylinder and of its two hemispherical caps.", unit="m", gt=0)
+    length: float = key(description="Overall length along the body z axis, tip to tip (caps included); at least "
+                                    "2 × radius (a sphere).", unit="m", gt=0)
+
+    @model_validator(mode="after")
+    def _long_enough(self) -> "CapsuleShape":
+        if self.length < 2 * self.radius:
+            raise rule_error(f"must be at least 2 × radius = {2 * self.radius:g} m, since it includes both caps "
+                             f"(got {self.length:g}); for a capsule whose straight part is {self.length:g} m long, "
+                             f"give length: {self.length + 2 * self.radius:g}", "length")
+        return self
+
+
 class MeshShape(SceneModel):
     """A closed triangle mesh from an STL, OBJ or PLY file; volume, centre of mass and inertia are computed exactly
     from its surface (divergence theorem)."""
@@ -71,6 +91,11 @@ class MeshShape(SceneModel):
     file: str = key(description="Mesh file, relative to the scene file.", example="meshes/bunny.stl")
     scale: float | PositiveVec3 = key(1.0, "Scale factor, or factors [sx, sy, sz], applied to the file's "
                                            "coordinates (e.g. 0.001 for a file in millimetres).", "1")
+    convex_hull: bool = key(False, "Collide as the mesh's convex hull (its hollows filled). Other bodies touch a mesh "
+                                   "body as a convex solid: a mesh within 1 % of its hull's volume is taken as its "
+                                   "hull anyway; a more hollow one is refused in a scene where bodies collide unless "
+                                   "this is true, or it is split into convex parts (a compound of meshes). Mass "
+                                   "properties stay the mesh's own.")
 
     @field_validator("scale")
     @classmethod
@@ -104,7 +129,7 @@ class OrientationSpec(SceneModel):
 
 
 PRIMITIVE_SHAPES: tuple[type[SceneModel], ...] = (SphereShape, ShellShape, BoxShape, CylinderShape, RodShape,
-                                                  MeshShape)
+                                                  CapsuleShape, MeshShape)
 PrimitiveShape = Annotated[Union[*PRIMITIVE_SHAPES], Field(discriminator="type")]  # type: ignore[valid-type]
 
 

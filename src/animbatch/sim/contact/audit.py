@@ -23,9 +23,11 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.sim.contact.detection import (
+from animbatch.sim.contact.contacts import (
     BODY_BOX,
     BODY_BOX_FACE,
+    BODY_HULL,
+    BODY_ROUND,
     BODY_SPHERE,
     PLANE,
     STATIC_BOX,
@@ -33,11 +35,13 @@ from animbatch.sim.contact.detection import (
     STATIC_SPHERE,
     TRIANGLE,
     Contacts,
+    contact_codes,
+)
+from animbatch.sim.contact.detection import (
     ContactWorld,
     body_box_poses,
     body_reach,
     closing_margin,
-    contact_codes,
     detect,
     evaluate_pairs,
     probe_centres,
@@ -119,7 +123,7 @@ class OverlapAudit:
         return np.maximum(SLOP_MULTIPLE * self.slop, RADIUS_FRACTION * radius)
 
     def _solid_name(self, kind: int, index: int, body: int) -> str:
-        if kind in (BODY_SPHERE, BODY_BOX, BODY_BOX_FACE):
+        if body >= 0:
             return f"body {self.names[body]!r}"
         solid = index // 6 if kind == STATIC_BOX_FACE else index
         sources = self.sources.get(STATIC_BOX if kind == STATIC_BOX_FACE else kind)
@@ -222,6 +226,8 @@ class OverlapAudit:
                 rotation, half = statics.box_rotation[box], statics.box_half[box]
             thinnest = np.argmin(half, axis=1)
             axis[chosen] = rotation[np.arange(len(box)), :, thinnest]
+        solids = np.isin(kind, (BODY_ROUND, BODY_HULL))  # towards the solid body's centre of mass
+        c0[solids], c1[solids] = start.x[contacts.solid_body[solids]], end.x[contacts.solid_body[solids]]
         fixed = kind == STATIC_SPHERE
         c0[fixed] = c1[fixed] = statics.sphere_centre[index[fixed]]
         triangles = kind == TRIANGLE

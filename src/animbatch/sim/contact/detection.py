@@ -21,6 +21,25 @@ from scipy.spatial import cKDTree
 
 from animbatch.errors import SimulationError
 from animbatch.sim.bodies import Kinematics
+from animbatch.sim.contact.contacts import (
+    BODY_BOX,
+    BODY_BOX_FACE,
+    BODY_EDGE,
+    BODY_HULL,
+    BODY_ROUND,
+    BODY_SPHERE,
+    PLANE,
+    PLANE_RIM,
+    SIDE_EDGE,
+    STATIC,
+    STATIC_BOX,
+    STATIC_BOX_FACE,
+    STATIC_EDGE,
+    STATIC_SPHERE,
+    TRIANGLE,
+    Contacts,
+    make_contacts,
+)
 from animbatch.sim.contact.edges import edge_contact
 from animbatch.sim.contact.geometry import (
     BodyBoxes,
@@ -33,23 +52,14 @@ from animbatch.sim.contact.geometry import (
     to_box_face,
     to_face_plane,
     to_plane,
+    to_round,
     to_sphere,
     to_triangles,
 )
+from animbatch.sim.contact.hulls import BodyHull, hull_edge_contacts, to_hull
 from animbatch.sim.contact.materials import MaterialTable
 from animbatch.sim.contact.moving import MovingColliders
-
-STATIC = -1  # "solid body" index of fixed colliders
-
-# What a contact's solid is (``Contacts.solid_kind``); ``solid_index`` numbers solids within their kind. A box corner
-# against a box touches one face of it (``*_BOX_FACE``, ``solid_index = 6 box + face``, see geometry.to_box_face).
-PLANE, STATIC_SPHERE, STATIC_BOX, TRIANGLE, BODY_SPHERE, BODY_BOX, STATIC_BOX_FACE, BODY_BOX_FACE = range(8)
-# edge–edge contacts between boxes (fixed-step detection only): solid index 12 box + edge; their "probe" is a number
-# past the probes, 12 box + edge of the moving box (see edge_contacts)
-STATIC_EDGE, BODY_EDGE = 8, 9
-# a cylinder's rim against a plane (fixed-step detection only): solid index the plane; "probe" a number past the
-# edge numbers, one per cylinder (see rim_contacts)
-PLANE_RIM = 10
+from animbatch.sim.contact.sides import side_contacts
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,7 +90,8 @@ class ContactWorld:
     body_mass: np.ndarray | None = None
     excluded: np.ndarray | None = None  # sorted keys a·P + b (a < b) of body pairs that never touch (jointed)
     moving: MovingColliders | None = None  # colliders on keyframes (kinematic solids)
-    cylinders: BodyCylinders | None = None  # cylinders and rods moving with bodies (their exact rims on planes)
+    cylinders: BodyCylinders | None = None  # cylinders, rods and capsules moving with bodies (round solids)
+    hulls: tuple[BodyHull, ...] = ()  # convex polyhedra moving with bodies (mesh shapes)
 
     def statics_at(self, t: float) -> StaticColliders:
         """The fixed solids at time t [s] (moving colliders where their paths put them)."""
@@ -90,8 +101,11 @@ class ContactWorld:
         """For each contact, the moving collider (its path index) it touches, or −1; None without moving ones."""
         if self.moving is None:
             return None
-        return self.moving.slots(contacts.solid_kind, contacts.solid_index, STATIC_SPHERE,
-                                 (STATIC_BOX, STATIC_BOX_FACE, STATIC_EDGE))
+        slots = self.moving.slots(contacts.solid_kind, contacts.solid_index, STATIC_SPHERE,
+                                  (STATIC_BOX, STATIC_BOX_FACE, STATIC_EDGE))
+        side = (contacts.solid_kind == SIDE_EDGE) & (contacts.solid_body == STATIC)  # a fixed box's edge
+        slots[side] = self.moving.box[(contacts.solid_index[side] // 2 - 12 * self.boxes.count) // 12]
+        return slots
 
     def allowed(self, first: np.ndarray | int, second: np.ndarray) -> np.ndarray:
         """Whether bodies ``first`` and ``second`` (K,) may touch: not a pair a joint joins (the joint holds them,
@@ -140,44 +154,6 @@ def check_scale(world: ContactWorld, state: Kinematics, travel: np.ndarray | Non
         "it, or take a smaller solver.dt or tighter solver.rtol", time=state.t, body=name)
 
 
-@dataclass(frozen=True, eq=False)
-class Contacts:
-    """K contacts: ``probe_body``/``solid_body`` (K,) body indices (``solid_body`` is -1 for fixed colliders),
-    ``point`` (K, 3) [m], ``normal`` (K, 3) unit, from the solid towards the probe, ``gap`` (K,) [m] (negative when
-    overlapping), the pair's ``restitution``, ``static_friction``, ``kinetic_friction`` (K,), and which features
-    touch: ``probe`` (K,) probe index, ``solid_kind`` and ``solid_index`` (K,) (see PLANE … BODY_BOX)."""
-
-    probe_body: np.ndarray
-    solid_body: np.ndarray
-    point: np.ndarray
-    normal: np.ndarray
-    gap: np.ndarray
-    restitution: np.ndarray
-    static_friction: np.ndarray
-    kinetic_friction: np.ndarray
-    probe: np.ndarray
-    solid_kind: np.ndarray
-    solid_index: np.ndarray
-
-    FIELDS = ("probe_body", "solid_body", "point", "normal", "gap", "restitution", "static_friction",
-              "kinetic_friction", "probe", "solid_kind", "solid_index")
-
-    @property
-    def count(self) -> int:
-        return len(self.gap)
-
-    @classmethod
-    def concatenate(cls, parts: list[Contacts]) -> Contacts:
-        if not parts:
-            z3, z, zi = np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.intp)
-            return cls(zi, zi, z3, z3, z, z, z, z, zi, zi, zi)
-        return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in cls.FIELDS))
-
-    def select(self, chosen: np.ndarray) -> Contacts:
-        """The contacts at indices or mask ``chosen``."""
-        return Contacts(*(getattr(self, name)[chosen] for name in self.FIELDS))
-
-
 def body_reach(world: ContactWorld, body_count: int) -> np.ndarray:
     """For each body (P,), how far its collision geometry reaches from its centre of mass [m]: the largest
     ``|offset| + radius`` of its probes (box faces lie within their corners). A turn by θ moves no point of the body
@@ -186,12 +162,6 @@ def body_reach(world: ContactWorld, body_count: int) -> np.ndarray:
     reach = np.zeros(body_count)
     np.maximum.at(reach, probes.owner, np.linalg.norm(probes.offset, axis=1) + probes.radius)
     return reach
-
-
-def contact_codes(contacts: Contacts) -> np.ndarray:
-    """One int64 per contact that names its probe and solid, to find the same contact in another state."""
-    return ((contacts.probe.astype(np.int64) << 36) | (contacts.solid_kind.astype(np.int64) << 32)
-            | contacts.solid_index.astype(np.int64))
 
 
 def probe_centres(world: ContactWorld, state: Kinematics) -> np.ndarray:
@@ -283,11 +253,15 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
             parts.append(_contacts(world, probes, centres[probes], d, n, np.full(len(probes), STATIC),
                                    statics.triangle_material[triangles], margin, TRIANGLE, triangles, travel))
     if world.bodies_collide and tree is not None:
-        parts += _between_bodies(world, centres, tree, active, margin, box_centres, box_rotations, travel)
+        parts += _between_bodies(world, state, centres, tree, active, margin, box_centres, box_rotations, travel)
     if edges and world.boxes.count:
         parts.append(edge_contacts(world, statics, box_centres, box_rotations, margin, travel))
     if edges and world.cylinders is not None and len(statics.plane_point):
         parts.append(rim_contacts(world, state, statics, margin, travel))
+    if edges and world.cylinders is not None:
+        parts.append(side_contacts(world, state, statics, box_centres, box_rotations, margin, travel))
+    if edges and world.hulls:
+        parts.append(hull_edge_contacts(world, state, statics, box_centres, box_rotations, margin, travel))
     return Contacts.concatenate(parts)
 
 
@@ -297,10 +271,8 @@ def rim_contacts(world: ContactWorld, state: Kinematics, statics: StaticCollider
     that a cylinder rolls on a plane as a circle, not as the polygon of its rim probes. Vectorised over cylinders,
     one pass per plane."""
     cylinders = world.cylinders
-    assert cylinders is not None and state.rotation is not None
-    rigid = cylinders.owner - state.first_rigid
-    centres = state.x[cylinders.owner] + state.lever(rigid, cylinders.offset)
-    axes = np.einsum("kij,kj->ki", state.rotation[rigid], cylinders.axis)
+    assert cylinders is not None
+    centres, axes = round_poses(world, state)
     reach = margin + (travel[cylinders.owner] if travel is not None else 0.0)
     first = world.probes.count + 12 * world.boxes.count  # "probe" numbers past the probes and the box edges
     parts = []
@@ -308,14 +280,13 @@ def rim_contacts(world: ContactWorld, state: Kinematics, statics: StaticCollider
         normal = statics.plane_normal[k]
         point, found = cylinder_support(centres, axes, cylinders.half_length, cylinders.radius, -normal)
         depth = (point - statics.plane_point[k]) @ normal
-        keep = found & (depth < reach) & world.collides[cylinders.owner]
+        keep = found & (depth < reach) & world.collides[cylinders.owner] & ~cylinders.rounded  # caps: probes
         owner, depth = cylinders.owner[keep], depth[keep]
-        a, b = world.body_material[owner], statics.plane_material[k]
-        table = world.materials
-        parts.append(Contacts(owner, np.full(len(owner), STATIC), point[keep] - 0.5 * depth[:, None] * normal,
-                              np.broadcast_to(normal, (len(owner), 3)).copy(), depth, table.restitution[a, b],
-                              table.static_friction[a, b], table.kinetic_friction[a, b],
-                              first + np.flatnonzero(keep), np.full(len(owner), PLANE_RIM), np.full(len(owner), k)))
+        touching = point[keep] - 0.5 * depth[:, None] * normal
+        parts.append(make_contacts(world, owner, np.full(len(owner), STATIC), touching,
+                                   np.broadcast_to(normal, (len(owner), 3)), depth,
+                                   np.full(len(owner), statics.plane_material[k]), first + np.flatnonzero(keep),
+                                   PLANE_RIM, np.full(len(owner), k)))
     return Contacts.concatenate(parts)
 
 
@@ -361,12 +332,8 @@ def edge_contacts(world: ContactWorld, statics: StaticColliders, box_centres: np
     if not found:
         return Contacts.concatenate([])
     box, edge, owner_, solid, kind, index, solid_material, point, normal, gap = (np.array(c) for c in zip(*found))
-    table = world.materials
-    a, b = world.body_material[owner_], solid_material
-    return Contacts(owner_.astype(np.intp), solid.astype(np.intp), point.reshape(-1, 3), normal.reshape(-1, 3),
-                    gap.astype(float), table.restitution[a, b], table.static_friction[a, b],
-                    table.kinetic_friction[a, b], (world.probes.count + 12 * box + edge).astype(np.intp),
-                    kind.astype(np.intp), index.astype(np.intp))
+    return make_contacts(world, owner_, solid, point, normal, gap, solid_material,
+                         world.probes.count + 12 * box + edge, kind, index)
 
 
 def body_box_poses(world: ContactWorld, state: Kinematics) -> tuple[np.ndarray, np.ndarray]:
@@ -407,10 +374,11 @@ def _box_contacts(world: ContactWorld, chosen: np.ndarray, centres: np.ndarray, 
                      np.full(count, material), margin, kind, index, travel)
 
 
-def _between_bodies(world: ContactWorld, centres: np.ndarray, tree: cKDTree, active: np.ndarray, margin: float,
-                    box_centres: np.ndarray, box_rotations: np.ndarray,
+def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray, tree: cKDTree, active: np.ndarray,
+                    margin: float, box_centres: np.ndarray, box_rotations: np.ndarray,
                     travel: np.ndarray | None) -> list[Contacts]:
-    """Probe spheres against other bodies' probe spheres, and probes against other bodies' boxes."""
+    """Probe spheres against other bodies' probe spheres, and probes against other bodies' boxes, round solids and
+    hulls."""
     probes, parts = world.probes, []
     closing = margin + 2 * (float(travel.max(initial=0.0)) if travel is not None else 0.0)  # both sides move
     pairs = tree.query_pairs(2 * float(probes.radius.max()) + closing, output_type="ndarray")
@@ -439,7 +407,51 @@ def _between_bodies(world: ContactWorld, centres: np.ndarray, tree: cKDTree, act
             parts.append(_box_contacts(world, chosen, centres, box_centres[k], box_rotations[k], boxes.half[k],
                                        owner, world.body_material[owner], margin, (BODY_BOX, BODY_BOX_FACE), k,
                                        box_centres, box_rotations, travel))
+    widest = float(probes.radius.max())
+
+    def near_solid(owner: int, centre: np.ndarray, size: float) -> np.ndarray:
+        """Other bodies' active probes within reach of a solid of ``owner`` around ``centre``."""
+        if not world.collides[owner]:
+            return np.zeros(0, np.intp)
+        found = np.asarray(tree.query_ball_point(centre, size + closing + widest), dtype=np.intp)
+        if not len(found):
+            return found
+        return found[(probes.owner[found] != owner) & active[found] & world.allowed(owner, probes.owner[found])]
+
+    if world.cylinders is not None:
+        rounds = world.cylinders
+        centre, axis = round_poses(world, state)
+        for k in range(rounds.count):
+            owner = int(rounds.owner[k])
+            chosen = near_solid(owner, centre[k], float(rounds.half_length[k] + rounds.radius[k]))
+            if len(chosen):
+                count = len(chosen)
+                d, normal = to_round(centres[chosen], np.broadcast_to(centre[k], (count, 3)),
+                                     np.broadcast_to(axis[k], (count, 3)), np.full(count, rounds.half_length[k]),
+                                     np.full(count, rounds.radius[k]), np.full(count, rounds.rounded[k]))
+                parts.append(_contacts(world, chosen, centres[chosen], d, normal, np.full(count, owner),
+                                       np.full(count, world.body_material[owner]), margin, BODY_ROUND,
+                                       np.full(count, k), travel))
+    for k, hull in enumerate(world.hulls):
+        chosen = near_solid(hull.owner, state.x[hull.owner], hull.reach)
+        if len(chosen):
+            assert state.rotation is not None
+            d, normal = to_hull(centres[chosen], hull, state.x[hull.owner],
+                                state.rotation[hull.owner - state.first_rigid])
+            count = len(chosen)
+            parts.append(_contacts(world, chosen, centres[chosen], d, normal, np.full(count, hull.owner),
+                                   np.full(count, world.body_material[hull.owner]), margin, BODY_HULL,
+                                   np.full(count, k), travel))
     return parts
+
+
+def round_poses(world: ContactWorld, state: Kinematics) -> tuple[np.ndarray, np.ndarray]:
+    """World centres (C, 3) and unit axes (C, 3) of the round solids (cylinders, rods, capsules)."""
+    rounds = world.cylinders
+    assert rounds is not None and state.rotation is not None
+    rigid = rounds.owner - state.first_rigid
+    return (state.x[rounds.owner] + state.lever(rigid, rounds.offset),
+            np.einsum("kij,kj->ki", state.rotation[rigid], rounds.axis))
 
 
 def evaluate_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, kind: np.ndarray,
@@ -478,6 +490,23 @@ def evaluate_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, ki
             distance[k], normal[k] = to_sphere(c, all_centres[i], probes.radius[i])
             solid_body[k] = probes.owner[i]
             material[k] = world.body_material[probes.owner[i]]
+        elif code == BODY_ROUND:
+            rounds = world.cylinders
+            assert rounds is not None
+            round_centre, round_axis = round_poses(world, state)
+            distance[k], normal[k] = to_round(c, round_centre[i], round_axis[i], rounds.half_length[i],
+                                              rounds.radius[i], rounds.rounded[i])
+            solid_body[k] = rounds.owner[i]
+            material[k] = world.body_material[rounds.owner[i]]
+        elif code == BODY_HULL:
+            assert state.rotation is not None
+            for hull_number in np.unique(i):
+                hull = world.hulls[hull_number]
+                chosen = np.flatnonzero(k)[i == hull_number]
+                distance[chosen], normal[chosen] = to_hull(
+                    centres[chosen], hull, state.x[hull.owner], state.rotation[hull.owner - state.first_rigid])
+                solid_body[chosen] = hull.owner
+                material[chosen] = world.body_material[hull.owner]
         else:  # BODY_BOX, BODY_BOX_FACE
             box = i // 6 if code == BODY_BOX_FACE else i
             box_centres, box_rotations = body_box_poses(world, state)

@@ -33,8 +33,8 @@ from scipy.optimize import brentq
 
 from animbatch.errors import SimulationError
 from animbatch.quaternion import cross
+from animbatch.sim.contact.contacts import Contacts
 from animbatch.sim.contact.detection import (
-    Contacts,
     body_reach,
     closing_margin,
     detect,

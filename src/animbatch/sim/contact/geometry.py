@@ -1,17 +1,19 @@
 """Collision geometry: what touches (probes), what is touched (solids), and the distance between them.
 
 Every contact is between a *probe* (a sphere of radius ≥ 0 fixed to a body: a particle, a rigid sphere, a box corner,
-a sample point on a cylinder's rims or a mesh's surface) and a *solid* (a plane, sphere, box or triangle mesh, fixed in
-the world or moving with a body). Box against box is then corners against boxes both ways, and sphere against box is
-the sphere against the box; a handful of vectorised signed-distance functions covers every pair.
+a sample point on a cylinder's rims, a capsule's cap centre, a mesh hull's vertex) and a *solid* (a plane, sphere,
+box or triangle mesh fixed in the world; a sphere, box, cylinder, capsule or convex hull moving with a body). Box
+against box is then corners against boxes both ways, and sphere against box is the sphere against the box; a
+handful of vectorised signed-distance functions covers every pair (:mod:`animbatch.sim.contact.hulls` has the
+hulls').
 
 A box corner against another box is measured to the face that the two boxes' separating axis picks (the face axis
 of least overlap, :func:`separating_direction`), not to the nearest face: when a box rests on another with edges
 flush, its corners lie on the other box's side faces as much as on its top, and the nearest face would push them
 sideways. Corners outside that face's extent fall back to the plain distance to the box.
 
-Edge-to-edge contact between two boxes (edges crossing, no corner inside the other box) is not detected: boxes
-resting on or tumbling onto other boxes touch corner-first, and that is what these contacts resolve.
+What probes miss, edges crossing edges and the sides of cylinders and capsules, is found by
+:mod:`animbatch.sim.contact.edges`, :mod:`~animbatch.sim.contact.hulls` and :mod:`~animbatch.sim.contact.sides`.
 
 Signed distances are positive outside, with ``normal`` the outward unit normal of the solid at the closest point.
 """
@@ -141,6 +143,72 @@ def to_triangles(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray,
     return distance, normal
 
 
+def to_round(points: np.ndarray, centres: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray,
+             radii: np.ndarray, rounded: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distance of points (K, 3) to solids round about an axis: cylinders (flat ends) or capsules
+    (``rounded``: hemispherical ends), each given by its centre (K, 3), unit axis (K, 3), the half length of its
+    straight part (K,) and radius (K,); and outward normals (K, 3). Exact for both.
+
+    A capsule is every point within ``r`` of its axis segment. For a cylinder, with ``a`` the point's coordinate
+    along the axis and ``ρ`` its distance from it, ``dρ = ρ - r`` and ``da = |a| - h``: outside both, the distance
+    is to the rim, ``√(dρ² + da²)``; outside one, to the side or the end face; inside, the nearer of the two."""
+    offset = points - centres
+    along = np.einsum("ij,ij->i", offset, axes)
+    radial = offset - along[:, None] * axes
+    rho = np.sqrt(np.einsum("ij,ij->i", radial, radial))
+    # across the axis from a point on it: any direction across will do
+    helper = np.where(np.abs(axes[:, [0]]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    fallback = np.cross(axes, helper)
+    fallback /= np.linalg.norm(fallback, axis=1, keepdims=True)
+    unit_radial = np.divide(radial, rho[:, None], out=fallback.copy(), where=rho[:, None] > 1e-12)
+    end = np.sign(along)[:, None] * axes
+    end = np.where(np.abs(along)[:, None] > 0, end, axes)
+    d_rho, d_along = rho - radii, np.abs(along) - half_lengths
+    rim = np.hypot(np.maximum(d_rho, 0.0), np.maximum(d_along, 0.0))
+    rim_normal = (np.maximum(d_rho, 0.0)[:, None] * unit_radial + np.maximum(d_along, 0.0)[:, None] * end)
+    rim_normal = np.divide(rim_normal, rim[:, None], out=np.zeros_like(rim_normal), where=rim[:, None] > 0)
+    inside_normal = np.where((d_rho >= d_along)[:, None], unit_radial, end)
+    distance = np.where(rim > 0, rim, np.maximum(d_rho, d_along))
+    normal = np.where((rim > 0)[:, None], rim_normal, inside_normal)
+    # capsules: from the nearest point of the axis segment
+    nearest = centres + np.clip(along, -half_lengths, half_lengths)[:, None] * axes
+    capsule_distance, capsule_normal = to_sphere(points, nearest, radii)
+    capsule_normal = np.where((np.abs(along) <= half_lengths)[:, None] & (rho <= 1e-12)[:, None], fallback,
+                              capsule_normal)
+    return (np.where(rounded, capsule_distance, distance),
+            np.where(rounded[:, None], capsule_normal, normal))
+
+
+def round_distance(points: np.ndarray, centres: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray,
+                   radii: np.ndarray, rounded: np.ndarray) -> np.ndarray:
+    """The signed distance of :func:`to_round` alone (K,), without normals: for searches that look at many
+    points."""
+    offset = points - centres
+    along = np.einsum("ij,ij->i", offset, axes)
+    rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", offset, offset) - along * along, 0.0))
+    d_rho, d_along = rho - radii, np.abs(along) - half_lengths
+    flat = np.where((d_rho > 0) & (d_along > 0), np.hypot(d_rho, d_along), np.maximum(d_rho, d_along))
+    capsule = np.hypot(rho, np.maximum(d_along, 0.0)) - radii
+    return np.where(rounded, capsule, flat)
+
+
+def segment_distance(start_a: np.ndarray, along_a: np.ndarray, start_b: np.ndarray, along_b: np.ndarray
+                     ) -> np.ndarray:
+    """Distance [m] (K,) between segments ``start + s along``, s in [0, 1] (K, 3 each; non-zero lengths), after
+    Ericson, "Real-Time Collision Detection", 5.1.9, vectorised."""
+    between = start_a - start_b
+    aa, ee = np.einsum("ij,ij->i", along_a, along_a), np.einsum("ij,ij->i", along_b, along_b)
+    bb = np.einsum("ij,ij->i", along_a, along_b)
+    cc, ff = np.einsum("ij,ij->i", along_a, between), np.einsum("ij,ij->i", along_b, between)
+    denominator = aa * ee - bb * bb
+    s = np.where(denominator > 1e-12 * aa * ee, np.clip((bb * ff - cc * ee) / np.where(denominator > 0,
+                                                                                       denominator, 1.0), 0, 1), 0.0)
+    t = (bb * s + ff) / ee
+    s = np.where(t < 0, np.clip(-cc / aa, 0, 1), np.where(t > 1, np.clip((bb - cc) / aa, 0, 1), s))
+    t = np.clip(t, 0, 1)
+    return np.linalg.norm(start_a + s[:, None] * along_a - start_b - t[:, None] * along_b, axis=1)
+
+
 @dataclass(frozen=True, eq=False)
 class Probes:
     """Spheres attached to bodies: ``owner`` (Q,) body (point) index, ``offset`` (Q, 3) centre in body axes from the
@@ -159,14 +227,16 @@ class Probes:
 
 @dataclass(frozen=True, eq=False)
 class BodyCylinders:
-    """Cylinders (and rods) moving with bodies: ``owner`` (C,), ``offset`` (C, 3) centre and ``axis`` (C, 3) unit
-    axis in body axes from the centre of mass, ``half_length`` (C,) and ``radius`` (C,) [m]."""
+    """Solids round about an axis moving with bodies: cylinders and rods, and capsules (``rounded`` (C,) bool):
+    ``owner`` (C,), ``offset`` (C, 3) centre and ``axis`` (C, 3) unit axis in body axes from the centre of mass,
+    ``half_length`` (C,) of the straight part and ``radius`` (C,) [m]."""
 
     owner: np.ndarray
     offset: np.ndarray
     axis: np.ndarray
     half_length: np.ndarray
     radius: np.ndarray
+    rounded: np.ndarray
 
     @property
     def count(self) -> int:

@@ -41,7 +41,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from animbatch.quaternion import cross
-from animbatch.sim.contact.detection import Contacts
+from animbatch.sim.contact.contacts import Contacts
 
 #: Fraction of an overlap (beyond the slop) removed per step.
 BAUMGARTE = 0.2

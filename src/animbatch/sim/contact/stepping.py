@@ -22,7 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from animbatch.sim.contact.detection import body_reach, contact_codes, detect
+from animbatch.sim.contact.contacts import contact_codes
+from animbatch.sim.contact.detection import body_reach, detect
 from animbatch.sim.contact.impacts import ImpactLog
 from animbatch.sim.contact.solver import BodyVelocities, solve_impulses, tangent_basis
 from animbatch.sim.forces import Kinematics

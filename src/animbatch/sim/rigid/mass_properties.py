@@ -83,3 +83,18 @@ def cylinder(mass: float, radius: float, length: float) -> MassProperties:
     """Solid cylinder along z: ``I_xx = I_yy = ¼ m r² + 1/12 m l²``, ``I_zz = ½ m r²`` (notes: rod/cylinder)."""
     side = 0.25 * mass * radius**2 + mass * length**2 / 12
     return MassProperties(mass, np.pi * radius**2 * length, np.zeros(3), np.diag([side, side, 0.5 * mass * radius**2]))
+
+
+def capsule(mass: float, radius: float, length: float) -> MassProperties:
+    """Solid capsule along z, ``length`` tip to tip: a cylinder of length ``l = length - 2r`` and two hemispherical
+    caps of mass ``m_h`` each, at one density. ``I_zz = ½ m_c r² + ⅘ m_h r²``; about x, each cap contributes
+    ``m_h (⅖ r² + l²/4 + ⅜ l r)`` (its own ``83/320 m_h r²`` about its centroid, ``⅜ r`` from the flat face, moved
+    to the centre by parallel axes)."""
+    straight = length - 2 * radius
+    cylinder_volume, cap_volume = np.pi * radius**2 * straight, 2 / 3 * np.pi * radius**3
+    volume = cylinder_volume + 2 * cap_volume
+    m_c, m_h = mass * cylinder_volume / volume, mass * cap_volume / volume
+    side = m_c * (straight**2 / 12 + radius**2 / 4) + 2 * m_h * (0.4 * radius**2 + straight**2 / 4
+                                                                 + 0.375 * straight * radius)
+    axial = 0.5 * m_c * radius**2 + 0.8 * m_h * radius**2
+    return MassProperties(mass, volume, np.zeros(3), np.diag([side, side, axial]))

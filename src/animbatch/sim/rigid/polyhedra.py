@@ -146,6 +146,35 @@ def cylinder_mesh(radius: float, length: float, segments: int = 64) -> TriangleM
     return TriangleMesh(vertices, np.vstack([side, caps]))
 
 
+def capsule_mesh(radius: float, length: float, segments: int = 32) -> TriangleMesh:
+    """Capsule along z, ``length`` tip to tip: the convex hull of two hemispheres' rings (``segments`` around,
+    ``segments // 4`` latitude rings per cap) and their poles."""
+    half = length / 2 - radius
+    angles = 2 * np.pi * np.arange(segments) / segments
+    rings = []
+    for latitude in np.linspace(0, np.pi / 2, max(segments // 4, 2), endpoint=False):
+        ring = np.stack([np.cos(angles) * np.cos(latitude), np.sin(angles) * np.cos(latitude),
+                         np.full(segments, np.sin(latitude))], axis=1) * radius
+        rings += [ring + [0, 0, half], ring * [1, 1, -1] - [0, 0, half]]
+    vertices = np.vstack([*rings, [[0, 0, half + radius], [0, 0, -half - radius]]])
+    return convex_mesh(vertices)
+
+
+def convex_mesh(points: np.ndarray) -> TriangleMesh:
+    """The convex hull of points (V, 3) as a closed mesh, its triangles wound outwards."""
+    from scipy.spatial import ConvexHull
+
+    hull = ConvexHull(points)
+    vertices = points[hull.vertices]
+    renumber = np.full(len(points), -1)
+    renumber[hull.vertices] = np.arange(len(hull.vertices))
+    faces = renumber[hull.simplices]
+    a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
+    outward = np.einsum("ij,ij->i", np.cross(b - a, c - a), a - vertices.mean(axis=0)) > 0
+    faces[~outward] = faces[~outward][:, ::-1]
+    return TriangleMesh(vertices, faces)
+
+
 # ------------------------------------------------------------------------------------------------ below a plane
 
 

@@ -1,0 +1,253 @@
+"""Convex polyhedra moving with bodies (convex mesh bodies, and boxes when they meet one): their signed distance,
+and the edge–edge contact of two of them.
+
+A convex hull is the intersection of its faces' half-spaces ``n · x ≤ d``, so inside it a point's signed distance is
+exactly the largest ``n · x - d`` (the nearest face). Outside, that largest value can fall short of the distance near
+an edge or a corner, so points outside are measured to the hull's triangles instead.
+
+Vertices against faces are found by the hull's vertices as probes, the same way as box corners. What vertex probes
+miss is two edges crossing (see :mod:`animbatch.sim.contact.edges` for boxes); for two polyhedra the separating-axis
+test runs over both hulls' face normals and the cross products of their edge directions, and when an edge pair's
+axis overlaps least the contact is between the two edges that support the hulls along it. When an edge axis only
+ties with a face's (two faces lying on each other, crossed, or one overhanging the other's edge), each crossing of
+supporting edges is a contact: the corners of the patch where the faces overlap, where neither hull may have a
+vertex. Hulls with more than
+:data:`MAX_EDGE_DIRECTIONS` edge directions skip it: their vertices are dense enough that crossing edges cut in only
+as deep as the vertices are apart times the edges' slope.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from animbatch.sim.bodies import Kinematics
+from animbatch.sim.contact.contacts import BODY_EDGE, HULL_EDGE, STATIC, STATIC_EDGE, Contacts, make_contacts
+from animbatch.sim.contact.geometry import StaticColliders, to_triangles
+
+if TYPE_CHECKING:
+    from animbatch.sim.contact.detection import ContactWorld
+
+#: Hulls with more distinct edge directions than this leave edge–edge contact to their dense vertices.
+MAX_EDGE_DIRECTIONS = 40
+#: Overlaps within this [m] (times 1 + the hulls' reaches) count as equal: edges supporting a hull as far as one
+#: another, and an edge axis as good as a face axis.
+TIE = 1e-7
+#: Edge directions this close to parallel (|sin angle|) count as one, and give no cross-product axis.
+PARALLEL = 1e-6
+
+
+@dataclass(frozen=True, eq=False)
+class BodyHull:
+    """A convex polyhedron fixed to body ``owner``, in body axes from its centre of mass: ``vertices`` (V, 3) [m],
+    face planes ``normals`` (F, 3) (unit, outward) and ``offsets`` (F,) [m] (inside: ``n · x ≤ d``), ``triangles``
+    (T, 3) vertex indices, ``edges`` (E, 2) vertex indices with their unit ``directions`` (E, 3), the distinct
+    edge directions ``edge_axes`` (D, 3) (an edge and its parallels count once), and ``reach`` [m], the farthest
+    vertex from the centre of mass."""
+
+    owner: int
+    vertices: np.ndarray
+    normals: np.ndarray
+    offsets: np.ndarray
+    triangles: np.ndarray
+    edges: np.ndarray
+    directions: np.ndarray
+    edge_axes: np.ndarray
+    reach: float
+
+    @classmethod
+    def of_points(cls, owner: int, points: np.ndarray) -> BodyHull:
+        """The convex hull of points (V, 3), body axes from the centre of mass."""
+        from scipy.spatial import ConvexHull
+
+        hull = ConvexHull(points)
+        vertices = points[hull.vertices]
+        renumber = np.full(len(points), -1)
+        renumber[hull.vertices] = np.arange(len(hull.vertices))
+        triangles = renumber[hull.simplices]
+        # coplanar triangles share one face plane: keep each plane once
+        planes = np.round(hull.equations, 9)
+        _, first = np.unique(planes, axis=0, return_index=True)
+        normals, offsets = hull.equations[first, :3], -hull.equations[first, 3]
+        # edges: triangle sides, leaving out the diagonals inside flat faces (between two coplanar triangles)
+        sides = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+        face_of = np.tile(np.arange(len(triangles)), 3)
+        key = np.sort(sides, axis=1)
+        order = np.lexsort((key[:, 1], key[:, 0]))
+        key, face_of = key[order], face_of[order]
+        pair_first = np.flatnonzero(np.all(key[1:] == key[:-1], axis=1))
+        flat = np.all(np.abs(planes[face_of[pair_first]] - planes[face_of[pair_first + 1]]) < 1e-8, axis=1)
+        edges = key[pair_first[~flat]]
+        directions = vertices[edges[:, 1]] - vertices[edges[:, 0]]
+        directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+        return cls(owner, vertices, normals, offsets, triangles, edges, directions, _distinct(directions),
+                   float(np.max(np.linalg.norm(vertices, axis=1))))
+
+    @classmethod
+    def of_box(cls, owner: int, offset: np.ndarray, rotation: np.ndarray, half: np.ndarray) -> BodyHull:
+        """A box (centre ``offset`` (3,), ``rotation`` (3, 3) box-to-body, half sides ``half`` (3,)) as a hull."""
+        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float)
+        return cls.of_points(owner, offset + (signs * half) @ rotation.T)
+
+
+
+def _distinct(directions: np.ndarray) -> np.ndarray:
+    """Unit directions (E, 3) with parallel and opposite ones kept once (D, 3)."""
+    found: list[np.ndarray] = []
+    for d in directions:
+        if not any(np.linalg.norm(np.cross(d, u)) < PARALLEL for u in found):
+            found.append(d)
+    return np.array(found).reshape(-1, 3)
+
+
+def to_hull(points: np.ndarray, hull: BodyHull, centre: np.ndarray, rotation: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distance [m] (K,) of points (K, 3) to a hull whose body is at ``centre`` (3,) turned by ``rotation``
+    (3, 3), and outward unit normals (K, 3), world axes."""
+    local = (points - centre) @ rotation  # Rᵀ (p - c), row-wise
+    height = local @ hull.normals.T - hull.offsets  # (K, F) how far outside each face's plane
+    face = np.argmax(height, axis=1)
+    distance = height[np.arange(len(points)), face]
+    normal = hull.normals[face].copy()
+    outside = np.flatnonzero(distance > 0)
+    if len(outside):  # to the nearest triangle: exact near edges and corners too
+        triangles = hull.vertices[hull.triangles]  # (T, 3, 3)
+        count = len(triangles)
+        d, n = to_triangles(np.repeat(local[outside], count, axis=0), np.tile(triangles, (len(outside), 1, 1)))
+        d, n = d.reshape(len(outside), count), n.reshape(len(outside), count, 3)
+        nearest = np.argmin(d, axis=1)
+        distance[outside] = d[np.arange(len(outside)), nearest]
+        normal[outside] = n[np.arange(len(outside)), nearest]
+    return distance, normal @ rotation.T
+
+
+def hull_edge_contact(a: BodyHull, centre_a: np.ndarray, rotation_a: np.ndarray, b: BodyHull, centre_b: np.ndarray,
+                      rotation_b: np.ndarray, reach: float) -> list[tuple[np.ndarray, np.ndarray, float, int, int]]:
+    """The edge–edge contacts of hull A on hull B (each at its body's centre (3,) and rotation (3, 3)) within
+    ``reach`` [m]: each a contact point (3,), unit normal from B towards A, gap [m] (negative when overlapping), and
+    the two edges (indices into each hull's ``edges``). Empty unless an edge pair's axis overlaps least, or as
+    little as the best face's (faces lying on faces: then the edges cross at the corners of the patch where they
+    overlap, and each crossing is a contact, where no vertex may be)."""
+    verts_a, verts_b = centre_a + a.vertices @ rotation_a.T, centre_b + b.vertices @ rotation_b.T
+    faces = np.concatenate([a.normals @ rotation_a.T, b.normals @ rotation_b.T])
+    world_a, world_b = a.edge_axes @ rotation_a.T, b.edge_axes @ rotation_b.T
+    crosses = np.cross(world_a[:, None, :], world_b[None, :, :]).reshape(-1, 3)
+    size = np.linalg.norm(crosses, axis=1)
+    pair = np.flatnonzero(size > PARALLEL)  # i·D_b + j: the directions each axis crosses
+    crosses = crosses[pair] / size[pair, None]
+
+    def overlaps(axes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per axis: the overlap with A on the + side of B, and with A on the − side."""
+        pa, pb = verts_a @ axes.T, verts_b @ axes.T
+        return pb.max(axis=0) - pa.min(axis=0), pa.max(axis=0) - pb.min(axis=0)
+
+    face_plus, face_minus = overlaps(faces)
+    best_face = float(np.minimum(face_plus, face_minus).min())
+    if best_face < -reach or not len(crosses):
+        return []
+    plus, minus = overlaps(crosses)
+    depth = np.minimum(plus, minus)
+    if depth.min() < -reach:
+        return []  # an edge axis separates them
+    tie = TIE * (1.0 + a.reach + b.reach)
+    if depth.min() > best_face + tie:
+        return []  # a face overlaps least: a vertex on a face, which the vertex probes hold
+    found: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, float, int, int]] = {}
+    for k in np.flatnonzero(depth <= depth.min() + tie):
+        normal = crosses[k] if plus[k] <= minus[k] else -crosses[k]
+        i, j = divmod(int(pair[k]), len(world_b))
+        # the supporting edges, of the two directions the axis crosses: A's lowest along the normal, B's highest
+        for edge_a in _supporting_edges(verts_a, a.edges, world_a[i], -normal, tie):
+            for edge_b in _supporting_edges(verts_b, b.edges, world_b[j], normal, tie):
+                start_a, end_a = verts_a[a.edges[edge_a]]
+                start_b, end_b = verts_b[b.edges[edge_b]]
+                s, u = segment_parameters(start_a, end_a - start_a, start_b, end_b - start_b)
+                if 0.0 <= s <= 1.0 and 0.0 <= u <= 1.0:  # else beyond an edge's end: a vertex's contact
+                    point_a, point_b = start_a + s * (end_a - start_a), start_b + u * (end_b - start_b)
+                    found[(edge_a, edge_b)] = (0.5 * (point_a + point_b), normal,
+                                               float((point_a - point_b) @ normal), edge_a, edge_b)
+    return list(found.values())
+
+
+def _supporting_edges(vertices: np.ndarray, edges: np.ndarray, along: np.ndarray, direction: np.ndarray,
+                      tie: float) -> np.ndarray:
+    """Of the edges parallel to ``along`` (3,), those farthest in ``direction`` (3,) (to ``tie`` [m])."""
+    ends = vertices[edges]
+    tangent = ends[:, 1] - ends[:, 0]
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    height = np.where(np.linalg.norm(np.cross(tangent, along), axis=1) < 1e-6, ends.mean(axis=1) @ direction,
+                      -np.inf)
+    return np.flatnonzero(height >= height.max() - tie)
+
+
+def segment_parameters(start_a: np.ndarray, along_a: np.ndarray, start_b: np.ndarray, along_b: np.ndarray
+                       ) -> tuple[float, float]:
+    """Parameters s, u of the closest points ``start_a + s along_a`` and ``start_b + u along_b`` of two
+    non-parallel lines (not clamped to the segments)."""
+    between = start_a - start_b
+    aa, bb, ab = float(along_a @ along_a), float(along_b @ along_b), float(along_a @ along_b)
+    da, db = float(along_a @ between), float(along_b @ between)
+    denominator = aa * bb - ab * ab
+    if denominator <= 1e-300:
+        return np.inf, np.inf
+    return (ab * db - bb * da) / denominator, (aa * db - ab * da) / denominator
+
+
+@lru_cache(maxsize=256)
+def _box_hull(half: tuple[float, float, float]) -> BodyHull:
+    """A box of half sides ``half`` as a hull about its centre (body −1: a pose is given wherever it is used)."""
+    return BodyHull.of_box(-1, np.zeros(3), np.eye(3), np.array(half))
+
+
+def hull_edge_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders, box_centres: np.ndarray,
+                       box_rotations: np.ndarray, margin: float, travel: np.ndarray | None) -> Contacts:
+    """Crossing-edge contacts of the hulls moving with bodies against fixed boxes and (when bodies collide) body
+    boxes and each other, within ``margin`` [m] plus how far the pair can travel. Kinds: STATIC_EDGE and BODY_EDGE
+    (solid index ``12 box + edge``) and HULL_EDGE (solid index: the edge's number among all hulls' edges); probe
+    numbers past the probes, box edges, rims and sides, one per hull edge."""
+    assert state.rotation is not None
+    rounds = world.cylinders.count if world.cylinders is not None else 0
+    first = world.probes.count + 12 * world.boxes.count + 2 * rounds
+    edge_base = np.concatenate([[0], np.cumsum([len(h.edges) for h in world.hulls])]).astype(int)
+    steps = travel if travel is not None else np.zeros(len(world.body_material))
+    found: list[tuple] = []  # (owner, probe, solid body, kind, index, solid material, point, normal, gap)
+    poses = [(state.x[h.owner], state.rotation[h.owner - state.first_rigid]) for h in world.hulls]
+    for number, hull in enumerate(world.hulls):
+        owner = hull.owner
+        if not world.collides[owner]:
+            continue
+        centre, rotation = poses[number]
+        others: list[tuple] = []  # (hull, centre, rotation, reach, body, kind, index base, material)
+        for j in range(len(statics.box_centre)):
+            half = statics.box_half[j]
+            others.append((_box_hull(tuple(half)), statics.box_centre[j], statics.box_rotation[j],
+                           float(np.linalg.norm(half)), STATIC, STATIC_EDGE, 12 * j, int(statics.box_material[j])))
+        if world.bodies_collide:
+            for k in range(world.boxes.count):
+                half, body = world.boxes.half[k], int(world.boxes.owner[k])
+                others.append((_box_hull(tuple(half)), box_centres[k], box_rotations[k], float(np.linalg.norm(half)),
+                               body, BODY_EDGE, 12 * k, int(world.body_material[body])))
+            for k in range(number + 1, len(world.hulls)):
+                other = world.hulls[k]
+                others.append((other, *poses[k], other.reach, other.owner, HULL_EDGE, int(edge_base[k]),
+                               int(world.body_material[other.owner])))
+        for other, other_centre, other_rotation, other_reach, body, kind, base, material in others:
+            if body == owner or (body >= 0 and (not world.collides[body]
+                                                or not world.allowed(owner, np.array([body]))[0])):
+                continue
+            reach = margin + float(steps[owner] + (steps[body] if body >= 0 else 0.0))
+            if np.linalg.norm(centre - other_centre) > hull.reach + other_reach + reach:
+                continue
+            if len(hull.edge_axes) > MAX_EDGE_DIRECTIONS or len(other.edge_axes) > MAX_EDGE_DIRECTIONS:
+                continue
+            for point, normal, gap, edge, other_edge in hull_edge_contact(hull, centre, rotation, other,
+                                                                          other_centre, other_rotation, reach):
+                found.append((owner, first + edge_base[number] + edge, body, kind, base + other_edge, material,
+                              point, normal, gap))
+    if not found:
+        return Contacts.concatenate([])
+    owner_, probe, solid, kind_, index, material_, point_, normal_, gap_ = (np.array(c) for c in zip(*found))
+    return make_contacts(world, owner_, solid, point_, normal_, gap_, material_, probe, kind_, index)

@@ -1,0 +1,237 @@
+"""The sides of round solids (cylinders, rods, capsules) against other sides and against edges: the contacts that
+probes miss.
+
+Probes on a cylinder's rims, and the spheres at a capsule's cap centres, catch a round solid's ends; every other
+body's probes meet its side through its signed distance (:func:`~animbatch.sim.contact.geometry.to_round`). What
+neither sees is a side touching something between its ends with no probe there: two rods crossing, a log lying
+across a stair's edge or a box's edge.
+
+Both are a segment against a round solid: an edge (of a box, a fixed box or a hull), or the other round's axis
+thickened by its radius. A convex solid's signed distance is convex along a segment, so a golden-section search
+finds the segment's point nearest the solid, exactly, whatever the shapes (a cylinder's flat ends and rims
+included). Where that point is within reach, the contact is there, the normal the solid's at that point; where the
+segment runs along the solid (a log lying along a ridge, two logs side by side) the stretch within reach is
+bracketed and held by a contact at each of its ends, so the body rests on a line, not on a pivot. Against another
+round, points at its axis's ends are left out: its rims or caps are probes, which hold those contacts.
+
+Side contacts are fixed-step contacts (:class:`~animbatch.sim.contact.stepping.ContactResolver`), like box edges.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from animbatch.sim.bodies import Kinematics
+from animbatch.sim.contact.contacts import SIDE_EDGE, SIDE_ROUND, STATIC, Contacts, make_contacts
+from animbatch.sim.contact.geometry import StaticColliders, round_distance, segment_distance, to_round
+
+if TYPE_CHECKING:
+    from animbatch.sim.contact.detection import ContactWorld
+
+# the 12 edges of a box as pairs of its corners, corners numbered 4 (x > 0) + 2 (y > 0) + (z > 0)
+_BOX_EDGES = np.array([(a, a | bit) for bit in (4, 2, 1) for a in range(8) if not a & bit])
+_CORNER_SIGNS = np.array([[1 if c & 4 else -1, 1 if c & 2 else -1, 1 if c & 1 else -1] for c in range(8)], float)
+
+
+@dataclass(frozen=True, eq=False)
+class EdgeSet:
+    """Edges in world axes for one step: ``start``, ``end`` (E, 3) [m], ``body`` (E,) (−1 for fixed ones),
+    ``material`` (E,), and ``number`` (E,): body box edges ``12 box + edge``, then the fixed boxes' after all the
+    body boxes', then the hulls' edges in order."""
+
+    start: np.ndarray
+    end: np.ndarray
+    body: np.ndarray
+    material: np.ndarray
+    number: np.ndarray
+
+
+def box_edges(centres: np.ndarray, rotations: np.ndarray, halves: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and ends (12 X, 3) of the edges of boxes (centres (X, 3), rotations (X, 3, 3), half sides (X, 3))."""
+    corners = centres[:, None, :] + np.einsum("xij,xcj->xci", rotations, _CORNER_SIGNS[None] * halves[:, None, :])
+    return corners[:, _BOX_EDGES[:, 0]].reshape(-1, 3), corners[:, _BOX_EDGES[:, 1]].reshape(-1, 3)
+
+
+def edge_set(world: ContactWorld, state: Kinematics, statics: StaticColliders, box_centres: np.ndarray,
+             box_rotations: np.ndarray) -> EdgeSet:
+    """Every edge a round's side can meet, where it is in ``state``."""
+    boxes = world.boxes
+    starts, ends, bodies, materials = [], [], [], []
+    if boxes.count:
+        s, e = box_edges(box_centres, box_rotations, boxes.half)
+        starts.append(s)
+        ends.append(e)
+        bodies.append(np.repeat(boxes.owner, 12))
+        materials.append(np.repeat(world.body_material[boxes.owner], 12))
+    if len(statics.box_centre):
+        s, e = box_edges(statics.box_centre, statics.box_rotation, statics.box_half)
+        starts.append(s)
+        ends.append(e)
+        bodies.append(np.full(len(s), STATIC))
+        materials.append(np.repeat(statics.box_material, 12))
+    for hull in world.hulls:
+        rigid = hull.owner - state.first_rigid
+        assert state.rotation is not None
+        corners = state.x[hull.owner] + hull.vertices @ state.rotation[rigid].T
+        starts.append(corners[hull.edges[:, 0]])
+        ends.append(corners[hull.edges[:, 1]])
+        bodies.append(np.full(len(hull.edges), hull.owner))
+        materials.append(np.full(len(hull.edges), world.body_material[hull.owner]))
+    if not starts:
+        z3 = np.zeros((0, 3))
+        return EdgeSet(z3, z3, np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0, np.intp))
+    start = np.concatenate(starts)
+    return EdgeSet(start, np.concatenate(ends), np.concatenate(bodies).astype(np.intp),
+                   np.concatenate(materials).astype(np.intp), np.arange(len(start)))
+
+
+def side_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders, box_centres: np.ndarray,
+                  box_rotations: np.ndarray, margin: float, travel: np.ndarray | None) -> Contacts:
+    """Contacts of round solids' sides with other rounds' sides (when bodies collide) and with edges, within
+    ``margin`` [m] plus how far both sides can travel (``travel`` (P,) per body)."""
+    rounds = world.cylinders
+    assert rounds is not None and state.rotation is not None
+    rigid = rounds.owner - state.first_rigid
+    centre = state.x[rounds.owner] + state.lever(rigid, rounds.offset)
+    axis = np.einsum("kij,kj->ki", state.rotation[rigid], rounds.axis)
+    start, along = centre - rounds.half_length[:, None] * axis, 2 * rounds.half_length[:, None] * axis
+    steps = travel if travel is not None else np.zeros(len(world.body_material))
+    first = world.probes.count + 12 * world.boxes.count + rounds.count  # past the probes, box edges and rims
+    parts = []
+    edges = edge_set(world, state, statics, box_centres, box_rotations)
+    if len(edges.start) and not world.bodies_collide:
+        keep = edges.body == STATIC
+        edges = EdgeSet(*(getattr(edges, name)[keep] for name in ("start", "end", "body", "material", "number")))
+    size = rounds.half_length + rounds.radius
+    largest = float(steps.max(initial=0.0))
+    if len(edges.start):
+        middle, half = 0.5 * (edges.start + edges.end), 0.5 * np.linalg.norm(edges.end - edges.start, axis=1)
+        found = cKDTree(middle).query_ball_point(centre, size + float(half.max()) + margin + 2 * largest)
+        k = np.repeat(np.arange(rounds.count), [len(f) for f in found])
+        e = np.concatenate([np.asarray(f, np.intp) for f in found]) if len(k) else np.zeros(0, np.intp)
+        parts.append(_touching(world, k, centre, axis, rounds.owner, edges.start[e], edges.end[e] - edges.start[e],
+                               np.zeros(len(e)), edges.body[e], edges.material[e], first, SIDE_EDGE,
+                               edges.number[e], margin, steps, ends=True))
+    if world.bodies_collide and rounds.count > 1:
+        pairs = cKDTree(centre).query_pairs(2 * float(size.max()) + margin + 2 * largest, output_type="ndarray")
+        k, j = pairs[:, 0], pairs[:, 1]
+        # each pair both ways (the side of one against the other as a whole), but where both ways find the pair
+        # touching, they found one contact twice: keep the first way's
+        ways = [_touching(world, a, centre, axis, rounds.owner, start[b], along[b], rounds.radius[b],
+                          rounds.owner[b], world.body_material[rounds.owner[b]], first, SIDE_ROUND, b, margin, steps,
+                          ends=False) for a, b in ((k, j), (j, k))]
+        pair_codes = [rounds.count * (ways[0].probe - first) + ways[0].solid_index // 2,
+                      rounds.count * (ways[1].solid_index // 2) + (ways[1].probe - first)]
+        parts += [ways[0], ways[1].select(~np.isin(pair_codes[1], pair_codes[0]))]
+    return Contacts.concatenate(parts)
+
+
+def _touching(world: ContactWorld, k: np.ndarray, centre: np.ndarray, axis: np.ndarray, owner: np.ndarray,
+              other_start: np.ndarray, other_along: np.ndarray, other_radius: np.ndarray, other_body: np.ndarray,
+              other_material: np.ndarray, first: int, kind: int, index: np.ndarray, margin: float,
+              steps: np.ndarray, *, ends: bool) -> Contacts:
+    """The contacts of rounds ``k`` (K,) (centres and axes (C, 3) of all rounds) with segments ``other_start +
+    u other_along`` (K, 3), u in [0, 1], thickened by ``other_radius`` (K,), on ``other_body`` (K,): at the points
+    of each segment that come within its reach of the round's solid (:func:`nearest_stretch`), counting the
+    segment's ends only with ``ends``. Solid index ``2 index + 0`` for the nearest point or the stretch's near end,
+    ``+ 1`` for its far end."""
+    rounds = world.cylinders
+    assert rounds is not None
+    body = owner[k]
+    keep = (body != other_body) & world.collides[body]
+    keep &= np.where(other_body >= 0, world.collides[np.maximum(other_body, 0)], True)
+    keep &= np.where(other_body >= 0, world.allowed(body, np.maximum(other_body, 0)), True)
+    k, other_start, other_along, other_radius, other_body, other_material, index = (
+        a[keep] for a in (k, other_start, other_along, other_radius, other_body, other_material, index))
+    reach = margin + steps[owner[k]] + np.where(other_body >= 0, steps[np.maximum(other_body, 0)], 0.0)
+    # a round lies inside the capsule around its axis: segments farther than reach from that capsule cannot touch
+    bound = segment_distance(centre[k] - rounds.half_length[k, None] * axis[k],
+                             2 * rounds.half_length[k, None] * axis[k], other_start, other_along)
+    keep = bound - rounds.radius[k] - other_radius < reach
+    k, other_start, other_along, other_radius, other_body, other_material, index, reach = (
+        a[keep] for a in (k, other_start, other_along, other_radius, other_body, other_material, index, reach))
+
+    def distance_at(chosen: np.ndarray, u: np.ndarray) -> np.ndarray:
+        r = k[chosen]
+        return round_distance(other_start[chosen] + u[:, None] * other_along[chosen], centre[r], axis[r],
+                              rounds.half_length[r], rounds.radius[r], rounds.rounded[r]) - other_radius[chosen]
+
+    def gap_at(chosen: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Gaps (K',), the round's outward normals (K', 3) and the segment's points (K', 3) at parameters u."""
+        r = k[chosen]
+        points = other_start[chosen] + u[:, None] * other_along[chosen]
+        distance, normal = to_round(points, centre[r], axis[r], rounds.half_length[r], rounds.radius[r],
+                                    rounds.rounded[r])
+        return distance - other_radius[chosen], normal, points
+
+    stretch = nearest_stretch(distance_at, len(k), reach)
+    parts = []
+    for end, u in enumerate(stretch):
+        chosen = np.flatnonzero(np.isfinite(u))
+        if not ends:
+            chosen = chosen[(u[chosen] > 1e-6) & (u[chosen] < 1 - 1e-6)]
+        gap, normal, points = gap_at(chosen, u[chosen])
+        # the segment's surface point nearest the round, and the contact midway between the two surfaces
+        point = points - normal * (other_radius[chosen] + 0.5 * gap)[:, None]
+        parts.append(make_contacts(world, owner[k[chosen]], other_body[chosen], point, -normal, gap,
+                                   other_material[chosen], first + k[chosen], kind, 2 * index[chosen] + end))
+    return Contacts.concatenate(parts)
+
+
+#: Points per pass of the grid searches along a segment, and passes: each pass looks at GRID points across the bracket
+#: the last one left (2 grid spacings wide), so the nearest point is found to ~(2 / GRID)^PASSES / GRID of the
+#: segment (1e-5), and a stretch's ends to (1 / GRID)^PASSES.
+GRID, NEAREST_PASSES, END_PASSES = 17, 5, 4
+#: A stretch shorter than this fraction of its segment is one point (crossing segments), not two ends.
+SHORT_STRETCH = 1e-3
+
+
+def nearest_stretch(gap: Callable[[np.ndarray, np.ndarray], np.ndarray], count: int, reach: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """For ``count`` segments, each against a convex solid, where along the segment (u in [0, 1]) it comes within
+    ``reach`` (K,) [m] of the solid: ``gap(chosen, u)`` gives the gaps of segments ``chosen`` at parameters u (both
+    (N,)). The distance of a convex solid is a convex function along a segment, so a grid search that narrows onto
+    the least value of :data:`GRID` points finds its least gap; where that is within reach, the ends of the stretch
+    within ``least gap + slack`` (a tenth of the reach) are found the same way. All segments are searched at once,
+    a few calls of ``gap`` in all. Returns (first, second) parameters (K,) each: the stretch's ends, or for a short
+    stretch (crossing segments) its nearest point and NaN; both NaN where the segment stays out of reach."""
+    spacing = np.linspace(0.0, 1.0, GRID)
+
+    def looked_at(chosen: np.ndarray, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Parameters (N, GRID) spread over each bracket, and the gaps there."""
+        u = low[:, None] + (high - low)[:, None] * spacing
+        return u, gap(np.repeat(chosen, GRID), u.ravel()).reshape(u.shape)
+
+    everyone, rows = np.arange(count), np.arange(count)
+    low, high = np.zeros(count), np.ones(count)
+    for _ in range(NEAREST_PASSES):
+        u, f = looked_at(everyone, low, high)
+        best = np.argmin(f, axis=1)
+        low, high = u[rows, np.maximum(best - 1, 0)], u[rows, np.minimum(best + 1, GRID - 1)]
+    nearest, least = u[rows, best], f[rows, best]
+    first, second = np.full(count, np.nan), np.full(count, np.nan)
+    near = np.flatnonzero(least < reach)
+    if not len(near):
+        return first, second
+    level = np.tile(least[near] + 0.1 * reach[near], 2)
+    # both ends at once: from the segment's start up to the nearest point, and from its end back down to it
+    chosen = np.tile(near, 2)
+    outer = np.concatenate([np.zeros(len(near)), np.ones(len(near))])
+    inner = np.tile(nearest[near], 2)
+    ends_below = gap(chosen, outer) <= level  # the stretch reaches the segment's end
+    rows = np.arange(len(chosen))
+    for _ in range(END_PASSES):
+        u, f = looked_at(chosen, outer, inner)  # from outside the stretch (above the level) inwards
+        inside = np.argmax(f <= level[:, None], axis=1)  # the first point below the level (the inner end is)
+        outer, inner = u[rows, np.maximum(inside - 1, 0)], u[rows, inside]
+    ends = np.where(ends_below, np.concatenate([np.zeros(len(near)), np.ones(len(near))]), inner)
+    start, stop = ends[:len(near)], ends[len(near):]
+    short = stop - start < SHORT_STRETCH
+    first[near] = np.where(short, nearest[near], start)
+    second[near] = np.where(short, np.nan, stop)
+    return first, second
