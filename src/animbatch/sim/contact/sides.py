@@ -117,8 +117,9 @@ def side_contacts(world: ContactWorld, state: Kinematics, statics: StaticCollide
         parts.append(_touching(world, k, centre, axis, rounds.owner, edges.start[e], edges.end[e] - edges.start[e],
                                np.zeros(len(e)), edges.body[e], edges.material[e], first, SIDE_EDGE,
                                edges.number[e], margin, steps, ends=True))
-    if world.bodies_collide and rounds.count > 1:
-        pairs = cKDTree(centre).query_pairs(2 * float(size.max()) + margin + 2 * largest, output_type="ndarray")
+    pairs = (cKDTree(centre).query_pairs(2 * float(size.max()) + margin + 2 * largest, output_type="ndarray")
+             if world.bodies_collide and rounds.count > 1 else np.zeros((0, 2), np.intp))
+    if len(pairs):
         k, j = pairs[:, 0], pairs[:, 1]
         # each pair both ways (the side of one against the other as a whole), but where both ways find the pair
         # touching, they found one contact twice: keep the first way's
@@ -153,6 +154,8 @@ def _touching(world: ContactWorld, k: np.ndarray, centre: np.ndarray, axis: np.n
     bound = segment_distance(centre[k] - rounds.half_length[k, None] * axis[k],
                              2 * rounds.half_length[k, None] * axis[k], other_start, other_along)
     keep = bound - rounds.radius[k] - other_radius < reach
+    if not keep.any():
+        return Contacts.concatenate([])
     k, other_start, other_along, other_radius, other_body, other_material, index, reach = (
         a[keep] for a in (k, other_start, other_along, other_radius, other_body, other_material, index, reach))
 
@@ -169,18 +172,17 @@ def _touching(world: ContactWorld, k: np.ndarray, centre: np.ndarray, axis: np.n
                                     rounds.rounded[r])
         return distance - other_radius[chosen], normal, points
 
-    stretch = nearest_stretch(distance_at, len(k), reach)
-    parts = []
-    for end, u in enumerate(stretch):
-        chosen = np.flatnonzero(np.isfinite(u))
-        if not ends:
-            chosen = chosen[(u[chosen] > 1e-6) & (u[chosen] < 1 - 1e-6)]
-        gap, normal, points = gap_at(chosen, u[chosen])
-        # the segment's surface point nearest the round, and the contact midway between the two surfaces
-        point = points - normal * (other_radius[chosen] + 0.5 * gap)[:, None]
-        parts.append(make_contacts(world, owner[k[chosen]], other_body[chosen], point, -normal, gap,
-                                   other_material[chosen], first + k[chosen], kind, 2 * index[chosen] + end))
-    return Contacts.concatenate(parts)
+    stretch = np.concatenate(nearest_stretch(distance_at, len(k), reach))  # the first ends, then the second
+    end = np.repeat([0, 1], len(k))
+    chosen = np.flatnonzero(np.isfinite(stretch))
+    if not ends:
+        chosen = chosen[(stretch[chosen] > 1e-6) & (stretch[chosen] < 1 - 1e-6)]
+    end, pair = end[chosen], chosen % len(k)
+    gap, normal, points = gap_at(pair, stretch[chosen])
+    # the segment's surface point nearest the round, and the contact midway between the two surfaces
+    point = points - normal * (other_radius[pair] + 0.5 * gap)[:, None]
+    return make_contacts(world, owner[k[pair]], other_body[pair], point, -normal, gap, other_material[pair],
+                         first + k[pair], kind, 2 * index[pair] + end)
 
 
 #: Points per pass of the grid searches along a segment, and passes: each pass looks at GRID points across the bracket
