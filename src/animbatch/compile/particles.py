@@ -7,9 +7,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from animbatch.compile.bodies import orientation_matrix
-from animbatch.compile.contacts import _statics, material_table
+from animbatch.compile.contacts import _statics, build_contact_world, material_table
 from animbatch.scene.schema import (
     PARTICLE_FIELD_TYPES,
     BoxSource,
@@ -24,10 +25,12 @@ from animbatch.scene.schema import (
     SphereSource,
     WindSpec,
 )
+from animbatch.sim.contact.geometry import BodyBoxes, BodyCylinders, StaticColliders
 from animbatch.sim.forces.drag import AIR_VISCOSITY
 from animbatch.sim.particles.collisions import ParticleColliders
 from animbatch.sim.particles.emitter import Emitter, Law
 from animbatch.sim.particles.fields import ParticleField
+from animbatch.sim.particles.obstacles import ParticleObstacles, body_shapes
 from animbatch.sim.particles.schedule import EmissionSchedule
 from animbatch.sim.particles.sources import Source
 from animbatch.sim.particles.streams import ParticleStreams
@@ -68,6 +71,7 @@ def compile_particles(spec: SceneSpec, model: Any, base_dir: Path = Path(".")) -
 
     table = material_table(spec)
     statics = _statics(spec, table, base_dir)[0] if spec.colliders else None
+    obstacles = particle_obstacles(spec, statics, model, base_dir)
     emitters, colliders = [], {}
     for index, item in enumerate(spec.emitters):
         body = body_centre = geometry = None
@@ -90,13 +94,51 @@ def compile_particles(spec: SceneSpec, model: Any, base_dir: Path = Path(".")) -
             float(np.radians(item.direction.cone)), body, item.body,
             body_centre if body_centre is not None else np.zeros(3), item.inherit_velocity, item.collision,
             table.index(item.material), capacity, _particle_fields(spec.fields, item.name), item.look))
-        if statics is not None and item.collision != "pass":
+        met = obstacles.without(body) if obstacles is not None else None  # not the body it is born on
+        if (statics is not None or met is not None) and item.collision != "pass":
             own = table.index(item.material)
-            colliders[item.name] = ParticleColliders(statics, table.restitution[own], table.static_friction[own],
-                                                     table.kinetic_friction[own])
+            colliders[item.name] = ParticleColliders(statics if statics is not None else StaticColliders.empty(),
+                                                     table.restitution[own], table.static_friction[own],
+                                                     table.kinetic_friction[own], met)
         else:
             colliders[item.name] = None
     return ParticleSystems(tuple(emitters), colliders)
+
+
+def particle_obstacles(spec: SceneSpec, statics: StaticColliders | None, model: Any, base_dir: Path
+                       ) -> ParticleObstacles | None:
+    """What particles meet beyond planes, spheres and boxes: the triangles of mesh colliders, and the solids of the
+    rigid bodies that collide (as the contact world holds them; built here when the bodies themselves have no
+    contacts to simulate); None when there are none."""
+    triangles = statics.triangles if statics is not None else np.zeros((0, 3, 3))
+    tree, reach = None, 0.0
+    if len(triangles):
+        centroids = triangles.mean(axis=1)
+        tree = cKDTree(centroids)
+        reach = float(np.max(np.linalg.norm(triangles - centroids[:, None, :], axis=2)))
+    world = getattr(model, "contact_world", None)
+    if world is None and model.rigid is not None and any(getattr(b, "collide", False) for b in spec.bodies
+                                                         if b.type == "rigid"):
+        world, _ = build_contact_world(spec, model, dict(zip(model.rigid.names, model.rigid.centre)), base_dir)
+    shapes: tuple = ()
+    if world is not None:
+        probes, first_rigid = world.probes, model.particle_count
+        solid = (probes.radius > 0) & (probes.owner >= first_rigid) & world.collides[probes.owner]
+        spheres = [(int(probes.owner[k]), probes.offset[k], float(probes.radius[k])) for k in np.flatnonzero(solid)]
+        boxes = world.boxes
+        keep = world.collides[boxes.owner]
+        rounds = world.cylinders
+        if rounds is not None:
+            chosen = world.collides[rounds.owner]
+            rounds = BodyCylinders(*(getattr(rounds, name)[chosen] for name in
+                                     ("owner", "offset", "axis", "half_length", "radius", "rounded")))
+        shapes = body_shapes(spheres, BodyBoxes(boxes.owner[keep], boxes.offset[keep], boxes.rotation[keep],
+                                                boxes.half[keep]), rounds,
+                             tuple(h for h in world.hulls if world.collides[h.owner]), world.body_material)
+    if tree is None and not shapes:
+        return None
+    material = statics.triangle_material if statics is not None else np.zeros(0, np.intp)
+    return ParticleObstacles(triangles, material, tree, reach, shapes)
 
 
 def _law(value: float | RandomValue) -> Law:

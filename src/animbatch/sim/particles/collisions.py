@@ -12,7 +12,8 @@ A bounce keeps the tangential velocity less Coulomb friction and reverses the no
 of chattering. The velocity used is the one at the end of the step.
 
 Boxes grown by the radius have sharp edges instead of rounded ones (a particle grazing an edge may bounce off up
-to ``r (√3 - 1)`` early). Mesh colliders and rigid bodies are not obstacles for particles.
+to ``r (√3 - 1)`` early). Mesh colliders and the rigid bodies' shapes are traced in
+:mod:`animbatch.sim.particles.obstacles`; a bounce off a moving body uses the velocity relative to its surface.
 """
 
 from __future__ import annotations
@@ -23,20 +24,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from animbatch.sim.contact.geometry import StaticColliders, to_box, to_plane, to_sphere
+from animbatch.sim.particles.body_motion import BodyPose
+from animbatch.sim.particles.obstacles import SURFACE_GAP, Hits, ParticleObstacles
+
+Poses = tuple[dict[int, BodyPose], dict[int, BodyPose]]
 
 #: Bounces resolved within one step (a particle in a corner meets two or three faces).
 MAX_BOUNCES = 3
-#: How far off the surface a particle is put after a hit [m], so the next test starts outside.
-SURFACE_GAP = 1e-9
 
 
-@dataclass(frozen=True)
-class Hits:
-    """First hits of K segments: fraction s of the segment (K,) (inf: none), outward normals (K, 3), material (K,)."""
-
-    fraction: np.ndarray
-    normal: np.ndarray
-    material: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,17 +46,26 @@ class ParticleColliders:
     restitution: np.ndarray
     static_friction: np.ndarray
     kinetic_friction: np.ndarray
+    obstacles: ParticleObstacles | None = None  # mesh colliders and rigid bodies
 
     @property
     def empty(self) -> bool:
-        return len(self.statics.plane_point) + len(self.statics.sphere_centre) + len(self.statics.box_centre) == 0
+        return (len(self.statics.plane_point) + len(self.statics.sphere_centre) + len(self.statics.box_centre) == 0
+                and (self.obstacles is None or self.obstacles.empty))
 
-    def first_hits(self, x0: np.ndarray, x1: np.ndarray, radius: np.ndarray) -> Hits:
-        """The first surface each segment ``x0 → x1`` (K, 3) crosses from outside, colliders grown by ``radius``."""
+    @property
+    def bodies(self) -> tuple[int, ...]:
+        """The bodies (trajectory indices) whose poses the collisions need."""
+        return self.obstacles.bodies if self.obstacles is not None else ()
+
+    def first_hits(self, x0: np.ndarray, x1: np.ndarray, radius: np.ndarray, poses: Poses | None = None
+                   ) -> Hits:
+        """The first surface each segment ``x0 → x1`` (K, 3) crosses from outside, colliders grown by ``radius``;
+        ``poses``: the bodies' poses at the step's start and end."""
+        hits = (self.obstacles.first_hits(x0, x1, radius, poses) if self.obstacles is not None
+                else Hits.none(len(x0)))
+        best, normal, material = hits.fraction, hits.normal, hits.material
         count = len(x0)
-        best = np.full(count, np.inf)
-        normal = np.zeros((count, 3))
-        material = np.zeros(count, np.intp)
         step = x1 - x0
         s = self.statics
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -69,7 +74,7 @@ class ParticleColliders:
                 d1 = (x1 - point) @ n - radius
                 hit = (d0 >= 0) & (d1 < 0)
                 fraction = np.where(hit, d0 / (d0 - d1), np.inf)
-                _keep(best, normal, material, fraction, np.broadcast_to(n, (count, 3)), m)
+                _keep(best, normal, material, fraction, np.broadcast_to(n, (count, 3)), m, hits)
             for centre, r, m in zip(s.sphere_centre, s.sphere_radius, s.sphere_material):
                 grown = r + radius
                 offset = x0 - centre
@@ -81,7 +86,7 @@ class ParticleColliders:
                 hit = (c >= 0) & (disc >= 0) & (a > 0) & (fraction >= 0) & (fraction <= 1)
                 fraction = np.where(hit, fraction, np.inf)
                 at = offset + np.where(hit, fraction, 0.0)[:, None] * step
-                _keep(best, normal, material, fraction, at / np.linalg.norm(at, axis=1, keepdims=True), m)
+                _keep(best, normal, material, fraction, at / np.linalg.norm(at, axis=1, keepdims=True), m, hits)
             for centre, rotation, half, m in zip(s.box_centre, s.box_rotation, s.box_half, s.box_material):
                 grown = half + radius[:, None]
                 p0 = (x0 - centre) @ rotation  # box axes: Rᵀ (x - c)
@@ -97,8 +102,8 @@ class ParticleColliders:
                 rows = np.arange(count)
                 local = np.zeros((count, 3))
                 local[rows, entry_axis] = -np.sign(d[rows, entry_axis])
-                _keep(best, normal, material, fraction, local @ rotation.T, m)
-        return Hits(best, normal, material)
+                _keep(best, normal, material, fraction, local @ rotation.T, m, hits)
+        return hits
 
     def _distances(self, x: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray]]:
         """Signed distances (K,) [m] and outward normals (K, 3) of ``x`` to each collider in turn, each computed when
@@ -112,11 +117,12 @@ class ParticleColliders:
             yield to_box(x, np.broadcast_to(centre, x.shape), np.broadcast_to(rotation, (len(x), 3, 3)),
                          np.broadcast_to(half, x.shape))
 
-    def push_out(self, x: np.ndarray, v: np.ndarray, radius: np.ndarray) -> np.ndarray:
-        """Move particles found inside a collider onto its surface and stop their motion into it; return which
-        were moved (K,)."""
-
-        moved = np.zeros(len(x), bool)
+    def push_out(self, x: np.ndarray, v: np.ndarray, radius: np.ndarray, pose: dict[int, BodyPose] | None = None
+                 ) -> np.ndarray:
+        """Move particles found inside a collider or body (at ``pose``) onto its surface and stop their motion into
+        it; return which were moved (K,)."""
+        moved = (self.obstacles.push_out(x, v, radius, pose) if self.obstacles is not None
+                 else np.zeros(len(x), bool))
         for distance, normal in self._distances(x):
             inside = distance < radius
             if not inside.any():
@@ -130,12 +136,14 @@ class ParticleColliders:
 
 
 def _keep(best: np.ndarray, normal: np.ndarray, material: np.ndarray, fraction: np.ndarray, normals: np.ndarray,
-          material_index: int) -> None:
-    """Where ``fraction`` is earlier than the best so far, take it (in place)."""
+          material_index: int, hits: Hits) -> None:
+    """Where ``fraction`` is earlier than the best so far, take it (in place): a fixed collider's hit."""
     earlier = fraction < best
     best[earlier] = fraction[earlier]
     normal[earlier] = normals[earlier]
     material[earlier] = material_index
+    hits.surface_velocity[earlier] = 0.0
+    hits.body[earlier] = -1
 
 
 def bounce(v: np.ndarray, normal: np.ndarray, restitution: np.ndarray, static_friction: np.ndarray,

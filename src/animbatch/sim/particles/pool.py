@@ -14,7 +14,9 @@ class ParticlePool:
     """The slots of one emitter.
 
     Per slot (C = capacity): ``x``, ``v`` (C, 3) [m], [m/s]; ``acceleration`` (C, 3) [m/s²], kept by methods that
-    reuse it (Verlet); ``alive``, ``stuck`` (C,) bool; ``serial`` (C,) int64 (-1 when the slot was never used);
+    reuse it (Verlet); ``alive``, ``stuck`` (C,) bool; a stuck particle's ``stuck_to`` (C,) body (−1: a fixed
+    collider) and, on a body, its place ``stuck_at`` (C, 3) in the body's axes from its centre of mass [m];
+    ``serial`` (C,) int64 (-1 when the slot was never used);
     ``birth``, ``lifetime`` [s], ``mass`` [kg], ``radius`` [m] (C,). ``dropped``: births that found no free slot.
     """
 
@@ -25,6 +27,8 @@ class ParticlePool:
         self.acceleration = np.zeros((capacity, 3))
         self.alive = np.zeros(capacity, bool)
         self.stuck = np.zeros(capacity, bool)
+        self.stuck_to = np.full(capacity, -1, np.intp)
+        self.stuck_at = np.zeros((capacity, 3))
         self.serial = np.full(capacity, -1, np.int64)
         self.birth = np.zeros(capacity)
         self.lifetime = np.zeros(capacity)
@@ -50,6 +54,7 @@ class ParticlePool:
         self.died += int(np.count_nonzero(self.alive[slots]))
         self.alive[slots] = False
         self.stuck[slots] = False
+        self.stuck_to[slots] = -1
         self.v[slots] = 0.0
 
     def moving(self) -> np.ndarray:

@@ -28,9 +28,10 @@ from animbatch.errors import SimulationError
 from animbatch.sim.integrators.base import StepSettings
 from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.fixed_step import substeps
-from animbatch.sim.particles.body_motion import BodyMotion
-from animbatch.sim.particles.collisions import MAX_BOUNCES, SURFACE_GAP, ParticleColliders, bounce
+from animbatch.sim.particles.body_motion import BodyMotion, BodyPose
+from animbatch.sim.particles.collisions import MAX_BOUNCES, ParticleColliders, bounce
 from animbatch.sim.particles.emitter import Emitter
+from animbatch.sim.particles.obstacles import SURFACE_GAP
 from animbatch.sim.particles.pool import ParticlePool
 from animbatch.sim.particles.stepping import FIXED_METHODS, Accelerations, adaptive_segment, fixed_step
 from animbatch.trajectory import ParticleFrames
@@ -102,10 +103,12 @@ class EmitterRun:
                                            pool.mass[moving], pool.radius[moving], t0, t1)
             pool.x[moving], pool.v[moving] = x, v
             self.steps += steps
+        poses = self.poses(t0, t1)
+        self.carry_stuck(poses)
         born, born_at = self.give_birth(t0, t1)
         if self.colliders is not None:
             start[born] = born_at  # a newborn's path starts where it was born
-            self.collide(start, h)
+            self.collide(start, h, poses)
         aged = pool.alive & (t1 - pool.birth >= pool.lifetime)
         if aged.any():
             pool.kill(aged)
@@ -141,43 +144,75 @@ class EmitterRun:
                                                                             mass, radius, flight[:, None])
         return slots, newborn.position[take]
 
-    def collide(self, start: np.ndarray, h: float) -> None:
-        """Stop every slot's path ``start → x`` (C, 3) at the colliders (see :mod:`collisions`); paths of free and
-        stuck slots have no length and never hit."""
+    def poses(self, t0: float, t1: float) -> tuple[dict[int, BodyPose], dict[int, BodyPose]] | None:
+        """The poses at ``t0`` and ``t1`` [s] of the bodies the particles meet (None: they meet none)."""
+        bodies = self.colliders.bodies if self.colliders is not None else ()
+        if not bodies or self.motion is None:
+            return None
+        motion = self.motion
+        return tuple({b: motion.pose(b, np.array([t])) for b in bodies} for t in (t0, t1))  # type: ignore[return-value]
+
+    def carry_stuck(self, poses: tuple[dict[int, BodyPose], dict[int, BodyPose]] | None) -> None:
+        """Particles stuck to a body move with it, to where it is at the step's end."""
+        pool = self.pool
+        if poses is None:
+            return
+        on_body = np.flatnonzero(pool.alive & pool.stuck & (pool.stuck_to >= 0))
+        for body in np.unique(pool.stuck_to[on_body]):
+            which = on_body[pool.stuck_to[on_body] == body]
+            now = poses[1][int(body)]
+            pool.x[which] = now.centre[0] + pool.stuck_at[which] @ now.rotation[0].T
+            pool.v[which] = now.velocity[0] + np.cross(now.omega[0], pool.stuck_at[which] @ now.rotation[0].T)
+
+    def collide(self, start: np.ndarray, h: float, poses: tuple[dict[int, BodyPose], dict[int, BodyPose]] | None
+                ) -> None:
+        """Stop every slot's path ``start → x`` (C, 3) at the colliders and bodies (at ``poses``, the step's start
+        and end; see :mod:`collisions`); paths of free and stuck slots have no length and never hit."""
         pool, colliders, mode = self.pool, self.colliders, self.emitter.collision
         assert colliders is not None
         x0, x1, v, radius = start, pool.x, pool.v, pool.radius
         rest_speed = 2.0 * h * self._gravity
-        hits = colliders.first_hits(x0, x1, radius)
-        index = np.flatnonzero(np.isfinite(hits.fraction))
-        fraction, normal, material = hits.fraction[index], hits.normal[index], hits.material[index]
+        moving = np.flatnonzero(pool.alive & ~pool.stuck)
+        found = colliders.first_hits(x0[moving], x1[moving], radius[moving], poses)
+        hit = np.isfinite(found.fraction)
+        index = moving[hit]
+        hits = found
+        chosen = np.flatnonzero(hit)
         for bounces in range(MAX_BOUNCES + 1):
             if not len(index):
                 break
+            fraction, normal, material = hits.fraction[chosen], hits.normal[chosen], hits.material[chosen]
+            surface, body = hits.surface_velocity[chosen], hits.body[chosen]
             self.collisions += len(index)
             at = x0[index] + fraction[:, None] * (x1[index] - x0[index]) + SURFACE_GAP * normal
             if mode == "bounce":
-                v[index] = bounce(v[index], normal, colliders.restitution[material],
-                                  colliders.static_friction[material], colliders.kinetic_friction[material],
-                                  rest_speed)
+                # off a moving body, the bounce is of the velocity relative to its surface
+                v[index] = surface + bounce(v[index] - surface, normal, colliders.restitution[material],
+                                            colliders.static_friction[material],
+                                            colliders.kinetic_friction[material], rest_speed)
                 if bounces == MAX_BOUNCES:  # out of bounces: stay at the surface for the rest of this step
                     x1[index] = at
                     break
                 x0[index] = at
                 x1[index] = at + ((1.0 - fraction) * h)[:, None] * v[index]  # the rest of the step, bounced
-                again = colliders.first_hits(x0[index], x1[index], radius[index])
-                hit = np.isfinite(again.fraction)
-                index = index[hit]
-                fraction, normal, material = again.fraction[hit], again.normal[hit], again.material[hit]
+                hits = colliders.first_hits(x0[index], x1[index], radius[index], poses)
+                chosen = np.flatnonzero(np.isfinite(hits.fraction))
+                index = index[chosen]
                 continue
             x1[index] = at
-            v[index] = 0.0
+            v[index] = surface
             if mode == "stick":
                 pool.stuck[index] = True
+                pool.stuck_to[index] = body
+                if poses is not None:
+                    for b in np.unique(body[body >= 0]):
+                        which = index[body == b]
+                        end = poses[1][int(b)]
+                        pool.stuck_at[which] = (at[body == b] - end.centre[0]) @ end.rotation[0]
             else:  # die
                 pool.kill(index)
             break
-        colliders.push_out(x1, v, radius)
+        colliders.push_out(x1, v, radius, poses[1] if poses is not None else None)
 
     def check(self, t: float) -> None:
         """Stop on a non-finite particle, naming the emitter."""
@@ -223,7 +258,7 @@ def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, Parti
         if run.colliders is not None and len(born):
             start = run.pool.x.copy()
             start[born] = born_at
-            run.collide(start, 0.0)
+            run.collide(start, 0.0, run.poses(float(times[0]), float(times[0])))
     for frame in range(frames):
         t1 = float(times[frame])
         if frame:

@@ -1,0 +1,283 @@
+"""Emitted particles against mesh colliders and the scene's rigid bodies: swept by sphere tracing.
+
+Planes, spheres and boxes have closed-form swept tests (:mod:`animbatch.sim.particles.collisions`). Triangles and
+the shapes of rigid bodies (spheres, boxes, cylinders, rods, capsules, convex hulls of meshes) are met the same way
+for all of them: each has an exact signed distance, and a particle's path ``x0 → x1`` is *sphere traced* against it:
+step along the path by the distance to the solid less the particle's radius, which can never step past the surface,
+until that distance is (almost) zero (a hit, at that fraction of the path) or the path ends (a miss). Head-on, a few
+steps land on the surface; a path that only grazes a solid may run out of steps and miss, and then the push out at
+the step's end (:meth:`ParticleObstacles.push_out`) still keeps the particle outside.
+
+A rigid body moves during the step: the path is traced in the body's own axes, from where the particle starts
+relative to the body at the step's start to where it ends relative to the body at the step's end. So a particle at
+rest is hit by a body that sweeps over it, and a bounce keeps the velocity of the body's surface at the hit
+(``v = v_surface + bounce(v - v_surface)``): a paddle bats particles away. Particles are massless to bodies: nothing
+pushes back. The bodies' poses between frames come from :class:`~animbatch.sim.particles.body_motion.BodyMotion`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from animbatch.sim.contact.geometry import (
+    BodyBoxes,
+    BodyCylinders,
+    to_box,
+    to_round,
+    to_sphere,
+    to_triangles,
+)
+from animbatch.sim.contact.hulls import BodyHull, to_hull
+from animbatch.sim.particles.body_motion import BodyPose
+
+#: Most sphere-tracing steps along one path (head-on hits take a few; grazing paths may run out, and then miss).
+MARCH_STEPS = 40
+#: A path this close to a surface [m] has reached it.
+TOUCH = 1e-7
+#: How far off the surface a particle is put after a hit [m], so the next test starts outside.
+SURFACE_GAP = 1e-9
+
+Distance = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+def march(distance: Distance, start: np.ndarray, step: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """The fraction (K,) of each path ``start + s step`` (K, 3), s in [0, 1], at which a sphere of ``radius`` (K,)
+    first touches a solid from outside, or inf: ``distance(points, which)`` gives the signed distances (and normals)
+    of points (N, 3) from the solid of paths ``which`` (N,). Paths that start touching or inside never hit (the push
+    out deals with them), nor do paths leaving the surface."""
+    count = len(start)
+    fraction = np.full(count, np.inf)
+    length = np.linalg.norm(step, axis=1)
+    t = np.zeros(count)
+    active = np.flatnonzero(length > 0)
+    for iteration in range(MARCH_STEPS):
+        if not len(active):
+            break
+        gap, normal = distance(start[active] + t[active, None] * step[active], active)
+        gap = gap - radius[active]
+        if iteration == 0:  # starting inside: not a crossing
+            outside = gap >= -TOUCH
+            active, gap, normal = active[outside], gap[outside], normal[outside]
+        touched = gap <= TOUCH
+        arriving = np.einsum("ij,ij->i", normal, step[active]) < 0  # a touch while leaving is no hit
+        fraction[active[touched & arriving]] = t[active[touched & arriving]]
+        t[active] += np.maximum(gap, 0.0) / length[active]
+        active = active[~touched & (t[active] <= 1.0)]
+    return fraction
+
+
+@dataclass(frozen=True)
+class Hits:
+    """First hits of K paths on obstacles: ``fraction`` (K,) (inf: none), outward ``normal`` (K, 3), ``material``
+    (K,), the velocity of the surface hit (K, 3) [m/s] and the body hit (K,) (−1: a fixed collider)."""
+
+    fraction: np.ndarray
+    normal: np.ndarray
+    material: np.ndarray
+    surface_velocity: np.ndarray
+    body: np.ndarray
+
+    @classmethod
+    def none(cls, count: int) -> Hits:
+        return cls(np.full(count, np.inf), np.zeros((count, 3)), np.zeros(count, np.intp), np.zeros((count, 3)),
+                   np.full(count, -1, np.intp))
+
+    def keep_earlier(self, fraction: np.ndarray, chosen: np.ndarray, normal: np.ndarray, material: np.ndarray | int,
+                     surface_velocity: np.ndarray | None = None, body: int = -1) -> None:
+        """Take the hits (fraction (N,) of paths ``chosen`` (N,)) that come before the ones found so far."""
+        earlier = fraction < self.fraction[chosen]
+        where = chosen[earlier]
+        self.fraction[where] = fraction[earlier]
+        self.normal[where] = normal[earlier]
+        self.material[where] = np.broadcast_to(material, earlier.shape)[earlier]
+        self.surface_velocity[where] = surface_velocity[earlier] if surface_velocity is not None else 0.0
+        self.body[where] = body
+
+
+@dataclass(frozen=True, eq=False)
+class BodyShape:
+    """One solid fixed to a rigid body, in body axes from its centre of mass: which ``body`` (trajectory index),
+    its ``material``, a bounding sphere (``centre`` (3,), ``reach`` [m]) and its signed ``distance``."""
+
+    body: int
+    material: int
+    centre: np.ndarray
+    reach: float
+    distance: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+def body_shapes(spheres: list[tuple[int, np.ndarray, float]], boxes: BodyBoxes, rounds: BodyCylinders | None,
+                hulls: tuple[BodyHull, ...], body_material: np.ndarray) -> tuple[BodyShape, ...]:
+    """The rigid bodies' solids: ``spheres`` [(body, centre (3,), radius)], boxes, rounds and hulls (as the contact
+    world holds them); ``body_material`` (P,) per body."""
+    shapes: list[BodyShape] = []
+
+    def add(body: int, centre: np.ndarray, reach: float, distance: Callable) -> None:
+        shapes.append(BodyShape(int(body), int(body_material[body]), np.asarray(centre, float), float(reach),
+                                distance))
+
+    for body, centre, radius in spheres:
+        add(body, centre, radius, lambda p, c=centre, r=radius: to_sphere(p, np.broadcast_to(c, p.shape),
+                                                                           np.full(len(p), r)))
+    for k in range(boxes.count):
+        offset, rotation, half = boxes.offset[k], boxes.rotation[k], boxes.half[k]
+        add(boxes.owner[k], offset, float(np.linalg.norm(half)),
+            lambda p, o=offset, r=rotation, h=half: to_box(p, np.broadcast_to(o, p.shape),
+                                                           np.broadcast_to(r, (len(p), 3, 3)),
+                                                           np.broadcast_to(h, p.shape)))
+    if rounds is not None:
+        for k in range(rounds.count):
+            offset, axis = rounds.offset[k], rounds.axis[k]
+            half, radius, rounded = rounds.half_length[k], rounds.radius[k], rounds.rounded[k]
+            add(rounds.owner[k], offset, half + radius,
+                lambda p, o=offset, a=axis, h=half, r=radius, c=rounded: to_round(
+                    p, np.broadcast_to(o, p.shape), np.broadcast_to(a, p.shape), np.full(len(p), h),
+                    np.full(len(p), r), np.full(len(p), c)))
+    for hull in hulls:
+        add(hull.owner, np.zeros(3), hull.reach, lambda p, h=hull: to_hull(p, h, np.zeros(3), np.eye(3)))
+    return tuple(shapes)
+
+
+@dataclass(frozen=True, eq=False)
+class ParticleObstacles:
+    """The obstacles particles meet beyond planes, spheres and boxes: the triangles of mesh colliders (``triangles``
+    (T, 3, 3) [m], ``triangle_material`` (T,), with a k-d tree of their centroids and the largest triangle's
+    circumradius ``triangle_reach``) and the rigid bodies' ``shapes``."""
+
+    triangles: np.ndarray
+    triangle_material: np.ndarray
+    triangle_tree: cKDTree | None
+    triangle_reach: float
+    shapes: tuple[BodyShape, ...]
+
+    def without(self, body: int | None) -> ParticleObstacles | None:
+        """These obstacles less the solids of ``body`` (an emitter's own body: its particles are born on or in it);
+        None when nothing is left."""
+        shapes = tuple(s for s in self.shapes if s.body != body)
+        if self.triangle_tree is None and not shapes:
+            return None
+        return ParticleObstacles(self.triangles, self.triangle_material, self.triangle_tree, self.triangle_reach,
+                                 shapes)
+
+    @property
+    def bodies(self) -> tuple[int, ...]:
+        """The bodies whose poses the obstacles need."""
+        return tuple(sorted({shape.body for shape in self.shapes}))
+
+    @property
+    def empty(self) -> bool:
+        return self.triangle_tree is None and not self.shapes
+
+    def first_hits(self, x0: np.ndarray, x1: np.ndarray, radius: np.ndarray,
+                   poses: tuple[dict[int, BodyPose], dict[int, BodyPose]] | None) -> Hits:
+        """The first obstacle each path ``x0 → x1`` (K, 3) meets, with the bodies at ``poses`` (at the step's start
+        and end: each body's pose as a BodyPose of one instant)."""
+        hits = Hits.none(len(x0))
+        if not len(x0):
+            return hits
+        middle, half = 0.5 * (x0 + x1), 0.5 * np.linalg.norm(x1 - x0, axis=1)
+        widest = float(half.max()) + float(radius.max())
+        if self.triangle_tree is not None:
+            self._triangle_hits(hits, x0, x1, radius, middle, half)
+        if self.shapes and poses is not None:
+            tree = cKDTree(middle)
+            for shape in self.shapes:
+                self._shape_hits(hits, shape, x0, x1, radius, tree, widest, poses)
+        return hits
+
+    def _near_triangles(self, points: np.ndarray, reach: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pairs (particle, triangle) (N,) each whose triangle's centroid lies within the particle's ``reach``
+        (K,) [m] of its point, plus the triangles' own reach."""
+        assert self.triangle_tree is not None
+        if not len(points):
+            return np.zeros(0, np.intp), np.zeros(0, np.intp)
+        # every pair within the largest reach at once (one call, array output), then each within its own
+        near = self.triangle_tree.sparse_distance_matrix(cKDTree(points), float(reach.max()) + self.triangle_reach,
+                                                         output_type="ndarray")
+        triangle, particle = near["i"].astype(np.intp), near["j"].astype(np.intp)
+        keep = near["v"] <= reach[particle] + self.triangle_reach
+        return particle[keep], triangle[keep]
+
+    def _triangle_hits(self, hits: Hits, x0: np.ndarray, x1: np.ndarray, radius: np.ndarray,
+                       middle: np.ndarray, half: np.ndarray) -> None:
+        particle, triangle = self._near_triangles(middle, half + radius)
+        if not len(particle):
+            return
+        corners = self.triangles[triangle]
+        fraction = march(lambda p, which: to_triangles(p, corners[which]), x0[particle], x1[particle] - x0[particle],
+                         radius[particle])
+        hit = np.flatnonzero(np.isfinite(fraction))
+        if not len(hit):
+            return
+        order = hit[np.lexsort((fraction[hit], particle[hit]))]  # each particle's earliest triangle first
+        hit = order[np.r_[True, particle[order][1:] != particle[order][:-1]]]
+        at = x0[particle[hit]] + fraction[hit, None] * (x1[particle[hit]] - x0[particle[hit]])
+        _, normal = to_triangles(at, corners[hit])
+        hits.keep_earlier(fraction[hit], particle[hit], normal, self.triangle_material[triangle[hit]])
+
+    def _shape_hits(self, hits: Hits, shape: BodyShape, x0: np.ndarray, x1: np.ndarray, radius: np.ndarray,
+                    tree: cKDTree, widest: float, poses: tuple[dict[int, BodyPose], dict[int, BodyPose]]) -> None:
+        start, end = poses[0][shape.body], poses[1][shape.body]
+        r0, r1 = start.rotation[0], end.rotation[0]
+        c0, c1 = start.centre[0] + r0 @ shape.centre, end.centre[0] + r1 @ shape.centre
+        # the particles whose paths pass near the solid anywhere between its two places
+        chosen = np.asarray(tree.query_ball_point(0.5 * (c0 + c1), shape.reach + widest
+                                                  + 0.5 * float(np.linalg.norm(c1 - c0))), np.intp)
+        if not len(chosen):
+            return
+        local0 = (x0[chosen] - start.centre[0]) @ r0  # Rᵀ (x - c), row-wise: the body's own axes
+        local1 = (x1[chosen] - end.centre[0]) @ r1
+        fraction = march(lambda p, which: shape.distance(p), local0, local1 - local0, radius[chosen])
+        hit = np.isfinite(fraction)
+        if not hit.any():
+            return
+        at = local0[hit] + fraction[hit, None] * (local1[hit] - local0[hit])
+        _, normal = shape.distance(at)
+        lever = at @ r1.T  # from the centre of mass, world axes, at the step's end
+        surface = end.velocity[0] + np.cross(end.omega[0], lever)
+        hits.keep_earlier(fraction[hit], chosen[hit], normal @ r1.T, shape.material, surface, shape.body)
+
+    def push_out(self, x: np.ndarray, v: np.ndarray, radius: np.ndarray, pose: dict[int, BodyPose] | None
+                 ) -> np.ndarray:
+        """Move particles found inside a triangle's reach or a body onto the surface, and stop their motion into it
+        (relative to a body's surface); return which were moved (K,)."""
+        moved = np.zeros(len(x), bool)
+        if self.triangle_tree is not None and len(x):
+            particle, triangle = self._near_triangles(x, radius)
+            if len(particle):
+                distance, normal = to_triangles(x[particle], self.triangles[triangle])
+                depth = radius[particle] - distance
+                order = np.lexsort((-depth, particle))  # each particle's deepest triangle first
+                first = order[np.r_[True, particle[order][1:] != particle[order][:-1]]]
+                inside = first[depth[first] > 0]
+                _push(x, v, particle[inside], depth[inside], normal[inside], np.zeros((len(inside), 3)))
+                moved[particle[inside]] = True
+        if self.shapes and pose is not None and len(x):
+            for shape in self.shapes:
+                now = pose[shape.body]
+                rotation = now.rotation[0]
+                local = (x - now.centre[0]) @ rotation
+                near = np.flatnonzero(np.linalg.norm(local - shape.centre, axis=1) < shape.reach + radius)
+                if not len(near):
+                    continue
+                distance, normal = shape.distance(local[near])
+                inside = distance < radius[near]
+                which = near[inside]
+                lever = local[which] @ rotation.T
+                surface = now.velocity[0] + np.cross(now.omega[0], lever)
+                _push(x, v, which, (radius[which] - distance[inside]), normal[inside] @ rotation.T, surface)
+                moved[which] = True
+        return moved
+
+
+def _push(x: np.ndarray, v: np.ndarray, which: np.ndarray, depth: np.ndarray, normal: np.ndarray,
+          surface_velocity: np.ndarray) -> None:
+    """Move particles ``which`` out along ``normal`` by ``depth`` (and a hair), and take away their velocity into
+    the surface (relative to the surface's own velocity)."""
+    x[which] += (depth + SURFACE_GAP)[:, None] * normal
+    into = np.einsum("ij,ij->i", v[which] - surface_velocity, normal)
+    v[which] -= np.minimum(into, 0.0)[:, None] * normal
