@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from animbatch import api
-from animbatch.compile.contacts import collider_path
+from animbatch.compile.contacts import pose_path
 from animbatch.errors import SceneError
 from animbatch.stages import parse_scene
 from conftest import scene
@@ -100,7 +100,7 @@ def test_a_collider_path_holds_its_keys_and_its_velocity_is_the_paths_derivative
               - {time: 1, offset: [1, 2, 0], rotation: {axis: [0, 0, 1], angle: 90}}
               - {time: 3, offset: [0, 0, 1], rotation: {axis: [1, 0, 0], angle: 30}}
     """, filename="test.yaml")
-    path = collider_path(loaded.spec.colliders[0])
+    path = pose_path(loaded.spec.colliders[0])
     centre, turn = path.pose(1.0)
     np.testing.assert_allclose(centre, [2, 2, 0], atol=1e-12)
     np.testing.assert_allclose(turn @ [1, 0, 0], [0, 1, 0], atol=1e-12)

@@ -60,6 +60,10 @@ def _rigid_lines(model: Model, x0: object, v0: object) -> list[str]:
             f"           start: centre at {_vector(x0[point])} m, velocity {_vector(v0[point])} m/s, "  # type: ignore[index]
             f"ω {_vector(omega[point])} rad/s",
         ]
+        if model.kinematic is not None and b in model.kinematic.rigid:
+            path = model.kinematic.paths[list(model.kinematic.rigid).index(b)]
+            lines.append(f"           kinematic: follows {_plural(len(path.times), 'keyframe')} "
+                         f"({path.interpolation}, {path.times[0]:g}…{path.times[-1]:g} s); nothing pushes it back")
     return lines
 
 

@@ -78,3 +78,11 @@ def rate(q: np.ndarray, omega: np.ndarray) -> np.ndarray:
 def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """``R(q) v`` for vectors (..., 3)."""
     return np.einsum("...ij,...j->...i", to_matrix(q), v)
+
+
+def from_matrix(m: np.ndarray) -> np.ndarray:
+    """Unit quaternions [w, x, y, z] (..., 4) of rotation matrices (..., 3, 3)."""
+    from scipy.spatial.transform import Rotation
+
+    xyzw = Rotation.from_matrix(np.reshape(m, (-1, 3, 3))).as_quat()
+    return np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1).reshape(*np.shape(m)[:-2], 4)

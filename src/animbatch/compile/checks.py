@@ -44,6 +44,11 @@ def check_method(spec: SceneSpec) -> list[Problem]:
     scheme = METHODS[spec.solver.method].scheme
     colliding = any(getattr(body, "collide", True) for body in spec.bodies)
     has_contacts = (bool(spec.colliders) or spec.contacts is not None) and colliding
+    kinematic = [k for k, b in enumerate(spec.bodies) if getattr(b, "keyframes", None) is not None]
+    if kinematic and scheme is None:
+        return [(("bodies", kinematic[0], "keyframes"), (
+            f"rigid bodies on keyframes need a fixed-step method; {spec.solver.method} is adaptive. Use "
+            "solver.method: symplectic_euler or verlet (with a dt that resolves the body's motion)"))]
     moving = [k for k, c in enumerate(spec.colliders) if getattr(c, "keyframes", None) is not None]
     if moving and has_contacts and scheme is None:
         return [(("colliders", moving[0], "keyframes"), (

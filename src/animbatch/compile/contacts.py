@@ -49,8 +49,8 @@ from animbatch.sim.contact.detection import ContactSettings, ContactWorld
 from animbatch.sim.contact.geometry import BodyBoxes, BodyCylinders, Probes, StaticColliders
 from animbatch.sim.contact.hulls import BodyHull
 from animbatch.sim.contact.materials import Coefficients, MaterialTable
-from animbatch.sim.contact.moving import ColliderPath, MovingColliders
-from animbatch.sim.motion import KeyframePath
+from animbatch.sim.contact.moving import MovingColliders
+from animbatch.sim.motion import KeyframePath, PosePath
 from animbatch.sim.rigid.polyhedra import TriangleMesh, convex_mesh
 from animbatch.sim.rigid.shapes import load_mesh
 
@@ -248,24 +248,24 @@ def _jointed_pairs(model: Any) -> np.ndarray | None:
     return np.unique(low * model.body_count + high)
 
 
-def collider_path(collider: Any) -> ColliderPath:
-    """The path of a collider on keyframes: its position displaced by the keys' offsets, turned by their
-    rotations."""
+def pose_path(collider: Any) -> PosePath:
+    """The path of a collider or rigid body on keyframes: its position displaced by the keys' offsets, turned by
+    their rotations."""
     keys = collider.keyframes
     times = np.array([k.time for k in keys], float)
     offsets = KeyframePath(times, np.array([k.offset for k in keys], float), collider.interpolation)
     turns = Rotation.from_matrix(np.array([orientation_matrix(k.rotation) for k in keys]))
-    return ColliderPath(np.asarray(collider.position, float), times, offsets, turns, collider.interpolation)
+    return PosePath(np.asarray(collider.position, float), times, offsets, turns, collider.interpolation)
 
 
 def moving_colliders(spec: SceneSpec) -> MovingColliders | None:
     """The scene's colliders on keyframes, and which of the contact world's spheres and boxes each one is."""
-    paths: list[ColliderPath] = []
+    paths: list[PosePath] = []
     sphere, box = [], []
     for collider in spec.colliders:
         moves = getattr(collider, "keyframes", None) is not None
         if moves:
-            paths.append(collider_path(collider))
+            paths.append(pose_path(collider))
         slot = len(paths) - 1 if moves else -1
         if isinstance(collider, SphereCollider):
             sphere.append(slot)

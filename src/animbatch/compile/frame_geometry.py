@@ -214,7 +214,7 @@ def _collider_paths(spec: SceneSpec) -> tuple[Any, ...]:
     """Per drawn collider, its path if it moves along keyframes, else None."""
     if not any(getattr(c, "keyframes", None) is not None for c in spec.colliders):
         return ()
-    from animbatch.compile.contacts import collider_path  # contact code only for scenes that need it
+    from animbatch.compile.contacts import pose_path  # contact code only for scenes that need it
 
-    return tuple(collider_path(c) if getattr(c, "keyframes", None) is not None else None
+    return tuple(pose_path(c) if getattr(c, "keyframes", None) is not None else None
                  for c in spec.colliders if c.visible)

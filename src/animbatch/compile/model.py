@@ -19,7 +19,7 @@ from animbatch.sim.joints import MotorTarget
 from animbatch.sim.joints.assembly import MotorSetting
 from animbatch.sim.model.builder import ModelBuilder, Pin
 from animbatch.sim.model.model import Model
-from animbatch.sim.motion import KeyframePath
+from animbatch.sim.motion import KeyframePath, KinematicBodies
 
 
 def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
@@ -73,6 +73,7 @@ def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
             body.name for body in spec.bodies if body.type in ("particle", "rigid")]
         builder.add_clocks([handles[name][0] for name in carriers], c=spec.clocks.c)
     model = builder.finalize(duration=spec.duration, fps=spec.fps)
+    model = replace(model, kinematic=kinematic_bodies(spec, model))
     if not spec.has_contacts:
         return model
     from animbatch.compile.contacts import build_contact_world  # only scenes with contacts load contact code
@@ -81,6 +82,22 @@ def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
     centres = dict(zip(rigid.names, rigid.centre)) if rigid is not None else {}
     world, settings = build_contact_world(spec, model, centres, Path(base_dir))
     return replace(model, contact_world=world, contact_settings=settings)
+
+
+def kinematic_bodies(spec: SceneSpec, model: Model) -> KinematicBodies | None:
+    """The rigid bodies on keyframes: each one's path about its position, its rest orientation and its centre of
+    mass from its position (world axes, at rest); None when there are none."""
+    from animbatch.compile.contacts import pose_path
+
+    moving = [body for body in spec.bodies if isinstance(body, RigidBodySpec) and body.keyframes is not None]
+    if not moving:
+        return None
+    rigid = model.rigid
+    assert rigid is not None
+    index = [rigid.names.index(body.name) for body in moving]
+    rest = np.array([orientation_matrix(body.orientation) for body in moving])
+    lever = np.einsum("kij,kj->ki", rest, rigid.centre[index])
+    return KinematicBodies(np.array(index, np.intp), tuple(pose_path(body) for body in moving), rest, lever)
 
 
 def controller_target(spec: Any) -> Target:

@@ -182,7 +182,7 @@ class FrameGeometry:
     surface_finishes: tuple[Finish | None, ...] = ()  # per deformable body, like surface_colors
     collider_looks: tuple[tuple[str, Finish | None], ...] = ()  # (colour, finish) per drawn collider
     rigid_volume_radius: np.ndarray | None = None  # (B,) [m] the radius of the sphere of each rigid body's volume
-    collider_paths: tuple[Any, ...] = ()  # per drawn collider: its ColliderPath (.matrix(t): 4×4), or None if fixed
+    collider_paths: tuple[Any, ...] = ()  # per drawn collider: its PosePath (.matrix(t): 4×4), or None if fixed
 
 
 def mesh_key(shape: Any) -> tuple[str, str]:

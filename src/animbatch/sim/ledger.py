@@ -106,6 +106,8 @@ def conservation_laws(model: Model) -> dict[str, Law]:
         energy_culprits.append("joint motors do work")
     if model.contact_world is not None and model.contact_world.moving is not None:
         energy_culprits.append("moving colliders do work")
+    if model.kinematic is not None:
+        energy_culprits.append("bodies on keyframes do work")
     if model.joints is not None and model.joints.stopping:
         energy_culprits.append("joint limits and ropes stop bodies inelastically")
     if model.contact_world is not None and not _elastic_contacts(model):
@@ -131,6 +133,8 @@ def conservation_laws(model: Model) -> dict[str, Law]:
         external.append("fixed colliders push the bodies")
     if model.anchors is not None and model.anchors.moving:
         external.append("moving anchors pull the bodies")
+    if model.kinematic is not None:
+        external.append("bodies on keyframes move as their paths say, whatever acts on them")
     if external:
         momentum = Law(False, "; ".join(dict.fromkeys(external)))
     else:

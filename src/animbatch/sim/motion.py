@@ -1,4 +1,5 @@
-"""Prescribed motion: anchors that stay put or follow keyframes.
+"""Prescribed motion: anchors that stay put or follow keyframes, and solids that follow posed keyframes (moving
+colliders and rigid bodies on keyframes, :class:`PosePath` and :class:`KinematicBodies`).
 
 An anchor is a point the simulation does not move; springs and cloth pins attach to it. With keyframes it follows a
 path: ``linear`` interpolation (constant velocity between keys) or ``cubic`` (a C² cubic spline through the keys,
@@ -12,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import CubicSpline
+from scipy.spatial.transform import Rotation, RotationSpline, Slerp
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,3 +94,83 @@ class AnchorMotion:
         for index, path in self.paths.items():
             result[index] = path.velocity(t)
         return result
+
+
+#: Half the time step [s] of the central difference that gives a turn's angular velocity.
+TURN_RATE_STEP = 1e-6
+
+
+@dataclass(frozen=True, eq=False)
+class PosePath:
+    """How a kinematic solid (a moving collider, a rigid body on keyframes) moves: its rest centre ``centre`` (3,)
+    [m], displaced by ``offsets`` (a path of (3,) offsets [m]) and turned about the centre by ``turns`` (Rotations at
+    ``times`` (K,) [s]), ``interpolation`` 'linear' or 'cubic'."""
+
+    centre: np.ndarray
+    times: np.ndarray
+    offsets: KeyframePath
+    turns: Rotation
+    interpolation: str
+
+    def __post_init__(self) -> None:
+        if len(self.times) > 1:
+            spline = (RotationSpline(self.times, self.turns) if self.interpolation == "cubic"
+                      else Slerp(self.times, self.turns))
+            object.__setattr__(self, "_turn", spline)
+
+    def turn(self, t: float) -> np.ndarray:
+        """The turn (3, 3) at time t [s], held before the first key and after the last."""
+        if len(self.times) == 1:
+            return self.turns[0].as_matrix()
+        return self._turn(float(np.clip(t, self.times[0], self.times[-1]))).as_matrix()  # type: ignore[attr-defined]
+
+    def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Centre (3,) [m] and turn (3, 3) at time t: a rest point p goes to ``turn (p − c₀) + c₀ + offset``."""
+        return self.centre + self.offsets.position(t), self.turn(t)
+
+    def velocity(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Velocity of the centre (3,) [m/s] and angular velocity (3,) [rad/s], world axes, at time t."""
+        velocity = self.offsets.velocity(t)
+        if len(self.times) == 1 or t < self.times[0] or t > self.times[-1]:
+            return velocity, np.zeros(3)
+        early = max(t - TURN_RATE_STEP, float(self.times[0]))
+        late = min(t + TURN_RATE_STEP, float(self.times[-1]))
+        change = Rotation.from_matrix(self.turn(late) @ self.turn(early).T).as_rotvec()
+        return velocity, change / (late - early)
+
+    def matrix(self, t: float) -> np.ndarray:
+        """The 4 × 4 transform from the rest pose to the pose at time t (for drawing)."""
+        centre, turn = self.pose(t)
+        transform = np.eye(4)
+        transform[:3, :3] = turn
+        transform[:3, 3] = centre - turn @ self.centre
+        return transform
+
+
+@dataclass(frozen=True, eq=False)
+class KinematicBodies:
+    """Rigid bodies on keyframes (kinematic bodies): ``rigid`` (K,) their indices among the rigid bodies, each
+    moving along ``paths[k]`` (K,) about its position (the shape's origin), with ``rest`` (K, 3, 3) its orientation
+    at rest and ``lever`` (K, 3) [m] its centre of mass from its position at rest, world axes.
+
+    At time t a body on its path has ``R(t) = turn(t) R₀``, centre of mass ``o(t) + turn(t) lever``, velocity
+    ``o'(t) + ω × turn(t) lever`` and angular velocity ``ω(t)``, the path's own."""
+
+    rigid: np.ndarray
+    paths: tuple[PosePath, ...]
+    rest: np.ndarray
+    lever: np.ndarray
+
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Centres of mass (K, 3) [m], rotations (K, 3, 3), velocities (K, 3) [m/s] and angular velocities (K, 3)
+        [rad/s] at time t [s]."""
+        count = len(self.paths)
+        x, rotation = np.zeros((count, 3)), np.zeros((count, 3, 3))
+        v, omega = np.zeros((count, 3)), np.zeros((count, 3))
+        for k, path in enumerate(self.paths):
+            origin, turn = path.pose(t)
+            velocity, spin = path.velocity(t)
+            arm = turn @ self.lever[k]
+            x[k], rotation[k] = origin + arm, turn @ self.rest[k]
+            v[k], omega[k] = velocity + np.cross(spin, arm), spin
+        return x, rotation, v, omega

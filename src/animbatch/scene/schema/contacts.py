@@ -20,7 +20,7 @@ from animbatch.scene.schema.base import (
     rule_error,
 )
 from animbatch.scene.schema.bodies import Interpolation, _keyframe_list
-from animbatch.scene.schema.rigid import OrientationSpec
+from animbatch.scene.schema.rigid import OrientationSpec, PoseKeyframeSpec
 
 
 class MaterialSpec(SceneModel):
@@ -74,18 +74,8 @@ class PlaneCollider(_ColliderBase):
     size: float | None = key(None, "Side of the square drawn to show it (default: fitted to the motion).", "m", gt=0)
 
 
-class ColliderKeyframeSpec(SceneModel):
-    """Where a moving collider is at a time: moved by ``offset`` from where the scene places it, and turned by
-    ``rotation`` about its centre."""
-
-    time: float = key(description="Time of the key.", unit="s", ge=0)
-    offset: Vec3 = key([0.0, 0.0, 0.0], "Displacement of its centre from its position [dx, dy, dz].", "m")
-    rotation: OrientationSpec | None = key(None, "Turn about its centre from its orientation, world axes (default: "
-                                                 "none).")
-
-
 class _MovingCollider(_ColliderBase):
-    keyframes: _keyframe_list(ColliderKeyframeSpec) | None = key(  # type: ignore[valid-type]
+    keyframes: _keyframe_list(PoseKeyframeSpec) | None = key(  # type: ignore[valid-type]
         None, "Move it along keyframes: a kinematic collider (a paddle, a moving platform), pushing bodies with its "
               "own velocity at the contact; it holds its first and last poses before and after them. Fixed-step "
               "methods only.", example=[{"time": 0, "offset": [0, 0, 0]}, {"time": 1, "offset": [1, 0, 0]}])

@@ -20,6 +20,7 @@ from animbatch.scene.schema.base import (
     roughness_key,
     rule_error,
 )
+from animbatch.scene.schema.bodies import Interpolation, _keyframe_list
 
 
 class SphereShape(SceneModel):
@@ -128,6 +129,16 @@ class OrientationSpec(SceneModel):
         return self
 
 
+class PoseKeyframeSpec(SceneModel):
+    """Where a moving collider or a kinematic rigid body is at a time: moved by ``offset`` from where the scene
+    places it (its ``position``), and turned by ``rotation`` about that point."""
+
+    time: float = key(description="Time of the key.", unit="s", ge=0)
+    offset: Vec3 = key([0.0, 0.0, 0.0], "Displacement from its position [dx, dy, dz].", "m")
+    rotation: OrientationSpec | None = key(None, "Turn about its position from its orientation, world axes "
+                                                 "(default: none).")
+
+
 PRIMITIVE_SHAPES: tuple[type[SceneModel], ...] = (SphereShape, ShellShape, BoxShape, CylinderShape, RodShape,
                                                   CapsuleShape, MeshShape)
 PrimitiveShape = Annotated[Union[*PRIMITIVE_SHAPES], Field(discriminator="type")]  # type: ignore[valid-type]
@@ -179,6 +190,14 @@ class RigidBodySpec(SceneModel):
     angular_velocity: Vec3 = key([0.0, 0.0, 0.0], "Initial angular velocity ω, world axes.", "rad/s")
     material: Name = key("default", "Material, for collisions (see the particle's 'material').")
     collide: bool = key(True, "Take part in collisions (when the scene has colliders or a 'contacts' section).")
+    keyframes: _keyframe_list(PoseKeyframeSpec) | None = key(  # type: ignore[valid-type]
+        None, "Move it along keyframes instead of simulating it: a kinematic body (a paddle, a moving platform, a "
+              "hand). Nothing pushes it back; it pushes bodies and emitted particles with its own velocity at the "
+              "contact, and holds its first and last poses before and after the keys. Its velocity and angular "
+              "velocity are the path's (velocity and angular_velocity must stay unset). Fixed-step methods only.",
+        example=[{"time": 0, "offset": [0, 0, 0]}, {"time": 1, "offset": [1, 0, 0]}])
+    interpolation: Interpolation = key("cubic", "Between keyframes: linear (constant velocity, slerp) or cubic "
+                                                "(smooth: continuous velocity and acceleration).")
     color: Color | None = key(None, "Display colour (default: its material's colour, else from a palette, by body "
                                     "index).")
     metallic: float | None = metallic_key()
@@ -199,4 +218,13 @@ class RigidBodySpec(SceneModel):
         if thin and self.density is not None:
             raise rule_error("a thin shell has no volume, so a density gives no mass: give mass, or shape.thickness",
                              "density")
+        return self
+
+    @model_validator(mode="after")
+    def _kinematic_moves_with_its_path(self) -> "RigidBodySpec":
+        if self.keyframes is not None:
+            for name in ("velocity", "angular_velocity"):
+                if any(getattr(self, name)):
+                    raise rule_error(f"a body on keyframes moves as its path says: leave {name} out (its keys' "
+                                     "offsets and rotations give its motion)", name)
         return self

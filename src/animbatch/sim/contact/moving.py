@@ -16,60 +16,9 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.spatial.transform import Rotation, RotationSpline, Slerp
 
 from animbatch.sim.contact.geometry import StaticColliders
-from animbatch.sim.motion import KeyframePath
-
-#: Half the time step [s] of the central difference that gives a turn's angular velocity.
-TURN_RATE_STEP = 1e-6
-
-
-@dataclass(frozen=True, eq=False)
-class ColliderPath:
-    """How one collider moves: its rest centre ``centre`` (3,) [m], displaced by ``offsets`` (a path of (3,)
-    offsets [m]) and turned about the centre by ``turns`` (Rotations at ``times`` (K,) [s]), ``interpolation``
-    'linear' or 'cubic'."""
-
-    centre: np.ndarray
-    times: np.ndarray
-    offsets: KeyframePath
-    turns: Rotation
-    interpolation: str
-
-    def __post_init__(self) -> None:
-        if len(self.times) > 1:
-            spline = (RotationSpline(self.times, self.turns) if self.interpolation == "cubic"
-                      else Slerp(self.times, self.turns))
-            object.__setattr__(self, "_turn", spline)
-
-    def turn(self, t: float) -> np.ndarray:
-        """The turn (3, 3) at time t [s], held before the first key and after the last."""
-        if len(self.times) == 1:
-            return self.turns[0].as_matrix()
-        return self._turn(float(np.clip(t, self.times[0], self.times[-1]))).as_matrix()  # type: ignore[attr-defined]
-
-    def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Centre (3,) [m] and turn (3, 3) at time t: a rest point p goes to ``turn (p − c₀) + c₀ + offset``."""
-        return self.centre + self.offsets.position(t), self.turn(t)
-
-    def velocity(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Velocity of the centre (3,) [m/s] and angular velocity (3,) [rad/s], world axes, at time t."""
-        velocity = self.offsets.velocity(t)
-        if len(self.times) == 1 or t < self.times[0] or t > self.times[-1]:
-            return velocity, np.zeros(3)
-        early = max(t - TURN_RATE_STEP, float(self.times[0]))
-        late = min(t + TURN_RATE_STEP, float(self.times[-1]))
-        change = Rotation.from_matrix(self.turn(late) @ self.turn(early).T).as_rotvec()
-        return velocity, change / (late - early)
-
-    def matrix(self, t: float) -> np.ndarray:
-        """The 4 × 4 transform from the rest pose to the pose at time t (for drawing)."""
-        centre, turn = self.pose(t)
-        transform = np.eye(4)
-        transform[:3, :3] = turn
-        transform[:3, 3] = centre - turn @ self.centre
-        return transform
+from animbatch.sim.motion import PosePath
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,7 +26,7 @@ class MovingColliders:
     """The moving colliders of a contact world: their paths (M,), and which of the static solids each moves:
     ``sphere`` (S,) and ``box`` (X,) path indices, −1 for the solids that stay put."""
 
-    paths: tuple[ColliderPath, ...]
+    paths: tuple[PosePath, ...]
     sphere: np.ndarray
     box: np.ndarray
 

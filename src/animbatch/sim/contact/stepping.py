@@ -80,10 +80,15 @@ class ContactResolver:
             rotation = state.rotation
             inverse_inertia[n:count] = rotation @ model.rigid.inverse_inertia @ np.transpose(rotation, (0, 2, 1))
         driven = None
+        if moving is not None or model.kinematic is not None:
+            driven = np.zeros(count + extra + 1, bool)
         if moving is not None:  # prescribed motion, no inverse mass: nothing pushes a moving collider back
             x[count:count + extra], v[count:count + extra], omega[count:count + extra] = moving.motion(state.t)
-            driven = np.zeros(count + extra + 1, bool)
-            driven[count:count + extra] = True
+            driven[count:count + extra] = True  # type: ignore[index]
+        if model.kinematic is not None:  # rigid bodies on keyframes, likewise
+            bodies = n + model.kinematic.rigid
+            inverse_mass[bodies], inverse_inertia[bodies] = 0.0, 0.0
+            driven[bodies] = True  # type: ignore[index]
         return BodyVelocities(v, omega, inverse_mass, inverse_inertia, driven), x
 
     def _write_back(self, motion: np.ndarray, state: Kinematics, bodies: BodyVelocities) -> None:

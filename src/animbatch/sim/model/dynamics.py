@@ -58,6 +58,20 @@ class Dynamics:
             self._x = np.empty((n + b, 3))
             self._v = np.empty((n + b, 3))
 
+    def _prescribe(self, y: np.ndarray, t: float) -> None:
+        """Set the states of the rigid bodies on keyframes (a fixed-step method's step integrated them as free
+        bodies; their paths overrule that) to their paths' at time t [s], in place."""
+        kinematic, rigid = self.model.kinematic, self.model.rigid
+        assert kinematic is not None and rigid is not None
+        position, orientation, momentum, angular = self._rigid_views(*self.split(y))
+        x, rotation, v, omega = kinematic.at(t)
+        index = kinematic.rigid
+        position[index] = x
+        orientation[index] = quaternion.from_matrix(rotation)
+        momentum[index] = v * rigid.mass[index, None]
+        inertia = rotation @ rigid.inertia[index] @ np.transpose(rotation, (0, 2, 1))
+        angular[index] = np.einsum("kij,kj->ki", inertia, omega)
+
     # ------------------------------------------------------------------------------------------ state views
 
     def split(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -249,11 +263,13 @@ class Dynamics:
                        format="csr")
 
     def project(self, y: np.ndarray, *, joints: bool = True, reach: float = 0.0, t: float = 0.0) -> None:
-        """Re-normalise the quaternions of a state (…, n) in place, and with ``joints`` move a state (n,) back onto
-        its joints: the start of every run, fixed-step methods after every step, adaptive ones only where a limit
-        or rope reaches its stop (within ``reach`` [m or rad]); between those, adaptive methods keep to the joints
-        by Baumgarte stabilisation, so that their outputs show their true drift. ``t`` [s]: the state's time (where
-        anchors on keyframes are)."""
+        """Re-normalise the quaternions of a state (…, n) in place, and with ``joints`` put the bodies on keyframes
+        where their paths say and move a state (n,) back onto its joints: the start of every run, fixed-step
+        methods after every step, adaptive ones only where a limit or rope reaches its stop (within ``reach`` [m or
+        rad]); between those, adaptive methods keep to the joints by Baumgarte stabilisation, so that their outputs
+        show their true drift. ``t`` [s]: the state's time (where anchors and bodies on keyframes are)."""
+        if joints and self.model.kinematic is not None and y.ndim == 1:
+            self._prescribe(y, t)
         if joints and self.joints is not None and y.ndim == 1:
             config, motion = self.split(y)
             points = self.particles + self.rigid  # positions, and velocities then momenta, are contiguous

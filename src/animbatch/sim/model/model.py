@@ -22,7 +22,7 @@ from animbatch.sim.joints import Joints
 from animbatch.sim.model.clocks import ProperClocks
 from animbatch.sim.model.layout import StateLayout
 from animbatch.sim.model.rigid_set import RigidBodySet
-from animbatch.sim.motion import AnchorMotion
+from animbatch.sim.motion import AnchorMotion, KinematicBodies
 
 if TYPE_CHECKING:  # contacts sit above the model (they read it); only their types are named here
     from animbatch.sim.contact.detection import ContactSettings, ContactWorld
@@ -49,6 +49,7 @@ class Model:
         owners: (P,) the scene body each point belongs to: its own name, or the cloth or lattice of a vertex.
         clocks: the proper-time clocks some bodies carry, or None (then the state has no proper-time block).
         joints: rods and ropes over pulleys between particles, or None (then no constraint code runs).
+        kinematic: the rigid bodies on keyframes, whose states their paths prescribe, or None.
     """
 
     bodies: BodyTable
@@ -66,6 +67,7 @@ class Model:
     owners: tuple[str, ...] | None = None
     clocks: ProperClocks | None = None
     joints: Joints | None = None
+    kinematic: KinematicBodies | None = None
 
     def __post_init__(self) -> None:
         if self.anchors is None:
@@ -122,10 +124,10 @@ class Model:
 
     @property
     def adds_energy(self) -> bool:
-        """Whether something can put energy in: a force term (see :attr:`ForceTerm.adds_energy`), a joint motor or a
-        collider moving along keyframes."""
+        """Whether something can put energy in: a force term (see :attr:`ForceTerm.adds_energy`), a joint motor, or
+        a collider or rigid body moving along keyframes."""
         return (any(term.adds_energy for term in self.force_terms)
-                or (self.joints is not None and self.joints.driven)
+                or (self.joints is not None and self.joints.driven) or self.kinematic is not None
                 or getattr(self.contact_world, "moving", None) is not None)
 
     def positions(self, y: np.ndarray) -> np.ndarray:
