@@ -73,7 +73,11 @@ def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
             body.name for body in spec.bodies if body.type in ("particle", "rigid")]
         builder.add_clocks([handles[name][0] for name in carriers], c=spec.clocks.c)
     model = builder.finalize(duration=spec.duration, fps=spec.fps)
-    model = replace(model, kinematic=kinematic_bodies(spec, model))
+    kinematic = kinematic_bodies(spec, model)
+    if kinematic is not None:  # bodies on keyframes start where their paths do
+        model = replace(model, kinematic=kinematic, y0=model.y0.copy())
+        model.prescribe(model.y0, float(model.frame_times[0]))
+        model.y0.setflags(write=False)
     if not spec.has_contacts:
         return model
     from animbatch.compile.contacts import build_contact_world  # only scenes with contacts load contact code

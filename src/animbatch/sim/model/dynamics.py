@@ -58,20 +58,6 @@ class Dynamics:
             self._x = np.empty((n + b, 3))
             self._v = np.empty((n + b, 3))
 
-    def _prescribe(self, y: np.ndarray, t: float) -> None:
-        """Set the states of the rigid bodies on keyframes (a fixed-step method's step integrated them as free
-        bodies; their paths overrule that) to their paths' at time t [s], in place."""
-        kinematic, rigid = self.model.kinematic, self.model.rigid
-        assert kinematic is not None and rigid is not None
-        position, orientation, momentum, angular = self._rigid_views(*self.split(y))
-        x, rotation, v, omega = kinematic.at(t)
-        index = kinematic.rigid
-        position[index] = x
-        orientation[index] = quaternion.from_matrix(rotation)
-        momentum[index] = v * rigid.mass[index, None]
-        inertia = rotation @ rigid.inertia[index] @ np.transpose(rotation, (0, 2, 1))
-        angular[index] = np.einsum("kij,kj->ki", inertia, omega)
-
     # ------------------------------------------------------------------------------------------ state views
 
     def split(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -269,7 +255,7 @@ class Dynamics:
         rad]); between those, adaptive methods keep to the joints by Baumgarte stabilisation, so that their outputs
         show their true drift. ``t`` [s]: the state's time (where anchors and bodies on keyframes are)."""
         if joints and self.model.kinematic is not None and y.ndim == 1:
-            self._prescribe(y, t)
+            self.model.prescribe(y, t)  # a step integrated them as free bodies: their paths overrule it
         if joints and self.joints is not None and y.ndim == 1:
             config, motion = self.split(y)
             points = self.particles + self.rigid  # positions, and velocities then momenta, are contiguous

@@ -130,6 +130,20 @@ class Model:
                 or (self.joints is not None and self.joints.driven) or self.kinematic is not None
                 or getattr(self.contact_world, "moving", None) is not None)
 
+    def prescribe(self, y: np.ndarray, t: float) -> None:
+        """Set the states of the rigid bodies on keyframes in a state (n,) to their paths' at time t [s], in place:
+        centres of mass, orientations, and momenta from the paths' velocities and angular velocities."""
+        kinematic, rigid = self.kinematic, self.rigid
+        if kinematic is None or rigid is None:
+            return
+        x, rotation, v, omega = kinematic.at(t)
+        index = kinematic.rigid
+        self.layout.view(y, "rigid_position")[index] = x
+        self.layout.view(y, "rigid_orientation")[index] = quaternion.from_matrix(rotation)
+        self.layout.view(y, "rigid_momentum")[index] = v * rigid.mass[index, None]
+        inertia = rotation @ rigid.inertia[index] @ np.transpose(rotation, (0, 2, 1))
+        self.layout.view(y, "rigid_angular_momentum")[index] = np.einsum("kij,kj->ki", inertia, omega)
+
     def positions(self, y: np.ndarray) -> np.ndarray:
         """Centre-of-mass positions [m] of all bodies: (P, 3) or (F, P, 3)."""
         return self._blocks(y, "particle_position", "rigid_position")
