@@ -7,12 +7,14 @@ neither sees is a side touching something between its ends with no probe there: 
 across a stair's edge or a box's edge.
 
 Both are a segment against a round solid: an edge (of a box, a fixed box or a hull), or the other round's axis
-thickened by its radius. A convex solid's signed distance is convex along a segment, so a golden-section search
-finds the segment's point nearest the solid, exactly, whatever the shapes (a cylinder's flat ends and rims
-included). Where that point is within reach, the contact is there, the normal the solid's at that point; where the
-segment runs along the solid (a log lying along a ridge, two logs side by side) the stretch within reach is
-bracketed and held by a contact at each of its ends, so the body rests on a line, not on a pivot. Against another
-round, points at its axis's ends are left out: its rims or caps are probes, which hold those contacts.
+thickened by its radius. A convex solid's signed distance is convex along a segment, so a search that narrows a
+grid onto its least value finds the segment's point nearest the solid, to 1e-5 of the segment, whatever the shape
+(a cylinder's flat ends and rims included; :func:`nearest_stretch`). Where that point is within reach, the contact
+is there, the normal the solid's at that point; where the segment runs along the solid (a log lying along a ridge,
+two logs side by side) the stretch within reach is bracketed and held by a contact at each of its ends, so the body
+rests on a line, not on a pivot. Against another round, points at its axis's ends are left out: its rims or caps
+are probes, which hold those contacts (the other round is taken as its axis thickened, a capsule: exact along its
+side, which is all that is kept).
 
 Side contacts are fixed-step contacts (:class:`~animbatch.sim.contact.stepping.ContactResolver`), like box edges.
 """
