@@ -12,7 +12,7 @@ from animbatch import api
 from animbatch.errors import AccuracyWarning
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import OrientationSpec
-from animbatch.sim.contact.edges import edge_contact
+from animbatch.sim.contact.hulls import BodyHull, hull_edge_contact
 from conftest import scene
 
 TURNED = "{axis: [0, 0, 1], angle: 45}"
@@ -45,20 +45,48 @@ def test_a_beam_laid_across_a_ridge_rests_on_it_edge_on_edge(ridge_is_a_body):
     np.testing.assert_allclose(height[-10:], REST, atol=2e-3)
 
 
+def box(half: np.ndarray) -> BodyHull:
+    return BodyHull.of_box(0, np.zeros(3), np.eye(3), half)
+
+
 def test_edge_contact_geometry_of_two_crossed_boxes():
     turn = orientation_matrix(OrientationSpec(axis=[1, 0, 0], angle=45))
     ridge = orientation_matrix(OrientationSpec(axis=[0, 0, 1], angle=45))
-    half_beam, half_ridge = np.array([0.5, 0.1, 0.1]), np.array([0.1, 0.1, 0.5])
+    beam, ridge_box = box(np.array([0.5, 0.1, 0.1])), box(np.array([0.1, 0.1, 0.5]))
     reach = 0.01
     touching = 2 * 0.1 * np.sqrt(2)
-    hit = edge_contact(np.array([0, touching - 0.003, 0]), turn, half_beam, np.zeros(3), ridge, half_ridge, reach)
-    assert hit is not None
-    point, normal, gap, edge_a, edge_b = hit
+    found = hull_edge_contact(beam, np.array([0, touching - 0.003, 0]), turn, ridge_box, np.zeros(3), ridge, reach)
+    assert len(found) == 1
+    point, normal, gap, edge_a, edge_b = found[0]
     np.testing.assert_allclose(normal, [0, 1, 0], atol=1e-12)
     assert gap == pytest.approx(-0.003, abs=1e-12)  # 3 mm into the ridge
     np.testing.assert_allclose(point, [0, 0.1 * np.sqrt(2) - 0.0015, 0], atol=1e-12)
-    assert edge_a // 4 == 0 and edge_b // 4 == 2  # the beam's edge along its x, the ridge's along its z
-    assert edge_contact(np.array([0, touching + 0.05, 0]), turn, half_beam, np.zeros(3), ridge, half_ridge,
-                        reach) is None  # 5 cm apart: beyond reach
-    flat = np.eye(3)  # face to face: a face axis wins, and the corners hold that contact
-    assert edge_contact(np.array([0, 0.199, 0]), flat, half_beam, np.zeros(3), flat, half_ridge, reach) is None
+    np.testing.assert_allclose(np.abs(beam.directions[edge_a]), [1, 0, 0], atol=1e-12)  # the beam's edge along x
+    np.testing.assert_allclose(np.abs(ridge_box.directions[edge_b]), [0, 0, 1], atol=1e-12)  # the ridge's along z
+    assert hull_edge_contact(beam, np.array([0, touching + 0.05, 0]), turn, ridge_box, np.zeros(3), ridge,
+                             reach) == []  # 5 cm apart: beyond reach
+    # face to face, one inside the other's footprint: a face axis wins, and the corners hold that contact
+    small = box(np.array([0.05, 0.1, 0.05]))
+    assert hull_edge_contact(small, np.array([0, 0.199, 0]), np.eye(3), ridge_box, np.zeros(3), np.eye(3),
+                             reach) == []
+
+
+def test_a_plank_laid_across_another_face_on_face_rests_on_it():
+    """No corner of either plank lies on the other: the four crossings of their edges hold the upper one (before
+    polyhedra met edge to edge at face ties, it fell through the lower plank to the floor)."""
+    loaded = scene("""
+        duration: 1
+        fps: 30
+        solver: {method: symplectic_euler, dt: 1.0e-3}
+        bodies:
+          - {name: lower, type: rigid, shape: {type: box, size: [0.2, 0.1, 1.0]}, density: 500, position: [0, 0.05, 0]}
+          - {name: upper, type: rigid, shape: {type: box, size: [1.0, 0.1, 0.2]}, density: 500, position: [0, 0.2, 0]}
+        colliders: [{type: plane}]
+        fields: [{type: gravity}]
+    """)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AccuracyWarning)
+        trajectory = api.simulate(loaded)
+    assert trajectory.positions[:, 1, 1].min() > 0.15 - 1e-3
+    assert trajectory.positions[-1, 1, 1] == pytest.approx(0.15, abs=5e-4)
+    np.testing.assert_allclose(trajectory.orientations[-1, 1], [1, 0, 0, 0], atol=1e-6)  # level, not tipped

@@ -15,7 +15,6 @@ from animbatch import api
 from animbatch.errors import AccuracyWarning, SceneError
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import OrientationSpec
-from animbatch.sim.contact.edges import edge_contact
 from animbatch.sim.contact.geometry import round_distance, segment_distance, to_round
 from animbatch.sim.contact.hulls import BodyHull, hull_edge_contact, to_hull
 from animbatch.sim.rigid import mass_properties as mp
@@ -66,11 +65,11 @@ def test_round_distance_is_the_distance_to_the_surface_for_points_outside():
     """Against a dense sampling of the cylinder's surface: the sampled distance is never below the exact one, and
     exceeds it by no more than the sampling's spacing."""
     rng = np.random.default_rng(3)
-    angles = np.linspace(0, 2 * np.pi, 361)[:-1]
+    angles = np.linspace(0, 2 * np.pi, 181)[:-1]
     ring = np.stack([0.1 * np.cos(angles), 0.1 * np.sin(angles)], axis=1)
-    zs = np.linspace(-0.5, 0.5, 401)
+    zs = np.linspace(-0.5, 0.5, 201)
     side = np.concatenate([np.column_stack([ring, np.full(len(ring), z)]) for z in zs])
-    radii = np.linspace(0, 0.1, 41)
+    radii = np.linspace(0, 0.1, 21)
     caps = np.concatenate([np.column_stack([np.outer(radii, np.cos(angles)).ravel(),
                                             np.outer(radii, np.sin(angles)).ravel(),
                                             np.full(len(radii) * len(angles), z)]) for z in (-0.5, 0.5)])
@@ -81,17 +80,17 @@ def test_round_distance_is_the_distance_to_the_surface_for_points_outside():
     outside = d > 0
     sampled = np.min(np.linalg.norm(points[outside, None, :] - surface[None], axis=2), axis=1)
     assert np.all(sampled >= d[outside] - 1e-12)
-    assert np.all(sampled - d[outside] < 3e-3)  # the sampling's spacing
+    assert np.all(sampled - d[outside] < 5e-3)  # the sampling's spacing (3.5 mm around, 5 mm along)
 
 
 def test_segment_distance_matches_a_brute_force_search():
     rng = np.random.default_rng(5)
-    sa, da, sb, db = (rng.normal(size=(300, 3)) for _ in range(4))
-    u = np.linspace(0, 1, 501)
+    sa, da, sb, db = (rng.normal(size=(100, 3)) for _ in range(4))
+    u = np.linspace(0, 1, 401)
     brute = np.linalg.norm((sa[:, None, None] + u[None, :, None, None] * da[:, None, None])
                            - (sb[:, None, None] + u[None, None, :, None] * db[:, None, None]), axis=-1).min(axis=(1, 2))
     exact = segment_distance(sa, da, sb, db)
-    assert np.all(exact <= brute + 1e-12) and np.all(brute - exact < 1e-4)
+    assert np.all(exact <= brute + 1e-12) and np.all(brute - exact < 2e-4)
 
 
 def test_capsule_mass_properties_match_its_surface_integrated():
@@ -114,22 +113,6 @@ def test_hull_distance_is_exact_inside_and_outside():
     np.testing.assert_allclose(d2, d, atol=1e-12)
     np.testing.assert_allclose(n2, n @ turn.T, atol=1e-12)
     assert len(cube.normals) == 6 and len(cube.edges) == 12 and len(cube.edge_axes) == 3
-
-
-def test_hull_edge_contact_agrees_with_the_box_edge_contact():
-    """Two boxes crossed edge on edge, as hulls and as boxes: the two separating-axis implementations agree."""
-    turn = orientation_matrix(OrientationSpec(axis=[1, 0, 0], angle=45))
-    ridge = orientation_matrix(OrientationSpec(axis=[0, 0, 1], angle=45))
-    half_beam, half_ridge = np.array([0.5, 0.1, 0.1]), np.array([0.1, 0.1, 0.5])
-    centre = np.array([0.0, 2 * 0.1 * np.sqrt(2) - 0.003, 0.0])
-    beam = BodyHull.of_box(0, np.zeros(3), np.eye(3), half_beam)
-    ridge_hull = BodyHull.of_box(1, np.zeros(3), np.eye(3), half_ridge)
-    as_hulls = hull_edge_contact(beam, centre, turn, ridge_hull, np.zeros(3), ridge, 0.01)
-    as_boxes = edge_contact(centre, turn, half_beam, np.zeros(3), ridge, half_ridge, 0.01)
-    assert len(as_hulls) == 1 and as_boxes is not None
-    for a, b in zip(as_hulls[0][:3], as_boxes[:3]):
-        np.testing.assert_allclose(a, b, atol=1e-12)
-    assert hull_edge_contact(beam, centre + [0, 0.05, 0], turn, ridge_hull, np.zeros(3), ridge, 0.01) == []
 
 
 def test_planks_crossed_face_on_face_touch_at_the_corners_of_their_overlap():

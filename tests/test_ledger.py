@@ -340,3 +340,13 @@ def test_a_cached_bake_is_judged_again_with_a_new_threshold_without_simulating(t
     assert again.trajectory.ledger["drift_warning"] == 0.9 and again.trajectory.ledger["warnings"] == []
     with pytest.warns(AccuracyWarning, match="the energy drifted by"):  # a reused bake tells its warnings again
         assert bake(scene(text), out_dir=tmp_path).reused
+
+
+def test_drift_advice_never_suggests_the_method_already_in_use():
+    from animbatch.sim.ledger import drift_advice
+
+    for method in ("RK45", "DOP853", "LSODA"):
+        advice = drift_advice(method, 0.05, 0.01, rtol=1e-6, dt=None)
+        assert advice.startswith("tighten solver.rtol to ")
+        assert ("use DOP853" in advice) is (method != "DOP853")
+    assert "use verlet" in drift_advice("DOP853", 0.05, 0.01, rtol=1e-6, dt=None)

@@ -255,8 +255,10 @@ def drift_advice(method: str, drift: float, threshold: float, *, rtol: float | N
         return f"use {step}"
     # an adaptive run's drift falls with its tolerance, but seldom in proportion: aim a decade lower
     tighter = f" to {rtol * shrink / 10:.2g} or less" if rtol else ""
-    return (f"tighten solver.rtol{tighter} (and solver.atol with it; tighter still if this warning stays), or use "
-            "DOP853, whose high order pays off at tight tolerances")
+    advice = f"tighten solver.rtol{tighter} (and solver.atol with it; tighter still if this warning stays)"
+    if method == "DOP853":  # already the highest order: a fixed-step symplectic method is the other way
+        return f"{advice}, or use verlet with a small solver.dt, which keeps energy bounded over long runs"
+    return f"{advice}, or use DOP853, whose high order pays off at tight tolerances"
 
 
 @dataclass

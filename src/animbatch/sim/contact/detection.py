@@ -24,7 +24,6 @@ from animbatch.sim.bodies import Kinematics
 from animbatch.sim.contact.contacts import (
     BODY_BOX,
     BODY_BOX_FACE,
-    BODY_EDGE,
     BODY_HULL,
     BODY_ROUND,
     BODY_SPHERE,
@@ -40,7 +39,6 @@ from animbatch.sim.contact.contacts import (
     Contacts,
     make_contacts,
 )
-from animbatch.sim.contact.edges import edge_contact
 from animbatch.sim.contact.geometry import (
     BodyBoxes,
     BodyCylinders,
@@ -56,7 +54,7 @@ from animbatch.sim.contact.geometry import (
     to_sphere,
     to_triangles,
 )
-from animbatch.sim.contact.hulls import BodyHull, hull_edge_contacts, to_hull
+from animbatch.sim.contact.hulls import BodyHull, edge_contacts, to_hull
 from animbatch.sim.contact.materials import MaterialTable
 from animbatch.sim.contact.moving import MovingColliders
 from animbatch.sim.contact.sides import side_contacts
@@ -211,7 +209,8 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
            edges: bool = False) -> Contacts:
     """Every probe–solid pair whose gap is below ``margin`` [m] plus how far both sides can travel (``travel`` (P,)
     [m] per body, the most any of its points moves in the coming step; None: nothing moves), as contacts; with
-    ``edges``, also the edge–edge contacts of boxes (:mod:`animbatch.sim.contact.edges`)."""
+    ``edges``, also the contacts that probes miss: edges crossing edges (:mod:`animbatch.sim.contact.hulls`),
+    cylinders' rims on planes, and the sides of rounds (:mod:`animbatch.sim.contact.sides`)."""
     check_scale(world, state, travel)
     centres = probe_centres(world, state)
     active = world.collides[world.probes.owner]
@@ -254,14 +253,12 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
                                    statics.triangle_material[triangles], margin, TRIANGLE, triangles, travel))
     if world.bodies_collide and tree is not None:
         parts += _between_bodies(world, state, centres, tree, active, margin, box_centres, box_rotations, travel)
-    if edges and world.boxes.count:
-        parts.append(edge_contacts(world, statics, box_centres, box_rotations, margin, travel))
+    if edges and (world.boxes.count or world.hulls):
+        parts.append(edge_contacts(world, state, statics, box_centres, box_rotations, margin, travel))
     if edges and world.cylinders is not None and len(statics.plane_point):
         parts.append(rim_contacts(world, state, statics, margin, travel))
     if edges and world.cylinders is not None:
         parts.append(side_contacts(world, state, statics, box_centres, box_rotations, margin, travel))
-    if edges and world.hulls:
-        parts.append(hull_edge_contacts(world, state, statics, box_centres, box_rotations, margin, travel))
     return Contacts.concatenate(parts)
 
 
@@ -288,52 +285,6 @@ def rim_contacts(world: ContactWorld, state: Kinematics, statics: StaticCollider
                                    np.full(len(owner), statics.plane_material[k]), first + np.flatnonzero(keep),
                                    PLANE_RIM, np.full(len(owner), k)))
     return Contacts.concatenate(parts)
-
-
-def edge_contacts(world: ContactWorld, statics: StaticColliders, box_centres: np.ndarray, box_rotations: np.ndarray,
-                  margin: float, travel: np.ndarray | None) -> Contacts:
-    """Edge–edge contacts of the boxes moving with bodies against the fixed boxes and (when bodies collide) each
-    other, within ``margin`` [m] plus how far the pair can travel."""
-    boxes = world.boxes
-    found: list[tuple] = []  # (box, edge, owner, solid body, solid kind, solid index, material, point, normal, gap)
-    steps = travel if travel is not None else np.zeros(len(world.body_material))
-    for k in range(boxes.count):
-        owner = int(boxes.owner[k])
-        if not world.collides[owner]:
-            continue
-        size_k = float(np.linalg.norm(boxes.half[k]))
-        for j in range(len(statics.box_centre)):
-            reach = margin + float(steps[owner])
-            if np.linalg.norm(box_centres[k] - statics.box_centre[j]) > size_k + np.linalg.norm(statics.box_half[j]) \
-                    + reach:
-                continue
-            hit = edge_contact(box_centres[k], box_rotations[k], boxes.half[k], statics.box_centre[j],
-                               statics.box_rotation[j], statics.box_half[j], reach)
-            if hit is not None:
-                found.append((k, hit[3], owner, STATIC, STATIC_EDGE, 12 * j + hit[4], int(statics.box_material[j]),
-                              *hit[:3]))
-        if not world.bodies_collide:
-            continue
-        for other in range(k + 1, boxes.count):
-            second = int(boxes.owner[other])
-            if second == owner or not world.collides[second] or not world.allowed(owner, np.array([second]))[0]:
-                continue
-            if world.group is not None and world.group[owner] >= 0 and world.group[owner] == world.group[second]:
-                continue
-            reach = margin + float(steps[owner] + steps[second])
-            if np.linalg.norm(box_centres[k] - box_centres[other]) > size_k + np.linalg.norm(boxes.half[other]) \
-                    + reach:
-                continue
-            hit = edge_contact(box_centres[k], box_rotations[k], boxes.half[k], box_centres[other],
-                               box_rotations[other], boxes.half[other], reach)
-            if hit is not None:
-                found.append((k, hit[3], owner, second, BODY_EDGE, 12 * other + hit[4],
-                              int(world.body_material[second]), *hit[:3]))
-    if not found:
-        return Contacts.concatenate([])
-    box, edge, owner_, solid, kind, index, solid_material, point, normal, gap = (np.array(c) for c in zip(*found))
-    return make_contacts(world, owner_, solid, point, normal, gap, solid_material,
-                         world.probes.count + 12 * box + edge, kind, index)
 
 
 def body_box_poses(world: ContactWorld, state: Kinematics) -> tuple[np.ndarray, np.ndarray]:

@@ -13,7 +13,7 @@ flush, its corners lie on the other box's side faces as much as on its top, and 
 sideways. Corners outside that face's extent fall back to the plain distance to the box.
 
 What probes miss, edges crossing edges and the sides of cylinders and capsules, is found by
-:mod:`animbatch.sim.contact.edges`, :mod:`~animbatch.sim.contact.hulls` and :mod:`~animbatch.sim.contact.sides`.
+:mod:`animbatch.sim.contact.hulls` (boxes and mesh hulls) and :mod:`~animbatch.sim.contact.sides`.
 
 Signed distances are positive outside, with ``normal`` the outward unit normal of the solid at the closest point.
 """

@@ -1,19 +1,22 @@
-"""Convex polyhedra moving with bodies (convex mesh bodies, and boxes when they meet one): their signed distance,
-and the edge–edge contact of two of them.
+"""Convex polyhedra moving with bodies (the hulls of mesh shapes, and boxes): a hull's signed distance, and the
+edge–edge contacts of two polyhedra (boxes among them).
 
 A convex hull is the intersection of its faces' half-spaces ``n · x ≤ d``, so inside it a point's signed distance is
 exactly the largest ``n · x - d`` (the nearest face). Outside, that largest value can fall short of the distance near
 an edge or a corner, so points outside are measured to the hull's triangles instead.
 
 Vertices against faces are found by the hull's vertices as probes, the same way as box corners. What vertex probes
-miss is two edges crossing (see :mod:`animbatch.sim.contact.edges` for boxes); for two polyhedra the separating-axis
-test runs over both hulls' face normals and the cross products of their edge directions, and when an edge pair's
-axis overlaps least the contact is between the two edges that support the hulls along it. When an edge axis only
-ties with a face's (two faces lying on each other, crossed, or one overhanging the other's edge), each crossing of
-supporting edges is a contact: the corners of the patch where the faces overlap, where neither hull may have a
-vertex. Hulls with more than
-:data:`MAX_EDGE_DIRECTIONS` edge directions skip it: their vertices are dense enough that crossing edges cut in only
-as deep as the vertices are apart times the edges' slope.
+miss is two edges crossing (a beam laid across a ridge, boxes turned 45° to each other). For two polyhedra the
+separating-axis test runs over both hulls' face normals and the cross products of their edge directions; when an
+edge pair's axis overlaps least, the contact is between the two edges that support the hulls along it. When an edge
+axis only ties with a face's (two faces lying on each other, crossed, or one overhanging the other's edge), each
+crossing of supporting edges is a contact: the corners of the patch where the faces overlap, where neither hull may
+have a vertex (two planks crossed face on face). Hulls with more than :data:`MAX_EDGE_DIRECTIONS` edge directions
+skip it: their vertices are dense enough that crossing edges cut in only as deep as the vertices are apart times
+the edges' slope.
+
+Edge contacts are fixed-step contacts (:class:`~animbatch.sim.contact.stepping.ContactResolver`); the adaptive
+methods' events track probes only.
 """
 
 from __future__ import annotations
@@ -33,6 +36,8 @@ if TYPE_CHECKING:
 
 #: Hulls with more distinct edge directions than this leave edge–edge contact to their dense vertices.
 MAX_EDGE_DIRECTIONS = 40
+#: Crossings within this fraction of an edge's length from its end are left to the vertex there.
+END = 1e-3
 #: Overlaps within this [m] (times 1 + the hulls' reaches) count as equal: edges supporting a hull as far as one
 #: another, and an edge axis as good as a face axis.
 TIE = 1e-7
@@ -165,7 +170,9 @@ def hull_edge_contact(a: BodyHull, centre_a: np.ndarray, rotation_a: np.ndarray,
                 start_a, end_a = verts_a[a.edges[edge_a]]
                 start_b, end_b = verts_b[b.edges[edge_b]]
                 s, u = segment_parameters(start_a, end_a - start_a, start_b, end_b - start_b)
-                if 0.0 <= s <= 1.0 and 0.0 <= u <= 1.0:  # else beyond an edge's end: a vertex's contact
+                # near or beyond an edge's end, a vertex is the contact, and its probe holds it (a second contact
+                # there would make the contact solver's iteration crawl)
+                if END < s < 1.0 - END and END < u < 1.0 - END:
                     point_a, point_b = start_a + s * (end_a - start_a), start_b + u * (end_b - start_b)
                     found[(edge_a, edge_b)] = (0.5 * (point_a + point_b), normal,
                                                float((point_a - point_b) @ normal), edge_a, edge_b)
@@ -202,51 +209,51 @@ def _box_hull(half: tuple[float, float, float]) -> BodyHull:
     return BodyHull.of_box(-1, np.zeros(3), np.eye(3), np.array(half))
 
 
-def hull_edge_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders, box_centres: np.ndarray,
-                       box_rotations: np.ndarray, margin: float, travel: np.ndarray | None) -> Contacts:
-    """Crossing-edge contacts of the hulls moving with bodies against fixed boxes and (when bodies collide) body
-    boxes and each other, within ``margin`` [m] plus how far the pair can travel. Kinds: STATIC_EDGE and BODY_EDGE
-    (solid index ``12 box + edge``) and HULL_EDGE (solid index: the edge's number among all hulls' edges); probe
-    numbers past the probes, box edges, rims and sides, one per hull edge."""
-    assert state.rotation is not None
+def edge_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders, box_centres: np.ndarray,
+                  box_rotations: np.ndarray, margin: float, travel: np.ndarray | None) -> Contacts:
+    """Crossing-edge contacts of the polyhedra moving with bodies (boxes, and the hulls of mesh shapes) against fixed
+    boxes and (when bodies collide) each other, within ``margin`` [m] plus how far the pair can travel.
+
+    Kinds: STATIC_EDGE and BODY_EDGE (solid index ``12 box + edge``) and HULL_EDGE (solid index: the edge's number
+    among all hulls' edges). Probe numbers: a body box's edges ``probes + 12 box + edge``; a hull's past the probes,
+    box edges, rims and sides, one per hull edge."""
+    assert state.rotation is not None or not (world.boxes.count or world.hulls)
     rounds = world.cylinders.count if world.cylinders is not None else 0
-    first = world.probes.count + 12 * world.boxes.count + 2 * rounds
+    first_hull = world.probes.count + 12 * world.boxes.count + 2 * rounds
     edge_base = np.concatenate([[0], np.cumsum([len(h.edges) for h in world.hulls])]).astype(int)
     steps = travel if travel is not None else np.zeros(len(world.body_material))
+    # every moving polyhedron: (hull, centre, rotation, reach, body, kind and index base as a solid, its own probe
+    # base, material)
+    movers: list[tuple] = []
+    for k in range(world.boxes.count):
+        half, body = world.boxes.half[k], int(world.boxes.owner[k])
+        movers.append((_box_hull(tuple(half)), box_centres[k], box_rotations[k], float(np.linalg.norm(half)), body,
+                       BODY_EDGE, 12 * k, world.probes.count + 12 * k, int(world.body_material[body])))
+    for k, hull in enumerate(world.hulls):
+        assert state.rotation is not None
+        movers.append((hull, state.x[hull.owner], state.rotation[hull.owner - state.first_rigid], hull.reach,
+                       hull.owner, HULL_EDGE, int(edge_base[k]), first_hull + int(edge_base[k]),
+                       int(world.body_material[hull.owner])))
+    fixed = [(_box_hull(tuple(statics.box_half[j])), statics.box_centre[j], statics.box_rotation[j],
+              float(np.linalg.norm(statics.box_half[j])), STATIC, STATIC_EDGE, 12 * j, -1,
+              int(statics.box_material[j])) for j in range(len(statics.box_centre))]
     found: list[tuple] = []  # (owner, probe, solid body, kind, index, solid material, point, normal, gap)
-    poses = [(state.x[h.owner], state.rotation[h.owner - state.first_rigid]) for h in world.hulls]
-    for number, hull in enumerate(world.hulls):
-        owner = hull.owner
+    for number, (hull, centre, rotation, size, owner, _, _, probe_base, _) in enumerate(movers):
         if not world.collides[owner]:
             continue
-        centre, rotation = poses[number]
-        others: list[tuple] = []  # (hull, centre, rotation, reach, body, kind, index base, material)
-        for j in range(len(statics.box_centre)):
-            half = statics.box_half[j]
-            others.append((_box_hull(tuple(half)), statics.box_centre[j], statics.box_rotation[j],
-                           float(np.linalg.norm(half)), STATIC, STATIC_EDGE, 12 * j, int(statics.box_material[j])))
-        if world.bodies_collide:
-            for k in range(world.boxes.count):
-                half, body = world.boxes.half[k], int(world.boxes.owner[k])
-                others.append((_box_hull(tuple(half)), box_centres[k], box_rotations[k], float(np.linalg.norm(half)),
-                               body, BODY_EDGE, 12 * k, int(world.body_material[body])))
-            for k in range(number + 1, len(world.hulls)):
-                other = world.hulls[k]
-                others.append((other, *poses[k], other.reach, other.owner, HULL_EDGE, int(edge_base[k]),
-                               int(world.body_material[other.owner])))
-        for other, other_centre, other_rotation, other_reach, body, kind, base, material in others:
+        others = fixed + (movers[number + 1:] if world.bodies_collide else [])
+        for other, other_centre, other_rotation, other_size, body, kind, base, _, material in others:
             if body == owner or (body >= 0 and (not world.collides[body]
                                                 or not world.allowed(owner, np.array([body]))[0])):
                 continue
             reach = margin + float(steps[owner] + (steps[body] if body >= 0 else 0.0))
-            if np.linalg.norm(centre - other_centre) > hull.reach + other_reach + reach:
+            if np.linalg.norm(centre - other_centre) > size + other_size + reach:
                 continue
             if len(hull.edge_axes) > MAX_EDGE_DIRECTIONS or len(other.edge_axes) > MAX_EDGE_DIRECTIONS:
                 continue
             for point, normal, gap, edge, other_edge in hull_edge_contact(hull, centre, rotation, other,
                                                                           other_centre, other_rotation, reach):
-                found.append((owner, first + edge_base[number] + edge, body, kind, base + other_edge, material,
-                              point, normal, gap))
+                found.append((owner, probe_base + edge, body, kind, base + other_edge, material, point, normal, gap))
     if not found:
         return Contacts.concatenate([])
     owner_, probe, solid, kind_, index, material_, point_, normal_, gap_ = (np.array(c) for c in zip(*found))
