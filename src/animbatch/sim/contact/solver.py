@@ -35,6 +35,7 @@ exactly ``½ μ (1 - e²) Δv²`` (μ: reduced mass, Δv: approach speed) — th
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -47,6 +48,8 @@ from animbatch.sim.contact.contacts import Contacts
 BAUMGARTE = 0.2
 #: Overlaps beyond the slop smaller than this fraction of the slop are left alone.
 OVERLAP_TOLERANCE = 1e-2
+#: With joints, they are applied to the velocities every this many contact iterations (see solve_impulses).
+COUPLE_EVERY = 8
 #: Pseudo-velocities are converged when every push meets its target to this fraction of the largest target, or
 #: after this many iterations: they only correct positions, a fraction of the overlap per step, so a partly
 #: converged push (which pushes less, never the wrong way) is corrected in the next steps.
@@ -277,14 +280,17 @@ class SolveResult:
 def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h: float, *, iterations: int,
                    rest_speed: float, slop: float, bounce: bool = True,
                    warm: tuple[np.ndarray, np.ndarray] | None = None,
-                   kinematic: np.ndarray | None = None) -> SolveResult:
+                   kinematic: np.ndarray | None = None,
+                   couple: Callable[[BodyVelocities], None] | None = None) -> SolveResult:
     """Change ``bodies.v`` and ``bodies.omega`` in place so that the contacts hold, over a step of ``h`` [s].
 
     ``x``: centres of mass (P + 1, 3) [m]. ``bounce``: apply restitution (off when re-projecting velocities that
     were already resolved in this step). ``h = 0`` means an instant: no speculative contacts, no pushing apart.
     ``warm``: normal impulses (K,) and tangential impulse vectors (K, 3) to start from (warm starting: the last
     step's impulses of the same contacts, so that resting contacts converge over steps). ``kinematic`` (K,): the
-    slot in ``bodies`` of the moving collider each contact touches (−1: none).
+    slot in ``bodies`` of the moving collider each contact touches (−1: none). ``couple``: other constraints on
+    the same bodies (joints), applied to their velocities in place every :data:`COUPLE_EVERY` iterations, so that
+    contacts and joints are solved together (block Gauss–Seidel).
     """
     count = contacts.count
     result = SolveResult(np.zeros(count), np.zeros((count, 2)))
@@ -337,6 +343,14 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         normal_impulse = updated
         tangent_impulse, gripping = rows.friction_step(velocity, tangent_impulse, normal_impulse,
                                                        contacts.static_friction, sticking, contacts.kinetic_friction)
+        if couple is not None and iteration % COUPLE_EVERY == COUPLE_EVERY - 1:
+            rows.unflat(velocity)
+            couple(bodies)
+            velocity = rows.flat()
+    if couple is not None:  # end on the joints
+        rows.unflat(velocity)
+        couple(bodies)
+        velocity = rows.flat()
     rows.unflat(velocity)
     result.normal_impulse[:] = normal_impulse
     result.tangent_impulse[:] = tangent_impulse

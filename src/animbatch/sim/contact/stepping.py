@@ -143,9 +143,16 @@ class ContactResolver:
             kinematic = np.where(kinematic >= 0, self.system.model.body_count + kinematic, -1)
         codes = contact_codes(contacts)
         warm = self._warm_start(codes, h)
+        joints, count, n = self.system.joints, self.system.model.body_count, self.system.model.particle_count
+
+        def couple(velocities: BodyVelocities) -> None:  # joints and contacts solved together
+            assert joints is not None
+            joints.project_velocities(state, velocities.v[:count], velocities.omega[n:count]
+                                      if state.omega is not None else None)
+
         result = solve_impulses(contacts, bodies, x, h, iterations=self.settings.iterations,
                                 rest_speed=self.rest_speed(h), slop=self.settings.slop, bounce=bounce, warm=warm,
-                                kinematic=kinematic)
+                                kinematic=kinematic, couple=couple if joints is not None else None)
         if bounce:  # remember the impulses of the main solve (not of end-of-step re-projections)
             self.impacts.record(t + result.arrival * h, contacts.probe_body, result.impact)
 

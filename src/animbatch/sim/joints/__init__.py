@@ -302,6 +302,26 @@ class Joints:
 
     # ------------------------------------------------------------------------------------------ projection
 
+    def project_velocities(self, state: Kinematics, v: np.ndarray, omega: np.ndarray | None) -> None:
+        """Take out of velocities ``v`` (P, 3) [m/s] and ``omega`` (B, 3) [rad/s] (world axes, in place) what breaks
+        the joints at ``state``'s positions, by the impulse that does it in the mass metric (velocity rows only:
+        the positions are taken as on the joints). For solving joints and contacts together within a step."""
+        count = len(self.points)
+        rigid = self._cache["rigid"]
+        bodies = self._cache["bodies"]
+        moving = Kinematics(state.x, v, state.rotation, omega, state.first_rigid, state.t)
+        motion = self.motion(moving)
+        rows = self.rows(motion)
+        rate = apply(rows, bodies, (motion.v, motion.omega))
+        reached = rows.violation <= PROJECTION_TOLERANCE * max(self.scale, 1.0)
+        impulse = self._solve_active(rows, motion, -rate, reached & (rate < 0))
+        force, torque = apply_transpose(rows, bodies, impulse, self.world + 1)
+        v[self.points] += force[:count] * motion.inverse_mass[:count, None]
+        if len(rigid):
+            assert omega is not None
+            omega[self.points[rigid] - self.first_rigid] += np.einsum("kij,kj->ki", motion.inverse_inertia[rigid],
+                                                                      torque[rigid])
+
     def project(self, positions: np.ndarray, orientations: np.ndarray | None, linear: np.ndarray,
                 angular_momentum: np.ndarray | None, *, reach: float = 0.0, t: float = 0.0) -> None:
         """Move a state back onto the joints, in place (see the module notes): ``positions`` (P, 3) [m] of all
