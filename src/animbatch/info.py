@@ -177,7 +177,7 @@ def _emitter_lines(scene: LoadedScene, model: Model) -> list[str]:
         felt = ", ".join(f.describe() for f in emitter.fields) or "none (straight lines)"
         lines.append(f"           fields on its particles: {felt}")
         colliders = systems.colliders.get(emitter.name)
-        bodies = len(colliders.bodies) if colliders is not None else 0
+        bodies = sum(1 for b in colliders.bodies if b >= 0) if colliders is not None else 0  # not moving colliders
         meets = ("no colliders" if colliders is None else
                  f"{item.collision} on {_plural(len(spec.colliders), 'collider')}"
                  + (f" and {_plural(bodies, 'rigid body', 'rigid bodies')}" if bodies else ""))

@@ -54,10 +54,6 @@ def check_method(spec: SceneSpec) -> list[Problem]:
         return [(("colliders", moving[0], "keyframes"), (
             f"colliders on keyframes need a fixed-step method; {spec.solver.method} is adaptive. Use "
             "solver.method: symplectic_euler or verlet (with a dt that resolves the collider's motion)"))]
-    if moving and any(emitter.collision != "pass" for emitter in spec.emitters):
-        return [(("colliders", moving[0], "keyframes"), (
-            "emitted particles meet only colliders that stay put (so far); this collider moves. Give the emitters "
-            "collision: pass, or keep the collider still"))]
     if not has_contacts or scheme is None or scheme.takes_constraints:
         return []
     return [(("solver", "method"), (

@@ -10,7 +10,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from animbatch.compile.bodies import orientation_matrix
-from animbatch.compile.contacts import _statics, build_contact_world, material_table
+from animbatch.compile.contacts import _statics, build_contact_world, material_table, pose_path
 from animbatch.scene.schema import (
     PARTICLE_FIELD_TYPES,
     BoxSource,
@@ -22,6 +22,7 @@ from animbatch.scene.schema import (
     RandomColor,
     RandomValue,
     SceneSpec,
+    SphereCollider,
     SphereSource,
     WindSpec,
 )
@@ -30,7 +31,7 @@ from animbatch.sim.forces.drag import AIR_VISCOSITY
 from animbatch.sim.particles.collisions import ParticleColliders
 from animbatch.sim.particles.emitter import Emitter, Law
 from animbatch.sim.particles.fields import ParticleField
-from animbatch.sim.particles.obstacles import ParticleObstacles, body_shapes
+from animbatch.sim.particles.obstacles import ParticleObstacles, body_shapes, moving_collider_shapes
 from animbatch.sim.particles.schedule import EmissionSchedule
 from animbatch.sim.particles.sources import Source
 from animbatch.sim.particles.streams import ParticleStreams
@@ -70,7 +71,9 @@ def compile_particles(spec: SceneSpec, model: Any, base_dir: Path = Path(".")) -
         return None
 
     table = material_table(spec)
-    statics = _statics(spec, table, base_dir)[0] if spec.colliders else None
+    # colliders on keyframes are obstacles that move (particle_obstacles); the closed-form tests take the rest
+    fixed = [c for c in spec.colliders if getattr(c, "keyframes", None) is None]
+    statics = _statics(spec.model_copy(update={"colliders": fixed}), table, base_dir)[0] if fixed else None
     obstacles = particle_obstacles(spec, statics, model, base_dir)
     emitters, colliders = [], {}
     for index, item in enumerate(spec.emitters):
@@ -135,10 +138,23 @@ def particle_obstacles(spec: SceneSpec, statics: StaticColliders | None, model: 
         shapes = body_shapes(spheres, BodyBoxes(boxes.owner[keep], boxes.offset[keep], boxes.rotation[keep],
                                                 boxes.half[keep]), rounds,
                              tuple(h for h in world.hulls if world.collides[h.owner]), world.body_material)
+    paths, moving_spheres, moving_boxes = [], [], []
+    table = material_table(spec)
+    for collider in spec.colliders:
+        if getattr(collider, "keyframes", None) is None:
+            continue
+        path, material = len(paths), table.index(collider.material)
+        paths.append(pose_path(collider))
+        if isinstance(collider, SphereCollider):
+            moving_spheres.append((path, float(collider.radius), material))
+        else:
+            moving_boxes.append((path, orientation_matrix(collider.orientation), np.asarray(collider.size, float) / 2,
+                                 material))
+    shapes = shapes + moving_collider_shapes(moving_spheres, moving_boxes)
     if tree is None and not shapes:
         return None
     material = statics.triangle_material if statics is not None else np.zeros(0, np.intp)
-    return ParticleObstacles(triangles, material, tree, reach, shapes)
+    return ParticleObstacles(triangles, material, tree, reach, shapes, tuple(paths))
 
 
 def _law(value: float | RandomValue) -> Law:

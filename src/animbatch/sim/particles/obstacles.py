@@ -32,7 +32,8 @@ from animbatch.sim.contact.geometry import (
     to_triangles,
 )
 from animbatch.sim.contact.hulls import BodyHull, to_hull
-from animbatch.sim.particles.body_motion import BodyPose
+from animbatch.sim.motion import PosePath
+from animbatch.sim.particles.body_motion import BodyMotion, BodyPose
 
 #: Most sphere-tracing steps along one path (head-on hits take a few; grazing paths may run out, and then miss).
 MARCH_STEPS = 40
@@ -100,14 +101,33 @@ class Hits:
 
 @dataclass(frozen=True, eq=False)
 class BodyShape:
-    """One solid fixed to a rigid body, in body axes from its centre of mass: which ``body`` (trajectory index),
-    its ``material``, a bounding sphere (``centre`` (3,), ``reach`` [m]) and its signed ``distance``."""
+    """One solid fixed to a rigid body, in body axes from its centre of mass: which ``body`` (trajectory index; or
+    ``-2 - m`` for the m-th collider on keyframes, in axes from its centre turned by its path), its ``material``, a
+    bounding sphere (``centre`` (3,), ``reach`` [m]) and its signed ``distance``."""
 
     body: int
     material: int
     centre: np.ndarray
     reach: float
     distance: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+def moving_collider_shapes(spheres: list[tuple[int, float, int]], boxes: list[tuple[int, np.ndarray, np.ndarray, int]]
+                           ) -> tuple[BodyShape, ...]:
+    """Colliders on keyframes as solids about their path's centre: ``spheres`` [(path, radius, material)] and
+    ``boxes`` [(path, rotation at rest (3, 3), half sides (3,), material)]."""
+
+    def sphere(radius: float) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        return lambda p: to_sphere(p, np.zeros_like(p), np.full(len(p), radius))
+
+    def box(rotation: np.ndarray, half: np.ndarray) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        return lambda p: to_box(p, np.zeros_like(p), np.broadcast_to(rotation, (len(p), 3, 3)),
+                                np.broadcast_to(half, p.shape))
+
+    shapes = [BodyShape(-2 - m, material, np.zeros(3), radius, sphere(radius)) for m, radius, material in spheres]
+    shapes += [BodyShape(-2 - m, material, np.zeros(3), float(np.linalg.norm(half)), box(rotation, half))
+               for m, rotation, half, material in boxes]
+    return tuple(shapes)
 
 
 def body_shapes(spheres: list[tuple[int, np.ndarray, float]], boxes: BodyBoxes, rounds: BodyCylinders | None,
@@ -153,6 +173,21 @@ class ParticleObstacles:
     triangle_tree: cKDTree | None
     triangle_reach: float
     shapes: tuple[BodyShape, ...]
+    paths: tuple[PosePath, ...] = ()  # colliders on keyframes (shapes with body -2 - m)
+
+    def poses(self, t: float, motion: BodyMotion | None) -> dict[int, BodyPose]:
+        """The pose at time t [s] of every body and moving collider the obstacles need (bodies from ``motion``)."""
+        found = {}
+        for key in self.bodies:
+            if key >= 0:
+                assert motion is not None
+                found[key] = motion.pose(key, np.array([t]))
+            else:
+                path = self.paths[-2 - key]
+                centre, turn = path.pose(t)
+                velocity, omega = path.velocity(t)
+                found[key] = BodyPose(centre[None], turn[None], velocity[None], omega[None])
+        return found
 
     def without(self, body: int | None) -> ParticleObstacles | None:
         """These obstacles less the solids of ``body`` (an emitter's own body: its particles are born on or in it);
@@ -161,7 +196,7 @@ class ParticleObstacles:
         if self.triangle_tree is None and not shapes:
             return None
         return ParticleObstacles(self.triangles, self.triangle_material, self.triangle_tree, self.triangle_reach,
-                                 shapes)
+                                 shapes, self.paths)
 
     @property
     def bodies(self) -> tuple[int, ...]:

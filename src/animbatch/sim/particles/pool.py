@@ -15,8 +15,8 @@ class ParticlePool:
 
     Per slot (C = capacity): ``x``, ``v`` (C, 3) [m], [m/s]; ``acceleration`` (C, 3) [m/s²], kept by methods that
     reuse it (Verlet); ``alive``, ``stuck`` (C,) bool; a stuck particle's ``stuck_to`` (C,) body (−1: a fixed
-    collider) and, on a body, its place ``stuck_at`` (C, 3) in the body's axes from its centre of mass [m];
-    ``serial`` (C,) int64 (-1 when the slot was never used);
+    collider; ``-2 - m``: the m-th collider on keyframes) and, on a body, its place ``stuck_at`` (C, 3) in the
+    body's axes from its centre of mass [m]; ``serial`` (C,) int64 (-1 when the slot was never used);
     ``birth``, ``lifetime`` [s], ``mass`` [kg], ``radius`` [m] (C,). ``dropped``: births that found no free slot.
     """
 

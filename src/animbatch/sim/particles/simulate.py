@@ -145,19 +145,19 @@ class EmitterRun:
         return slots, newborn.position[take]
 
     def poses(self, t0: float, t1: float) -> tuple[dict[int, BodyPose], dict[int, BodyPose]] | None:
-        """The poses at ``t0`` and ``t1`` [s] of the bodies the particles meet (None: they meet none)."""
-        bodies = self.colliders.bodies if self.colliders is not None else ()
-        if not bodies or self.motion is None:
+        """The poses at ``t0`` and ``t1`` [s] of the bodies and moving colliders the particles meet (None: they meet
+        none)."""
+        obstacles = self.colliders.obstacles if self.colliders is not None else None
+        if obstacles is None or not obstacles.bodies:
             return None
-        motion = self.motion
-        return tuple({b: motion.pose(b, np.array([t])) for b in bodies} for t in (t0, t1))  # type: ignore[return-value]
+        return obstacles.poses(t0, self.motion), obstacles.poses(t1, self.motion)
 
     def carry_stuck(self, poses: tuple[dict[int, BodyPose], dict[int, BodyPose]] | None) -> None:
         """Particles stuck to a body move with it, to where it is at the step's end."""
         pool = self.pool
         if poses is None:
             return
-        on_body = np.flatnonzero(pool.alive & pool.stuck & (pool.stuck_to >= 0))
+        on_body = np.flatnonzero(pool.alive & pool.stuck & (pool.stuck_to != -1))  # on a body or moving collider
         for body in np.unique(pool.stuck_to[on_body]):
             which = on_body[pool.stuck_to[on_body] == body]
             now = poses[1][int(body)]
@@ -205,7 +205,7 @@ class EmitterRun:
                 pool.stuck[index] = True
                 pool.stuck_to[index] = body
                 if poses is not None:
-                    for b in np.unique(body[body >= 0]):
+                    for b in np.unique(body[body != -1]):
                         which = index[body == b]
                         end = poses[1][int(b)]
                         pool.stuck_at[which] = (at[body == b] - end.centre[0]) @ end.rotation[0]
