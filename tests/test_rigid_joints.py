@@ -399,3 +399,26 @@ def test_choosing_force_arrows_without_showing_forces_is_an_error_with_the_fix()
     with pytest.raises(SceneError) as error:
         scene("duration: 1\nbodies: [{name: a}]\nrender: {arrows: {forces: [joint]}}")
     assert "show (velocity) does not draw forces: add it, e.g. show: [forces]" in str(error.value)
+
+
+def test_joints_and_contacts_are_solved_together_so_a_weight_on_a_stalk_cannot_press_a_plank_through_the_floor():
+    """A 5 kg ball stands on a stalk (a ball joint 0.28 m below its centre) on a 0.5 kg plank lying on the floor.
+    Its weight reaches the plank only through the joint, and the floor holds the plank up. Solved one after the
+    other (contacts, then joints), the joint won every step and the plank sank 9 cm through the floor; solved
+    together it stays on the floor, within the contact slop, and the audit finds no overlap. (At mass ratios of
+    100:1 the alternation still loses: see docs/scene-format.md, joints with contacts.)"""
+    loaded = scene("""
+        duration: 1.0
+        fps: 20
+        solver: {method: symplectic_euler, dt: 5.0e-3}
+        bodies:
+          - {name: plank, type: rigid, shape: {type: box, size: [0.6, 0.02, 0.3]}, mass: 0.5, position: [0, 0.01, 0]}
+          - {name: weight, type: rigid, shape: {type: sphere, radius: 0.1}, mass: 5, position: [0, 0.3, 0]}
+        joints: [{type: ball, between: [weight, plank], anchor: [0, 0.02, 0]}]
+        colliders: [{type: plane}]
+        fields: [{type: gravity}]
+    """)
+    trajectory = api.simulate(loaded)
+    assert trajectory.ledger["contacts"]["missed"] is None
+    assert trajectory.positions[:, 0, 1].min() > 0.01 - 2e-3
+    np.testing.assert_allclose(trajectory.positions[-1, 1], [0, 0.3, 0], atol=2e-3)  # standing, balanced
