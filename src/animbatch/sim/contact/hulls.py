@@ -30,6 +30,7 @@ import numpy as np
 from animbatch.sim.bodies import Kinematics
 from animbatch.sim.contact.contacts import BODY_EDGE, HULL_EDGE, STATIC, STATIC_EDGE, Contacts, make_contacts
 from animbatch.sim.contact.geometry import StaticColliders, to_triangles
+from animbatch.sim.rigid.polyhedra import convex_mesh
 
 if TYPE_CHECKING:
     from animbatch.sim.contact.detection import ContactWorld
@@ -66,17 +67,16 @@ class BodyHull:
     @classmethod
     def of_points(cls, owner: int, points: np.ndarray) -> BodyHull:
         """The convex hull of points (V, 3), body axes from the centre of mass."""
-        from scipy.spatial import ConvexHull
-
-        hull = ConvexHull(points)
-        vertices = points[hull.vertices]
-        renumber = np.full(len(points), -1)
-        renumber[hull.vertices] = np.arange(len(hull.vertices))
-        triangles = renumber[hull.simplices]
+        mesh = convex_mesh(points)  # outward-wound triangles over the hull's own vertices
+        vertices, triangles = mesh.vertices, mesh.faces
+        a, b, c = (vertices[triangles[:, k]] for k in range(3))
+        normal = np.cross(b - a, c - a)
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        equations = np.column_stack([normal, -np.einsum("ij,ij->i", normal, a)])  # n · x + e = 0 on the face
         # coplanar triangles share one face plane: keep each plane once
-        planes = np.round(hull.equations, 9)
+        planes = np.round(equations, 9)
         _, first = np.unique(planes, axis=0, return_index=True)
-        normals, offsets = hull.equations[first, :3], -hull.equations[first, 3]
+        normals, offsets = equations[first, :3], -equations[first, 3]
         # edges: triangle sides, leaving out the diagonals inside flat faces (between two coplanar triangles)
         sides = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
         face_of = np.tile(np.arange(len(triangles)), 3)
