@@ -84,7 +84,8 @@ def check_files(spec: SceneSpec, base_dir: Path) -> list[Problem]:
                 problems.append(((*path, "file"), outside))
                 continue
             try:
-                (load_surface if isinstance(shape, ClothMeshSpec) else load_mesh)(base_dir / shape.file, shape.scale)
+                surface = isinstance(shape, ClothMeshSpec | MeshCollider)  # open surfaces are fine there
+                (load_surface if surface else load_mesh)(base_dir / shape.file, shape.scale)
             except ValueError as error:
                 problems.append(((*path, "file"), f"{error} (looked in {base_dir.resolve()})"
                                  if "no such file" in str(error) else str(error)))

@@ -22,7 +22,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from animbatch.compile.bodies import orientation_matrix
@@ -49,10 +48,11 @@ from animbatch.sim.contact.detection import ContactSettings, ContactWorld
 from animbatch.sim.contact.geometry import BodyBoxes, BodyCylinders, Probes, StaticColliders
 from animbatch.sim.contact.hulls import BodyHull
 from animbatch.sim.contact.materials import Coefficients, MaterialTable
+from animbatch.sim.contact.meshes import TriangleGroup
 from animbatch.sim.contact.moving import MovingColliders
 from animbatch.sim.motion import KeyframePath, PosePath
 from animbatch.sim.rigid.polyhedra import TriangleMesh, convex_mesh
-from animbatch.sim.rigid.shapes import load_mesh
+from animbatch.sim.rigid.shapes import load_mesh, load_surface
 
 RIM_PROBES = 16
 MESH_PROBES = 400
@@ -148,7 +148,7 @@ def _statics(spec: SceneSpec, table: MaterialTable, base: Path) -> tuple[StaticC
                           np.asarray(collider.size, float) / 2, material))
             sources[STATIC_BOX].append(number)
         elif isinstance(collider, MeshCollider):
-            mesh = load_mesh(base / collider.file, collider.scale).transformed(
+            mesh = load_surface(base / collider.file, collider.scale).transformed(  # open or closed
                 orientation_matrix(collider.orientation), np.asarray(collider.position, float))
             meshes.append((mesh.triangles, np.full(len(mesh.faces), material)))
             sources[TRIANGLE] += [number] * len(mesh.faces)
@@ -214,11 +214,7 @@ def build_contact_world(spec: SceneSpec, model: Any, centres: dict[str, np.ndarr
             radii.append(float(model.bodies.radius[point]))
             corner_of.append(-1)
     statics, sources = _statics(spec, table, base)
-    tree, reach = None, 0.0
-    if len(statics.triangles):
-        centroids = statics.triangles.mean(axis=1)
-        tree = cKDTree(centroids)
-        reach = float(np.max(np.linalg.norm(statics.triangles - centroids[:, None, :], axis=2)))
+    moving = moving_colliders(spec, statics, sources)
     settings = spec.contacts if spec.contacts is not None else ContactSpec()
     world = ContactWorld(
         Probes(np.array(owners, np.intp), np.array(offsets, float).reshape(-1, 3), np.array(radii, float),
@@ -227,10 +223,10 @@ def build_contact_world(spec: SceneSpec, model: Any, centres: dict[str, np.ndarr
                   np.array(box_rotation, float).reshape(-1, 3, 3), np.array(box_half, float).reshape(-1, 3)),
         statics, table, np.array([table.index(by_name[n].material) for n in owner_names], np.intp),
         np.array([by_name[n].collide for n in owner_names], bool),
-        settings.bodies, tree, reach,
+        settings.bodies, triangle_groups(statics, moving),
         np.array([deformable_names.index(n) if n in deformable_names else -1 for n in owner_names], np.intp),
         sources, tuple(model.body_names), np.asarray(model.bodies.mass, float), _jointed_pairs(model),
-        moving_colliders(spec),
+        moving,
         BodyCylinders(*(np.array([c[k] for c in rounds], (np.intp, float, float, float, float, bool)[k])
                         for k in range(6))) if rounds else None,
         tuple(hulls))
@@ -249,28 +245,47 @@ def _jointed_pairs(model: Any) -> np.ndarray | None:
 
 
 def pose_path(collider: Any) -> PosePath:
-    """The path of a collider or rigid body on keyframes: its position displaced by the keys' offsets, turned by
-    their rotations."""
+    """The path of a collider or rigid body on keyframes: its position (a plane's point) displaced by the keys'
+    offsets, turned by their rotations about it."""
     keys = collider.keyframes
     times = np.array([k.time for k in keys], float)
     offsets = KeyframePath(times, np.array([k.offset for k in keys], float), collider.interpolation)
     turns = Rotation.from_matrix(np.array([orientation_matrix(k.rotation) for k in keys]))
-    return PosePath(np.asarray(collider.position, float), times, offsets, turns, collider.interpolation)
+    pivot = collider.point if isinstance(collider, PlaneCollider) else collider.position
+    return PosePath(np.asarray(pivot, float), times, offsets, turns, collider.interpolation)
 
 
-def moving_colliders(spec: SceneSpec) -> MovingColliders | None:
-    """The scene's colliders on keyframes, and which of the contact world's spheres and boxes each one is."""
-    paths: list[PosePath] = []
-    sphere, box = [], []
-    for collider in spec.colliders:
-        moves = getattr(collider, "keyframes", None) is not None
-        if moves:
-            paths.append(pose_path(collider))
-        slot = len(paths) - 1 if moves else -1
-        if isinstance(collider, SphereCollider):
-            sphere.append(slot)
-        elif isinstance(collider, BoxCollider):
-            box.append(slot)
-    if not paths:
+def moving_colliders(spec: SceneSpec, statics: StaticColliders, sources: dict[int, np.ndarray]
+                     ) -> MovingColliders | None:
+    """The scene's colliders on keyframes, and which of the contact world's solids (``statics``, each from the
+    scene collider ``sources`` names) each one moves; None when none moves."""
+    moving = [number for number, collider in enumerate(spec.colliders) if collider.keyframes is not None]
+    if not moving:
         return None
-    return MovingColliders(tuple(paths), np.array(sphere, np.intp), np.array(box, np.intp))
+    path_of = np.full(len(spec.colliders), -1, np.intp)
+    path_of[moving] = np.arange(len(moving))
+    slot = {kind: path_of[sources[kind]] if len(sources[kind]) else np.zeros(0, np.intp)
+            for kind in (PLANE, STATIC_SPHERE, STATIC_BOX, TRIANGLE)}
+    paths = tuple(pose_path(spec.colliders[number]) for number in moving)
+    reach = np.zeros(len(paths))  # how far each one's surface reaches from its pivot
+    for m, path in enumerate(paths):
+        if (slot[PLANE] == m).any():
+            reach[m] = np.inf
+            continue
+        spheres, boxes, triangles = slot[STATIC_SPHERE] == m, slot[STATIC_BOX] == m, slot[TRIANGLE] == m
+        reach[m] = max(
+            np.max(np.linalg.norm(statics.sphere_centre[spheres] - path.centre, axis=1)
+                   + statics.sphere_radius[spheres], initial=0.0),
+            np.max(np.linalg.norm(statics.box_centre[boxes] - path.centre, axis=1)
+                   + np.linalg.norm(statics.box_half[boxes], axis=1), initial=0.0),
+            np.max(np.linalg.norm(statics.triangles[triangles] - path.centre, axis=2), initial=0.0))
+    return MovingColliders(paths, reach, slot[PLANE], slot[STATIC_SPHERE], slot[STATIC_BOX], slot[TRIANGLE])
+
+
+def triangle_groups(statics: StaticColliders, moving: MovingColliders | None) -> tuple[TriangleGroup, ...]:
+    """The mesh colliders' triangles as the contact search finds them: the fixed ones through one tree, each moving
+    mesh through its own (built at rest)."""
+    if not len(statics.triangles):
+        return ()
+    path = moving.triangle if moving is not None else np.full(len(statics.triangles), -1, np.intp)
+    return tuple(TriangleGroup.of(statics.triangles, np.flatnonzero(path == m), int(m)) for m in np.unique(path))

@@ -27,7 +27,7 @@ from animbatch.scene.schema import (
 from animbatch.sim.forces.buoyancy import Buoyancy
 from animbatch.sim.forces.controllers import Controllers, CurveTarget
 from animbatch.sim.model.model import Model
-from animbatch.sim.rigid.shapes import load_mesh
+from animbatch.sim.rigid.shapes import load_mesh, load_surface
 
 
 def body_extents(model: Model) -> np.ndarray:
@@ -64,9 +64,9 @@ def collider_points(spec: SceneSpec, scene_dir: Path = Path(".")) -> np.ndarray:
             for shift in shifts:
                 points += list(corners @ orientation_matrix(collider.orientation).T + collider.position + shift)
         elif isinstance(collider, MeshCollider):
-            vertices = load_mesh(scene_dir / collider.file, collider.scale).vertices
+            vertices = load_surface(scene_dir / collider.file, collider.scale).vertices
             vertices = vertices @ orientation_matrix(collider.orientation).T + collider.position
-            points += [vertices.min(axis=0), vertices.max(axis=0)]
+            points += [corner + shift for corner in (vertices.min(axis=0), vertices.max(axis=0)) for shift in shifts]
     return np.array(points, float).reshape(-1, 3)
 
 
@@ -206,7 +206,8 @@ def _mesh_files(spec: SceneSpec, scene_dir: Path) -> dict[tuple[str, str], Any]:
         if isinstance(body, RigidBodySpec):
             parts = body.shape.parts if isinstance(body.shape, CompoundShape) else ()
             shapes += [body.shape] + [part.shape for part in parts]
-    return {mesh_key(shape): load_mesh(scene_dir / shape.file, shape.scale)
+    return {mesh_key(shape): (load_surface if isinstance(shape, MeshCollider) else load_mesh)(scene_dir / shape.file,
+                                                                                            shape.scale)
             for shape in shapes if isinstance(shape, MeshShape | MeshCollider)}
 
 

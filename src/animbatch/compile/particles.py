@@ -13,11 +13,14 @@ from animbatch.compile.bodies import orientation_matrix
 from animbatch.compile.contacts import _statics, build_contact_world, material_table, pose_path
 from animbatch.scene.schema import (
     PARTICLE_FIELD_TYPES,
+    BoxCollider,
     BoxSource,
     BuoyancySpec,
     DiscSource,
     DragSpec,
     GravitySpec,
+    MeshCollider,
+    PlaneCollider,
     PointSource,
     RandomColor,
     RandomValue,
@@ -28,6 +31,7 @@ from animbatch.scene.schema import (
 )
 from animbatch.sim.contact.geometry import BodyBoxes, BodyCylinders, StaticColliders
 from animbatch.sim.forces.drag import AIR_VISCOSITY
+from animbatch.sim.motion import PosePath
 from animbatch.sim.particles.collisions import ParticleColliders
 from animbatch.sim.particles.emitter import Emitter, Law
 from animbatch.sim.particles.fields import ParticleField
@@ -35,7 +39,7 @@ from animbatch.sim.particles.obstacles import ParticleObstacles, body_shapes, mo
 from animbatch.sim.particles.schedule import EmissionSchedule
 from animbatch.sim.particles.sources import Source
 from animbatch.sim.particles.streams import ParticleStreams
-from animbatch.sim.rigid.shapes import BodyGeometry
+from animbatch.sim.rigid.shapes import BodyGeometry, load_surface
 
 
 @dataclass(frozen=True, eq=False)
@@ -138,19 +142,27 @@ def particle_obstacles(spec: SceneSpec, statics: StaticColliders | None, model: 
         shapes = body_shapes(spheres, BodyBoxes(boxes.owner[keep], boxes.offset[keep], boxes.rotation[keep],
                                                 boxes.half[keep]), rounds,
                              tuple(h for h in world.hulls if world.collides[h.owner]), world.body_material)
-    paths, moving_spheres, moving_boxes = [], [], []
+    paths: list[PosePath] = []
+    moving: dict[type, list[tuple]] = {SphereCollider: [], BoxCollider: [], PlaneCollider: [], MeshCollider: []}
     table = material_table(spec)
     for collider in spec.colliders:
-        if getattr(collider, "keyframes", None) is None:
+        if collider.keyframes is None:
             continue
         path, material = len(paths), table.index(collider.material)
         paths.append(pose_path(collider))
         if isinstance(collider, SphereCollider):
-            moving_spheres.append((path, float(collider.radius), material))
-        else:
-            moving_boxes.append((path, orientation_matrix(collider.orientation), np.asarray(collider.size, float) / 2,
-                                 material))
-    shapes = shapes + moving_collider_shapes(moving_spheres, moving_boxes)
+            moving[SphereCollider].append((path, float(collider.radius), material))
+        elif isinstance(collider, BoxCollider):
+            moving[BoxCollider].append((path, orientation_matrix(collider.orientation),
+                                        np.asarray(collider.size, float) / 2, material))
+        elif isinstance(collider, PlaneCollider):
+            normal = np.asarray(collider.normal, float)
+            moving[PlaneCollider].append((path, normal / np.linalg.norm(normal), material))
+        else:  # a mesh, from its pivot (where the file's origin goes)
+            mesh = load_surface(base_dir / collider.file, collider.scale)
+            moving[MeshCollider].append((path, mesh.triangles @ orientation_matrix(collider.orientation).T, material))
+    shapes = shapes + moving_collider_shapes(moving[SphereCollider], moving[BoxCollider], moving[PlaneCollider],
+                                             moving[MeshCollider])
     if tree is None and not shapes:
         return None
     material = statics.triangle_material if statics is not None else np.zeros(0, np.intp)

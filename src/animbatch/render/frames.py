@@ -178,7 +178,7 @@ class FrameRenderer:
             return self.render_spec.ground
         up = self.camera.up / np.linalg.norm(self.camera.up)
         for collider in self.geometry.colliders:
-            if isinstance(collider, PlaneCollider):
+            if isinstance(collider, PlaneCollider) and collider.keyframes is None:  # a moving plane is no ground
                 normal = np.asarray(collider.normal, float) / np.linalg.norm(collider.normal)
                 if float(np.dot(normal, up)) > 1 - 1e-9:
                     return GroundSpec(level=float(np.dot(collider.point, normal)), size=collider.size,
@@ -386,7 +386,7 @@ class FrameRenderer:
             if isinstance(collider, PlaneCollider):
                 normal = np.asarray(collider.normal, float) / np.linalg.norm(collider.normal)
                 level = float(np.dot(collider.point, normal))
-                if self._is_ground(normal, level):
+                if path is None and self._is_ground(normal, level):
                     continue  # the ground draws it: two squares in one plane would fight over every pixel
                 mesh, _, _ = self._plane_square(level, normal, collider.size)
             elif isinstance(collider, SphereCollider):

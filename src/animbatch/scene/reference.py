@@ -74,7 +74,7 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
     ("`materials.<name>`", "materials.<name>.", schema.MaterialSpec),
     ("`material_pairs[]`", "material_pairs[].", schema.MaterialPairSpec),
     *[(f"`colliders[]` — `type: {tag_of(spec)}`", "colliders[].", spec) for spec in schema.COLLIDER_SPECS],
-    ("`colliders[].keyframes[]` (box, sphere), `bodies[].keyframes[]` (rigid)", "keyframes[].",
+    ("`colliders[].keyframes[]`, `bodies[].keyframes[]` (rigid)", "keyframes[].",
      schema.PoseKeyframeSpec),
     ("`contacts`", "contacts.", schema.ContactSpec),
     ("`render`", "render.", schema.RenderSpec),

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import CubicSpline
+from scipy.interpolate import CubicHermiteSpline, CubicSpline
 from scipy.spatial.transform import Rotation, RotationSpline, Slerp
 
 
@@ -114,15 +114,29 @@ class PosePath:
 
     def __post_init__(self) -> None:
         if len(self.times) > 1:
-            spline = (RotationSpline(self.times, self.turns) if self.interpolation == "cubic"
-                      else Slerp(self.times, self.turns))
+            cubic = self.interpolation == "cubic"
+            spline = RotationSpline(self.times, self.turns) if cubic else Slerp(self.times, self.turns)
             object.__setattr__(self, "_turn", spline)
+            # A rotation spline through two keys turns at a constant rate, and through more it starts and ends
+            # turning: a jolt at the first and last keys. Eased, it is read at a warped time that passes every key
+            # at its own time with rate 1, and the first and last at rate 0 (a monotone Hermite cubic: Fritsch–
+            # Carlson), so a cubic turn starts and ends at rest like the offsets' clamped spline.
+            slopes = np.ones(len(self.times))
+            slopes[[0, -1]] = 0.0 if cubic else 1.0
+            object.__setattr__(self, "_ease", CubicHermiteSpline(self.times, self.times, slopes))
 
     def turn(self, t: float) -> np.ndarray:
         """The turn (3, 3) at time t [s], held before the first key and after the last."""
         if len(self.times) == 1:
             return self.turns[0].as_matrix()
-        return self._turn(float(np.clip(t, self.times[0], self.times[-1]))).as_matrix()  # type: ignore[attr-defined]
+        cache: dict[float, np.ndarray] = self.__dict__.setdefault("_turns_at", {})
+        found = cache.get(t)
+        if found is None:  # a step asks for the same few instants many times (poses, velocities, contacts)
+            if len(cache) > 16:
+                cache.clear()
+            eased = float(self._ease(float(np.clip(t, self.times[0], self.times[-1]))))  # type: ignore[attr-defined]
+            found = cache[t] = self._turn(eased).as_matrix()  # type: ignore[attr-defined]
+        return found
 
     def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Centre (3,) [m] and turn (3, 3) at time t: a rest point p goes to ``turn (p − c₀) + c₀ + offset``."""

@@ -65,22 +65,26 @@ class _ColliderBase(SceneModel):
     visible: bool = key(True, "Draw it.")
 
 
-class PlaneCollider(_ColliderBase):
-    """An infinite, fixed plane; bodies stay on the side its normal points to."""
+class _MovingCollider(_ColliderBase):
+    """A collider that stays put, or moves along keyframes (every collider type can)."""
+
+    keyframes: _keyframe_list(PoseKeyframeSpec) | None = key(  # type: ignore[valid-type]
+        None, "Move it along keyframes: a kinematic collider (a paddle, a moving platform, a tilting floor, a "
+              "scoop), pushing bodies, cloth and emitted particles with its own velocity at the contact; it holds its "
+              "first and last poses before and after them. Fixed-step methods only.",
+        example=[{"time": 0, "offset": [0, 0, 0]}, {"time": 1, "offset": [1, 0, 0]}])
+    interpolation: Interpolation = key("cubic", "Between keyframes: linear (constant velocity, slerp) or cubic "
+                                                "(smooth: continuous velocity and acceleration).")
+
+
+class PlaneCollider(_MovingCollider):
+    """An infinite plane, bodies staying on the side its normal points to; fixed, or moving along keyframes (turned
+    about its ``point``)."""
 
     type: Literal["plane"] = key(description="Collider type.")
     point: Vec3 = key([0.0, 0.0, 0.0], "A point on the plane.", "m")
     normal: NonZeroVec3 = key([0.0, 1.0, 0.0], "Normal, pointing to the free side (need not be unit length).", "1")
     size: float | None = key(None, "Side of the square drawn to show it (default: fitted to the motion).", "m", gt=0)
-
-
-class _MovingCollider(_ColliderBase):
-    keyframes: _keyframe_list(PoseKeyframeSpec) | None = key(  # type: ignore[valid-type]
-        None, "Move it along keyframes: a kinematic collider (a paddle, a moving platform), pushing bodies with its "
-              "own velocity at the contact; it holds its first and last poses before and after them. Fixed-step "
-              "methods only.", example=[{"time": 0, "offset": [0, 0, 0]}, {"time": 1, "offset": [1, 0, 0]}])
-    interpolation: Interpolation = key("cubic", "Between keyframes: linear (constant velocity, slerp) or cubic "
-                                                "(smooth: continuous velocity and acceleration).")
 
 
 class BoxCollider(_MovingCollider):
@@ -100,8 +104,9 @@ class SphereCollider(_MovingCollider):
     radius: float = key(description="Radius.", unit="m", gt=0)
 
 
-class MeshCollider(_ColliderBase):
-    """A fixed triangle mesh (a terrain, a ramp, a bowl); bodies collide with its triangles from either side."""
+class MeshCollider(_MovingCollider):
+    """A triangle mesh (a terrain, a ramp, a bowl, a scoop); bodies collide with its triangles from either side.
+    Fixed, or moving along keyframes (turned about its ``position``, where the file's origin goes)."""
 
     type: Literal["mesh"] = key(description="Collider type.")
     file: str = key(description="Mesh file (STL, OBJ, PLY), relative to the scene file.")

@@ -131,7 +131,7 @@ class OrientationSpec(SceneModel):
 
 class PoseKeyframeSpec(SceneModel):
     """Where a moving collider or a kinematic rigid body is at a time: moved by ``offset`` from where the scene
-    places it (its ``position``), and turned by ``rotation`` about that point."""
+    places it (its ``position``; a plane's ``point``), and turned by ``rotation`` about that point."""
 
     time: float = key(description="Time of the key.", unit="s", ge=0)
     offset: Vec3 = key([0.0, 0.0, 0.0], "Displacement from its position [dx, dy, dz].", "m")

@@ -106,8 +106,9 @@ class OverlapAudit:
         self.sources = getattr(self.world, "collider_source", None) or {}
         self.excused = np.zeros(0, np.int64)  # contact codes of the pairs that start inside each other
 
-    def _state(self, y: np.ndarray) -> Any:
-        return self.system.kinematics(*self.system.split(y), copy=True)
+    def _state(self, y: np.ndarray, t: float) -> Any:
+        """The bodies of state ``y`` at time ``t`` [s] (the time places the colliders on keyframes)."""
+        return self.system.kinematics(*self.system.split(y), t=t, copy=True)
 
     def _travel(self, s0: Any, s1: Any) -> np.ndarray:
         """How far each body's points move between two states (P,) [m]: translation plus reach times the turn."""
@@ -143,7 +144,7 @@ class OverlapAudit:
             return found
         impact_times = np.array([t for t, _ in impacts], float)
         impact_bodies = np.array([b for _, b in impacts], np.intp)
-        start = self._state(states[0])
+        start = self._state(states[0], float(times[0]))
         first = detect(self.world, start, 0.0)
         first = first.select(-first.gap > self._allowance(first))
         self.excused = np.zeros(0, np.int64)
@@ -152,7 +153,7 @@ class OverlapAudit:
         self.excused = np.unique(contact_codes(first))
         worst = None
         for k in range(1, len(states)):
-            end = self._state(states[k])
+            end = self._state(states[k], float(times[k]))
             bounced = impact_bodies[(impact_times > times[k - 1]) & (impact_times <= times[k])]
             for fraction, contacts in self._between(states[k - 1], states[k], start, end, bounced):
                 worst = self._deeper(worst, contacts, float(times[k - 1] + fraction * (times[k] - times[k - 1])),
@@ -195,7 +196,8 @@ class OverlapAudit:
         for fraction in fractions:
             y = (1 - fraction) * y0 + fraction * y1
             self.system.project(y, joints=False)  # unit quaternions (an interpolated look, not a state to keep)
-            looked.append((float(fraction), evaluate_pairs(self.world, self._state(y), candidates.probe,
+            at = (1 - fraction) * start.t + fraction * end.t
+            looked.append((float(fraction), evaluate_pairs(self.world, self._state(y, at), candidates.probe,
                                                            candidates.solid_kind, candidates.solid_index)))
         return looked
 
@@ -208,7 +210,8 @@ class OverlapAudit:
         p1 = probe_centres(world, end)[contacts.probe]
         c0, c1 = np.zeros_like(p0), np.zeros_like(p0)
         axis = np.zeros_like(p0)  # the normal of the plane crossed, where there is one
-        kind, index, statics = contacts.solid_kind, contacts.solid_index, world.statics
+        kind, index = contacts.solid_kind, contacts.solid_index
+        statics, later = world.statics_at(start.t), world.statics_at(end.t)  # colliders on keyframes move too
         spheres = kind == BODY_SPHERE
         c0[spheres] = probe_centres(world, start)[index[spheres]]
         c1[spheres] = probe_centres(world, end)[index[spheres]]
@@ -222,18 +225,18 @@ class OverlapAudit:
                 half = world.boxes.half[box]
                 c0[chosen], c1[chosen], rotation = centre0[box], centre1[box], rotation0[box]
             else:
-                c0[chosen] = c1[chosen] = statics.box_centre[box]
+                c0[chosen], c1[chosen] = statics.box_centre[box], later.box_centre[box]
                 rotation, half = statics.box_rotation[box], statics.box_half[box]
             thinnest = np.argmin(half, axis=1)
             axis[chosen] = rotation[np.arange(len(box)), :, thinnest]
         solids = np.isin(kind, (BODY_ROUND, BODY_HULL))  # towards the solid body's centre of mass
         c0[solids], c1[solids] = start.x[contacts.solid_body[solids]], end.x[contacts.solid_body[solids]]
         fixed = kind == STATIC_SPHERE
-        c0[fixed] = c1[fixed] = statics.sphere_centre[index[fixed]]
+        c0[fixed], c1[fixed] = statics.sphere_centre[index[fixed]], later.sphere_centre[index[fixed]]
         triangles = kind == TRIANGLE
         if triangles.any():
             corners = statics.triangles[index[triangles]]
-            c0[triangles] = c1[triangles] = corners.mean(axis=1)
+            c0[triangles], c1[triangles] = corners.mean(axis=1), later.triangles[index[triangles]].mean(axis=1)
             normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
             axis[triangles] = normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
         r0, r1 = p0 - c0, p1 - c1  # the probe relative to the solid's centre, at both frames

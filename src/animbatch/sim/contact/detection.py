@@ -1,9 +1,10 @@
 """Finding contacts: which probes are near which solids (broad phase), and how far apart they are (narrow phase).
 
-Broad phase: a k-d tree (``scipy.spatial.cKDTree``) over the probes' centres, queried once per solid, plus one
-tree over mesh triangles built once; so N bodies cost O(N log N), not O(N²). Contacts closer than a margin are kept
-("speculative" contacts): with the margin at least the distance a pair can close in a step, the solver sees every
-obstacle a fast body could reach during the step, however thin (a swept test: no tunnelling).
+Broad phase: a k-d tree (``scipy.spatial.cKDTree``) over the probes' centres, queried once per solid, plus
+trees over mesh triangles built once (:mod:`~animbatch.sim.contact.meshes`); so N bodies cost O(N log N), not O(N²).
+Contacts closer than a margin are kept ("speculative" contacts): with the margin at least the distance a pair can
+close in a step, the solver sees every obstacle a fast body could reach during the step, however thin (a swept
+test: no tunnelling).
 
 The distance a pair can close is the sum of what *both* its sides travel: a probe moving at v towards a fixed wall
 closes v h, but two bodies moving towards each other at v each close 2 v h. So :func:`detect` takes each body's
@@ -56,8 +57,14 @@ from animbatch.sim.contact.geometry import (
 )
 from animbatch.sim.contact.hulls import BodyHull, edge_contacts, to_hull
 from animbatch.sim.contact.materials import MaterialTable
+from animbatch.sim.contact.meshes import TriangleGroup
 from animbatch.sim.contact.moving import MovingColliders
 from animbatch.sim.contact.sides import side_contacts
+
+#: For each kind of contact with a collider: which of MovingColliders' solid arrays its index runs over, and the
+#: index's stride (a box face is 6 × box + face, a box edge 12 × box + edge).
+MOVING_SOLIDS = {PLANE: ("plane", 1), PLANE_RIM: ("plane", 1), STATIC_SPHERE: ("sphere", 1), STATIC_BOX: ("box", 1),
+                 STATIC_BOX_FACE: ("box", 6), STATIC_EDGE: ("box", 12), TRIANGLE: ("triangle", 1)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,12 +72,12 @@ class ContactWorld:
     """Everything contact detection needs that does not change during a run.
 
     ``body_material`` (P,) material index per body; ``collides`` (P,) bool; ``bodies_collide``: whether bodies touch
-    each other (not only colliders); ``triangle_tree``: k-d tree of static triangle centroids (or None) with the
-    largest triangle's circumradius ``triangle_reach``; ``group`` (P,): bodies of one group ≥ 0 (the vertices of one
-    cloth or lattice) never collide with each other, and do not bounce (restitution 0: a point of a sheet has no
-    elastic rebound of its own; a lattice bounces through its springs). ``collider_source``: for the fixed solids of
-    each kind (PLANE, STATIC_SPHERE, STATIC_BOX, TRIANGLE), the number of the scene collider each came from, to name
-    it in messages. ``body_names`` and ``body_mass`` (P,) [kg] name a body in messages.
+    each other (not only colliders); ``triangles``: the mesh colliders' triangles as groups searched through one k-d
+    tree each (the fixed meshes together, each moving one alone); ``group`` (P,): bodies of one group ≥ 0 (the
+    vertices of one cloth or lattice) never collide with each other, and do not bounce (restitution 0: a point of a
+    sheet has no elastic rebound of its own; a lattice bounces through its springs). ``collider_source``: for the
+    fixed solids of each kind (PLANE, STATIC_SPHERE, STATIC_BOX, TRIANGLE), the number of the scene collider each
+    came from, to name it in messages. ``body_names`` and ``body_mass`` (P,) [kg] name a body in messages.
     """
 
     probes: Probes
@@ -80,8 +87,7 @@ class ContactWorld:
     body_material: np.ndarray
     collides: np.ndarray
     bodies_collide: bool
-    triangle_tree: cKDTree | None
-    triangle_reach: float
+    triangles: tuple[TriangleGroup, ...]
     group: np.ndarray | None = None
     collider_source: dict[int, np.ndarray] | None = None
     body_names: tuple[str, ...] = ()
@@ -99,8 +105,7 @@ class ContactWorld:
         """For each contact, the moving collider (its path index) it touches, or −1; None without moving ones."""
         if self.moving is None:
             return None
-        slots = self.moving.slots(contacts.solid_kind, contacts.solid_index, STATIC_SPHERE,
-                                  (STATIC_BOX, STATIC_BOX_FACE, STATIC_EDGE))
+        slots = self.moving.slots(contacts.solid_kind, contacts.solid_index, MOVING_SOLIDS)
         side = (contacts.solid_kind == SIDE_EDGE) & (contacts.solid_body == STATIC)  # a fixed box's edge
         slots[side] = self.moving.box[(contacts.solid_index[side] // 2 - 12 * self.boxes.count) // 12]
         return slots
@@ -243,12 +248,16 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
         parts.append(_box_contacts(world, chosen, centres, statics.box_centre[k], statics.box_rotation[k],
                                    statics.box_half[k], STATIC, statics.box_material[k], margin,
                                    (STATIC_BOX, STATIC_BOX_FACE), k, box_centres, box_rotations, travel))
-    if world.triangle_tree is not None and len(everywhere):
-        found = world.triangle_tree.query_ball_point(centres[everywhere], world.triangle_reach + reach)
-        probes = np.repeat(everywhere, [len(f) for f in found])
-        triangles = np.concatenate([np.asarray(f, np.intp) for f in found]) if len(probes) else np.zeros(0, np.intp)
+    for group in world.triangles:
+        points = centres[everywhere]
+        if group.path >= 0:
+            assert world.moving is not None
+            points = world.moving.to_rest(group.path, points, state.t)
+        which, triangles = group.near(points, reach)
+        probes = everywhere[which]
         if len(probes):
-            d, n = to_triangles(centres[probes], statics.triangles[triangles])
+            d, n = to_triangles(centres[probes], statics.triangles[triangles], state.x[world.probes.owner[probes]],
+                                closing_margin(world, probes, np.full(len(probes), STATIC), margin, travel))
             parts.append(_contacts(world, probes, centres[probes], d, n, np.full(len(probes), STATIC),
                                    statics.triangle_material[triangles], margin, TRIANGLE, triangles, travel))
     if world.bodies_collide and tree is not None:
@@ -411,7 +420,7 @@ def evaluate_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, ki
     between events)."""
     all_centres = probe_centres(world, state)
     centres = all_centres[probe]
-    statics, probes = world.statics, world.probes
+    statics, probes = world.statics_at(state.t), world.probes
     distance = np.zeros(len(probe))
     normal = np.zeros((len(probe), 3))
     solid_body = np.full(len(probe), STATIC)
@@ -435,7 +444,7 @@ def evaluate_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, ki
                                                    statics.box_half[box], i % 6)
             material[k] = statics.box_material[box]
         elif code == TRIANGLE:
-            distance[k], normal[k] = to_triangles(c, statics.triangles[i])
+            distance[k], normal[k] = to_triangles(c, statics.triangles[i], state.x[probes.owner[probe[k]]])
             material[k] = statics.triangle_material[i]
         elif code == BODY_SPHERE:
             distance[k], normal[k] = to_sphere(c, all_centres[i], probes.radius[i])

@@ -101,9 +101,20 @@ def to_face_plane(points: np.ndarray, centres: np.ndarray, rotations: np.ndarray
     return np.einsum("ki,ki->k", points - centres, normal) - halves[rows, axis], normal
 
 
-def to_triangles(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unsigned distance of points (K, 3) to triangles (K, 3, 3) and the unit direction from the closest point to
-    each point (the triangle's normal, oriented towards the point, when the point lies on it).
+def to_triangles(points: np.ndarray, triangles: np.ndarray, sides: np.ndarray | None = None,
+                 depth: np.ndarray | float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Distance of points (K, 3) to triangles (K, 3, 3) and the unit direction from the closest point to each point
+    (the triangle's normal, oriented towards the point, when the point lies on it).
+
+    Without ``sides`` the distance is unsigned: a triangle is solid from both faces. That lets a point probe (a box
+    corner, a hull's vertex) through a mesh once it sinks a hair past a face, for it is then measured from the far
+    side. With ``sides`` (K, 3), points on the side of each triangle where the point belongs (its body's centre of
+    mass), a point up to ``depth`` [m] (K,) past the triangle's plane is read as having sunk in:
+    - over the face, its distance is negative and its normal the face's, towards its side: it is pushed back out;
+    - beside an edge or a corner, there is no contact (inf): the triangle whose face it is over holds it, and the
+      edge of a flat neighbour must not push it sideways.
+    Points further past are taken to be on the other side, as without ``sides`` (a body overhanging the side of a
+    mesh block is beyond that side's plane, not in it).
 
     Closest point on a triangle after Ericson, "Real-Time Collision Detection", 5.1.5, vectorised over K.
     """
@@ -138,8 +149,16 @@ def to_triangles(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray,
     distance = np.sqrt(np.einsum("ij,ij->i", offset, offset))
     face = np.cross(ab, ac)
     face /= np.linalg.norm(face, axis=1, keepdims=True)
-    face *= np.where(np.einsum("ij,ij->i", face, ap) >= 0, 1.0, -1.0)[:, None]
-    normal = np.divide(offset, distance[:, None], out=face.copy(), where=distance[:, None] > 1e-9)
+    height = np.einsum("ij,ij->i", face, ap)  # along the face's own normal (from its winding)
+    normal = np.divide(offset, distance[:, None], out=face * np.where(height >= 0, 1.0, -1.0)[:, None],
+                       where=distance[:, None] > 1e-9)
+    if sides is not None:
+        belongs = np.einsum("ij,ij->i", face, sides - a)
+        sunk = (belongs * height <= 0) & (belongs != 0) & (np.abs(height) <= depth)
+        over_face = sunk & ~decided
+        distance[over_face] = -np.abs(height[over_face])
+        normal[over_face] = np.sign(belongs[over_face])[:, None] * face[over_face]
+        distance[sunk & decided] = np.inf
     return distance, normal
 
 

@@ -23,29 +23,48 @@ from animbatch.sim.motion import PosePath
 
 @dataclass(frozen=True, eq=False)
 class MovingColliders:
-    """The moving colliders of a contact world: their paths (M,), and which of the static solids each moves:
-    ``sphere`` (S,) and ``box`` (X,) path indices, −1 for the solids that stay put."""
+    """The moving colliders of a contact world: their paths (M,), how far each one's surface reaches from its path's
+    centre (``reach`` (M,) [m]; inf for a plane), and which of the static solids each moves: ``plane`` (L,),
+    ``sphere`` (S,), ``box`` (X,) and ``triangle`` (T,) path indices, −1 for the solids that stay put."""
 
     paths: tuple[PosePath, ...]
+    reach: np.ndarray
+    plane: np.ndarray
     sphere: np.ndarray
     box: np.ndarray
+    triangle: np.ndarray
 
     @property
     def count(self) -> int:
         return len(self.paths)
 
     def place(self, rest: StaticColliders, t: float) -> StaticColliders:
-        """The solids at time t [s]: ``rest`` with the moving spheres and boxes where their paths put them."""
+        """The solids at time t [s]: ``rest`` with the moving ones where their paths put them."""
+        plane_point, plane_normal = rest.plane_point.copy(), rest.plane_normal.copy()
         sphere_centre, box_centre = rest.sphere_centre.copy(), rest.box_centre.copy()
-        box_rotation = rest.box_rotation.copy()
+        box_rotation, triangles = rest.box_rotation.copy(), rest.triangles
         for m, path in enumerate(self.paths):
             centre, turn = path.pose(t)
-            for k in np.flatnonzero(self.sphere == m):
-                sphere_centre[k] = turn @ (rest.sphere_centre[k] - path.centre) + centre
-            for k in np.flatnonzero(self.box == m):
-                box_centre[k] = turn @ (rest.box_centre[k] - path.centre) + centre
-                box_rotation[k] = turn @ rest.box_rotation[k]
-        return replace(rest, sphere_centre=sphere_centre, box_centre=box_centre, box_rotation=box_rotation)
+            planes = self.plane == m
+            plane_point[planes] = (rest.plane_point[planes] - path.centre) @ turn.T + centre
+            plane_normal[planes] = rest.plane_normal[planes] @ turn.T
+            spheres = self.sphere == m
+            sphere_centre[spheres] = (rest.sphere_centre[spheres] - path.centre) @ turn.T + centre
+            boxes = self.box == m
+            box_centre[boxes] = (rest.box_centre[boxes] - path.centre) @ turn.T + centre
+            box_rotation[boxes] = turn @ rest.box_rotation[boxes]
+            moved = self.triangle == m
+            if moved.any():
+                triangles = triangles.copy() if triangles is rest.triangles else triangles
+                triangles[moved] = (rest.triangles[moved] - path.centre) @ turn.T + centre
+        return replace(rest, plane_point=plane_point, plane_normal=plane_normal, sphere_centre=sphere_centre,
+                       box_centre=box_centre, box_rotation=box_rotation, triangles=triangles)
+
+    def to_rest(self, m: int, points: np.ndarray, t: float) -> np.ndarray:
+        """World points (Q, 3) [m] taken back to where they would sit relative to collider ``m`` at rest."""
+        path = self.paths[m]
+        centre, turn = path.pose(t)
+        return (points - centre) @ turn + path.centre  # Rᵀ (p − c(t)) + c₀, row-wise
 
     def motion(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Centres (M, 3) [m], velocities (M, 3) [m/s] and angular velocities (M, 3) [rad/s] at time t."""
@@ -54,24 +73,27 @@ class MovingColliders:
         return (centres, np.array([v for v, _ in moves]).reshape(-1, 3),
                 np.array([w for _, w in moves]).reshape(-1, 3))
 
-    def largest_speed(self, t: float, reach: float) -> float:
-        """The fastest any moving surface goes at time t [m/s], for points up to ``reach`` [m] from its centre."""
+    def largest_speed(self, t: float, points: np.ndarray, reach: np.ndarray) -> float:
+        """The fastest any moving surface goes at time t [m/s] where it can touch the bodies at ``points`` (P, 3)
+        [m] reaching ``reach`` (P,) [m] from them: a turning plane's lever is bounded by the bodies, not by the
+        plane."""
         if not self.paths:
             return 0.0
-        _, velocity, omega = self.motion(t)
-        return float(np.max(np.linalg.norm(velocity, axis=1) + reach * np.linalg.norm(omega, axis=1)))
+        centre, velocity, omega = self.motion(t)
+        lever = self.reach.copy()
+        unbounded = ~np.isfinite(lever)
+        if unbounded.any():
+            apart = np.linalg.norm(points[None, :, :] - centre[unbounded, None, :], axis=2) + reach
+            lever[unbounded] = apart.max(axis=1, initial=0.0)
+        return float(np.max(np.linalg.norm(velocity, axis=1) + lever * np.linalg.norm(omega, axis=1)))
 
-    def slots(self, kind: np.ndarray, index: np.ndarray, sphere_kind: int, box_kinds: tuple[int, ...]) -> np.ndarray:
+    def slots(self, kind: np.ndarray, index: np.ndarray, solids: dict[int, tuple[str, int]]) -> np.ndarray:
         """For contacts with solids of ``kind`` and ``index`` (K,): the moving collider (path) each touches, or −1.
-        ``box_kinds``: whole box, box face (``index // 6`` is the box) and box edge (``index // 12``)."""
+        ``solids``: for each contact kind on a collider, which of this class's solid arrays its index runs over
+        (``'plane'``, ``'sphere'``, ``'box'`` or ``'triangle'``) and by how much that index is multiplied (a box face
+        is ``6 × box + face``, a box edge ``12 × box + edge``)."""
         slot = np.full(len(kind), -1, np.intp)
-        on_sphere = kind == sphere_kind
-        slot[on_sphere] = self.sphere[index[on_sphere]]
-        whole, face, edge = box_kinds
-        on_box = kind == whole
-        slot[on_box] = self.box[index[on_box]]
-        on_face = kind == face
-        slot[on_face] = self.box[index[on_face] // 6]
-        on_edge = kind == edge
-        slot[on_edge] = self.box[index[on_edge] // 12]
+        for code, (solid, stride) in solids.items():
+            chosen = kind == code
+            slot[chosen] = getattr(self, solid)[index[chosen] // stride]
         return slot

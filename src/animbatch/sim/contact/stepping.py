@@ -44,9 +44,6 @@ class ContactResolver:
         self.settings = model.contact_settings
         self.gravity = gravity_magnitude(system.terms)
         self.reach = body_reach(self.world, model.body_count)
-        statics = self.world.statics  # how far a moving collider's surface reaches from its centre
-        self.collider_reach = float(max(np.max(np.linalg.norm(statics.box_half, axis=1), initial=0.0),
-                                        np.max(statics.sphere_radius, initial=0.0)))
         self.contacts_last_step = 0
         self.impacts = ImpactLog()
         # warm starting: last step's impulses per unit time, normal (K,) and tangential vectors (K, 3), for the
@@ -132,7 +129,7 @@ class ContactResolver:
         # each body's reach in the step, with room for the velocity to grow; a pair closes the sum of its two (and
         # a moving collider closes on everything at its own speed)
         if self.world.moving is not None:
-            speed = speed + self.world.moving.largest_speed(t, self.collider_reach)
+            speed = speed + self.world.moving.largest_speed(t, state.x, self.reach)
         contacts = detect(self.world, state, 2 * self.settings.slop + 1e-9, travel=1.5 * h * speed, edges=True)
         self.contacts_last_step = contacts.count
         if not contacts.count:
