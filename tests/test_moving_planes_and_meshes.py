@@ -153,3 +153,20 @@ colliders:
 fields: [{{type: gravity}}]
 """)
     np.testing.assert_allclose(trajectory.positions[:, 0, 1], 0.05, atol=2e-4)
+
+
+def test_the_overlap_audit_sees_a_lowering_floor_where_its_path_puts_it(tmp_path):
+    """A crate riding a floor that sinks 0.5 m is never inside it; an audit that put the floor where it starts (the
+    old fault) found the crate 0.4 m under it."""
+    scene_text = """duration: 2.2
+fps: 25
+solver: {method: symplectic_euler, dt: 1.0e-3}
+bodies:
+  - {name: crate, type: rigid, shape: {type: box, size: [0.2, 0.2, 0.2]}, density: 500, position: [0, 0.1, 0]}
+colliders:
+  - {type: plane, keyframes: [{time: 0}, {time: 2, offset: [0, -0.5, 0]}]}
+fields: [{type: gravity}]
+"""
+    trajectory = run(tmp_path, scene_text)
+    assert trajectory.ledger["contacts"] == {"starts_inside": None, "missed": None}
+    np.testing.assert_allclose(trajectory.positions[-1, 0, 1], -0.4, atol=2e-4)
