@@ -43,13 +43,15 @@ import scipy.sparse as sp
 
 from animbatch.quaternion import cross
 from animbatch.sim.contact.contacts import Contacts
+from animbatch.sim.contact.jointed import JointedResponse
 
 #: Fraction of an overlap (beyond the slop) removed per step.
 BAUMGARTE = 0.2
 #: Overlaps beyond the slop smaller than this fraction of the slop are left alone.
 OVERLAP_TOLERANCE = 1e-2
-#: With joints, they are applied to the velocities every this many contact iterations (see solve_impulses).
-COUPLE_EVERY = 8
+#: With joints, the normals of the contacts on jointed bodies are solved directly every this many sweeps (the sweeps
+#: in between settle friction and the other contacts; see JointedNormals).
+BLOCK_EVERY = 8
 #: Pseudo-velocities are converged when every push meets its target to this fraction of the largest target, or
 #: after this many iterations: they only correct positions, a fraction of the overlap per step, so a partly
 #: converged push (which pushes less, never the wrong way) is corrected in the next steps.
@@ -72,6 +74,15 @@ class BodyVelocities:
     inverse_mass: np.ndarray
     inverse_inertia: np.ndarray
     driven: np.ndarray | None = None
+
+
+def inverse_mass_matrix(bodies: BodyVelocities) -> sp.csr_matrix:
+    """``M⁻¹`` (6 N, 6 N) over the flat velocity ``V = [v.ravel(), ω.ravel()]`` of the N bodies."""
+    count = len(bodies.inverse_mass)
+    linear = sp.diags(np.repeat(bodies.inverse_mass, 3))
+    angular = sp.bsr_matrix((bodies.inverse_inertia, np.arange(count), np.arange(count + 1)),
+                            shape=(3 * count, 3 * count))
+    return sp.csr_matrix(sp.block_diag([linear, angular]))
 
 
 def tangent_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -111,7 +122,7 @@ class ContactRows:
     """
 
     def __init__(self, contacts: Contacts, bodies: BodyVelocities, x: np.ndarray,
-                 kinematic: np.ndarray | None = None) -> None:
+                 kinematic: np.ndarray | None = None, jointed: JointedResponse | None = None) -> None:
         self.bodies = bodies
         self.count = contacts.count
         self.size = len(x)
@@ -134,8 +145,13 @@ class ContactRows:
         self._jacobian_tangent = self._sparse(rows[1:], response=False)
         self._response_normal = self._sparse(rows[:1], response=True)
         self._response_tangent = self._sparse(rows[1:], response=True)
+        if jointed is not None:  # contacts on jointed bodies move them within the joints (sim/contact/jointed.py)
+            self._response_normal = jointed.correct(self._response_normal)
+            self._response_tangent = jointed.correct(self._response_tangent)
+            self.w_n, self.w_1, self.w_2 = (self._jointed_weight(row, jointed) for row in rows)
 
-    def _sparse(self, rows: tuple[_Direction, ...], *, response: bool) -> sp.csr_matrix | sp.csc_matrix:
+    def _sparse(self, rows: tuple[_Direction, ...], *, response: bool, ends: tuple[bool, bool] = (True, True)
+                ) -> sp.csr_matrix | sp.csc_matrix:
         """``J`` (R K, 6 (P + 1)) for the given row directions, or the response ``B`` (6 (P + 1), R K).
 
         Entries that can only ever meet zeros are left out: the fixed body's (its velocity is zero and its inverse
@@ -149,6 +165,7 @@ class ContactRows:
         if not response and self.bodies.driven is not None:  # moving colliders: their velocity is read, not changed
             moving, turning = moving | self.bodies.driven, turning | self.bodies.driven
         keep = np.stack([moving[a], turning[a], moving[b], turning[b]], axis=1)  # (K, 4) blocks of 3 entries
+        keep &= np.repeat(ends, 2)  # only the ends asked for
         columns = (np.stack([3 * a, 3 * (size + a), 3 * b, 3 * (size + b)], axis=1)[:, :, None] + np.arange(3))
         per_row = 3 * keep.sum(axis=1)
         data = np.concatenate([
@@ -175,6 +192,25 @@ class ContactRows:
                                                                                             row.ang_b)))
         return 1.0 / inverse
 
+    def _jointed_weight(self, row: _Direction, jointed: JointedResponse) -> np.ndarray:
+        """Effective mass along a row with the joints: each end's inverse effective mass less what the joints take
+        away, split among the contacts of its whole jointed group (the group moves as one under any of them), or
+        for two ends in one group, the pair's together."""
+        a, b = self.a, self.b
+        own_a = np.einsum("ki,ki->k", row.lin_a, row.d) + np.einsum("ki,ki->k", row.turn_a, row.ang_a)
+        own_b = np.einsum("ki,ki->k", row.lin_b, row.d) + np.einsum("ki,ki->k", row.turn_b, row.ang_b)
+        lost_a = jointed.lost(self._sparse((row,), response=True, ends=(True, False)))
+        lost_b = jointed.lost(self._sparse((row,), response=True, ends=(False, True)))
+        lost_both = jointed.lost(self._sparse((row,), response=True))
+        group = jointed.groups(self.size)
+        group[-1] = -1  # the fixed body: no share
+        shares = np.bincount(np.concatenate([group[a], group[b]]) + 1, minlength=group.max() + 2).astype(float)
+        share_a, share_b = shares[group[a] + 1], shares[group[b] + 1]
+        together = (group[a] == group[b]) & (group[a] >= 0)
+        inverse = np.where(together, share_a * (own_a + own_b - lost_both),
+                           share_a * (own_a - lost_a) + share_b * (own_b - lost_b))
+        return 1.0 / np.maximum(inverse, 1e-300)
+
     def weight(self, direction: np.ndarray) -> np.ndarray:
         """Effective mass of each row along ``direction`` (K, 3), with masses split among contacts."""
         return self._weight(self._direction(direction))
@@ -194,6 +230,14 @@ class ContactRows:
         half = 3 * self.size
         v[:] = velocity[:half].reshape(-1, 3)
         w[:] = velocity[half:].reshape(-1, 3)
+
+    def response_normal_columns(self, chosen: np.ndarray) -> np.ndarray:
+        """The velocity change (6 (P + 1), J) per unit normal impulse of the ``chosen`` contacts."""
+        return sp.csc_matrix(self._response_normal)[:, chosen].toarray()
+
+    def normal_jacobian_rows(self, chosen: np.ndarray) -> sp.csr_matrix:
+        """The normal rows (J, 6 (P + 1)) of the ``chosen`` contacts."""
+        return sp.csr_matrix(self._jacobian_normal)[chosen]
 
     def normal_velocity(self, velocity: np.ndarray) -> np.ndarray:
         """Relative normal velocities (K,) for the flat velocity ``V``."""
@@ -256,6 +300,58 @@ class ContactRows:
         return updated, holds
 
 
+class JointedNormals:
+    """The normal rows of the contacts on jointed bodies, solved together: ``chosen`` (J,) of the K contacts and
+    their Delassus matrix ``W = J K Jᵀ`` (J, J) within the joints. Jacobi sweeps, even with each contact's
+    articulated effective mass, crawl where a light body carries a heavy one on a lever (a plank under a weight on
+    a stalk: its corners mostly tip the plank, together they lift the weight; the matrix's condition number is the
+    mass ratio times the lever's); solving these rows directly, with the active set of pushing contacts, takes the
+    whole weight in one go. The friction and the other contacts stay with the sweeps."""
+
+    def __init__(self, chosen: np.ndarray, matrix: np.ndarray) -> None:
+        self.chosen = chosen
+        self.matrix = matrix
+
+    @classmethod
+    def of(cls, rows: ContactRows, jointed: JointedResponse) -> JointedNormals | None:
+        group = jointed.groups(rows.size)
+        joined = np.bincount(group, minlength=group.max() + 1)[group] > 1  # bodies some joint holds
+        joined[-1] = False
+        chosen = np.flatnonzero(joined[rows.a] | joined[rows.b])
+        if not len(chosen) or len(chosen) > BLOCK_CONTACTS:
+            return None
+        response = rows.response_normal_columns(chosen)
+        return cls(chosen, rows.normal_jacobian_rows(chosen) @ response)
+
+    def solve(self, normal_impulse: np.ndarray, normal_now: np.ndarray) -> np.ndarray:
+        """The normal impulses (K,) with the chosen ones replaced by the solution of their complementarity problem
+        (λ ≥ 0, rate ≥ 0, one of them zero) given the others, by active sets: ``normal_now`` (K,) is each row's
+        rate less its target at ``normal_impulse``."""
+        chosen, matrix = self.chosen, self.matrix
+        start = normal_impulse[chosen]
+        active = (start > 0) | (normal_now[chosen] < 0)
+        result = normal_impulse.copy()
+        found = start.copy()
+        for _ in range(ACTIVE_SET_PASSES):
+            found = start.copy()
+            if active.any():
+                system = matrix[np.ix_(active, active)]
+                right = -(normal_now[chosen][active])
+                change = np.linalg.lstsq(system, right, rcond=1e-12)[0]
+                found[active] += change
+            negative = active & (found < 0)
+            if not negative.any():
+                break
+            active &= ~negative
+        result[chosen] = np.maximum(found, 0.0)
+        return result
+
+
+#: Contacts on jointed bodies solved directly (JointedNormals) when there are at most this many; beyond, sweeps.
+BLOCK_CONTACTS = 400
+#: Passes of the active-set search for the jointed contacts' normal impulses.
+ACTIVE_SET_PASSES = 8
+
 #: Resting-contact forces are converged when every contact's acceleration target is met to this [m/s²].
 ACCELERATION_TOLERANCE = 1e-9
 #: Impulses are converged when every contact's velocity target is met to this, relative to the approach speeds.
@@ -281,22 +377,28 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
                    rest_speed: float, slop: float, bounce: bool = True,
                    warm: tuple[np.ndarray, np.ndarray] | None = None,
                    kinematic: np.ndarray | None = None,
-                   couple: Callable[[BodyVelocities], None] | None = None) -> SolveResult:
+                   couple: Callable[[BodyVelocities], None] | None = None,
+                   jointed: JointedResponse | None = None) -> SolveResult:
     """Change ``bodies.v`` and ``bodies.omega`` in place so that the contacts hold, over a step of ``h`` [s].
 
     ``x``: centres of mass (P + 1, 3) [m]. ``bounce``: apply restitution (off when re-projecting velocities that
     were already resolved in this step). ``h = 0`` means an instant: no speculative contacts, no pushing apart.
     ``warm``: normal impulses (K,) and tangential impulse vectors (K, 3) to start from (warm starting: the last
     step's impulses of the same contacts, so that resting contacts converge over steps). ``kinematic`` (K,): the
-    slot in ``bodies`` of the moving collider each contact touches (−1: none). ``couple``: other constraints on
-    the same bodies (joints), applied to their velocities in place every :data:`COUPLE_EVERY` iterations, so that
-    contacts and joints are solved together (block Gauss–Seidel).
+    slot in ``bodies`` of the moving collider each contact touches (−1: none). ``couple``: the joints on the same
+    bodies, applied to their velocities in place before the contacts and after them, and ``jointed`` their rows:
+    every contact impulse then moves the bodies within the joints, and the normals of the contacts on jointed
+    bodies are solved directly every :data:`BLOCK_EVERY` sweeps (one system, see
+    :mod:`~animbatch.sim.contact.jointed` and :class:`JointedNormals`).
     """
     count = contacts.count
     result = SolveResult(np.zeros(count), np.zeros((count, 2)))
     if count == 0:
         return result
-    rows = ContactRows(contacts, bodies, x, kinematic)
+    if couple is not None:  # start on the joints: with their rows in the response, the contacts keep them
+        couple(bodies)
+    rows = ContactRows(contacts, bodies, x, kinematic, jointed)
+    block = JointedNormals.of(rows, jointed) if jointed is not None else None
     n = rows.n
     approach = rows.relative(n)
     sticking = np.linalg.norm(rows.tangential(), axis=1) <= rest_speed
@@ -339,14 +441,12 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
                     or iteration == iterations):
                 break
         updated = np.maximum(normal_impulse - normal_now * rows.w_n, 0.0)
+        if block is not None and iteration % BLOCK_EVERY == 0:  # the jointed contacts' normals at once
+            updated = block.solve(normal_impulse, normal_now)
         rows.push_normal(velocity, updated - normal_impulse)
         normal_impulse = updated
         tangent_impulse, gripping = rows.friction_step(velocity, tangent_impulse, normal_impulse,
                                                        contacts.static_friction, sticking, contacts.kinetic_friction)
-        if couple is not None and iteration % COUPLE_EVERY == COUPLE_EVERY - 1:
-            rows.unflat(velocity)
-            couple(bodies)
-            velocity = rows.flat()
     if couple is not None:  # end on the joints
         rows.unflat(velocity)
         couple(bodies)

@@ -25,7 +25,8 @@ import numpy as np
 from animbatch.sim.contact.contacts import contact_codes
 from animbatch.sim.contact.detection import body_reach, detect
 from animbatch.sim.contact.impacts import ImpactLog
-from animbatch.sim.contact.solver import BodyVelocities, solve_impulses, tangent_basis
+from animbatch.sim.contact.jointed import JointedResponse
+from animbatch.sim.contact.solver import BodyVelocities, inverse_mass_matrix, solve_impulses, tangent_basis
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.forces.gravity import gravity_magnitude
 from animbatch.sim.model.dynamics import Dynamics
@@ -147,9 +148,12 @@ class ContactResolver:
             joints.project_velocities(state, velocities.v[:count], velocities.omega[n:count]
                                       if state.omega is not None else None)
 
+        jointed = None
+        if joints is not None:
+            jointed = JointedResponse(joints.velocity_rows(state, len(bodies.v)), inverse_mass_matrix(bodies))
         result = solve_impulses(contacts, bodies, x, h, iterations=self.settings.iterations,
                                 rest_speed=self.rest_speed(h), slop=self.settings.slop, bounce=bounce, warm=warm,
-                                kinematic=kinematic, couple=couple if joints is not None else None)
+                                kinematic=kinematic, couple=couple if joints is not None else None, jointed=jointed)
         if bounce:  # remember the impulses of the main solve (not of end-of-step re-projections)
             self.impacts.record(t + result.arrival * h, contacts.probe_body, result.impact)
 

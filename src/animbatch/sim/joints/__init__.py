@@ -30,6 +30,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
 
 from animbatch import quaternion
 from animbatch.sim.bodies import Kinematics
@@ -321,6 +322,29 @@ class Joints:
             assert omega is not None
             omega[self.points[rigid] - self.first_rigid] += np.einsum("kij,kj->ki", motion.inverse_inertia[rigid],
                                                                       torque[rigid])
+
+    def velocity_rows(self, state: Kinematics, size: int) -> sp.csr_matrix:
+        """The rows that hold at ``state`` (the bilateral ones, and unilateral ones at their stops) as a sparse
+        Jacobian (R, 6 size) over a flat velocity ``V = [v.ravel(), ω.ravel()]`` of ``size`` bodies numbered as in
+        the model (anchors and the world do not move in it): ``J V`` is each row's rate. For the contact solver,
+        which solves contacts within the joints' constraints with it."""
+        motion = self.motion(state)
+        rows = self.rows(motion)
+        holding = ~self._cache["unilateral"] | (rows.violation <= PROJECTION_TOLERANCE * max(self.scale, 1.0))
+        bodies = self._cache["bodies"][holding]
+        count = len(self.points)
+        real = bodies < count  # ends on joined bodies (not on an anchor or the world)
+        body = self.points[np.where(real, bodies, 0)]
+        row = np.broadcast_to(np.arange(len(bodies))[:, None, None], (*bodies.shape, 3))
+        linear_columns = 3 * body[:, :, None] + np.arange(3)
+        angular_columns = 3 * (size + body[:, :, None]) + np.arange(3)
+        turning = real & (body >= self.first_rigid)
+        keep_linear = np.broadcast_to(real[:, :, None], row.shape)
+        keep_angular = np.broadcast_to(turning[:, :, None], row.shape)
+        data = np.concatenate([rows.linear[holding][keep_linear], rows.angular[holding][keep_angular]])
+        indices = np.concatenate([linear_columns[keep_linear], angular_columns[keep_angular]])
+        where = np.concatenate([row[keep_linear], row[keep_angular]])
+        return sp.csr_matrix((data, (where, indices)), shape=(len(bodies), 6 * size))
 
     def project(self, positions: np.ndarray, orientations: np.ndarray | None, linear: np.ndarray,
                 angular_momentum: np.ndarray | None, *, reach: float = 0.0, t: float = 0.0) -> None:
