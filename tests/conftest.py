@@ -65,3 +65,13 @@ def polydata_built(monkeypatch) -> list[int]:
 
     monkeypatch.setattr(pv, "PolyData", CountingPolyData)
     return built
+
+
+def assert_velocity_is_the_paths_derivative(path, times, step: float = 1e-5, atol: float = 1e-5) -> None:
+    """A kinematic path's velocity and angular velocity are the central differences of its poses at ``times``."""
+    for t in times:
+        (ahead, turn_ahead), (behind, turn_behind) = path.pose(t + step), path.pose(t - step)
+        velocity, omega = path.velocity(t)
+        np.testing.assert_allclose(velocity, (ahead - behind) / (2 * step), atol=atol)
+        spin = (turn_ahead - turn_behind) / (2 * step) @ path.pose(t)[1].T  # Ṙ Rᵀ = [ω]×
+        np.testing.assert_allclose(omega, [spin[2, 1], spin[0, 2], spin[1, 0]], atol=atol)

@@ -44,7 +44,7 @@ def test_a_bat_on_keyframes_sends_a_ball_off_at_1_plus_e_times_its_speed(shape, 
     np.testing.assert_allclose(trajectory.velocities[:, 0], np.tile([2.0, 0, 0], (len(trajectory.times), 1)),
                                atol=1e-12)
     energy = trajectory.ledger["conservation"]["energy"]
-    assert energy["conserved"] is False and "bodies on keyframes do work" in energy["reason"]
+    assert energy["conserved"] is False and "kinematic bodies (keyframes or motion) do work" in energy["reason"]
 
 
 def test_a_body_on_keyframes_turns_as_its_path_says_about_its_position():
@@ -122,7 +122,8 @@ def test_bodies_on_keyframes_refuse_adaptive_methods_joints_and_a_velocity_of_th
             "keyframes: [{time: 0}, {time: 1, offset: [1, 0, 0]}]}")
     with pytest.raises(SceneError, match=r"bodies\[0\]\.keyframes.*need a fixed-step method.*symplectic_euler"):
         scene(f"solver: {{method: RK45}}\nbodies: [{body % ''}]\n")
-    with pytest.raises(SceneError, match=r"joints\[0\]\.between\[0\].*moves on keyframes.*anchor on keyframes"):
+    refusal = r"joints\[0\]\.between\[0\].*is kinematic \(keyframes or motion\).*anchor on keyframes"
+    with pytest.raises(SceneError, match=refusal):
         scene(f"solver: {{method: verlet, dt: 0.001}}\nbodies: [{body % ''}]\n"
                             "joints: [{type: ball, between: [bat]}]\n")
     with pytest.raises(SceneError, match=r"bodies\[0\]\.velocity.*moves as its path says"):

@@ -11,7 +11,7 @@ from animbatch import api
 from animbatch.compile.contacts import pose_path
 from animbatch.errors import SceneError
 from animbatch.stages import parse_scene
-from conftest import scene
+from conftest import assert_velocity_is_the_paths_derivative, scene
 
 G = 9.81
 
@@ -104,13 +104,7 @@ def test_a_collider_path_holds_its_keys_and_its_velocity_is_the_paths_derivative
     centre, turn = path.pose(1.0)
     np.testing.assert_allclose(centre, [2, 2, 0], atol=1e-12)
     np.testing.assert_allclose(turn @ [1, 0, 0], [0, 1, 0], atol=1e-12)
-    for t in (0.3, 1.7, 2.4):
-        h = 1e-5
-        (ahead, turn_ahead), (behind, turn_behind) = path.pose(t + h), path.pose(t - h)
-        velocity, omega = path.velocity(t)
-        np.testing.assert_allclose(velocity, (ahead - behind) / (2 * h), atol=1e-6)
-        spin = (turn_ahead - turn_behind) / (2 * h) @ path.pose(t)[1].T  # Ṙ Rᵀ = [ω]×
-        np.testing.assert_allclose(omega, [spin[2, 1], spin[0, 2], spin[1, 0]], atol=1e-5)
+    assert_velocity_is_the_paths_derivative(path, (0.3, 1.7, 2.4))
     np.testing.assert_allclose(path.velocity(5.0)[0], 0)  # held after the last key
 
 

@@ -225,6 +225,8 @@ def _collider_line(collider: Any) -> str:
     keys = getattr(collider, "keyframes", None)
     moving = (f", moving along {len(keys)} keyframe{'s' if len(keys) != 1 else ''} ({collider.interpolation}) "
               f"from {keys[0].time:g} to {keys[-1].time:g} s" if keys else "")
+    if getattr(collider, "motion", None) is not None:
+        moving = ", moving in closed form (motion)"
     return f"{collider.type:<6} {where}, {collider.material}{hidden}{moving}"
 
 

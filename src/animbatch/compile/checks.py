@@ -44,15 +44,18 @@ def check_method(spec: SceneSpec) -> list[Problem]:
     scheme = METHODS[spec.solver.method].scheme
     colliding = any(getattr(body, "collide", True) for body in spec.bodies)
     has_contacts = (bool(spec.colliders) or spec.contacts is not None) and colliding
-    kinematic = [k for k, b in enumerate(spec.bodies) if getattr(b, "keyframes", None) is not None]
+    kinematic = [k for k, b in enumerate(spec.bodies) if getattr(b, "moves", False)]
     if kinematic and scheme is None:
-        return [(("bodies", kinematic[0], "keyframes"), (
-            f"rigid bodies on keyframes need a fixed-step method; {spec.solver.method} is adaptive. Use "
+        body = spec.bodies[kinematic[0]]
+        how = "keyframes" if getattr(body, "keyframes", None) is not None else "motion"
+        return [(("bodies", kinematic[0], how), (
+            f"rigid bodies on {how} need a fixed-step method; {spec.solver.method} is adaptive. Use "
             "solver.method: symplectic_euler or verlet (with a dt that resolves the body's motion)"))]
-    moving = [k for k, c in enumerate(spec.colliders) if getattr(c, "keyframes", None) is not None]
+    moving = [k for k, c in enumerate(spec.colliders) if c.moves]
     if moving and has_contacts and scheme is None:
-        return [(("colliders", moving[0], "keyframes"), (
-            f"colliders on keyframes need a fixed-step method; {spec.solver.method} is adaptive. Use "
+        how = "keyframes" if spec.colliders[moving[0]].keyframes is not None else "motion"
+        return [(("colliders", moving[0], how), (
+            f"colliders on {how} need a fixed-step method; {spec.solver.method} is adaptive. Use "
             "solver.method: symplectic_euler or verlet (with a dt that resolves the collider's motion)"))]
     if not has_contacts or scheme is None or scheme.takes_constraints:
         return []

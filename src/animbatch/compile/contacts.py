@@ -50,7 +50,7 @@ from animbatch.sim.contact.hulls import BodyHull
 from animbatch.sim.contact.materials import Coefficients, MaterialTable
 from animbatch.sim.contact.meshes import TriangleGroup
 from animbatch.sim.contact.moving import MovingColliders
-from animbatch.sim.motion import KeyframePath, PosePath
+from animbatch.sim.motion import ClosedFormPath, KeyframePath, PosePath, SolidPath
 from animbatch.sim.rigid.polyhedra import TriangleMesh, convex_mesh
 from animbatch.sim.rigid.shapes import load_mesh, load_surface
 
@@ -244,22 +244,28 @@ def _jointed_pairs(model: Any) -> np.ndarray | None:
     return np.unique(low * model.body_count + high)
 
 
-def pose_path(collider: Any) -> PosePath:
-    """The path of a collider or rigid body on keyframes: its position (a plane's point) displaced by the keys'
-    offsets, turned by their rotations about it."""
+def pose_path(collider: Any) -> SolidPath:
+    """The path of a kinematic collider or rigid body about its pivot, its position (a plane's point): its closed-form
+    motion, or its keyframes (displaced by the keys' offsets, turned by their rotations about it)."""
+    pivot = np.asarray(collider.point if isinstance(collider, PlaneCollider) else collider.position, float)
+    if collider.motion is not None:
+        motion, swing = collider.motion, collider.motion.oscillation
+        return ClosedFormPath(pivot, np.asarray(motion.velocity, float), np.asarray(motion.angular_velocity, float),
+                              np.asarray(swing.amplitude if swing else (0.0, 0.0, 0.0), float),
+                              swing.frequency if swing else 0.0, np.radians(swing.phase) if swing else 0.0,
+                              swing.damping if swing else 0.0)
     keys = collider.keyframes
     times = np.array([k.time for k in keys], float)
     offsets = KeyframePath(times, np.array([k.offset for k in keys], float), collider.interpolation)
     turns = Rotation.from_matrix(np.array([orientation_matrix(k.rotation) for k in keys]))
-    pivot = collider.point if isinstance(collider, PlaneCollider) else collider.position
-    return PosePath(np.asarray(pivot, float), times, offsets, turns, collider.interpolation)
+    return PosePath(pivot, times, offsets, turns, collider.interpolation)
 
 
 def moving_colliders(spec: SceneSpec, statics: StaticColliders, sources: dict[int, np.ndarray]
                      ) -> MovingColliders | None:
     """The scene's colliders on keyframes, and which of the contact world's solids (``statics``, each from the
     scene collider ``sources`` names) each one moves; None when none moves."""
-    moving = [number for number, collider in enumerate(spec.colliders) if collider.keyframes is not None]
+    moving = [number for number, collider in enumerate(spec.colliders) if collider.moves]
     if not moving:
         return None
     path_of = np.full(len(spec.colliders), -1, np.intp)

@@ -53,9 +53,15 @@ def collider_points(spec: SceneSpec, scene_dir: Path = Path(".")) -> np.ndarray:
     for collider in spec.colliders:
         if not collider.visible:
             continue
-        # a collider on keyframes counts at every key's offset (its turns are covered by its diagonal)
+        # a collider on keyframes counts at every key's offset, one in closed-form motion along its path (turns are
+        # covered by its diagonal)
         keys = getattr(collider, "keyframes", None) or ()
         shifts = [np.asarray(key.offset, float) for key in keys] or [np.zeros(3)]
+        if getattr(collider, "motion", None) is not None:
+            from animbatch.compile.contacts import pose_path  # contact code only for scenes that need it
+
+            path = pose_path(collider)
+            shifts = [path.pose(t)[0] - path.centre for t in np.linspace(0.0, spec.duration, 25)]
         if isinstance(collider, SphereCollider):
             points += [np.asarray(collider.position) + shift + s * collider.radius for s in (-1, 1) for shift in shifts]
         elif isinstance(collider, BoxCollider):
@@ -213,9 +219,9 @@ def _mesh_files(spec: SceneSpec, scene_dir: Path) -> dict[tuple[str, str], Any]:
 
 def _collider_paths(spec: SceneSpec) -> tuple[Any, ...]:
     """Per drawn collider, its path if it moves along keyframes, else None."""
-    if not any(getattr(c, "keyframes", None) is not None for c in spec.colliders):
+    if not any(c.moves for c in spec.colliders):
         return ()
     from animbatch.compile.contacts import pose_path  # contact code only for scenes that need it
 
-    return tuple(pose_path(c) if getattr(c, "keyframes", None) is not None else None
+    return tuple(pose_path(c) if c.moves else None
                  for c in spec.colliders if c.visible)

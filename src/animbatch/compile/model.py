@@ -93,7 +93,7 @@ def kinematic_bodies(spec: SceneSpec, model: Model) -> KinematicBodies | None:
     mass from its position (world axes, at rest); None when there are none."""
     from animbatch.compile.contacts import pose_path
 
-    moving = [body for body in spec.bodies if isinstance(body, RigidBodySpec) and body.keyframes is not None]
+    moving = [body for body in spec.bodies if isinstance(body, RigidBodySpec) and body.moves]
     if not moving:
         return None
     rigid = model.rigid

@@ -31,7 +31,7 @@ from animbatch.scene.schema import (
 )
 from animbatch.sim.contact.geometry import BodyBoxes, BodyCylinders, StaticColliders
 from animbatch.sim.forces.drag import AIR_VISCOSITY
-from animbatch.sim.motion import PosePath
+from animbatch.sim.motion import SolidPath
 from animbatch.sim.particles.collisions import ParticleColliders
 from animbatch.sim.particles.emitter import Emitter, Law
 from animbatch.sim.particles.fields import ParticleField
@@ -76,7 +76,7 @@ def compile_particles(spec: SceneSpec, model: Any, base_dir: Path = Path(".")) -
 
     table = material_table(spec)
     # colliders on keyframes are obstacles that move (particle_obstacles); the closed-form tests take the rest
-    fixed = [c for c in spec.colliders if getattr(c, "keyframes", None) is None]
+    fixed = [c for c in spec.colliders if not c.moves]
     statics = _statics(spec.model_copy(update={"colliders": fixed}), table, base_dir)[0] if fixed else None
     obstacles = particle_obstacles(spec, statics, model, base_dir)
     emitters, colliders = [], {}
@@ -142,11 +142,11 @@ def particle_obstacles(spec: SceneSpec, statics: StaticColliders | None, model: 
         shapes = body_shapes(spheres, BodyBoxes(boxes.owner[keep], boxes.offset[keep], boxes.rotation[keep],
                                                 boxes.half[keep]), rounds,
                              tuple(h for h in world.hulls if world.collides[h.owner]), world.body_material)
-    paths: list[PosePath] = []
+    paths: list[SolidPath] = []
     moving: dict[type, list[tuple]] = {SphereCollider: [], BoxCollider: [], PlaneCollider: [], MeshCollider: []}
     table = material_table(spec)
     for collider in spec.colliders:
-        if collider.keyframes is None:
+        if not collider.moves:
             continue
         path, material = len(paths), table.index(collider.material)
         paths.append(pose_path(collider))

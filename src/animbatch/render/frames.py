@@ -178,7 +178,7 @@ class FrameRenderer:
             return self.render_spec.ground
         up = self.camera.up / np.linalg.norm(self.camera.up)
         for collider in self.geometry.colliders:
-            if isinstance(collider, PlaneCollider) and collider.keyframes is None:  # a moving plane is no ground
+            if isinstance(collider, PlaneCollider) and not collider.moves:  # a moving plane is no ground
                 normal = np.asarray(collider.normal, float) / np.linalg.norm(collider.normal)
                 if float(np.dot(normal, up)) > 1 - 1e-9:
                     return GroundSpec(level=float(np.dot(collider.point, normal)), size=collider.size,

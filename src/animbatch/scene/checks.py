@@ -121,15 +121,17 @@ def _joints(data: dict[str, Any], bodies: dict[str, KeyPath], anchors: dict[str,
             rigid: set[str], deformable: set[str]) -> Iterator[Problem]:
     """Joints join bodies of the scene (rigid ones where orientations are held), fixed anchors and the world."""
     moving = {item.get("name") for _, item in _items(data, "anchors") if item.get("keyframes")}
-    kinematic = {item.get("name") for _, item in _items(data, "bodies") if item.get("keyframes")}
+    kinematic = {item.get("name") for _, item in _items(data, "bodies")
+                 if item.get("keyframes") or item.get("motion")}
     for index, joint, ends in _pairs(data, "joints"):
         kind = joint.get("type")
         yield from _unknown_ends("joints", index, ends, bodies, anchors)
         for end, name in enumerate(ends):
             if name in kinematic:
                 yield ("joints", index, "between", end), (
-                    f"{name!r} moves on keyframes; joints to a body on keyframes are not supported yet. Join to an "
-                    "anchor on keyframes (anchors: [{name, keyframes: [{time, position}]}]) that follows it instead")
+                    f"{name!r} is kinematic (keyframes or motion); joints to such a body are not supported yet. Join "
+                    "to an anchor on keyframes (anchors: [{name, keyframes: [{time, position}]}]) that follows it "
+                    "instead")
             if name in deformable:
                 yield ("joints", index, "between", end), (
                     f"{name!r} is a cloth or lattice, made of many vertices; joints join bodies. Attach its "

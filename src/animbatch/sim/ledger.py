@@ -107,7 +107,7 @@ def conservation_laws(model: Model) -> dict[str, Law]:
     if model.contact_world is not None and model.contact_world.moving is not None:
         energy_culprits.append("moving colliders do work")
     if model.kinematic is not None:
-        energy_culprits.append("bodies on keyframes do work")
+        energy_culprits.append("kinematic bodies (keyframes or motion) do work")
     if model.joints is not None and model.joints.stopping:
         energy_culprits.append("joint limits and ropes stop bodies inelastically")
     if model.contact_world is not None and not _elastic_contacts(model):
@@ -134,7 +134,7 @@ def conservation_laws(model: Model) -> dict[str, Law]:
     if model.anchors is not None and model.anchors.moving:
         external.append("moving anchors pull the bodies")
     if model.kinematic is not None:
-        external.append("bodies on keyframes move as their paths say, whatever acts on them")
+        external.append("kinematic bodies (keyframes or motion) move as their paths say, whatever acts on them")
     if external:
         momentum = Law(False, "; ".join(dict.fromkeys(external)))
     else:

@@ -1,5 +1,6 @@
-"""Prescribed motion: anchors that stay put or follow keyframes, and solids that follow posed keyframes (moving
-colliders and rigid bodies on keyframes, :class:`PosePath` and :class:`KinematicBodies`).
+"""Prescribed motion: anchors that stay put or follow keyframes, and solids that follow posed keyframes or a
+closed-form motion (moving colliders and kinematic rigid bodies: :class:`PosePath`, :class:`ClosedFormPath`, and
+:class:`KinematicBodies`).
 
 An anchor is a point the simulation does not move; springs and cloth pins attach to it. With keyframes it follows a
 path: ``linear`` interpolation (constant velocity between keys) or ``cubic`` (a C² cubic spline through the keys,
@@ -154,11 +155,59 @@ class PosePath:
 
     def matrix(self, t: float) -> np.ndarray:
         """The 4 × 4 transform from the rest pose to the pose at time t (for drawing)."""
-        centre, turn = self.pose(t)
-        transform = np.eye(4)
-        transform[:3, :3] = turn
-        transform[:3, 3] = centre - turn @ self.centre
-        return transform
+        return pose_matrix(self.centre, *self.pose(t))
+
+
+@dataclass(frozen=True, eq=False)
+class ClosedFormPath:
+    """How a kinematic solid moves in closed form (the kinematic mode's motions, for solids): its pivot, at rest at
+    ``centre`` (3,) [m], moves by ``drift t + amplitude e^(−γ t) sin(2π f t + φ)`` ((3,) [m/s], (3,) [m],
+    ``frequency`` f [Hz], ``phase`` φ [rad], ``damping`` γ [1/s]), and the solid turns about it by the rotation
+    vector ``angular_velocity t`` ((3,) [rad/s], world axes). From t = 0; held at its t = 0 pose before."""
+
+    centre: np.ndarray
+    drift: np.ndarray
+    angular_velocity: np.ndarray
+    amplitude: np.ndarray
+    frequency: float = 0.0
+    phase: float = 0.0
+    damping: float = 0.0
+
+    def turn(self, t: float) -> np.ndarray:
+        """The turn (3, 3) at time t [s]."""
+        return Rotation.from_rotvec(self.angular_velocity * max(t, 0.0)).as_matrix()
+
+    def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Pivot (3,) [m] and turn (3, 3) at time t: a rest point p goes to ``turn (p − c₀) + pivot``."""
+        t = max(t, 0.0)
+        swing = np.exp(-self.damping * t) * np.sin(2 * np.pi * self.frequency * t + self.phase)
+        return self.centre + self.drift * t + self.amplitude * swing, self.turn(t)
+
+    def velocity(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Velocity of the pivot (3,) [m/s] and angular velocity (3,) [rad/s] at time t: the exact derivatives."""
+        if t < 0:
+            return np.zeros(3), np.zeros(3)
+        rate = 2 * np.pi * self.frequency
+        decay = np.exp(-self.damping * t)
+        swing = decay * (rate * np.cos(rate * t + self.phase) - self.damping * np.sin(rate * t + self.phase))
+        return self.drift + self.amplitude * swing, self.angular_velocity
+
+    def matrix(self, t: float) -> np.ndarray:
+        """The 4 × 4 transform from the rest pose to the pose at time t (for drawing)."""
+        return pose_matrix(self.centre, *self.pose(t))
+
+
+def pose_matrix(rest_centre: np.ndarray, centre: np.ndarray, turn: np.ndarray) -> np.ndarray:
+    """The 4 × 4 transform that turns a solid by ``turn`` about its pivot and moves the pivot from ``rest_centre``
+    to ``centre``."""
+    transform = np.eye(4)
+    transform[:3, :3] = turn
+    transform[:3, 3] = centre - turn @ rest_centre
+    return transform
+
+
+#: Either kind of prescribed pose.
+SolidPath = PosePath | ClosedFormPath
 
 
 @dataclass(frozen=True, eq=False)
@@ -171,7 +220,7 @@ class KinematicBodies:
     ``o'(t) + ω × turn(t) lever`` and angular velocity ``ω(t)``, the path's own."""
 
     rigid: np.ndarray
-    paths: tuple[PosePath, ...]
+    paths: tuple[SolidPath, ...]
     rest: np.ndarray
     lever: np.ndarray
 

@@ -20,7 +20,13 @@ from animbatch.scene.schema.base import (
     rule_error,
 )
 from animbatch.scene.schema.bodies import Interpolation, _keyframe_list
-from animbatch.scene.schema.rigid import OrientationSpec, PoseKeyframeSpec
+from animbatch.scene.schema.rigid import (
+    KinematicSolid,
+    MotionSpec,
+    OrientationSpec,
+    PoseKeyframeSpec,
+    motion_key,
+)
 
 
 class MaterialSpec(SceneModel):
@@ -65,7 +71,7 @@ class _ColliderBase(SceneModel):
     visible: bool = key(True, "Draw it.")
 
 
-class _MovingCollider(_ColliderBase):
+class _MovingCollider(_ColliderBase, KinematicSolid):
     """A collider that stays put, or moves along keyframes (every collider type can)."""
 
     keyframes: _keyframe_list(PoseKeyframeSpec) | None = key(  # type: ignore[valid-type]
@@ -75,6 +81,7 @@ class _MovingCollider(_ColliderBase):
         example=[{"time": 0, "offset": [0, 0, 0]}, {"time": 1, "offset": [1, 0, 0]}])
     interpolation: Interpolation = key("cubic", "Between keyframes: linear (constant velocity, slerp) or cubic "
                                                 "(smooth: continuous velocity and acceleration).")
+    motion: MotionSpec | None = motion_key()
 
 
 class PlaneCollider(_MovingCollider):

@@ -3,7 +3,7 @@ compounds, meshes) and orientations."""
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Any, Literal, Union
 
 import annotated_types as at
 from pydantic import Field, field_validator, model_validator
@@ -139,6 +139,50 @@ class PoseKeyframeSpec(SceneModel):
                                                  "(default: none).")
 
 
+class OscillationSpec(SceneModel):
+    """A sinusoidal oscillation of a kinematic solid's pivot: ``amplitude · e^(−γ t) · sin(2π f t + phase)``."""
+
+    amplitude: Vec3 = key(description="Amplitude of the displacement [ax, ay, az] (along this direction).", unit="m")
+    frequency: float = key(description="Frequency f.", unit="Hz", gt=0)
+    phase: float = key(0.0, "Phase at t = 0 (0: at its position, moving along +amplitude).", "deg")
+    damping: float = key(0.0, "Decay rate γ of the amplitude (0: it never dies down).", "1/s", ge=0)
+
+
+class MotionSpec(SceneModel):
+    """A closed-form motion of a kinematic solid (a collider, or a rigid body), as the kinematic mode's: from t = 0
+    its pivot moves at a constant ``velocity`` plus an ``oscillation``, and it turns at a constant
+    ``angular_velocity`` about its pivot. The three add; its velocity is their exact derivative."""
+
+    velocity: Vec3 = key([0.0, 0.0, 0.0], "Constant velocity of its pivot.", "m/s")
+    angular_velocity: Vec3 = key([0.0, 0.0, 0.0], "Constant angular velocity about its pivot (world axes): a "
+                                                   "turntable, a paddle wheel.", "rad/s")
+    oscillation: OscillationSpec | None = key(None, "A (damped) sinusoidal oscillation of its pivot: a shaker "
+                                                    "table, a piston.")
+
+
+def motion_key() -> Any:
+    """The ``motion`` key of colliders and rigid bodies."""
+    return key(None, "Move it in closed form instead of along keyframes: constant velocity, constant spin about "
+                     "its pivot and a (damped) oscillation, from t = 0. Not with keyframes. Fixed-step methods only.",
+               example={"angular_velocity": [0, 1.5, 0]})
+
+
+class KinematicSolid(SceneModel):
+    """What colliders and rigid bodies share as kinematic solids: they move along ``keyframes`` or by a closed-form
+    ``motion`` (their own keys, each class describing them), or not at all."""
+
+    @property
+    def moves(self) -> bool:
+        """Whether it is kinematic: on keyframes or a closed-form motion."""
+        return getattr(self, "keyframes", None) is not None or getattr(self, "motion", None) is not None
+
+    @model_validator(mode="after")
+    def _one_way_to_move(self) -> "KinematicSolid":
+        if getattr(self, "keyframes", None) is not None and getattr(self, "motion", None) is not None:
+            raise rule_error("give keyframes or motion, not both", "motion")
+        return self
+
+
 PRIMITIVE_SHAPES: tuple[type[SceneModel], ...] = (SphereShape, ShellShape, BoxShape, CylinderShape, RodShape,
                                                   CapsuleShape, MeshShape)
 PrimitiveShape = Annotated[Union[*PRIMITIVE_SHAPES], Field(discriminator="type")]  # type: ignore[valid-type]
@@ -171,7 +215,7 @@ SHAPES: tuple[type[SceneModel], ...] = (*PRIMITIVE_SHAPES, CompoundShape)
 ShapeSpec = Annotated[Union[*SHAPES], Field(discriminator="type")]  # type: ignore[valid-type]
 
 
-class RigidBodySpec(SceneModel):
+class RigidBodySpec(KinematicSolid):
     """A rigid body: a shape with mass properties from its density (or a given mass), state ``[x, q, P, L]``.
 
     ``position`` places the shape's origin (the centre of primitives); the body moves about its centre of mass.
@@ -198,6 +242,7 @@ class RigidBodySpec(SceneModel):
         example=[{"time": 0, "offset": [0, 0, 0]}, {"time": 1, "offset": [1, 0, 0]}])
     interpolation: Interpolation = key("cubic", "Between keyframes: linear (constant velocity, slerp) or cubic "
                                                 "(smooth: continuous velocity and acceleration).")
+    motion: MotionSpec | None = motion_key()
     color: Color | None = key(None, "Display colour (default: its material's colour, else from a palette, by body "
                                     "index).")
     metallic: float | None = metallic_key()
@@ -222,9 +267,9 @@ class RigidBodySpec(SceneModel):
 
     @model_validator(mode="after")
     def _kinematic_moves_with_its_path(self) -> "RigidBodySpec":
-        if self.keyframes is not None:
+        if self.moves:
             for name in ("velocity", "angular_velocity"):
                 if any(getattr(self, name)):
-                    raise rule_error(f"a body on keyframes moves as its path says: leave {name} out (its keys' "
-                                     "offsets and rotations give its motion)", name)
+                    raise rule_error(f"a kinematic body moves as its path says: leave {name} out (its keys' offsets "
+                                     "and rotations, or its motion, give it)", name)
         return self

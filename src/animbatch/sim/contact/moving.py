@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from animbatch.sim.contact.geometry import StaticColliders
-from animbatch.sim.motion import PosePath
+from animbatch.sim.motion import SolidPath
 
 
 @dataclass(frozen=True, eq=False)
@@ -27,7 +27,7 @@ class MovingColliders:
     centre (``reach`` (M,) [m]; inf for a plane), and which of the static solids each moves: ``plane`` (L,),
     ``sphere`` (S,), ``box`` (X,) and ``triangle`` (T,) path indices, −1 for the solids that stay put."""
 
-    paths: tuple[PosePath, ...]
+    paths: tuple[SolidPath, ...]
     reach: np.ndarray
     plane: np.ndarray
     sphere: np.ndarray

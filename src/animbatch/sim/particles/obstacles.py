@@ -33,7 +33,7 @@ from animbatch.sim.contact.geometry import (
 )
 from animbatch.sim.contact.hulls import BodyHull, to_hull
 from animbatch.sim.contact.meshes import TriangleGroup
-from animbatch.sim.motion import PosePath
+from animbatch.sim.motion import SolidPath
 from animbatch.sim.particles.body_motion import BodyMotion, BodyPose
 
 #: Most sphere-tracing steps along one path (head-on hits take a few; grazing paths may run out, and then miss).
@@ -237,7 +237,7 @@ class ParticleObstacles:
     triangle_tree: cKDTree | None
     triangle_reach: float
     shapes: tuple[BodyShape, ...]
-    paths: tuple[PosePath, ...] = ()  # colliders on keyframes (shapes with body -2 - m)
+    paths: tuple[SolidPath, ...] = ()  # colliders on keyframes (shapes with body -2 - m)
 
     def poses(self, t: float, motion: BodyMotion | None) -> dict[int, BodyPose]:
         """The pose at time t [s] of every body and moving collider the obstacles need (bodies from ``motion``)."""
