@@ -21,7 +21,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 FUNCTIONS: dict[str, Callable[..., np.ndarray]] = {
     "sin": np.sin, "cos": np.cos, "tan": np.tan, "asin": np.arcsin, "acos": np.arccos, "atan": np.arctan,
@@ -208,6 +207,8 @@ class Polyline:
         lengths2 = np.einsum("sj,sj->s", self.direction, self.direction)
         # A k-d tree of segment midpoints finds the few segments worth testing for each point (see closest).
         object.__setattr__(self, "_lengths2", lengths2)
+        from scipy.spatial import cKDTree  # here, not at import: the command line starts without SciPy's spatial
+
         object.__setattr__(self, "_tree", cKDTree(self.start + 0.5 * self.direction))
         object.__setattr__(self, "_reach", 0.5 * float(np.sqrt(lengths2.max())) if len(lengths2) else 0.0)
 

@@ -11,10 +11,12 @@ the exact derivatives of the interpolant, so dampers see the anchor's true speed
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.interpolate import CubicHermiteSpline, CubicSpline
-from scipy.spatial.transform import Rotation, RotationSpline, Slerp
+
+if TYPE_CHECKING:  # SciPy's interpolation and rotations load when a path is built, not with the package
+    from scipy.spatial.transform import Rotation
 
 
 @dataclass(frozen=True, eq=False)
@@ -27,6 +29,8 @@ class KeyframePath:
 
     def __post_init__(self) -> None:
         if self.interpolation == "cubic" and len(self.times) > 1:
+            from scipy.interpolate import CubicSpline
+
             object.__setattr__(self, "_spline", CubicSpline(self.times, self.positions, bc_type="clamped"))
 
     def _clamped(self, t: float) -> float:
@@ -116,6 +120,9 @@ class PosePath:
     def __post_init__(self) -> None:
         if len(self.times) > 1:
             cubic = self.interpolation == "cubic"
+            from scipy.interpolate import CubicHermiteSpline
+            from scipy.spatial.transform import RotationSpline, Slerp
+
             spline = RotationSpline(self.times, self.turns) if cubic else Slerp(self.times, self.turns)
             object.__setattr__(self, "_turn", spline)
             # A rotation spline through two keys turns at a constant rate, and through more it starts and ends
@@ -150,6 +157,8 @@ class PosePath:
             return velocity, np.zeros(3)
         early = max(t - TURN_RATE_STEP, float(self.times[0]))
         late = min(t + TURN_RATE_STEP, float(self.times[-1]))
+        from scipy.spatial.transform import Rotation
+
         change = Rotation.from_matrix(self.turn(late) @ self.turn(early).T).as_rotvec()
         return velocity, change / (late - early)
 
@@ -175,6 +184,8 @@ class ClosedFormPath:
 
     def turn(self, t: float) -> np.ndarray:
         """The turn (3, 3) at time t [s]."""
+        from scipy.spatial.transform import Rotation
+
         return Rotation.from_rotvec(self.angular_velocity * max(t, 0.0)).as_matrix()
 
     def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
