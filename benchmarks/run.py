@@ -572,6 +572,24 @@ def bench_lean(quick: bool) -> list[Row]:
             for label, seconds in best.items()]
 
 
+def bench_startup(quick: bool) -> list[Row]:
+    """Wall time of short commands, start to exit, as a user types them: ``animbatch --help`` and ``animbatch validate``
+    of a small scene (issue 23's target: under 0.5 s each). Best of several runs, after a warm-up (the files are in
+    the page cache, as on a second invocation)."""
+    import subprocess
+
+    commands = {"animbatch --help": ["--help"],
+                "animbatch validate scenes/projectile.yaml": ["validate", str(ROOT / "scenes" / "projectile.yaml")]}
+    rows = []
+    for label, arguments in commands.items():
+        def work(arguments: list[str] = arguments) -> None:
+            subprocess.run([sys.executable, "-m", "animbatch", *arguments], check=True, capture_output=True)
+
+        rows.append({"benchmark": "start-up", "case": label, "value": best_of(2 if quick else 5, work),
+                     "unit": "s"})
+    return rows
+
+
 def compile_scene_text(text: str):  # type: ignore[no-untyped-def]
     from animbatch.compile.model import compile_scene
     from animbatch.stages import parse_scene
@@ -780,7 +798,8 @@ def bench_joints(quick: bool) -> list[Row]:
 
 BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "rigid": bench_rigid, "contacts": bench_contacts,
               "render": bench_render, "encode": bench_encode, "cloth": bench_cloth, "fountain": bench_fountain,
-              "lean": bench_lean, "farm": bench_farm, "ledger": bench_ledger, "joints": bench_joints}
+              "lean": bench_lean, "farm": bench_farm, "ledger": bench_ledger, "joints": bench_joints,
+              "startup": bench_startup}
 
 
 def main() -> int:

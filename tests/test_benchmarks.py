@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-CHEAP = ["particles", "ivp", "rigid", "contacts", "render", "encode", "lean", "ledger", "joints"]  # a few seconds each with --quick
+CHEAP = ["particles", "ivp", "rigid", "contacts", "render", "encode", "lean", "ledger", "joints", "startup"]  # a few seconds each with --quick
 
 
 def test_the_cheap_benchmarks_run_and_report_every_number(tmp_path):
@@ -22,7 +22,8 @@ def test_the_cheap_benchmarks_run_and_report_every_number(tmp_path):
     assert finished.returncode == 0, finished.stderr[-3000:]
     rows = json.loads(rows_file.read_text())
     assert {row["benchmark"].split()[0] for row in rows} >= {"particle", "solve_ivp", "rigid", "contacts", "render",
-                                                              "encode", "only", "accuracy", "joints"}
+                                                              "encode", "only", "accuracy", "joints",
+                                                              "start-up"}
     for row in rows:
         value = row["value"]
         if isinstance(value, (int, float)):
