@@ -1,9 +1,11 @@
-"""Colliders that move along keyframes: kinematic solids (a paddle, a moving platform).
+"""Colliders that move: kinematic solids (a paddle, a moving platform, a tilting floor, a scoop, a turntable).
 
-A moving collider's pose is prescribed, not simulated: keyframes give its centre's displacement and its turn about
-the centre, interpolated linearly (constant velocity; slerp for the turn) or smoothly (a clamped cubic spline for
-the displacement, SciPy's RotationSpline, continuous in angular rate and acceleration, for the turn). Its velocity
-is the path's own derivative, so bodies it touches meet it with the right relative velocity.
+A moving collider's pose is prescribed, not simulated (:mod:`animbatch.sim.motion`): keyframes give its pivot's
+displacement and its turn about the pivot, interpolated linearly (constant velocity; slerp for the turn) or
+smoothly (a clamped cubic spline for the displacement, SciPy's RotationSpline read at an eased time for the turn),
+or a closed-form motion gives them (constant velocity and spin, an oscillation). Its velocity is the path's own
+derivative, so bodies it touches meet it with the right relative velocity. Planes, spheres, boxes and meshes all
+move: :meth:`MovingColliders.place` puts their solids where the paths say at each step.
 
 For the contact solver a moving collider is one more "body" with no inverse mass (nothing pushes it back) and the
 path's velocity and angular velocity: restitution and friction then act on the velocity relative to its surface,
