@@ -7,7 +7,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from animbatch.compile.bodies import orientation_matrix
 from animbatch.compile.contacts import _statics, build_contact_world, material_table, pose_path
@@ -30,6 +29,7 @@ from animbatch.scene.schema import (
     WindSpec,
 )
 from animbatch.sim.contact.geometry import BodyBoxes, BodyCylinders, StaticColliders
+from animbatch.sim.contact.meshes import TriangleGroup
 from animbatch.sim.forces.drag import AIR_VISCOSITY
 from animbatch.sim.motion import SolidPath
 from animbatch.sim.particles.collisions import ParticleColliders
@@ -118,11 +118,7 @@ def particle_obstacles(spec: SceneSpec, statics: StaticColliders | None, model: 
     rigid bodies that collide (as the contact world holds them; built here when the bodies themselves have no
     contacts to simulate); None when there are none."""
     triangles = statics.triangles if statics is not None else np.zeros((0, 3, 3))
-    tree, reach = None, 0.0
-    if len(triangles):
-        centroids = triangles.mean(axis=1)
-        tree = cKDTree(centroids)
-        reach = float(np.max(np.linalg.norm(triangles - centroids[:, None, :], axis=2)))
+    group = TriangleGroup.of(triangles, np.arange(len(triangles))) if len(triangles) else None
     world = getattr(model, "contact_world", None)
     if world is None and model.rigid is not None and any(getattr(b, "collide", False) for b in spec.bodies
                                                          if b.type == "rigid"):
@@ -163,10 +159,10 @@ def particle_obstacles(spec: SceneSpec, statics: StaticColliders | None, model: 
             moving[MeshCollider].append((path, mesh.triangles @ orientation_matrix(collider.orientation).T, material))
     shapes = shapes + moving_collider_shapes(moving[SphereCollider], moving[BoxCollider], moving[PlaneCollider],
                                              moving[MeshCollider])
-    if tree is None and not shapes:
+    if group is None and not shapes:
         return None
     material = statics.triangle_material if statics is not None else np.zeros(0, np.intp)
-    return ParticleObstacles(triangles, material, tree, reach, shapes, tuple(paths))
+    return ParticleObstacles(triangles, material, group, shapes, tuple(paths))
 
 
 def _law(value: float | RandomValue) -> Law:

@@ -26,6 +26,7 @@ from animbatch.scene.schema.rigid import (
     OrientationSpec,
     PoseKeyframeSpec,
     motion_key,
+    pose_interpolation_key,
 )
 
 
@@ -79,8 +80,7 @@ class _MovingCollider(_ColliderBase, KinematicSolid):
               "scoop), pushing bodies, cloth and emitted particles with its own velocity at the contact; it holds its "
               "first and last poses before and after them. Fixed-step methods only.",
         example=[{"time": 0, "offset": [0, 0, 0]}, {"time": 1, "offset": [1, 0, 0]}])
-    interpolation: Interpolation = key("cubic", "Between keyframes: linear (constant velocity, slerp) or cubic "
-                                                "(smooth: continuous velocity and acceleration).")
+    interpolation: Interpolation = pose_interpolation_key()
     motion: MotionSpec | None = motion_key()
 
 

@@ -160,6 +160,12 @@ class MotionSpec(SceneModel):
                                                     "table, a piston.")
 
 
+def pose_interpolation_key() -> Any:
+    """The ``interpolation`` key of colliders and rigid bodies on keyframes."""
+    return key("cubic", "Between keyframes: linear (constant velocity, slerp) or cubic (smooth: it starts and ends at "
+                        "rest, with a continuous velocity and angular velocity through the keys).")
+
+
 def motion_key() -> Any:
     """The ``motion`` key of colliders and rigid bodies."""
     return key(None, "Move it in closed form instead of along keyframes: constant velocity, constant spin about "
@@ -240,8 +246,7 @@ class RigidBodySpec(KinematicSolid):
               "contact, and holds its first and last poses before and after the keys. Its velocity and angular "
               "velocity are the path's (velocity and angular_velocity must stay unset). Fixed-step methods only.",
         example=[{"time": 0, "offset": [0, 0, 0]}, {"time": 1, "offset": [1, 0, 0]}])
-    interpolation: Interpolation = key("cubic", "Between keyframes: linear (constant velocity, slerp) or cubic "
-                                                "(smooth: continuous velocity and acceleration).")
+    interpolation: Interpolation = pose_interpolation_key()
     motion: MotionSpec | None = motion_key()
     color: Color | None = key(None, "Display colour (default: its material's colour, else from a palette, by body "
                                     "index).")

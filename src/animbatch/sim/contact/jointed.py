@@ -36,6 +36,7 @@ class JointedResponse:
 
     def __init__(self, rows: sp.csr_matrix, inverse: sp.spmatrix) -> None:
         self.rows = rows.tocsr()
+        self._groups: np.ndarray | None = None
         self.push = (inverse @ self.rows.T).tocsc()  # M⁻¹ Gᵀ (6N, R)
         system = self.rows @ self.push
         if system.shape[0] <= DENSE_ROWS:
@@ -76,10 +77,11 @@ class JointedResponse:
 
     def groups(self, size: int) -> np.ndarray:
         """A label (size,) per body: bodies joined (directly or through others) share one; a body no joint holds
-        has its own."""
-        ends = sp.csr_matrix(self.rows.astype(bool).astype(float))
-        body_of_column = np.arange(6 * size) % (3 * size) // 3
-        incidence = ends @ sp.csr_matrix((np.ones(6 * size), (np.arange(6 * size), body_of_column)),
-                                         shape=(6 * size, size))
-        _, labels = connected_components(incidence.T @ incidence, directed=False)
-        return labels
+        has its own. (Asked for by every row direction and the normal block: found once.)"""
+        if self._groups is None or len(self._groups) != size:
+            ends = sp.csr_matrix(self.rows.astype(bool).astype(float))
+            body_of_column = np.arange(6 * size) % (3 * size) // 3
+            incidence = ends @ sp.csr_matrix((np.ones(6 * size), (np.arange(6 * size), body_of_column)),
+                                             shape=(6 * size, size))
+            self._groups = connected_components(incidence.T @ incidence, directed=False)[1]
+        return self._groups.copy()

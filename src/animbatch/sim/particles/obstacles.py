@@ -140,18 +140,30 @@ def plane_sweep(normal: np.ndarray) -> Sweep:
     return sweep
 
 
+def earliest_triangles(group: TriangleGroup, triangles: np.ndarray, start: np.ndarray, step: np.ndarray,
+                       radius: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The first touches of spheres moving ``start + s step`` (K, 3) with the ``triangles`` (T, 3, 3) of ``group``
+    (same frame): each path is marched against each triangle near it on its own (one triangle's distance per
+    step). Returns the paths that touch one, the triangle each touches first and the fraction of its path there."""
+    middle, half = start + 0.5 * step, 0.5 * np.linalg.norm(step, axis=1)
+    path, triangle = group.near(middle, half + radius, triangles)
+    if not len(path):
+        return path, triangle, np.zeros(0)
+    fraction = march(lambda p, which: to_triangles(p, triangles[triangle[which]]), start[path], step[path],
+                     radius[path])
+    hit = np.flatnonzero(np.isfinite(fraction))
+    order = hit[np.lexsort((fraction[hit], path[hit]))]  # each path's earliest triangle first
+    first = order[np.r_[True, path[order][1:] != path[order][:-1]]] if len(order) else order
+    return path[first], triangle[first], fraction[first]
+
+
 def mesh_sweep(group: TriangleGroup, triangles: np.ndarray) -> Sweep:
-    """First touches of moving spheres with the ``triangles`` (T, 3, 3) of ``group`` (same frame): each path is
-    marched against each triangle near it on its own (one triangle's distance per step), and the earliest kept."""
+    """First touches of moving spheres with the ``triangles`` of ``group``, as a shape's sweep."""
 
     def sweep(start: np.ndarray, step: np.ndarray, radius: np.ndarray) -> np.ndarray:
         fraction = np.full(len(start), np.inf)
-        middle, half = start + 0.5 * step, 0.5 * np.linalg.norm(step, axis=1)
-        path, triangle = group.near(middle, half + radius, triangles)
-        if len(path):
-            found = march(lambda p, which: to_triangles(p, triangles[triangle[which]]), start[path], step[path],
-                          radius[path])
-            np.minimum.at(fraction, path, found)
+        path, _, found = earliest_triangles(group, triangles, start, step, radius)
+        fraction[path] = found
         return fraction
 
     return sweep
@@ -228,14 +240,13 @@ def body_shapes(spheres: list[tuple[int, np.ndarray, float]], boxes: BodyBoxes, 
 
 @dataclass(frozen=True, eq=False)
 class ParticleObstacles:
-    """The obstacles particles meet beyond planes, spheres and boxes: the triangles of mesh colliders (``triangles``
-    (T, 3, 3) [m], ``triangle_material`` (T,), with a k-d tree of their centroids and the largest triangle's
-    circumradius ``triangle_reach``) and the rigid bodies' ``shapes``."""
+    """The obstacles particles meet beyond planes, spheres and boxes: the triangles of fixed mesh colliders
+    (``triangles`` (T, 3, 3) [m], ``triangle_material`` (T,), found through ``triangle_group``, None without any),
+    the rigid bodies' ``shapes`` and the moving colliders'."""
 
     triangles: np.ndarray
     triangle_material: np.ndarray
-    triangle_tree: cKDTree | None
-    triangle_reach: float
+    triangle_group: TriangleGroup | None
     shapes: tuple[BodyShape, ...]
     paths: tuple[SolidPath, ...] = ()  # colliders on keyframes (shapes with body -2 - m)
 
@@ -257,10 +268,9 @@ class ParticleObstacles:
         """These obstacles less the solids of ``body`` (an emitter's own body: its particles are born on or in it);
         None when nothing is left."""
         shapes = tuple(s for s in self.shapes if s.body != body)
-        if self.triangle_tree is None and not shapes:
+        if self.triangle_group is None and not shapes:
             return None
-        return ParticleObstacles(self.triangles, self.triangle_material, self.triangle_tree, self.triangle_reach,
-                                 shapes, self.paths)
+        return ParticleObstacles(self.triangles, self.triangle_material, self.triangle_group, shapes, self.paths)
 
     @property
     def bodies(self) -> tuple[int, ...]:
@@ -269,7 +279,7 @@ class ParticleObstacles:
 
     @property
     def empty(self) -> bool:
-        return self.triangle_tree is None and not self.shapes
+        return self.triangle_group is None and not self.shapes
 
     def first_hits(self, x0: np.ndarray, x1: np.ndarray, radius: np.ndarray,
                    poses: tuple[dict[int, BodyPose], dict[int, BodyPose]] | None) -> Hits:
@@ -280,8 +290,8 @@ class ParticleObstacles:
             return hits
         middle, half = 0.5 * (x0 + x1), 0.5 * np.linalg.norm(x1 - x0, axis=1)
         widest = float(half.max()) + float(radius.max())
-        if self.triangle_tree is not None:
-            self._triangle_hits(hits, x0, x1, radius, middle, half)
+        if self.triangle_group is not None:
+            self._triangle_hits(hits, x0, x1, radius)
         if self.shapes and poses is not None:
             tree = cKDTree(middle)
             for shape in self.shapes:
@@ -289,34 +299,19 @@ class ParticleObstacles:
         return hits
 
     def _near_triangles(self, points: np.ndarray, reach: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Pairs (particle, triangle) (N,) each whose triangle's centroid lies within the particle's ``reach``
-        (K,) [m] of its point, plus the triangles' own reach."""
-        assert self.triangle_tree is not None
-        if not len(points):
-            return np.zeros(0, np.intp), np.zeros(0, np.intp)
-        # every pair within the largest reach at once (one call, array output), then each within its own
-        near = self.triangle_tree.sparse_distance_matrix(cKDTree(points), float(reach.max()) + self.triangle_reach,
-                                                         output_type="ndarray")
-        triangle, particle = near["i"].astype(np.intp), near["j"].astype(np.intp)
-        keep = near["v"] <= reach[particle] + self.triangle_reach
-        return particle[keep], triangle[keep]
+        """Pairs (particle, triangle) (N,) each whose triangle may lie within the particle's ``reach`` (K,) [m] of
+        its point."""
+        assert self.triangle_group is not None
+        return self.triangle_group.near(points, reach)
 
-    def _triangle_hits(self, hits: Hits, x0: np.ndarray, x1: np.ndarray, radius: np.ndarray,
-                       middle: np.ndarray, half: np.ndarray) -> None:
-        particle, triangle = self._near_triangles(middle, half + radius)
+    def _triangle_hits(self, hits: Hits, x0: np.ndarray, x1: np.ndarray, radius: np.ndarray) -> None:
+        assert self.triangle_group is not None
+        particle, triangle, fraction = earliest_triangles(self.triangle_group, self.triangles, x0, x1 - x0, radius)
         if not len(particle):
             return
-        corners = self.triangles[triangle]
-        fraction = march(lambda p, which: to_triangles(p, corners[which]), x0[particle], x1[particle] - x0[particle],
-                         radius[particle])
-        hit = np.flatnonzero(np.isfinite(fraction))
-        if not len(hit):
-            return
-        order = hit[np.lexsort((fraction[hit], particle[hit]))]  # each particle's earliest triangle first
-        hit = order[np.r_[True, particle[order][1:] != particle[order][:-1]]]
-        at = x0[particle[hit]] + fraction[hit, None] * (x1[particle[hit]] - x0[particle[hit]])
-        _, normal = to_triangles(at, corners[hit])
-        hits.keep_earlier(fraction[hit], particle[hit], normal, self.triangle_material[triangle[hit]])
+        at = x0[particle] + fraction[:, None] * (x1[particle] - x0[particle])
+        _, normal = to_triangles(at, self.triangles[triangle])
+        hits.keep_earlier(fraction, particle, normal, self.triangle_material[triangle])
 
     def _shape_hits(self, hits: Hits, shape: BodyShape, x0: np.ndarray, x1: np.ndarray, radius: np.ndarray,
                     tree: cKDTree, widest: float, poses: tuple[dict[int, BodyPose], dict[int, BodyPose]]) -> None:
@@ -348,7 +343,7 @@ class ParticleObstacles:
         """Move particles found inside a triangle's reach or a body onto the surface, and stop their motion into it
         (relative to a body's surface); return which were moved (K,)."""
         moved = np.zeros(len(x), bool)
-        if self.triangle_tree is not None and len(x):
+        if self.triangle_group is not None and len(x):
             particle, triangle = self._near_triangles(x, radius)
             if len(particle):
                 distance, normal = to_triangles(x[particle], self.triangles[triangle])
