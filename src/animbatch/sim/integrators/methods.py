@@ -13,10 +13,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, OdeSolver, Radau
 
 from animbatch.sim.integrators import particle_kernels as kernels
 from animbatch.sim.integrators.fixed_step import (
@@ -30,6 +29,9 @@ from animbatch.sim.integrators.fixed_step import (
 )
 from animbatch.sim.integrators.implicit import BackwardEuler
 from animbatch.sim.integrators.particle_kernels import ParticleKernel
+
+if TYPE_CHECKING:
+    from scipy.integrate import OdeSolver
 
 #: (h [s], ω [rad/s], decay α [1/s]) -> the matrix of one step on ``x'' = -ω² x - 2 α x'``.
 StepMatrix = Callable[[float, float, float], np.ndarray]
@@ -86,7 +88,7 @@ class Method:
     evaluations_per_step: int
     summary: str
     scheme: type[Scheme] | None = None  # fixed-step: steps bodies
-    solver: type[OdeSolver] | None = None  # adaptive: the scipy solver
+    solver: str | None = None  # adaptive: the name of the scipy.integrate solver class
     step_matrix: StepMatrix | None = None  # fixed-step: one step on a damped oscillator (stability)
     particle_step: ParticleKernel | None = None  # fixed-step: one step of a pool of independent particles
     symplectic: bool = False
@@ -97,6 +99,15 @@ class Method:
     def fixed_step(self) -> bool:
         return self.family == "fixed-step"
 
+    def solver_class(self) -> type[OdeSolver]:
+        """The scipy solver class of an adaptive method (scipy.integrate is imported here, on first use, so that
+        reading this table costs validate and --help nothing)."""
+        import scipy.integrate
+
+        if self.solver is None:
+            raise ValueError(f"{self.name} is a fixed-step method, not a scipy solver")
+        return getattr(scipy.integrate, self.solver)
+
 
 def runge_kutta(name: str, summary: str, tableau: ButcherTableau) -> Method:
     """An explicit Runge–Kutta method, all from its tableau: its scheme, step matrix and particle kernel."""
@@ -106,12 +117,12 @@ def runge_kutta(name: str, summary: str, tableau: ButcherTableau) -> Method:
 
 
 METHODS: dict[str, Method] = {method.name: method for method in (
-    Method("RK23", "adaptive", 2, 3, "Bogacki–Shampine 3(2)", solver=RK23, stability_limit=2.5),
-    Method("RK45", "adaptive", 4, 6, "Dormand–Prince 5(4)", solver=RK45, stability_limit=3.3),
-    Method("DOP853", "adaptive", 7, 12, "Dormand–Prince 8(5,3)", solver=DOP853, stability_limit=6.0),
-    Method("Radau", "adaptive", 5, 8, "implicit Runge–Kutta (Radau IIA), order 5", solver=Radau, implicit=True),
-    Method("BDF", "adaptive", 3, 3, "backward differentiation, orders 1–5", solver=BDF, implicit=True),
-    Method("LSODA", "adaptive", 4, 3, "Adams / BDF, switching on stiffness", solver=LSODA, implicit=True),
+    Method("RK23", "adaptive", 2, 3, "Bogacki–Shampine 3(2)", solver="RK23", stability_limit=2.5),
+    Method("RK45", "adaptive", 4, 6, "Dormand–Prince 5(4)", solver="RK45", stability_limit=3.3),
+    Method("DOP853", "adaptive", 7, 12, "Dormand–Prince 8(5,3)", solver="DOP853", stability_limit=6.0),
+    Method("Radau", "adaptive", 5, 8, "implicit Runge–Kutta (Radau IIA), order 5", solver="Radau", implicit=True),
+    Method("BDF", "adaptive", 3, 3, "backward differentiation, orders 1–5", solver="BDF", implicit=True),
+    Method("LSODA", "adaptive", 4, 3, "Adams / BDF, switching on stiffness", solver="LSODA", implicit=True),
     runge_kutta("euler", "explicit Euler", EULER),
     runge_kutta("midpoint", "explicit midpoint (RK2)", MIDPOINT),
     Method("symplectic_euler", "fixed-step", 1, 1, "semi-implicit Euler", scheme=SymplecticEuler,
@@ -124,7 +135,7 @@ METHODS: dict[str, Method] = {method.name: method for method in (
 
 #: Fixed-step method name -> scheme class; adaptive method name -> scipy solver class.
 FIXED_STEP_SCHEMES: dict[str, type[Scheme]] = {name: m.scheme for name, m in METHODS.items() if m.scheme is not None}
-SCIPY_METHODS: dict[str, type[OdeSolver]] = {name: m.solver for name, m in METHODS.items() if m.solver is not None}
+SCIPY_METHODS: tuple[str, ...] = tuple(name for name, m in METHODS.items() if m.solver is not None)
 
 #: Stability limit ``|h λ|`` along the negative real axis of each explicit Runge–Kutta pair.
 EXPLICIT_LIMITS = {name: m.stability_limit for name, m in METHODS.items() if m.stability_limit is not None}

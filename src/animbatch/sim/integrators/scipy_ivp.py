@@ -37,7 +37,7 @@ from animbatch.sim.integrators.base import (
 from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.guard import divergence_error, fastest_body, first_non_finite
 from animbatch.sim.integrators.linear_algebra import use_second_order_factors
-from animbatch.sim.integrators.methods import SCIPY_METHODS
+from animbatch.sim.integrators.methods import METHODS, SCIPY_METHODS
 from animbatch.sim.model.dynamics import Dynamics
 
 #: A solver whose steps stay shorter than this fraction of the frame interval for more than STALL_STEPS steps in a
@@ -132,7 +132,7 @@ class ScipyIntegrator(Integrator):
                     and system.has_jacobian else None)
         if analytic is not None:
             options["jac"] = analytic.jacobian
-        solver = SCIPY_METHODS[self.method](fun, t, y.copy(), end, rtol=self.rtol, atol=self.atol, max_step=max_step,
+        solver = METHODS[self.method].solver_class()(fun, t, y.copy(), end, rtol=self.rtol, atol=self.atol, max_step=max_step,
                                             **options)
         if analytic is not None:
             use_second_order_factors(solver, np.repeat(np.asarray(analytic.model.bodies.mass[: analytic.particles],
