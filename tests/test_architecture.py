@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from animbatch.compile.model import compile_scene
-from animbatch.scene.schema import ADAPTIVE_METHODS, FIXED_STEP_METHODS, SolverSpec
+from animbatch.scene.schema import ADAPTIVE_METHODS, CONTACT_METHODS, FIXED_STEP_METHODS, SolverSpec
 from animbatch.sim.integrators import FIXED_STEP_SCHEMES, METHODS, FixedStepIntegrator, ScipyIntegrator
 from animbatch.sim.integrators.fixed_step import ButcherTableau
 from animbatch.sim.integrators.methods import runge_kutta
@@ -30,6 +30,8 @@ def test_the_scene_format_offers_exactly_the_methods_of_the_table():
     assert set(FIXED_STEP_METHODS) == {name for name, m in METHODS.items() if m.fixed_step}
     for name in METHODS:  # and each validates as a solver method
         assert SolverSpec(method=name).method == name
+    # validate refuses contacts to the others without loading the schemes
+    assert set(CONTACT_METHODS) == {name for name, m in METHODS.items() if m.scheme and m.scheme.takes_constraints}
 
 
 @pytest.mark.parametrize("name", [name for name, m in METHODS.items() if m.fixed_step])
@@ -112,3 +114,38 @@ def test_the_simulation_type_checks():
     optional parts are narrowed where used, and no ``type: ignore`` is left that is not needed."""
     done = run_tool("mypy")
     assert done.returncode == 0, done.stdout + done.stderr
+
+
+@pytest.mark.parametrize("method", [*METHODS, "analytic"])
+def test_validate_describes_the_solver_as_the_integrator_built_from_it_does(method):
+    """validate prints the method's line without building the integrator; it must be the line the run prints."""
+    from animbatch.compile.solver import make_integrator
+    from animbatch.summary import describe_solver
+
+    settings = {"method": method, "max_step": 0.01} if method in METHODS and not METHODS[method].fixed_step else \
+        {"method": method, "dt": 2e-3} if method != "analytic" else {"method": method}
+    solver = SolverSpec(**settings)
+    assert describe_solver(solver) == make_integrator(solver).describe()
+
+
+#: Modules that cost start-up time and that neither --help nor validate of a scene without meshes needs.
+HEAVY = ("scipy.integrate", "scipy.sparse", "scipy.spatial", "scipy.linalg", "scipy.interpolate", "pyvista", "vtk",
+         "trimesh", "matplotlib", "dask", "imageio", "numba")
+
+
+@pytest.mark.parametrize("arguments", [["--help"], ["validate", str(ROOT / "scenes" / "projectile.yaml")],
+                                       ["validate", str(ROOT / "scenes" / "dominoes.yaml")]],
+                         ids=["help", "validate projectile", "validate dominoes"])
+def test_help_and_validate_load_no_heavy_library(arguments):
+    """The start-up promise (under 0.5 s, measured by ``bench --only startup``) rests on what is imported: the
+    command runs, and none of the heavy libraries is loaded (a fixed-step scene with contacts included)."""
+    probe = ("import sys, runpy; sys.argv = ['animbatch', *sys.argv[1:]]\n"
+             "try:\n    runpy.run_module('animbatch', run_name='__main__')\nexcept SystemExit as stop:\n"
+             "    code = stop.code\nelse:\n    code = 0\n"
+             f"print('LOADED', sorted(m for m in sys.modules if m.split('.')[0] in {{'scipy', 'pyvista', 'vtk', "
+             f"'trimesh', 'matplotlib', 'dask', 'imageio', 'numba'}} and m.startswith({HEAVY!r})))\n"
+             "sys.exit(code)")
+    done = subprocess.run([sys.executable, "-c", probe, *arguments], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr
+    loaded = done.stdout.rsplit("LOADED", 1)[1].strip()
+    assert loaded == "[]", f"{' '.join(arguments)} loaded {loaded}"

@@ -125,13 +125,15 @@ def cli() -> None:
 @click.option("--set", "settings", multiple=True, metavar="KEY.PATH=VALUE", help="Override a scene value.")
 def validate(scenes: tuple[Path, ...], settings: tuple[str, ...]) -> None:
     """Check scene files; report every error of each file, exit 1 if any is invalid."""
-    from animbatch.info import one_line_summary
-    from animbatch.stages import load_scene
+    # the scene loader with the compiler's geometry checks, not the stages: validating loads no solver
+    from animbatch.compile.checks import compile_checks
+    from animbatch.scene.loader import load_scene
+    from animbatch.summary import one_line_summary
 
     failed = 0
     for path in scenes:
         try:
-            click.echo(one_line_summary(load_scene(path, list(settings))))
+            click.echo(one_line_summary(load_scene(path, list(settings), geometry_checks=compile_checks)))
         except SceneError as error:
             click.echo(str(error), err=True)
             failed += 1

@@ -6,7 +6,6 @@ from typing import Any
 
 from animbatch.compile.forces import FIELD_TERMS
 from animbatch.compile.particles import compile_particles
-from animbatch.compile.solver import make_integrator
 from animbatch.scene import LoadedScene
 from animbatch.scene.schema import BoxCollider, PlaneCollider, SphereCollider, random_bounds
 from animbatch.sim.contact.stepping import DEFAULT_REST_SPEED
@@ -15,26 +14,7 @@ from animbatch.sim.integrators import DEFAULT_DT
 from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.ledger import conservation_laws, step_note
 from animbatch.sim.model import Model
-
-
-def _plural(count: int, word: str, plural: str | None = None) -> str:
-    return f"{count} {word if count == 1 else (plural or word + 's')}"
-
-
-def one_line_summary(scene: LoadedScene) -> str:
-    """``scenes/x.yaml: OK - 'x': 3 bodies, 2 springs; fields gravity, drag; 4 s at 30 fps (120 frames); RK45 …``."""
-    spec = scene.spec
-    parts = [_plural(len(spec.bodies), "body", "bodies")]
-    if spec.emitters:
-        parts.append(_plural(len(spec.emitters), "emitter"))
-    if spec.anchors:
-        parts.append(_plural(len(spec.anchors), "anchor"))
-    if spec.springs:
-        parts.append(_plural(len(spec.springs), "spring"))
-    fields = ", ".join(field.type for field in spec.fields) or "none"
-    return (f"{scene.path or scene.name}: OK - '{scene.name}': {', '.join(parts)}; fields: {fields}; "
-            f"{spec.duration:g} s at {spec.fps} fps ({spec.frame_count} frames); "
-            f"{make_integrator(spec.solver).describe()}")
+from animbatch.summary import describe_solver, plural
 
 
 def _vector(values: object) -> str:
@@ -62,7 +42,7 @@ def _rigid_lines(model: Model, x0: object, v0: object) -> list[str]:
         ]
         if model.kinematic is not None and b in model.kinematic.rigid:
             path = model.kinematic.paths[list(model.kinematic.rigid).index(b)]
-            lines.append(f"           kinematic: follows {_plural(len(path.times), 'keyframe')} "
+            lines.append(f"           kinematic: follows {plural(len(path.times), 'keyframe')} "
                          f"({path.interpolation}, {path.times[0]:g}…{path.times[-1]:g} s); nothing pushes it back")
     return lines
 
@@ -77,7 +57,7 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
     lines += [
         f"timeline   {spec.duration:g} s at {spec.fps} fps: {len(times)} frames at t = k/{spec.fps} s, "
         f"k = 0 … {len(times) - 1} (last frame at {times[-1]:.6g} s)",
-        f"solver     {make_integrator(spec.solver).describe()}",
+        f"solver     {describe_solver(spec.solver)}",
     ]
     if not spec.solver.is_adaptive and spec.solver.method != "analytic" and len(times) > 1:
         interval = float(times[1] - times[0])
@@ -107,7 +87,7 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
     if model.clocks is not None:
         lines.append(f"clocks     proper time dτ/dt = √(1 − v²/c²), c = {model.clocks.c:g} m/s, carried by "
                      + ", ".join(model.clocks.names))
-    lines.append(f"terms      {_plural(len(model.force_terms), 'force term')} compiled, evaluated in this order:")
+    lines.append(f"terms      {plural(len(model.force_terms), 'force term')} compiled, evaluated in this order:")
     for number, term in enumerate(model.force_terms, 1):
         lines.append(f"           {number}. {term.label:<12} {term.describe()}")
     declared = {field.type for field in spec.fields} | {term.kind for term in model.force_terms}
@@ -115,8 +95,8 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
     if absent:
         lines.append(f"           not compiled (not declared): {', '.join(absent)}")
     bodies = model.bodies
-    counts = [_plural(model.particle_count, "particle")] if model.particle_count else []
-    counts += [_plural(model.rigid_count, "rigid body", "rigid bodies")] if model.rigid_count else []
+    counts = [plural(model.particle_count, "particle")] if model.particle_count else []
+    counts += [plural(model.rigid_count, "rigid body", "rigid bodies")] if model.rigid_count else []
     lines.append(f"bodies     {', '.join(counts)}, total mass {float(bodies.mass.sum()):.6g} kg" if counts
                  else "bodies     none (a scene of emitters only)")
     x0, v0 = model.positions(model.y0), model.velocities(model.y0)
@@ -164,7 +144,7 @@ def _emitter_lines(scene: LoadedScene, model: Model) -> list[str]:
         schedule = emitter.schedule
         rate = (f"{item.rate:g}/s" if isinstance(item.rate, int | float)
                 else f"keyframed {min(k.rate for k in item.rate):g}…{max(k.rate for k in item.rate):g}/s")
-        bursts = f" + {_plural(sum(b.count for b in item.bursts), 'particle')} in bursts" if item.bursts else ""
+        bursts = f" + {plural(sum(b.count for b in item.bursts), 'particle')} in bursts" if item.bursts else ""
         attached = f" on rigid body {item.body!r}" if item.body else ""
         lines.append(f"emitter    {emitter.name}: {item.source.type} source{attached}, rate {rate}{bursts}; "
                      f"{schedule.born_by(spec.duration)} born by {spec.duration:g} s; pool of {emitter.capacity} "
@@ -179,8 +159,8 @@ def _emitter_lines(scene: LoadedScene, model: Model) -> list[str]:
         colliders = systems.colliders.get(emitter.name)
         bodies = sum(1 for b in colliders.bodies if b >= 0) if colliders is not None else 0  # not moving colliders
         meets = ("no colliders" if colliders is None else
-                 f"{item.collision} on {_plural(len(spec.colliders), 'collider')}"
-                 + (f" and {_plural(bodies, 'rigid body', 'rigid bodies')}" if bodies else ""))
+                 f"{item.collision} on {plural(len(spec.colliders), 'collider')}"
+                 + (f" and {plural(bodies, 'rigid body', 'rigid bodies')}" if bodies else ""))
         lines.append(f"           collisions: {meets}; never with each other")
     return lines
 
@@ -247,8 +227,8 @@ def _contact_lines(scene: LoadedScene, model: Model) -> list[str]:
     collide = "with each other and with colliders" if world.bodies_collide else "with colliders only"
     lines = [f"contacts   bodies collide {collide}; rest speed {rest}; slop {settings.slop * 1000:g} mm; "
              f"at most {settings.iterations} solver iterations per step",
-             f"           geometry: {_plural(world.probes.count, 'probe')} (spheres and points) on the bodies, "
-             f"{_plural(world.boxes.count, 'box', 'boxes')} as solids"]
+             f"           geometry: {plural(world.probes.count, 'probe')} (spheres and points) on the bodies, "
+             f"{plural(world.boxes.count, 'box', 'boxes')} as solids"]
     lines += [f"collider   {number}. {_collider_line(collider)}" for number, collider in enumerate(spec.colliders, 1)]
     body_materials = {body.material for body in spec.bodies if body.collide}
     others = body_materials | {collider.material for collider in spec.colliders}

@@ -10,10 +10,10 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.compile import deformables as build
-from animbatch.compile.bodies import orientation_matrix
 from animbatch.scene.checks import Problem
+from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (
+    CONTACT_METHODS,
     DEFORMABLE_SPECS,
     ClothMeshSpec,
     ClothSpec,
@@ -24,10 +24,6 @@ from animbatch.scene.schema import (
     SceneSpec,
 )
 from animbatch.scene.yaml_source import KeyPath
-from animbatch.sim.closed_forms import NoClosedForm, check_closed_form
-from animbatch.sim.integrators.methods import METHODS
-from animbatch.sim.rigid.polyhedra import convex_mesh, mesh_mass_properties
-from animbatch.sim.rigid.shapes import load_mesh, load_surface
 
 
 def compile_checks(spec: SceneSpec, base_dir: Path) -> list[Problem]:
@@ -41,23 +37,23 @@ def check_method(spec: SceneSpec) -> list[Problem]:
     analytic method, for a scene with anything that has no closed form."""
     if spec.solver.method == "analytic":
         return check_analytic(spec)
-    scheme = METHODS[spec.solver.method].scheme
+    adaptive = spec.solver.is_adaptive
     colliding = any(getattr(body, "collide", True) for body in spec.bodies)
     has_contacts = (bool(spec.colliders) or spec.contacts is not None) and colliding
     kinematic = [k for k, b in enumerate(spec.bodies) if getattr(b, "moves", False)]
-    if kinematic and scheme is None:
+    if kinematic and adaptive:
         body = spec.bodies[kinematic[0]]
         how = "keyframes" if getattr(body, "keyframes", None) is not None else "motion"
         return [(("bodies", kinematic[0], how), (
             f"rigid bodies on {how} need a fixed-step method; {spec.solver.method} is adaptive. Use "
             "solver.method: symplectic_euler or verlet (with a dt that resolves the body's motion)"))]
     moving = [k for k, c in enumerate(spec.colliders) if c.moves]
-    if moving and has_contacts and scheme is None:
+    if moving and has_contacts and adaptive:
         how = "keyframes" if spec.colliders[moving[0]].keyframes is not None else "motion"
         return [(("colliders", moving[0], how), (
             f"colliders on {how} need a fixed-step method; {spec.solver.method} is adaptive. Use "
             "solver.method: symplectic_euler or verlet (with a dt that resolves the collider's motion)"))]
-    if not has_contacts or scheme is None or scheme.takes_constraints:
+    if not has_contacts or adaptive or spec.solver.method in CONTACT_METHODS:
         return []
     return [(("solver", "method"), (
         f"{spec.solver.method} cannot keep contacts: it moves positions with the velocities from before the step, so "
@@ -86,6 +82,8 @@ def check_files(spec: SceneSpec, base_dir: Path) -> list[Problem]:
             if outside:
                 problems.append(((*path, "file"), outside))
                 continue
+            from animbatch.sim.rigid.shapes import load_mesh, load_surface  # only scenes with mesh files pay
+
             try:
                 surface = isinstance(shape, ClothMeshSpec | MeshCollider)  # open surfaces are fine there
                 (load_surface if surface else load_mesh)(base_dir / shape.file, shape.scale)
@@ -117,6 +115,9 @@ def _hollow_meshes(spec: SceneSpec, base_dir: Path) -> list[Problem]:
         for path, shape in shapes:
             if not isinstance(shape, MeshShape) or shape.convex_hull:
                 continue
+            from animbatch.sim.rigid.polyhedra import convex_mesh, mesh_mass_properties
+            from animbatch.sim.rigid.shapes import load_mesh
+
             mesh = load_mesh(base_dir / shape.file, shape.scale)
             own = mesh_mass_properties(mesh).volume
             hollow = mesh_mass_properties(convex_mesh(mesh.vertices)).volume / own - 1
@@ -178,6 +179,8 @@ def _pin_selections(spec: Any, base_dir: Path) -> list[Problem]:
     for index, body in enumerate(spec.bodies):
         if not isinstance(body, DEFORMABLE_SPECS) or not body.pin:
             continue
+        from animbatch.compile import deformables as build  # only scenes with pinned cloth or lattices pay
+
         topology = build.body_topology(body, base_dir)
         world = build.world_vertices(body, topology)
         pinned = set()
@@ -201,6 +204,7 @@ def check_analytic(spec: SceneSpec) -> list[Problem]:
                                   "only the scene's bodies by closed forms: remove the emitters or choose a method "
                                   "that integrates (RK45, verlet, …)")]
     from animbatch.compile.model import compile_scene  # the model, to match each body to its closed form
+    from animbatch.sim.closed_forms import NoClosedForm, check_closed_form
 
     try:
         check_closed_form(compile_scene(spec))

@@ -32,6 +32,7 @@ from animbatch.sim.integrators.base import (
     Integrator,
     SolverStats,
 )
+from animbatch.sim.integrators.description import describe_method
 
 
 @dataclass(frozen=True)
@@ -227,7 +228,7 @@ class ClosedFormIntegrator(Integrator):
         return IntegrationResult(states, SolverStats(self.method, wall_time=time.perf_counter() - started))
 
     def describe(self) -> str:
-        return "analytic (closed forms of the motion: no integration)"
+        return describe_method("analytic", adaptive=False)
 
 
 def check_closed_form(model: object) -> None:

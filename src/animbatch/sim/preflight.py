@@ -25,7 +25,8 @@ from animbatch.errors import AnimbatchWarning
 from animbatch.sim.contact.contacts import STATIC_BOX, STATIC_SPHERE
 from animbatch.sim.contact.detection import ContactWorld
 from animbatch.sim.forces.gravity import gravity_magnitude
-from animbatch.sim.integrators.fixed_step import DEFAULT_DT, substeps
+from animbatch.sim.integrators.description import DEFAULT_DT
+from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.integrators.methods import EXPLICIT_LIMITS, METHODS
 from animbatch.sim.integrators.stability import GROWTH_LIMIT, amplification, largest_stable_step, stiffest_mode
 from animbatch.sim.model.model import Model

@@ -164,6 +164,7 @@ from animbatch.scene.schema.scene import (
 )
 from animbatch.scene.schema.solver import (
     ADAPTIVE_METHODS,
+    CONTACT_METHODS,
     FIXED_STEP_METHODS,
     KINEMATIC_METHODS,
     METHOD_ALIASES,
@@ -238,6 +239,7 @@ __all__ = [
     "DragSpec",
     "EmitterSpec",
     "FIELD_SPECS",
+    "CONTACT_METHODS",
     "FIXED_STEP_METHODS",
     "FieldSpec",
     "ForceSpec",

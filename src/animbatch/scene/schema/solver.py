@@ -10,6 +10,9 @@ from animbatch.scene.schema.base import SceneModel, key
 
 ADAPTIVE_METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
 FIXED_STEP_METHODS = ("euler", "midpoint", "symplectic_euler", "verlet", "backward_euler")
+#: The fixed-step methods that apply contact impulses between their kick and their drift (the schemes whose
+#: ``takes_constraints`` is true; a test checks the two agree), so that validate need not load the schemes.
+CONTACT_METHODS = ("symplectic_euler", "verlet", "backward_euler")
 #: Methods that do not integrate: the bodies move by closed forms (the lecture notes' kinematic simulation).
 KINEMATIC_METHODS = ("analytic",)
 METHOD_ALIASES = {

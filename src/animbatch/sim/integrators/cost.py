@@ -31,7 +31,8 @@ from animbatch.errors import SimulationError
 from animbatch.sim.forces.gravitation import InverseSquarePairs
 from animbatch.sim.integrators.base import StepSettings
 from animbatch.sim.integrators.budget import format_seconds
-from animbatch.sim.integrators.fixed_step import DEFAULT_DT, substeps
+from animbatch.sim.integrators.description import DEFAULT_DT
+from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.integrators.methods import EXPLICIT_LIMITS, METHODS
 from animbatch.sim.integrators.stability import stiffest_mode
 from animbatch.sim.model import Dynamics, Model

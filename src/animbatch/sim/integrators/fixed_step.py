@@ -38,8 +38,6 @@ import numpy as np
 
 from animbatch.sim.integrators.base import EquationsOfMotion, VelocityConstraint
 
-DEFAULT_DT = 1e-3  # s
-
 
 def substeps(interval: float, dt: float) -> int:
     """Number of equal steps of at most ``dt`` that cover ``interval``. A relative tolerance of 1e-6 absorbs a dt

@@ -35,6 +35,7 @@ from animbatch.sim.integrators.base import (
     StepEvents,
 )
 from animbatch.sim.integrators.budget import budget_spent
+from animbatch.sim.integrators.description import describe_method
 from animbatch.sim.integrators.guard import divergence_error, fastest_body, first_non_finite
 from animbatch.sim.integrators.linear_algebra import use_second_order_factors
 from animbatch.sim.integrators.methods import METHODS, SCIPY_METHODS
@@ -96,9 +97,7 @@ class ScipyIntegrator(Integrator):
         self.events = events
 
     def describe(self) -> str:
-        limit = f", max_step {self.max_step:g} s" if self.max_step else ""
-        atol = f"{self.atol:g}" if np.ndim(self.atol) == 0 else "per component"
-        return f"{self.method} (adaptive, rtol {self.rtol:g}, atol {atol}{limit})"
+        return describe_method(self.method, adaptive=True, rtol=self.rtol, atol=self.atol, max_step=self.max_step)
 
     def integrate(self, system: EquationsOfMotion, y0: np.ndarray, times: np.ndarray, *,
                   on_frame: FrameCallback | None = None) -> IntegrationResult:
@@ -132,8 +131,8 @@ class ScipyIntegrator(Integrator):
                     and system.has_jacobian else None)
         if analytic is not None:
             options["jac"] = analytic.jacobian
-        solver = METHODS[self.method].solver_class()(fun, t, y.copy(), end, rtol=self.rtol, atol=self.atol, max_step=max_step,
-                                            **options)
+        solver_class = METHODS[self.method].solver_class()
+        solver = solver_class(fun, t, y.copy(), end, rtol=self.rtol, atol=self.atol, max_step=max_step, **options)
         if analytic is not None:
             use_second_order_factors(solver, np.repeat(np.asarray(analytic.model.bodies.mass[: analytic.particles],
                                                                   np.float64), 3))

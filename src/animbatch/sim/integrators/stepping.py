@@ -18,7 +18,8 @@ from animbatch.sim.integrators.base import (
     SolverStats,
 )
 from animbatch.sim.integrators.budget import budget_spent
-from animbatch.sim.integrators.fixed_step import DEFAULT_DT, Scheme, substeps
+from animbatch.sim.integrators.description import DEFAULT_DT, describe_method
+from animbatch.sim.integrators.fixed_step import Scheme, substeps
 from animbatch.sim.integrators.guard import divergence_error, first_non_finite
 from animbatch.sim.integrators.methods import FIXED_STEP_SCHEMES
 from animbatch.sim.integrators.stability import check_fixed_step
@@ -41,7 +42,7 @@ class FixedStepIntegrator(Integrator):
         self.constraint = constraint
 
     def describe(self) -> str:
-        return f"{self.method} (fixed step, dt <= {self.dt:g} s)"
+        return describe_method(self.method, adaptive=False, dt=self.dt)
 
     def integrate(self, system: EquationsOfMotion, y0: np.ndarray, times: np.ndarray, *,
                   on_frame: FrameCallback | None = None) -> IntegrationResult:
