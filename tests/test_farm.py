@@ -79,17 +79,21 @@ def test_a_render_checks_its_trajectory_and_prepares_its_frames_folder_once(thro
     prepare the frames folder once, whatever path the frames take to the renderer."""
     from animbatch.farm import frames as farm_frames
     from animbatch.farm import run as farm_run
+    from animbatch.farm import stream as farm_stream
 
     checked = counting(monkeypatch, farm_run, "check_trajectory")
     checked_in_frames = counting(monkeypatch, farm_frames, "check_trajectory")
     prepared = counting(monkeypatch, farm_run, "prepare_frames")
     prepared_in_frames = counting(monkeypatch, farm_frames, "prepare_frames")
+    prepared_in_stream = counting(monkeypatch, farm_stream, "prepare_frames")
     api.run(throw, overrides=["render.resolution=[64, 48]", "render.formats=[png]", "duration=0.2"], out_dir="renders")
-    assert len(checked) + len(checked_in_frames) <= 1 and len(prepared) + len(prepared_in_frames) == 1
+    assert len(checked) + len(checked_in_frames) <= 1
+    assert len(prepared) + len(prepared_in_frames) + len(prepared_in_stream) == 1
     scene = api.load_scene(throw, ["render.resolution=[64, 48]", "render.formats=[png]", "duration=0.2"])
-    checked.clear(), prepared.clear()
+    checked.clear(), prepared.clear(), prepared_in_stream.clear()
     api.render(scene, api.simulate(scene), out_dir="other")
-    assert len(checked) + len(checked_in_frames) == 1 and len(prepared) + len(prepared_in_frames) == 1
+    assert len(checked) + len(checked_in_frames) == 1
+    assert len(prepared) + len(prepared_in_frames) + len(prepared_in_stream) == 1
 
 
 def test_chunked_rendering_gives_the_pixels_of_a_single_pass(throw, tmp_cwd):
@@ -395,10 +399,10 @@ def test_an_interrupted_checkpointed_bake_resumes_from_its_last_checkpoint(throw
     assert [p.name.split("-")[0] for p in folder.iterdir()] == ["trajectory"]  # the checkpoint went with success
 
 
-def test_background_png_writer_reports_frames_in_order_once_on_disk(tmp_path):
+def test_background_frame_writer_reports_frames_in_order_once_on_disk(tmp_path):
     """Frames handed to the background writer are reported in order, each only once its file is a whole PNG, and
     never more than ``depth`` wait at once."""
-    from animbatch.encode.images import BackgroundPngWriter, PngSequenceWriter
+    from animbatch.encode.images import BackgroundFrameWriter, PngSequenceWriter
 
     writer = PngSequenceWriter(tmp_path)
     reported = []
@@ -407,7 +411,7 @@ def test_background_png_writer_reports_frames_in_order_once_on_disk(tmp_path):
         assert frame_is_complete(writer.path_of(index), (WIDTH, HEIGHT)) and seconds >= 0
         reported.append(index)
 
-    with BackgroundPngWriter(writer, written, depth=2) as background:
+    with BackgroundFrameWriter(writer, written, depth=2) as background:
         for index in range(7):
             background.submit(index, np.full((HEIGHT, WIDTH, 3), 30 * index, np.uint8))
             assert len(reported) >= index - 1  # at most two frames waiting
@@ -415,14 +419,14 @@ def test_background_png_writer_reports_frames_in_order_once_on_disk(tmp_path):
     assert pixels(writer.path_of(6))[0, 0].tolist() == [180, 180, 180]
 
 
-def test_background_png_writer_finishes_handed_frames_when_interrupted_and_raises_write_errors(tmp_path):
+def test_background_frame_writer_finishes_handed_frames_when_interrupted_and_raises_write_errors(tmp_path):
     """Ctrl-C while frames wait to be written: they are still finished whole, and the interrupt goes on. A frame
     that cannot be written raises its error from the writer, not silently."""
-    from animbatch.encode.images import BackgroundPngWriter, PngSequenceWriter
+    from animbatch.encode.images import BackgroundFrameWriter, PngSequenceWriter
 
     writer = PngSequenceWriter(tmp_path / "frames")
     with pytest.raises(KeyboardInterrupt):
-        with BackgroundPngWriter(writer, lambda index, seconds: None, depth=3) as background:
+        with BackgroundFrameWriter(writer, lambda index, seconds: None, depth=3) as background:
             for index in range(3):
                 background.submit(index, np.zeros((HEIGHT, WIDTH, 3), np.uint8))
             raise KeyboardInterrupt
@@ -430,5 +434,44 @@ def test_background_png_writer_finishes_handed_frames_when_interrupted_and_raise
     blocked = tmp_path / "not-a-folder"
     blocked.write_text("a file where the frames folder should be")
     with pytest.raises(OSError):
-        with BackgroundPngWriter(PngSequenceWriter(blocked), lambda index, seconds: None) as background:
+        with BackgroundFrameWriter(PngSequenceWriter(blocked), lambda index, seconds: None) as background:
             background.submit(0, np.zeros((HEIGHT, WIDTH, 3), np.uint8))
+
+
+def test_a_streamed_render_puts_every_frame_in_every_video_in_order(throw, tmp_cwd):
+    """render (one process) pipes each frame into ffmpeg as it is drawn: the mp4 and the gif hold all 50 frames at
+    the scene's size and rate, and frame k of the video is frame k drawn (the PNG of the same run), not a neighbour
+    (the balls move and the clock changes from frame to frame)."""
+    from animbatch.farm.run import run as farm_run
+
+    report = farm_run(throw, overrides=["render.formats=[mp4, gif, png]"], out_dir="renders")
+    assert report.workers == 1 and report.frames_drawn == 50 and report.stages["encode"] >= 0
+    folder = tmp_cwd / "renders" / "throw"
+    for kind in ("mp4", "gif"):
+        reader = imageio_ffmpeg.read_frames(str(folder / f"throw.{kind}"), pix_fmt="rgb24")
+        meta = next(reader)
+        assert meta["size"] == (WIDTH, HEIGHT) and meta["fps"] == pytest.approx(25)
+        video = [np.frombuffer(frame, np.uint8).reshape(HEIGHT, WIDTH, 3).astype(float) for frame in reader]
+        assert len(video) == 50
+        if kind == "mp4":  # each video frame is nearest to the PNG of its own index among its neighbours'
+            drawn = [pixels(folder / "frames" / f"frame_{j:05d}.png").astype(float) for j in range(50)]
+            for k in range(50):
+                near = range(max(0, k - 2), min(50, k + 3))
+                assert min(near, key=lambda j: np.square(video[k] - drawn[j]).mean()) == k, k
+
+
+def test_a_video_writer_whose_encoder_died_says_so_and_leaves_no_file(tmp_path):
+    """ffmpeg gone mid-video (killed, out of disk): the next frame raises RenderError naming the video, and leaving
+    the writer removes the partial file; nothing appears under the final name."""
+    from animbatch.encode import VideoWriter
+    from animbatch.errors import RenderError
+
+    target = tmp_path / "out.mp4"
+    with pytest.raises(RenderError, match="ffmpeg stopped while encoding .*out.mp4"):
+        with VideoWriter(target, (WIDTH, HEIGHT), 25) as writer:
+            writer.write(np.zeros((HEIGHT, WIDTH, 3), np.uint8))
+            writer._process.kill()
+            writer._process.wait()
+            for _ in range(50):  # the pipe's buffer may take a frame or two before the write fails
+                writer.write(np.zeros((HEIGHT, WIDTH, 3), np.uint8))
+    assert list(tmp_path.iterdir()) == []

@@ -132,14 +132,13 @@ def test_camera_change_renders_from_trajectory_without_simulating(slide_scene, t
     assert Image.open(tmp_cwd / "renders" / "slide" / "frames" / "frame_00000.png").size == (96, 54)
 
 
-def test_interrupted_render_leaves_no_video_or_partial_file_and_resumes(slide_scene, tmp_cwd, monkeypatch):
-    """Interrupted while drawing frame 7: no video and no partial file of any kind exist, the frames drawn before are
-    complete PNGs. The next run reuses the cache, draws only frames 7 … 11, and encodes all 12."""
-    from animbatch.farm.frames import frame_is_complete
+def interrupt_at_frame_7(monkeypatch) -> tuple[list[int], object]:
+    """Make the renderer raise Ctrl-C when asked for frame 7 (t > 0.2 s at 30 fps); returns the frames drawn and the
+    renderer's own draw."""
     from animbatch.render.frames import FrameRenderer
 
     original = FrameRenderer.draw
-    drawn = []
+    drawn: list[int] = []
 
     def failing(self, t, *state):
         if t > 0.2:
@@ -148,7 +147,48 @@ def test_interrupted_render_leaves_no_video_or_partial_file_and_resumes(slide_sc
         return original(self, t, *state)
 
     monkeypatch.setattr(FrameRenderer, "draw", failing)
+    return drawn, original
+
+
+def count_draws(monkeypatch, original) -> list[int]:
+    from animbatch.render.frames import FrameRenderer
+
+    drawn: list[int] = []
+    monkeypatch.setattr(FrameRenderer, "draw", lambda self, t, *state: drawn.append(round(t * 30)) or original(
+        self, t, *state))
+    return drawn
+
+
+def test_interrupted_streamed_render_leaves_no_video_or_partial_file_and_starts_again(slide_scene, tmp_cwd,
+                                                                                         monkeypatch):
+    """A render streams its frames into ffmpeg. Interrupted while drawing frame 7: no video, no partial file of any
+    kind and no frame files exist. The next run reuses the cache, draws all 12 frames, and the video has 12."""
+    drawn, original = interrupt_at_frame_7(monkeypatch)
     result = CliRunner().invoke(cli, ["render", str(slide_scene), "--formats", "mp4"])
+    assert result.exit_code == 130 and "interrupted" in result.output
+    assert drawn == list(range(7))
+    folder = tmp_cwd / "renders" / "slide"
+    assert not list(folder.rglob("*.mp4")) and not list(folder.rglob(".*"))  # no video, no hidden partial file
+    assert not list(folder.rglob("frame_*"))
+
+    monkeypatch.setattr(api, "simulate", lambda *a, **k: pytest.fail("simulated again"))
+    drawn = count_draws(monkeypatch, original)
+    result = CliRunner().invoke(cli, ["render", str(slide_scene), "--formats", "mp4"])
+    assert result.exit_code == 0, result.output
+    assert drawn == list(range(12))
+    reader = imageio_ffmpeg.read_frames(str(folder / "slide.mp4"))
+    assert next(reader)["size"] == (WIDTH, HEIGHT) and sum(1 for _ in reader) == 12
+    assert not (folder / "frames").exists()
+
+
+def test_interrupted_render_with_png_frames_resumes_from_them(slide_scene, tmp_cwd, monkeypatch):
+    """With png among the formats the streamed frames also go to disk: an interrupt at frame 7 leaves the frames
+    drawn before as complete PNGs and no video; the next run (mp4 only) draws only frames 7 … 11 and encodes all
+    12 (the farm path's rule: a complete frame of the same picture is never drawn twice)."""
+    from animbatch.farm.frames import frame_is_complete
+
+    drawn, original = interrupt_at_frame_7(monkeypatch)
+    result = CliRunner().invoke(cli, ["render", str(slide_scene), "--formats", "png,mp4"])
     assert result.exit_code == 130 and "interrupted" in result.output
     folder = tmp_cwd / "renders" / "slide"
     assert not list(folder.rglob("*.mp4")) and not list(folder.rglob(".*"))  # no video, no hidden partial file
@@ -157,9 +197,7 @@ def test_interrupted_render_leaves_no_video_or_partial_file_and_resumes(slide_sc
     assert all(frame_is_complete(folder / "frames" / name, (WIDTH, HEIGHT)) for name in frames)
 
     monkeypatch.setattr(api, "simulate", lambda *a, **k: pytest.fail("simulated again"))
-    drawn.clear()
-    monkeypatch.setattr(FrameRenderer, "draw", lambda self, t, *state: drawn.append(round(t * 30)) or original(
-        self, t, *state))
+    drawn = count_draws(monkeypatch, original)
     result = CliRunner().invoke(cli, ["render", str(slide_scene), "--formats", "mp4"])
     assert result.exit_code == 0, result.output
     assert drawn == list(range(7, 12))

@@ -327,8 +327,8 @@ def study(scene: Path, out_dir: Path | None, methods: str | None, repeats: int |
 @click.option("--formats", metavar="LIST", help="Outputs: mp4, webm, gif, png, comma-separated (render.formats).")
 @click.option("--frames", metavar="FIRST-LAST", help="Render only these frames (e.g. 120-239) from the cache, and "
               "encode nothing; complete frames are skipped.")
-@click.option("--jobs", type=click.IntRange(min=1), help="Render processes (default: one per core; fewer for short "
-              "animations).")
+@click.option("--jobs", type=click.IntRange(min=1), help="Render processes drawing PNG frames, encoded after the last "
+              "one (default: one process that streams its frames into the encoder as it draws them).")
 @click.option("--plot", is_flag=True, help="Also draw the per-frame quantities (energy, momentum, angular momentum, "
               "speeds) to quantities.png beside report.json and quantities.csv.")
 @click.option("--camera", metavar="NAME", help="Render through this camera of render.cameras (render.use_camera), "
@@ -339,8 +339,9 @@ def study(scene: Path, out_dir: Path | None, methods: str | None, repeats: int |
 def render(scene: Path, trajectory: Path | None, out_dir: Path, backend: str, settings: tuple[str, ...],
            progress: bool | None, frames: str | None, jobs: int | None, plot: bool, camera: str | None,
            **shortcuts: str | None) -> None:
-    """Bake (or reuse the cached simulation), render the frames off-screen in parallel, and encode the videos into
-    renders/<scene>/. Frames already complete on disk are not drawn again."""
+    """Bake (or reuse the cached simulation), render the frames off-screen and encode the videos into
+    renders/<scene>/, streaming each frame into the encoder as it is drawn (or drawn in parallel with --jobs).
+    Frames already complete on disk are not drawn again."""
     from animbatch import api
     from animbatch.progress import Progress
 

@@ -11,6 +11,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
@@ -46,19 +47,24 @@ class PngSequenceWriter:
                     path.unlink()
 
 
-class BackgroundPngWriter:
-    """Writes frames with a :class:`PngSequenceWriter` on one background thread while the caller draws the next.
+class FrameWriter(Protocol):
+    """Where drawn frames go: a PNG sequence, or a :class:`~animbatch.encode.stream.FrameStream` (videos too)."""
 
-    PNG compression is a quarter of a frame's time at 720p, and Pillow releases the GIL while it compresses, so the
-    two overlap. At most ``depth`` frames wait to be written (bounded memory). ``on_written(index, seconds)`` is
-    called on the caller's thread, in frame order, once a frame is complete on disk. Leaving the ``with`` block,
-    even on an error or Ctrl-C, first finishes the frames already handed over, so every frame drawn is either whole
-    on disk or absent, and an error from a write is raised.
+    def write(self, index: int, image: np.ndarray) -> object: ...
+
+
+class BackgroundFrameWriter:
+    """Writes frames with a :class:`FrameWriter` on one background thread while the caller draws the next.
+
+    PNG compression is a quarter of a frame's time at 720p, and Pillow releases the GIL while it compresses (as does
+    writing to ffmpeg's pipe), so the two overlap. At most ``depth`` frames wait to be written (bounded memory).
+    ``on_written(index, seconds)`` is called on the caller's thread, in frame order, once a frame is written.
+    Leaving the ``with`` block, even on an error or Ctrl-C, first finishes the frames already handed over, so every
+    frame drawn is either whole on disk or absent, and an error from a write is raised.
     """
-    def __init__(self, writer: PngSequenceWriter, on_written: Callable[[int, float], None], depth: int = 2) -> None:
-
+    def __init__(self, writer: FrameWriter, on_written: Callable[[int, float], None], depth: int = 2) -> None:
         self.writer, self.on_written, self.depth = writer, on_written, depth
-        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="png-writer")
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="frame-writer")
         self._pending: collections.deque[tuple[int, Future[float]]] = collections.deque()
 
     def _write(self, index: int, image: np.ndarray) -> float:
@@ -76,7 +82,7 @@ class BackgroundPngWriter:
         index, future = self._pending.popleft()
         self.on_written(index, future.result())
 
-    def __enter__(self) -> BackgroundPngWriter:
+    def __enter__(self) -> BackgroundFrameWriter:
         return self
 
     def __exit__(self, kind: type[BaseException] | None, *exc: object) -> None:

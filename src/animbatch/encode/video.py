@@ -2,9 +2,10 @@
 while frames are still being rendered (or read back from PNGs).
 
 Frames are piped to an ffmpeg process (the binary shipped with imageio-ffmpeg), which encodes in parallel with the
-renderer. The file is written under a temporary name and renamed only when ffmpeg has finished, so an interrupted run
-never leaves a truncated MP4 under the final name. ``macro_block_size=1`` stops imageio-ffmpeg from silently resizing
-frames to multiples of 16 (1080 -> 1088); the schema requires even sizes, which yuv420p needs.
+renderer, at the lowest CPU priority so that it takes only what drawing leaves idle. The file is written under a
+temporary name and renamed only when ffmpeg has finished, so an interrupted run never leaves a truncated MP4 under
+the final name. Frames are passed at their size (the schema requires even sizes, which yuv420p needs), never
+resized to multiples of 16.
 
 x264 presets, measured at 720p on a 2-core machine: ``veryfast`` about 140–200 fps, ``medium`` about 26–80 fps; the
 default ``veryfast`` keeps the encoder ahead of the renderer.
@@ -13,6 +14,10 @@ default ``veryfast`` keeps the encoder ahead of the renderer.
 from __future__ import annotations
 
 import contextlib
+import os
+import subprocess
+import tempfile
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +25,9 @@ import numpy as np
 
 from animbatch.errors import RenderError
 from animbatch.files import partial_path
+
+#: How much lower than the renderer ffmpeg runs (the ``nice`` value added to its priority).
+ENCODER_NICENESS = 19
 
 #: Video kinds: ffmpeg codec, output pixel format, and extra options (``{preset}``/``{crf}`` filled in).
 VIDEO_KINDS: dict[str, tuple[str, str, list[str]]] = {
@@ -47,49 +55,82 @@ class VideoWriter:
         self.kind = kind
         self.frames_written = 0
         self._temporary = partial_path(self.path)
-        self._writer: Any = None
+        self._process: subprocess.Popen[bytes] | None = None
+        self._log: Any = None
 
     def open(self) -> VideoWriter:
         import imageio_ffmpeg  # finds the ffmpeg binary: only when encoding
 
         self.path.parent.mkdir(parents=True, exist_ok=True)
         codec, pixels, options = VIDEO_KINDS[self.kind]
-        self._writer = imageio_ffmpeg.write_frames(
-            str(self._temporary), self.size, fps=self.fps, codec=codec, pix_fmt_in="rgb24",
-            pix_fmt_out=pixels, quality=None, macro_block_size=1, ffmpeg_log_level="error",
-            output_params=[option.format(preset=self.preset, crf=self.crf) for option in options])
-        self._writer.send(None)  # start ffmpeg
+        width, height = self.size
+        command = [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-v", "error", "-f", "rawvideo", "-vcodec", "rawvideo",
+                   "-s", f"{width}x{height}", "-pix_fmt", "rgb24", "-r", str(Fraction(self.fps).limit_denominator()),
+                   "-i", "-", "-an", "-vcodec", codec, "-pix_fmt", pixels,
+                   *[option.format(preset=self.preset, crf=self.crf) for option in options],
+                   "-f", self.kind, str(self._temporary)]
+        self._log = tempfile.TemporaryFile()  # ffmpeg's messages, read when it fails (a pipe could fill and block)
+        try:
+            self._process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                                             stderr=self._log)
+        except OSError as error:
+            self._log.close()
+            raise RenderError(f"could not start ffmpeg ({command[0]}): {error}") from None
+        with contextlib.suppress(OSError):
+            # the encoder yields the cores to the renderer drawing the next frames, and catches up in the gaps
+            # (llvmpipe's threads wait for the slowest one, so taking a core from it costs the whole frame)
+            os.setpriority(os.PRIO_PROCESS, self._process.pid, ENCODER_NICENESS)
         return self
 
     def write(self, image: np.ndarray) -> None:
-        if self._writer is None:
+        if self._process is None:
             raise RuntimeError("VideoWriter.open() was not called")
         height, width = image.shape[:2]
         if (width, height) != self.size:
             raise RenderError(f"frame size {width}×{height} differs from the video size {self.size[0]}×{self.size[1]}")
         try:
-            self._writer.send(np.ascontiguousarray(image))
-        except (OSError, RuntimeError) as error:
-            raise RenderError(f"ffmpeg stopped while encoding {self.path}: {error}") from None
+            self._process.stdin.write(np.ascontiguousarray(image, dtype=np.uint8).data)  # type: ignore[union-attr]
+        except (OSError, ValueError):
+            raise RenderError(f"ffmpeg stopped while encoding {self.path}: {self._messages()}") from None
         self.frames_written += 1
+
+    def _messages(self) -> str:
+        """What ffmpeg wrote to its error stream (its last lines), after it ended."""
+        process = self._process
+        if process is not None:
+            with contextlib.suppress(Exception):
+                process.wait(timeout=10)
+        self._log.seek(0)
+        lines = self._log.read().decode(errors="replace").strip().splitlines()
+        return " / ".join(lines[-5:]) or f"exit code {process.returncode if process else '?'}"
+
+    def _close(self) -> int:
+        """Close ffmpeg's input and wait for it to finish; returns its exit code."""
+        process = self._process
+        assert process is not None
+        with contextlib.suppress(OSError):
+            process.stdin.close()  # type: ignore[union-attr]
+        return process.wait()
 
     def commit(self) -> Path:
         """Finish encoding and move the video to its final name."""
         try:
-            self._writer.close()
-        except (OSError, RuntimeError) as error:
-            raise RenderError(f"ffmpeg failed to finish {self.path}: {error}") from None
+            if self._close() != 0:
+                raise RenderError(f"ffmpeg failed to finish {self.path}: {self._messages()}")
         finally:
-            self._writer = None
+            self._process = None
+            self._log.close()
         self._temporary.replace(self.path)
         return self.path
 
     def abort(self) -> None:
         """Stop ffmpeg and delete the partial file."""
-        if self._writer is not None:
+        if self._process is not None:
             with contextlib.suppress(Exception):
-                self._writer.close()
-            self._writer = None
+                self._process.kill()
+                self._close()
+            self._process = None
+            self._log.close()
         with contextlib.suppress(FileNotFoundError):
             self._temporary.unlink()
 
@@ -97,7 +138,7 @@ class VideoWriter:
         return self.open()
 
     def __exit__(self, kind: object, error: object, traceback: object) -> None:
-        if kind is not None or self._writer is not None:
+        if kind is not None or self._process is not None:
             self.abort()  # an exception, or a writer left open without commit()
 
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from animbatch import __version__
-from animbatch.encode.images import BackgroundPngWriter, PngSequenceWriter
+from animbatch.encode.images import BackgroundFrameWriter, FrameWriter, PngSequenceWriter
 from animbatch.errors import RenderError
 from animbatch.farm.cache import simulation_settings
 from animbatch.files import write_text_atomic
@@ -165,11 +165,18 @@ def draw_frames(scene: LoadedScene, trajectory: Trajectory, frames: FrameRange, 
     todo = []
     for index in frames:
         (result.skipped if frame_is_complete(writer.path_of(index), size) else todo).append(index)
-    if not todo:
-        return result
-    chosen = select_backend(backend)
-    result.backend = chosen.name
-    geometry = frame_geometry(scene, model, trajectory)
+    if todo:
+        draw_into(writer, scene, trajectory, todo, model=model, backend=backend, result=result, on_frame=on_frame)
+    return result
+
+
+def draw_into(writer: FrameWriter, scene: LoadedScene, trajectory: Trajectory, todo: list[int], *, model: Model,
+              backend: str, result: RangeResult, on_frame: Callable[[int], None] | None = None,
+              queued: int = 2) -> None:
+    """Draw frames ``todo`` in order with one renderer and hand each to ``writer`` on a background thread (PNG files,
+    or the videos' pipes), within ``render.max_cost``; ``result`` gets the frames written and the time spent drawing
+    and writing, and ``on_frame(index)`` is called once each is written; at most ``queued`` frames wait to be
+    written. Leaving, even on an error, first finishes the frames handed over."""
 
     def written(index: int, seconds: float) -> None:
         result.write_seconds += seconds
@@ -177,10 +184,14 @@ def draw_frames(scene: LoadedScene, trajectory: Trajectory, frames: FrameRange, 
         if on_frame is not None:
             on_frame(index)
 
+    chosen = select_backend(backend)
+    result.backend = chosen.name
+    geometry = frame_geometry(scene, model, trajectory)
     budget = RenderBudget(scene.spec.render.max_cost, len(todo))
     with contextlib.ExitStack() as stack:
         renderer = stack.enter_context(FrameRenderer(scene.spec.render, geometry, chosen))
-        background = stack.enter_context(BackgroundPngWriter(writer, written))  # closed first: frames finished
+        # entered last, so closed first: the frames handed over are finished before the renderer goes
+        background = stack.enter_context(BackgroundFrameWriter(writer, written, queued))
         for done, index in enumerate(todo, start=1):
             started = time.perf_counter()
             image = renderer.draw(float(trajectory.times[index]), trajectory.positions[index],
@@ -189,7 +200,6 @@ def draw_frames(scene: LoadedScene, trajectory: Trajectory, frames: FrameRange, 
             result.render_seconds += time.perf_counter() - started
             background.submit(index, image)
             budget.after_frame(done)  # the frames submitted are finished on disk before the error leaves
-    return result
 
 
 class RenderBudget:

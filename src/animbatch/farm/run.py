@@ -6,7 +6,8 @@ from __future__ import annotations
 import datetime as _dt
 import platform
 import shutil
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -17,8 +18,16 @@ from animbatch.encode import PngSequenceWriter
 from animbatch.errors import SimulationError
 from animbatch.farm.cache import bake
 from animbatch.farm.encode import encode
-from animbatch.farm.frames import FrameRange, draw_frames, frames_folder, parse_frames, prepare_frames
+from animbatch.farm.frames import (
+    FrameRange,
+    RangeResult,
+    draw_frames,
+    frames_folder,
+    parse_frames,
+    prepare_frames,
+)
 from animbatch.farm.parallel import render_in_parallel, worker_count
+from animbatch.farm.stream import resumable_frames, stream_frames
 from animbatch.files import write_json_atomic
 from animbatch.progress import Progress
 from animbatch.scene import LoadedScene
@@ -54,15 +63,30 @@ def render(scene: LoadedScene, trajectory: Trajectory, *, model: Model | None = 
     """
     model = model if model is not None else compile_model(scene)
     check_trajectory(scene, model, trajectory)
-    folder = prepare_frames(scene, trajectory, out_dir)
     progress = progress or Progress(enabled=False)
     with progress.task("render", trajectory.frame_count) as on_frame:
-        rendered = draw_frames(scene, trajectory, FrameRange(0, trajectory.frame_count), folder, model=model,
-                               backend=backend, on_frame=lambda i: on_frame(i, float(trajectory.times[i])))
-    outputs, encode_seconds = finish_outputs(scene, trajectory.frame_count, out_dir)
+        def each(i: int) -> None:
+            on_frame(i, float(trajectory.times[i]))
+
+        rendered, outputs, encode_seconds = _render_whole(scene, trajectory, model, out_dir, backend, each)
     return RenderResult(outputs, trajectory.frame_count, rendered.backend or "(none: frames were complete)",
                         rendered.render_seconds, encode_seconds, tuple(scene.spec.render.resolution),  # type: ignore[arg-type]
                         scene.spec.fps)
+
+
+def _render_whole(scene: LoadedScene, trajectory: Trajectory, model: Model, out_dir: str | Path, backend: str,
+                  on_frame: Callable[[int], None]) -> tuple[RangeResult, list[Path], float]:
+    """Every frame in this process: streamed into the encoders, or, when frames of this picture are on disk (an
+    interrupted farm or ``--jobs`` render), the missing ones drawn as PNGs and then encoded. Returns the frames
+    drawn, the outputs and the encoding time [s] (after the last frame, when streamed)."""
+    if not resumable_frames(scene, trajectory, out_dir):
+        streamed = stream_frames(scene, trajectory, model=model, out_dir=out_dir, backend=backend, on_frame=on_frame)
+        return streamed.frames, streamed.outputs, streamed.encode_seconds
+    folder = prepare_frames(scene, trajectory, out_dir)
+    rendered = draw_frames(scene, trajectory, FrameRange(0, trajectory.frame_count), folder, model=model,
+                           backend=backend, on_frame=on_frame)
+    outputs, encode_seconds = finish_outputs(scene, trajectory.frame_count, out_dir)
+    return rendered, outputs, encode_seconds
 
 
 def finish_outputs(scene: LoadedScene, frame_count: int, out_dir: str | Path) -> tuple[list[Path], float]:
@@ -140,10 +164,11 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
 
     * **bake**: the trajectory from the cache (``renders/<scene>/cache/``) when the physics, solver settings and
       package version match, else simulated and cached (or read from ``trajectory_path``);
-    * **render**: the frames not yet complete on disk, in ``jobs`` worker processes (default: one per core, fewer
-      for short animations), into ``renders/<scene>/frames/``;
-    * **encode**: every video format the scene asks for; the frame files are then deleted unless ``png`` is one of
-      the formats.
+    * **render** and **encode**: by default in this process, every frame streamed into the encoders as it is drawn
+      (PNG frames too when ``png`` is one of the formats; see :mod:`animbatch.farm.stream`). With ``jobs`` > 1,
+      or when frames of this picture are already on disk (an interrupted ``jobs`` or farm render), the frames not
+      yet complete are drawn as PNGs into ``renders/<scene>/frames/`` (in ``jobs`` worker processes, fewer for
+      short animations) and then encoded; the frame files are deleted unless ``png`` is one of the formats.
 
     With ``frames`` (``"120-239"``) only that range is rendered, and nothing is encoded (``animbatch encode`` does
     that once every range is done); the report is written for whole runs only, with ``quantities.csv`` (and, with
@@ -171,25 +196,34 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
         watch.add("load_cache" if baked.reused else "simulate", baked.seconds)
         trajectory, source, cache = baked.trajectory, baked.path, baked
     span = parse_frames(frames, trajectory.frame_count)
-    folder = prepare_frames(scene, trajectory, out_dir)  # before any worker starts: stale frames of another picture go
-    workers = worker_count(jobs, len(span))
-    # the stage's wall time: with worker processes the frames' own times add up to more than the stage took
-    with watch.stage("render"), progress.task("render", len(span)) as on_frame:
-        if workers > 1:
-            rendered = render_in_parallel(scene_path, overrides, source, span, workers=workers, out_dir=out_dir,
-                                          backend=backend, on_chunk=lambda chunk: [
-                                              on_frame(i, float(trajectory.times[i])) for i in chunk.drawn])
-        else:
-            # checked above (a baked trajectory is this scene's by its cache key), and the folder just prepared
-            rendered = draw_frames(scene, trajectory, span, folder, model=model, backend=backend,
-                                   on_frame=lambda i: on_frame(i, float(trajectory.times[i])))
     spec = scene.spec
-    if frames is None:
-        outputs, encode_seconds = finish_outputs(scene, trajectory.frame_count, out_dir)
-        if any(kind != "png" for kind in spec.render.formats):
-            watch.add("encode", encode_seconds)
-    else:
-        outputs = [frames_folder(scene, out_dir)]
+    # one process streams the whole animation into the encoders; --jobs N draws PNG frames in N processes, and
+    # --frames draws a range for a farm (both encode from the PNGs)
+    workers = worker_count(jobs, len(span)) if jobs else 1
+    started = time.perf_counter()
+    encode_seconds = 0.0
+    with progress.task("render", len(span)) as on_frame:
+        def each(i: int) -> None:
+            on_frame(i, float(trajectory.times[i]))
+
+        if frames is None and workers == 1:
+            rendered, outputs, encode_seconds = _render_whole(scene, trajectory, model, out_dir, backend, each)
+        else:
+            folder = prepare_frames(scene, trajectory, out_dir)  # before any worker starts: stale frames go
+            if workers > 1:
+                rendered = render_in_parallel(scene_path, overrides, source, span, workers=workers, out_dir=out_dir,
+                                              backend=backend, on_chunk=lambda chunk: [each(i) for i in chunk.drawn])
+            else:
+                # checked above (a baked trajectory is this scene's by its cache key), and the folder just prepared
+                rendered = draw_frames(scene, trajectory, span, folder, model=model, backend=backend, on_frame=each)
+            outputs = [frames_folder(scene, out_dir)]
+            if frames is None:
+                outputs, encode_seconds = finish_outputs(scene, trajectory.frame_count, out_dir)
+    # the stage's wall time (with worker processes the frames' own times add up to more than the stage took); when
+    # streamed, encoding overlapped it and only ffmpeg's tail after the last frame counts as encoding
+    watch.add("render", time.perf_counter() - started - encode_seconds)
+    if frames is None and any(kind != "png" for kind in spec.render.formats):
+        watch.add("encode", encode_seconds)
     report = RunReport(scene.name, str(scene.path) if scene.path else None, trajectory.physics_hash, __version__,
                        dict(watch.seconds), trajectory.solver, trajectory.solver_stats, trajectory.frame_count,
                        tuple(spec.render.resolution), spec.fps, rendered.backend or "(none: frames were complete)",

@@ -270,13 +270,15 @@ class RenderSpec(SceneModel):
                                         "its outputs are named <scene>-<camera>.")
     formats: Annotated[list[Literal["mp4", "png", "webm", "gif"]], at.Len(1, 4)] = key(
         ["mp4"], "Outputs: mp4 (H.264), webm (VP9), gif (256 colours; GIF times are in 1/100 s, so 30 fps plays "
-        "at 33.3), and png (keep the frame files; they are the render's resumable state and are otherwise deleted "
-        "once every video is encoded).")
+        "at 33.3), and png (keep the frame files; they are also the render's resumable state: a render with png "
+        "that is interrupted goes on from the frames on disk. Without png, one process streams its frames straight "
+        "into the encoder, and frames drawn in parallel or by range are deleted once every video is encoded).")
     video: VideoSpec = key(VideoSpec(), "MP4 encoding settings.")
     max_cost: float = key(3600.0, "Wall-time budget of drawing the frames (each render process gets it). After "
                                   "two frames the time of the rest is projected, and a render that would take "
-                                  "longer stops with exit code 4, saying what it would take; the frames drawn stay "
-                                  "on disk, and a run with a larger budget goes on from them. 0 = no limit.",
+                                  "longer stops with exit code 4, saying what it would take; frames drawn to disk "
+                                  "(with png, --jobs or --frames) stay there, and a run with a larger budget goes "
+                                  "on from them. 0 = no limit.",
                           "s", ge=0)
 
     @model_validator(mode="before")
