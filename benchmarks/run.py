@@ -3,7 +3,8 @@
 Prints one table. Measures:
 
 1. particle throughput, ns per particle-step, gravity + quadratic drag, fixed-step (Verlet and symplectic Euler),
-   N = 1e3 … 1e6;
+   N = 1e3 … 1e6; and an emitter's pool (``--only pool``) stepped by the compiled kernel, by the numpy code and by a
+   plain numba loop of the same physics (the anchor), in steps per second;
 2. the per-step cost of our solve_ivp path (stepping scipy's solver ourselves) next to bare ``solve_ivp`` on the same
    right-hand side, for RK45 and DOP853;
    and the right-hand-side cost per rigid body (1, 100, 1000 floating boxes), which shows the rigid path is
@@ -33,7 +34,7 @@ Prints one table. Measures:
     encoder) next to its drawing alone.
 
 Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, rigid, contacts, render,
-encode, cloth, fountain, lean, farm, ledger, joints, startup, stream), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick),
+encode, cloth, fountain, lean, farm, ledger, joints, startup, stream, pool), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick),
 ``--cloth-method NAME`` (only the cloth methods whose label starts with NAME, e.g. ``BDF``; repeatable),
 ``--json FILE`` (also write the rows as JSON).
 """
@@ -105,6 +106,110 @@ def bench_particles(quick: bool) -> list[Row]:
             seconds = best_of(3, work)
             rows.append({"benchmark": "particle throughput", "case": f"{scheme_class.__name__}, N = {count:.0e}",
                          "value": seconds / (steps * count) * 1e9, "unit": "ns/particle-step"})
+    return rows
+
+
+def _anchor_loops():  # type: ignore[no-untyped-def]
+    """The anchor of ``bench_pool``: the plainest numba loops of the same physics (velocity Verlet, gravity,
+    quadratic drag, a floor with restitution), one step per call and several, written as anyone would."""
+    import math
+
+    from numba import njit, prange
+
+    @njit(parallel=True, cache=True)
+    def steps(x, v, a, mass, radius, h, count, g, c, e):
+        for i in prange(x.shape[0]):
+            for _ in range(count):
+                for k in range(3):
+                    x[i, k] += h * v[i, k] + 0.5 * h * h * a[i, k]
+                p0, p1, p2 = v[i, 0] + h * a[i, 0], v[i, 1] + h * a[i, 1], v[i, 2] + h * a[i, 2]
+                drag = c * math.sqrt(p0 * p0 + p1 * p1 + p2 * p2) / mass[i]
+                n0, n1, n2 = -drag * p0, g - drag * p1, -drag * p2
+                v[i, 0] += 0.5 * h * (a[i, 0] + n0)
+                v[i, 1] += 0.5 * h * (a[i, 1] + n1)
+                v[i, 2] += 0.5 * h * (a[i, 2] + n2)
+                a[i, 0], a[i, 1], a[i, 2] = n0, n1, n2
+                if x[i, 1] < radius[i] and v[i, 1] < 0:
+                    x[i, 1] = 2 * radius[i] - x[i, 1]
+                    v[i, 1] = -e * v[i, 1]
+
+    return steps
+
+
+def bench_pool(quick: bool) -> list[Row]:
+    """An emitter's pool of N particles (gravity, quadratic drag, bouncing on a floor; velocity Verlet at 1 ms)
+    stepped by the compiled kernel, one step per call (as with births every step) and a frame's 33 steps per call
+    (no births: fused), by the numpy code, and by the anchor: a plain numba loop of the same physics, measured in the
+    same run (issue 23's targets: 1e6 particles ≥ 900 steps/s and ≥ 0.8× the anchor, ≥ 3k fused; 1e3 ≥ 300k)."""
+    from animbatch import api
+    from animbatch.compile.particles import compile_particles
+    from animbatch.sim.kernels import KERNELS_VARIABLE
+    from animbatch.sim.particles.simulate import EmitterRun
+
+    anchor = _anchor_loops()
+    rows: list[Row] = []
+    fused = 33
+    sizes = [1_000, 100_000] if quick else [1_000, 100_000, 1_000_000]
+    for count in sizes:
+        text = (f"duration: 1\nfps: 30\nsolver: {{method: verlet, dt: 0.001}}\n"
+                f"emitters: [{{name: e, bursts: [{{time: 0, count: {count}}}], source: {{type: box, position: "
+                f"[0, 1, 0], size: [2, 1, 2]}}, speed: {{mean: 2, spread: 1}}, lifetime: 1000, radius: 0.005, "
+                f"mass: 1.0e-5}}]\nfields: [{{type: gravity}}, {{type: drag, model: quadratic, coefficient: "
+                f"1.0e-6}}]\ncolliders: [{{type: plane}}]\n")
+        loaded = api.parse_scene(text, filename="pool.yaml")
+        systems = compile_particles(loaded.spec, api.compile_model(loaded))
+        emitter, colliders = systems.emitters[0], systems.colliders["e"]
+        runs = {}
+        for choice in ("numba", "numpy"):
+            os.environ[KERNELS_VARIABLE] = choice
+            run = EmitterRun(emitter, colliders, "verlet", loaded.spec.solver, None, 10**9)
+            run.give_birth(-np.inf, 0.0)
+            runs[choice] = run
+        os.environ.pop(KERNELS_VARIABLE)
+        compiled, numpy_run = runs["numba"], runs["numpy"]
+        assert compiled.kernel is not None and numpy_run.kernel is None
+        pool = compiled.pool
+        saved = {name: getattr(pool, name).copy() for name in ("x", "v", "acceleration", "alive", "stuck")}
+        x, v, a = pool.x.copy(), pool.v.copy(), pool.acceleration.copy()
+        mass, radius = pool.mass.copy(), pool.radius.copy()
+
+        def timed(work: Callable[[], None], steps: int, repeats: int = 5) -> float:
+            """Steps per second of ``work`` (``steps`` steps from the pool's first state), best of ``repeats``."""
+            best = np.inf
+            for _ in range(repeats):
+                for name, value in saved.items():  # every run starts in flight, 1 m over the floor
+                    np.copyto(getattr(pool, name), value)
+                np.copyto(x, saved["x"]), np.copyto(v, saved["v"]), np.copyto(a, saved["acceleration"])
+                started = time.perf_counter()
+                work()
+                best = min(best, time.perf_counter() - started)
+            return steps / best
+
+        steps = 99  # 0.1 s at 1 ms: the drops are still falling, as in a fountain's jet
+        numpy_steps = 10 if count >= 1_000_000 else 33
+        anchor(x, v, a, mass, radius, 1e-3, 1, -9.81, 1e-6, 0.5)  # compiled (or loaded from its cache)
+        compiled.kernel.advance(pool, 0.0, 1e-3, 1, 0, 1, age=True)
+        measured = {
+            "kernel, one step per call": timed(lambda: [compiled.kernel.advance(pool, k * 1e-3, (k + 1) * 1e-3, 1, 0,
+                                                                                1, age=True) for k in range(steps)],
+                                               steps),
+            f"kernel, {fused} steps per call (fused)": timed(lambda: [compiled.kernel.advance(
+                pool, k * fused * 1e-3, (k + 1) * fused * 1e-3, fused, 0, fused, age=True)
+                for k in range(steps // fused)], steps),
+            "numpy code (EmitterRun.step)": timed(lambda: [numpy_run.step(k * 1e-3, (k + 1) * 1e-3)
+                                                           for k in range(numpy_steps)], numpy_steps, repeats=1),
+            "anchor: plain numba loop, one step per call": timed(
+                lambda: [anchor(x, v, a, mass, radius, 1e-3, 1, -9.81, 1e-6, 0.5) for _ in range(steps)], steps),
+            f"anchor: plain numba loop, {fused} steps per call": timed(
+                lambda: [anchor(x, v, a, mass, radius, 1e-3, fused, -9.81, 1e-6, 0.5) for _ in range(steps // fused)],
+                steps),
+        }
+        for case, rate in measured.items():
+            rows.append({"benchmark": "particle pool", "case": f"N = {count:.0e}: {case}", "value": rate,
+                         "unit": "steps/s"})
+        rows.append({"benchmark": "particle pool", "case": f"N = {count:.0e}: kernel / anchor, one step per call",
+                     "value": measured["kernel, one step per call"]
+                     / measured["anchor: plain numba loop, one step per call"], "unit": "×"})
     return rows
 
 
@@ -859,7 +964,7 @@ def bench_joints(quick: bool) -> list[Row]:
 BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "rigid": bench_rigid, "contacts": bench_contacts,
               "render": bench_render, "encode": bench_encode, "cloth": bench_cloth, "fountain": bench_fountain,
               "lean": bench_lean, "farm": bench_farm, "ledger": bench_ledger, "joints": bench_joints,
-              "startup": bench_startup, "stream": bench_stream}
+              "startup": bench_startup, "stream": bench_stream, "pool": bench_pool}
 
 
 def main() -> int:

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-CHEAP = ["particles", "ivp", "rigid", "contacts", "render", "encode", "lean", "ledger", "joints", "startup", "stream"]  # a few seconds each with --quick
+CHEAP = ["particles", "ivp", "rigid", "contacts", "render", "encode", "lean", "ledger", "joints", "startup", "stream", "pool"]  # a few seconds each with --quick
 
 
 def test_the_cheap_benchmarks_run_and_report_every_number(tmp_path):

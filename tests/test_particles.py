@@ -3,6 +3,7 @@ particle through, flat memory, and the motion of particles against closed forms.
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import tracemalloc
 
@@ -190,8 +191,11 @@ def test_linear_drag_reaches_terminal_velocity_and_backward_euler_survives_stiff
         run(text.replace("backward_euler", "symplectic_euler").replace("duration: 0.5", "duration: 10"))
 
 
-def test_bounce_on_a_plane_rises_to_e_squared_of_the_drop_height():
-    """A particle dropped from 1 m onto a plane of restitution e rises to e² m (a burst of one, fine steps)."""
+@pytest.mark.parametrize("kernels", ["numpy", "numba"])
+def test_bounce_on_a_plane_rises_to_e_squared_of_the_drop_height(monkeypatch, kernels):
+    """A particle dropped from 1 m onto a plane of restitution e rises to e² m (a burst of one, fine steps), in the
+    numpy code and in the compiled kernel (numpy where numba is missing)."""
+    monkeypatch.setenv("ANIMBATCH_KERNELS", kernels)
     loaded = scene("""
         duration: 1.6
         fps: 200
@@ -204,6 +208,7 @@ def test_bounce_on_a_plane_rises_to_e_squared_of_the_drop_height():
         colliders: [{type: plane, material: bouncy}]
         """)
     trajectory = api.simulate(loaded)
+    assert trajectory.particle_stats["kernels"] == (kernels if importlib.util.find_spec("numba") else "numpy")
     height = trajectory.particles[0].positions[:, 0, 1].astype(float) - 0.001
     fall = math.sqrt(2 * 0.999 / G)
     after = height[trajectory.times > fall + 0.01]

@@ -30,6 +30,7 @@ from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.particles.body_motion import BodyMotion, BodyPose
 from animbatch.sim.particles.collisions import MAX_BOUNCES, ParticleColliders, bounce
+from animbatch.sim.particles.compiled import CompiledPool
 from animbatch.sim.particles.emitter import Emitter
 from animbatch.sim.particles.obstacles import SURFACE_GAP
 from animbatch.sim.particles.pool import ParticlePool
@@ -55,6 +56,7 @@ class ParticleStats:
     wall_time: float = 0.0
     dt: float | None = None  # fixed-step methods: the step used [s], and how many there are per frame
     substeps_per_frame: int | None = None
+    kernels: str = "numpy"  # "numba" when an emitter's pool was stepped by the compiled kernel
     per_emitter: dict[str, dict[str, int]] = field(default_factory=dict)
 
     def as_dict(self) -> dict:
@@ -65,7 +67,9 @@ class EmitterRun:
     """The running state of one emitter: its pool, and how it steps."""
 
     def __init__(self, emitter: Emitter, colliders: ParticleColliders | None, method: str, solver: StepSettings,
-                 motion: BodyMotion | None) -> None:
+                 motion: BodyMotion | None, steps: int = 0) -> None:
+        """``steps``: how many steps the run will take (fixed-step methods), which decides whether the compiled
+        kernel repays loading."""
         self.emitter = emitter
         self.pool = ParticlePool(emitter.capacity)
         self.colliders = colliders if emitter.collision != "pass" and colliders is not None and \
@@ -78,6 +82,32 @@ class EmitterRun:
         self._gravity = float(np.linalg.norm(gravity))
         self.collisions = 0
         self.steps = 0
+        # the compiled kernel, where it covers this emitter's fields, colliders and method (None: numpy)
+        self.kernel = CompiledPool.of(emitter, self.colliders, method, self._gravity, float(emitter.capacity) * steps)
+
+    def advance_frame(self, t0: float, t1: float, count: int, stats: ParticleStats) -> None:
+        """Advance the pool over the frame interval ``[t0, t1]`` [s] in ``count`` equal steps."""
+        kernel = self.kernel
+        if kernel is None:
+            for k in range(count):
+                self.step(t0 + (t1 - t0) * k / count, t0 + (t1 - t0) * (k + 1) / count)
+                if k % 16 == 15:  # a frame may hold thousands of steps of a large pool
+                    _check_budget(t0 + (t1 - t0) * (k + 1) / count, stats)
+            return
+        if self.emitter.schedule.born_by(t1) == self.emitter.schedule.born_by(t0):  # no births: one fused call
+            self.collisions += kernel.advance(self.pool, t0, t1, count, 0, count, age=True)
+            self.steps += count
+            return
+        for k in range(count):  # births come between steps
+            start, stop = t0 + (t1 - t0) * k / count, t0 + (t1 - t0) * (k + 1) / count
+            self.collisions += kernel.advance(self.pool, t0, t1, count, k, k + 1, age=False)
+            born, born_at = self.give_birth(start, stop)
+            if len(born):
+                self.collisions += kernel.collide_newborns(self.pool, born, born_at, stop - start)
+            kernel.age(self.pool, stop)
+            self.steps += 1
+            if k % 16 == 15:
+                _check_budget(stop, stats)
 
     def step(self, t0: float, t1: float) -> None:
         """Advance the pool from ``t0`` to ``t1`` [s]: move, give birth, collide, age."""
@@ -246,8 +276,9 @@ def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, Parti
     statistics. Raises SimulationError when a particle's state stops being finite."""
     started = time.perf_counter()
     method = solver.method
-    runs = [EmitterRun(e, colliders.get(e.name), method, solver, motion) for e in emitters]
     frames = len(times)
+    total_steps = sum(steps_per_frame(float(b - a), method, dt) for a, b in zip(times[:-1], times[1:]))
+    runs = [EmitterRun(e, colliders.get(e.name), method, solver, motion, total_steps) for e in emitters]
     records = [ParticleFrames(run.emitter.name,
                               np.zeros((frames if record else 1, run.pool.capacity, 3), np.float32),
                               np.full((frames if record else 1, run.pool.capacity), -1, np.int32),
@@ -268,10 +299,7 @@ def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, Parti
                 stats.dt, stats.substeps_per_frame = (t1 - t0) / count, count
             for run in runs:
                 with np.errstate(all="ignore"):  # a diverging particle is caught by check(), once per frame
-                    for k in range(count):
-                        run.step(t0 + (t1 - t0) * k / count, t0 + (t1 - t0) * (k + 1) / count)
-                        if k % 16 == 15:  # a frame may hold thousands of steps of a large pool
-                            _check_budget(t0 + (t1 - t0) * (k + 1) / count, stats)
+                    run.advance_frame(t0, t1, count, stats)
                 run.check(t1)
             _check_budget(t1, stats)
         for run, kept in zip(runs, records):
@@ -285,6 +313,7 @@ def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, Parti
             on_frame(frame, t1)
     for run in runs:
         pool = run.pool
+        stats.kernels = "numba" if run.kernel is not None else stats.kernels
         stats.steps += run.steps
         stats.rhs_evaluations += run.acceleration.evaluations
         stats.born += pool.born

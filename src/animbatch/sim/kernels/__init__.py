@@ -1,0 +1,46 @@
+"""Compiled kernels (numba) for the loops that dominate, each with the pure-numpy code it replaces kept as the
+fallback.
+
+numba is a dependency, but a kernel is only ever an optimisation: when numba cannot be imported (a platform without
+wheels, a broken LLVM) the numpy code runs instead, and the tests check that both give the same results to
+round-off. numba is imported on first use, never at start-up: importing it and loading a cached kernel cost about a
+second, and compiling a kernel the first time on a machine about five (kernels are cached on disk, ``cache=True``).
+So a kernel is used only for work large enough to repay that (:data:`MIN_WORK`).
+
+``ANIMBATCH_KERNELS`` chooses: ``auto`` (the default, as above), ``numba`` (compiled whatever the size, where numba
+loads) or ``numpy`` (never compiled).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+
+#: ``auto``, ``numba`` or ``numpy`` (see the module notes).
+KERNELS_VARIABLE = "ANIMBATCH_KERNELS"
+#: Below this many element-steps (particle-steps for a pool) the numpy code finishes before numba has loaded: at
+#: about 30 ns per particle-step saved, loading numba (about a second) pays for itself from 3e7.
+MIN_WORK = 3e7
+
+
+@functools.cache
+def _numba_imports() -> bool:
+    # numba's OpenMP threads sleep between kernels instead of spinning: the Python work between two calls (births,
+    # records) and other processes (ffmpeg, a renderer, other Dask workers) get the cores
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    try:
+        import numba  # noqa: F401
+    except Exception:  # noqa: BLE001 - any failure to load (missing, or a broken LLVM) means: use numpy
+        return False
+    return True
+
+
+def compiled_kernels(work: float = float("inf")) -> bool:
+    """Whether to use a compiled kernel for ``work`` element-steps: ``ANIMBATCH_KERNELS`` allows it, numba loads,
+    and (unless ``numba`` is asked for) the work repays loading it."""
+    choice = os.environ.get(KERNELS_VARIABLE, "auto").strip().lower() or "auto"
+    if choice not in ("auto", "numba", "numpy"):
+        raise ValueError(f"{KERNELS_VARIABLE}={choice!r}: choose auto, numba or numpy")
+    if choice == "numpy" or (choice == "auto" and work < MIN_WORK):
+        return False
+    return _numba_imports()

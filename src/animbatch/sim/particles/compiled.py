@@ -1,0 +1,129 @@
+"""An emitter's pool stepped by the compiled kernel (:mod:`animbatch.sim.kernels.particle_pool`) where it can be.
+
+The kernel covers particles under gravity, drag and wind, meeting fixed planes or nothing, stepped with explicit
+Euler, semi-implicit Euler or velocity Verlet: fountains, sparks, rain, snow on a floor. Anything else (buoyancy,
+spheres, boxes, meshes, rigid bodies, moving colliders, the other methods) runs the numpy code of
+:class:`~animbatch.sim.particles.simulate.EmitterRun`, as does everything when numba is missing or
+``ANIMBATCH_KERNELS=numpy`` is set. :meth:`CompiledPool.of` decides, once per emitter.
+
+A frame without births is one kernel call that takes every particle through all the frame's steps. A frame with
+births goes step by step, as the numpy code does: move and collide the pool, give birth, collide the newborns'
+paths, age. The one difference from the numpy code is the order of deaths by ``collision: die`` and births within a
+step (the numpy code frees those slots after the step's births): a full pool may then drop a different number of
+births; the particles themselves are the same.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from animbatch.sim.kernels import compiled_kernels
+from animbatch.sim.particles.collisions import MAX_BOUNCES, ParticleColliders
+from animbatch.sim.particles.emitter import Emitter
+from animbatch.sim.particles.obstacles import SURFACE_GAP
+from animbatch.sim.particles.pool import ParticlePool
+
+#: Field kinds and drag laws the kernel evaluates.
+KERNEL_FIELDS = ("gravity", "drag", "wind")
+KERNEL_LAWS = ("linear", "quadratic", "stokes")
+#: Below this many particle-steps a call runs on the calling thread alone: numba's threads sleep between calls
+#: (OMP_WAIT_POLICY=PASSIVE), and waking them takes longer than a small pool's step.
+SERIAL_WORK = 50_000
+#: Methods the kernel steps with (its METHOD_CODES, named here so that deciding costs no numba import).
+KERNEL_METHODS = ("euler", "symplectic_euler", "verlet")
+
+
+@dataclass(frozen=True, eq=False)
+class CompiledPool:
+    """The numbers the kernel needs for one emitter: its method and collision mode codes, its field table (F, 8)
+    and plane table (P, 9) (see :mod:`animbatch.sim.kernels.particle_pool`), and |g| [m/s²]."""
+
+    method: int
+    mode: int
+    fields: np.ndarray
+    planes: np.ndarray
+    gravity: float
+
+    @classmethod
+    def of(cls, emitter: Emitter, colliders: ParticleColliders | None, method: str, gravity: float, work: float
+           ) -> CompiledPool | None:
+        """The kernel's form of this emitter, or None where the numpy code runs (see the module notes):
+        ``colliders``, those the emitter meets (None: none); ``work``, the particle-steps ahead (capacity × steps),
+        which must repay loading numba (:func:`~animbatch.sim.kernels.compiled_kernels`)."""
+        fields = emitter.fields
+        if method not in KERNEL_METHODS or any(f.kind not in KERNEL_FIELDS or (
+                f.kind != "gravity" and f.law not in KERNEL_LAWS) for f in fields):
+            return None
+        if colliders is not None:
+            statics = colliders.statics
+            if len(statics.sphere_centre) or len(statics.box_centre) or (
+                    colliders.obstacles is not None and not colliders.obstacles.empty):
+                return None
+        if not compiled_kernels(work):
+            return None
+        from animbatch.sim.kernels import particle_pool as kernel
+
+        table = np.zeros((len(fields), 8))
+        for row, f in zip(table, fields):
+            dragging = f.kind != "gravity"
+            row[kernel.KIND] = kernel.FIELD_DRAG if dragging else kernel.FIELD_GRAVITY
+            row[kernel.LAW] = KERNEL_LAWS.index(f.law) if dragging else 0
+            row[kernel.COEFFICIENT], row[kernel.VISCOSITY] = f.coefficient, f.viscosity
+            row[kernel.HAS_WIND] = dragging and f.wind is not None
+            vector = f.g if not dragging else f.wind
+            row[kernel.VECTOR:kernel.VECTOR + 3] = vector if vector is not None else 0.0
+        planes = np.zeros((0, 9))
+        if colliders is not None:
+            statics, which = colliders.statics, colliders.statics.plane_material
+            planes = np.column_stack([statics.plane_point, statics.plane_normal, colliders.restitution[which],
+                                      colliders.static_friction[which], colliders.kinetic_friction[which]])
+        mode = emitter.collision if colliders is not None else "pass"
+        return cls(kernel.METHOD_CODES[method], kernel.MODE_CODES[mode], table, np.ascontiguousarray(planes, float),
+                   float(gravity))
+
+    def advance(self, pool: ParticlePool, start: float, stop: float, steps: int, first: int, last: int, *,
+                age: bool) -> int:
+        """Steps ``first`` … ``last - 1`` of the ``steps`` that divide ``[start, stop]`` [s] for the whole pool;
+        with ``age``, deaths by age at the end of each step too. Returns the collisions."""
+        import numba
+
+        from animbatch.sim.kernels.particle_pool import advance_pool
+
+        # the instants as the numpy loop computes them, so that both take the same steps
+        times = start + (stop - start) * np.arange(first, last + 1) / steps
+        threads = numba.get_num_threads()
+        if pool.capacity * (last - first) < SERIAL_WORK:  # waking the threads would cost more than the work
+            numba.set_num_threads(1)
+        try:
+            hits, deaths = advance_pool(pool.x, pool.v, pool.acceleration, pool.alive, pool.stuck, pool.mass,
+                                        pool.radius, pool.birth, pool.lifetime, times, self.method, self.fields,
+                                        self.planes, self.mode, MAX_BOUNCES, SURFACE_GAP, self.gravity, age)
+        finally:
+            numba.set_num_threads(threads)
+        pool.died += int(deaths)
+        return int(hits)
+
+    def collide_newborns(self, pool: ParticlePool, slots: np.ndarray, starts: np.ndarray, h: float) -> int:
+        """The paths of particles born in a step of ``h`` [s], from ``starts`` (K, 3) to where they are now, against
+        the planes. Returns the collisions."""
+        from animbatch.sim.kernels.particle_pool import collide_paths
+
+        hits, deaths = collide_paths(np.ascontiguousarray(slots, np.int64), np.ascontiguousarray(starts, float),
+                                     pool.x, pool.v, pool.alive, pool.stuck, pool.radius, self.planes, self.mode,
+                                     MAX_BOUNCES, SURFACE_GAP, self.gravity, float(h))
+        pool.died += int(deaths)
+        return int(hits)
+
+    def age(self, pool: ParticlePool, now: float) -> None:
+        """Particles whose age at ``now`` [s] reached their lifetime die."""
+        from animbatch.sim.kernels.particle_pool import age_pool
+
+        if pool.capacity < SERIAL_WORK:
+            alive, lifetime = pool.alive, pool.lifetime
+            aged = alive & (now - pool.birth >= lifetime)
+            if aged.any():
+                pool.kill(aged)
+            return
+        pool.died += int(age_pool(pool.alive, pool.stuck, pool.v, pool.birth, pool.lifetime, float(now)))

@@ -1,0 +1,130 @@
+"""The compiled particle-pool kernel against the numpy code it replaces (same particles, same places to round-off,
+same counts), and against closed forms on its own; and when it is chosen."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from animbatch import api
+from animbatch.sim import kernels
+from conftest import scene
+
+numba = pytest.importorskip("numba", reason="numba is not installed: only the numpy code runs")
+
+G = 9.81
+
+#: Two emitters: a jet (births at every step: the step-by-step path) and a burst at t = 0 (no births after it: whole
+#: frames fused into one call), with drag of every law, wind, a floor and a tilted wall, and lives that end mid-run.
+SCENE = """
+duration: 1.2
+fps: 25
+seed: 3
+solver: {{method: {method}, dt: 0.004}}
+materials: {{rubber: {{restitution: 0.6, static_friction: 0.5, kinetic_friction: 0.3}}}}
+emitters:
+  - name: jet
+    source: {{type: disc, position: [0, 0.3, 0], radius: 0.05, normal: [1, 1, 0]}}
+    rate: 900
+    lifetime: {{mean: 0.6, spread: 0.2}}
+    speed: {{mean: 4, spread: 1}}
+    direction: {{axis: [1, 1, 0], cone: 20}}
+    radius: {{mean: 0.01, spread: 0.004}}
+    collision: {mode}
+    material: rubber
+  - name: burst
+    bursts: [{{time: 0, count: 400}}]
+    source: {{type: sphere, position: [0, 1, 0], radius: 0.2}}
+    lifetime: {{mean: 0.9, spread: 0.3}}
+    speed: {{mean: 2, spread: 1}}
+    radius: 0.01
+    collision: {mode}
+    material: rubber
+fields:
+  - {{type: gravity}}
+  - {{type: drag, model: quadratic, coefficient: 2.0e-5, bodies: [jet]}}
+  - {{type: wind, velocity: [-1, 0, 0.5], model: linear, coefficient: 1.0e-3, bodies: [burst]}}
+  - {{type: drag, model: stokes, viscosity: 1.8e-4}}
+colliders:
+  - {{type: plane, material: rubber}}
+  - {{type: plane, point: [1.2, 0, 0], normal: [-1, 0.3, 0], material: rubber}}
+"""
+
+
+def simulate(text: str, monkeypatch, choice: str):
+    monkeypatch.setenv(kernels.KERNELS_VARIABLE, choice)
+    return api.simulate(scene(text))
+
+
+def by_serial(frames, frame: int) -> tuple[np.ndarray, np.ndarray]:
+    """The serials alive at ``frame``, sorted, and their positions in that order."""
+    serials = frames.serials[frame]
+    alive = np.flatnonzero(serials >= 0)
+    order = alive[np.argsort(serials[alive])]
+    return serials[order], frames.positions[frame][order].astype(float)
+
+
+@pytest.mark.parametrize("method", ["euler", "symplectic_euler", "verlet"])
+@pytest.mark.parametrize("mode", ["bounce", "stick", "die"])
+def test_the_compiled_pool_moves_the_same_particles_to_the_same_places_as_numpy(monkeypatch, method, mode):
+    """Every frame holds the same particles, each within round-off of where the numpy code puts it (positions are
+    stored as float32), and births, deaths and collisions are counted alike."""
+    text = SCENE.format(method=method, mode=mode)
+    reference = simulate(text, monkeypatch, "numpy")
+    compiled = simulate(text, monkeypatch, "numba")
+    assert reference.particle_stats["kernels"] == "numpy" and compiled.particle_stats["kernels"] == "numba"
+    for key in ("born", "died", "dropped", "collisions", "steps"):
+        assert compiled.particle_stats[key] == reference.particle_stats[key], key
+    assert reference.particle_stats["collisions"] > 100  # the planes are met, often
+    for ours, theirs in zip(compiled.particles, reference.particles):
+        for frame in range(len(ours.positions)):
+            serials, positions = by_serial(ours, frame)
+            expected_serials, expected = by_serial(theirs, frame)
+            np.testing.assert_array_equal(serials, expected_serials)
+            np.testing.assert_allclose(positions, expected, rtol=0, atol=2e-6)
+
+
+def test_compiled_particles_fall_as_the_closed_form_of_quadratic_drag(monkeypatch):
+    """Dropped from rest under quadratic drag, a particle falls (v_t² / g) ln cosh(g t / v_t), v_t = √(m g / C): the
+    terminal speed it tends to (fused frames: no births after the first instant)."""
+    mass, coefficient = 2e-6, 1.2e-7
+    trajectory = simulate(f"""
+        duration: 3.0
+        fps: 10
+        solver: {{method: verlet, dt: 0.002}}
+        emitters:
+          - {{name: drops, bursts: [{{time: 0, count: 50}}], source: {{type: box, position: [0, 100, 0],
+              size: [1, 1, 1]}}, speed: 0, lifetime: 10, mass: {mass}, radius: 0.001}}
+        fields: [{{type: gravity}}, {{type: drag, model: quadratic, coefficient: {coefficient}}}]
+        """, monkeypatch, "numba")
+    assert trajectory.particle_stats["kernels"] == "numba"
+    fallen = trajectory.particles[0].positions[0, :50, 1].astype(float) - trajectory.particles[0].positions[
+        :, :50, 1].astype(float)
+    terminal = np.sqrt(mass * G / coefficient)
+    expected = terminal**2 / G * np.log(np.cosh(G * trajectory.times / terminal))
+    np.testing.assert_allclose(fallen, np.tile(expected[:, None], (1, 50)), rtol=0, atol=2e-5 * expected[-1])
+    assert expected[-1] / trajectory.times[-1] > 0.6 * terminal  # far enough to feel the drag
+
+
+def test_the_kernel_is_chosen_only_where_it_applies_and_pays(monkeypatch):
+    """auto: numpy for small work, the kernel for large; numba: the kernel whatever the size; numpy: never. A field
+    or collider the kernel does not cover keeps the numpy code. A wrong setting is named."""
+    small = """
+        duration: 0.2
+        fps: 10
+        solver: {method: verlet, dt: 0.01}
+        emitters: [{name: e, rate: 50, lifetime: 1}]
+        fields: [{type: gravity}]
+        """
+    assert simulate(small, monkeypatch, "auto").particle_stats["kernels"] == "numpy"
+    assert simulate(small, monkeypatch, "numba").particle_stats["kernels"] == "numba"
+    monkeypatch.setattr(kernels, "MIN_WORK", 1.0)
+    assert simulate(small, monkeypatch, "auto").particle_stats["kernels"] == "numba"
+    assert simulate(small, monkeypatch, "numpy").particle_stats["kernels"] == "numpy"
+    boxed = small.rstrip() + "\n        colliders: [{type: box, position: [0, -1, 0], size: [1, 1, 1]}]\n"
+    assert simulate(boxed, monkeypatch, "numba").particle_stats["kernels"] == "numpy"
+    adaptive = small.replace("{method: verlet, dt: 0.01}", "{method: RK45}")
+    assert simulate(adaptive, monkeypatch, "numba").particle_stats["kernels"] == "numpy"
+    monkeypatch.setenv(kernels.KERNELS_VARIABLE, "fast")
+    with pytest.raises(ValueError, match="ANIMBATCH_KERNELS='fast': choose auto, numba or numpy"):
+        kernels.compiled_kernels()
