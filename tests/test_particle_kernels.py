@@ -15,7 +15,8 @@ numba = pytest.importorskip("numba", reason="numba is not installed: only the nu
 G = 9.81
 
 #: Two emitters: a jet (births at every step: the step-by-step path) and a burst at t = 0 (no births after it: whole
-#: frames fused into one call), with drag of every law, wind, a floor and a tilted wall, and lives that end mid-run.
+#: frames fused into one call), with drag of every law, wind, a floor, a tilted wall, a sphere and a turned box, and
+#: lives that end mid-run.
 SCENE = """
 duration: 1.2
 fps: 25
@@ -48,6 +49,9 @@ fields:
 colliders:
   - {{type: plane, material: rubber}}
   - {{type: plane, point: [1.2, 0, 0], normal: [-1, 0.3, 0], material: rubber}}
+  - {{type: sphere, position: [0.5, 0.6, 0.1], radius: 0.25, material: rubber}}
+  - {{type: box, position: [-0.4, 0.25, 0], size: [0.5, 0.5, 0.8], orientation: {{axis: [0.3, 1, 0.2], angle: 35}},
+     material: rubber}}
 """
 
 
@@ -121,8 +125,9 @@ def test_the_kernel_is_chosen_only_where_it_applies_and_pays(monkeypatch):
     monkeypatch.setattr(kernels, "MIN_WORK", 1.0)
     assert simulate(small, monkeypatch, "auto").particle_stats["kernels"] == "numba"
     assert simulate(small, monkeypatch, "numpy").particle_stats["kernels"] == "numpy"
-    boxed = small.rstrip() + "\n        colliders: [{type: box, position: [0, -1, 0], size: [1, 1, 1]}]\n"
-    assert simulate(boxed, monkeypatch, "numba").particle_stats["kernels"] == "numpy"
+    meshed = small.rstrip() + "\n        bodies: [{name: b, type: rigid, shape: {type: box, size: [1, 1, 1]}, " \
+                              "position: [0, -1, 0], mass: 1}]\n"
+    assert simulate(meshed, monkeypatch, "numba").particle_stats["kernels"] == "numpy"  # bodies: traced by numpy
     adaptive = small.replace("{method: verlet, dt: 0.01}", "{method: RK45}")
     assert simulate(adaptive, monkeypatch, "numba").particle_stats["kernels"] == "numpy"
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "fast")

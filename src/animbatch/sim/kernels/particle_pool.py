@@ -1,28 +1,30 @@
-"""A pool of emitted particles stepped in one compiled pass: fields, the step, fixed planes and ageing, fused.
+"""A pool of emitted particles stepped in one compiled pass: fields, the step, fixed colliders and ageing, fused.
 
 This is the compiled form of :meth:`animbatch.sim.particles.simulate.EmitterRun.step` for the common case of
-particles under gravity, drag and wind, meeting fixed planes (floors, walls) or nothing, stepped with explicit
-Euler, semi-implicit Euler or velocity Verlet. Each particle is independent of the others, so one thread takes a
-particle through all the steps of a call while its state stays in registers: the pool's arrays are read and written
-once per call, not once per operation and step as in the numpy code. With births during a frame the pool is stepped
-one step per call (births come between steps); without, a whole frame's steps are one call.
+particles under gravity, drag and wind, meeting fixed colliders (planes, spheres, boxes: floors, walls, crates)
+or nothing, stepped with explicit Euler, semi-implicit Euler or velocity Verlet. Each particle is independent of the
+others, so a thread takes a block of particles through all the steps of a call while their state stays in the
+first-level cache: the pool's arrays are read and written once per call, not once per operation and step as in the
+numpy code. With births during a frame the pool is stepped one step per call (births come between steps); without,
+a whole frame's steps are one call.
 
 Every operation is the numpy code's, in the same order, so the two agree to round-off (the tests compare them):
 
 * fields, in the order declared (``FIELD_GRAVITY``: ``a += g``; ``FIELD_DRAG``: ``a += f(u) / m``, ``u = v - w``,
   linear ``-C u``, quadratic ``-C |u| u``, Stokes ``-6 π η r u``);
 * the step (:mod:`animbatch.sim.integrators.particle_kernels`);
-* the path ``x0 → x1`` against every plane grown by the radius, the earliest crossing first; a bounce
-  (:func:`animbatch.sim.particles.collisions.bounce`) sends the particle on for the rest of its step, up to
-  ``MAX_BOUNCES`` times; stick and die stop it at the surface;
-* particles found inside a plane are put back on it and their motion into it removed;
+* the path ``x0 → x1`` against every collider grown by the radius (planes, then spheres, then boxes; the earliest
+  crossing first, ties to the first listed); a bounce (:func:`animbatch.sim.particles.collisions.bounce`) sends the
+  particle on for the rest of its step, up to ``MAX_BOUNCES`` times; stick and die stop it at the surface;
+* particles found inside a collider are put back on it and their motion into it removed, collider by collider;
 * a particle whose age reached its lifetime at the step's end dies.
 
 Arrays (C = the pool's capacity): ``x``, ``v``, ``a`` (C, 3) [m], [m/s], [m/s²], updated in place; ``alive``,
 ``stuck`` (C,) bool, updated in place; ``mass`` [kg], ``radius`` [m], ``birth``, ``lifetime`` [s] (C,). The
 emitter's fields are one table ``fields`` (F, 8): kind, drag law, C, η, whether there is a wind, and the g or wind
-vector; its planes one table ``planes`` (P, 9): point, unit normal, restitution, static and kinetic friction
-against the particles.
+vector; its colliders one table ``solids`` (S, SOLID_COLUMNS): kind, restitution, static and kinetic friction against
+the particles, and a plane's point and unit normal, a sphere's centre and radius, or a box's centre, half sides and
+rotation.
 
 The functions run on every particle at every step are inlined (``inline="always"``): a call per particle-step
 costs more than their arithmetic. Inlining is done by numba and makes the first compilation on a machine take about
@@ -39,8 +41,12 @@ from numba import njit, prange
 #: Field kinds in the field table, and its columns.
 FIELD_GRAVITY, FIELD_DRAG = 0, 1
 KIND, LAW, COEFFICIENT, VISCOSITY, HAS_WIND, VECTOR = 0, 1, 2, 3, 4, 5
-#: The columns of the plane table.
-POINT, NORMAL, RESTITUTION, STATIC_FRICTION, KINETIC_FRICTION = 0, 3, 6, 7, 8
+#: Solid kinds in the solid table, and its columns (a plane's point, a sphere's or box's centre in CENTRE; a box's
+#: rotation, box-to-world, row by row in ROTATION).
+SOLID_PLANE, SOLID_SPHERE, SOLID_BOX = 0, 1, 2
+SOLID, RESTITUTION, STATIC_FRICTION, KINETIC_FRICTION = 0, 1, 2, 3
+CENTRE, NORMAL, RADIUS, HALF, ROTATION = 4, 7, 10, 11, 14
+SOLID_COLUMNS = 23
 #: Drag laws.
 LAW_LINEAR, LAW_QUADRATIC, LAW_STOKES = 0, 1, 2
 #: Step methods.
@@ -82,22 +88,87 @@ def _acceleration(fields, v0, v1, v2, mass, radius):
 
 
 @njit(cache=True, inline="always")
-def _first_plane(planes, p0, p1, p2, q0, q1, q2, radius):
-    """The earliest plane (index, fraction) the path p → q crosses from outside, planes grown by ``radius``;
-    (-1, inf) for none."""
+def _sphere_fraction(solids, k, p0, p1, p2, q0, q1, q2, radius):
+    """Where the path p → q first meets sphere ``k`` grown by ``radius`` from outside (fraction, outward normal), or
+    inf (see collisions.first_hits)."""
+    grown = solids[k, RADIUS] + radius
+    o0, o1, o2 = p0 - solids[k, CENTRE], p1 - solids[k, CENTRE + 1], p2 - solids[k, CENTRE + 2]
+    d0, d1, d2 = q0 - p0, q1 - p1, q2 - p2
+    a = d0 * d0 + d1 * d1 + d2 * d2
+    b = d0 * o0 + d1 * o1 + d2 * o2
+    c = o0 * o0 + o1 * o1 + o2 * o2 - grown * grown
+    disc = b * b - a * c
+    if not (c >= 0.0 and disc >= 0.0 and a > 0.0):
+        return np.inf, 0.0, 0.0, 0.0
+    fraction = (-b - math.sqrt(max(disc, 0.0))) / a
+    if not (0.0 <= fraction <= 1.0):
+        return np.inf, 0.0, 0.0, 0.0
+    t0, t1, t2 = o0 + fraction * d0, o1 + fraction * d1, o2 + fraction * d2
+    length = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+    return fraction, t0 / length, t1 / length, t2 / length
+
+
+@njit(cache=True, inline="always")
+def _box_fraction(solids, k, p0, p1, p2, q0, q1, q2, radius):
+    """Where the path p → q first meets box ``k`` grown by ``radius`` from outside (fraction, outward normal of the
+    face it enters), or inf (slabs, as collisions.first_hits)."""
+    entry = -np.inf
+    leave = np.inf
+    axis = 0
+    outside = False
+    direction = 0.0
+    for m in range(3):
+        grown = solids[k, HALF + m] + radius
+        start = ((p0 - solids[k, CENTRE]) * solids[k, ROTATION + m] + (p1 - solids[k, CENTRE + 1])
+                 * solids[k, ROTATION + 3 + m] + (p2 - solids[k, CENTRE + 2]) * solids[k, ROTATION + 6 + m])
+        d = ((q0 - p0) * solids[k, ROTATION + m] + (q1 - p1) * solids[k, ROTATION + 3 + m]
+             + (q2 - p2) * solids[k, ROTATION + 6 + m])
+        if abs(start) > grown:
+            outside = True
+        if d == 0.0:
+            near = -np.inf if abs(start) <= grown else np.inf
+            far = np.inf if abs(start) <= grown else -np.inf
+        else:
+            low = (-grown - start) / d
+            high = (grown - start) / d
+            near = min(low, high)
+            far = max(low, high)
+        if near > entry or m == 0:
+            entry = near
+            axis = m
+            direction = d
+        leave = min(leave, far)
+    if not (outside and entry <= leave and 0.0 <= entry <= 1.0):
+        return np.inf, 0.0, 0.0, 0.0
+    sign = -1.0 if direction > 0.0 else (1.0 if direction < 0.0 else 0.0)
+    return (entry, sign * solids[k, ROTATION + axis], sign * solids[k, ROTATION + 3 + axis],
+            sign * solids[k, ROTATION + 6 + axis])
+
+
+@njit(cache=True, inline="always")
+def _first_hit(solids, p0, p1, p2, q0, q1, q2, radius):
+    """The earliest solid (index, fraction, outward normal) the path p → q meets from outside, solids grown by
+    ``radius``; index -1 for none. Ties go to the solid listed first (solids, spheres, boxes)."""
     best = np.inf
     which = -1
-    for k in range(planes.shape[0]):
-        n0, n1, n2 = planes[k, NORMAL], planes[k, NORMAL + 1], planes[k, NORMAL + 2]
-        c0, c1, c2 = planes[k, POINT], planes[k, POINT + 1], planes[k, POINT + 2]
-        d0 = (p0 - c0) * n0 + (p1 - c1) * n1 + (p2 - c2) * n2 - radius
-        d1 = (q0 - c0) * n0 + (q1 - c1) * n1 + (q2 - c2) * n2 - radius
-        if d0 >= 0.0 and d1 < 0.0:
-            fraction = d0 / (d0 - d1)
-            if fraction < best:
-                best = fraction
-                which = k
-    return which, best
+    b0 = b1 = b2 = 0.0
+    for k in range(solids.shape[0]):
+        kind = solids[k, SOLID]
+        if kind == SOLID_PLANE:
+            n0, n1, n2 = solids[k, NORMAL], solids[k, NORMAL + 1], solids[k, NORMAL + 2]
+            c0, c1, c2 = solids[k, CENTRE], solids[k, CENTRE + 1], solids[k, CENTRE + 2]
+            d0 = (p0 - c0) * n0 + (p1 - c1) * n1 + (p2 - c2) * n2 - radius
+            d1 = (q0 - c0) * n0 + (q1 - c1) * n1 + (q2 - c2) * n2 - radius
+            fraction = d0 / (d0 - d1) if d0 >= 0.0 and d1 < 0.0 else np.inf
+        elif kind == SOLID_SPHERE:
+            fraction, n0, n1, n2 = _sphere_fraction(solids, k, p0, p1, p2, q0, q1, q2, radius)
+        else:
+            fraction, n0, n1, n2 = _box_fraction(solids, k, p0, p1, p2, q0, q1, q2, radius)
+        if fraction < best:
+            best = fraction
+            which = k
+            b0, b1, b2 = n0, n1, n2
+    return which, best, b0, b1, b2
 
 
 @njit(cache=True)
@@ -120,10 +191,11 @@ def _bounce(v0, v1, v2, n0, n1, n2, restitution, static_friction, kinetic_fricti
 
 
 @njit(cache=True)
-def _resolve(planes, mode, max_bounces, gap, rest_speed, which, fraction, s0, s1, s2, p0, p1, p2, u0, u1, u2, r, h):
-    """What follows a hit on plane ``which`` at ``fraction`` of the path s → p (velocity u at the step's end,
-    step h): bounces for the rest of the step (up to ``max_bounces``), or a stop at the surface. Returns the
-    position, velocity, hits and what happened: 0 moved on, 1 stuck, 2 died. (Rare next to the steps without a
+def _resolve(solids, mode, max_bounces, gap, rest_speed, which, fraction, n0, n1, n2, s0, s1, s2, p0, p1, p2, u0, u1,
+             u2, r, h):
+    """What follows a hit on solid ``which`` (outward normal n) at ``fraction`` of the path s → p (velocity u at the
+    step's end, step h): bounces for the rest of the step (up to ``max_bounces``), or a stop at the surface. Returns
+    the position, velocity, hits and what happened: 0 moved on, 1 stuck, 2 died. (Rare next to the steps without a
     hit, so not inlined.)"""
     fate = 0
     hits = 0
@@ -131,20 +203,19 @@ def _resolve(planes, mode, max_bounces, gap, rest_speed, which, fraction, s0, s1
         if which < 0:
             break
         hits += 1
-        n0, n1, n2 = planes[which, NORMAL], planes[which, NORMAL + 1], planes[which, NORMAL + 2]
         at0 = s0 + fraction * (p0 - s0) + gap * n0
         at1 = s1 + fraction * (p1 - s1) + gap * n1
         at2 = s2 + fraction * (p2 - s2) + gap * n2
         if mode == MODE_BOUNCE:
-            u0, u1, u2 = _bounce(u0, u1, u2, n0, n1, n2, planes[which, RESTITUTION], planes[which, STATIC_FRICTION],
-                                 planes[which, KINETIC_FRICTION], rest_speed)
+            u0, u1, u2 = _bounce(u0, u1, u2, n0, n1, n2, solids[which, RESTITUTION], solids[which, STATIC_FRICTION],
+                                 solids[which, KINETIC_FRICTION], rest_speed)
             if bounces == max_bounces:  # out of bounces: stays at the surface for the rest of this step
                 p0, p1, p2 = at0, at1, at2
                 break
             rest = (1.0 - fraction) * h  # the rest of the step, bounced
             s0, s1, s2 = at0, at1, at2
             p0, p1, p2 = at0 + rest * u0, at1 + rest * u1, at2 + rest * u2
-            which, fraction = _first_plane(planes, s0, s1, s2, p0, p1, p2, r)
+            which, fraction, n0, n1, n2 = _first_hit(solids, s0, s1, s2, p0, p1, p2, r)
             continue
         p0, p1, p2 = at0, at1, at2
         u0 = u1 = u2 = 0.0
@@ -154,11 +225,50 @@ def _resolve(planes, mode, max_bounces, gap, rest_speed, which, fraction, s0, s1
 
 
 @njit(cache=True, inline="always")
-def _push_out(planes, gap, p0, p1, p2, u0, u1, u2, r):
-    """A particle left inside a plane goes back onto it, its motion into it removed."""
-    for j in range(planes.shape[0]):
-        n0, n1, n2 = planes[j, NORMAL], planes[j, NORMAL + 1], planes[j, NORMAL + 2]
-        distance = (p0 - planes[j, POINT]) * n0 + (p1 - planes[j, POINT + 1]) * n1 + (p2 - planes[j, POINT + 2]) * n2
+def _signed_distance(solids, k, p0, p1, p2):
+    """Signed distance [m] of a point to solid ``k`` (not grown) and its outward normal (collisions.push_out's)."""
+    kind = solids[k, SOLID]
+    c0, c1, c2 = p0 - solids[k, CENTRE], p1 - solids[k, CENTRE + 1], p2 - solids[k, CENTRE + 2]
+    if kind == SOLID_PLANE:
+        n0, n1, n2 = solids[k, NORMAL], solids[k, NORMAL + 1], solids[k, NORMAL + 2]
+        return c0 * n0 + c1 * n1 + c2 * n2, n0, n1, n2
+    if kind == SOLID_SPHERE:
+        length = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+        if length > 1e-12:
+            return length - solids[k, RADIUS], c0 / length, c1 / length, c2 / length
+        return length - solids[k, RADIUS], 0.0, 1.0, 0.0
+    x0 = solids[k, ROTATION] * c0 + solids[k, ROTATION + 3] * c1 + solids[k, ROTATION + 6] * c2  # box axes: Rᵀ c
+    x1 = solids[k, ROTATION + 1] * c0 + solids[k, ROTATION + 4] * c1 + solids[k, ROTATION + 7] * c2
+    x2 = solids[k, ROTATION + 2] * c0 + solids[k, ROTATION + 5] * c1 + solids[k, ROTATION + 8] * c2
+    h0, h1, h2 = solids[k, HALF], solids[k, HALF + 1], solids[k, HALF + 2]
+    o0 = x0 - min(max(x0, -h0), h0)
+    o1 = x1 - min(max(x1, -h1), h1)
+    o2 = x2 - min(max(x2, -h2), h2)
+    distance = math.sqrt(o0 * o0 + o1 * o1 + o2 * o2)
+    if distance > 1e-12:
+        l0, l1, l2 = o0 / distance, o1 / distance, o2 / distance
+        signed = distance
+    else:  # inside: out through the nearest face (the first of equals, as argmin)
+        depth0, depth1, depth2 = h0 - abs(x0), h1 - abs(x1), h2 - abs(x2)
+        l0 = l1 = l2 = 0.0
+        if depth0 <= depth1 and depth0 <= depth2:
+            signed, l0 = -depth0, (1.0 if x0 >= 0.0 else -1.0)
+        elif depth1 <= depth2:
+            signed, l1 = -depth1, (1.0 if x1 >= 0.0 else -1.0)
+        else:
+            signed, l2 = -depth2, (1.0 if x2 >= 0.0 else -1.0)
+    n0 = solids[k, ROTATION] * l0 + solids[k, ROTATION + 1] * l1 + solids[k, ROTATION + 2] * l2
+    n1 = solids[k, ROTATION + 3] * l0 + solids[k, ROTATION + 4] * l1 + solids[k, ROTATION + 5] * l2
+    n2 = solids[k, ROTATION + 6] * l0 + solids[k, ROTATION + 7] * l1 + solids[k, ROTATION + 8] * l2
+    return signed, n0, n1, n2
+
+
+@njit(cache=True, inline="always")
+def _push_out(solids, gap, p0, p1, p2, u0, u1, u2, r):
+    """A particle left inside a solid (closer than its radius) goes back onto it, its motion into it removed; the
+    solids in turn, each after the pushes out of those before it."""
+    for k in range(solids.shape[0]):
+        distance, n0, n1, n2 = _signed_distance(solids, k, p0, p1, p2)
         if distance < r:
             depth = r - distance + gap
             p0 += depth * n0
@@ -178,9 +288,9 @@ BLOCK = 32
 
 
 @njit(cache=True, inline="always")
-def _step(i, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, method, fields, planes, mode,
+def _step(i, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, method, fields, solids, mode,
           max_bounces, gap, gravity, age, collide):
-    """One step ``h`` [s] ending at ``t_to`` of particle ``i`` (in place). Returns its hits on planes and whether it
+    """One step ``h`` [s] ending at ``t_to`` of particle ``i`` (in place). Returns its hits on solids and whether it
     died."""
     if not alive[i]:
         return 0, False
@@ -217,17 +327,17 @@ def _step(i, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, meth
                 u1 = u1 + h * c1
                 u2 = u2 + h * c2
         if collide:
-            which, fraction = _first_plane(planes, s0, s1, s2, p0, p1, p2, r)
+            which, fraction, n0, n1, n2 = _first_hit(solids, s0, s1, s2, p0, p1, p2, r)
             if which >= 0:
                 p0, p1, p2, u0, u1, u2, hits, fate = _resolve(
-                    planes, mode, max_bounces, gap, 2.0 * h * gravity, which, fraction, s0, s1, s2, p0, p1, p2, u0,
-                    u1, u2, r, h)
+                    solids, mode, max_bounces, gap, 2.0 * h * gravity, which, fraction, n0, n1, n2, s0, s1, s2, p0,
+                    p1, p2, u0, u1, u2, r, h)
                 if fate == 1:
                     stuck[i] = True
                     c0 = c1 = c2 = 0.0
                 elif fate == 2:
                     alive[i] = False
-            p0, p1, p2, u0, u1, u2 = _push_out(planes, gap, p0, p1, p2, u0, u1, u2, r)
+            p0, p1, p2, u0, u1, u2 = _push_out(solids, gap, p0, p1, p2, u0, u1, u2, r)
         x[i, 0], x[i, 1], x[i, 2] = p0, p1, p2
         v[i, 0], v[i, 1], v[i, 2] = u0, u1, u2
         a[i, 0], a[i, 1], a[i, 2] = c0, c1, c2
@@ -241,14 +351,14 @@ def _step(i, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, meth
 
 
 @njit(cache=True, parallel=True)
-def advance_pool(x, v, a, alive, stuck, mass, radius, birth, lifetime, times, method, fields, planes, mode,
+def advance_pool(x, v, a, alive, stuck, mass, radius, birth, lifetime, times, method, fields, solids, mode,
                  max_bounces, gap, gravity, age):
     """The steps between the instants ``times`` (S + 1,) [s], for every live, free particle (in place); with
     ``age``, particles die at the end of the step their age reaches their lifetime. ``mode``: a MODE_* code;
-    ``gravity``: |g| [m/s²] (normal speeds below 2 h |g| do not bounce). Returns (hits on planes, deaths)."""
+    ``gravity``: |g| [m/s²] (normal speeds below 2 h |g| do not bounce). Returns (hits on solids, deaths)."""
     hit_total = 0
     death_total = 0
-    collide = mode != MODE_PASS and planes.shape[0] > 0
+    collide = mode != MODE_PASS and solids.shape[0] > 0
     count = x.shape[0]
     for block in prange((count + BLOCK - 1) // BLOCK):
         low = block * BLOCK
@@ -262,7 +372,7 @@ def advance_pool(x, v, a, alive, stuck, mass, radius, birth, lifetime, times, me
             h = times[k + 1] - times[k]
             for i in range(low, high):
                 hit, died = _step(i, h, times[k + 1], x, v, a, alive, stuck, mass, radius, birth, lifetime, method,
-                                  fields, planes, mode, max_bounces, gap, gravity, age, collide)
+                                  fields, solids, mode, max_bounces, gap, gravity, age, collide)
                 hits += hit
                 deaths += died
         hit_total += hits
@@ -271,12 +381,12 @@ def advance_pool(x, v, a, alive, stuck, mass, radius, birth, lifetime, times, me
 
 
 @njit(cache=True)
-def collide_paths(slots, starts, x, v, alive, stuck, radius, planes, mode, max_bounces, gap, gravity, h):
+def collide_paths(slots, starts, x, v, alive, stuck, radius, solids, mode, max_bounces, gap, gravity, h):
     """The paths ``starts`` (K, 3) → ``x[slots]`` of particles born during a step of ``h`` [s] (few: no threads)
-    against the planes (in place). Returns (hits, deaths)."""
+    against the solids (in place). Returns (hits, deaths)."""
     hit_total = 0
     death_total = 0
-    if mode == MODE_PASS or planes.shape[0] == 0:
+    if mode == MODE_PASS or solids.shape[0] == 0:
         return hit_total, death_total
     for n in range(slots.shape[0]):
         i = slots[n]
@@ -284,18 +394,18 @@ def collide_paths(slots, starts, x, v, alive, stuck, radius, planes, mode, max_b
             continue
         p0, p1, p2, u0, u1, u2 = x[i, 0], x[i, 1], x[i, 2], v[i, 0], v[i, 1], v[i, 2]
         r = radius[i]
-        which, fraction = _first_plane(planes, starts[n, 0], starts[n, 1], starts[n, 2], p0, p1, p2, r)
+        which, fraction, n0, n1, n2 = _first_hit(solids, starts[n, 0], starts[n, 1], starts[n, 2], p0, p1, p2, r)
         if which >= 0:
             p0, p1, p2, u0, u1, u2, hits, fate = _resolve(
-                planes, mode, max_bounces, gap, 2.0 * h * gravity, which, fraction, starts[n, 0], starts[n, 1],
-                starts[n, 2], p0, p1, p2, u0, u1, u2, r, h)
+                solids, mode, max_bounces, gap, 2.0 * h * gravity, which, fraction, n0, n1, n2, starts[n, 0],
+                starts[n, 1], starts[n, 2], p0, p1, p2, u0, u1, u2, r, h)
             hit_total += hits
             if fate == 1:
                 stuck[i] = True
             elif fate == 2:
                 alive[i] = False
                 death_total += 1
-        x[i, 0], x[i, 1], x[i, 2], v[i, 0], v[i, 1], v[i, 2] = _push_out(planes, gap, p0, p1, p2, u0, u1, u2, r)
+        x[i, 0], x[i, 1], x[i, 2], v[i, 0], v[i, 1], v[i, 2] = _push_out(solids, gap, p0, p1, p2, u0, u1, u2, r)
     return hit_total, death_total
 
 

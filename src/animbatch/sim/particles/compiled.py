@@ -1,8 +1,8 @@
 """An emitter's pool stepped by the compiled kernel (:mod:`animbatch.sim.kernels.particle_pool`) where it can be.
 
-The kernel covers particles under gravity, drag and wind, meeting fixed planes or nothing, stepped with explicit
-Euler, semi-implicit Euler or velocity Verlet: fountains, sparks, rain, snow on a floor. Anything else (buoyancy,
-spheres, boxes, meshes, rigid bodies, moving colliders, the other methods) runs the numpy code of
+The kernel covers particles under gravity, drag and wind, meeting fixed planes, spheres and boxes or nothing,
+stepped with explicit Euler, semi-implicit Euler or velocity Verlet: fountains, sparks, rain, snow on a crate.
+Anything else (buoyancy, meshes, rigid bodies, moving colliders, the other methods) runs the numpy code of
 :class:`~animbatch.sim.particles.simulate.EmitterRun`, as does everything when numba is missing or
 ``ANIMBATCH_KERNELS=numpy`` is set. :meth:`CompiledPool.of` decides, once per emitter.
 
@@ -16,6 +16,7 @@ births; the particles themselves are the same.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -38,12 +39,12 @@ KERNEL_METHODS = ("euler", "symplectic_euler", "verlet")
 @dataclass(frozen=True, eq=False)
 class CompiledPool:
     """The numbers the kernel needs for one emitter: its method and collision mode codes, its field table (F, 8)
-    and plane table (P, 9) (see :mod:`animbatch.sim.kernels.particle_pool`), and |g| [m/s²]."""
+    and collider table (S, SOLID_COLUMNS) (see :mod:`animbatch.sim.kernels.particle_pool`), and |g| [m/s²]."""
 
     method: int
     mode: int
     fields: np.ndarray
-    planes: np.ndarray
+    solids: np.ndarray
     gravity: float
 
     @classmethod
@@ -56,11 +57,8 @@ class CompiledPool:
         if method not in KERNEL_METHODS or any(f.kind not in KERNEL_FIELDS or (
                 f.kind != "gravity" and f.law not in KERNEL_LAWS) for f in fields):
             return None
-        if colliders is not None:
-            statics = colliders.statics
-            if len(statics.sphere_centre) or len(statics.box_centre) or (
-                    colliders.obstacles is not None and not colliders.obstacles.empty):
-                return None
+        if colliders is not None and colliders.obstacles is not None and not colliders.obstacles.empty:
+            return None  # meshes, bodies and moving colliders are traced by the numpy code
         if not compiled_kernels(work):
             return None
         from animbatch.sim.kernels import particle_pool as kernel
@@ -74,14 +72,9 @@ class CompiledPool:
             row[kernel.HAS_WIND] = dragging and f.wind is not None
             vector = f.g if not dragging else f.wind
             row[kernel.VECTOR:kernel.VECTOR + 3] = vector if vector is not None else 0.0
-        planes = np.zeros((0, 9))
-        if colliders is not None:
-            statics, which = colliders.statics, colliders.statics.plane_material
-            planes = np.column_stack([statics.plane_point, statics.plane_normal, colliders.restitution[which],
-                                      colliders.static_friction[which], colliders.kinetic_friction[which]])
+        solids = solid_table(colliders, kernel) if colliders is not None else np.zeros((0, kernel.SOLID_COLUMNS))
         mode = emitter.collision if colliders is not None else "pass"
-        return cls(kernel.METHOD_CODES[method], kernel.MODE_CODES[mode], table, np.ascontiguousarray(planes, float),
-                   float(gravity))
+        return cls(kernel.METHOD_CODES[method], kernel.MODE_CODES[mode], table, solids, float(gravity))
 
     def advance(self, pool: ParticlePool, start: float, stop: float, steps: int, first: int, last: int, *,
                 age: bool) -> int:
@@ -99,7 +92,7 @@ class CompiledPool:
         try:
             hits, deaths = advance_pool(pool.x, pool.v, pool.acceleration, pool.alive, pool.stuck, pool.mass,
                                         pool.radius, pool.birth, pool.lifetime, times, self.method, self.fields,
-                                        self.planes, self.mode, MAX_BOUNCES, SURFACE_GAP, self.gravity, age)
+                                        self.solids, self.mode, MAX_BOUNCES, SURFACE_GAP, self.gravity, age)
         finally:
             numba.set_num_threads(threads)
         pool.died += int(deaths)
@@ -107,11 +100,11 @@ class CompiledPool:
 
     def collide_newborns(self, pool: ParticlePool, slots: np.ndarray, starts: np.ndarray, h: float) -> int:
         """The paths of particles born in a step of ``h`` [s], from ``starts`` (K, 3) to where they are now, against
-        the planes. Returns the collisions."""
+        the colliders. Returns the collisions."""
         from animbatch.sim.kernels.particle_pool import collide_paths
 
         hits, deaths = collide_paths(np.ascontiguousarray(slots, np.int64), np.ascontiguousarray(starts, float),
-                                     pool.x, pool.v, pool.alive, pool.stuck, pool.radius, self.planes, self.mode,
+                                     pool.x, pool.v, pool.alive, pool.stuck, pool.radius, self.solids, self.mode,
                                      MAX_BOUNCES, SURFACE_GAP, self.gravity, float(h))
         pool.died += int(deaths)
         return int(hits)
@@ -127,3 +120,32 @@ class CompiledPool:
                 pool.kill(aged)
             return
         pool.died += int(age_pool(pool.alive, pool.stuck, pool.v, pool.birth, pool.lifetime, float(now)))
+
+
+def solid_table(colliders: ParticleColliders, kernel: Any) -> np.ndarray:
+    """The fixed colliders as the kernel's table: planes, then spheres, then boxes (the numpy code's order), each
+    with its coefficients against the particles."""
+    statics = colliders.statics
+    rows = []
+    for kind, count, material in ((kernel.SOLID_PLANE, len(statics.plane_point), statics.plane_material),
+                                  (kernel.SOLID_SPHERE, len(statics.sphere_centre), statics.sphere_material),
+                                  (kernel.SOLID_BOX, len(statics.box_centre), statics.box_material)):
+        for k in range(count):
+            row = np.zeros(kernel.SOLID_COLUMNS)
+            row[kernel.SOLID] = kind
+            m = material[k]
+            row[kernel.RESTITUTION] = colliders.restitution[m]
+            row[kernel.STATIC_FRICTION] = colliders.static_friction[m]
+            row[kernel.KINETIC_FRICTION] = colliders.kinetic_friction[m]
+            if kind == kernel.SOLID_PLANE:
+                row[kernel.CENTRE:kernel.CENTRE + 3] = statics.plane_point[k]
+                row[kernel.NORMAL:kernel.NORMAL + 3] = statics.plane_normal[k]
+            elif kind == kernel.SOLID_SPHERE:
+                row[kernel.CENTRE:kernel.CENTRE + 3] = statics.sphere_centre[k]
+                row[kernel.RADIUS] = statics.sphere_radius[k]
+            else:
+                row[kernel.CENTRE:kernel.CENTRE + 3] = statics.box_centre[k]
+                row[kernel.HALF:kernel.HALF + 3] = statics.box_half[k]
+                row[kernel.ROTATION:kernel.ROTATION + 9] = np.ravel(statics.box_rotation[k])
+            rows.append(row)
+    return np.array(rows, float).reshape(-1, kernel.SOLID_COLUMNS)
