@@ -26,9 +26,9 @@ vector; its colliders one table ``solids`` (S, SOLID_COLUMNS): kind, restitution
 the particles, and a plane's point and unit normal, a sphere's centre and radius, or a box's centre, half sides and
 rotation.
 
-The functions run on every particle at every step are inlined (``inline="always"``): a call per particle-step
-costs more than their arithmetic. Inlining is done by numba and makes the first compilation on a machine take about
-ten seconds; it is cached on disk after that.
+The functions run on every particle at every step (fields, planes) are inlined (``inline="always"``): a call per
+particle-step costs more than their arithmetic. Spheres and boxes are called, not inlined: inlining is done by numba
+and is what the first compilation on a machine spends its time on (cached on disk after that).
 """
 
 from __future__ import annotations
@@ -87,7 +87,7 @@ def _acceleration(fields, v0, v1, v2, mass, radius):
     return a0, a1, a2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _sphere_fraction(solids, k, p0, p1, p2, q0, q1, q2, radius):
     """Where the path p → q first meets sphere ``k`` grown by ``radius`` from outside (fraction, outward normal), or
     inf (see collisions.first_hits)."""
@@ -108,7 +108,7 @@ def _sphere_fraction(solids, k, p0, p1, p2, q0, q1, q2, radius):
     return fraction, t0 / length, t1 / length, t2 / length
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _box_fraction(solids, k, p0, p1, p2, q0, q1, q2, radius):
     """Where the path p → q first meets box ``k`` grown by ``radius`` from outside (fraction, outward normal of the
     face it enters), or inf (slabs, as collisions.first_hits)."""
@@ -224,14 +224,12 @@ def _resolve(solids, mode, max_bounces, gap, rest_speed, which, fraction, n0, n1
     return p0, p1, p2, u0, u1, u2, hits, fate
 
 
-@njit(cache=True, inline="always")
-def _signed_distance(solids, k, p0, p1, p2):
-    """Signed distance [m] of a point to solid ``k`` (not grown) and its outward normal (collisions.push_out's)."""
+@njit(cache=True)
+def _solid_distance(solids, k, p0, p1, p2):
+    """Signed distance [m] of a point to sphere or box ``k`` (not grown) and its outward normal (collisions.push_out's
+    to_sphere and to_box)."""
     kind = solids[k, SOLID]
     c0, c1, c2 = p0 - solids[k, CENTRE], p1 - solids[k, CENTRE + 1], p2 - solids[k, CENTRE + 2]
-    if kind == SOLID_PLANE:
-        n0, n1, n2 = solids[k, NORMAL], solids[k, NORMAL + 1], solids[k, NORMAL + 2]
-        return c0 * n0 + c1 * n1 + c2 * n2, n0, n1, n2
     if kind == SOLID_SPHERE:
         length = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
         if length > 1e-12:
@@ -268,7 +266,12 @@ def _push_out(solids, gap, p0, p1, p2, u0, u1, u2, r):
     """A particle left inside a solid (closer than its radius) goes back onto it, its motion into it removed; the
     solids in turn, each after the pushes out of those before it."""
     for k in range(solids.shape[0]):
-        distance, n0, n1, n2 = _signed_distance(solids, k, p0, p1, p2)
+        if solids[k, SOLID] == SOLID_PLANE:
+            n0, n1, n2 = solids[k, NORMAL], solids[k, NORMAL + 1], solids[k, NORMAL + 2]
+            distance = ((p0 - solids[k, CENTRE]) * n0 + (p1 - solids[k, CENTRE + 1]) * n1
+                        + (p2 - solids[k, CENTRE + 2]) * n2)
+        else:
+            distance, n0, n1, n2 = _solid_distance(solids, k, p0, p1, p2)
         if distance < r:
             depth = r - distance + gap
             p0 += depth * n0
