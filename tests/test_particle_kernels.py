@@ -134,3 +134,22 @@ def test_the_kernel_is_chosen_only_where_it_applies_and_pays(monkeypatch):
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "fast")
     with pytest.raises(ValueError, match="ANIMBATCH_KERNELS='fast': choose auto, numba or numpy"):
         kernels.compiled_kernels()
+
+
+def test_a_kernel_that_fails_to_build_leaves_the_run_to_numpy_and_says_so(monkeypatch):
+    """numba loads but cannot compile (an LLVM or type error): the run goes on with the numpy code, whose results it
+    gives, and warns once, naming the emitter and the setting that silences it."""
+    from numba.core.errors import TypingError
+
+    from animbatch.sim.kernels import particle_pool
+
+    def broken(*args, **kwargs):
+        raise TypingError("no implementation for this machine")
+
+    monkeypatch.setattr(particle_pool, "advance_pool", broken)
+    text = SCENE.format(method="verlet", mode="bounce")
+    with pytest.warns(RuntimeWarning, match=r"emitter '(jet|burst)' runs the numpy code instead .*ANIMBATCH_KERNELS=numpy"):
+        fallen = simulate(text, monkeypatch, "numba")
+    reference = simulate(text, monkeypatch, "numpy")
+    assert fallen.particle_stats["kernels"] == "numpy"
+    np.testing.assert_array_equal(fallen.particles[0].positions, reference.particles[0].positions)

@@ -15,6 +15,7 @@ births; the particles themselves are the same.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -74,7 +75,27 @@ class CompiledPool:
             row[kernel.VECTOR:kernel.VECTOR + 3] = vector if vector is not None else 0.0
         solids = solid_table(colliders, kernel) if colliders is not None else np.zeros((0, kernel.SOLID_COLUMNS))
         mode = emitter.collision if colliders is not None else "pass"
-        return cls(kernel.METHOD_CODES[method], kernel.MODE_CODES[mode], table, solids, float(gravity))
+        compiled = cls(kernel.METHOD_CODES[method], kernel.MODE_CODES[mode], table, solids, float(gravity))
+        try:
+            compiled.compile_now()
+        except Exception as error:  # noqa: BLE001 - a kernel that does not build must not stop the run
+            if not type(error).__module__.startswith("numba"):
+                raise
+            warnings.warn(f"the compiled particle kernel could not be built ({type(error).__name__}: "
+                          f"{str(error).splitlines()[0] if str(error) else ''}); emitter {emitter.name!r} runs the "
+                          "numpy code instead (same results, slower). Set ANIMBATCH_KERNELS=numpy to silence this",
+                          RuntimeWarning, stacklevel=2)
+            return None
+        return compiled
+
+    def compile_now(self) -> None:
+        """Build (or load from the disk cache) every kernel on a pool of one particle before the run starts, so that a
+        kernel that fails to build is found before any particle has moved, and so that the first compilation is not
+        counted in any frame's time."""
+        pool = ParticlePool(1)
+        self.advance(pool, 0.0, 1.0, 1, 0, 1, age=True)
+        self.collide_newborns(pool, np.zeros(1, np.int64), np.zeros((1, 3)), 1.0)
+        self.age(pool, 1.0)
 
     def advance(self, pool: ParticlePool, start: float, stop: float, steps: int, first: int, last: int, *,
                 age: bool) -> int:
