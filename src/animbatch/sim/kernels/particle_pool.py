@@ -1,17 +1,18 @@
 """A pool of emitted particles stepped in one compiled pass: fields, the step, fixed colliders and ageing, fused.
 
 This is the compiled form of :meth:`animbatch.sim.particles.simulate.EmitterRun.step` for the common case of
-particles under gravity, drag and wind, meeting fixed colliders (planes, spheres, boxes: floors, walls, crates)
-or nothing, stepped with explicit Euler, semi-implicit Euler or velocity Verlet. Each particle is independent of the
-others, so a thread takes a block of particles through all the steps of a call while their state stays in the
-first-level cache: the pool's arrays are read and written once per call, not once per operation and step as in the
-numpy code. With births during a frame the pool is stepped one step per call (births come between steps); without,
-a whole frame's steps are one call.
+particles under gravity, drag, wind and buoyancy, meeting fixed colliders (planes, spheres, boxes: floors, walls,
+crates) or nothing, stepped with explicit Euler, semi-implicit Euler or velocity Verlet. Each particle is
+independent of the others, so a thread takes a block of particles through all the steps of a call while their state
+stays in the first-level cache: the pool's arrays are read and written once per call, not once per operation and
+step as in the numpy code. With births during a frame the pool is stepped one step per call (births come between
+steps); without, a whole frame's steps are one call.
 
 Every operation is the numpy code's, in the same order, so the two agree to round-off (the tests compare them):
 
 * fields, in the order declared (``FIELD_GRAVITY``: ``a += g``; ``FIELD_DRAG``: ``a += f(u) / m``, ``u = v - w``,
-  linear ``-C u``, quadratic ``-C |u| u``, Stokes ``-6 π η r u``);
+  linear ``-C u``, quadratic ``-C |u| u``, Stokes ``-6 π η r u``; ``FIELD_BUOYANCY``: ``a += ρ g V_sub up / m``
+  and the fluid's damping ``-c v V_sub / (V m)``);
 * the step (:mod:`animbatch.sim.integrators.particle_kernels`);
 * the path ``x0 → x1`` against every collider grown by the radius (planes, then spheres, then boxes; the earliest
   crossing first, ties to the first listed); a bounce (:func:`animbatch.sim.particles.collisions.bounce`) sends the
@@ -21,10 +22,10 @@ Every operation is the numpy code's, in the same order, so the two agree to roun
 
 Arrays (C = the pool's capacity): ``x``, ``v``, ``a`` (C, 3) [m], [m/s], [m/s²], updated in place; ``alive``,
 ``stuck`` (C,) bool, updated in place; ``mass`` [kg], ``radius`` [m], ``birth``, ``lifetime`` [s] (C,). The
-emitter's fields are one table ``fields`` (F, 8): kind, drag law, C, η, whether there is a wind, and the g or wind
-vector; its colliders one table ``solids`` (S, SOLID_COLUMNS): kind, restitution, static and kinetic friction against
-the particles, and a plane's point and unit normal, a sphere's centre and radius, or a box's centre, half sides and
-rotation.
+emitter's fields are one table ``fields`` (F, FIELD_COLUMNS): kind, drag law, C, η, whether there is a wind, the g,
+wind or up vector, and a fluid's density, g, surface level and damping; its colliders one table ``solids``
+(S, SOLID_COLUMNS): kind, restitution, static and kinetic friction against the particles, and a plane's point and
+unit normal, a sphere's centre and radius, or a box's centre, half sides and rotation.
 
 The functions run on every particle at every step (fields, planes) are inlined (``inline="always"``): a call per
 particle-step costs more than their arithmetic. Spheres and boxes are called, not inlined: inlining is done by numba
@@ -39,8 +40,10 @@ import numpy as np
 from numba import njit, prange
 
 #: Field kinds in the field table, and its columns.
-FIELD_GRAVITY, FIELD_DRAG = 0, 1
+FIELD_GRAVITY, FIELD_DRAG, FIELD_BUOYANCY = 0, 1, 2
 KIND, LAW, COEFFICIENT, VISCOSITY, HAS_WIND, VECTOR = 0, 1, 2, 3, 4, 5
+DENSITY, BUOYANCY_G, LEVEL, DAMPING = 8, 9, 10, 11
+FIELD_COLUMNS = 12
 #: Solid kinds in the solid table, and its columns (a plane's point, a sphere's or box's centre in CENTRE; a box's
 #: rotation, box-to-world, row by row in ROTATION).
 SOLID_PLANE, SOLID_SPHERE, SOLID_BOX = 0, 1, 2
@@ -58,17 +61,18 @@ MODE_CODES = {"bounce": MODE_BOUNCE, "stick": MODE_STICK, "die": MODE_DIE, "pass
 
 
 @njit(cache=True, inline="always")
-def _acceleration(fields, v0, v1, v2, mass, radius):
-    """a(v) [m/s²] of one particle under the field table (none of the fields depends on the position)."""
+def _acceleration(fields, x0, x1, x2, v0, v1, v2, mass, radius):
+    """a(x, v) [m/s²] of one particle under the field table."""
     a0 = 0.0
     a1 = 0.0
     a2 = 0.0
     for f in range(fields.shape[0]):
-        if fields[f, KIND] == FIELD_GRAVITY:
+        kind = fields[f, KIND]
+        if kind == FIELD_GRAVITY:
             a0 += fields[f, VECTOR]
             a1 += fields[f, VECTOR + 1]
             a2 += fields[f, VECTOR + 2]
-        else:
+        elif kind == FIELD_DRAG:
             u0, u1, u2 = v0, v1, v2
             if fields[f, HAS_WIND]:
                 u0 -= fields[f, VECTOR]
@@ -84,6 +88,19 @@ def _acceleration(fields, v0, v1, v2, mass, radius):
             a0 += -(scale * u0) / mass
             a1 += -(scale * u1) / mass
             a2 += -(scale * u2) / mass
+        else:  # buoyancy: ρ g V_sub up / m, V_sub the sphere's cap under the surface; damping -c v V_sub / V
+            up0, up1, up2 = fields[f, VECTOR], fields[f, VECTOR + 1], fields[f, VECTOR + 2]
+            depth = min(max(fields[f, LEVEL] - ((x0 * up0 + x1 * up1 + x2 * up2) - radius), 0.0), 2 * radius)
+            volume = np.pi * depth**2 * (3 * radius - depth) / 3
+            lift = fields[f, DENSITY] * fields[f, BUOYANCY_G] * volume / mass
+            a0 += lift * up0
+            a1 += lift * up1
+            a2 += lift * up2
+            if fields[f, DAMPING]:
+                slowing = fields[f, DAMPING] * (volume / (4.0 / 3.0 * np.pi * radius**3)) / mass
+                a0 -= slowing * v0
+                a1 -= slowing * v1
+                a2 -= slowing * v2
     return a0, a1, a2
 
 
@@ -305,16 +322,16 @@ def _step(i, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, meth
         u0, u1, u2 = v[i, 0], v[i, 1], v[i, 2]
         c0, c1, c2 = a[i, 0], a[i, 1], a[i, 2]
         if method == METHOD_VERLET:
-            n0, n1, n2 = _acceleration(fields, u0 + h * c0, u1 + h * c1, u2 + h * c2, m, r)
             p0 = s0 + h * u0 + (0.5 * h * h) * c0
             p1 = s1 + h * u1 + (0.5 * h * h) * c1
             p2 = s2 + h * u2 + (0.5 * h * h) * c2
+            n0, n1, n2 = _acceleration(fields, p0, p1, p2, u0 + h * c0, u1 + h * c1, u2 + h * c2, m, r)
             u0 = u0 + (0.5 * h) * (c0 + n0)
             u1 = u1 + (0.5 * h) * (c1 + n1)
             u2 = u2 + (0.5 * h) * (c2 + n2)
             c0, c1, c2 = n0, n1, n2
         else:
-            c0, c1, c2 = _acceleration(fields, u0, u1, u2, m, r)
+            c0, c1, c2 = _acceleration(fields, s0, s1, s2, u0, u1, u2, m, r)
             if method == METHOD_SYMPLECTIC_EULER:
                 u0 = u0 + h * c0
                 u1 = u1 + h * c1

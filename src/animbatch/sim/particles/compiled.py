@@ -1,8 +1,8 @@
 """An emitter's pool stepped by the compiled kernel (:mod:`animbatch.sim.kernels.particle_pool`) where it can be.
 
-The kernel covers particles under gravity, drag and wind, meeting fixed planes, spheres and boxes or nothing,
-stepped with explicit Euler, semi-implicit Euler or velocity Verlet: fountains, sparks, rain, snow on a crate.
-Anything else (buoyancy, meshes, rigid bodies, moving colliders, the other methods) runs the numpy code of
+The kernel covers particles under gravity, drag, wind and buoyancy, meeting fixed planes, spheres and boxes or
+nothing, stepped with explicit Euler, semi-implicit Euler or velocity Verlet: fountains, sparks, rain, snow on a
+crate, smoke. Anything else (meshes, rigid bodies, moving colliders, the other methods) runs the numpy code of
 :class:`~animbatch.sim.particles.simulate.EmitterRun`, as does everything when numba is missing or
 ``ANIMBATCH_KERNELS=numpy`` is set. :meth:`CompiledPool.of` decides, once per emitter.
 
@@ -28,7 +28,7 @@ from animbatch.sim.particles.obstacles import SURFACE_GAP
 from animbatch.sim.particles.pool import ParticlePool
 
 #: Field kinds and drag laws the kernel evaluates.
-KERNEL_FIELDS = ("gravity", "drag", "wind")
+KERNEL_FIELDS = ("gravity", "drag", "wind", "buoyancy")
 KERNEL_LAWS = ("linear", "quadratic", "stokes")
 #: Below this many particle-steps a call runs on the calling thread alone: numba's threads sleep between calls
 #: (OMP_WAIT_POLICY=PASSIVE), and waking them takes longer than a small pool's step.
@@ -39,8 +39,9 @@ KERNEL_METHODS = ("euler", "symplectic_euler", "verlet")
 
 @dataclass(frozen=True, eq=False)
 class CompiledPool:
-    """The numbers the kernel needs for one emitter: its method and collision mode codes, its field table (F, 8)
-    and collider table (S, SOLID_COLUMNS) (see :mod:`animbatch.sim.kernels.particle_pool`), and |g| [m/s²]."""
+    """The numbers the kernel needs for one emitter: its method and collision mode codes, its field table
+    (F, FIELD_COLUMNS) and collider table (S, SOLID_COLUMNS) (see :mod:`animbatch.sim.kernels.particle_pool`), and
+    |g| [m/s²]."""
 
     method: int
     mode: int
@@ -56,7 +57,7 @@ class CompiledPool:
         which must repay loading numba (:func:`~animbatch.sim.kernels.compiled_kernels`)."""
         fields = emitter.fields
         if method not in KERNEL_METHODS or any(f.kind not in KERNEL_FIELDS or (
-                f.kind != "gravity" and f.law not in KERNEL_LAWS) for f in fields):
+                f.kind in ("drag", "wind") and f.law not in KERNEL_LAWS) for f in fields):
             return None
         if colliders is not None and colliders.obstacles is not None and not colliders.obstacles.empty:
             return None  # meshes, bodies and moving colliders are traced by the numpy code
@@ -64,15 +65,22 @@ class CompiledPool:
             return None
         from animbatch.sim.kernels import particle_pool as kernel
 
-        table = np.zeros((len(fields), 8))
+        table = np.zeros((len(fields), kernel.FIELD_COLUMNS))
         for row, f in zip(table, fields):
-            dragging = f.kind != "gravity"
-            row[kernel.KIND] = kernel.FIELD_DRAG if dragging else kernel.FIELD_GRAVITY
-            row[kernel.LAW] = KERNEL_LAWS.index(f.law) if dragging else 0
-            row[kernel.COEFFICIENT], row[kernel.VISCOSITY] = f.coefficient, f.viscosity
-            row[kernel.HAS_WIND] = dragging and f.wind is not None
-            vector = f.g if not dragging else f.wind
-            row[kernel.VECTOR:kernel.VECTOR + 3] = vector if vector is not None else 0.0
+            if f.kind == "gravity":
+                row[kernel.KIND] = kernel.FIELD_GRAVITY
+                row[kernel.VECTOR:kernel.VECTOR + 3] = f.g
+            elif f.kind == "buoyancy":
+                row[kernel.KIND] = kernel.FIELD_BUOYANCY
+                row[kernel.VECTOR:kernel.VECTOR + 3] = f.up
+                row[kernel.DENSITY], row[kernel.BUOYANCY_G] = f.density, f.buoyancy_g
+                row[kernel.LEVEL], row[kernel.DAMPING] = f.level, f.damping
+            else:
+                row[kernel.KIND] = kernel.FIELD_DRAG
+                row[kernel.LAW] = KERNEL_LAWS.index(f.law)
+                row[kernel.COEFFICIENT], row[kernel.VISCOSITY] = f.coefficient, f.viscosity
+                row[kernel.HAS_WIND] = f.wind is not None
+                row[kernel.VECTOR:kernel.VECTOR + 3] = f.wind if f.wind is not None else 0.0
         solids = solid_table(colliders, kernel) if colliders is not None else np.zeros((0, kernel.SOLID_COLUMNS))
         mode = emitter.collision if colliders is not None else "pass"
         compiled = cls(kernel.METHOD_CODES[method], kernel.MODE_CODES[mode], table, solids, float(gravity))
