@@ -153,3 +153,22 @@ def test_a_kernel_that_fails_to_build_leaves_the_run_to_numpy_and_says_so(monkey
     reference = simulate(text, monkeypatch, "numpy")
     assert fallen.particle_stats["kernels"] == "numpy"
     np.testing.assert_array_equal(fallen.particles[0].positions, reference.particles[0].positions)
+
+
+def test_the_cost_pre_flight_prices_compiled_pools_at_the_kernel_s_cost(monkeypatch):
+    """A pool the kernel will step is estimated at its cost per particle-step, one the numpy code steps at the numpy
+    code's (so that a run the kernel makes affordable is not refused before it starts)."""
+    from animbatch.compile.model import compile_scene
+    from animbatch.compile.particles import compile_particles, particle_costs
+    from animbatch.sim.integrators.cost import COMPILED_PARTICLE_STEP_SECONDS, PARTICLE_STEP_SECONDS
+
+    loaded = scene(SCENE.format(method="verlet", mode="bounce"))
+    systems = compile_particles(loaded.spec, compile_scene(loaded.spec))
+    for choice, expected in (("numba", COMPILED_PARTICLE_STEP_SECONDS), ("numpy", PARTICLE_STEP_SECONDS)):
+        monkeypatch.setenv(kernels.KERNELS_VARIABLE, choice)
+        costs = particle_costs(loaded.spec, systems, 300)
+        assert [name for name, *_ in costs] == ["jet", "burst"]
+        assert all(cost == expected for *_, cost in costs), choice
+    monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
+    rk45 = scene(SCENE.format(method="verlet", mode="bounce"), "solver.method=RK45")
+    assert all(cost == PARTICLE_STEP_SECONDS for *_, cost in particle_costs(rk45.spec, systems, 300))

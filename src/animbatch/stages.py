@@ -25,7 +25,7 @@ from animbatch.compile.checks import compile_checks
 from animbatch.compile.frame_geometry import body_extents, collider_points
 from animbatch.compile.frame_geometry import frame_geometry as compile_frame_geometry
 from animbatch.compile.model import compile_scene
-from animbatch.compile.particles import compile_particles, pool_sizes
+from animbatch.compile.particles import ParticleSystems, compile_particles, particle_costs
 from animbatch.compile.solver import make_integrator
 from animbatch.compile.stopwatches import stopwatch_readings
 from animbatch.errors import SimulationError, TrajectoryError
@@ -81,11 +81,13 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
     if spec.solver.method != "analytic":  # closed forms cost nothing to speak of, and cannot go unstable
         warnings = preflight(model, spec.solver.method, spec.solver.dt)
         frame_steps = steps_per_frame(1.0 / spec.fps, spec.solver.method, spec.solver.dt or DEFAULT_DT)
-        cost = estimate_cost(model, spec.solver, pool_sizes(spec), frame_steps * (len(model.frame_times) - 1))
+        particle_steps = frame_steps * (len(model.frame_times) - 1)
+        systems = compile_particles(spec, model, scene_folder(scene)) if spec.emitters else None
+        cost = estimate_cost(model, spec.solver, particle_costs(spec, systems, particle_steps), particle_steps)
         check_cost(cost, spec.solver.max_cost)  # refuse what would run for hours or cannot fit, before it starts
         estimated = cost.seconds
     with wall_budget(spec.solver.max_cost, float(model.frame_times[0]), float(model.frame_times[-1])):
-        result, particles, particle_stats = _integrate(scene, model, integrator, progress, checkpoint)
+        result, particles, particle_stats = _integrate(scene, model, integrator, progress, checkpoint, systems)
     states = result.states
     kinds = ("particle",) * model.particle_count + ("rigid",) * model.rigid_count
     stats = {**result.stats.as_dict(), "estimated_seconds": estimated}
@@ -111,7 +113,8 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
 
 
 def _integrate(scene: LoadedScene, model: Model, integrator: Any, progress: Progress,
-               checkpoint: tuple[int, Path] | None) -> tuple[IntegrationResult, list, dict[str, Any]]:
+               checkpoint: tuple[int, Path] | None, systems: ParticleSystems | None = None
+               ) -> tuple[IntegrationResult, list, dict[str, Any]]:
     """The bodies' states at the frame times, then the emitted particles (which may ride on bodies)."""
     if model.layout.size:
         with progress.task("simulate", len(model.frame_times)) as on_frame:
@@ -125,19 +128,20 @@ def _integrate(scene: LoadedScene, model: Model, integrator: Any, progress: Prog
         check_energy_growth(model, result.states, scene.spec.solver.method, result.stats.dt)
     else:  # a scene of emitters only: no body to integrate
         result = IntegrationResult(np.zeros((len(model.frame_times), 0)), SolverStats(scene.spec.solver.method))
-    particles, particle_stats = simulate_emitters(scene, model, result.states, progress)
+    particles, particle_stats = simulate_emitters(scene, model, result.states, progress, systems)
     return result, particles, particle_stats
 
 
-def simulate_emitters(scene: LoadedScene, model: Model, states: np.ndarray, progress: Progress
-                      ) -> tuple[list, dict[str, Any]]:
+def simulate_emitters(scene: LoadedScene, model: Model, states: np.ndarray, progress: Progress,
+                      systems: ParticleSystems | None = None) -> tuple[list, dict[str, Any]]:
     """The scene's emitted particles at the frame times (after its bodies, whose motion ``states`` (F, n) moves
-    emitters attached to them), and the statistics of their simulation; nothing when it has no emitters."""
+    emitters attached to them), and the statistics of their simulation; nothing when it has no emitters.
+    ``systems``: the scene's compiled particle systems, if the caller has them already."""
     spec = scene.spec
     if not spec.emitters:
         return [], {}
 
-    systems = compile_particles(spec, model, scene_folder(scene))
+    systems = systems if systems is not None else compile_particles(spec, model, scene_folder(scene))
     assert systems is not None
     motion = BodyMotion(model.frame_times, model.positions(states), model.velocities(states),
                         model.orientations(states), model.angular_velocities(states))

@@ -33,6 +33,7 @@ from animbatch.sim.contact.meshes import TriangleGroup
 from animbatch.sim.forces.drag import AIR_VISCOSITY
 from animbatch.sim.motion import SolidPath
 from animbatch.sim.particles.collisions import ParticleColliders
+from animbatch.sim.particles.compiled import particle_step_seconds
 from animbatch.sim.particles.emitter import Emitter, Law
 from animbatch.sim.particles.fields import ParticleField
 from animbatch.sim.particles.obstacles import ParticleObstacles, body_shapes, moving_collider_shapes
@@ -61,6 +62,19 @@ def pool_sizes(spec: SceneSpec) -> list[tuple[str, int, float]]:
         schedule = _schedule(item, spec.duration)
         sizes.append((item.name, _capacity(item, schedule, spec.duration), float(schedule.born_by(spec.duration))))
     return sizes
+
+
+def particle_costs(spec: SceneSpec, systems: ParticleSystems | None, particle_steps: int
+                   ) -> list[tuple[str, int, float, float]]:
+    """:func:`pool_sizes`, each with what one particle-step of that emitter costs [s] (the compiled kernel's figure
+    where it will step the pool over ``particle_steps`` steps, else the numpy code's): the cost pre-flight's input."""
+    if systems is None:
+        return []
+    method = spec.solver.method
+    return [(name, capacity, births,
+             particle_step_seconds(systems.emitter(name), systems.colliders.get(name), method,
+                                   float(capacity) * particle_steps))
+            for name, capacity, births in pool_sizes(spec)]
 
 
 def _capacity(item: Any, schedule: EmissionSchedule, duration: float) -> int:

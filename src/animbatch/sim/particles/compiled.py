@@ -55,15 +55,11 @@ class CompiledPool:
         """The kernel's form of this emitter, or None where the numpy code runs (see the module notes):
         ``colliders``, those the emitter meets (None: none); ``work``, the particle-steps ahead (capacity × steps),
         which must repay loading numba (:func:`~animbatch.sim.kernels.compiled_kernels`)."""
-        fields = emitter.fields
-        if method not in KERNEL_METHODS or any(f.kind not in KERNEL_FIELDS or (
-                f.kind in ("drag", "wind") and f.law not in KERNEL_LAWS) for f in fields):
-            return None
-        if colliders is not None and colliders.obstacles is not None and not colliders.obstacles.empty:
-            return None  # meshes, bodies and moving colliders are traced by the numpy code
-        if not compiled_kernels(work):
+        if not cls.covers(emitter, colliders, method) or not compiled_kernels(work):
             return None
         from animbatch.sim.kernels import particle_pool as kernel
+
+        fields = emitter.fields
 
         table = np.zeros((len(fields), kernel.FIELD_COLUMNS))
         for row, f in zip(table, fields):
@@ -95,6 +91,15 @@ class CompiledPool:
                           RuntimeWarning, stacklevel=2)
             return None
         return compiled
+
+    @staticmethod
+    def covers(emitter: Emitter, colliders: ParticleColliders | None, method: str) -> bool:
+        """Whether the kernel can step this emitter (its fields, the ``colliders`` it meets, ``method``)."""
+        if method not in KERNEL_METHODS or any(f.kind not in KERNEL_FIELDS or (
+                f.kind in ("drag", "wind") and f.law not in KERNEL_LAWS) for f in emitter.fields):
+            return False
+        # meshes, bodies and moving colliders are traced by the numpy code
+        return colliders is None or colliders.obstacles is None or colliders.obstacles.empty
 
     def compile_now(self) -> None:
         """Build (or load from the disk cache) every kernel on a pool of one particle before the run starts, so that a
@@ -178,3 +183,21 @@ def solid_table(colliders: ParticleColliders, kernel: Any) -> np.ndarray:
                 row[kernel.ROTATION:kernel.ROTATION + 9] = np.ravel(statics.box_rotation[k])
             rows.append(row)
     return np.array(rows, float).reshape(-1, kernel.SOLID_COLUMNS)
+
+
+def colliders_met(emitter: Emitter, colliders: ParticleColliders | None) -> ParticleColliders | None:
+    """The colliders an emitter's particles meet: none with ``collision: pass`` or when there are none."""
+    if emitter.collision == "pass" or colliders is None or colliders.empty:
+        return None
+    return colliders
+
+
+def particle_step_seconds(emitter: Emitter, colliders: ParticleColliders | None, method: str, work: float) -> float:
+    """What advancing one of the emitter's particles by one step costs [s], births and records included, for the
+    cost pre-flight: the compiled kernel's figure where it will run (``work``: the particle-steps ahead), else the
+    numpy code's."""
+    from animbatch.sim.integrators.cost import COMPILED_PARTICLE_STEP_SECONDS, PARTICLE_STEP_SECONDS
+
+    met = colliders_met(emitter, colliders)
+    compiled = CompiledPool.covers(emitter, met, method) and compiled_kernels(work)
+    return COMPILED_PARTICLE_STEP_SECONDS if compiled else PARTICLE_STEP_SECONDS

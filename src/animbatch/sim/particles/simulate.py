@@ -30,7 +30,7 @@ from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.particles.body_motion import BodyMotion, BodyPose
 from animbatch.sim.particles.collisions import MAX_BOUNCES, ParticleColliders, bounce
-from animbatch.sim.particles.compiled import CompiledPool
+from animbatch.sim.particles.compiled import CompiledPool, colliders_met
 from animbatch.sim.particles.emitter import Emitter
 from animbatch.sim.particles.obstacles import SURFACE_GAP
 from animbatch.sim.particles.pool import ParticlePool
@@ -72,8 +72,7 @@ class EmitterRun:
         kernel repays loading."""
         self.emitter = emitter
         self.pool = ParticlePool(emitter.capacity)
-        self.colliders = colliders if emitter.collision != "pass" and colliders is not None and \
-            not colliders.empty else None
+        self.colliders = colliders_met(emitter, colliders)
         self.method = method
         self.solver = solver
         self.motion = motion
