@@ -78,6 +78,7 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
     # risky settings, with numbers (what is certain to fail is refused)
     warnings: list[str] = []
     estimated = 0.0
+    systems: ParticleSystems | None = None  # the emitters, compiled once for the estimate and the run
     if spec.solver.method != "analytic":  # closed forms cost nothing to speak of, and cannot go unstable
         warnings = preflight(model, spec.solver.method, spec.solver.dt)
         frame_steps = steps_per_frame(1.0 / spec.fps, spec.solver.method, spec.solver.dt or DEFAULT_DT)
