@@ -20,7 +20,7 @@ G = 9.81
 @pytest.mark.parametrize("ratio", [0.8, 2.0])
 def test_a_shaker_plate_throws_a_resting_ball_only_when_a_omega_squared_exceeds_g(ratio):
     """A plate oscillating vertically as A sin(ω t) accelerates downwards by up to A ω². Below g (ratio 0.8) the
-    ball rests on it throughout, its bottom on the plate's top; above g (1.25) the plate drops away faster than
+    ball rests on it throughout, its bottom on the plate's top; above g (ratio 2) the plate drops away faster than
     the ball can fall, and the ball leaves it."""
     frequency = 10.0
     amplitude = ratio * G / (2 * np.pi * frequency) ** 2
