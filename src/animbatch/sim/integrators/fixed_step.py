@@ -59,6 +59,7 @@ class Scheme(ABC):
     def __init__(self, system: EquationsOfMotion) -> None:
         self.system = system
         self.evaluations = 0
+        self.factorisations = 0  # of an implicit step's matrix (with a force Jacobian each)
         self.constraint: VelocityConstraint | None = None  # set by the integrator for scenes with contacts
 
     def start(self, t: float, y: np.ndarray) -> None:

@@ -68,6 +68,7 @@ class FixedStepIntegrator(Integrator):
         with np.errstate(all="ignore"):  # overflow is detected once per frame and reported, not warned about
             largest_step = self._run(scheme, y, states, times, stats, layout, on_frame)
         stats.rhs_evaluations = scheme.evaluations
+        stats.jacobian_evaluations = stats.lu_decompositions = scheme.factorisations
         if scheme.constraint is not None:  # contacts log their impacts
             stats.impacts = scheme.constraint.impacts.as_list()
         stats.dt = largest_step or None
