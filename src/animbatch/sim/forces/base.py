@@ -14,83 +14,12 @@ from collections.abc import Callable
 from typing import ClassVar
 
 import numpy as np
-import scipy.sparse as sp
 
 from animbatch.sim.bodies import BodyTable, Kinematics
+from animbatch.sim.forces.jacobian import BlockPattern, ForceJacobian
 
 __all__ = ["BlockPattern", "BodyTable", "ForceJacobian", "ForceTerm", "Kinematics", "TermFactory", "add_at",
            "rigid_selection", "selection_text", "vector_text"]
-
-
-class BlockPattern:
-    """Where each entry of a list of 3×3 blocks at particle pairs ``(i, j)`` (K,) lands in a (3N, 3N) CSR matrix.
-
-    Implicit methods assemble a matrix of the same pattern at every step; working the pattern out once and then only
-    summing values into their slots is several times faster than building a COO matrix and converting it each time.
-    """
-
-    def __init__(self, i: np.ndarray, j: np.ndarray, size: int) -> None:
-        self.i, self.j, self.size = i, j, size
-        axis = np.arange(3)
-        # entry [k, a, b] of block k sits at row 3 i_k + a, column 3 j_k + b
-        rows = np.broadcast_to(3 * i[:, None, None] + axis[None, :, None], (len(i), 3, 3)).ravel()
-        cols = np.broadcast_to(3 * j[:, None, None] + axis[None, None, :], (len(j), 3, 3)).ravel()
-        keys = rows.astype(np.int64) * size + cols
-        unique, self.slot = np.unique(keys, return_inverse=True)  # sorted by row, then column: CSR order
-        self.indices = (unique % size).astype(np.int32)
-        self.indptr = np.searchsorted(unique // size, np.arange(size + 1)).astype(np.int32)
-
-    def matches(self, i: np.ndarray, j: np.ndarray) -> bool:
-        return np.array_equal(i, self.i) and np.array_equal(j, self.j)
-
-    def assemble(self, data: np.ndarray) -> sp.csr_matrix:
-        values = np.bincount(self.slot, weights=data, minlength=len(self.indices))  # repeated pairs add up
-        return sp.csr_matrix((values, self.indices, self.indptr), shape=(self.size, self.size))
-
-
-class ForceJacobian:
-    """The derivatives of the forces on the N particles: ``∂f/∂x`` and ``∂f/∂v``, (3N, 3N) each, gathered from the
-    terms as 3×3 blocks ``(i, j)`` = the derivative of the force on particle i with respect to particle j.
-
-    Implicit integration (backward Euler, Radau, BDF) needs them: a stiff spring's force changes a lot when its ends
-    move, and an implicit step takes that change into account. Rigid bodies are not part of this matrix (they are
-    stepped explicitly by the implicit methods, see :mod:`animbatch.sim.integrators.implicit`).
-
-    With ``definite``, terms give instead the nearest *definite* derivatives: ``∂f/∂x`` and ``∂f/∂v`` symmetric and
-    negative semi-definite. The exact ``∂f/∂x`` of a compressed spring or a bent hinge is indefinite, and a
-    linearised backward Euler step built on it can land far off (energy growing ten-thousandfold on a falling cloth);
-    built on the definite one, ``M - h ∂f/∂v - h² ∂f/∂x`` is symmetric positive definite and the step damps.
-    Newton-type solvers (Radau, BDF) want the exact ones.
-
-    ``patterns``: a dict kept by the caller between evaluations, in which the matrices' sparsity patterns are
-    remembered (see :class:`BlockPattern`).
-    """
-
-    def __init__(self, particles: int, *, definite: bool = False,
-                 patterns: dict[str, BlockPattern] | None = None) -> None:
-        self.particles = particles
-        self.definite = definite
-        self._patterns = patterns if patterns is not None else {}
-        self._blocks: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {"x": [], "v": []}
-
-    def add(self, i: np.ndarray, j: np.ndarray, dfdx: np.ndarray | None = None, dfdv: np.ndarray | None = None) -> None:
-        """Add blocks (K, 3, 3) at particle pairs ``(i, j)`` (K,) (repeated pairs add up)."""
-        for name, blocks in (("x", dfdx), ("v", dfdv)):
-            if blocks is not None and len(i):
-                self._blocks[name].append((np.asarray(i, np.intp), np.asarray(j, np.intp), blocks))
-
-    def matrix(self, which: str) -> sp.csr_matrix:
-        """``∂f/∂x`` (``which='x'``) or ``∂f/∂v`` (``'v'``) as a sparse (3N, 3N) matrix."""
-        size = 3 * self.particles
-        parts = self._blocks[which]
-        if not parts:
-            return sp.csr_matrix((size, size))
-        i = np.concatenate([i for i, _, _ in parts])
-        j = np.concatenate([j for _, j, _ in parts])
-        pattern = self._patterns.get(which)
-        if pattern is None or not pattern.matches(i, j):
-            pattern = self._patterns[which] = BlockPattern(i, j, size)
-        return pattern.assemble(np.concatenate([blocks.ravel() for _, _, blocks in parts]))
 
 
 class ForceTerm(ABC):

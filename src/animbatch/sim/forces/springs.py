@@ -173,6 +173,29 @@ class SpringForces(ForceTerm):
         """
         springs = self.springs
         axis, relative, _, _ = self._differences(state)
+        if out.compiled:
+            from animbatch.sim.kernels.assembly import spring_blocks
+
+            dfdx, dfdv = spring_blocks(axis, relative, springs.stiffness, springs.damping, springs.rest_length,
+                                       out.definite)
+        else:
+            dfdx, dfdv = self._blocks(axis, relative, out.definite)
+        n = state.first_rigid
+        first, second = springs.first, springs.second
+        first_particle = first < n
+        second_particle = ~springs.second_is_anchor & (second < n)
+        both = first_particle & second_particle
+        if both.all():  # a cloth or lattice: no copies
+            out.add_pairs(first, second, dfdx, dfdv)
+            return True
+        out.add_pairs(first[both], second[both], dfdx[both], dfdv[both])
+        for end, alone in ((first, first_particle & ~both), (second, second_particle & ~both)):
+            out.add(end[alone], end[alone], dfdx[alone], dfdv[alone])
+        return True
+
+    def _blocks(self, axis: np.ndarray, relative: np.ndarray, definite: bool) -> tuple[np.ndarray, np.ndarray]:
+        """``∂f1/∂p1`` and ``∂f1/∂ṗ1`` (S, 3, 3) of every spring (see :meth:`jacobian`), in numpy."""
+        springs = self.springs
         length = np.sqrt(np.einsum("ij,ij->i", axis, axis))
         safe = np.maximum(length, 1e-12)
         unit = axis / safe[:, None]
@@ -181,7 +204,7 @@ class SpringForces(ForceTerm):
         outer = unit[:, :, None] * unit[:, None, :]
         across = np.eye(3) - outer  # P
         across_relative = relative - along[:, None] * unit  # P w
-        if out.definite:
+        if definite:
             stretch = np.maximum(0.0, 1.0 - springs.rest_length / safe)
             dfdx = -springs.stiffness[:, None, None] * (outer + stretch[:, None, None] * across)
         else:
@@ -192,16 +215,7 @@ class SpringForces(ForceTerm):
         degenerate = length < 1e-12  # no direction: treat as a zero-length spring, f = -ks L - kd L̇
         dfdx[degenerate] = -springs.stiffness[degenerate, None, None] * np.eye(3)
         dfdv[degenerate] = -springs.damping[degenerate, None, None] * np.eye(3)
-        n = state.first_rigid
-        first, second = springs.first, springs.second
-        first_particle = first < n
-        second_particle = ~springs.second_is_anchor & (second < n)
-        out.add(first[first_particle], first[first_particle], dfdx[first_particle], dfdv[first_particle])
-        out.add(second[second_particle], second[second_particle], dfdx[second_particle], dfdv[second_particle])
-        both = first_particle & second_particle
-        out.add(first[both], second[both], -dfdx[both], -dfdv[both])
-        out.add(second[both], first[both], -dfdx[both], -dfdv[both])
-        return True
+        return dfdx, dfdv
 
     def potential_energy(self, state: Kinematics) -> float:
         """Elastic energy ½ ks (|L| - r)² summed over springs [J] (dampers store none)."""

@@ -54,13 +54,13 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
 
 from animbatch.errors import SimulationError
 from animbatch.sim.forces.base import ForceTerm
+from animbatch.sim.forces.jacobian import ForceJacobian
 from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.fixed_step import PartitionedScheme, kick_constrain_drift
-from animbatch.sim.integrators.linear_algebra import StepMatrixSolver
+from animbatch.sim.integrators.linear_algebra import StepMatrixSolver, compiled_solves
 from animbatch.sim.model.dynamics import Dynamics
 
 #: Newton iterations tried on a step that raised the energy, before it is halved.
@@ -87,7 +87,9 @@ class BackwardEuler(PartitionedScheme):
         super().__init__(system)
         model = system.model
         self._particle_dofs = 3 * system.particles
-        self._mass = sp.diags(np.repeat(np.asarray(model.bodies.mass[: system.particles], np.float64), 3), format="csr")
+        self._mass_diagonal = np.repeat(np.asarray(model.bodies.mass[: system.particles], np.float64), 3)  # (3N,) [kg]
+        # the step matrix is assembled and factored by compiled kernels where they pay (large cloth)
+        self._compiled = compiled_solves(self._particle_dofs)
         self.explicit_terms: list[str] = []
         # forces without derivatives (gravitation, aerodynamics, …) enter explicitly: then the step is partly
         # symplectic Euler, whose energy oscillates every step, and halving would chase that down to h / 2^10
@@ -115,21 +117,23 @@ class BackwardEuler(PartitionedScheme):
         self.evaluations += 1
         size = self._particle_dofs
         if size:
-            factors, stiffness = self._step_matrix(t, config, motion, h)
+            factors, derivatives = self._step_matrix(t, config, motion, h)
             velocity = motion[:size]
-            force = self._mass @ rate[:size]
-            motion[:size] += factors.solve(h * (force + h * (stiffness @ velocity)))
+            force = self._mass_diagonal * rate[:size]
+            motion[:size] += factors.solve(h * (force + h * derivatives.product("x", velocity)))
         motion[size:] += h * rate[size:]
 
-    def _step_matrix(self, t: float, config: np.ndarray, motion: np.ndarray, h: float) -> tuple[Any, sp.spmatrix]:
-        """Factors of the step's matrix ``M − h D − h² K``, with D and K at ``(t, config, motion)``, and K."""
-        derivatives, self.explicit_terms = self.system.force_jacobian(t, config, motion, definite=True)
-        stiffness, damping = derivatives.matrix("x"), derivatives.matrix("v")
+    def _step_matrix(self, t: float, config: np.ndarray, motion: np.ndarray, h: float
+                     ) -> tuple[Any, ForceJacobian]:
+        """Factors of the step's matrix ``M − h D − h² K``, with D and K at ``(t, config, motion)``, and the
+        derivatives."""
+        derivatives, self.explicit_terms = self.system.force_jacobian(t, config, motion, definite=True,
+                                                                      compiled=self._compiled)
         # positive definite; symmetric too, unless a magnetic field adds its antisymmetric ∂f/∂v
-        matrix = self._mass - h * damping - (h * h) * stiffness
+        matrix = derivatives.step_matrix(self._mass_diagonal, h)
         self.factorisations += 1
         try:
-            return self.solver.factor(matrix), stiffness
+            return self.solver.factor(matrix), derivatives
         except RuntimeError:  # SuperLU: "Factor is exactly singular"
             raise self._singular(t, h) from None
 
@@ -144,7 +148,7 @@ class BackwardEuler(PartitionedScheme):
         rate = system.motion_rate(t + h, config, motion, out=self._rate)
         self.evaluations += 1
         factors, _ = self._step_matrix(t + h, config, motion, h)
-        residual = self._mass @ (motion[:size] - start_motion[:size] - h * rate[:size])
+        residual = self._mass_diagonal * (motion[:size] - start_motion[:size] - h * rate[:size])
         motion[:size] -= factors.solve(residual)
         config[...] = start_config
         system.drift(config, motion, h)

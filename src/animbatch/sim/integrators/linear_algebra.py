@@ -44,6 +44,14 @@ from scipy.sparse.linalg import SuperLU, splu
 CHOLESKY_MIN_UNKNOWNS = 3000
 
 
+def compiled_solves(size: int) -> bool:
+    """Whether step matrices of ``size`` unknowns are assembled and factored by the compiled kernels (see
+    :data:`CHOLESKY_MIN_UNKNOWNS`)."""
+    from animbatch.sim.kernels import MIN_WORK, compiled_kernels
+
+    return size % 3 == 0 and compiled_kernels(MIN_WORK if size >= CHOLESKY_MIN_UNKNOWNS else 0.0)
+
+
 class StepMatrixSolver:
     """Factors the successive step matrices ``M − h D − h² K`` of one implicit scheme (one sparsity pattern, new
     values at every step): by the compiled supernodal Cholesky, analysed once, where it pays and the matrix is
@@ -56,12 +64,9 @@ class StepMatrixSolver:
 
     def factor(self, matrix: sp.spmatrix) -> Any:
         """Factors of ``matrix`` with a ``solve(b)`` method. Raises RuntimeError (SuperLU's) if it is singular."""
-        from animbatch.sim.kernels import MIN_WORK, compiled_kernels
-
         matrix = sp.csr_matrix(matrix)
         size = matrix.shape[0]
-        if size % 3 == 0 and compiled_kernels(MIN_WORK if size >= CHOLESKY_MIN_UNKNOWNS else 0.0) \
-                and self._symmetric(matrix):
+        if compiled_solves(size) and self._symmetric(matrix):
             from animbatch.sim.integrators.cholesky import NotPositiveDefinite, SparseCholesky
 
             try:

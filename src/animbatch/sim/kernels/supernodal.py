@@ -46,6 +46,8 @@ def _fortran(library: str, name: str, arguments: int) -> Any:
 _dpotrf = _fortran("lapack", "dpotrf", 5)
 _dtrsm = _fortran("blas", "dtrsm", 11)
 _dsyrk = _fortran("blas", "dsyrk", 10)
+_dtrsv = _fortran("blas", "dtrsv", 8)
+_dgemv = _fortran("blas", "dgemv", 11)
 
 #: Returned by :func:`factor_numeric`: done; an entry of the matrix outside the analysed pattern (analyse again); a
 #: front whose leading block is not positive definite.
@@ -71,7 +73,9 @@ def factor_numeric(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, pe
         column0 = start[s]
         for k in range(size):
             where[front_index[first + k]] = k
-        front = np.zeros((size, size))
+        front = np.empty((size, size))
+        for a in range(size):  # only the lower triangle is ever read
+            front[a, : a + 1] = 0.0
         # 1a. the matrix's own entries in these columns, at or below the supernode's first row
         for local in range(columns):
             original = perm[column0 + local]
@@ -88,12 +92,13 @@ def factor_numeric(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, pe
         # 1b. extend-add the children's updates
         for c in range(child_ptr[s], child_ptr[s + 1]):
             child = child_index[c]
-            update = updates[child]
-            rows = front_index[front_ptr[child] + width[child]: front_ptr[child + 1]]
+            update = updates[child]  # the child's whole front: its update is the block below its columns
+            offset = width[child]
+            rows = front_index[front_ptr[child] + offset: front_ptr[child + 1]]
             for a in range(len(rows)):
                 target = where[rows[a]]
                 for b in range(a + 1):  # the lower triangle; the upper is never read
-                    front[target, where[rows[b]]] += update[a, b]
+                    front[target, where[rows[b]]] += update[offset + a, offset + b]
             updates[child] = np.empty((0, 0))
         for k in range(size):
             where[front_index[first + k]] = -1
@@ -115,7 +120,7 @@ def factor_numeric(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, pe
             _dsyrk(chars[0:].ctypes, chars[2:].ctypes, ints[1:].ctypes, ints[0:].ctypes, scalars[1:].ctypes,
                    flat[columns * size:].ctypes, ints[2:].ctypes, scalars[0:].ctypes,
                    flat[columns * size + columns:].ctypes, ints[2:].ctypes)
-            updates[s] = front[columns:, columns:].copy()
+            updates[s] = front
         block = factor[factor_ptr[s]: factor_ptr[s] + size * columns].reshape(size, columns)
         block[:, :] = front[:, :columns]
         for a in range(columns):  # the upper triangle of L₁₁ is what the front held there, not L
@@ -134,31 +139,38 @@ def solve_factored(perm: np.ndarray, start: np.ndarray, width: np.ndarray, front
     for k in range(n):
         y[k] = right_hand_side[perm[k]]
     supernodes = len(start)
+    chars = np.array([ord("U"), ord("T"), ord("N")], np.uint8)
+    ints = np.zeros(3, np.int32)  # columns, rows below, an increment of 1
+    ints[2] = 1
+    scalars = np.array([1.0, 0.0, -1.0])
+    gathered = np.empty(n)
+    # Fortran sees each block (size × columns, row-major) transposed: L₁₁ᵀ upper triangular, then L₂₁ᵀ
     for s in range(supernodes):  # L y = b
         first, size, columns, column0 = front_ptr[s], front_ptr[s + 1] - front_ptr[s], width[s], start[s]
-        block = factor[factor_ptr[s]: factor_ptr[s] + size * columns].reshape(size, columns)
-        for j in range(columns):
-            y[column0 + j] /= block[j, j]
-            value = y[column0 + j]
-            for i in range(j + 1, columns):
-                y[column0 + i] -= block[i, j] * value
-        for r in range(columns, size):
-            total = 0.0
-            for j in range(columns):
-                total += block[r, j] * y[column0 + j]
-            y[front_index[first + r]] -= total
+        block = factor[factor_ptr[s]: factor_ptr[s] + size * columns]
+        below = size - columns
+        ints[0], ints[1] = columns, below
+        _dtrsv(chars[0:].ctypes, chars[1:].ctypes, chars[2:].ctypes, ints[0:].ctypes, block.ctypes,
+               ints[0:].ctypes, y[column0:].ctypes, ints[2:].ctypes)
+        if below:
+            _dgemv(chars[1:].ctypes, ints[0:].ctypes, ints[1:].ctypes, scalars[0:].ctypes,
+                   block[columns * columns:].ctypes, ints[0:].ctypes, y[column0:].ctypes, ints[2:].ctypes,
+                   scalars[1:].ctypes, gathered.ctypes, ints[2:].ctypes)
+            for r in range(below):
+                y[front_index[first + columns + r]] -= gathered[r]
     for s in range(supernodes - 1, -1, -1):  # Lᵀ x = y
         first, size, columns, column0 = front_ptr[s], front_ptr[s + 1] - front_ptr[s], width[s], start[s]
-        block = factor[factor_ptr[s]: factor_ptr[s] + size * columns].reshape(size, columns)
-        for r in range(columns, size):
-            value = y[front_index[first + r]]
-            for j in range(columns):
-                y[column0 + j] -= block[r, j] * value
-        for j in range(columns - 1, -1, -1):
-            total = y[column0 + j]
-            for i in range(j + 1, columns):
-                total -= block[i, j] * y[column0 + i]
-            y[column0 + j] = total / block[j, j]
+        block = factor[factor_ptr[s]: factor_ptr[s] + size * columns]
+        below = size - columns
+        ints[0], ints[1] = columns, below
+        if below:
+            for r in range(below):
+                gathered[r] = y[front_index[first + columns + r]]
+            _dgemv(chars[2:].ctypes, ints[0:].ctypes, ints[1:].ctypes, scalars[2:].ctypes,
+                   block[columns * columns:].ctypes, ints[0:].ctypes, gathered.ctypes, ints[2:].ctypes,
+                   scalars[0:].ctypes, y[column0:].ctypes, ints[2:].ctypes)
+        _dtrsv(chars[0:].ctypes, chars[2:].ctypes, chars[2:].ctypes, ints[0:].ctypes, block.ctypes,
+               ints[0:].ctypes, y[column0:].ctypes, ints[2:].ctypes)
     x = np.empty(n)
     for k in range(n):
         x[perm[k]] = y[k]

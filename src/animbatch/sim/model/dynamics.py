@@ -23,7 +23,7 @@ import scipy.sparse as sp
 
 from animbatch import quaternion
 from animbatch.sim.forces import Kinematics
-from animbatch.sim.forces.base import ForceJacobian
+from animbatch.sim.forces.jacobian import ForceJacobian
 from animbatch.sim.joints import STABILISATION_RATE
 from animbatch.sim.model.model import Model, world_inverse_inertia_times
 
@@ -215,13 +215,14 @@ class Dynamics:
 
     # ------------------------------------------------------------------------------------------ derivatives
 
-    def force_jacobian(self, t: float, config: np.ndarray, motion: np.ndarray, *,
-                       definite: bool = False) -> tuple[ForceJacobian, list[str]]:
+    def force_jacobian(self, t: float, config: np.ndarray, motion: np.ndarray, *, definite: bool = False,
+                       compiled: bool = False) -> tuple[ForceJacobian, list[str]]:
         """``∂f/∂x`` and ``∂f/∂v`` of the forces on the particles (exact, or ``definite``: see
-        :class:`ForceJacobian`), and the labels of the terms that give none (they are explicit in implicit steps)."""
+        :class:`ForceJacobian`; ``compiled``: its blocks and matrices by the compiled kernels, where numba is known to
+        load), and the labels of the terms that give none (they are explicit in implicit steps)."""
         state = self.kinematics(config, motion, t=t)
         jacobian = ForceJacobian(self.particles, definite=definite,
-                                 patterns=self._patterns.setdefault(definite, {}))
+                                 patterns=self._patterns.setdefault(definite, {}), compiled=compiled)
         explicit = [term.label for term in self.terms if not term.jacobian(t, state, jacobian)]
         return jacobian, explicit
 
