@@ -89,6 +89,30 @@ def test_elimination_tree_and_structures_of_a_path_and_of_an_arrow():
     assert cholesky.postorder(np.array([2, 3, 3, -1])).tolist() == [1, 0, 2, 3]
 
 
+def test_subtrees_shared_among_threads_cover_every_supernode_once_and_solve_to_round_off():
+    """On a 32×32 cloth's matrix, two threads get independent subtrees of about equal cost, everything else (the
+    separators above them) is factored after them, each supernode exactly once; the factors still solve it."""
+    matrix = step_matrix("[32, 32]")
+    factors = cholesky.SparseCholesky(matrix)
+    count = factors.supernode_count
+    covered = np.zeros(count, int)
+    for first, last in zip(factors.task_first, factors.task_last):
+        covered[first: last + 1] += 1
+    covered[factors.top] += 1
+    assert np.all(covered == 1)
+    assert len(factors.bin_ptr) - 1 == 2  # both threads have work
+    right = np.random.default_rng(3).standard_normal(matrix.shape[0])
+    assert np.abs(matrix @ factors.factor(matrix).solve(right) - right).max() < 1e-10 * np.abs(right).max()
+    # the scheduler alone, on a tree of unit costs: 0, 1 -> 2; 3 -> 4; 2, 4 -> 5. Splitting at 5 leaves subtrees of
+    # 3 and 2; the one of 3 is more than half of 5, so it is split too: {4} and {0, 1}, two each, 2 and 5 on top
+    parents = np.array([2, 2, 5, 4, 5, -1])
+    tasks, top = cholesky.schedule_subtrees(parents, np.ones(6), 2)
+    assert top == [2, 5] and tasks == [[4], [0, 1]]
+    assert cholesky.subtree_sizes(parents).tolist() == [1, 1, 3, 1, 2, 6]
+    tasks, top = cholesky.schedule_subtrees(parents, np.ones(6), 1)
+    assert tasks == [[5]] and top == []
+
+
 def test_backward_euler_gives_the_same_cloth_with_either_solver(monkeypatch):
     """A 16×16 cloth falling from horizontal, one step per frame: the compiled Cholesky (forced) and SuperLU give
     the same motion to round-off, and the run reports the same work."""

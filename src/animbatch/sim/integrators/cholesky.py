@@ -15,7 +15,10 @@ Everything that depends only on the sparsity is done once, here, in numpy (:clas
 * each particle's column structure in the factor (its children's structures and its own lower neighbours), and
   from them the fundamental supernodes (chains of columns with nested structures), widened by *relaxed
   amalgamation*: a child joins its parent when that adds few explicit zeros, so that BLAS gets blocks worth calling;
-* the front of every supernode, and where its factor lives.
+* the front of every supernode, and where its factor lives;
+* which independent subtrees each thread factors (:func:`schedule_subtrees`), and the supernodes above them that
+  follow on one thread. BLAS runs on one thread meanwhile: its own threads, on top of these, made the factorisation
+  twice as slow.
 
 The numeric factorisation and the solves are compiled (:mod:`animbatch.sim.kernels.supernodal`). A later matrix may
 have fewer entries than the analysed one (scipy drops sums that come out exactly zero) but not more; if it has, it
@@ -24,15 +27,26 @@ is analysed again.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
+from threadpoolctl import ThreadpoolController
 
 #: A child supernode joins its parent when the merged supernode has at most this many particles (three columns
 #: each)…
 AMALGAMATE_PARTICLES = 16
 #: …or when the explicit zeros it adds are at most this fraction of the merged supernode's entries.
 AMALGAMATE_ZEROS = 0.1
+
+
+_THREADPOOLS = ThreadpoolController()
+
+
+def _blas_threads(count: int) -> Any:
+    """A context in which BLAS (scipy's and numpy's) runs on ``count`` threads."""
+    return _THREADPOOLS.limit(limits=count, user_api="blas")
 
 
 class NotPositiveDefinite(ValueError):
@@ -93,24 +107,48 @@ class SparseCholesky:
         self.child_index = children.astype(np.int64)
         self.child_ptr = np.searchsorted(parents[children], np.arange(count + 1)).astype(np.int64)
         self.factor_ptr = np.concatenate([[0], np.cumsum(sizes * self.width)]).astype(np.int64)
+        self._schedule(parents, sizes)
         self.factor_data = np.zeros(int(self.factor_ptr[-1]))
-        self._where = np.full(size, -1, np.int64)
         self.size = size
         self.supernode_count = count
+
+    def _schedule(self, parents: np.ndarray, sizes: np.ndarray) -> None:
+        """Independent subtrees for the threads (see :func:`schedule_subtrees`), in the kernel's arrays."""
+        from numba import get_num_threads
+
+        count = len(parents)
+        tasks, top = schedule_subtrees(parents, (sizes.astype(np.float64) ** 2) * self.width, get_num_threads())
+        self.bin_ptr = np.concatenate([[0], np.cumsum([len(b) for b in tasks])]).astype(np.int64)
+        roots = np.array([root for group in tasks for root in group], np.int64)
+        descendants = subtree_sizes(parents)
+        self.task_first = (roots - descendants[roots] + 1).astype(np.int64)
+        self.task_last = roots
+        self.top = np.array(top, np.int64)
+        self.external_ptr = np.full(count, -1, np.int64)
+        exported = roots[parents[roots] >= 0]
+        offsets = np.concatenate([[0], np.cumsum(sizes[exported] ** 2)])
+        self.external_ptr[exported] = offsets[:-1]
+        self._external = np.empty(int(offsets[-1]))  # the subtrees' root fronts, for the supernodes above
 
     # ------------------------------------------------------------------------------------------ numeric
 
     def factor(self, matrix: sp.spmatrix) -> SparseCholesky:
         """Factor ``matrix`` (symmetric positive definite, the analysed pattern or a part of it); returns self, whose
         :meth:`solve` then solves with it. Raises :class:`NotPositiveDefinite`."""
-        from animbatch.sim.kernels.supernodal import FACTORED, NOT_COVERED, factor_numeric
+        from animbatch.sim.kernels.supernodal import FACTORED, NOT_COVERED, factor_subtrees, factor_top
 
         matrix = sp.csr_matrix(matrix)
         for _ in range(2):
-            status = factor_numeric(matrix.indptr.astype(np.int64), matrix.indices.astype(np.int64),
-                                    matrix.data, self.perm, self.inverse, self.start, self.width,
-                                    self.front_ptr, self.front_index, self.child_ptr, self.child_index,
-                                    self.factor_ptr, self.factor_data, self._where)
+            arrays = (matrix.indptr, matrix.indices, matrix.data, self.perm,
+                      self.inverse, self.start, self.width, self.front_ptr, self.front_index, self.child_ptr,
+                      self.child_index, self.factor_ptr, self.factor_data)
+            # BLAS on one thread: beside the subtrees' threads two levels of threads only fight, and on the top
+            # part its own threads made the whole factorisation twice as slow (58 ms against 26 on a 64×64 cloth)
+            with _blas_threads(1):
+                status = factor_subtrees(*arrays, self.bin_ptr, self.task_first, self.task_last, self.external_ptr,
+                                         self._external)
+                if status == FACTORED:
+                    status = factor_top(*arrays, self.top, self.external_ptr, self._external)
             if status == FACTORED:
                 return self
             if status != NOT_COVERED:
@@ -123,8 +161,10 @@ class SparseCholesky:
         """``x`` with ``A x = b`` for the last factored A; ``b`` (3N,)."""
         from animbatch.sim.kernels.supernodal import solve_factored
 
-        return solve_factored(self.perm, self.start, self.width, self.front_ptr, self.front_index, self.factor_ptr,
-                              self.factor_data, np.ascontiguousarray(right_hand_side, dtype=np.float64))
+        with _blas_threads(1):  # many small BLAS calls: waking threads costs more than they save
+            return solve_factored(self.perm, self.start, self.width, self.front_ptr, self.front_index,
+                                  self.factor_ptr, self.factor_data,
+                                  np.ascontiguousarray(right_hand_side, dtype=np.float64))
 
 
 # ---------------------------------------------------------------------------------------------- symbolic steps
@@ -232,3 +272,49 @@ def supernodes(parent: np.ndarray, structures: list[np.ndarray]) -> tuple[np.nda
         merged_first.append(c)
         merged_last.append(d)
     return np.array(merged_first, np.int64), np.array(merged_last, np.int64)
+
+
+def subtree_sizes(parents: np.ndarray) -> np.ndarray:
+    """How many nodes each node's subtree holds (itself included), for a forest in postorder (children first)."""
+    sizes = np.ones(len(parents), np.int64)
+    for node in range(len(parents)):
+        if parents[node] >= 0:
+            sizes[parents[node]] += sizes[node]
+    return sizes
+
+
+def schedule_subtrees(parents: np.ndarray, cost: np.ndarray, threads: int) -> tuple[list[list[int]], list[int]]:
+    """Share a postordered forest of supernodes (``cost`` (S,) each) among ``threads``: the roots of independent
+    subtrees for each thread, and the supernodes left above them, to be factored after them on one thread.
+
+    Starting from the forest's roots, the costliest subtree is split (its root goes on top, its children become
+    subtrees) while it alone holds more than a thread's share of what the subtrees hold; then the subtrees go to
+    the thread with the least work so far, costliest first."""
+    count = len(parents)
+    children: list[list[int]] = [[] for _ in range(count)]
+    for node in range(count):
+        if parents[node] >= 0:
+            children[parents[node]].append(node)
+    total = cost.copy()
+    for node in range(count):  # postorder: children before parents
+        if parents[node] >= 0:
+            total[parents[node]] += total[node]
+    subtrees = [node for node in range(count) if parents[node] < 0]
+    top: list[int] = []
+    for _ in range(8 * threads):
+        if threads < 2:
+            break
+        largest = max(subtrees, key=lambda node: total[node])
+        share = sum(total[node] for node in subtrees) / threads
+        if total[largest] <= share or not children[largest]:
+            break
+        subtrees.remove(largest)
+        subtrees += children[largest]
+        top.append(largest)
+    bins: list[list[int]] = [[] for _ in range(max(1, threads))]
+    load = [0.0] * len(bins)
+    for node in sorted(subtrees, key=lambda node: -total[node]):
+        lightest = int(np.argmin(load))
+        bins[lightest].append(node)
+        load[lightest] += float(total[node])
+    return [group for group in bins if group], sorted(top)

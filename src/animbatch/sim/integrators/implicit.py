@@ -17,7 +17,8 @@ The price is numerical damping (energy is lost at a rate that grows with ``h ω`
   indefinite, and a falling cloth's energy grew ten-thousandfold in forty steps; with the definite ones (a
   compressed spring adds no sideways stiffness, Choi & Ko 2002) the matrix is symmetric positive definite.
 * It is solved directly (:class:`~animbatch.sim.integrators.linear_algebra.StepMatrixSolver`: a compiled
-  supernodal Cholesky analysed once per run, 28–35 ms per factorisation on a 64×64 cloth, or SuperLU, 155–270 ms).
+  supernodal Cholesky analysed once per run, 24 ms per factorisation on a 64×64 cloth on two cores, or SuperLU,
+  155–270 ms).
   Iterative solvers did not pay: Jacobi-preconditioned conjugate gradients needed 900+ iterations at h = 1/30 s
   (``h² k / m`` being 10⁴–10⁵), and preconditioned by the previous step's factors they converged within 100
   iterations on 2 steps of 92, the springs having turned in between.
