@@ -146,3 +146,28 @@ def test_the_solver_takes_the_cholesky_for_large_symmetric_matrices_only(monkeyp
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numpy")
     solver.factor(large)
     assert solver.method == "SuperLU"
+
+
+def test_kernels_that_fail_to_build_leave_the_cloth_to_superlu_and_say_so(monkeypatch):
+    """numba loads but cannot compile the cloth solver's kernels: backward Euler warns once, before the first step,
+    and gives the same cloth with SuperLU and the numpy assembly."""
+    from numba.core.errors import TypingError
+
+    from animbatch.sim.integrators import linear_algebra
+    from animbatch.sim.kernels import assembly
+
+    def broken(*args, **kwargs):
+        raise TypingError("no implementation for this machine")
+
+    text = cloth("{method: backward_euler, dt: 0.0333333}", size="[8, 6]", duration=0.2)
+    monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numpy")
+    reference = run(text)[1]
+    monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
+    monkeypatch.setattr(assembly, "scatter_pairs", broken)
+    linear_algebra.build_step_kernels.cache_clear()
+    try:
+        with pytest.warns(RuntimeWarning, match=r"compiled cloth solver could not be built \(TypingError: no impl"):
+            fallen = run(text)[1]
+    finally:
+        linear_algebra.build_step_kernels.cache_clear()
+    np.testing.assert_array_equal(fallen.positions, reference.positions)

@@ -91,6 +91,7 @@ class BackwardEuler(PartitionedScheme):
         self._mass_diagonal = np.repeat(np.asarray(model.bodies.mass[: system.particles], np.float64), 3)  # (3N,) [kg]
         # the step matrix is assembled and factored by compiled kernels where they pay (large cloth)
         self._compiled = compiled_solves(self._particle_dofs)
+        self.solver = StepMatrixSolver(self._compiled)
         self.explicit_terms: list[str] = []
         # forces without derivatives (gravitation, aerodynamics, …) enter explicitly: then the step is partly
         # symplectic Euler, whose energy oscillates every step, and halving would chase that down to h / 2^10
@@ -101,7 +102,6 @@ class BackwardEuler(PartitionedScheme):
         self.guard_energy = system.rigid == 0 and not system.adds_energy and linearised and not rods
         self.halvings = 0  # steps redone as two half steps by the energy guard
         self.corrections = 0  # Newton iterations after the linearised step, by the energy guard
-        self.solver = StepMatrixSolver()
         self.max_halvings = (MAX_HALVINGS if all(term.steps_lose_energy for term in model.force_terms)
                              else APPROXIMATE_HALVINGS)
         # Springs at rest hold almost no energy, so a relative tolerance alone would take the rounding of their

@@ -31,6 +31,8 @@ solve *is* the step, so its matrix is never thinned.
 
 from __future__ import annotations
 
+import functools
+import warnings
 from typing import Any
 
 import numpy as np
@@ -46,10 +48,42 @@ CHOLESKY_MIN_UNKNOWNS = 3000
 
 def compiled_solves(size: int) -> bool:
     """Whether step matrices of ``size`` unknowns are assembled and factored by the compiled kernels (see
-    :data:`CHOLESKY_MIN_UNKNOWNS`)."""
+    :data:`CHOLESKY_MIN_UNKNOWNS`): where they pay, and once they are built (:func:`build_step_kernels`)."""
     from animbatch.sim.kernels import MIN_WORK, compiled_kernels
 
-    return size % 3 == 0 and compiled_kernels(MIN_WORK if size >= CHOLESKY_MIN_UNKNOWNS else 0.0)
+    if not size or size % 3 or not compiled_kernels(MIN_WORK if size >= CHOLESKY_MIN_UNKNOWNS else 0.0):
+        return False
+    failure = build_step_kernels()
+    if failure is not None:
+        warnings.warn(f"the compiled cloth solver could not be built ({failure}); SuperLU and numpy assemble and "
+                      "solve the steps instead (slower, same results)", RuntimeWarning, stacklevel=2)
+    return failure is None
+
+
+@functools.cache
+def build_step_kernels() -> str | None:
+    """Build (or load from numba's disk cache: about 11 s the first time on a machine, a fraction of a second after)
+    the assembly and Cholesky kernels on a system of two particles joined by a spring, so that a kernel numba cannot
+    build is found before the first step; None, or what failed."""
+    try:
+        from animbatch.sim.forces.jacobian import ForceJacobian
+        from animbatch.sim.integrators.cholesky import SparseCholesky
+        from animbatch.sim.kernels.assembly import spring_blocks
+
+        dfdx, dfdv = spring_blocks(np.array([[1.0, 0.0, 0.0]]), np.zeros((1, 3)), np.ones(1), np.ones(1), np.ones(1),
+                                   True)
+        jacobian = ForceJacobian(2, definite=True, compiled=True)
+        pair = np.array([0]), np.array([1])
+        jacobian.add_pairs(*pair, dfdx, dfdv)
+        jacobian.add(*pair, dfdx=np.zeros((1, 3, 3)), dfdv=np.zeros((1, 3, 3)))
+        matrix = jacobian.step_matrix(np.ones(6), 0.1)
+        jacobian.product("x", np.ones(6))
+        SparseCholesky(matrix).factor(matrix).solve(np.ones(6))
+    except Exception as error:  # noqa: BLE001 - numba's typing and lowering errors, LLVM's
+        if not type(error).__module__.startswith(("numba", "llvmlite")):
+            raise
+        return f"{type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''}"
+    return None
 
 
 class StepMatrixSolver:
@@ -57,7 +91,10 @@ class StepMatrixSolver:
     values at every step): by the compiled supernodal Cholesky, analysed once, where it pays and the matrix is
     symmetric positive definite; by SuperLU otherwise (a magnetic field's ∂f/∂v is antisymmetric)."""
 
-    def __init__(self) -> None:
+    def __init__(self, compiled: bool | None = None) -> None:
+        """``compiled``: whether the Cholesky may be used (decided once by the scheme, :func:`compiled_solves`);
+        None decides by each matrix's size."""
+        self._compiled = compiled
         self._cholesky: Any = None
         self._probe: np.ndarray | None = None
         self.method = "SuperLU"  # of the last factorisation
@@ -66,7 +103,8 @@ class StepMatrixSolver:
         """Factors of ``matrix`` with a ``solve(b)`` method. Raises RuntimeError (SuperLU's) if it is singular."""
         matrix = sp.csr_matrix(matrix)
         size = matrix.shape[0]
-        if compiled_solves(size) and self._symmetric(matrix):
+        compiled = self._compiled if self._compiled is not None else compiled_solves(size)
+        if compiled and self._symmetric(matrix):
             from animbatch.sim.integrators.cholesky import NotPositiveDefinite, SparseCholesky
 
             try:
