@@ -35,8 +35,10 @@ exactly ``½ μ (1 - e²) Δv²`` (μ: reduced mass, Δv: approach speed) — th
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -140,15 +142,39 @@ class ContactRows:
         self.normal_row, self.first_row, self.second_row = (self._direction(d) for d in (self.n, self.t1, self.t2))
         self.w_n, self.w_1, self.w_2 = (self._weight(row) for row in (self.normal_row, self.first_row,
                                                                      self.second_row))
-        rows = (self.normal_row, self.first_row, self.second_row)
-        self._jacobian_normal = self._sparse(rows[:1], response=False)
-        self._jacobian_tangent = self._sparse(rows[1:], response=False)
-        self._response_normal = self._sparse(rows[:1], response=True)
-        self._response_tangent = self._sparse(rows[1:], response=True)
+        self._jointed = jointed
         if jointed is not None:  # contacts on jointed bodies move them within the joints (sim/contact/jointed.py)
-            self._response_normal = jointed.correct(self._response_normal)
-            self._response_tangent = jointed.correct(self._response_tangent)
+            rows = (self.normal_row, self.first_row, self.second_row)
             self.w_n, self.w_1, self.w_2 = (self._jointed_weight(row, jointed) for row in rows)
+
+    # the sparse forms, built on first use (the compiled iterations read the rows themselves)
+    @functools.cached_property
+    def _jacobian_normal(self) -> sp.csr_matrix:
+        return self._sparse((self.normal_row,), response=False)
+
+    @functools.cached_property
+    def _jacobian_tangent(self) -> sp.csr_matrix:
+        return self._sparse((self.first_row, self.second_row), response=False)
+
+    @functools.cached_property
+    def _response_normal(self) -> sp.csr_matrix | sp.csc_matrix:
+        response = self._sparse((self.normal_row,), response=True)
+        return self._jointed.correct(response) if self._jointed is not None else response
+
+    @functools.cached_property
+    def _response_tangent(self) -> sp.csr_matrix | sp.csc_matrix:
+        response = self._sparse((self.first_row, self.second_row), response=True)
+        return self._jointed.correct(response) if self._jointed is not None else response
+
+    def kernel_rows(self) -> tuple[Any, ...]:
+        """The rows as :mod:`animbatch.sim.kernels.contact_impulses` takes them: ``a``, ``b`` (K,), then
+        ``direction``, ``arm_a``, ``arm_b``, ``lin_a``, ``lin_b``, ``turn_a``, ``turn_b`` (3, K, 3) and ``weight``
+        (3, K), rows in the order normal, first tangent, second tangent."""
+        rows = (self.normal_row, self.first_row, self.second_row)
+        stacked = [np.ascontiguousarray(np.stack([getattr(row, name) for row in rows]), dtype=np.float64)
+                   for name in ("d", "ang_a", "ang_b", "lin_a", "lin_b", "turn_a", "turn_b")]
+        return (self.a.astype(np.int64), self.b.astype(np.int64), *stacked,
+                np.stack([self.w_n, self.w_1, self.w_2]))
 
     def _sparse(self, rows: tuple[_Direction, ...], *, response: bool, ends: tuple[bool, bool] = (True, True)
                 ) -> sp.csr_matrix | sp.csc_matrix:
@@ -373,6 +399,44 @@ class SolveResult:
     arrival: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
+#: Impulse solves of at least this many contacts run their sweeps compiled
+#: (:mod:`animbatch.sim.kernels.contact_impulses`) unless ``ANIMBATCH_KERNELS=numpy``; fewer finish in numpy before
+#: numba has loaded (``numba`` compiles them all).
+#: Measured on a pile of 10 000 balls: 1.6 ms per sweep in numpy.
+COMPILED_CONTACTS = 1000
+
+
+def compiled_contacts(count: int) -> bool:
+    """Whether an impulse solve of ``count`` contacts runs its sweeps compiled: where it pays, and once the kernels
+    are built (:func:`build_contact_kernels`)."""
+    from animbatch.sim.kernels import MIN_WORK, kernels_ready
+
+    return kernels_ready(MIN_WORK if count >= COMPILED_CONTACTS else 0.0, build_contact_kernels, "contact solver",
+                         "numpy solves the contacts")
+
+
+@functools.cache
+def build_contact_kernels() -> str | None:
+    """Build (or load from numba's disk cache) the contact kernels on one contact, so that a kernel numba cannot
+    build is found before it is needed; None, or what failed."""
+    from animbatch.sim.kernels import build_failure
+
+    def build() -> None:
+        from animbatch.sim.kernels import contact_impulses as kernels
+
+        impulses: Any = kernels  # the kernels take the rows unpacked (ContactRows.kernel_rows)
+        one: Any = np.zeros(1, np.int64), np.ones(1, np.int64)
+        rows: Any = [np.zeros((3, 1, 3)) for _ in range(7)]
+        velocity = np.zeros(12)
+        impulses.rates(velocity, 0, *one, *rows[:3])
+        impulses.apply_impulses(velocity, np.zeros(1), np.zeros((1, 2)), *one, *rows[3:])
+        impulses.impulse_iterations(velocity, *one, *rows, np.ones((3, 1)), np.zeros(1), np.zeros(1),
+                                    np.zeros((1, 2)), np.zeros(1), np.zeros(1), np.zeros(1, bool), 1, 0.0)
+        impulses.push_iterations(velocity, *one, *rows, np.ones((3, 1)), np.zeros(1), 0.0, 1)
+
+    return build_failure(build)
+
+
 def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h: float, *, iterations: int,
                    rest_speed: float, slop: float, bounce: bool = True,
                    warm: tuple[np.ndarray, np.ndarray] | None = None,
@@ -400,8 +464,18 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
     rows = ContactRows(contacts, bodies, x, kinematic, jointed)
     block = JointedNormals.of(rows, jointed) if jointed is not None else None
     n = rows.n
-    approach = rows.relative(n)
-    sticking = np.linalg.norm(rows.tangential(), axis=1) <= rest_speed
+    kernel: Any = rows.kernel_rows() if jointed is None and compiled_contacts(count) else None
+    if kernel is not None:
+        from animbatch.sim.kernels import contact_impulses as kernels
+
+        contact_impulses: Any = kernels  # the kernels take the rows unpacked (ContactRows.kernel_rows)
+        start = rows.flat()
+        approach = contact_impulses.rates(start, 0, *kernel[:5])
+        sticking = np.hypot(contact_impulses.rates(start, 1, *kernel[:5]),
+                            contact_impulses.rates(start, 2, *kernel[:5])) <= rest_speed
+    else:
+        approach = rows.relative(n)
+        sticking = np.linalg.norm(rows.tangential(), axis=1) <= rest_speed
     fast = approach < -rest_speed
     gap = contacts.gap
     bounce_target = -contacts.restitution * approach if bounce else np.zeros(count)
@@ -425,11 +499,20 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         normal_impulse = np.where(fast, 0.0, warm[0])  # impacts start afresh; resting contacts from last step
         tangent_impulse = np.stack([np.einsum("ki,ki->k", warm[1], rows.t1),
                                     np.einsum("ki,ki->k", warm[1], rows.t2)], axis=1) * (~fast)[:, None]
-        rows.push_normal(velocity, normal_impulse)
-        rows.push_tangent(velocity, tangent_impulse)
+        if kernel is not None:
+            contact_impulses.apply_impulses(velocity, normal_impulse, tangent_impulse, *kernel[:2], *kernel[5:9])
+        else:
+            rows.push_normal(velocity, normal_impulse)
+            rows.push_tangent(velocity, tangent_impulse)
     tolerance = VELOCITY_TOLERANCE * (1.0 + float(np.abs(approach).max(initial=0.0)))
     gripping = np.zeros(count, bool)  # which contacts hold by friction; set by the first iteration
-    for iteration in range(iterations + 1):
+    if kernel is not None:  # the same sweeps, compiled
+        normal_impulse, tangent_impulse = normal_impulse.astype(np.float64), tangent_impulse.astype(np.float64)
+        contact_impulses.impulse_iterations(velocity, *kernel, target.astype(np.float64), normal_impulse,
+                                            tangent_impulse, contacts.static_friction.astype(np.float64),
+                                            contacts.kinetic_friction.astype(np.float64), sticking, iterations,
+                                            tolerance)
+    for iteration in range(iterations + 1 if kernel is None else 0):
         normal_now = rows.normal_velocity(velocity) - target
         # Stop when every contact does what it must (not when impulses stop changing: with redundant contacts,
         # a box on four corners, impulses may keep moving among corners after the motion has converged). At least
@@ -463,7 +546,9 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         push_target = BAUMGARTE * overlap / h
         push = np.zeros(count)
         enough = PUSH_TOLERANCE * float(push_target.max())
-        for _ in range(min(iterations, PUSH_ITERATIONS)):
+        if kernel is not None:
+            contact_impulses.push_iterations(pseudo, *kernel, push_target, enough, min(iterations, PUSH_ITERATIONS))
+        for _ in range(min(iterations, PUSH_ITERATIONS) if kernel is None else 0):
             pushed = rows.normal_velocity(pseudo) - push_target
             violation = np.where(push > 0, np.abs(pushed), np.maximum(-pushed, 0.0))
             if float(violation.max()) <= enough:

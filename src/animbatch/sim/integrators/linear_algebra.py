@@ -32,7 +32,6 @@ solve *is* the step, so its matrix is never thinned.
 from __future__ import annotations
 
 import functools
-import warnings
 from typing import Any
 
 import numpy as np
@@ -49,15 +48,11 @@ CHOLESKY_MIN_UNKNOWNS = 3000
 def compiled_solves(size: int) -> bool:
     """Whether step matrices of ``size`` unknowns are assembled and factored by the compiled kernels (see
     :data:`CHOLESKY_MIN_UNKNOWNS`): where they pay, and once they are built (:func:`build_step_kernels`)."""
-    from animbatch.sim.kernels import MIN_WORK, compiled_kernels
+    from animbatch.sim.kernels import MIN_WORK, kernels_ready
 
-    if not size or size % 3 or not compiled_kernels(MIN_WORK if size >= CHOLESKY_MIN_UNKNOWNS else 0.0):
-        return False
-    failure = build_step_kernels()
-    if failure is not None:
-        warnings.warn(f"the compiled cloth solver could not be built ({failure}); SuperLU and numpy assemble and "
-                      "solve the steps instead (slower, same results)", RuntimeWarning, stacklevel=2)
-    return failure is None
+    return bool(size) and size % 3 == 0 and kernels_ready(
+        MIN_WORK if size >= CHOLESKY_MIN_UNKNOWNS else 0.0, build_step_kernels, "cloth solver",
+        "SuperLU and numpy assemble and solve the steps")
 
 
 @functools.cache
@@ -65,7 +60,9 @@ def build_step_kernels() -> str | None:
     """Build (or load from numba's disk cache: about 11 s the first time on a machine, a fraction of a second after)
     the assembly and Cholesky kernels on a system of two particles joined by a spring, so that a kernel numba cannot
     build is found before the first step; None, or what failed."""
-    try:
+    from animbatch.sim.kernels import build_failure
+
+    def build() -> None:
         from animbatch.sim.forces.jacobian import ForceJacobian
         from animbatch.sim.integrators.cholesky import SparseCholesky
         from animbatch.sim.kernels.assembly import spring_blocks
@@ -79,11 +76,8 @@ def build_step_kernels() -> str | None:
         matrix = jacobian.step_matrix(np.ones(6), 0.1)
         jacobian.product("x", np.ones(6))
         SparseCholesky(matrix).factor(matrix).solve(np.ones(6))
-    except Exception as error:  # noqa: BLE001 - numba's typing and lowering errors, LLVM's
-        if not type(error).__module__.startswith(("numba", "llvmlite")):
-            raise
-        return f"{type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''}"
-    return None
+
+    return build_failure(build)
 
 
 class StepMatrixSolver:

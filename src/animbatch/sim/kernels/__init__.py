@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import functools
 import os
+import warnings
+from collections.abc import Callable
 
 #: ``auto``, ``numba`` or ``numpy`` (see the module notes).
 KERNELS_VARIABLE = "ANIMBATCH_KERNELS"
@@ -44,3 +46,27 @@ def compiled_kernels(work: float = float("inf")) -> bool:
     if choice == "numpy" or (choice == "auto" and work < MIN_WORK):
         return False
     return _numba_imports()
+
+
+def build_failure(build: Callable[[], None]) -> str | None:
+    """Run ``build`` (kernels called on tiny inputs, so that numba compiles them or loads them from its disk cache);
+    None, or what numba or LLVM could not do. Other errors are not a build's and are raised."""
+    try:
+        build()
+    except Exception as error:  # noqa: BLE001 - numba's typing and lowering errors, LLVM's
+        if not type(error).__module__.startswith(("numba", "llvmlite")):
+            raise
+        return f"{type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''}"
+    return None
+
+
+def kernels_ready(work: float, built: Callable[[], str | None], what: str, instead: str) -> bool:
+    """Whether to run ``what`` compiled for ``work`` element-steps: :func:`compiled_kernels` allows it and ``built()``
+    (a cached :func:`build_failure`) found nothing wrong; if it did, a warning says so and that ``instead`` runs."""
+    if not compiled_kernels(work):
+        return False
+    failure = built()
+    if failure is not None:
+        warnings.warn(f"the compiled {what} could not be built ({failure}); {instead} instead (slower, same "
+                      "results)", RuntimeWarning, stacklevel=3)
+    return failure is None

@@ -1,0 +1,151 @@
+"""Compiled iterations of the contact impulse solver: the loops of :func:`animbatch.sim.contact.solver.solve_impulses`
+(projected Jacobi with mass splitting), in one pass over the contacts per half iteration instead of five sparse
+products and a dozen temporary arrays.
+
+On a pile of 10 000 balls the iterations were 93 % of a step and contact detection 5 %, so the iterations are what is
+compiled. Every operation is the numpy code's, in the same order per contact, so the two agree to round-off (the
+tests compare them): a row's rate ``(v_a − v_b)·d + ω_a·(r_a × d) − ω_b·(r_b × d)`` is
+:meth:`ContactRows.relative`, and an impulse λ along a row adds ``λ lin_a`` and ``λ turn_a`` to body a's linear and
+angular velocity and takes ``λ lin_b``, ``λ turn_b`` from body b's, as the response matrices do.
+
+Arrays (K contacts, B bodies with the fixed one last): ``velocity`` (6 B,) flat, ``[v.ravel(), ω.ravel()]``, changed in
+place; ``a``, ``b`` (K,) body indices; per row r (0: normal, 1 and 2: tangents) ``direction``, ``arm_a``, ``arm_b``
+(``r × d``), ``lin_a``, ``lin_b``, ``turn_a``, ``turn_b``: (3, K, 3); ``weight`` (3, K): effective masses.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, inline="always")
+def _rate(velocity: np.ndarray, bodies: int, row: int, k: int, a: np.ndarray, b: np.ndarray, direction: np.ndarray,
+          arm_a: np.ndarray, arm_b: np.ndarray) -> float:
+    """The relative velocity of contact k along row ``row``."""
+    i, j = 3 * a[k], 3 * b[k]
+    wi, wj = 3 * (bodies + a[k]), 3 * (bodies + b[k])
+    linear = 0.0
+    angular_a = 0.0
+    angular_b = 0.0
+    for c in range(3):
+        linear += (velocity[i + c] - velocity[j + c]) * direction[row, k, c]
+        angular_a += velocity[wi + c] * arm_a[row, k, c]
+        angular_b += velocity[wj + c] * arm_b[row, k, c]
+    return linear + angular_a - angular_b
+
+
+@njit(cache=True, inline="always")
+def _apply(velocity: np.ndarray, bodies: int, row: int, k: int, amount: float, a: np.ndarray, b: np.ndarray,
+           lin_a: np.ndarray, lin_b: np.ndarray, turn_a: np.ndarray, turn_b: np.ndarray) -> None:
+    """An impulse ``amount`` along row ``row`` of contact k, into the velocities."""
+    i, j = 3 * a[k], 3 * b[k]
+    wi, wj = 3 * (bodies + a[k]), 3 * (bodies + b[k])
+    for c in range(3):
+        velocity[i + c] += amount * lin_a[row, k, c]
+        velocity[wi + c] += amount * turn_a[row, k, c]
+        velocity[j + c] -= amount * lin_b[row, k, c]
+        velocity[wj + c] -= amount * turn_b[row, k, c]
+
+
+@njit(cache=True)
+def rates(velocity: np.ndarray, row: int, a: np.ndarray, b: np.ndarray, direction: np.ndarray, arm_a: np.ndarray,
+          arm_b: np.ndarray) -> np.ndarray:
+    """Relative velocities (K,) along row ``row`` of every contact."""
+    bodies = len(velocity) // 6
+    out = np.empty(len(a))
+    for k in range(len(a)):
+        out[k] = _rate(velocity, bodies, row, k, a, b, direction, arm_a, arm_b)
+    return out
+
+
+@njit(cache=True)
+def apply_impulses(velocity: np.ndarray, normal: np.ndarray, tangent: np.ndarray, a: np.ndarray, b: np.ndarray,
+                   lin_a: np.ndarray, lin_b: np.ndarray, turn_a: np.ndarray, turn_b: np.ndarray) -> None:
+    """Normal impulses (K,) and tangential ones (K, 2) into the velocities, all at once."""
+    bodies = len(velocity) // 6
+    for k in range(len(a)):
+        _apply(velocity, bodies, 0, k, normal[k], a, b, lin_a, lin_b, turn_a, turn_b)
+    for k in range(len(a)):
+        _apply(velocity, bodies, 1, k, tangent[k, 0], a, b, lin_a, lin_b, turn_a, turn_b)
+    for k in range(len(a)):
+        _apply(velocity, bodies, 2, k, tangent[k, 1], a, b, lin_a, lin_b, turn_a, turn_b)
+
+
+@njit(cache=True)
+def impulse_iterations(velocity: np.ndarray, a: np.ndarray, b: np.ndarray, direction: np.ndarray, arm_a: np.ndarray,
+                       arm_b: np.ndarray, lin_a: np.ndarray, lin_b: np.ndarray, turn_a: np.ndarray,
+                       turn_b: np.ndarray, weight: np.ndarray, target: np.ndarray, normal_impulse: np.ndarray,
+                       tangent_impulse: np.ndarray, static: np.ndarray, kinetic: np.ndarray, sticking: np.ndarray,
+                       iterations: int, tolerance: float) -> int:
+    """The solver's sweeps, normal then friction, until every contact does what it must (to ``tolerance``) or after
+    ``iterations``; ``normal_impulse`` (K,) and ``tangent_impulse`` (K, 2) are updated in place. Returns the sweeps
+    made."""
+    count = len(a)
+    bodies = len(velocity) // 6
+    normal_now = np.empty(count)
+    change = np.empty(count)
+    updated = np.empty((count, 2))
+    gripping = np.zeros(count, np.bool_)
+    for iteration in range(iterations + 1):
+        for k in range(count):
+            normal_now[k] = _rate(velocity, bodies, 0, k, a, b, direction, arm_a, arm_b) - target[k]
+        if iteration > 0:
+            worst = 0.0
+            for k in range(count):
+                violation = abs(normal_now[k]) if normal_impulse[k] > 0 else max(-normal_now[k], 0.0)
+                worst = max(worst, violation)
+                if gripping[k]:
+                    first = _rate(velocity, bodies, 1, k, a, b, direction, arm_a, arm_b)
+                    second = _rate(velocity, bodies, 2, k, a, b, direction, arm_a, arm_b)
+                    worst = max(worst, math.sqrt(first * first + second * second))
+            if worst <= tolerance or iteration == iterations:
+                return iteration
+        for k in range(count):
+            new = max(normal_impulse[k] - normal_now[k] * weight[0, k], 0.0)
+            change[k] = new - normal_impulse[k]
+            normal_impulse[k] = new
+        for k in range(count):
+            _apply(velocity, bodies, 0, k, change[k], a, b, lin_a, lin_b, turn_a, turn_b)
+        # Coulomb: the impulse that stops the tangential motion if the static cone allows, else the kinetic limit
+        for k in range(count):
+            first = _rate(velocity, bodies, 1, k, a, b, direction, arm_a, arm_b)
+            second = _rate(velocity, bodies, 2, k, a, b, direction, arm_a, arm_b)
+            wanted_1 = tangent_impulse[k, 0] - first * weight[1, k]
+            wanted_2 = tangent_impulse[k, 1] - second * weight[2, k]
+            size = math.sqrt(wanted_1 * wanted_1 + wanted_2 * wanted_2)
+            holds = sticking[k] and size <= static[k] * normal_impulse[k]
+            limit = size if holds else kinetic[k] * normal_impulse[k]
+            scale = min(size, limit) / size if size > 0 else 0.0
+            updated[k, 0], updated[k, 1] = wanted_1 * scale, wanted_2 * scale
+            gripping[k] = holds
+        for k in range(count):
+            _apply(velocity, bodies, 1, k, updated[k, 0] - tangent_impulse[k, 0], a, b, lin_a, lin_b, turn_a, turn_b)
+            _apply(velocity, bodies, 2, k, updated[k, 1] - tangent_impulse[k, 1], a, b, lin_a, lin_b, turn_a, turn_b)
+            tangent_impulse[k, 0], tangent_impulse[k, 1] = updated[k, 0], updated[k, 1]
+    return iterations
+
+
+@njit(cache=True)
+def push_iterations(pseudo: np.ndarray, a: np.ndarray, b: np.ndarray, direction: np.ndarray, arm_a: np.ndarray,
+                    arm_b: np.ndarray, lin_a: np.ndarray, lin_b: np.ndarray, turn_a: np.ndarray, turn_b: np.ndarray,
+                    weight: np.ndarray, push_target: np.ndarray, enough: float, iterations: int) -> None:
+    """The split impulse's sweeps on the pseudo-velocities ``pseudo`` (6 B,), normals only, until every push meets
+    its target to ``enough`` or after ``iterations``."""
+    count = len(a)
+    bodies = len(pseudo) // 6
+    push = np.zeros(count)
+    pushed = np.empty(count)
+    for _ in range(iterations):
+        worst = 0.0
+        for k in range(count):
+            pushed[k] = _rate(pseudo, bodies, 0, k, a, b, direction, arm_a, arm_b) - push_target[k]
+            worst = max(worst, abs(pushed[k]) if push[k] > 0 else max(-pushed[k], 0.0))
+        if worst <= enough:
+            return
+        for k in range(count):
+            new = max(push[k] - pushed[k] * weight[0, k], 0.0)
+            _apply(pseudo, bodies, 0, k, new - push[k], a, b, lin_a, lin_b, turn_a, turn_b)
+            push[k] = new

@@ -1,0 +1,109 @@
+"""The compiled contact-impulse sweeps against the closed forms the numpy solver is tested on, and against the numpy
+solver itself on a pile of balls and boxes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import test_contacts
+from animbatch.sim import kernels
+from conftest import run
+
+pytest.importorskip("numba", reason="numba is not installed: numpy solves every contact")
+
+
+@pytest.fixture
+def compiled_sweeps(monkeypatch):
+    """Every impulse solve compiled, and a count of the compiled sweeps' calls."""
+    from animbatch.sim.kernels import contact_impulses
+
+    monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
+    calls = []
+    sweeps = contact_impulses.impulse_iterations
+
+    def counted(*args):
+        calls.append(len(args[1]))
+        return sweeps(*args)
+
+    monkeypatch.setattr(contact_impulses, "impulse_iterations", counted)
+    return calls
+
+
+@pytest.mark.parametrize("closed_form", [
+    test_contacts.test_elastic_head_on_collision_gives_the_textbook_velocities,
+    test_contacts.test_inelastic_collision_loses_half_mu_one_minus_e_squared_dv_squared,
+    test_contacts.test_block_sticks_when_tan_theta_is_below_mu_s,
+    test_contacts.test_block_slides_with_a_equal_g_sin_minus_mu_k_cos,
+    test_contacts.test_sliding_block_stops_and_stays_stopped,
+    test_contacts.test_sliding_sphere_starts_rolling_at_the_predicted_time,  # friction turns it: angular rows
+    test_contacts.test_box_dropped_on_its_edge_tumbles_and_lands_flat,
+], ids=lambda test: test.__name__.removeprefix("test_"))
+@pytest.mark.parametrize("method", test_contacts.BOTH)
+def test_closed_forms_hold_with_compiled_sweeps(closed_form, method, compiled_sweeps):
+    closed_form(method)
+    assert compiled_sweeps  # the compiled sweeps did the solving
+
+
+def pile() -> str:
+    """144 balls in a loose jittered grid and 4 turned crates above a floor and a half-buried stone."""
+    rng = np.random.default_rng(2)
+    lines = []
+    for i, (x, y, z) in enumerate(np.stack(np.meshgrid(np.arange(6), np.arange(4), np.arange(6)), -1).reshape(-1, 3)):
+        dx, dz = rng.uniform(-0.004, 0.004, 2)
+        lines.append(f"  - {{name: ball{i}, radius: 0.03, mass: 0.05, material: rubber, "
+                     f"position: [{0.065 * x + dx:.4f}, {0.3 + 0.065 * y:.4f}, {0.065 * z + dz:.4f}]}}")
+    for i, (x, z) in enumerate([(0, 0), (0.2, 0), (0, 0.2), (0.2, 0.2)]):
+        lines.append(f"  - {{name: crate{i}, type: rigid, shape: {{type: box, size: [0.12, 0.08, 0.1]}}, density: 500, "
+                     f"material: wood, position: [{x + 0.05}, 0.7, {z + 0.05}], "
+                     f"orientation: {{axis: [1, 1, 0], angle: {30 + 10 * i}}}}}")
+    bodies = "\n".join(lines)
+    return f"""
+duration: 0.25
+fps: 20
+solver: {{method: symplectic_euler, dt: 0.002}}
+bodies:
+{bodies}
+colliders:
+  - {{type: plane, material: wood}}
+  - {{type: sphere, position: [0.15, 0, 0.15], radius: 0.12, material: steel}}
+fields: [{{type: gravity}}]
+"""
+
+
+def test_compiled_sweeps_give_the_numpy_solver_s_pile(monkeypatch):
+    """144 balls and 4 turned crates dropped on a floor and a half-buried stone: the same motion, to round-off, with
+    the compiled sweeps as with the numpy ones (a quarter second, while the pile forms)."""
+    monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numpy")
+    _, plain = run(pile())
+    monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
+    _, compiled = run(pile())
+    assert np.abs(plain.positions[-1] - plain.positions[0]).max() > 0.1  # things fell and met
+    assert np.abs(compiled.positions - plain.positions).max() < 1e-8
+    assert np.abs(compiled.angular_velocities - plain.angular_velocities).max() < 1e-5
+    impacts, expected = np.array(compiled.solver_stats["impacts"]), np.array(plain.solver_stats["impacts"])
+    assert impacts.shape == expected.shape and len(expected) > 10
+    assert np.array_equal(impacts[:, 1], expected[:, 1]) and np.abs(impacts[:, 0] - expected[:, 0]).max() < 1e-12
+
+
+def test_kernels_that_fail_to_build_leave_the_contacts_to_numpy_and_say_so(monkeypatch):
+    """numba loads but cannot compile the contact sweeps: the solve warns and gives the numpy solver's result."""
+    from numba.core.errors import TypingError
+
+    from animbatch.sim.contact import solver
+    from animbatch.sim.kernels import contact_impulses
+
+    def broken(*args, **kwargs):
+        raise TypingError("no implementation for this machine")
+
+    monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numpy")
+    _, reference = run(pile())
+    monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
+    monkeypatch.setattr(contact_impulses, "impulse_iterations", broken)
+    solver.build_contact_kernels.cache_clear()
+    try:
+        with pytest.warns(RuntimeWarning, match=r"compiled contact solver could not be built \(TypingError"):
+            _, fallen = run(pile())
+    finally:
+        solver.build_contact_kernels.cache_clear()
+    np.testing.assert_array_equal(fallen.positions, reference.positions)
