@@ -505,14 +505,47 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
             rows.push_normal(velocity, normal_impulse)
             rows.push_tangent(velocity, tangent_impulse)
     tolerance = VELOCITY_TOLERANCE * (1.0 + float(np.abs(approach).max(initial=0.0)))
-    gripping = np.zeros(count, bool)  # which contacts hold by friction; set by the first iteration
     if kernel is not None:  # the same sweeps, compiled
         normal_impulse, tangent_impulse = normal_impulse.astype(np.float64), tangent_impulse.astype(np.float64)
         contact_impulses.impulse_iterations(velocity, *kernel, target.astype(np.float64), normal_impulse,
                                             tangent_impulse, contacts.static_friction.astype(np.float64),
                                             contacts.kinetic_friction.astype(np.float64), sticking, iterations,
                                             tolerance)
-    for iteration in range(iterations + 1 if kernel is None else 0):
+    else:
+        normal_impulse, tangent_impulse = _sweeps(rows, contacts, velocity, target, normal_impulse, tangent_impulse,
+                                                  sticking, block, iterations, tolerance)
+    if couple is not None:  # end on the joints
+        rows.unflat(velocity)
+        couple(bodies)
+        velocity = rows.flat()
+    rows.unflat(velocity)
+    result.normal_impulse[:] = normal_impulse
+    result.tangent_impulse[:] = tangent_impulse
+    # split impulse: push apart through positions only, the overlaps that exceed the slop by more than a trifle
+    # (pushing converges geometrically onto the slop; chasing the last nanometre would cost a solve every step)
+    overlap = np.maximum(-gap - slop, 0.0)
+    overlap[overlap < OVERLAP_TOLERANCE * max(slop, 1e-6)] = 0.0
+    if h > 0 and np.any(overlap > 0):
+        pseudo = np.zeros_like(velocity)
+        push_target = BAUMGARTE * overlap / h
+        enough = PUSH_TOLERANCE * float(push_target.max())
+        if kernel is not None:
+            contact_impulses.push_iterations(pseudo, *kernel, push_target, enough, min(iterations, PUSH_ITERATIONS))
+        else:
+            _pushes(rows, pseudo, push_target, enough, min(iterations, PUSH_ITERATIONS))
+        pseudo_v, pseudo_w = np.zeros_like(bodies.v), np.zeros_like(bodies.omega)
+        rows.unflat(pseudo, pseudo_v, pseudo_w)
+        result.pseudo_v, result.pseudo_omega = pseudo_v, pseudo_w
+    return result
+
+
+def _sweeps(rows: ContactRows, contacts: Contacts, velocity: np.ndarray, target: np.ndarray,
+            normal_impulse: np.ndarray, tangent_impulse: np.ndarray, sticking: np.ndarray,
+            block: JointedNormals | None, iterations: int, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """The impulse solver's sweeps in numpy (changing ``velocity`` in place), normal then friction, until every
+    contact does what it must or after ``iterations``: the accumulated normal (K,) and tangential (K, 2) impulses."""
+    gripping = np.zeros(len(target), bool)  # which contacts hold by friction; set by the first iteration
+    for iteration in range(iterations + 1):
         normal_now = rows.normal_velocity(velocity) - target
         # Stop when every contact does what it must (not when impulses stop changing: with redundant contacts,
         # a box on four corners, impulses may keep moving among corners after the motion has converged). At least
@@ -530,36 +563,20 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         normal_impulse = updated
         tangent_impulse, gripping = rows.friction_step(velocity, tangent_impulse, normal_impulse,
                                                        contacts.static_friction, sticking, contacts.kinetic_friction)
-    if couple is not None:  # end on the joints
-        rows.unflat(velocity)
-        couple(bodies)
-        velocity = rows.flat()
-    rows.unflat(velocity)
-    result.normal_impulse[:] = normal_impulse
-    result.tangent_impulse[:] = tangent_impulse
-    # split impulse: push apart through positions only, the overlaps that exceed the slop by more than a trifle
-    # (pushing converges geometrically onto the slop; chasing the last nanometre would cost a solve every step)
-    overlap = np.maximum(-gap - slop, 0.0)
-    overlap[overlap < OVERLAP_TOLERANCE * max(slop, 1e-6)] = 0.0
-    if h > 0 and np.any(overlap > 0):
-        pseudo = np.zeros_like(velocity)
-        push_target = BAUMGARTE * overlap / h
-        push = np.zeros(count)
-        enough = PUSH_TOLERANCE * float(push_target.max())
-        if kernel is not None:
-            contact_impulses.push_iterations(pseudo, *kernel, push_target, enough, min(iterations, PUSH_ITERATIONS))
-        for _ in range(min(iterations, PUSH_ITERATIONS) if kernel is None else 0):
-            pushed = rows.normal_velocity(pseudo) - push_target
-            violation = np.where(push > 0, np.abs(pushed), np.maximum(-pushed, 0.0))
-            if float(violation.max()) <= enough:
-                break
-            updated = np.maximum(push - pushed * rows.w_n, 0.0)
-            rows.push_normal(pseudo, updated - push)
-            push = updated
-        pseudo_v, pseudo_w = np.zeros_like(bodies.v), np.zeros_like(bodies.omega)
-        rows.unflat(pseudo, pseudo_v, pseudo_w)
-        result.pseudo_v, result.pseudo_omega = pseudo_v, pseudo_w
-    return result
+    return normal_impulse, tangent_impulse
+
+
+def _pushes(rows: ContactRows, pseudo: np.ndarray, push_target: np.ndarray, enough: float, iterations: int) -> None:
+    """The split impulse's sweeps in numpy on the pseudo-velocities ``pseudo`` (changed in place)."""
+    push = np.zeros(len(push_target))
+    for _ in range(iterations):
+        pushed = rows.normal_velocity(pseudo) - push_target
+        violation = np.where(push > 0, np.abs(pushed), np.maximum(-pushed, 0.0))
+        if float(violation.max()) <= enough:
+            break
+        updated = np.maximum(push - pushed * rows.w_n, 0.0)
+        rows.push_normal(pseudo, updated - push)
+        push = updated
 
 
 def _generalised(rows: ContactRows, body: np.ndarray, sign: float, linear: np.ndarray, lever: np.ndarray,
