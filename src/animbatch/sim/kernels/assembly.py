@@ -1,7 +1,9 @@
-"""Compiled assembly of force Jacobians: the springs' 3×3 blocks, their scatter into a fixed sparse pattern, and their
-product with a vector, without building the (K, 3, 3) copies and sparse sums the numpy code goes through.
+"""Compiled spring forces and assembly of force Jacobians: the springs' forces, their 3×3 blocks, the blocks' scatter
+into a fixed sparse pattern, and their product with a vector, without building the (K, 3, 3) copies and sparse sums
+the numpy code goes through.
 
-The numpy forms they replace: :meth:`animbatch.sim.forces.springs.SpringForces.jacobian` (blocks),
+The numpy forms they replace: :meth:`animbatch.sim.forces.springs.SpringForces.accumulate` (forces, for springs
+between points or to anchors; ends at body points stay with numpy), ``SpringForces.jacobian`` (blocks),
 :meth:`animbatch.sim.forces.base.ForceJacobian.matrix` and scipy's sparse sums (scatter),
 ``ForceJacobian.matrix(which) @ vector`` (product). The tests compare each pair.
 
@@ -16,6 +18,38 @@ import math
 
 import numpy as np
 from numba import njit
+
+
+@njit(cache=True)
+def spring_forces(x: np.ndarray, v: np.ndarray, first: np.ndarray, second: np.ndarray, to_anchor: np.ndarray,
+                  anchor_x: np.ndarray, anchor_v: np.ndarray, stiffness: np.ndarray, damping: np.ndarray,
+                  rest_length: np.ndarray, force: np.ndarray) -> None:
+    """Add the forces [N] of springs between points (``x``, ``v`` (P, 3)), or from a point to an anchor
+    (``anchor_x``, ``anchor_v`` (A, 3)) where ``to_anchor``, onto ``force`` (P, 3):
+    ``f1 = -(ks (|L| - r) + kd (ṗ1 - ṗ2)·u) u`` on the first end, ``-f1`` on the second (none for an anchor); a
+    spring of zero length exerts none."""
+    for s in range(len(first)):
+        i, j = first[s], second[s]
+        anchored = to_anchor[s]
+        if anchored:
+            ax, ay, az = x[i, 0] - anchor_x[j, 0], x[i, 1] - anchor_x[j, 1], x[i, 2] - anchor_x[j, 2]
+            wx, wy, wz = v[i, 0] - anchor_v[j, 0], v[i, 1] - anchor_v[j, 1], v[i, 2] - anchor_v[j, 2]
+        else:
+            ax, ay, az = x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2]
+            wx, wy, wz = v[i, 0] - v[j, 0], v[i, 1] - v[j, 1], v[i, 2] - v[j, 2]
+        length = math.sqrt(ax * ax + ay * ay + az * az)
+        if length <= 0.0:
+            continue
+        ux, uy, uz = ax / length, ay / length, az / length
+        magnitude = stiffness[s] * (length - rest_length[s]) + damping[s] * (wx * ux + wy * uy + wz * uz)
+        fx, fy, fz = -magnitude * ux, -magnitude * uy, -magnitude * uz
+        force[i, 0] += fx
+        force[i, 1] += fy
+        force[i, 2] += fz
+        if not anchored:
+            force[j, 0] -= fx
+            force[j, 1] -= fy
+            force[j, 2] -= fz
 
 
 @njit(cache=True)
