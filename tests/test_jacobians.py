@@ -50,6 +50,20 @@ SCENE = """
 """
 
 
+def random_state(text: str, seed: int) -> tuple:
+    """The model of a scene, its Dynamics, and a state (n,) with the particles moved by up to 10 cm and given random
+    velocities (rigid bodies as the scene places them)."""
+    model = compile_scene(scene(text).spec)
+    dynamics = Dynamics(model)
+    rng = np.random.default_rng(seed)
+    y = model.y0.copy()
+    config, motion = dynamics.split(y)
+    n = dynamics.particles
+    config[: 3 * n] += rng.uniform(-0.1, 0.1, 3 * n)
+    motion[: 3 * n] = rng.normal(0, 1, 3 * n)
+    return model, dynamics, y
+
+
 def finite_difference(dynamics: Dynamics, term, t: float, y: np.ndarray, which: str) -> np.ndarray:
     """Central differences of one term's force on the particles with respect to their positions or velocities."""
     n = dynamics.particles
@@ -81,14 +95,8 @@ def test_every_analytic_jacobian_matches_finite_differences(seed):
     """Springs (to particles, anchors, moving anchors and body points), dampers, quadratic and linear drag, wind, PD
     controllers (point, keyframes, polyline and parametric curve), dihedral springs and the Lorentz force: ∂f/∂x and ∂f/∂v agree with central differences at a
     random state (positions moved by up to 10 cm, random velocities)."""
-    model = compile_scene(scene(SCENE).spec)
-    dynamics = Dynamics(model)
-    rng = np.random.default_rng(seed)
-    y = model.y0.copy()
-    config, motion = dynamics.split(y)
+    model, dynamics, y = random_state(SCENE, seed)
     n = dynamics.particles
-    config[: 3 * n] += rng.uniform(-0.1, 0.1, 3 * n)
-    motion[: 3 * n] = rng.normal(0, 1, 3 * n)
     t = 0.7
     checked = set()
     for term in model.force_terms:
@@ -112,14 +120,10 @@ def test_compiled_assembly_gives_the_numpy_step_matrix_and_products(definite):
     particles, to fixed and moving anchors and to a body point (pairs and single blocks), drag, controllers,
     dihedral springs and a magnetic field (plain blocks, some antisymmetric)."""
     pytest.importorskip("numba")
-    model = compile_scene(scene(SCENE).spec)
-    dynamics = Dynamics(model)
-    rng = np.random.default_rng(4)
-    y = model.y0.copy()
+    model, dynamics, y = random_state(SCENE, 4)
     config, motion = dynamics.split(y)
     n = dynamics.particles
-    config[: 3 * n] += rng.uniform(-0.1, 0.1, 3 * n)
-    motion[: 3 * n] = rng.normal(0, 1, 3 * n)
+    rng = np.random.default_rng(4)
     mass = np.repeat(model.bodies.mass[:n], 3)
     vector = rng.normal(0, 1, 3 * n)
     results = {}
@@ -229,14 +233,8 @@ def test_compiled_spring_forces_are_the_numpy_ones(monkeypatch):
     rates, kinds = {}, {}
     for choice in ("numpy", "numba"):
         monkeypatch.setenv(kernels.KERNELS_VARIABLE, choice)
-        model = compile_scene(scene(text).spec)
-        dynamics = Dynamics(model)
-        rng = np.random.default_rng(5)
-        y = model.y0.copy()
+        model, dynamics, y = random_state(text, 5)
         config, motion = dynamics.split(y)
-        n = dynamics.particles
-        config[: 3 * n] += rng.uniform(-0.1, 0.1, 3 * n)
-        motion[: 3 * n] = rng.normal(0, 1, 3 * n)
         rates[choice] = dynamics.motion_rate(0.7, config, motion)
         kinds[choice] = next(term for term in model.force_terms if term.kind == "spring").compiled
     assert kinds == {"numpy": False, "numba": True}
