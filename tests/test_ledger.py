@@ -226,8 +226,8 @@ EMITTER = "emitters: [{name: spray, rate: 200, lifetime: 0.5, source: {type: poi
 
 
 def test_every_part_of_a_run_reports_its_work():
-    """A scene of emitters only reports its particles' steps (not "0 steps"); with a body too, both parts. 0.5 s at
-    20 fps is 10 frames, 9 intervals of 5 steps of 0.01 s: 45 steps."""
+    """A scene of emitters only reports its particles' steps (not "0 steps"); with a body too, both parts; an
+    implicit method its factorisations. 0.5 s at 20 fps is 10 frames, 9 intervals of 5 steps of 0.01 s: 45 steps."""
     timeline = "duration: 0.5\nfps: 20\nsolver: {method: verlet, dt: 0.01}\n"
     _, alone = run(f"{timeline}{EMITTER}\nfields: [{{type: gravity}}]")
     work = alone.ledger["work"]
@@ -236,6 +236,13 @@ def test_every_part_of_a_run_reports_its_work():
     assert "particles (verlet dt 0.01 s): 45 steps" in summary(alone.ledger) and "0 steps" not in summary(alone.ledger)
     _, both = run(f"{timeline}{EMITTER}\nbodies: [{{name: ball}}]\nfields: [{{type: gravity}}]")
     assert both.ledger["work"]["bodies"]["steps"] == both.ledger["work"]["particles"]["steps"] == 45
+    assert "factorisations" not in both.ledger["work"]["bodies"]  # explicit: nothing to factor
+    # backward Euler factors its step matrix once a step, on a spring of linear force (no corrections): 45 of them
+    _, implicit = run("duration: 0.5\nfps: 20\nsolver: {method: backward_euler, dt: 0.01}\nanchors: [{name: top, position: [0, 0, 0]}]\n"
+                      "bodies: [{name: bob, position: [0.3, -1, 0]}]\n"
+                      "springs: [{between: [top, bob], stiffness: 50, rest_length: 0}]\n")
+    assert implicit.ledger["work"]["bodies"]["factorisations"] == 45
+    assert "45 steps, 45 RHS, 45 factorisations" in summary(implicit.ledger)
 
 
 # ------------------------------------------------------------------------------------------------ quantities

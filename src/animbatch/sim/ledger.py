@@ -363,6 +363,8 @@ def build_ledger(model: Model, states: np.ndarray, stats: dict[str, Any], partic
     if model.layout.size:
         work["bodies"] = {"steps": stats.get("steps", 0), "rhs_evaluations": stats.get("rhs_evaluations", 0),
                           "wall_time": stats.get("wall_time", 0.0)}
+        if stats.get("lu_decompositions"):  # implicit methods: the sparse factorisations, usually most of the cost
+            work["bodies"]["factorisations"] = stats["lu_decompositions"]
     if particle_stats:
         work["particles"] = {"steps": particle_stats.get("steps", 0),
                              "rhs_evaluations": particle_stats.get("rhs_evaluations", 0),
@@ -437,7 +439,8 @@ def summary(ledger: dict[str, Any]) -> str:
         how = ""
     if "bodies" in work:
         bodies = work["bodies"]
-        parts.append(f"{method}{how}: {bodies['steps']} steps, {bodies['rhs_evaluations']} RHS")
+        factored = f", {bodies['factorisations']} factorisations" if bodies.get("factorisations") else ""
+        parts.append(f"{method}{how}: {bodies['steps']} steps, {bodies['rhs_evaluations']} RHS{factored}")
     if "particles" in work:
         particles = work["particles"]
         parts.append(f"particles ({method}{'' if 'bodies' in work else how}): {particles['steps']} steps, "
