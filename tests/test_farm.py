@@ -231,6 +231,29 @@ def test_encode_needs_every_frame_and_writes_mp4_webm_and_gif(throw, tmp_cwd):
         assert sum(1 for _ in reader) == 50
 
 
+def test_encode_takes_the_size_the_frames_were_rendered_at_and_says_what_differs(throw, tmp_cwd):
+    """After 'render --resolution 48x32' (frames kept as PNG), a plain 'encode' expects the scene's 96×64: it says the
+    frames on disk are 48×32, how to encode them as they are, and how to draw them at 96×64. 'encode --resolution
+    48x32' then writes a 48×32 video of all 50 frames; a missing frame's suggestion keeps the options given."""
+    runner = CliRunner()
+    assert runner.invoke(cli, ["render", str(throw), "--resolution", "48x32", "--jobs", "2"]).exit_code == 0
+    result = runner.invoke(cli, ["encode", str(throw)])
+    assert result.exit_code != 0
+    message = " ".join(result.output.split())
+    assert "50 of 50 frames are missing or incomplete" in message
+    assert "the frames there are 48×32, but this scene, with these options, renders 96×64" in message
+    assert "(--resolution 48x32," in message and f"animbatch render {throw} --frames 0-49" in message
+    result = runner.invoke(cli, ["encode", str(throw), "--resolution", "48x32"])
+    assert result.exit_code == 0, result.output
+    reader = imageio_ffmpeg.read_frames(str(tmp_cwd / "renders" / "throw" / "throw.mp4"))
+    assert next(reader)["size"] == (48, 32) and sum(1 for _ in reader) == 50
+    (tmp_cwd / "renders" / "throw" / "frames" / "frame_00007.png").unlink()
+    result = runner.invoke(cli, ["encode", str(throw), "--resolution", "48x32"])
+    message = " ".join(result.output.split())
+    assert result.exit_code != 0 and "1 of 50 frames are missing or incomplete" in message
+    assert f"render them first: animbatch render {throw} --frames 7-7 --resolution 48x32" in message
+
+
 def test_parallel_workers_draw_the_same_frames_as_one_process(throw, tmp_cwd):
     """--jobs 2 renders the 50 frames in two worker processes (spawned, each with its own renderer): the frames are
     identical to those of one process, and the report says two workers drew all 50."""

@@ -428,19 +428,28 @@ def bake(scene: Path, out_dir: Path, force: bool, checkpoint_every: int | None, 
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("renders"),
               show_default=True, help="Output folder (frames are read from OUT/<scene name>/frames/).")
 @click.option("--formats", metavar="LIST", help="Videos: mp4, webm, gif, comma-separated (default: the scene's).")
+@click.option("--resolution", metavar="WxH", help="Frame size the frames were rendered at, as given to render "
+              "(render.resolution).")
+@click.option("--quality", metavar="PRESET", help="The quality preset the frames were rendered with, as given to "
+              "render (render.quality): it decides their size where the scene does not.")
 @click.option("--set", "settings", multiple=True, metavar="KEY.PATH=VALUE", help="Override a scene value.")
 @_reports_errors
-def encode(scene: Path, out_dir: Path, formats: str | None, settings: tuple[str, ...]) -> None:
-    """Encode the rendered frames into videos (every frame must be complete: the error lists missing ones)."""
+def encode(scene: Path, out_dir: Path, formats: str | None, resolution: str | None, quality: str | None,
+           settings: tuple[str, ...]) -> None:
+    """Encode the rendered frames into videos (every frame must be complete, at the size the scene and these
+    options give: the error lists missing ones, and says so when the frames on disk have another size)."""
     from animbatch import api
     from animbatch.farm.encode import encode as encode_frames
 
-    loaded = api.load_scene(scene, _overrides(settings, formats=formats))
+    loaded = api.load_scene(scene, _overrides(settings, formats=formats, resolution=resolution, quality=quality))
     kinds = tuple(kind for kind in loaded.spec.render.formats if kind != "png")
     if not kinds:
         raise click.BadParameter("no video format chosen (png frames are already on disk)", param_hint="--formats")
     frame_count = len(api.compile_model(loaded).frame_times)
-    result = encode_frames(loaded, frame_count, out_dir=out_dir, kinds=kinds)
+    # the options that decide the frames, for the render command the error suggests
+    options = ([f"--resolution {resolution}"] if resolution else []) + ([f"--quality {quality}"] if quality else []) \
+        + [f"--set {setting}" for setting in settings]
+    result = encode_frames(loaded, frame_count, out_dir=out_dir, kinds=kinds, render_options=" ".join(options))
     click.echo(f"{loaded.name}: {result.frame_count} frames -> {', '.join(map(str, result.outputs))} "
                f"({result.seconds:.2f} s)")
 
