@@ -359,14 +359,45 @@ def render(scene: Path, trajectory: Path | None, out_dir: Path, backend: str, se
         click.echo(report.summary())
 
 
+def _reads_a_run(verb: str) -> Callable[[F], F]:
+    """The arguments of a command that reads a run (see :func:`_run_of`): the scene, --trajectory, --out, the scene
+    options and --progress."""
+    decorators = [
+        click.argument("scene", type=click.Path(dir_okay=False, path_type=Path)),
+        click.option("--trajectory", type=click.Path(dir_okay=False, path_type=Path),
+                     help=f"{verb} this trajectory (from 'animbatch simulate') instead of the scene's bake."),
+        click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("renders"),
+                     show_default=True, help="Output folder; files go to OUT/<scene name>/."),
+        _scene_options,
+        click.option("--progress/--no-progress", default=None,
+                     help="Progress bar while simulating (default: on a terminal)."),
+    ]
+
+    def decorate(function: F) -> F:
+        for decorator in reversed(decorators):
+            function = decorator(function)
+        return function
+
+    return decorate
+
+
+def _run_of(loaded: Any, model: Any, trajectory: Path | None, out_dir: Path, progress: bool | None) -> Any:
+    """The run a command reads: the trajectory file given (checked against the scene), or the scene's bake (reused
+    from its cache, or simulated first)."""
+    from animbatch import api
+    from animbatch.farm import bake as bake_scene
+    from animbatch.progress import Progress
+    from animbatch.trajectory import Trajectory
+
+    if trajectory is not None:
+        run = Trajectory.load(trajectory)
+        api.check_trajectory(loaded, model, run, trajectory)
+        return run
+    return bake_scene(loaded, out_dir=out_dir, model=model, progress=Progress(enabled=progress)).trajectory
+
+
 @cli.command()
-@click.argument("scene", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--trajectory", type=click.Path(dir_okay=False, path_type=Path),
-              help="Plot this trajectory (from 'animbatch simulate') instead of the scene's bake.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("renders"),
-              show_default=True, help="Output folder; files go to OUT/<scene name>/.")
-@_scene_options
-@click.option("--progress/--no-progress", default=None, help="Progress bar while simulating (default: on a terminal).")
+@_reads_a_run("Plot")
 @_reports_errors
 def plot(scene: Path, trajectory: Path | None, out_dir: Path, settings: tuple[str, ...], progress: bool | None,
          **shortcuts: str | None) -> None:
@@ -374,23 +405,36 @@ def plot(scene: Path, trajectory: Path | None, out_dir: Path, settings: tuple[st
     time into OUT/<scene>/quantities.png, with the numbers in quantities.csv. Uses --trajectory, or the scene's bake
     (simulating it first when there is none)."""
     from animbatch import api
-    from animbatch.farm import bake as bake_scene
-    from animbatch.progress import Progress
     from animbatch.sim.ledger import summary
-    from animbatch.trajectory import Trajectory
 
     loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
     model = api.compile_model(loaded)
     if not model.body_count:
         raise click.UsageError(f"{scene} has no bodies to plot (emitted particles carry no energy or momentum "
                                "series)")
-    if trajectory is not None:
-        run = Trajectory.load(trajectory)
-        api.check_trajectory(loaded, model, run, trajectory)
-    else:
-        run = bake_scene(loaded, out_dir=out_dir, model=model, progress=Progress(enabled=progress)).trajectory
+    run = _run_of(loaded, model, trajectory, out_dir, progress)
     written = api.write_quantities(loaded, model, run, out_dir / loaded.name, plot=True)
     click.echo(f"{loaded.name}: {', '.join(map(str, written))} | {summary(run.ledger)}")
+
+
+@cli.command()
+@_reads_a_run("Export")
+@click.option("--format", "kind", type=click.Choice(["csv"]), default="csv", show_default=True,
+              help="csv: transforms.csv, every body's position and orientation (quaternion) at every frame.")
+@_reports_errors
+def export(scene: Path, trajectory: Path | None, kind: str, out_dir: Path, settings: tuple[str, ...],
+           progress: bool | None, **shortcuts: str | None) -> None:
+    """Export the run's motion for other tools: --format csv writes OUT/<scene>/transforms.csv. Uses --trajectory,
+    or the scene's bake (simulating it first when there is none)."""
+    from animbatch import api
+    from animbatch.export import export as export_trajectory
+
+    loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
+    run = _run_of(loaded, api.compile_model(loaded), trajectory, out_dir, progress)
+    written = export_trajectory(run, out_dir / loaded.name, kind)
+    bodies = len(run.body_names)
+    click.echo(f"{loaded.name}: {run.frame_count} frames, {bodies} bod{'y' if bodies == 1 else 'ies'} -> "
+               f"{', '.join(map(str, written))}")
 
 
 @cli.command()
