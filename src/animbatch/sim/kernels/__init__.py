@@ -68,5 +68,5 @@ def kernels_ready(work: float, built: Callable[[], str | None], what: str, inste
     failure = built()
     if failure is not None:
         warnings.warn(f"the compiled {what} could not be built ({failure}); {instead} instead (slower, same "
-                      "results)", RuntimeWarning, stacklevel=3)
+                      "results). Set ANIMBATCH_KERNELS=numpy to silence this", RuntimeWarning, stacklevel=3)
     return failure is None

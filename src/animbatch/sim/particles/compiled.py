@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.sim.kernels import compiled_kernels
+from animbatch.sim.kernels import build_failure, compiled_kernels
 from animbatch.sim.particles.collisions import MAX_BOUNCES, ParticleColliders
 from animbatch.sim.particles.emitter import Emitter
 from animbatch.sim.particles.obstacles import SURFACE_GAP
@@ -80,15 +80,11 @@ class CompiledPool:
         solids = solid_table(colliders, kernel) if colliders is not None else np.zeros((0, kernel.SOLID_COLUMNS))
         mode = emitter.collision if colliders is not None else "pass"
         compiled = cls(kernel.METHOD_CODES[method], kernel.MODE_CODES[mode], table, solids, float(gravity))
-        try:
-            compiled.compile_now()
-        except Exception as error:  # noqa: BLE001 - a kernel that does not build must not stop the run
-            if not type(error).__module__.startswith("numba"):
-                raise
-            warnings.warn(f"the compiled particle kernel could not be built ({type(error).__name__}: "
-                          f"{str(error).splitlines()[0] if str(error) else ''}); emitter {emitter.name!r} runs the "
-                          "numpy code instead (same results, slower). Set ANIMBATCH_KERNELS=numpy to silence this",
-                          RuntimeWarning, stacklevel=2)
+        failure = build_failure(compiled.compile_now)  # a kernel that does not build must not stop the run
+        if failure is not None:
+            warnings.warn(f"the compiled particle kernel could not be built ({failure}); emitter {emitter.name!r} "
+                          "runs the numpy code instead (same results, slower). Set ANIMBATCH_KERNELS=numpy to "
+                          "silence this", RuntimeWarning, stacklevel=2)
             return None
         return compiled
 
