@@ -33,8 +33,11 @@ Prints one table. Measures:
 11. start-up of short commands (``animbatch --help``, ``validate``), and a render end to end (streamed into the
     encoder) next to its drawing alone.
 
+12. export: wall time per frame of the USD stage, PLY and OBJ point caches (and the CSV) of the fountain at 100 000
+    live drops and of the stiff 64×64 cloth.
+
 Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, rigid, contacts, render,
-encode, cloth, fountain, lean, farm, ledger, joints, startup, stream, pool), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick),
+encode, cloth, fountain, lean, farm, ledger, joints, startup, stream, pool, export), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick),
 ``--cloth-method NAME`` (only the cloth methods whose label starts with NAME, e.g. ``BDF``; repeatable),
 ``--json FILE`` (also write the rows as JSON).
 """
@@ -788,6 +791,51 @@ def bench_stream(quick: bool) -> list[Row]:
     return rows
 
 
+def bench_export(quick: bool) -> list[Row]:
+    """'animbatch export' of the fountain at 100 000 live drops (1e4 with --quick) and of the stiff 64×64 cloth
+    (32×32 with --quick): wall time per frame of each format, from a run already simulated (the export's own
+    cost), written to a temporary folder."""
+    import dataclasses
+
+    from animbatch import api
+    from animbatch.export import export
+    from animbatch.stages import load_scene, parse_scene
+    from animbatch.trajectory import ParticleFrames
+
+    from pxr import Usd  # noqa: F401  (loaded once, before timing: a first export pays about 0.2 s for it)
+
+    live = 10_000 if quick else 100_000
+    fountain = load_scene(ROOT / "scenes" / "fountain.yaml", [f"emitters[jet].rate={live / 2.2!r}", "duration=2.6"])
+    resolution = 32 if quick else 64
+    cloth = parse_scene(cloth_scene(resolution, 1.0, "{method: backward_euler, dt: 0.033333333}"),
+                        filename="cloth.yaml")
+    rows: list[Row] = []
+    for label, scene, kinds in ((f"export, {live:.0e} drops", fountain, ("usd", "ply", "obj")),
+                                (f"export, {resolution}×{resolution} cloth", cloth, ("usd", "ply", "obj", "csv"))):
+        model = api.compile_model(scene)
+        trajectory = api.simulate(scene, model=model)
+        if trajectory.particles:  # the last 8 frames, once the pool is full (mean lifetime 2.2 s)
+            last = slice(trajectory.frame_count - 8, None)
+            trajectory = dataclasses.replace(
+                trajectory, times=trajectory.times[last], positions=trajectory.positions[last],
+                velocities=trajectory.velocities[last], orientations=trajectory.orientations[last],
+                angular_velocities=trajectory.angular_velocities[last],
+                particles=tuple(ParticleFrames(p.name, p.positions[last], p.serials[last], p.ages[last])
+                                for p in trajectory.particles))
+            rows.append({"benchmark": label, "case": "live drops per frame (mean of the frames exported)",
+                         "value": float(np.mean(trajectory.particles[0].live_counts)), "unit": "particles"})
+        geometry = api.frame_geometry(scene, model, trajectory)
+        with tempfile.TemporaryDirectory() as folder:
+            for kind in kinds:
+                started = time.perf_counter()
+                written = export(trajectory, folder, kind, geometry, scene.spec.render, scene.spec.fps)
+                seconds = time.perf_counter() - started
+                size = sum(path.stat().st_size for path in written) / trajectory.frame_count
+                rows.append({"benchmark": label, "case": f"{kind}: per frame ({size / 1e6:.2g} MB per frame)",
+                             "value": 1e3 * seconds / trajectory.frame_count, "unit": "ms"})
+    return rows
+
+
 def compile_scene_text(text: str):  # type: ignore[no-untyped-def]
     from animbatch.compile.model import compile_scene
     from animbatch.stages import parse_scene
@@ -998,7 +1046,7 @@ def bench_joints(quick: bool) -> list[Row]:
 BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "rigid": bench_rigid, "contacts": bench_contacts,
               "render": bench_render, "encode": bench_encode, "cloth": bench_cloth, "fountain": bench_fountain,
               "lean": bench_lean, "farm": bench_farm, "ledger": bench_ledger, "joints": bench_joints,
-              "startup": bench_startup, "stream": bench_stream, "pool": bench_pool}
+              "startup": bench_startup, "stream": bench_stream, "pool": bench_pool, "export": bench_export}
 
 
 def main() -> int:

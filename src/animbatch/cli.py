@@ -13,6 +13,7 @@ import functools
 import json
 import re
 import sys
+import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -419,22 +420,33 @@ def plot(scene: Path, trajectory: Path | None, out_dir: Path, settings: tuple[st
 
 @cli.command()
 @_reads_a_run("Export")
-@click.option("--format", "kind", type=click.Choice(["csv"]), default="csv", show_default=True,
-              help="csv: transforms.csv, every body's position and orientation (quaternion) at every frame.")
+@click.option("--format", "kinds", type=click.Choice(["usd", "ply", "obj", "csv"]), multiple=True, default=("usd",),
+              show_default=True,
+              help="usd: <scene>.usdc, a USD stage for Blender and Houdini (bodies, cloth, particles, camera, "
+                   "lights); ply, obj: ply/ or obj/<name>.<frame>, each cloth, lattice and emitter per frame; csv: "
+                   "transforms.csv, every body's position and orientation. Repeat for several.")
 @_reports_errors
-def export(scene: Path, trajectory: Path | None, kind: str, out_dir: Path, settings: tuple[str, ...],
+def export(scene: Path, trajectory: Path | None, kinds: tuple[str, ...], out_dir: Path, settings: tuple[str, ...],
            progress: bool | None, **shortcuts: str | None) -> None:
-    """Export the run's motion for other tools: --format csv writes OUT/<scene>/transforms.csv. Uses --trajectory,
-    or the scene's bake (simulating it first when there is none)."""
-    from animbatch import api
-    from animbatch.export import export as export_trajectory
+    """Export the run for other tools into OUT/<scene>/ (see docs/export.md). Uses --trajectory, or the scene's
+    bake (simulating it first when there is none)."""
+    from animbatch import api, stages
+    from animbatch.export import export as export_run
 
     loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
-    run = _run_of(loaded, api.compile_model(loaded), trajectory, out_dir, progress)
-    written = export_trajectory(run, out_dir / loaded.name, kind)
-    bodies = len(run.body_names)
-    click.echo(f"{loaded.name}: {run.frame_count} frames, {bodies} bod{'y' if bodies == 1 else 'ies'} -> "
-               f"{', '.join(map(str, written))}")
+    model = api.compile_model(loaded)
+    run = _run_of(loaded, model, trajectory, out_dir, progress)
+    geometry = stages.frame_geometry(loaded, model, run) if set(kinds) - {"csv"} else None
+    for kind in dict.fromkeys(kinds):
+        started = time.perf_counter()
+        written = export_run(run, out_dir / loaded.name, kind, geometry, loaded.spec.render, loaded.spec.fps)
+        if not written:
+            click.echo(f"{loaded.name}: {kind}: nothing to write ({kind} files hold cloth, lattices and emitted "
+                       "particles, and this scene has none; its bodies are in --format usd or csv)")
+            continue
+        where = str(written[0]) if len(written) == 1 else f"{len(written)} files in {written[0].parent}"
+        click.echo(f"{loaded.name}: {kind}, {run.frame_count} frames in {time.perf_counter() - started:.2f} s -> "
+                   f"{where}")
 
 
 @cli.command()

@@ -77,6 +77,12 @@ class RenderError(AnimbatchError):
     exit_code = 4
 
 
+class ExportError(AnimbatchError):
+    """An export could not be written: a library it needs is missing, or the file could not be saved."""
+
+    exit_code = 5
+
+
 class StudyError(AnimbatchError):
     """A study could not measure errors: no reference run (a tight, trusted run) succeeded."""
 

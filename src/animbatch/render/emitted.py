@@ -48,13 +48,14 @@ def _rgb(color: str) -> np.ndarray:
     return np.array([int(value[i:i + 2], 16) / 255 for i in (0, 2, 4)])
 
 
-class EmitterLayer:
-    """The actors of one emitter: its cloud and, optionally, its trails."""
+class ParticleAppearance:
+    """How an emitter's particles look at a frame, slot by slot: radius [m], opacity and colour, from each particle's
+    own lifetime, radius and colour (drawn again from its serial when a slot takes a new particle) and the ramps of
+    the emitter's ``look`` over age / lifetime. Numbers only; the renderer and the exports share it."""
 
-    def __init__(self, pv: Any, plotter: Any, emitter: ParticleLooks) -> None:
+    def __init__(self, emitter: ParticleLooks) -> None:
         self.emitter = emitter
         look = emitter.look
-        self.look = look
         self.size_ramp = np.asarray(look.size, float)  # type: ignore[attr-defined]
         self.opacity_ramp = np.asarray(look.opacity, float)  # type: ignore[attr-defined]
         colors = look.color  # type: ignore[attr-defined]
@@ -64,6 +65,39 @@ class EmitterLayer:
         self._lifetime = np.ones(capacity)
         self._radius = np.zeros(capacity)
         self._color = np.zeros((capacity, 3))
+
+    def _refresh_slots(self, serials: np.ndarray) -> None:
+        """Look up the attributes of slots that took a new particle since the last frame asked for."""
+        changed = np.flatnonzero((serials != self._serial) & (serials >= 0))
+        self._serial[:] = serials
+        if len(changed):
+            lifetime, radius, color = self.emitter.looks(serials[changed])
+            self._lifetime[changed], self._radius[changed], self._color[changed] = lifetime, radius, color
+
+    def at(self, frames: ParticleFrames, frame: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Every slot at ``frame``: serials (C,) int64 (-1 where free), radius (C,) [m] and opacity (C,) (both zero
+        where free), and colour (C, 3) RGB in 0…1."""
+        serials = frames.serials[frame].astype(np.int64)
+        self._refresh_slots(serials)
+        live = serials >= 0
+        life = np.clip(frames.ages[frame] / self._lifetime, 0.0, 1.0)
+        size = np.where(live, self._radius * ramp(self.size_ramp, life), 0.0)
+        opacity = np.where(live, ramp(self.opacity_ramp, life), 0.0)
+        color = self._color
+        if self.color_ramp is not None:  # each particle keeps its own difference from the mean colour
+            color = np.clip(ramp(self.color_ramp, life) + (self._color - self.emitter.color_mean), 0.0, 1.0)
+        return serials, size, opacity, color
+
+
+class EmitterLayer:
+    """The actors of one emitter: its cloud and, optionally, its trails."""
+
+    def __init__(self, pv: Any, plotter: Any, emitter: ParticleLooks) -> None:
+        self.emitter = emitter
+        look = emitter.look
+        self.look = look
+        self.appearance = ParticleAppearance(emitter)
+        capacity = emitter.capacity
         self.cloud = pv.PolyData(np.zeros((capacity, 3), np.float32))
         self.cloud.point_data["radius"] = np.zeros(capacity)
         self.cloud.point_data["rgba"] = np.zeros((capacity, 4), np.uint8)
@@ -84,25 +118,9 @@ class EmitterLayer:
             self.lines.point_data["rgba"] = np.zeros((capacity * points_per, 4), np.uint8)
             plotter.add_mesh(self.lines, scalars="rgba", rgba=True, show_scalar_bar=False, line_width=1.5)
 
-    def _refresh_slots(self, serials: np.ndarray) -> None:
-        """Look up the attributes of slots that took a new particle since the last frame drawn."""
-        changed = np.flatnonzero((serials != self._serial) & (serials >= 0))
-        self._serial[:] = serials
-        if len(changed):
-            lifetime, radius, color = self.emitter.looks(serials[changed])
-            self._lifetime[changed], self._radius[changed], self._color[changed] = lifetime, radius, color
-
     def update(self, frames: ParticleFrames, frame: int) -> None:
         """Show the emitter's particles at ``frame`` of ``frames``."""
-        serials = frames.serials[frame].astype(np.int64)
-        self._refresh_slots(serials)
-        live = serials >= 0
-        life = np.clip(frames.ages[frame] / self._lifetime, 0.0, 1.0)
-        size = np.where(live, self._radius * ramp(self.size_ramp, life), 0.0)
-        opacity = np.where(live, ramp(self.opacity_ramp, life), 0.0)
-        color = self._color
-        if self.color_ramp is not None:  # each particle keeps its own difference from the mean colour
-            color = np.clip(ramp(self.color_ramp, life) + (self._color - self.emitter.color_mean), 0.0, 1.0)
+        serials, size, opacity, color = self.appearance.at(frames, frame)
         rgba = np.empty((len(serials), 4), np.uint8)
         rgba[:, :3] = np.round(255 * color)
         rgba[:, 3] = np.round(255 * opacity)
