@@ -12,6 +12,7 @@
 # Set-up is idempotent and quick when nothing changed: it installs the off-screen OpenGL library when it is
 # missing (as root, with apt-get; otherwise it says what to install), creates .venv with Python >= 3.11 and
 # installs the package in editable mode with its test dependencies, re-installing only when pyproject.toml changes.
+# The test command also installs Chromium (for the report page's browser test) when it is missing.
 set -euo pipefail
 
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
@@ -40,24 +41,35 @@ have_library() {
     "$ldconfig" -p 2>/dev/null | grep -q "$1"
 }
 
+try_apt_install() {
+    # Install one Debian package (without recommends) as root with apt-get, refreshing the package lists only when
+    # the first try fails. Returns 0 when installed, 1 when apt-get failed (said why), 2 when this user cannot.
+    local package=$1 purpose=$2
+    if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null 2>&1; then
+        return 2
+    fi
+    say "installing $package ($purpose) with apt-get"
+    export DEBIAN_FRONTEND=noninteractive
+    if apt-get install -y --no-install-recommends "$package" >/dev/null 2>&1 ||
+        { apt-get update -qq >/dev/null && apt-get install -y --no-install-recommends "$package" >/dev/null; }; then
+        return 0
+    fi
+    say "apt-get could not install $package (no network or no package lists?)."
+    say "Install it by hand: apt-get update && apt-get install $package"
+    return 1
+}
+
 ensure_system_libraries() {
     # VTK draws off-screen through OSMesa or EGL; it loads either at run time (never an X server).
     if have_library 'libOSMesa.so.8'; then
         return 0
     fi
-    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
-        say "installing libosmesa6 (off-screen OpenGL for rendering) with apt-get"
-        export DEBIAN_FRONTEND=noninteractive
-        if ! apt-get install -y --no-install-recommends libosmesa6 >/dev/null 2>&1; then
-            if ! { apt-get update -qq >/dev/null && apt-get install -y --no-install-recommends libosmesa6 >/dev/null; }
-            then
-                say "apt-get could not install libosmesa6 (no network or no package lists?)."
-                say "Install it by hand: apt-get update && apt-get install libosmesa6"
-                exit 1
-            fi
-        fi
-        return 0
-    fi
+    local status=0
+    try_apt_install libosmesa6 "off-screen OpenGL for rendering" || status=$?
+    case $status in
+        0) return 0 ;;
+        1) exit 1 ;;
+    esac
     if have_library 'libEGL.so.1' && have_library 'libEGL_mesa.so.0'; then
         say "libosmesa6 is not installed; using EGL (Mesa) instead."
         return 0
@@ -66,6 +78,20 @@ ensure_system_libraries() {
     say "Ask an administrator to run:  apt-get install libosmesa6"
     say "(Fedora/RHEL: dnf install mesa-libOSMesa)"
     exit 1
+}
+
+ensure_browser() {
+    # The report page's test opens it in a real browser: Debian's Chromium, driven headless by Playwright. Without
+    # it that test skips and says why; nothing else needs a browser.
+    if command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1; then
+        return 0
+    fi
+    local status=0
+    try_apt_install chromium "the report page's browser test" || status=$?
+    if [ "$status" = 2 ]; then
+        say "chromium is not installed and this user cannot install it: the browser test will be skipped."
+        say "Ask an administrator to run:  apt-get install chromium"
+    fi
 }
 
 ensure_venv() {
@@ -104,6 +130,7 @@ case "$command" in
         ;;
     test)
         setup
+        ensure_browser
         # Spread the tests over the machine's cores (at most 4: each render test holds a software OpenGL context).
         exec "$venv/bin/python" -m pytest -n auto --maxprocesses=4 "$@"
         ;;

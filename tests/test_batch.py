@@ -43,7 +43,9 @@ solver: {method: euler, dt: 0.01}
     table = lines[lines.index(next(line for line in lines if line.startswith("scene"))):]
     assert [line.split()[0] for line in table[2:6]] == ["one", "two", "bad", "three"]
     assert "FAILED" in table[4] and "cannot hold this scene's springs" in table[4]
-    assert table[-1] == "3 of 4 jobs succeeded"
+    assert table[-2:] == ["3 of 4 jobs succeeded", "page: renders/index.html"]
+    page = (tmp_cwd / "renders" / "index.html").read_text()  # every job on the report page, the failure with why
+    assert page.count("<video") == 3 and "3 of 4 runs succeeded" in page and "cannot hold this scene" in page
     for name, frames in (("one", 45), ("two", 60), ("three", 30)):
         reader = imageio_ffmpeg.read_frames(str(tmp_cwd / "renders" / name / f"{name}.mp4"))
         meta = next(reader)

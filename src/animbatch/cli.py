@@ -334,12 +334,14 @@ def study(scene: Path, out_dir: Path | None, methods: str | None, repeats: int |
               "speeds) to quantities.png beside report.json and quantities.csv.")
 @click.option("--camera", metavar="NAME", help="Render through this camera of render.cameras (render.use_camera), "
               "or 'all': render.camera and every named camera, into separate videos <scene>-<camera>.mp4.")
+@click.option("--report", "page", type=click.Choice(["html"]), help="html: also write OUT/<scene>/index.html, a page "
+              "with the video, a poster frame, the ledger and the energy plot (implies --plot).")
 @_scene_options
 @click.option("--progress/--no-progress", default=None, help="Progress bars (default: on a terminal).")
 @_reports_errors
 def render(scene: Path, trajectory: Path | None, out_dir: Path, backend: str, settings: tuple[str, ...],
            progress: bool | None, frames: str | None, jobs: int | None, plot: bool, camera: str | None,
-           **shortcuts: str | None) -> None:
+           page: str | None, **shortcuts: str | None) -> None:
     """Bake (or reuse the cached simulation), render the frames off-screen and encode the videos into
     renders/<scene>/, streaming each frame into the encoder as it is drawn (or drawn in parallel with --jobs).
     Frames already complete on disk are not drawn again."""
@@ -350,14 +352,20 @@ def render(scene: Path, trajectory: Path | None, out_dir: Path, backend: str, se
     cameras: list[str | None] = [camera]
     if camera == "all":  # the simulation is baked once; each camera then reuses it from the cache
         cameras = [None, *api.load_scene(scene, overrides).spec.render.cameras]
+    reports = []
     for name in cameras:
         chosen = overrides + ([(f"render.use_camera={name}", f"--camera {name}")] if name is not None else [])
         try:
             report = api.run(scene, overrides=chosen, out_dir=out_dir, backend=backend, trajectory_path=trajectory,
-                             progress=Progress(enabled=progress), jobs=jobs, frames=frames, plot=plot)
+                             progress=Progress(enabled=progress), jobs=jobs, frames=frames, plot=plot or bool(page))
         except ValueError as error:  # a --frames range the scene does not have
             raise click.BadParameter(str(error), param_hint="--frames") from None
         click.echo(report.summary())
+        reports.append((name, report))
+    if page and frames is None:  # one page for all the cameras rendered
+        from animbatch.farm.page import run_page
+
+        click.echo(f"{reports[0][1].scene}: page -> {run_page(reports, out_dir / reports[0][1].scene)}")
 
 
 def _reads_a_run(verb: str) -> Callable[[F], F]:
@@ -524,9 +532,12 @@ def encode(scene: Path, out_dir: Path, formats: str | None, resolution: str | No
 @click.option("--sweep", "sweeps", multiple=True, metavar="KEY.PATH=V1,V2,…", help="Render one variant per value "
               "(repeat for every combination of several keys); one scene only. Writes sweep.csv and "
               "contact-sheet.png into OUT/<scene>-sweep/.")
+@click.option("--report", "page", type=click.Choice(["html", "none"]), default="html", show_default=True,
+              help="html: write index.html (OUT/, or OUT/<scene>-sweep/ for a sweep): every run's video, poster, "
+                   "ledger and energy plot, and a sweep's table sortable by each column.")
 @_reports_errors
 def batch(scenes: tuple[Path, ...], out_dir: Path, workers: int | None, scheduler: str | None, chunk_size: int,
-          backend: str, settings: tuple[str, ...], sweeps: tuple[str, ...]) -> None:
+          backend: str, settings: tuple[str, ...], sweeps: tuple[str, ...], page: str) -> None:
     """Render many scenes on Dask: each is baked, rendered in chunks in parallel, then encoded. Every job runs to
     its end; a summary table follows, and the exit code is 1 if any job failed."""
     from animbatch.farm import batch as farm_batch
@@ -537,12 +548,16 @@ def batch(scenes: tuple[Path, ...], out_dir: Path, workers: int | None, schedule
     except ValueError as error:
         raise click.BadParameter(str(error), param_hint="--sweep") from None
     results = farm_batch.run_batch(plan.jobs, out_dir=out_dir, workers=workers, scheduler=scheduler,
-                                   chunk_size=chunk_size, backend=backend,
+                                   chunk_size=chunk_size, backend=backend, plot=page == "html",
                                    on_result=lambda r: click.echo(f"{r.label}: {r.status}", err=True))
     click.echo(farm_batch.summary(results))
     if plan.sweep_folder is not None:
         written = finish_sweep(plan, results)
         click.echo(f"sweep: {', '.join(str(path) for path in written)}")
+    if page == "html":
+        from animbatch.farm.page import batch_page
+
+        click.echo(f"page: {batch_page(plan, results, out_dir)}")
     if any(result.status != "ok" for result in results):
         sys.exit(1)
 

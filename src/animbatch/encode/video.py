@@ -143,3 +143,13 @@ class VideoWriter:
 
 
 Mp4Writer = VideoWriter  # the default kind is mp4
+
+
+def middle_frame(video: Path) -> np.ndarray:
+    """The middle frame (H, W, 3) uint8 RGB of a video file (a poster, a contact sheet's tile)."""
+    import imageio_ffmpeg  # finds the ffmpeg binary: only when reading videos
+
+    reader = imageio_ffmpeg.read_frames(str(video), pix_fmt="rgb24")
+    width, height = next(reader)["size"]
+    frames = list(reader)
+    return np.frombuffer(frames[len(frames) // 2], np.uint8).reshape(height, width, 3)

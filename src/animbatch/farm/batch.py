@@ -92,8 +92,9 @@ def render_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
 
 
 def encode_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: dict[str, Any],
-                *chunks: dict[str, Any]) -> dict[str, Any]:
-    """Encode the videos and write the job's report.json; returns the report."""
+                *chunks: dict[str, Any], plot: bool = False) -> dict[str, Any]:
+    """Encode the videos and write the job's report.json (with ``plot``, quantities.png too); returns the
+    report."""
     scene = stages.load_scene(scene_path, list(overrides))
     kinds = tuple(kind for kind in scene.spec.render.formats if kind != "png")
     outputs: list[str] = []
@@ -109,7 +110,7 @@ def encode_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
         shutil.rmtree(folder, ignore_errors=True)
 
     quantities = stages.write_quantities(scene, stages.compile_model(scene), Trajectory.load(baked["cache"]),
-                                      Path(out_dir) / scene.name)
+                                      Path(out_dir) / scene.name, plot=plot)
     report = {"scene": scene.name, "scene_file": scene_path, "status": "ok", "frames": baked["frames"],
               "frames_drawn": sum(chunk["drawn"] for chunk in chunks),
               "frames_skipped": sum(chunk["skipped"] for chunk in chunks), "render_tasks": len(chunks),
@@ -119,7 +120,9 @@ def encode_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
               "ledger": baked.get("ledger", {}), "quantities": [str(path) for path in quantities], "outputs": outputs,
               "backend": next((c["backend"] for c in chunks if c["backend"]), ""),
               "package_version": __version__, "host": platform.node(),
-              "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+              "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+              "resolution": list(scene.spec.render.resolution), "fps": scene.spec.fps,
+              "frame_count": baked["frames"]}
     path = Path(out_dir) / scene.name / "report.json"
     write_json_atomic(path, report)
     return {**report, "report": str(path)}
@@ -134,7 +137,8 @@ def frame_count(job: Job) -> tuple[str, int]:
     return scene.name, len(frame_times(scene.spec.duration, scene.spec.fps))
 
 
-def submit(client: Any, job: Job, out_dir: str, *, chunk_size: int, backend: str, retries: int) -> Any:
+def submit(client: Any, job: Job, out_dir: str, *, chunk_size: int, backend: str, retries: int,
+           plot: bool = False) -> Any:
     """Submit one job's graph; the future of its encode task (whose result is the report)."""
     _, frames = frame_count(job)
     tag = uuid.uuid4().hex[:8]
@@ -144,7 +148,7 @@ def submit(client: Any, job: Job, out_dir: str, *, chunk_size: int, backend: str
     chunks = [client.submit(render_task, job.scene_path, job.overrides, out_dir, baked, chunk.start, chunk.stop,
                             backend, key=f"render-{name}-{chunk}-{tag}", **options)
               for chunk in FrameRange(0, frames).chunks(chunk_size)]
-    return client.submit(encode_task, job.scene_path, job.overrides, out_dir, baked, *chunks,
+    return client.submit(encode_task, job.scene_path, job.overrides, out_dir, baked, *chunks, plot=plot,
                          key=f"encode-{name}-{tag}", **options)
 
 
@@ -163,8 +167,10 @@ def connect(workers: int | None, scheduler: str | None) -> tuple[Any, Any]:
 
 def run_batch(jobs: Sequence[Job], *, out_dir: str | Path = "renders", workers: int | None = None,
               scheduler: str | None = None, chunk_size: int = CHUNK_SIZE, backend: str = "auto", retries: int = 2,
-              client: Any = None, on_result: Callable[[JobResult], None] | None = None) -> list[JobResult]:
-    """Run every job to the end (a failed one does not stop the others); one result per job, in job order."""
+              client: Any = None, on_result: Callable[[JobResult], None] | None = None,
+              plot: bool = False) -> list[JobResult]:
+    """Run every job to the end (a failed one does not stop the others); one result per job, in job order. With
+    ``plot``, each job also draws its quantities.png (for the report page)."""
     from distributed import as_completed  # optional and heavy: only for Dask batches
 
     own = client is None
@@ -179,7 +185,7 @@ def run_batch(jobs: Sequence[Job], *, out_dir: str | Path = "renders", workers: 
             label = job.label or Path(job.scene_path).stem
             try:
                 futures[submit(client, job, str(out_dir), chunk_size=chunk_size, backend=backend,
-                               retries=retries)] = number
+                               retries=retries, plot=plot)] = number
             except Exception as error:  # an invalid scene: reported, the others still run
                 results[number] = JobResult(label, "failed", error=str(error))
                 if on_result:

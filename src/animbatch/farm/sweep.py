@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from animbatch import stages
+from animbatch.encode.video import middle_frame
 from animbatch.farm.batch import Job, JobResult
 from animbatch.files import atomic_path, write_text_atomic
 from animbatch.sim.integrators.guard import energy_scale
@@ -105,7 +106,6 @@ def contact_sheet(rows: Sequence[tuple[JobResult, dict[str, str]]], target: Path
                   columns: int = 4) -> Path:
     """A grid of one frame (the middle one) of each variant's video, labelled with its values; failed variants
     are grey tiles with "failed"."""
-    import imageio_ffmpeg  # finds the ffmpeg binary: only when encoding
     from PIL import Image, ImageDraw
 
 
@@ -114,11 +114,7 @@ def contact_sheet(rows: Sequence[tuple[JobResult, dict[str, str]]], target: Path
         video = next((Path(p) for p in result.outputs if str(p).endswith((".mp4", ".webm"))), None)
         image = None
         if result.status == "ok" and video is not None and video.is_file():
-            reader = imageio_ffmpeg.read_frames(str(video))
-            meta = next(reader)
-            width, height = meta["size"]
-            frames = [np.frombuffer(frame, np.uint8).reshape(height, width, 3) for frame in reader]
-            image = Image.fromarray(frames[len(frames) // 2])
+            image = Image.fromarray(middle_frame(video))
         tile_height = int(tile_width * 9 / 16) if image is None else int(tile_width * image.height / image.width)
         tile = Image.new("RGB", (tile_width, tile_height + 18), "white")
         if image is None:
