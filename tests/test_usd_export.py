@@ -67,6 +67,22 @@ emitters:
 """
 
 
+#: A floor and a box pushed along x at 0.8 m/s by keyframes (linear: constant velocity), beside a resting ball.
+COLLIDERS = f"""
+name: pusher
+duration: 1
+fps: {FPS}
+solver: {{method: verlet, dt: 0.005}}
+bodies: [{{name: ball, radius: 0.1, position: [0, 0.1, 3]}}]
+colliders:
+  - {{type: plane, size: 6, color: "#808080"}}
+  - {{type: box, position: [0, 0.25, 0], size: [0.4, 0.5, 0.3], interpolation: linear,
+     keyframes: [{{time: 0, offset: [0, 0, 0]}}, {{time: 1, offset: [0.8, 0, 0]}}]}}
+  - {{type: box, position: [5, 0, 0], size: [1, 1, 1], visible: false}}
+fields: [{{type: gravity}}]
+"""
+
+
 def export_usd(folder, text: str, name: str) -> tuple[Usd.Stage, Trajectory]:
     (folder / "scene.yaml").write_text(text)
     result = CliRunner().invoke(cli, ["export", "scene.yaml", "--format", "usd", "--no-progress"])
@@ -133,6 +149,23 @@ def test_shapes_have_the_scenes_sizes_and_colours(tmp_cwd):
     sphere = UsdGeom.Sphere(stage.GetPrimAtPath("/World/Bodies/stone_1"))
     assert sphere.GetRadiusAttr().Get() == pytest.approx(0.05)
     assert np.allclose(sphere.GetDisplayColorAttr().Get()[0], [1, 0, 0])
+
+
+def test_colliders_are_meshes_and_a_moving_one_moves_as_its_keyframes_say(tmp_cwd):
+    """The floor is a 6 m square at y = 0; the box's mesh spans its size around its position; at frame k the box's
+    transform moves it by the linear keyframes' offset (0.8 t, 0, 0); the invisible collider is left out."""
+    stage, _ = export_usd(tmp_cwd, COLLIDERS, "pusher")
+    assert [prim.GetName() for prim in stage.GetPrimAtPath("/World/Colliders").GetChildren()] == ["plane_0", "box_1"]
+    floor = np.array(UsdGeom.Mesh(stage.GetPrimAtPath("/World/Colliders/plane_0")).GetPointsAttr().Get())
+    assert np.allclose(floor[:, 1], 0) and np.allclose(np.ptp(floor, axis=0), [6, 0, 6], atol=1e-6)
+    box = np.array(UsdGeom.Mesh(stage.GetPrimAtPath("/World/Colliders/box_1")).GetPointsAttr().Get())
+    assert np.allclose(box.min(axis=0), [-0.2, 0, -0.15], atol=1e-6)
+    assert np.allclose(box.max(axis=0), [0.2, 0.5, 0.15], atol=1e-6)
+    assert not UsdGeom.Xformable(stage.GetPrimAtPath("/World/Colliders/plane_0")).TransformMightBeTimeVarying()
+    for frame in (0, 5, 13, 19):
+        matrix = world_transform(stage, "/World/Colliders/box_1", frame)
+        assert np.allclose(matrix[:3, :3], np.eye(3), atol=1e-12)
+        assert np.allclose(matrix[:3, 3], [0.8 * frame / FPS, 0, 0], atol=1e-12)
 
 
 def test_the_camera_is_the_renders_camera(tmp_cwd):

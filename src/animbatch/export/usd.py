@@ -8,6 +8,8 @@ The stage is in metres (``metersPerUnit = 1``), with the scene's up axis (``upAx
                                 by translate (double) and orient (quaternion, double) sampled at every frame
       Particles                 Points (instead of Bodies/<name>, when a scene has more than 256 particles):
                                 positions, widths, ids = the particles' order in the trajectory
+      Colliders/<type>_<k>      Mesh of the k-th visible collider where it starts (a plane as the square drawn);
+                                a moving one has a transform sampled at every frame
       Deformables/<name>        Mesh of a cloth or lattice: fixed triangles, points sampled at every frame
       Emitters/<name>           Points of an emitter's live particles at each frame: positions, ids (the particle's
                                 serial, the same all its life), widths (2 × radius), primvars displayColor,
@@ -32,9 +34,9 @@ from animbatch.errors import ExportError
 from animbatch.export.frames import deformable_vertices, own_particles
 from animbatch.files import atomic_path
 from animbatch.render.camera import CameraPath
-from animbatch.render.colors import hex_to_rgb
+from animbatch.render.colors import COLLIDER_COLOR, hex_to_rgb
 from animbatch.render.emitted import ParticleAppearance
-from animbatch.render.shapes import shape_mesh
+from animbatch.render.shapes import collider_surface, shape_mesh
 from animbatch.render.studio import three_point_rig
 from animbatch.trajectory import Trajectory
 
@@ -92,6 +94,7 @@ def write_usd(trajectory: Trajectory, geometry: Any, render: Any, fps: float, pa
     stage.SetDefaultPrim(world.GetPrim())
     writer = _StageWriter(pxr, stage, trajectory, geometry)
     writer.bodies()
+    writer.colliders()
     writer.deformables()
     writer.emitters()
     writer.camera(render)
@@ -162,6 +165,28 @@ class _StageWriter:
                 translate.Set(Gf.Vec3d(*trajectory.positions[frame, index].tolist()), frame)
                 w, x, y, z = trajectory.orientations[frame, index].tolist()
                 orient.Set(Gf.Quatd(w, x, y, z), frame)
+
+    def colliders(self) -> None:
+        """The visible colliders as meshes where they start (planes as squares around the motion, as drawn); a
+        moving one carries its pose at every frame as a transform."""
+        Gf, UsdGeom = self.pxr.Gf, self.pxr.UsdGeom
+        geometry = self.geometry
+        colliders = geometry.colliders
+        if not colliders:
+            return
+        UsdGeom.Scope.Define(self.stage, "/World/Colliders")
+        colors = [look[0] for look in geometry.collider_looks] or [c.color or COLLIDER_COLOR for c in colliders]
+        paths = geometry.collider_paths or (None,) * len(colliders)
+        names = [f"{collider.type}_{k}" for k, collider in enumerate(colliders)]
+        for collider, name, color, motion in zip(colliders, names, colors, paths):
+            surface = collider_surface(collider, geometry.bounds, geometry.meshes, MESH_RESOLUTION).triangulate()
+            mesh = self._mesh(f"/World/Colliders/{name}", name, np.asarray(surface.points), surface.regular_faces,
+                              color)
+            if motion is not None:
+                transform = mesh.AddTransformOp()
+                for frame in self.frames:
+                    matrix = np.asarray(motion.matrix(float(self.trajectory.times[frame])), float)
+                    transform.Set(Gf.Matrix4d(*matrix.T.ravel().tolist()), frame)
 
     def _particle_points(self, particles: np.ndarray) -> None:
         Vt, UsdGeom = self.pxr.Vt, self.pxr.UsdGeom

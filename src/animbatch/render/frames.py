@@ -27,7 +27,7 @@ from animbatch import quaternion
 from animbatch.errors import RenderError
 from animbatch.render.arrows import ArrowLayer
 from animbatch.render.backend import Backend, activate
-from animbatch.render.camera import CameraPath, CameraPlacement, plane_axes
+from animbatch.render.camera import CameraPath, CameraPlacement
 from animbatch.render.colors import (
     ANCHOR_COLOR,
     AXIS_COLORS,
@@ -40,7 +40,14 @@ from animbatch.render.emitted import EmitterLayer
 from animbatch.render.geometry import Finish, FrameGeometry
 from animbatch.render.occlusion import GroundOcclusion
 from animbatch.render.shadows import GroundShadows
-from animbatch.render.shapes import arrow_basis, shape_mesh, vertex_normals
+from animbatch.render.shapes import (
+    arrow_basis,
+    collider_surface,
+    plane_of,
+    plane_square,
+    shape_mesh,
+    vertex_normals,
+)
 from animbatch.render.spheres import SphereGroup, group_by_finish, sphere_segments
 from animbatch.render.studio import (
     GROUND_REACH,
@@ -52,14 +59,10 @@ from animbatch.render.studio import (
     use_environment,
 )
 from animbatch.render.trails import TrailLayer
-from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (
-    BoxCollider,
     GroundSpec,
-    MeshCollider,
     PlaneCollider,
     RenderSpec,
-    SphereCollider,
 )
 
 #: Above this many particles, ``particles: auto`` draws point sprites instead of sphere meshes.
@@ -352,14 +355,7 @@ class FrameRenderer:
 
     def _plane_square(self, level: float, up: np.ndarray, size: float | None) -> tuple[Any, np.ndarray, float]:
         """A square plane at height ``level`` along ``up`` under the motion, its centre and side length."""
-        bounds = self.geometry.bounds
-        centre = bounds.mean(axis=0)
-        first, second = plane_axes(up)
-        corners = np.array([[bounds[i][0], bounds[j][1], bounds[k][2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
-        extent = max(np.ptp(corners @ first), np.ptp(corners @ second))
-        side = size or max(1.4 * extent, 1.0)
-        origin = centre - np.dot(centre, up) * up + level * up  # the motion's centre projected onto the plane
-        return self.pv.Plane(center=origin, direction=up, i_size=side, j_size=side), origin, side
+        return plane_square(self.geometry.bounds, level, up, size)
 
     def _add_ground(self) -> None:
         ground = self._ground
@@ -383,30 +379,10 @@ class FrameRenderer:
         paths = self.geometry.collider_paths or (None,) * len(colliders)
         self._moving_colliders: list[tuple[Any, Any]] = []  # (actor, path): placed at every frame
         for collider, (color, finish), path in zip(colliders, looks, paths):
-            if isinstance(collider, PlaneCollider):
-                normal = np.asarray(collider.normal, float) / np.linalg.norm(collider.normal)
-                level = float(np.dot(collider.point, normal))
-                if path is None and self._is_ground(normal, level):
-                    continue  # the ground draws it: two squares in one plane would fight over every pixel
-                mesh, _, _ = self._plane_square(level, normal, collider.size)
-            elif isinstance(collider, SphereCollider):
-                mesh = self.pv.Sphere(radius=collider.radius, center=collider.position,
-                                      theta_resolution=2 * self.render_spec.sphere_resolution,
-                                      phi_resolution=self.render_spec.sphere_resolution)
-            elif isinstance(collider, BoxCollider):
-                a, b, c = (x / 2 for x in collider.size)
-                transform = np.eye(4)
-                transform[:3, :3] = orientation_matrix(collider.orientation)
-                transform[:3, 3] = collider.position
-                mesh = self.pv.Box(bounds=(-a, a, -b, b, -c, c)).triangulate().transform(transform, inplace=False)
-            elif isinstance(collider, MeshCollider):
-                surface = shape_mesh(collider, self.geometry.meshes, self.render_spec.sphere_resolution)
-                transform = np.eye(4)
-                transform[:3, :3] = orientation_matrix(collider.orientation)
-                transform[:3, 3] = collider.position
-                mesh = surface.transform(transform, inplace=False)
-            else:  # pragma: no cover - every collider type is drawn above
-                continue
+            if isinstance(collider, PlaneCollider) and path is None and self._is_ground(*plane_of(collider)):
+                continue  # the ground draws it: two squares in one plane would fight over every pixel
+            mesh = collider_surface(collider, self.geometry.bounds, self.geometry.meshes,
+                                    self.render_spec.sphere_resolution)
             mesh = mesh.compute_normals(split_vertices=True, feature_angle=40.0)
             shading = (self._shading(finish, color) if finish is not None
                        else {"color": color, "smooth_shading": True, "ambient": 0.15})
