@@ -75,8 +75,8 @@ def test_the_csv_gives_the_closed_forms_of_a_throw_and_a_spin(exported):
 
 
 def test_export_takes_a_trajectory_file_and_leaves_nothing_half_written(tmp_cwd, monkeypatch):
-    """--trajectory exports a file from 'animbatch simulate' without simulating; a write interrupted midway leaves
-    neither the CSV nor a temporary file."""
+    """--trajectory exports a file from 'animbatch simulate' without simulating, and so does the trajectory file
+    given alone for the CSV; a write interrupted midway leaves neither the CSV nor a temporary file."""
     (tmp_cwd / "scene.yaml").write_text(SCENE)
     runner = CliRunner()
     assert runner.invoke(cli, ["simulate", "scene.yaml", "-o", "run.npz"]).exit_code == 0
@@ -86,6 +86,13 @@ def test_export_takes_a_trajectory_file_and_leaves_nothing_half_written(tmp_cwd,
     folder = tmp_cwd / "elsewhere" / "throw-and-spin"
     assert len(read(folder / "transforms.csv")) == 60 and not (folder / "cache").exists()  # nothing was baked
     (folder / "transforms.csv").unlink()
+    # the trajectory file alone: enough for the CSV; a format that needs shapes and looks asks for the scene
+    result = runner.invoke(cli, ["export", "run.npz", "--out", "elsewhere", "--format", "csv"])
+    assert result.exit_code == 0, result.output
+    assert len(read(folder / "transforms.csv")) == 60
+    (folder / "transforms.csv").unlink()
+    result = runner.invoke(cli, ["export", "run.npz", "--format", "usd"])
+    assert result.exit_code == 2 and "animbatch export SCENE.yaml --trajectory run.npz --format usd" in result.output
     trajectory = Trajectory.load(tmp_cwd / "run.npz")
 
     class Interrupted(Exception):

@@ -437,24 +437,37 @@ def plot(scene: Path, trajectory: Path | None, out_dir: Path, settings: tuple[st
 def export(scene: Path, trajectory: Path | None, kinds: tuple[str, ...], out_dir: Path, settings: tuple[str, ...],
            progress: bool | None, **shortcuts: str | None) -> None:
     """Export the run for other tools into OUT/<scene>/ (see docs/export.md). Uses --trajectory, or the scene's
-    bake (simulating it first when there is none)."""
+    bake (simulating it first when there is none). SCENE may be a trajectory file itself for --format csv, which
+    needs nothing else."""
     from animbatch import api, stages
     from animbatch.export import export as export_run
+    from animbatch.trajectory import Trajectory
 
-    loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
-    model = api.compile_model(loaded)
-    run = _run_of(loaded, model, trajectory, out_dir, progress)
-    geometry = stages.frame_geometry(loaded, model, run) if set(kinds) - {"csv"} else None
+    geometry = render = None
+    fps = 30.0
+    if scene.suffix == ".npz":  # a trajectory alone holds every body's motion, not the shapes, looks or camera
+        drawn = sorted(set(kinds) - {"csv"})
+        if drawn:
+            raise click.UsageError(f"--format {', '.join(drawn)} needs the scene file too (shapes, colours, cloth "
+                                   f"triangles, camera): animbatch export SCENE.yaml --trajectory {scene} "
+                                   f"--format {drawn[0]}. A trajectory alone exports --format csv.")
+        run = Trajectory.load(scene)
+        name = run.scene_name
+    else:
+        loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
+        model = api.compile_model(loaded)
+        run = _run_of(loaded, model, trajectory, out_dir, progress)
+        name, render, fps = loaded.name, loaded.spec.render, loaded.spec.fps
+        geometry = stages.frame_geometry(loaded, model, run) if set(kinds) - {"csv"} else None
     for kind in dict.fromkeys(kinds):
         started = time.perf_counter()
-        written = export_run(run, out_dir / loaded.name, kind, geometry, loaded.spec.render, loaded.spec.fps)
+        written = export_run(run, out_dir / name, kind, geometry, render, fps)
         if not written:
-            click.echo(f"{loaded.name}: {kind}: nothing to write ({kind} files hold cloth, lattices and emitted "
-                       "particles, and this scene has none; its bodies are in --format usd or csv)")
+            click.echo(f"{name}: {kind}: nothing to write ({kind} files hold cloth, lattices and emitted particles, "
+                       "and this scene has none; its bodies are in --format usd or csv)")
             continue
         where = str(written[0]) if len(written) == 1 else f"{len(written)} files in {written[0].parent}"
-        click.echo(f"{loaded.name}: {kind}, {run.frame_count} frames in {time.perf_counter() - started:.2f} s -> "
-                   f"{where}")
+        click.echo(f"{name}: {kind}, {run.frame_count} frames in {time.perf_counter() - started:.2f} s -> {where}")
 
 
 @cli.command()
