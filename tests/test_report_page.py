@@ -109,7 +109,7 @@ def test_the_page_plays_every_video_at_its_size_and_duration_and_seeks_to_the_fr
 
 def test_the_sweep_table_sorts_by_a_column_as_numbers(browser, sweep_page):
     """Clicking the mass column's header sorts the rows 5, 20, 100 (numbers, not text); again, 100, 20, 5; the
-    variant column sorts with them."""
+    variant column sorts with them, and each variant's name links to its section."""
     page = browser.new_page()
     errors: list[str] = []
     page.on("pageerror", lambda error: errors.append(str(error)))
@@ -128,6 +128,9 @@ def test_the_sweep_table_sorts_by_a_column_as_numbers(browser, sweep_page):
     page.locator("#sweep th").nth(column).click()
     assert column_values(column) == ["5", "20", "100"]
     assert column_values(0) == [f"crossing-mass-{mass}" for mass in MASSES]
+    page.get_by_role("link", name="crossing-mass-100").click()  # a variant's name leads to its section
+    assert page.evaluate("location.hash") == "#run-2"
+    assert "crossing-mass-100" in page.evaluate("document.querySelector(location.hash + ' h2').textContent")
     assert not errors
     page.close()
 

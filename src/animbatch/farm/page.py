@@ -158,7 +158,10 @@ def _ledger(report: dict[str, Any]) -> str:
 
 def _table(columns: list[str], rows: list[list[str]]) -> str:
     head = "".join(f"<th data-column={k} tabindex=0>{html.escape(c)}</th>" for k, c in enumerate(columns))
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(cell)}</td>" for cell in row) + "</tr>" for row in rows)
+    # the first cell links to the run's section (rows are in the order of the sections)
+    body = "".join(f"<tr><td><a href='#run-{number}'>{html.escape(row[0])}</a></td>"
+                   + "".join(f"<td>{html.escape(cell)}</td>" for cell in row[1:]) + "</tr>"
+                   for number, row in enumerate(rows))
     return (f"<table id=sweep class=sortable><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
             "<p class=meta>Click a column's header to sort by it (again to reverse).</p>")
 
@@ -181,6 +184,7 @@ ul.warnings li {{ color: #8a4b00; }} .clean {{ color: #2b6e35; }} pre.error {{ c
 table.sortable {{ border-collapse: collapse; margin: 1em 0; }}
 table.sortable th, table.sortable td {{ border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; }}
 table.sortable th {{ cursor: pointer; background: #f3f3f3; user-select: none; }}
+table.sortable td:first-child {{ text-align: left; }}
 table.sortable th[aria-sort=ascending]::after {{ content: " ▲"; }}
 table.sortable th[aria-sort=descending]::after {{ content: " ▼"; }}
 </style></head><body>"""
