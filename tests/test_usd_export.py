@@ -181,6 +181,24 @@ def test_the_camera_is_the_renders_camera(tmp_cwd):
     assert lights == ["key", "fill", "rim"]
 
 
+def test_a_keyframed_camera_is_at_its_keys_at_their_times(tmp_cwd):
+    """A dolly with a zoom: at each key's time (frames 0, 10, 20 at 20 fps) the stage's camera is at the key's
+    position, looks at its focal point, with its view angle."""
+    keys = [(0.0, [0, 1, 6], 50), (0.5, [2, 1, 4], 35), (1.0, [4, 2, 2], 20)]
+    keyframes = ", ".join(f"{{t: {t}, position: {p}, focal_point: [0, 1, 0], view_angle: {a}}}" for t, p, a in keys)
+    stage, _ = export_usd(tmp_cwd, BODIES.replace("render: {camera: {position: [3, 2, 9], focal_point: [2, 2, 2], "
+                                                  "view_angle: 40}}",
+                                                  f"render: {{camera: {{keyframes: [{keyframes}]}}}}"),
+                          "throw-and-spin")
+    prim = UsdGeom.Camera(stage.GetPrimAtPath("/World/Camera"))
+    for t, position, angle in keys:
+        camera = prim.GetCamera(Usd.TimeCode(round(t * FPS)))
+        assert camera.GetFieldOfView(Gf.Camera.FOVVertical) == pytest.approx(angle, abs=1e-4)
+        assert np.allclose(camera.frustum.GetPosition(), position, atol=1e-9)
+        towards = np.array([0, 1, 0]) - np.array(position)
+        assert np.allclose(camera.frustum.ComputeViewDirection(), towards / np.linalg.norm(towards), atol=1e-9)
+
+
 def test_cloth_keeps_its_triangles_and_moves_as_simulated(tmp_cwd):
     """Each sheet is one mesh of 2·4·3 = 24 triangles, the same at every frame (not sampled over time); the pinned
     corners stay where they started; every vertex of the free sheet falls alike (no force stretches it), by backward

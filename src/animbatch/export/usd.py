@@ -250,27 +250,23 @@ class _StageWriter:
                     attribute.Set(value, frame)
 
     def camera(self, render: Any) -> None:
-        """The render's camera: its placement at every frame (one sample when it stands still)."""
+        """The render's camera: its placement and field of view at every frame (once when it stands still)."""
         Gf, UsdGeom = self.pxr.Gf, self.pxr.UsdGeom
         width, height = render.resolution
         path = CameraPath(render.active_camera, self.geometry.bounds, width / height, self.geometry.followed)
         camera = self._define(UsdGeom.Camera, "/World/Camera", "camera")
-        first = path.at(float(self.trajectory.times[0]) if self.trajectory.frame_count else 0.0)
-        focal = APERTURE / 2 / math.tan(math.radians(first.view_angle) / 2)
-        camera.CreateFocalLengthAttr(focal)
         camera.CreateVerticalApertureAttr(APERTURE)
         camera.CreateHorizontalApertureAttr(APERTURE * width / height)
-        reach = float(np.linalg.norm(self.geometry.bounds[1] - self.geometry.bounds[0]))
-        camera.CreateClippingRangeAttr(Gf.Vec2f(1e-3 * max(reach, 1e-3), 100 * max(reach, 1e-3)))
-        transform = camera.AddTransformOp()
-        samples = self.frames if path.moves else range(1)
-        for frame in samples:
-            placement = path.at(float(self.trajectory.times[frame])) if path.moves else first
-            matrix = Gf.Matrix4d(*_look_at(placement.position, placement.focal_point, placement.up).ravel())
-            if path.moves:
-                transform.Set(matrix, frame)
-            else:
-                transform.Set(matrix)
+        reach = max(float(np.linalg.norm(self.geometry.bounds[1] - self.geometry.bounds[0])), 1e-3)
+        camera.CreateClippingRangeAttr(Gf.Vec2f(1e-3 * reach, 100 * reach))
+        focal_length, transform = camera.CreateFocalLengthAttr(), camera.AddTransformOp()
+        times = self.trajectory.times
+        for frame in self.frames if path.moves else range(min(1, self.trajectory.frame_count)):
+            placement = path.at(float(times[frame]))
+            when = frame if path.moves else self.pxr.Usd.TimeCode.Default()
+            focal_length.Set(APERTURE / 2 / math.tan(math.radians(placement.view_angle) / 2), when)
+            matrix = _look_at(placement.position, placement.focal_point, placement.up)
+            transform.Set(Gf.Matrix4d(*matrix.ravel().tolist()), when)
 
     def lights(self, render: Any) -> None:
         """The renderer's three-point rig as distant lights (intensities relative: key 0.8, fill 0.4, rim 0.3)."""
