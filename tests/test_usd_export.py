@@ -136,6 +136,37 @@ def test_bodies_move_as_the_trajectory_and_the_closed_forms_say(tmp_cwd):
         assert np.allclose(world_transform(stage, "/World/Bodies/box", frame)[:3, 3], [5, 5, 5], atol=1e-12)
 
 
+def test_many_particles_become_one_points_prim_that_follows_the_trajectory(tmp_cwd):
+    """300 particles (more than PARTICLE_PRIMS_LIMIT) in a row, each thrown up at its own speed: one Points prim
+    whose ids are the particles' places in the trajectory, whose widths are their diameters, and whose points at
+    each frame are y = v t − ½ g t² (float32)."""
+    from animbatch.export.usd import PARTICLE_PRIMS_LIMIT
+
+    count = 300
+    assert count > PARTICLE_PRIMS_LIMIT
+    bodies = "\n".join(f"  - {{name: p{k}, radius: 0.01, position: [{0.05 * k}, 0, 0], velocity: [0, {1 + k / 100}, 0]}}"
+                       for k in range(count))
+    stage, trajectory = export_usd(tmp_cwd, f"""
+name: row
+duration: 0.5
+fps: {FPS}
+solver: {{method: RK45, rtol: 1.0e-10, atol: 1.0e-12}}
+bodies:
+{bodies}
+fields: [{{type: gravity}}]
+""", "row")
+    assert not stage.GetPrimAtPath("/World/Bodies").IsValid()
+    points = UsdGeom.Points(stage.GetPrimAtPath("/World/Particles"))
+    assert list(points.GetIdsAttr().Get()) == list(range(count))
+    assert np.allclose(points.GetWidthsAttr().Get(), 0.02)
+    speeds = 1 + np.arange(count) / 100
+    for frame in (0, 4, 9):
+        t = frame / FPS
+        where = np.array(points.GetPointsAttr().Get(Usd.TimeCode(frame)))
+        assert np.array_equal(where, trajectory.positions[frame].astype(np.float32))
+        assert np.allclose(where[:, 1], speeds * t - 0.5 * G * t**2, atol=1e-6)
+
+
 def test_shapes_have_the_scenes_sizes_and_colours(tmp_cwd):
     """The box's mesh spans 0.4 × 0.2 × 0.1 m around its centre of mass; the stone is a sphere of radius 0.05 m,
     red (sRGB #ff0000 is linear (1, 0, 0))."""

@@ -1,4 +1,4 @@
-"""What every export reads at a frame: where the anchors are and where the cloth and lattice vertices are.
+"""What every export reads at a frame: where the cloth and lattice vertices are, and which particles are bodies.
 
 A deformable's vertices are not all bodies of the trajectory: pinned ones follow anchors, keyframes or rigid bodies.
 The vertex map places them all from the frame's body states, as the renderer does.
@@ -6,7 +6,6 @@ The vertex map places them all from the frame's body states, as the renderer doe
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -15,26 +14,13 @@ from animbatch import quaternion
 from animbatch.trajectory import Trajectory
 
 
-def anchor_positions(geometry: Any, time: float) -> np.ndarray:
-    """Every anchor's position (A, 3) [m] at ``time`` [s] (moving anchors follow their keyframes)."""
-    return geometry.anchors.positions(time) if geometry.anchors is not None else geometry.anchor_positions
-
-
 def deformable_vertices(geometry: Any, trajectory: Trajectory, frame: int) -> np.ndarray:
     """All cloth and lattice vertices (V, 3) [m] at ``frame``: free ones from the trajectory, pinned ones placed
     on their anchors and bodies."""
     particles = len(geometry.particle_radius)
     rotation = quaternion.to_matrix(trajectory.orientations[frame, particles:])
     return geometry.deformables.vertex_map.place(trajectory.positions[frame], rotation,
-                                                 anchor_positions(geometry, float(trajectory.times[frame])))
-
-
-def deformable_frames(geometry: Any, trajectory: Trajectory) -> Iterator[tuple[int, np.ndarray]]:
-    """``(frame, vertices (V, 3) [m])`` for every frame, when the scene has cloth or lattices."""
-    if geometry.deformables is None:
-        return
-    for frame in range(trajectory.frame_count):
-        yield frame, deformable_vertices(geometry, trajectory, frame)
+                                                 geometry.anchors_at(float(trajectory.times[frame])))
 
 
 def own_particles(geometry: Any) -> np.ndarray:

@@ -472,7 +472,7 @@ class FrameRenderer:
         else:
             for members, group in self._sphere_groups:
                 group.update(drawn[members])
-        anchor_positions = geometry.anchors.positions(t) if geometry.anchors is not None else geometry.anchor_positions
+        anchor_positions = geometry.anchors_at(t)
         if geometry.anchors is not None and geometry.anchors.moving:
             for index, actor in self._anchor_actors:
                 actor.SetPosition(*anchor_positions[index])

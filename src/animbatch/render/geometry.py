@@ -184,6 +184,10 @@ class FrameGeometry:
     rigid_volume_radius: np.ndarray | None = None  # (B,) [m] the radius of the sphere of each rigid body's volume
     collider_paths: tuple[Any, ...] = ()  # per drawn collider: its PosePath (.matrix(t): 4×4), or None if fixed
 
+    def anchors_at(self, t: float) -> np.ndarray:
+        """Every anchor's position (A, 3) [m] at time ``t`` [s] (moving anchors follow their keyframes)."""
+        return self.anchors.positions(t) if self.anchors is not None else self.anchor_positions
+
 
 def mesh_key(shape: Any) -> tuple[str, str]:
     """How :attr:`FrameGeometry.meshes` names the mesh file of a mesh shape or collider."""
