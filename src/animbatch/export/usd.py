@@ -44,8 +44,9 @@ from animbatch.trajectory import Trajectory
 PARTICLE_PRIMS_LIMIT = 256
 #: Triangles around a sphere's or cylinder's axis in the rigid bodies' meshes.
 MESH_RESOLUTION = 32
-#: Film back height of the camera, in tenths of a scene unit (USD's convention: millimetres for a 35 mm back).
-APERTURE = 24.0
+#: Film back height of the camera in tenths of a scene unit, as USD defines lens sizes: 0.24 tenths of a metre is the
+#: 24 mm of a 35 mm film back (Blender shows a 24 mm sensor and a focal length in mm). Only the ratio sets the view.
+APERTURE = 0.24
 
 
 def _pxr() -> Any:
