@@ -168,8 +168,8 @@ fields: [{{type: gravity}}]
 
 
 def test_shapes_have_the_scenes_sizes_and_colours(tmp_cwd):
-    """The box's mesh spans 0.4 × 0.2 × 0.1 m around its centre of mass; the stone is a sphere of radius 0.05 m,
-    red (sRGB #ff0000 is linear (1, 0, 0))."""
+    """The box's mesh spans 0.4 × 0.2 × 0.1 m around its centre of mass, with the outward normal of its face at
+    each of its (split) vertices; the stone is a sphere of radius 0.05 m, red (sRGB #ff0000 is linear (1, 0, 0))."""
     stage, _ = export_usd(tmp_cwd, BODIES, "throw-and-spin")
     mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Bodies/box"))
     points = np.array(mesh.GetPointsAttr().Get())
@@ -177,6 +177,12 @@ def test_shapes_have_the_scenes_sizes_and_colours(tmp_cwd):
     assert np.allclose(points.min(axis=0), [-0.2, -0.1, -0.05], atol=1e-6)
     assert set(mesh.GetFaceVertexCountsAttr().Get()) == {3}
     assert mesh.GetSubdivisionSchemeAttr().Get() == UsdGeom.Tokens.none
+    # crisp faces: every vertex normal is a face normal of the box, pointing outwards
+    normals = np.array(mesh.GetNormalsAttr().Get())
+    assert mesh.GetNormalsInterpolation() == UsdGeom.Tokens.vertex and len(normals) == len(points)
+    assert np.allclose(np.abs(normals).max(axis=1), 1, atol=1e-6)
+    outward = np.sign(points) * (np.abs(normals) > 0.5)
+    assert np.allclose(normals, outward, atol=1e-6)
     sphere = UsdGeom.Sphere(stage.GetPrimAtPath("/World/Bodies/stone_1"))
     assert sphere.GetRadiusAttr().Get() == pytest.approx(0.05)
     assert np.allclose(sphere.GetDisplayColorAttr().Get()[0], [1, 0, 0])

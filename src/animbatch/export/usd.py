@@ -121,6 +121,16 @@ class _StageWriter:
     def _color(self, gprim: Any, color: str) -> None:
         gprim.CreateDisplayColorAttr([self.pxr.Gf.Vec3f(*linear_rgb(np.asarray(hex_to_rgb(color))).tolist())])
 
+    def _solid(self, path: str, name: str, surface: Any, color: str) -> Any:
+        """A Mesh of a rigid shape or collider (a PyVista surface), with normals split at edges sharper than 40°, as
+        the renderer draws it: crisp boxes, smooth spheres."""
+        Vt, UsdGeom = self.pxr.Vt, self.pxr.UsdGeom
+        surface = surface.triangulate().compute_normals(split_vertices=True, feature_angle=40.0)
+        mesh = self._mesh(path, name, np.asarray(surface.points), surface.regular_faces, color)
+        mesh.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(np.asarray(surface.point_data["Normals"], np.float32)))
+        mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+        return mesh
+
     def _mesh(self, path: str, name: str, points: np.ndarray, triangles: np.ndarray, color: str) -> Any:
         Vt, UsdGeom = self.pxr.Vt, self.pxr.UsdGeom
         mesh = self._define(UsdGeom.Mesh, path, name)
@@ -153,9 +163,7 @@ class _StageWriter:
             if index >= rigid_first:
                 b = index - rigid_first
                 surface = shape_mesh(geometry.rigid_shapes[b], geometry.meshes, MESH_RESOLUTION)
-                surface = surface.triangulate().translate(-geometry.rigid_centre[b])
-                shape = self._mesh(path, name, np.asarray(surface.points), surface.regular_faces,
-                                   geometry.colors[index])
+                shape = self._solid(path, name, surface.translate(-geometry.rigid_centre[b]), geometry.colors[index])
             else:
                 shape = self._define(UsdGeom.Sphere, path, name)
                 shape.CreateRadiusAttr(float(geometry.particle_radius[index]))
@@ -180,9 +188,8 @@ class _StageWriter:
         paths = geometry.collider_paths or (None,) * len(colliders)
         names = [f"{collider.type}_{k}" for k, collider in enumerate(colliders)]
         for collider, name, color, motion in zip(colliders, names, colors, paths):
-            surface = collider_surface(collider, geometry.bounds, geometry.meshes, MESH_RESOLUTION).triangulate()
-            mesh = self._mesh(f"/World/Colliders/{name}", name, np.asarray(surface.points), surface.regular_faces,
-                              color)
+            surface = collider_surface(collider, geometry.bounds, geometry.meshes, MESH_RESOLUTION)
+            mesh = self._solid(f"/World/Colliders/{name}", name, surface, color)
             if motion is not None:
                 transform = mesh.AddTransformOp()
                 for frame in self.frames:
