@@ -216,6 +216,13 @@ def test_the_camera_is_the_renders_camera(tmp_cwd):
     assert np.allclose(frustum.ComputeViewDirection(), towards / np.linalg.norm(towards), atol=1e-9)
     lights = [prim.GetName() for prim in stage.GetPrimAtPath("/World/Lights").GetChildren()]
     assert lights == ["key", "fill", "rim"]
+    # a distant light shines along its -Z axis: the key comes from above and the camera's side, the rim from behind
+    def shines_from(name: str) -> np.ndarray:
+        return world_transform(stage, f"/World/Lights/{name}", 0)[:3, 2]
+
+    to_camera = (np.array([3, 2, 9]) - np.array([2, 2, 2])) / np.linalg.norm([1, 0, 7])
+    assert shines_from("key")[1] > 0.3 and shines_from("key") @ to_camera > 0
+    assert shines_from("rim") @ to_camera < 0 and shines_from("rim")[1] > 0
 
 
 def test_a_keyframed_camera_is_at_its_keys_at_their_times(tmp_cwd):
