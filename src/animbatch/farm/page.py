@@ -23,6 +23,7 @@ from animbatch.encode.video import middle_frame
 from animbatch.farm.batch import JobResult
 from animbatch.farm.sweep import BatchPlan, metrics_csv
 from animbatch.files import atomic_path, write_text_atomic
+from animbatch.sim.ledger import summary
 
 #: The poster's file name beside its video.
 POSTER_SUFFIX = ".poster.png"
@@ -137,8 +138,6 @@ def _section(entry: PageEntry, folder: Path, number: int) -> str:
 def _ledger(report: dict[str, Any]) -> str:
     """The run's ledger as a definition list: the ledger's summary line (method, step, work, drifts), wall time per
     stage, each conservation law's drift or why it does not hold, then the warnings."""
-    from animbatch.sim.ledger import summary
-
     ledger = report.get("ledger") or {}
     stages = report.get("stages") or {}
     rows = [("run", summary(ledger) if ledger else str((report.get("solver") or {}).get("method", ""))),
