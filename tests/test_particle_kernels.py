@@ -172,3 +172,21 @@ def test_the_cost_pre_flight_prices_compiled_pools_at_the_kernel_s_cost(monkeypa
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
     rk45 = scene(SCENE.format(method="verlet", mode="bounce"), "solver.method=RK45")
     assert all(cost == PARTICLE_STEP_SECONDS for *_, cost in particle_costs(rk45.spec, systems, 300))
+
+
+def test_a_slow_kernel_build_is_announced_once_and_a_quick_one_never(monkeypatch):
+    """A build still running after SLOW_BUILD (numba compiling, the first time on a machine) tells the announce hook
+    once, with what is compiling; a build that loads from the cache at once says nothing, nor does any later one."""
+    import time
+
+    heard: list[str] = []
+    monkeypatch.setattr(kernels, "announce", heard.append)
+    monkeypatch.setattr(kernels, "SLOW_BUILD", 0.05)
+    monkeypatch.setattr(kernels, "_asked", set())
+    assert kernels.watched(lambda: None, "quick") is None
+    assert kernels.watched(lambda: time.sleep(0.4), "slow") is None
+    assert kernels.watched(lambda: time.sleep(0.4), "slow") is None  # asked before: not announced again
+    assert kernels.watched(lambda: "TypingError: no", "broken") == "TypingError: no"  # the failure passes through
+    assert heard == ["compiling the slow kernels (once on this machine: they are cached on disk)…"]
+    monkeypatch.setattr(kernels, "announce", None)  # library use: nothing to tell, nothing waits
+    assert kernels.watched(lambda: None, "other") is None

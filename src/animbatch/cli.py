@@ -661,6 +661,9 @@ _python_showwarning = warnings.showwarning
 
 def main() -> None:
     warnings.showwarning = _show_warning
+    from animbatch.sim import kernels  # light: numba itself loads only when a kernel is used
+
+    kernels.announce = lambda message: click.echo(f"note: {message}", err=True)
     cli(prog_name="animbatch")
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 import os
+import threading
 import warnings
 from collections.abc import Callable
 
@@ -23,6 +24,12 @@ KERNELS_VARIABLE = "ANIMBATCH_KERNELS"
 #: Below this many element-steps (particle-steps for a pool) the numpy code finishes before numba has loaded: at
 #: about 30 ns per particle-step saved, loading numba (about a second) pays for itself from 3e7.
 MIN_WORK = 3e7
+#: A kernel build still running after this many seconds is compiling (loading from the disk cache takes far less):
+#: :data:`announce` is told, once, so that a first run on a machine does not sit silent for ten seconds.
+SLOW_BUILD = 1.5
+#: Where to say that a slow build is under way (the CLI prints to stderr); None: say nothing (library use).
+announce: Callable[[str], None] | None = None
+_asked: set[str] = set()  # the kernels whose build has been asked for in this process
 
 
 @functools.cache
@@ -65,8 +72,24 @@ def kernels_ready(work: float, built: Callable[[], str | None], what: str, inste
     (a cached :func:`build_failure`) found nothing wrong; if it did, a warning says so and that ``instead`` runs."""
     if not compiled_kernels(work):
         return False
-    failure = built()
+    failure = watched(built, what)
     if failure is not None:
         warnings.warn(f"the compiled {what} could not be built ({failure}); {instead} instead (slower, same "
                       "results). Set ANIMBATCH_KERNELS=numpy to silence this", RuntimeWarning, stacklevel=3)
     return failure is None
+
+
+def watched(built: Callable[[], str | None], what: str) -> str | None:
+    """``built()``, telling :data:`announce` when its first call in this process takes longer than
+    :data:`SLOW_BUILD` (numba compiling, the first time on a machine)."""
+    if what in _asked or announce is None:
+        return built()
+    _asked.add(what)
+    timer = threading.Timer(SLOW_BUILD, announce, [f"compiling the {what} kernels (once on this machine: they are "
+                                                   "cached on disk)…"])
+    timer.daemon = True
+    timer.start()
+    try:
+        return built()
+    finally:
+        timer.cancel()

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.sim.kernels import build_failure, compiled_kernels
+from animbatch.sim.kernels import build_failure, compiled_kernels, watched
 from animbatch.sim.particles.collisions import MAX_BOUNCES, ParticleColliders
 from animbatch.sim.particles.emitter import Emitter
 from animbatch.sim.particles.obstacles import SURFACE_GAP
@@ -80,7 +80,8 @@ class CompiledPool:
         solids = solid_table(colliders, kernel) if colliders is not None else np.zeros((0, kernel.SOLID_COLUMNS))
         mode = emitter.collision if colliders is not None else "pass"
         compiled = cls(kernel.METHOD_CODES[method], kernel.MODE_CODES[mode], table, solids, float(gravity))
-        failure = build_failure(compiled.compile_now)  # a kernel that does not build must not stop the run
+        # a kernel that does not build must not stop the run
+        failure = watched(lambda: build_failure(compiled.compile_now), "particle")
         if failure is not None:
             warnings.warn(f"the compiled particle kernel could not be built ({failure}); emitter {emitter.name!r} "
                           "runs the numpy code instead (same results, slower). Set ANIMBATCH_KERNELS=numpy to "
