@@ -146,10 +146,18 @@ Mp4Writer = VideoWriter  # the default kind is mp4
 
 
 def middle_frame(video: Path) -> np.ndarray:
-    """The middle frame (H, W, 3) uint8 RGB of a video file (a poster, a contact sheet's tile)."""
+    """The middle frame (H, W, 3) uint8 RGB of a video file (a poster, a contact sheet's tile). The frames are
+    counted first and only the middle one is kept: a long 1080p video decoded into memory would take gigabytes."""
     import imageio_ffmpeg  # finds the ffmpeg binary: only when reading videos
 
+    count, _ = imageio_ffmpeg.count_frames_and_secs(str(video))
     reader = imageio_ffmpeg.read_frames(str(video), pix_fmt="rgb24")
     width, height = next(reader)["size"]
-    frames = list(reader)
-    return np.frombuffer(frames[len(frames) // 2], np.uint8).reshape(height, width, 3)
+    frame = None
+    for index, frame in enumerate(reader):
+        if index == count // 2:
+            reader.close()
+            break
+    if frame is None:
+        raise RenderError(f"{video}: no frames to read")
+    return np.frombuffer(frame, np.uint8).reshape(height, width, 3)

@@ -121,8 +121,7 @@ def encode_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
               "backend": next((c["backend"] for c in chunks if c["backend"]), ""),
               "package_version": __version__, "host": platform.node(),
               "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-              "resolution": list(scene.spec.render.resolution), "fps": scene.spec.fps,
-              "frame_count": baked["frames"]}
+              "resolution": list(scene.spec.render.resolution), "fps": scene.spec.fps}  # as a render's report
     path = Path(out_dir) / scene.name / "report.json"
     write_json_atomic(path, report)
     return {**report, "report": str(path)}

@@ -115,12 +115,9 @@ def _section(entry: PageEntry, folder: Path, number: int) -> str:
     video = _video(report)
     parts.append("<div class=media>")
     if video is not None:
-        width, height = report.get("resolution", (640, 360))
+        width, height = report["resolution"]
         poster = write_poster(video)
-        duration = report.get("frame_count", report.get("frames", 0)) / max(report.get("fps", 1), 1)
         parts.append(f"<video controls muted playsinline preload=auto width={width} height={height} "
-                     f"data-frames={report.get('frame_count', report.get('frames', 0))} "
-                     f"data-fps={report.get('fps', '')} data-duration={duration:.6g} "
                      f"poster='{html.escape(_relative(poster, folder))}'>"
                      f"<source src='{html.escape(_relative(video, folder))}' type='video/mp4'></video>")
     plot = next((Path(p) for p in report.get("quantities", []) if str(p).endswith(".png") and Path(p).is_file()),
