@@ -29,6 +29,8 @@ POINT_CACHE_FORMATS = ("ply", "obj")
 
 _PARTICLE_FIELDS = [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("id", "<i4"), ("radius", "<f4"), ("age", "<f4"),
                     ("red", "u1"), ("green", "u1"), ("blue", "u1"), ("alpha", "u1")]
+#: A PLY triangle record: its vertex count, then its three vertex indices.
+_FACE = np.dtype([("count", "u1"), ("indices", "<i4", (3,))])
 _PLY_TYPES = {("f", 4): "float", ("i", 4): "int", ("u", 1): "uchar"}  # (numpy kind, bytes) -> PLY type
 
 
@@ -46,20 +48,22 @@ def write_point_caches(trajectory: Trajectory, geometry: Any, folder: str | Path
     written: list[Path] = []
     bodies = geometry.deformables.bodies if geometry.deformables is not None else ()
     appearances = [ParticleAppearance(emitter) for emitter in geometry.emitters]
+    # a body's triangles are the same in every file: encoded once, as PLY face records or OBJ face lines
+    encode_faces = _ply_faces if kind == "ply" else _obj_faces
+    faces = [encode_faces(body.triangles - body.vertices.start) for body in bodies]
+    write_mesh = _write_mesh_ply if kind == "ply" else _write_mesh_obj
     for frame in range(trajectory.frame_count):
         if bodies:
             vertices = deformable_vertices(geometry, trajectory, frame)
-            for body in bodies:
+            for body, encoded in zip(bodies, faces):
                 path = folder / f"{file_stem(body.name)}.{frame:04d}.{kind}"
-                triangles = body.triangles - body.vertices.start
-                writer = _write_mesh_ply if kind == "ply" else _write_mesh_obj
-                written.append(writer(path, vertices[body.vertices], triangles))
+                written.append(write_mesh(path, vertices[body.vertices], encoded))
         for frames, appearance in zip(trajectory.particles, appearances):
             path = folder / f"{file_stem(frames.name)}.{frame:04d}.{kind}"
             serials, size, opacity, color = appearance.at(frames, frame)
             live = serials >= 0
             if kind == "obj":
-                written.append(_write_mesh_obj(path, frames.positions[frame][live], np.zeros((0, 3), int)))
+                written.append(_write_mesh_obj(path, frames.positions[frame][live], ""))
                 continue
             records = np.empty(int(live.sum()), _PARTICLE_FIELDS)
             for axis, name in enumerate("xyz"):
@@ -72,40 +76,47 @@ def write_point_caches(trajectory: Trajectory, geometry: Any, folder: str | Path
     return written
 
 
-def _write_mesh_ply(path: Path, vertices: np.ndarray, triangles: np.ndarray) -> Path:
+def _ply_faces(triangles: np.ndarray) -> bytes:
+    """Triangles (T, 3) as the records of a PLY ``face`` element (a count byte, three int32 indices each)."""
+    faces = np.empty(len(triangles), _FACE)
+    faces["count"], faces["indices"] = 3, triangles
+    return faces.tobytes()
+
+
+def _obj_faces(triangles: np.ndarray) -> str:
+    """Triangles (T, 3), 0-based, as OBJ ``f`` lines (1-based)."""
+    return "f %d %d %d\n" * len(triangles) % tuple((np.asarray(triangles) + 1).ravel())
+
+
+def _write_mesh_ply(path: Path, vertices: np.ndarray, faces: bytes) -> Path:
     records = np.empty(len(vertices), [("x", "<f4"), ("y", "<f4"), ("z", "<f4")])
     for axis, name in enumerate("xyz"):
         records[name] = vertices[:, axis]
-    return _write_ply(path, records, triangles)
+    return _write_ply(path, records, faces, len(faces) // _FACE.itemsize)
 
 
-def _write_ply(path: Path, vertices: np.ndarray, triangles: np.ndarray | None) -> Path:
+def _write_ply(path: Path, vertices: np.ndarray, faces: bytes | None, face_count: int = 0) -> Path:
     """A binary little-endian PLY of ``vertices`` (a structured array: one property per field) and, if given,
-    ``triangles`` (T, 3)."""
+    ``faces`` (``face_count`` records from :func:`_ply_faces`)."""
     header = ["ply", "format binary_little_endian 1.0", "comment written by animbatch",
               f"element vertex {len(vertices)}"]
     fields = vertices.dtype.fields or {}
     header += [f"property {_PLY_TYPES[(kind.kind, kind.itemsize)]} {name}" for name, (kind, _) in fields.items()]
-    body = [vertices.tobytes()]
-    if triangles is not None:
-        header += [f"element face {len(triangles)}", "property list uchar int vertex_indices"]
-        faces = np.empty(len(triangles), [("count", "u1"), ("indices", "<i4", (3,))])
-        faces["count"], faces["indices"] = 3, triangles
-        body.append(faces.tobytes())
+    if faces is not None:
+        header += [f"element face {face_count}", "property list uchar int vertex_indices"]
     with atomic_path(path) as temporary, temporary.open("wb") as handle:
         handle.write(("\n".join(header) + "\nend_header\n").encode("ascii"))
-        for part in body:
-            handle.write(part)
+        handle.write(vertices.tobytes())
+        if faces is not None:
+            handle.write(faces)
     return path
 
 
-def _write_mesh_obj(path: Path, vertices: np.ndarray, triangles: np.ndarray) -> Path:
-    """A text OBJ of ``vertices`` (V, 3) [m] and triangles (T, 3) (0-based here, 1-based in the file)."""
-    lines = ["# written by animbatch: metres"]
+def _write_mesh_obj(path: Path, vertices: np.ndarray, faces: str) -> Path:
+    """A text OBJ of ``vertices`` (V, 3) [m] and ``faces`` (from :func:`_obj_faces`, or empty)."""
+    text = "# written by animbatch: metres\n"
     if len(vertices):
-        lines.append(("v %.9g %.9g %.9g\n" * len(vertices) % tuple(np.asarray(vertices, float).ravel()))[:-1])
-    if len(triangles):
-        lines.append(("f %d %d %d\n" * len(triangles) % tuple((np.asarray(triangles) + 1).ravel()))[:-1])
+        text += "v %.9g %.9g %.9g\n" * len(vertices) % tuple(np.asarray(vertices, float).ravel())
     with atomic_path(path) as temporary:
-        temporary.write_text("\n".join(lines) + "\n", encoding="ascii")
+        temporary.write_text(text + faces, encoding="ascii")
     return path
