@@ -93,13 +93,15 @@ def write_usd(trajectory: Trajectory, geometry: Any, render: Any, fps: float, pa
     stage.SetEndTimeCode(max(trajectory.frame_count - 1, 0))
     world = UsdGeom.Xform.Define(stage, "/World")
     stage.SetDefaultPrim(world.GetPrim())
+    width, height = render.resolution
+    camera = CameraPath(render.active_camera, geometry.bounds, width / height, geometry.followed)
     writer = _StageWriter(pxr, stage, trajectory, geometry)
     writer.bodies()
     writer.colliders()
     writer.deformables()
     writer.emitters()
-    writer.camera(render)
-    writer.lights(render)
+    writer.camera(camera, width / height)
+    writer.lights(camera)
     with atomic_path(path) as temporary:
         if not stage.GetRootLayer().Export(str(temporary)):
             raise ExportError(f"USD could not write {temporary}")
@@ -257,14 +259,13 @@ class _StageWriter:
                 for attribute, value in zip(attributes, values):
                     attribute.Set(value, frame)
 
-    def camera(self, render: Any) -> None:
-        """The render's camera: its placement and field of view at every frame (once when it stands still)."""
+    def camera(self, path: CameraPath, aspect: float) -> None:
+        """The render's camera (``path``, at the frames' ``aspect``): its placement and field of view at every frame
+        (once when it stands still)."""
         Gf, UsdGeom = self.pxr.Gf, self.pxr.UsdGeom
-        width, height = render.resolution
-        path = CameraPath(render.active_camera, self.geometry.bounds, width / height, self.geometry.followed)
         camera = self._define(UsdGeom.Camera, "/World/Camera", "camera")
         camera.CreateVerticalApertureAttr(APERTURE)
-        camera.CreateHorizontalApertureAttr(APERTURE * width / height)
+        camera.CreateHorizontalApertureAttr(APERTURE * aspect)
         reach = max(float(np.linalg.norm(self.geometry.bounds[1] - self.geometry.bounds[0])), 1e-3)
         camera.CreateClippingRangeAttr(Gf.Vec2f(1e-3 * reach, 100 * reach))
         focal_length, transform = camera.CreateFocalLengthAttr(), camera.AddTransformOp()
@@ -276,12 +277,11 @@ class _StageWriter:
             matrix = _look_at(placement.position, placement.focal_point, placement.up)
             transform.Set(Gf.Matrix4d(*matrix.ravel().tolist()), when)
 
-    def lights(self, render: Any) -> None:
-        """The renderer's three-point rig as distant lights (intensities relative: key 0.8, fill 0.4, rim 0.3)."""
+    def lights(self, camera: CameraPath) -> None:
+        """The renderer's three-point rig as distant lights (intensities relative: key 0.8, fill 0.4, rim 0.3),
+        placed from the camera at the start, as the renderer places them."""
         Gf, UsdGeom, UsdLux = self.pxr.Gf, self.pxr.UsdGeom, self.pxr.UsdLux
-        width, height = render.resolution
-        placement = CameraPath(render.active_camera, self.geometry.bounds, width / height,
-                               self.geometry.followed).at(0.0)
+        placement = camera.at(float(self.trajectory.times[0]))
         view = placement.position - placement.focal_point
         UsdGeom.Scope.Define(self.stage, "/World/Lights")
         for light in three_point_rig(placement.up, view / np.linalg.norm(view)):
