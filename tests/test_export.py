@@ -93,6 +93,8 @@ def test_export_takes_a_trajectory_file_and_leaves_nothing_half_written(tmp_cwd,
     (folder / "transforms.csv").unlink()
     result = runner.invoke(cli, ["export", "run.npz", "--format", "usd"])
     assert result.exit_code == 2 and "animbatch export SCENE.yaml --trajectory run.npz --format usd" in result.output
+    result = runner.invoke(cli, ["export", "run.npz", "--format", "csv", "--set", "duration=1", "--dt", "0.01"])
+    assert result.exit_code == 2 and "--set, --dt cannot change a trajectory file" in result.output
     trajectory = Trajectory.load(tmp_cwd / "run.npz")
 
     class Interrupted(Exception):

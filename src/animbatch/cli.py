@@ -451,6 +451,11 @@ def export(scene: Path, trajectory: Path | None, kinds: tuple[str, ...], out_dir
             raise click.UsageError(f"--format {', '.join(drawn)} needs the scene file too (shapes, colours, cloth "
                                    f"triangles, camera): animbatch export SCENE.yaml --trajectory {scene} "
                                    f"--format {drawn[0]}. A trajectory alone exports --format csv.")
+        ignored = (["--trajectory"] if trajectory else []) + (["--set"] if settings else []) + \
+            [f"--{key.replace('_', '-')}" for key, value in shortcuts.items() if value is not None]
+        if ignored:  # the run is what the file holds: nothing would change it
+            raise click.UsageError(f"{', '.join(ignored)} cannot change a trajectory file exported as it is; give "
+                                   "the scene file to bake it with other settings")
         run = Trajectory.load(scene)
         name = run.scene_name
     else:
