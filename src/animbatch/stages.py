@@ -41,10 +41,11 @@ from animbatch.scene.schema import label_names, label_speed_names
 from animbatch.sim.integrators import DEFAULT_DT, IntegrationResult, SolverStats
 from animbatch.sim.integrators.budget import wall_budget
 from animbatch.sim.integrators.checkpoint import integrate_with_checkpoints
-from animbatch.sim.integrators.cost import check_cost, estimate_cost
+from animbatch.sim.integrators.cost import check_cost, estimate_cost, measure_rhs
 from animbatch.sim.integrators.guard import check_energy_growth
 from animbatch.sim.ledger import QuantitySeries, build_ledger
 from animbatch.sim.model import Dynamics, Model
+from animbatch.sim.model.compiled import dynamics_for
 from animbatch.sim.particles.body_motion import BodyMotion
 from animbatch.sim.particles.simulate import simulate_particles, steps_per_frame
 from animbatch.sim.preflight import preflight
@@ -79,16 +80,24 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
     warnings: list[str] = []
     estimated = 0.0
     systems: ParticleSystems | None = None  # the emitters, compiled once for the estimate and the run
+    system = Dynamics(model)
     if spec.solver.method != "analytic":  # closed forms cost nothing to speak of, and cannot go unstable
         warnings = preflight(model, spec.solver.method, spec.solver.dt)
         frame_steps = steps_per_frame(1.0 / spec.fps, spec.solver.method, spec.solver.dt or DEFAULT_DT)
         particle_steps = frame_steps * (len(model.frame_times) - 1)
         systems = compile_particles(spec, model, scene_folder(scene)) if spec.emitters else None
-        cost = estimate_cost(model, spec.solver, particle_costs(spec, systems, particle_steps), particle_steps)
+        pools = particle_costs(spec, systems, particle_steps)
+        cost = estimate_cost(model, spec.solver, pools, particle_steps)
+        # compiled equations of motion where the numpy ones would take long enough to repay loading them; the
+        # estimate that may refuse the run is then of the compiled ones
+        system = dynamics_for(model, cost.seconds_of("integration"))
+        if type(system) is not Dynamics:
+            cost = estimate_cost(model, spec.solver, pools, particle_steps, rhs_seconds=measure_rhs(model, system))
         check_cost(cost, spec.solver.max_cost)  # refuse what would run for hours or cannot fit, before it starts
         estimated = cost.seconds
     with wall_budget(spec.solver.max_cost, float(model.frame_times[0]), float(model.frame_times[-1])):
-        result, particles, particle_stats = _integrate(scene, model, integrator, progress, checkpoint, systems)
+        result, particles, particle_stats = _integrate(scene, model, system, integrator, progress, checkpoint,
+                                                       systems)
     states = result.states
     kinds = ("particle",) * model.particle_count + ("rigid",) * model.rigid_count
     stats = {**result.stats.as_dict(), "estimated_seconds": estimated}
@@ -113,18 +122,18 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
         and model.joints.motors is not None else None)
 
 
-def _integrate(scene: LoadedScene, model: Model, integrator: Any, progress: Progress,
+def _integrate(scene: LoadedScene, model: Model, system: Dynamics, integrator: Any, progress: Progress,
                checkpoint: tuple[int, Path] | None, systems: ParticleSystems | None = None
                ) -> tuple[IntegrationResult, list, dict[str, Any]]:
     """The bodies' states at the frame times, then the emitted particles (which may ride on bodies)."""
     if model.layout.size:
         with progress.task("simulate", len(model.frame_times)) as on_frame:
             if checkpoint is None:
-                result = integrator.integrate(Dynamics(model), model.y0, model.frame_times, on_frame=on_frame)
+                result = integrator.integrate(system, model.y0, model.frame_times, on_frame=on_frame)
             else:
 
                 every, path = checkpoint
-                result = integrate_with_checkpoints(integrator, Dynamics(model), model.y0, model.frame_times,
+                result = integrate_with_checkpoints(integrator, system, model.y0, model.frame_times,
                                                     every=every, path=Path(path), on_frame=on_frame)
         check_energy_growth(model, result.states, scene.spec.solver.method, result.stats.dt)
     else:  # a scene of emitters only: no body to integrate

@@ -30,7 +30,7 @@ import numpy as np
 
 from animbatch.errors import SimulationError
 from animbatch.sim.forces.gravitation import InverseSquarePairs
-from animbatch.sim.integrators.base import StepSettings
+from animbatch.sim.integrators.base import EquationsOfMotion, StepSettings
 from animbatch.sim.integrators.budget import format_seconds
 from animbatch.sim.integrators.description import DEFAULT_DT
 from animbatch.sim.integrators.fixed_step import substeps
@@ -77,6 +77,10 @@ class CostEstimate:
     @property
     def bytes(self) -> float:
         return sum(term.bytes for term in self.terms)
+
+    def seconds_of(self, name: str) -> float:
+        """The seconds of the term called ``name`` (0 without one)."""
+        return sum(term.seconds for term in self.terms if term.name == name)
 
     def dearest(self, kind: str) -> CostTerm:
         """The term that costs most ``seconds`` or ``bytes``."""
@@ -184,14 +188,15 @@ def _implicit_terms(model: Model, method: str, steps: float, states: int, rhs: f
     return terms
 
 
-def measure_rhs(model: Model, repeats: int = 3) -> float:
-    """Wall time of one evaluation of the model's right-hand side [s] (the fastest of a few)."""
-    dynamics = Dynamics(model)
+def measure_rhs(model: Model, system: EquationsOfMotion | None = None, repeats: int = 3) -> float:
+    """Wall time of one evaluation of the right-hand side [s] of ``system`` (default: the model's numpy Dynamics),
+    the fastest of a few."""
+    dynamics = system if system is not None else Dynamics(model)
     y = np.array(model.y0, dtype=np.float64)
     t = float(model.frame_times[0])
     best = np.inf
     with np.errstate(all="ignore"):
-        for _ in range(repeats + 1):  # the first call warms caches and is not counted
+        for _ in range(repeats + 1):  # the first call warms caches (and loads compiled code) and is not counted
             start = time.perf_counter()
             dynamics.rhs(t, y)
             best = min(best, time.perf_counter() - start)

@@ -73,6 +73,12 @@ class Scheme(ABC):
         """Whatever the scheme caches between steps, so that a replay from a saved state is exact."""
         return None
 
+    def compiled_form(self) -> tuple[str, Any] | None:
+        """How a compiled stepper takes this scheme's steps (``system.advance``): ``("runge_kutta", (a, b, c))``
+        from the tableau, ``("symplectic_euler", None)``, ``("verlet", rate)`` with the rate buffer the scheme keeps
+        between steps; None where it has no compiled form (implicit steps, or contacts between kick and drift)."""
+        return None
+
     def restore(self, saved: Any) -> None:
         pass
 
@@ -106,6 +112,14 @@ class ExplicitRungeKutta(Scheme):
         self.order = self.tableau.order
         self.evaluations_per_step = len(self.tableau.b)
         self._k = np.empty((len(self.tableau.b), system.size))
+        stages = len(self.tableau.b)
+        a = np.zeros((stages, stages))
+        for i, row in enumerate(self.tableau.a):
+            a[i, : len(row)] = row
+        self._arrays = (a, np.array(self.tableau.b, float), np.array(self.tableau.c, float))
+
+    def compiled_form(self) -> tuple[str, Any] | None:
+        return "runge_kutta", self._arrays
 
     def step(self, t: float, y: np.ndarray, h: float) -> None:
         tableau, k = self.tableau, self._k
@@ -153,6 +167,9 @@ class SymplecticEuler(PartitionedScheme):
 
     def step(self, t: float, y: np.ndarray, h: float) -> None:
         kick_constrain_drift(self, t, y, h)
+
+    def compiled_form(self) -> tuple[str, Any] | None:
+        return ("symplectic_euler", None) if self.constraint is None else None
 
 
 def kick_constrain_drift(scheme: SymplecticEuler | Any, t: float, y: np.ndarray, h: float) -> None:
@@ -206,6 +223,9 @@ class VelocityVerlet(PartitionedScheme):
 
     def snapshot(self) -> Any:
         return self._rate.copy()
+
+    def compiled_form(self) -> tuple[str, Any] | None:
+        return ("verlet", self._rate) if self.constraint is None else None
 
     def restore(self, saved: Any) -> None:
         self._rate[...] = saved

@@ -9,15 +9,22 @@ So a kernel is used only for work large enough to repay that (:data:`MIN_WORK`).
 
 ``ANIMBATCH_KERNELS`` chooses: ``auto`` (the default, as above), ``numba`` (compiled whatever the size, where numba
 loads) or ``numpy`` (never compiled).
+
+numba keys a cached kernel by the time stamp of its own file only, so a kernel that calls a kernel of another file
+would load stale machine code once that file changed. The kernels are therefore cached in a folder of the user's
+cache named by a hash of every kernel source (``NUMBA_CACHE_DIR``, unless it is set already): any change to any
+kernel starts a fresh cache.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
 import os
 import threading
 import warnings
 from collections.abc import Callable
+from pathlib import Path
 
 #: ``auto``, ``numba`` or ``numpy`` (see the module notes).
 KERNELS_VARIABLE = "ANIMBATCH_KERNELS"
@@ -30,6 +37,21 @@ SLOW_BUILD = 1.5
 #: Where to say that a slow build is under way (the CLI prints to stderr); None: say nothing (library use).
 announce: Callable[[str], None] | None = None
 _asked: set[str] = set()  # the kernels whose build has been asked for in this process
+
+
+def kernel_cache_folder() -> Path:
+    """Where numba caches the kernels: ``$XDG_CACHE_HOME/animbatch/kernels/<hash of their sources>`` (see the
+    module notes)."""
+    digest = hashlib.sha256()
+    for source in sorted(Path(__file__).parent.glob("*.py")):
+        digest.update(source.name.encode())
+        digest.update(source.read_bytes())
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "animbatch" / "kernels" / digest.hexdigest()[:16]
+
+
+# before numba is first imported (it reads the variable once)
+os.environ.setdefault("NUMBA_CACHE_DIR", str(kernel_cache_folder()))
 
 
 @functools.cache

@@ -1,0 +1,384 @@
+"""The compiled equations of motion of bodies and joints, and the fixed-step methods stepped in one call.
+
+These are :class:`animbatch.sim.model.dynamics.Dynamics` (``rhs``, ``motion_rate``, ``project``; ``drift`` is
+:func:`animbatch.sim.kernels.rigid_motion.drift`) and :class:`animbatch.sim.joints.Joints` (``loads``: the
+constraint forces with Baumgarte stabilisation, and ``project``: the SHAKE/RATTLE-style projection after a fixed
+step) on the packed tables of :mod:`animbatch.sim.kernels.tables`, built on
+:mod:`~animbatch.sim.kernels.rigid_motion` (bodies and forces), :mod:`~animbatch.sim.kernels.joint_rows` (rows)
+and :mod:`~animbatch.sim.kernels.sparse_ldl` (the coupling solve). :func:`advance` takes a whole run of fixed steps
+(a frame's) in one call: an explicit Runge–Kutta method from its tableau, semi-implicit Euler or velocity Verlet,
+each as its scheme in :mod:`animbatch.sim.integrators.fixed_step` takes it, so that one compiled stepper serves
+every explicit method.
+
+The numpy code is the reference: the same formulas in the same order, compared to round-off by
+``tests/sim/test_compiled_dynamics.py``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from animbatch.sim.kernels import joint_rows, rigid_motion, sparse_ldl
+from animbatch.sim.kernels import tables as T
+from animbatch.sim.kernels.rigid_motion import column, rows_of, table
+
+#: The fixed-step forms :func:`advance` knows.
+FORM_RUNGE_KUTTA, FORM_SYMPLECTIC_EULER, FORM_VERLET = 0, 1, 2
+#: As :mod:`animbatch.sim.joints`: Gauss–Newton steps of the position projection, its tolerance (times the joints'
+#: scale), and the passes of dropping unilateral rows that pull.
+PROJECTION_ITERATIONS = 8
+PROJECTION_TOLERANCE = 1e-13
+ACTIVE_SET_PASSES = 4
+
+
+@njit(cache=True, error_model="numpy")
+def _solve(integers: np.ndarray, layout: np.ndarray, row_bodies: np.ndarray, linear: np.ndarray,
+           angular: np.ndarray, inverse_mass: np.ndarray, inverse_inertia: np.ndarray, active: np.ndarray,
+           right: np.ndarray, out: np.ndarray) -> None:
+    """λ (R,) with ``(J M⁻¹ Jᵀ) λ = right`` for rows with Jacobian parts ``linear``, ``angular`` (R, 2, 3) on slots
+    of ``inverse_mass`` (S,) and world ``inverse_inertia`` (S, 3, 3); rows not ``active`` held at zero."""
+    count = len(right)
+    values = np.empty(rows_of(layout, T.COLUMN_ROWS))
+    diagonal = np.empty(count)
+    sparse_ldl.assemble(integers, layout, linear, angular, row_bodies, inverse_mass, inverse_inertia, active, values,
+                        diagonal)
+    sparse_ldl.factor(integers, layout, values, diagonal)
+    masked = np.empty(count)
+    for r in range(count):
+        masked[r] = right[r] if active[r] else 0.0
+    sparse_ldl.solve(integers, layout, values, diagonal, masked, out)
+
+
+@njit(cache=True, error_model="numpy")
+def _solve_active(integers: np.ndarray, layout: np.ndarray, row_bodies: np.ndarray, linear: np.ndarray,
+                  angular: np.ndarray, inverse_mass: np.ndarray, inverse_inertia: np.ndarray, right: np.ndarray,
+                  reached: np.ndarray, out: np.ndarray) -> None:
+    """λ over the bilateral rows and the unilateral rows ``reached``, dropping unilateral rows whose λ would pull
+    and solving again (``Joints._solve_active``)."""
+    unilateral = column(integers, layout, T.ROW_UNILATERAL)
+    count = len(right)
+    active = np.empty(count, np.bool_)
+    for r in range(count):
+        active[r] = unilateral[r] == 0 or reached[r]
+    for _ in range(ACTIVE_SET_PASSES):
+        _solve(integers, layout, row_bodies, linear, angular, inverse_mass, inverse_inertia, active, right, out)
+        pulling = False
+        for r in range(count):
+            if unilateral[r] != 0 and active[r] and out[r] < 0:
+                active[r] = False
+                pulling = True
+        if not pulling:
+            return
+    for r in range(count):
+        if unilateral[r] != 0 and out[r] < 0:
+            out[r] = 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def add_joint_loads(t: float, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, x: np.ndarray,
+                    v: np.ndarray, rotation: np.ndarray, omega: np.ndarray, force: np.ndarray, torque: np.ndarray,
+                    engaged: np.ndarray, use_engaged: bool, stabilisation: float) -> None:
+    """Add the joints' forces and torques to ``force`` (P, 3) and ``torque`` (B, 3), given the other loads there
+    and the bodies' kinematics: ``J M⁻¹ Jᵀ λ = −(J a_free + J̇u + 2 ω Ċ + ω² C)`` with Baumgarte's ω =
+    ``stabilisation`` [1/s], over the rows ``engaged`` (R,) when ``use_engaged``, else the active set of those at or
+    past their stops that push (``Joints.loads``). Motors act besides."""
+    points = column(integers, layout, T.JOINT_POINTS)
+    slot_rigid = column(integers, layout, T.SLOT_RIGID)
+    slot_path = column(integers, layout, T.SLOT_PATH)
+    inverse_mass = column(floats, layout, T.SLOT_INVERSE_MASS)
+    row_bodies = table(integers, layout, T.ROW_BODIES, 2)
+    unilateral = column(integers, layout, T.ROW_UNILATERAL)
+    slots, rows, count = len(slot_rigid), len(row_bodies), len(points)
+    sx, sv, somega = np.empty((slots, 3)), np.empty((slots, 3)), np.empty((slots, 3))
+    sspin, sacceleration = np.empty((slots, 3)), np.empty((slots, 3))
+    srotation, sinverse_inertia = np.empty((slots, 3, 3)), np.empty((slots, 3, 3))
+    joint_rows.slot_motion(t, floats, integers, layout, x, v, rotation, omega, sx, sv, srotation, somega,
+                           sinverse_inertia, sspin, sacceleration)
+    applied_force, applied_torque = np.zeros((slots, 3)), np.zeros((slots, 3))
+    for s in range(count):
+        rigid_motion.store(applied_force, s, rigid_motion.vector(force, points[s]))
+        if slot_rigid[s] >= 0:
+            rigid_motion.store(applied_torque, s, rigid_motion.vector(torque, slot_rigid[s]))
+    motor_force, motor_torque = np.zeros((slots, 3)), np.zeros((slots, 3))
+    motors = rows_of(layout, T.MOTOR_BODIES)
+    if motors:
+        joint_rows.motor_loads(t, floats, integers, layout, sx, sv, srotation, somega, motor_force, motor_torque,
+                               np.empty(motors))
+        for s in range(slots):
+            for c in range(3):
+                applied_force[s, c] += motor_force[s, c]
+                applied_torque[s, c] += motor_torque[s, c]
+    violation, bias = np.empty(rows), np.empty(rows)
+    linear, angular = np.empty((rows, 2, 3)), np.empty((rows, 2, 3))
+    joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, linear, angular, bias)
+    acceleration, angular_acceleration = np.empty((slots, 3)), np.empty((slots, 3))
+    for s in range(slots):
+        for c in range(3):
+            acceleration[s, c] = applied_force[s, c] * inverse_mass[s]
+        if slot_path[s] >= 0:  # an anchor's prescribed acceleration enters C̈ as it stands
+            rigid_motion.store(acceleration, s, rigid_motion.vector(sacceleration, s))
+        turn = rigid_motion.rotate(sinverse_inertia[s], rigid_motion.vector(applied_torque, s))
+        rigid_motion.store(angular_acceleration, s, rigid_motion.plus(turn, rigid_motion.vector(sspin, s)))
+    rate, pushed, right = np.empty(rows), np.empty(rows), np.empty(rows)
+    joint_rows.apply(row_bodies, linear, angular, sv, somega, rate)
+    joint_rows.apply(row_bodies, linear, angular, acceleration, angular_acceleration, pushed)
+    w = stabilisation
+    for r in range(rows):
+        right[r] = -(pushed[r] + bias[r] + 2 * w * rate[r] + w**2 * violation[r])
+    multipliers = np.empty(rows)
+    active = np.empty(rows, np.bool_)
+    if use_engaged:
+        for r in range(rows):
+            active[r] = unilateral[r] == 0 or engaged[r]
+        _solve(integers, layout, row_bodies, linear, angular, inverse_mass, sinverse_inertia, active, right,
+               multipliers)
+    else:
+        for r in range(rows):
+            active[r] = violation[r] <= 0
+        _solve_active(integers, layout, row_bodies, linear, angular, inverse_mass, sinverse_inertia, right, active,
+                      multipliers)
+    joint_force, joint_torque = np.empty((slots, 3)), np.empty((slots, 3))
+    joint_rows.apply_transpose(row_bodies, linear, angular, multipliers, joint_force, joint_torque)
+    for s in range(count):
+        for c in range(3):
+            force[points[s], c] += joint_force[s, c] + motor_force[s, c]
+        if slot_rigid[s] >= 0:
+            for c in range(3):
+                torque[slot_rigid[s], c] += joint_torque[s, c] + motor_torque[s, c]
+
+
+@njit(cache=True, error_model="numpy")
+def _loads(t: float, config: np.ndarray, motion: np.ndarray, floats: np.ndarray, integers: np.ndarray,
+           layout: np.ndarray, engaged: np.ndarray, use_engaged: bool, stabilisation: float, v: np.ndarray,
+           omega: np.ndarray, force: np.ndarray, torque: np.ndarray) -> None:
+    """The kinematics (the points' velocities ``v`` (P, 3) and the rigid bodies' ω (B, 3)) and the total loads
+    ``force`` (P, 3) [N] and ``torque`` (B, 3) [N·m] at a state, joints included."""
+    points, b = len(v), len(omega)
+    x, rotation = np.empty((points, 3)), np.empty((b, 3, 3))
+    rigid_motion.kinematics(config, motion, floats, layout, x, v, rotation, omega)
+    rigid_motion.add_forces(t, floats, integers, layout, x, v, rotation, omega, force, torque)
+    if rows_of(layout, T.ROW_BODIES):
+        add_joint_loads(t, floats, integers, layout, x, v, rotation, omega, force, torque, engaged, use_engaged,
+                        stabilisation)
+
+
+@njit(cache=True, error_model="numpy")
+def motion_rate(t: float, config: np.ndarray, motion: np.ndarray, floats: np.ndarray, integers: np.ndarray,
+                layout: np.ndarray, engaged: np.ndarray, use_engaged: bool, stabilisation: float,
+                out: np.ndarray) -> None:
+    """``dm/dt`` (the motion's size) into ``out``: ``F / m`` for particles, F and τ for rigid bodies, with the
+    joints' forces."""
+    points, b = len(motion) // 3 - rows_of(layout, T.RIGID_INVERSE_MASS), rows_of(layout, T.RIGID_INVERSE_MASS)
+    v, omega = np.empty((points, 3)), np.empty((b, 3))
+    force, torque = np.empty((points, 3)), np.empty((b, 3))
+    _loads(t, config, motion, floats, integers, layout, engaged, use_engaged, stabilisation, v, omega, force, torque)
+    rigid_motion.motion_rate_from(force, torque, floats, layout, out)
+
+
+@njit(cache=True, error_model="numpy")
+def rhs(t: float, y: np.ndarray, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, config_size: int,
+        engaged: np.ndarray, use_engaged: bool, stabilisation: float, out: np.ndarray) -> None:
+    """``dy/dt`` (n,) into ``out``."""
+    config, motion = y[:config_size], y[config_size:]
+    b = rows_of(layout, T.RIGID_INVERSE_MASS)
+    points = len(motion) // 3 - b
+    v, omega = np.empty((points, 3)), np.empty((b, 3))
+    force, torque = np.empty((points, 3)), np.empty((b, 3))
+    _loads(t, config, motion, floats, integers, layout, engaged, use_engaged, stabilisation, v, omega, force, torque)
+    rigid_motion.config_rate(config, motion, layout, v, omega, out[:config_size])
+    rigid_motion.motion_rate_from(force, torque, floats, layout, out[config_size:])
+
+
+@njit(cache=True, error_model="numpy")
+def _projection_motion(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, positions: np.ndarray,
+                       orientations: np.ndarray, linear: np.ndarray, angular_momentum: np.ndarray,
+                       mass_of_linear: np.ndarray, t: float, sx: np.ndarray, sv: np.ndarray, srotation: np.ndarray,
+                       somega: np.ndarray, sinverse_inertia: np.ndarray) -> None:
+    """The slots' motion at a state being projected (``current()`` of ``Joints.project``)."""
+    points = column(integers, layout, T.JOINT_POINTS)
+    slot_path = column(integers, layout, T.SLOT_PATH)
+    sx[:] = 0.0
+    sv[:] = 0.0
+    somega[:] = 0.0
+    sinverse_inertia[:] = 0.0
+    for s in range(len(srotation)):
+        for i in range(3):
+            for j in range(3):
+                srotation[s, i, j] = 1.0 if i == j else 0.0
+    for s in range(len(points)):
+        for c in range(3):
+            sx[s, c] = positions[points[s], c]
+            sv[s, c] = linear[points[s], c] / mass_of_linear[s]
+    for s in range(len(slot_path)):
+        if slot_path[s] >= 0:
+            position, velocity, _ = rigid_motion.path_at(floats, integers, layout, slot_path[s], t)
+            rigid_motion.store(sx, s, position)
+            rigid_motion.store(sv, s, velocity)
+    joint_rows.rigid_slot_state(floats, integers, layout, orientations, angular_momentum, srotation, somega,
+                                sinverse_inertia)
+
+
+@njit(cache=True, error_model="numpy")
+def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, positions: np.ndarray,
+                   orientations: np.ndarray, linear: np.ndarray, angular_momentum: np.ndarray, reach: float,
+                   t: float) -> None:
+    """Move a state back onto the joints, in place (``Joints.project``): ``positions`` (P, 3) [m], ``orientations``
+    (B, 4), ``linear`` (P, 3) (particles' velocities, then rigid momenta), ``angular_momentum`` (B, 3); first the
+    positions by Gauss–Newton steps ``Δ = −M⁻¹ Jᵀ (J M⁻¹ Jᵀ)⁻¹ C``, then the velocities by the impulse that takes
+    out ``J u`` (unilateral rows within ``reach`` [m or rad] of their stops lose only an approaching rate)."""
+    points = column(integers, layout, T.JOINT_POINTS)
+    slot_rigid = column(integers, layout, T.SLOT_RIGID)
+    inverse_mass = column(floats, layout, T.SLOT_INVERSE_MASS)
+    row_bodies = table(integers, layout, T.ROW_BODIES, 2)
+    unilateral = column(integers, layout, T.ROW_UNILATERAL)
+    slots, rows, count = len(slot_rigid), len(row_bodies), len(points)
+    any_unilateral = False
+    for r in range(rows):
+        any_unilateral = any_unilateral or unilateral[r] != 0
+    mass_of_linear = np.ones(count)
+    for s in range(count):
+        if slot_rigid[s] >= 0:
+            mass_of_linear[s] = 1.0 / inverse_mass[s]
+    tolerance = PROJECTION_TOLERANCE * max(column(floats, layout, T.JOINT_SCALE)[0], 1.0)
+    sx, sv, somega = np.empty((slots, 3)), np.empty((slots, 3)), np.empty((slots, 3))
+    srotation, sinverse_inertia = np.empty((slots, 3, 3)), np.empty((slots, 3, 3))
+    violation, bias = np.empty(rows), np.empty(rows)
+    linear_rows, angular_rows = np.empty((rows, 2, 3)), np.empty((rows, 2, 3))
+    joint_force, joint_torque = np.empty((slots, 3)), np.empty((slots, 3))
+    active = np.ones(rows, np.bool_)
+    right, step = np.empty(rows), np.empty(rows)
+    settled = False
+    for _ in range(PROJECTION_ITERATIONS):
+        _projection_motion(floats, integers, layout, positions, orientations, linear, angular_momentum,
+                           mass_of_linear, t, sx, sv, srotation, somega, sinverse_inertia)
+        joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, linear_rows, angular_rows,
+                        bias)
+        largest = 0.0
+        for r in range(rows):
+            active[r] = unilateral[r] == 0 or violation[r] < 0
+            if active[r]:
+                largest = max(largest, abs(violation[r]))
+            right[r] = -violation[r]
+        if largest <= tolerance:
+            settled = True
+            break
+        if not any_unilateral:
+            active[:] = True
+        _solve(integers, layout, row_bodies, linear_rows, angular_rows, inverse_mass, sinverse_inertia, active, right,
+               step)
+        joint_rows.apply_transpose(row_bodies, linear_rows, angular_rows, step, joint_force, joint_torque)
+        for s in range(count):
+            for c in range(3):
+                positions[points[s], c] += joint_force[s, c] * inverse_mass[s]
+            k = slot_rigid[s]
+            if k >= 0:
+                q = orientations[k]
+                rigid_motion.turn_quaternion(q, rigid_motion.rotate(sinverse_inertia[s],
+                                                                    rigid_motion.vector(joint_torque, s)))
+                rigid_motion.normalise(q)
+    if not settled:
+        _projection_motion(floats, integers, layout, positions, orientations, linear, angular_momentum,
+                           mass_of_linear, t, sx, sv, srotation, somega, sinverse_inertia)
+        joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, linear_rows, angular_rows,
+                        bias)
+    rate = np.empty(rows)
+    joint_rows.apply(row_bodies, linear_rows, angular_rows, sv, somega, rate)
+    limit = max(tolerance, reach)
+    for r in range(rows):
+        active[r] = violation[r] <= limit and rate[r] < 0  # reached, and approaching
+        right[r] = -rate[r]
+    _solve_active(integers, layout, row_bodies, linear_rows, angular_rows, inverse_mass, sinverse_inertia, right,
+                  active, step)
+    joint_rows.apply_transpose(row_bodies, linear_rows, angular_rows, step, joint_force, joint_torque)
+    for s in range(count):
+        scale = mass_of_linear[s] * inverse_mass[s]
+        for c in range(3):
+            linear[points[s], c] += joint_force[s, c] * scale
+        if slot_rigid[s] >= 0:
+            for c in range(3):
+                angular_momentum[slot_rigid[s], c] += joint_torque[s, c]
+
+
+@njit(cache=True, error_model="numpy")
+def project(y: np.ndarray, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, config_size: int,
+            reach: float, t: float) -> None:
+    """``Dynamics.project`` of a state (n,) in place: back onto the joints, then the quaternions re-normalised."""
+    n, b = rows_of(layout, T.PARTICLE_INVERSE_MASS), rows_of(layout, T.RIGID_INVERSE_MASS)
+    if rows_of(layout, T.ROW_BODIES):
+        points = n + b
+        positions = y[: 3 * points].reshape((points, 3))
+        orientations = y[3 * points: 3 * points + 4 * b].reshape((b, 4))
+        linear = y[config_size: config_size + 3 * points].reshape((points, 3))
+        angular_momentum = y[config_size + 3 * points:].reshape((b, 3))
+        project_joints(floats, integers, layout, positions, orientations, linear, angular_momentum, reach, t)
+    rigid_motion.normalise_quaternions(y, layout)
+
+
+@njit(cache=True, error_model="numpy")
+def advance(y: np.ndarray, t: float, h: float, steps: int, form: int, a: np.ndarray, weights: np.ndarray,
+            nodes: np.ndarray, rate: np.ndarray, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
+            config_size: int) -> int:
+    """``steps`` fixed steps of ``h`` [s] from time ``t`` [s], in place, each followed by the projection; returns
+    the right-hand sides evaluated. ``form``: an explicit Runge–Kutta method with tableau ``a`` (s, s), ``weights``
+    b (s,) and ``nodes`` c (s,); semi-implicit Euler (kick, drift); or velocity Verlet (half kick, drift, half kick
+    with the rate at the predicted motion; ``rate`` (the motion's size) holds the rate at the start and is left at
+    the end's, as the scheme keeps it). Joints are held by the projection alone, without Baumgarte's term, as the
+    fixed-step integrator sets."""
+    size = len(y)
+    engaged = np.zeros(0, np.bool_)
+    # computed, not written as constants: numba compiles a function once more for each constant argument it is
+    # called with (a literal False or 0.0), and these functions are the largest
+    unused, no_stabilisation = steps < 0, 0.0 * h
+    evaluations = 0
+    config, motion = y[:config_size], y[config_size:]
+    if form == FORM_RUNGE_KUTTA:
+        stages = len(weights)
+        k = np.empty((stages, size))
+        stage = np.empty(size)
+        for step in range(steps):
+            now = t + step * h
+            for i in range(stages):
+                for m in range(size):
+                    stage[m] = y[m]
+                for j in range(i):
+                    if a[i, j] != 0.0:
+                        for m in range(size):
+                            stage[m] = stage[m] + (h * a[i, j]) * k[j, m]
+                rhs(now + nodes[i] * h, stage, floats, integers, layout, config_size, engaged, unused,
+                    no_stabilisation, k[i])
+            evaluations += stages
+            for i in range(stages):
+                if weights[i] != 0.0:
+                    for m in range(size):
+                        y[m] += (h * weights[i]) * k[i, m]
+            project(y, floats, integers, layout, config_size, no_stabilisation, now + h)
+    elif form == FORM_SYMPLECTIC_EULER:
+        kick = np.empty(len(motion))
+        for step in range(steps):
+            now = t + step * h
+            motion_rate(now, config, motion, floats, integers, layout, engaged, unused, no_stabilisation, kick)
+            evaluations += 1
+            for m in range(len(motion)):
+                motion[m] += kick[m] * h
+            rigid_motion.drift(config, motion, h, floats, layout)
+            project(y, floats, integers, layout, config_size, no_stabilisation, now + h)
+    else:
+        predicted = np.empty(len(motion))
+        following = np.empty(len(motion))
+        for step in range(steps):
+            now = t + step * h
+            for m in range(len(motion)):
+                predicted[m] = motion[m] + rate[m] * h
+                motion[m] += rate[m] * (0.5 * h)
+            rigid_motion.drift(config, motion, h, floats, layout)
+            motion_rate(now + h, config, predicted, floats, integers, layout, engaged, unused, no_stabilisation,
+                        following)
+            evaluations += 1
+            for m in range(len(motion)):
+                motion[m] += following[m] * (0.5 * h)
+            project(y, floats, integers, layout, config_size, no_stabilisation, now + h)
+            for m in range(len(motion)):
+                rate[m] = following[m]
+    return evaluations
+

@@ -1,0 +1,241 @@
+"""The compiled equations of motion (animbatch.sim.kernels.stepper) against the numpy ones they replace: every form
+(right-hand side, kick, drift, projection, a frame of fixed steps) on every kind of joint row, motor, spring and
+keyframed anchor, to round-off; and the choice between them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from animbatch.compile.model import compile_scene
+from animbatch.sim import kernels
+from animbatch.sim.integrators.methods import FIXED_STEP_SCHEMES
+from animbatch.sim.kernels import tables as T
+from animbatch.sim.model.compiled import CompiledDynamics, dynamics_for, stepper_tables
+from animbatch.sim.model.dynamics import Dynamics
+from conftest import scene
+
+pytest.importorskip("numba", reason="numba is not installed: numpy integrates every body")
+
+BAR = "shape: {type: box, size: [0.3, 0.04, 0.04]}, density: 700"
+
+#: Scenes with every kind of row, motor, spring and anchor the compiled equations of motion take.
+SCENES = {
+    "hinge chain with a limit": f"""
+        bodies:
+          - {{name: a, type: rigid, {BAR}, position: [0.15, 0, 0]}}
+          - {{name: b, type: rigid, {BAR}, position: [0.45, 0, 0], angular_velocity: [0, 0.3, 1]}}
+          - {{name: c, type: rigid, {BAR}, position: [0.75, 0, 0]}}
+        joints:
+          - {{type: hinge, between: [a], anchor: [0, 0, 0], axis: [0, 0, 1]}}
+          - {{type: hinge, between: [b, a], anchor: [0.3, 0, 0], axis: [0, 0, 1], limits: [-0.5, 0.05]}}
+          - {{type: hinge, between: [c, b], anchor: [0.6, 0, 0], axis: [0, 0.6, 0.8]}}
+        """,
+    "ball joints and a weld": """
+        bodies:
+          - {name: torso, type: rigid, shape: {type: box, size: [0.2, 0.4, 0.3]}, density: 900,
+              position: [0, 1, 0], angular_velocity: [0.4, -0.2, 0.7]}
+          - {name: arm, type: rigid, shape: {type: capsule, radius: 0.03, length: 0.3}, density: 900,
+              position: [0, 1.1, 0.3], orientation: {axis: [1, 0, 0], angle: 90}, velocity: [0.2, 0, 0]}
+          - {name: hand, type: rigid, shape: {type: sphere, radius: 0.04}, density: 900,
+              position: [0, 1.1, 0.5]}
+        joints:
+          - {type: ball, between: [arm, torso], anchor: [0, 1.1, 0.15]}
+          - {type: fixed, between: [hand, arm]}
+        """,
+    "slider with limits and a keyframed motor": """
+        bodies:
+          - {name: rail, type: rigid, shape: {type: box, size: [1, 0.05, 0.05]}, density: 500, position: [0, 1, 0],
+             angular_velocity: [0, 0, 0.3]}
+          - {name: cart, type: rigid, shape: {type: box, size: [0.1, 0.1, 0.1]}, density: 500,
+             position: [0.1, 1.05, 0], velocity: [0.4, 0, 0]}
+        joints:
+          - {type: hinge, between: [rail], anchor: [0, 1, 0], axis: [0, 0, 1]}
+          - type: slider
+            between: [cart, rail]
+            axis: [1, 0, 0]
+            limits: [-0.3, 0.02]
+            motor: {target: [{time: 0, value: 0}, {time: 0.5, value: 0.2}, {time: 1, value: -0.1}], stiffness: 30,
+                    damping: 2, max_force: 5}
+        """,
+    "hinge motor at a speed": f"""
+        bodies:
+          - {{name: wheel, type: rigid, {BAR}, position: [0.15, 0, 0]}}
+        joints:
+          - {{type: hinge, between: [wheel], anchor: [0, 0, 0], axis: [0, 0, 1],
+              motor: {{speed: 2.0, damping: 0.5, max_torque: 0.05}}}}
+        """,
+    "rods, a rope and a pulley": """
+        anchors:
+          - {name: pivot, position: [0, 2, 0]}
+          - {name: p1, position: [1, 2, 0]}
+          - {name: p2, position: [1.5, 2, 0]}
+        bodies:
+          - {name: upper, mass: 1.0, radius: 0.05, position: [0.8, 2.0, 0.1], velocity: [0, 0, 0.3]}
+          - {name: lower, mass: 0.5, radius: 0.05, position: [0.8, 1.2, 0]}
+          - {name: hung, mass: 0.3, radius: 0.05, position: [0.3, 1.0, 0], velocity: [0.5, 0.2, 0]}
+          - {name: heavy, mass: 2.0, radius: 0.05, position: [1, 1, 0]}
+          - {name: light, mass: 1.0, radius: 0.05, position: [1.5, 0.8, 0]}
+        joints:
+          - {type: distance, between: [pivot, upper]}
+          - {type: distance, between: [upper, lower]}
+          - {type: rope, between: [hung, pivot], length: 1.2}
+          - {type: pulley, between: [heavy, light], over: [p1, p2]}
+        """,
+    "springs at body points and anchors on keyframes": """
+        anchors:
+          - {name: hook, position: [0, 2.5, 0]}
+          - name: hand
+            keyframes: [{time: 0, position: [1, 2, 0]}, {time: 0.4, position: [1.3, 2.2, 0.1]},
+                        {time: 1.2, position: [0.8, 2.1, 0]}]
+            interpolation: cubic
+          - name: trolley
+            keyframes: [{time: 0, position: [-1, 3, 0]}, {time: 0.6, position: [-0.5, 3, 0.2]}]
+        bodies:
+          - {name: box, type: rigid, shape: {type: box, size: [0.4, 0.4, 0.4]}, density: 600,
+             position: [0.3, 1.6, 0.1], angular_velocity: [0.2, 0.5, 0]}
+          - {name: ball, mass: 0.2, radius: 0.05, position: [1, 1.5, 0]}
+          - {name: crate, type: rigid, shape: {type: box, size: [0.3, 0.3, 0.3]}, density: 300,
+             position: [-1, 1.5, 0]}
+        springs:
+          - {between: [hook, box], stiffness: 800, damping: 30, rest_length: 0.5, attach: [null, [0.2, 0.2, 0.2]]}
+          - {between: [hand, ball], stiffness: 50, damping: 0.4}
+          - {between: [ball, box], stiffness: 20, attach: [null, [-0.2, 0.1, 0]]}
+        joints:
+          - {type: distance, between: [crate, trolley], attach: [[0, 0.15, 0], null]}
+        """,
+}
+
+
+def _model(name: str, solver: str = "{method: verlet, dt: 0.001}"):
+    text = f"duration: 0.2\nfps: 20\nsolver: {solver}\n" + "\n".join(
+        line[8:] for line in SCENES[name].splitlines()) + "\nfields: [{type: gravity}]\n"
+    return compile_scene(scene(text).spec)
+
+
+def _states(model, count: int = 3) -> list[np.ndarray]:
+    """The start, and states near it (every component nudged), re-normalised and put back on the joints."""
+    rng = np.random.default_rng(7)
+    found = [model.y0.copy()]
+    for _ in range(count - 1):
+        y = model.y0 + 0.02 * rng.normal(size=model.y0.shape)
+        Dynamics(model).project(y, joints=False)
+        found.append(y)
+    return found
+
+
+@pytest.fixture(params=list(SCENES))
+def both(request) -> tuple[Dynamics, CompiledDynamics]:
+    """A scene's numpy and compiled Dynamics."""
+    model = _model(request.param)
+    return Dynamics(model), CompiledDynamics(model)
+
+
+def _close(numpy_value: np.ndarray, compiled_value: np.ndarray, scale: float | None = None) -> None:
+    scale = max(float(np.max(np.abs(numpy_value))), 1.0) if scale is None else scale
+    np.testing.assert_allclose(compiled_value, numpy_value, rtol=0, atol=1e-11 * scale)
+
+
+def test_the_right_hand_side_is_the_numpy_one(both):
+    """dy/dt, with Baumgarte stabilisation and without, at the start and at states off the joints."""
+    numpy_system, compiled = both
+    for stabilisation in (20.0, 0.0):
+        numpy_system.joint_stabilisation = compiled.joint_stabilisation = stabilisation
+        for t, y in zip((0.0, 0.13, 0.61), _states(numpy_system.model)):
+            _close(numpy_system.rhs(t, y), compiled.rhs(t, y))
+
+
+def test_the_kick_and_the_drift_are_the_numpy_ones(both):
+    numpy_system, compiled = both
+    for t, y in zip((0.0, 0.37, 0.9), _states(numpy_system.model)):
+        config, motion = numpy_system.split(y)
+        _close(numpy_system.motion_rate(t, config, motion), compiled.motion_rate(t, config, motion))
+        moved = [y.copy(), y.copy()]
+        for system, state in zip((numpy_system, compiled), moved):
+            system.drift(*system.split(state), 0.01)
+        _close(moved[0], moved[1])
+
+
+def test_the_projection_is_the_numpy_one(both):
+    """Positions, orientations and velocities put back on the joints (ropes and limits within reach stop)."""
+    numpy_system, compiled = both
+    for t, y in zip((0.0, 0.2, 0.7), _states(numpy_system.model)):
+        projected = [y.copy(), y.copy()]
+        for system, state in zip((numpy_system, compiled), projected):
+            system.project(state, reach=1e-3, t=t)
+        _close(projected[0], projected[1])
+
+
+def test_engaged_stops_are_the_numpy_ones():
+    """The adaptive methods' events choose which limits act: the compiled forces follow the same choice."""
+    model = _model("hinge chain with a limit")
+    numpy_system, compiled = Dynamics(model), CompiledDynamics(model)
+    y = _states(model)[1]
+    lower = np.zeros(len(model.joints.row_is_unilateral), bool)
+    lower[np.flatnonzero(model.joints.row_is_unilateral)[0]] = True  # both stops at once would be singular
+    for engaged in (np.zeros_like(lower), lower):
+        numpy_system.engaged_stops = compiled.engaged_stops = engaged
+        _close(numpy_system.rhs(0.1, y), compiled.rhs(0.1, y))
+
+
+@pytest.mark.parametrize("method", [name for name, scheme in FIXED_STEP_SCHEMES.items()
+                                    if name != "backward_euler"])
+def test_a_frame_of_fixed_steps_in_one_call_is_the_numpy_schemes(method):
+    """Twenty steps of each explicit method, one compiled call, against the numpy scheme step by step: states and
+    right-hand sides counted."""
+    model = _model("rods, a rope and a pulley", f"{{method: {method}, dt: 0.001}}")
+    results = []
+    for system in (Dynamics(model), CompiledDynamics(model)):
+        scheme = FIXED_STEP_SCHEMES[method](system)
+        system.joint_stabilisation = 0.0
+        y = model.y0.copy()
+        system.project(y)
+        scheme.start(0.0, y)
+        if isinstance(system, CompiledDynamics):
+            scheme.evaluations += system.advance(scheme.compiled_form(), y, 0.0, 0.001, 20)
+        else:
+            for i in range(20):
+                scheme.step(i * 0.001, y, 0.001)
+        results.append((y, scheme.evaluations))
+    (numpy_y, numpy_count), (compiled_y, compiled_count) = results
+    _close(numpy_y, compiled_y)
+    assert compiled_count == numpy_count
+
+
+def test_a_wrong_table_is_caught():
+    """The comparison is sharp: a joint offset moved by a tenth of a millimetre in the tables shows."""
+    model = _model("ball joints and a weld")
+    numpy_system = Dynamics(model)
+    tables = stepper_tables(model)
+    tables[T.POINT_OFFSETS][0, 0, 0] += 1e-4
+    y = _states(model)[1]
+    with pytest.raises(AssertionError):
+        _close(numpy_system.rhs(0.1, y), CompiledDynamics(model, tables).rhs(0.1, y))
+
+
+def test_models_the_kernels_do_not_cover_say_why():
+    """Contacts, clocks and terms without a compiled form keep the numpy equations, and the reason is given."""
+    cases = {
+        "it has contacts": "colliders: [{type: plane}]",
+        "its drag term has no compiled form": "fields: [{type: drag, model: linear, coefficient: 1}]",
+        "it has proper-time clocks": "clocks: {bodies: [p], c: 100}",
+    }
+    for reason, extra in cases.items():
+        text = ("duration: 1\nfps: 10\nbodies:\n  - {name: p, mass: 1, radius: 0.1, position: [0, 1, 0]}\n"
+                + extra + "\n")
+        model = compile_scene(scene(text).spec)
+        assert stepper_tables(model) == reason
+        assert type(dynamics_for(model, 100.0)) is Dynamics
+
+
+def test_the_compiled_equations_are_chosen_where_they_pay(monkeypatch):
+    """Compiled when the numpy run would take a second or more (or when asked for), numpy when it would not (loading
+    numba costs about that) or when asked for."""
+    model = _model("hinge chain with a limit")
+    monkeypatch.setenv(kernels.KERNELS_VARIABLE, "auto")
+    assert type(dynamics_for(model, 5.0)) is CompiledDynamics
+    assert type(dynamics_for(model, 0.1)) is Dynamics
+    monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
+    assert type(dynamics_for(model, 0.1)) is CompiledDynamics
+    monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numpy")
+    assert type(dynamics_for(model, 100.0)) is Dynamics
