@@ -118,6 +118,15 @@ setup() {
     ensure_venv
 }
 
+build_kernels() {
+    # The compiled kernels (numba), built once per machine and version into the user's cache (about two minutes
+    # the first time, a second after): here, once, rather than in every test process at once.
+    say "compiled kernels (the first time on a machine this compiles them: about two minutes):"
+    if ! "$venv/bin/animbatch" doctor --kernels >&2; then
+        say "some compiled kernels could not be built: numpy runs those parts (see 'animbatch doctor --kernels')."
+    fi
+}
+
 command=${1:-}
 shift || true
 case "$command" in
@@ -131,11 +140,13 @@ case "$command" in
     test)
         setup
         ensure_browser
+        build_kernels
         # Spread the tests over the machine's cores (at most 4: each render test holds a software OpenGL context).
         exec "$venv/bin/python" -m pytest -n auto --maxprocesses=4 "$@"
         ;;
     bench)
         setup
+        build_kernels
         exec "$venv/bin/python" benchmarks/run.py "$@"
         ;;
     gallery)

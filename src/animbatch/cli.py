@@ -214,14 +214,21 @@ def grade(submission: Path, reference: Path, checks: Path | None, json_path: Pat
 @cli.command()
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @click.option("--no-frames", is_flag=True, help="Check libraries only: draw no test frame, encode no test video.")
-def doctor(as_json: bool, no_frames: bool) -> None:
+@click.option("--kernels", "kernels_only", is_flag=True,
+              help="Only build the compiled kernels (or load them from the disk cache), timed.")
+def doctor(as_json: bool, no_frames: bool, kernels_only: bool) -> None:
     """Check this machine: Python libraries, off-screen backends (EGL, OSMesa) with a timed test frame each, ffmpeg
-    and its encoders; print the exact command for anything missing. Exit 1 when frames cannot be rendered."""
-    from animbatch.doctor import diagnose, format_report
+    and its encoders, the compiled kernels; print the exact command for anything missing. Exit 1 when frames cannot
+    be rendered (with --kernels: when a kernel family fails to build)."""
+    from animbatch.doctor import Report, check_kernels, diagnose, format_report
 
-    report = diagnose(probe=not no_frames, encode=not no_frames)
+    report = Report(kernels=check_kernels()) if kernels_only else diagnose(probe=not no_frames,
+                                                                          encode=not no_frames)
     click.echo(json.dumps(report.as_dict(), indent=2) if as_json else format_report(report))
-    if not report.can_render and not no_frames:
+    if kernels_only:
+        if not all(check.ok for check in report.kernels):
+            sys.exit(1)
+    elif not report.can_render and not no_frames:
         sys.exit(1)
 
 

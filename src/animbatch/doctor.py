@@ -8,7 +8,10 @@ runner gets wrong. The doctor checks, in order:
 * each off-screen OpenGL backend (EGL, OSMesa): whether its system libraries load, and, when they do, a real test
   frame drawn with it, timed (first frame, which builds the scene's actors and compiles shaders, and the steady
   frames after it) and checked by its pixels (the test ball must be on it);
-* ffmpeg (the binary imageio-ffmpeg ships) and the encoders of each video format, with a short test encode each.
+* ffmpeg (the binary imageio-ffmpeg ships) and the encoders of each video format, with a short test encode each;
+* the compiled kernels (numba): each family built, or loaded from its disk cache, and timed. The first build on a
+  machine compiles (about a minute in all); ``bash scripts/dev.sh test`` does it once before the tests, so that test
+  processes do not each compile them.
 
 Each backend draws in a process of its own: VTK picks its window class once per process, and EGL and OSMesa both
 provide OpenGL symbols that must not meet in one process.
@@ -86,10 +89,11 @@ class Report:
     backends: list[Check] = field(default_factory=list)
     video: list[Check] = field(default_factory=list)
     probed: bool = True  # test frames were drawn (else only the backends' libraries were looked for)
+    kernels: list[Check] = field(default_factory=list)
 
     @property
     def checks(self) -> list[Check]:
-        return [*self.libraries, *self.backends, *self.video]
+        return [*self.libraries, *self.backends, *self.video, *self.kernels]
 
     @property
     def can_render(self) -> bool:
@@ -99,7 +103,8 @@ class Report:
 
     def as_dict(self) -> dict[str, Any]:
         return {"libraries": [asdict(c) for c in self.libraries], "backends": [asdict(c) for c in self.backends],
-                "video": [asdict(c) for c in self.video], "can_render": self.can_render, "probed": self.probed}
+                "video": [asdict(c) for c in self.video], "kernels": [asdict(c) for c in self.kernels],
+                "can_render": self.can_render, "probed": self.probed}
 
 
 def check_libraries() -> list[Check]:
@@ -248,21 +253,51 @@ def _test_encode(kind: str, encoder: str) -> Check:
     return Check(kind, True, f"{encoder}: 6 frames 160×120 in {seconds:.2f} s ({size} bytes)", required=kind == "mp4")
 
 
-def diagnose(probe: bool = True, encode: bool = True) -> Report:
-    return Report(check_libraries(), check_backends(probe), check_video(encode), probed=probe)
+def check_kernels() -> list[Check]:
+    """Each family of compiled kernels built (compiled, or loaded from numba's disk cache), timed; none where numba
+    does not load or ``ANIMBATCH_KERNELS=numpy`` (numpy then runs everything, with the same results)."""
+    from animbatch.sim.contact.solver import build_contact_kernels
+    from animbatch.sim.forces.springs import build_spring_kernel
+    from animbatch.sim.integrators.linear_algebra import build_step_kernels
+    from animbatch.sim.kernels import compiled_kernels, kernel_cache_folder
+    from animbatch.sim.model.compiled import build_stepper_kernels
+
+    if not compiled_kernels():
+        return [Check("numba", False, "not used (ANIMBATCH_KERNELS=numpy, or numba does not load): numpy runs "
+                                      "everything, with the same results, slower", f"{sys.executable} -m pip install "
+                                      "numba", required=False)]
+    checks = []
+    for name, build in (("bodies, joints", build_stepper_kernels), ("contact solver", build_contact_kernels),
+                        ("spring forces", build_spring_kernel), ("cloth steps", build_step_kernels)):
+        started = time.perf_counter()
+        failure = build()
+        seconds = time.perf_counter() - started
+        checks.append(Check(name, failure is None, f"ready in {seconds:.1f} s" if failure is None else failure,
+                            "numpy runs these instead (same results, slower)", required=False))
+    checks.append(Check("cache", True, str(kernel_cache_folder()), required=False))
+    return checks
+
+
+def diagnose(probe: bool = True, encode: bool = True, kernels: bool = True) -> Report:
+    return Report(check_libraries(), check_backends(probe), check_video(encode), probed=probe,
+                  kernels=check_kernels() if kernels else [])
 
 
 def format_report(report: Report) -> str:
     """The report as text: a section per kind, a mark per line, then every fix to apply."""
     lines = []
     for title, checks in (("Python libraries", report.libraries), ("Off-screen rendering", report.backends),
-                          ("Video encoding", report.video)):
+                          ("Video encoding", report.video), ("Compiled kernels", report.kernels)):
+        if not checks:
+            continue
         lines.append(title)
         for check in checks:
             mark = "ok " if check.ok else ("-- " if not check.required else "!! ")
             lines.append(f"  {mark}{check.name:<15} {check.detail}")
     fixes = [check for check in report.checks if not check.ok and check.fix]
-    if not any(check.ok for check in report.backends):
+    if not report.backends:  # the kernels alone (--kernels)
+        pass
+    elif not any(check.ok for check in report.backends):
         lines += ["", f"Cannot render: {NO_BACKEND_INSTALL}"]
     elif report.can_render:
         chosen = next(check.name for check in report.backends if check.ok)
