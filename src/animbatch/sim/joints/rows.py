@@ -137,9 +137,14 @@ class Coupling:
         system = self.matrix(rows, motion, active)
         if active is not None:
             right = np.where(active, right, 0.0)
-        if isinstance(system, np.ndarray):
-            return np.linalg.solve(system, right)
-        return splu(system).solve(right)
+        try:
+            if isinstance(system, np.ndarray):
+                return np.linalg.solve(system, right)
+            return splu(system).solve(right)
+        except (np.linalg.LinAlgError, RuntimeError):
+            # a singular system (a state gone to pieces, or rows that fix the same motion twice): no multipliers,
+            # so the state stops being finite and the integrator reports where, as for any divergence
+            return np.full(len(right), np.nan)
 
 
 def apply(rows: Rows, bodies: np.ndarray, u: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
