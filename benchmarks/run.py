@@ -36,8 +36,12 @@ Prints one table. Measures:
 12. export: wall time per frame of the USD stage, PLY and OBJ point caches (and the CSV) of the fountain at 100 000
     live drops and of the stiff 64×64 cloth.
 
+13. peers: small rigid and jointed scenes next to MuJoCo in the same process, built from the same numbers (a
+    20-bar hinge chain, one hinged bar, a double pendulum), with both sides' accuracy (benchmarks/peers.py; MuJoCo
+    comes with the ``bench`` extra).
+
 Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, rigid, contacts, render,
-encode, cloth, fountain, lean, farm, ledger, joints, startup, stream, pool, export), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick),
+encode, cloth, fountain, lean, farm, ledger, joints, startup, stream, pool, export, peers), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick),
 ``--cloth-method NAME`` (only the cloth methods whose label starts with NAME, e.g. ``BDF``; repeatable),
 ``--json FILE`` (also write the rows as JSON).
 """
@@ -1045,10 +1049,19 @@ def bench_joints(quick: bool) -> list[Row]:
     return rows
 
 
+def bench_peers(quick: bool) -> list[Row]:
+    """animbatch next to MuJoCo on the same small rigid and jointed scenes (benchmarks/peers.py)."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    from peers import bench_peers as peers
+
+    return peers(quick)
+
+
 BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "rigid": bench_rigid, "contacts": bench_contacts,
               "render": bench_render, "encode": bench_encode, "cloth": bench_cloth, "fountain": bench_fountain,
               "lean": bench_lean, "farm": bench_farm, "ledger": bench_ledger, "joints": bench_joints,
-              "startup": bench_startup, "stream": bench_stream, "pool": bench_pool, "export": bench_export}
+              "startup": bench_startup, "stream": bench_stream, "pool": bench_pool, "export": bench_export,
+              "peers": bench_peers}
 
 
 def main() -> int:

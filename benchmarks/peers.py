@@ -1,0 +1,335 @@
+"""animbatch next to MuJoCo on the same small scenes, in the same process: ``bash scripts/dev.sh bench --only peers``.
+
+MuJoCo is the yardstick for small rigid and jointed scenes. Each case is built twice from the same numbers: an
+animbatch scene and an MJCF model. Both are timed for the whole run, after a warm-up (numba's kernels loaded, the
+MJCF compiled). Each is also judged by what it should keep: the joints (animbatch integrates maximal coordinates, so
+the gap a joint opens is its error; MuJoCo's generalized coordinates keep hinges by construction), the energy (the
+largest change from the start over the run) and, for the hinged bar, the period against the closed form. MuJoCo's
+semi-implicit Euler is its fastest integrator and the one the targets compare with; its RK4 is shown where the
+accuracy is in question.
+
+``mujoco`` is in the ``bench`` extra, never a runtime dependency; without it the cases are skipped with the command
+that installs it.
+
+Cases (issue 36's targets: the chain ≤ 5× MuJoCo's time, the bar ≤ 0.5 s, the double pendulum ≤ 1 s):
+
+* a chain of 20 bars (10 cm, 0.1 kg) on hinges, released from the horizontal, 5 s at dt 1 ms;
+* one bar (1 m) on a hinge, released 60° from the vertical, 12 000 steps of 1 ms: its period against
+  ``T = 4 √(I / (m g d)) K(sin²(θ₀/2))``;
+* a double pendulum of point masses (1 kg and 0.5 kg on rods of 1 m and 0.8 m), 10 s: DOP853 at rtol 1e-8 here, RK4
+  at 1 ms there.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.special import ellipk
+
+G = 9.81
+
+Row = dict[str, object]
+
+
+@dataclass
+class Outcome:
+    """One side of a case: wall time [s] and what it kept (text)."""
+
+    seconds: float
+    accuracy: str
+
+
+def _timed(work: Callable[[], Any], repeats: int = 3) -> tuple[float, Any]:
+    """The fastest wall time of ``repeats`` runs of ``work`` (after one warm-up run), and its last result."""
+    result = work()
+    best = np.inf
+    for _ in range(repeats):
+        started = time.perf_counter()
+        result = work()
+        best = min(best, time.perf_counter() - started)
+    return best, result
+
+
+# ------------------------------------------------------------------------------------------ animbatch's side
+
+
+def _integrate(text: str) -> tuple[Any, Any, Any, Any]:
+    """Model, system, integrator and initial state of a scene text, with the system the CLI would choose (compiled
+    where it pays, which these scenes do)."""
+    from animbatch.compile.model import compile_scene
+    from animbatch.compile.solver import make_integrator
+    from animbatch.sim.model.compiled import dynamics_for
+    from animbatch.stages import parse_scene
+
+    loaded = parse_scene(text, filename="peer.yaml")
+    model = compile_scene(loaded.spec)
+    return model, dynamics_for(model, np.inf), make_integrator(loaded.spec.solver, model), loaded
+
+
+def _run(text: str) -> tuple[float, Any, Any, Any]:
+    model, system, integrator, loaded = _integrate(text)
+    seconds, result = _timed(lambda: integrator.integrate(system, model.y0, model.frame_times))
+    return seconds, result, model, loaded
+
+
+def _energy_drift(model: Any, states: np.ndarray) -> float:
+    """The largest change of the total energy from the first frame [J]."""
+    from animbatch.sim.model.dynamics import Dynamics
+
+    dynamics = Dynamics(model)
+    totals = [dynamics.energy(float(t), *dynamics.split(y))[0] for t, y in zip(model.frame_times, states)]
+    return float(np.max(np.abs(np.array(totals) - totals[0])))
+
+
+def _joint_gap(model: Any, states: np.ndarray) -> float:
+    from animbatch.sim.ledger import joint_drift
+
+    return float(joint_drift(model, states, model.frame_times)["max_violation"])
+
+
+# ------------------------------------------------------------------------------------------ the chain
+
+
+def chain_scene(count: int = 20, length: float = 0.1, mass: float = 0.1, method: str = "verlet",
+                dt: float = 1e-3, duration: float = 5.0) -> str:
+    """``count`` bars (``length`` × 2 cm × 2 cm, ``mass``) on hinges about z, laid along +x from the origin."""
+    lines = [f"duration: {duration}", "fps: 50", f"solver: {{method: {method}, dt: {dt}}}", "bodies:"]
+    for i in range(count):
+        lines.append(f"  - {{name: bar{i}, type: rigid, shape: {{type: box, size: [{length}, 0.02, 0.02]}}, "
+                     f"mass: {mass}, position: [{length * (i + 0.5):.6f}, 0, 0]}}")
+    lines.append("joints:")
+    lines.append("  - {type: hinge, between: [bar0], anchor: [0, 0, 0], axis: [0, 0, 1]}")
+    for i in range(1, count):
+        lines.append(f"  - {{type: hinge, between: [bar{i}, bar{i - 1}], anchor: [{length * i:.6f}, 0, 0], "
+                     "axis: [0, 0, 1]}")
+    lines.append("fields: [{type: gravity}]")
+    return "\n".join(lines) + "\n"
+
+
+def chain_mjcf(count: int = 20, length: float = 0.1, mass: float = 0.1, integrator: str = "Euler",
+               dt: float = 1e-3) -> str:
+    """The same chain in MJCF: bars along +x, hinges about y, gravity along −z (the same plane of motion)."""
+    bodies, closing = "", ""
+    for i in range(count):
+        where = "0 0 0" if i == 0 else f"{length} 0 0"
+        bodies += (f'<body pos="{where}"><joint type="hinge" axis="0 1 0"/><geom type="box" '
+                   f'size="{length / 2} 0.01 0.01" pos="{length / 2} 0 0" mass="{mass}" contype="0" '
+                   'conaffinity="0"/>')
+        closing += "</body>"
+    return (f'<mujoco><option timestep="{dt}" integrator="{integrator}"><flag energy="enable"/></option>'
+            f"<worldbody>{bodies}{closing}</worldbody></mujoco>")
+
+
+def _mujoco_run(xml: str, steps: int, record: Callable[[Any, Any], Any] | None = None
+                ) -> tuple[float, float, list[Any]]:
+    """Wall time of ``steps`` steps of an MJCF model (best of three), the largest energy change [J] over the run,
+    and what ``record(model, data)`` returned after each step."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+
+    def work() -> tuple[float, list[Any]]:
+        mujoco.mj_resetData(model, data)
+        mujoco.mj_forward(model, data)
+        start = float(data.energy.sum())
+        largest, records = 0.0, []
+        for _ in range(steps):
+            mujoco.mj_step(model, data)
+            largest = max(largest, abs(float(data.energy.sum()) - start))
+            if record is not None:
+                records.append(record(model, data))
+        return largest, records
+
+    def bare() -> None:  # timed without the bookkeeping
+        mujoco.mj_resetData(model, data)
+        for _ in range(steps):
+            mujoco.mj_step(model, data)
+
+    seconds, _ = _timed(bare)
+    largest, records = work()
+    return seconds, largest, records
+
+
+def case_chain(quick: bool) -> tuple[str, Outcome, Outcome, list[tuple[str, Outcome]]]:
+    duration = 1.0 if quick else 5.0
+    steps = int(round(duration / 1e-3))
+    seconds, result, model, _ = _run(chain_scene(duration=duration))
+    ours = Outcome(seconds, f"joints {_joint_gap(model, result.states):.1g} m, energy ±"
+                            f"{_energy_drift(model, result.states):.2g} J")
+    theirs = []
+    for integrator in ("Euler", "RK4"):
+        mj_seconds, drift, _ = _mujoco_run(chain_mjcf(integrator=integrator), steps)
+        theirs.append((integrator, Outcome(mj_seconds, f"joints exact, energy ±{drift:.2g} J")))
+    return f"20-bar hinge chain, {duration:g} s at 1 ms (verlet)", ours, theirs[0][1], theirs
+
+
+# ------------------------------------------------------------------------------------------ the hinged bar
+
+BAR_LENGTH, BAR_WIDTH, BAR_DENSITY = 1.0, 0.02, 1000.0
+AMPLITUDE = 60.0
+
+
+def bar_period() -> float:
+    """T = 4 √(I / (m g d)) K(sin²(θ₀/2)) for the bar about its end."""
+    inertia = (BAR_LENGTH**2 + BAR_WIDTH**2) / 12 + (BAR_LENGTH / 2) ** 2
+    return float(4 * np.sqrt(inertia / (G * BAR_LENGTH / 2)) * ellipk(np.sin(np.radians(AMPLITUDE) / 2) ** 2))
+
+
+def bar_scene(steps: int, dt: float = 1e-3) -> str:
+    theta = np.radians(AMPLITUDE)
+    centre = 0.5 * BAR_LENGTH * np.array([np.sin(theta), -np.cos(theta), 0.0])
+    return f"""
+duration: {steps * dt}
+fps: 50
+solver: {{method: verlet, dt: {dt}}}
+bodies:
+  - {{name: bar, type: rigid, shape: {{type: box, size: [{BAR_WIDTH}, {BAR_LENGTH}, {BAR_WIDTH}]}},
+      density: {BAR_DENSITY}, position: [{float(centre[0])!r}, {float(centre[1])!r}, 0], orientation: {{axis: [0, 0, 1],
+      angle: {AMPLITUDE}}}}}
+joints: [{{type: hinge, between: [bar], anchor: [0, 0, 0], axis: [0, 0, 1]}}]
+fields: [{{type: gravity}}]
+stopwatches:
+  - name: period
+    start: {{body: bar, point: [0, 0, 0], normal: [1, 0, 0], direction: along}}
+    stop: {{body: bar, point: [0, 0, 0], normal: [1, 0, 0], direction: along}}
+"""
+
+
+def bar_mjcf(dt: float = 1e-3, integrator: str = "RK4") -> str:
+    mass = BAR_DENSITY * BAR_LENGTH * BAR_WIDTH**2
+    return (f'<mujoco><option timestep="{dt}" integrator="{integrator}"><flag energy="enable"/></option><worldbody>'
+            f'<body><joint name="hinge" type="hinge" axis="0 1 0" ref="0"/><geom type="box" size="{BAR_WIDTH / 2} '
+            f'{BAR_WIDTH / 2} {BAR_LENGTH / 2}" pos="0 0 {-BAR_LENGTH / 2}" mass="{mass}" contype="0" '
+            'conaffinity="0"/></body></worldbody></mujoco>')
+
+
+def _crossings(angles: np.ndarray, dt: float) -> np.ndarray:
+    """The times [s] at which an angle sampled every ``dt`` passes zero going up, by linear interpolation (the
+    angle is straight there: its second derivative, −ω² sin θ, vanishes at θ = 0)."""
+    up = np.flatnonzero((angles[:-1] < 0) & (angles[1:] >= 0))
+    return (up + 1 - angles[up + 1] / (angles[up + 1] - angles[up])) * dt
+
+
+def case_bar(quick: bool) -> tuple[str, Outcome, Outcome, list[tuple[str, Outcome]]]:
+    from animbatch import api
+
+    steps = 5_000 if quick else 12_000
+    seconds, result, model, loaded = _run(bar_scene(steps))
+    trajectory = api.simulate(loaded, model=model)
+    (reading,) = api.stopwatch_readings(loaded.spec.stopwatches, trajectory)
+    exact = bar_period()
+    ours = Outcome(seconds, f"period error {abs(reading.elapsed / exact - 1):.1g}, joints "
+                            f"{_joint_gap(model, result.states):.1g} m, energy ±"
+                            f"{_energy_drift(model, result.states):.2g} J")
+    outcomes = []
+    for integrator in ("RK4", "Euler"):
+        mj_seconds, drift, angles = _mujoco_bar(bar_mjcf(integrator=integrator), steps)
+        times = _crossings(np.array(angles), 1e-3)
+        period = float(np.mean(np.diff(times))) if len(times) > 1 else float("nan")
+        outcomes.append((integrator, Outcome(mj_seconds, f"period error {abs(period / exact - 1):.1g}, joints exact, "
+                                                         f"energy ±{drift:.2g} J")))
+    return f"one hinged bar, {steps} steps of 1 ms (verlet; MuJoCo RK4)", ours, outcomes[0][1], outcomes
+
+
+def _mujoco_bar(xml: str, steps: int) -> tuple[float, float, list[float]]:
+    """The bar in MuJoCo released 60° off the vertical: wall time, energy change [J], the angle after each step."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+
+    def start() -> None:
+        mujoco.mj_resetData(model, data)
+        data.qpos[0] = np.radians(AMPLITUDE)
+        mujoco.mj_forward(model, data)
+
+    def bare() -> None:
+        start()
+        for _ in range(steps):
+            mujoco.mj_step(model, data)
+
+    seconds, _ = _timed(bare)
+    start()
+    first = float(data.energy.sum())
+    largest, angles = 0.0, []
+    for _ in range(steps):
+        mujoco.mj_step(model, data)
+        largest = max(largest, abs(float(data.energy.sum()) - first))
+        angles.append(float(data.qpos[0]))
+    return seconds, largest, angles
+
+
+# ------------------------------------------------------------------------------------------ the double pendulum
+
+DOUBLE_PENDULUM = """
+duration: {duration}
+fps: 30
+solver: {{method: DOP853, rtol: 1.0e-8, atol: 1.0e-10}}
+anchors: [{{name: pivot, position: [0, 2, 0]}}]
+bodies:
+  - {{name: upper, mass: 1.0, radius: 0.07, position: [1.0, 2.0, 0]}}
+  - {{name: lower, mass: 0.5, radius: 0.06, position: [1.0, 1.2, 0]}}
+joints:
+  - {{type: distance, between: [pivot, upper]}}
+  - {{type: distance, between: [upper, lower]}}
+fields: [{{type: gravity}}]
+"""
+
+
+def double_pendulum_mjcf(dt: float = 1e-3, integrator: str = "RK4") -> str:
+    """Point masses (a sphere of 1 mm carries the mass) on massless rods, hinged about y; the upper rod starts
+    horizontal (+x) and the lower one hangs from it, as in the scene."""
+    point = 'type="sphere" size="0.001" contype="0" conaffinity="0"'
+    return (f'<mujoco><option timestep="{dt}" integrator="{integrator}"><flag energy="enable"/></option><worldbody>'
+            '<body><joint type="hinge" axis="0 1 0"/>'
+            f'<geom {point} pos="1 0 0" mass="1.0"/>'
+            '<body pos="1 0 0"><joint type="hinge" axis="0 1 0"/>'
+            f'<geom {point} pos="0 0 -0.8" mass="0.5"/></body></body></worldbody></mujoco>')
+
+
+def case_double_pendulum(quick: bool) -> tuple[str, Outcome, Outcome, list[tuple[str, Outcome]]]:
+    duration = 3.0 if quick else 10.0
+    seconds, result, model, _ = _run(DOUBLE_PENDULUM.format(duration=duration))
+    ours = Outcome(seconds, f"rods {_joint_gap(model, result.states):.1g} m, energy ±"
+                            f"{_energy_drift(model, result.states):.2g} J")
+    steps = int(round(duration / 1e-3))
+    mj_seconds, drift, _ = _mujoco_run(double_pendulum_mjcf(), steps)
+    theirs = Outcome(mj_seconds, f"rods exact, energy ±{drift:.2g} J")
+    return f"double pendulum, {duration:g} s (DOP853 rtol 1e-8; MuJoCo RK4 at 1 ms)", ours, theirs, [("RK4", theirs)]
+
+
+CASES = (case_chain, case_bar, case_double_pendulum)
+
+
+def bench_peers(quick: bool) -> list[Row]:
+    """Every case, printed as a table of both sides, and returned as rows for the benchmark table."""
+    try:
+        import mujoco  # noqa: F401
+    except ImportError:
+        print("peers: skipped, MuJoCo is not installed (pip install 'animbatch[bench]', or "
+              "bash scripts/dev.sh bench installs it)")
+        return []
+    rows: list[Row] = []
+    table = []
+    for case in CASES:
+        label, ours, anchor, theirs = case(quick)
+        table.append((label, ours, anchor, theirs))
+        rows.append({"benchmark": "peers", "case": f"{label}: animbatch", "value": ours.seconds, "unit": "s"})
+        for integrator, outcome in theirs:
+            rows.append({"benchmark": "peers", "case": f"{label}: MuJoCo {integrator}", "value": outcome.seconds,
+                         "unit": "s"})
+        rows.append({"benchmark": "peers", "case": f"{label}: ratio", "value": ours.seconds / anchor.seconds,
+                     "unit": "× MuJoCo"})
+    print("\nanimbatch next to MuJoCo (same process, same numbers)")
+    for label, ours, anchor, theirs in table:
+        print(f"\n  {label}")
+        print(f"    animbatch        {ours.seconds:8.3f} s   {ours.accuracy}")
+        for integrator, outcome in theirs:
+            print(f"    MuJoCo {integrator:<9} {outcome.seconds:8.3f} s   {outcome.accuracy}")
+        print(f"    ratio            {ours.seconds / anchor.seconds:8.1f} ×")
+    return rows
