@@ -33,17 +33,51 @@ ACTIVE_SET_PASSES = 4
 
 
 @njit(cache=True, error_model="numpy")
-def _solve(integers: np.ndarray, layout: np.ndarray, row_bodies: np.ndarray, linear: np.ndarray,
+def factor_cache_size(layout: np.ndarray) -> int:
+    """The length of the factor cache (:func:`_solve`) of a model's joints."""
+    rows = rows_of(layout, T.ROW_BODIES)
+    return 1 + 14 * rows + 9 * rows_of(layout, T.SLOT_RIGID) + rows_of(layout, T.COLUMN_ROWS) + rows
+
+
+@njit(cache=True, error_model="numpy")
+def _solve(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, row_bodies: np.ndarray, linear: np.ndarray,
            angular: np.ndarray, inverse_mass: np.ndarray, inverse_inertia: np.ndarray, active: np.ndarray,
            right: np.ndarray, out: np.ndarray) -> None:
     """λ (R,) with ``(J M⁻¹ Jᵀ) λ = right`` for rows with Jacobian parts ``linear``, ``angular`` (R, 2, 3) on slots
-    of ``inverse_mass`` (S,) and world ``inverse_inertia`` (S, 3, 3); rows not ``active`` held at zero."""
+    of ``inverse_mass`` (S,) and world ``inverse_inertia`` (S, 3, 3); rows not ``active`` held at zero.
+
+    ``cache`` (:func:`factor_cache_size`) keeps the last factorisation with what it was made from: a step solves at
+    the same positions twice (Verlet's rate at the drifted positions, then the projection's first Gauss–Newton
+    step; a projection's velocity solve, then the next kick), and an equal matrix is not factored again. The
+    comparison is exact, so results are the same bit for bit."""
     count = len(right)
-    values = np.empty(rows_of(layout, T.COLUMN_ROWS))
-    diagonal = np.empty(count)
-    sparse_ldl.assemble(integers, layout, linear, angular, row_bodies, inverse_mass, inverse_inertia, active, values,
-                        diagonal)
-    sparse_ldl.factor(integers, layout, values, diagonal)
+    entries = rows_of(layout, T.COLUMN_ROWS)
+    key = cache[1: 1 + 14 * count + 9 * len(inverse_inertia)]
+    values = cache[1 + len(key): 1 + len(key) + entries]
+    diagonal = cache[1 + len(key) + entries: 1 + len(key) + entries + count]
+    same = cache[0] == 1.0
+    k = 0
+    for r in range(count):
+        for end in range(2):
+            for c in range(3):
+                same = same and key[k] == linear[r, end, c] and key[k + 1] == angular[r, end, c]
+                key[k], key[k + 1] = linear[r, end, c], angular[r, end, c]
+                k += 2
+        flag = 1.0 if active[r] else 0.0
+        same = same and key[k] == flag
+        key[k] = flag
+        k += 2
+    for s in range(len(inverse_inertia)):
+        for i in range(3):
+            for j in range(3):
+                same = same and key[k] == inverse_inertia[s, i, j]
+                key[k] = inverse_inertia[s, i, j]
+                k += 1
+    if not same:
+        sparse_ldl.assemble(integers, layout, linear, angular, row_bodies, inverse_mass, inverse_inertia, active,
+                            values, diagonal)
+        sparse_ldl.factor(integers, layout, values, diagonal)
+        cache[0] = 1.0
     masked = np.empty(count)
     for r in range(count):
         masked[r] = right[r] if active[r] else 0.0
@@ -51,7 +85,8 @@ def _solve(integers: np.ndarray, layout: np.ndarray, row_bodies: np.ndarray, lin
 
 
 @njit(cache=True, error_model="numpy")
-def _solve_active(integers: np.ndarray, layout: np.ndarray, row_bodies: np.ndarray, linear: np.ndarray,
+def _solve_active(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, row_bodies: np.ndarray,
+                  linear: np.ndarray,
                   angular: np.ndarray, inverse_mass: np.ndarray, inverse_inertia: np.ndarray, right: np.ndarray,
                   reached: np.ndarray, out: np.ndarray) -> None:
     """λ over the bilateral rows and the unilateral rows ``reached``, dropping unilateral rows whose λ would pull
@@ -62,7 +97,8 @@ def _solve_active(integers: np.ndarray, layout: np.ndarray, row_bodies: np.ndarr
     for r in range(count):
         active[r] = unilateral[r] == 0 or reached[r]
     for _ in range(ACTIVE_SET_PASSES):
-        _solve(integers, layout, row_bodies, linear, angular, inverse_mass, inverse_inertia, active, right, out)
+        _solve(integers, layout, cache, row_bodies, linear, angular, inverse_mass, inverse_inertia, active, right,
+               out)
         pulling = False
         for r in range(count):
             if unilateral[r] != 0 and active[r] and out[r] < 0:
@@ -76,7 +112,8 @@ def _solve_active(integers: np.ndarray, layout: np.ndarray, row_bodies: np.ndarr
 
 
 @njit(cache=True, error_model="numpy")
-def add_joint_loads(t: float, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, x: np.ndarray,
+def add_joint_loads(t: float, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, cache: np.ndarray,
+                    x: np.ndarray,
                     v: np.ndarray, rotation: np.ndarray, omega: np.ndarray, force: np.ndarray, torque: np.ndarray,
                     engaged: np.ndarray, use_engaged: bool, stabilisation: float) -> None:
     """Add the joints' forces and torques to ``force`` (P, 3) and ``torque`` (B, 3), given the other loads there
@@ -131,12 +168,13 @@ def add_joint_loads(t: float, floats: np.ndarray, integers: np.ndarray, layout: 
     if use_engaged:
         for r in range(rows):
             active[r] = unilateral[r] == 0 or engaged[r]
-        _solve(integers, layout, row_bodies, linear, angular, inverse_mass, sinverse_inertia, active, right,
+        _solve(integers, layout, cache, row_bodies, linear, angular, inverse_mass, sinverse_inertia, active, right,
                multipliers)
     else:
         for r in range(rows):
             active[r] = violation[r] <= 0
-        _solve_active(integers, layout, row_bodies, linear, angular, inverse_mass, sinverse_inertia, right, active,
+        _solve_active(integers, layout, cache, row_bodies, linear, angular, inverse_mass, sinverse_inertia, right,
+                      active,
                       multipliers)
     joint_force, joint_torque = np.empty((slots, 3)), np.empty((slots, 3))
     joint_rows.apply_transpose(row_bodies, linear, angular, multipliers, joint_force, joint_torque)
@@ -150,8 +188,8 @@ def add_joint_loads(t: float, floats: np.ndarray, integers: np.ndarray, layout: 
 
 @njit(cache=True, error_model="numpy")
 def _loads(t: float, config: np.ndarray, motion: np.ndarray, floats: np.ndarray, integers: np.ndarray,
-           layout: np.ndarray, engaged: np.ndarray, use_engaged: bool, stabilisation: float, v: np.ndarray,
-           omega: np.ndarray, force: np.ndarray, torque: np.ndarray) -> None:
+           layout: np.ndarray, cache: np.ndarray, engaged: np.ndarray, use_engaged: bool, stabilisation: float,
+           v: np.ndarray, omega: np.ndarray, force: np.ndarray, torque: np.ndarray) -> None:
     """The kinematics (the points' velocities ``v`` (P, 3) and the rigid bodies' ω (B, 3)) and the total loads
     ``force`` (P, 3) [N] and ``torque`` (B, 3) [N·m] at a state, joints included."""
     points, b = len(v), len(omega)
@@ -159,25 +197,27 @@ def _loads(t: float, config: np.ndarray, motion: np.ndarray, floats: np.ndarray,
     rigid_motion.kinematics(config, motion, floats, layout, x, v, rotation, omega)
     rigid_motion.add_forces(t, floats, integers, layout, x, v, rotation, omega, force, torque)
     if rows_of(layout, T.ROW_BODIES):
-        add_joint_loads(t, floats, integers, layout, x, v, rotation, omega, force, torque, engaged, use_engaged,
+        add_joint_loads(t, floats, integers, layout, cache, x, v, rotation, omega, force, torque, engaged, use_engaged,
                         stabilisation)
 
 
 @njit(cache=True, error_model="numpy")
 def motion_rate(t: float, config: np.ndarray, motion: np.ndarray, floats: np.ndarray, integers: np.ndarray,
-                layout: np.ndarray, engaged: np.ndarray, use_engaged: bool, stabilisation: float,
+                layout: np.ndarray, cache: np.ndarray, engaged: np.ndarray, use_engaged: bool, stabilisation: float,
                 out: np.ndarray) -> None:
     """``dm/dt`` (the motion's size) into ``out``: ``F / m`` for particles, F and τ for rigid bodies, with the
     joints' forces."""
     points, b = len(motion) // 3 - rows_of(layout, T.RIGID_INVERSE_MASS), rows_of(layout, T.RIGID_INVERSE_MASS)
     v, omega = np.empty((points, 3)), np.empty((b, 3))
     force, torque = np.empty((points, 3)), np.empty((b, 3))
-    _loads(t, config, motion, floats, integers, layout, engaged, use_engaged, stabilisation, v, omega, force, torque)
+    _loads(t, config, motion, floats, integers, layout, cache, engaged, use_engaged, stabilisation, v, omega, force,
+           torque)
     rigid_motion.motion_rate_from(force, torque, floats, layout, out)
 
 
 @njit(cache=True, error_model="numpy")
-def rhs(t: float, y: np.ndarray, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, config_size: int,
+def rhs(t: float, y: np.ndarray, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, cache: np.ndarray,
+        config_size: int,
         engaged: np.ndarray, use_engaged: bool, stabilisation: float, out: np.ndarray) -> None:
     """``dy/dt`` (n,) into ``out``."""
     config, motion = y[:config_size], y[config_size:]
@@ -185,7 +225,8 @@ def rhs(t: float, y: np.ndarray, floats: np.ndarray, integers: np.ndarray, layou
     points = len(motion) // 3 - b
     v, omega = np.empty((points, 3)), np.empty((b, 3))
     force, torque = np.empty((points, 3)), np.empty((b, 3))
-    _loads(t, config, motion, floats, integers, layout, engaged, use_engaged, stabilisation, v, omega, force, torque)
+    _loads(t, config, motion, floats, integers, layout, cache, engaged, use_engaged, stabilisation, v, omega, force,
+           torque)
     rigid_motion.config_rate(config, motion, layout, v, omega, out[:config_size])
     rigid_motion.motion_rate_from(force, torque, floats, layout, out[config_size:])
 
@@ -220,7 +261,8 @@ def _projection_motion(floats: np.ndarray, integers: np.ndarray, layout: np.ndar
 
 
 @njit(cache=True, error_model="numpy")
-def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, positions: np.ndarray,
+def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, cache: np.ndarray,
+                   positions: np.ndarray,
                    orientations: np.ndarray, linear: np.ndarray, angular_momentum: np.ndarray, reach: float,
                    t: float) -> None:
     """Move a state back onto the joints, in place (``Joints.project``): ``positions`` (P, 3) [m], ``orientations``
@@ -265,7 +307,8 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
             break
         if not any_unilateral:
             active[:] = True
-        _solve(integers, layout, row_bodies, linear_rows, angular_rows, inverse_mass, sinverse_inertia, active, right,
+        _solve(integers, layout, cache, row_bodies, linear_rows, angular_rows, inverse_mass, sinverse_inertia, active,
+               right,
                step)
         joint_rows.apply_transpose(row_bodies, linear_rows, angular_rows, step, joint_force, joint_torque)
         for s in range(count):
@@ -288,7 +331,8 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
     for r in range(rows):
         active[r] = violation[r] <= limit and rate[r] < 0  # reached, and approaching
         right[r] = -rate[r]
-    _solve_active(integers, layout, row_bodies, linear_rows, angular_rows, inverse_mass, sinverse_inertia, right,
+    _solve_active(integers, layout, cache, row_bodies, linear_rows, angular_rows, inverse_mass, sinverse_inertia,
+                  right,
                   active, step)
     joint_rows.apply_transpose(row_bodies, linear_rows, angular_rows, step, joint_force, joint_torque)
     for s in range(count):
@@ -301,7 +345,8 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
 
 
 @njit(cache=True, error_model="numpy")
-def project(y: np.ndarray, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, config_size: int,
+def project(y: np.ndarray, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, cache: np.ndarray,
+            config_size: int,
             reach: float, t: float) -> None:
     """``Dynamics.project`` of a state (n,) in place: back onto the joints, then the quaternions re-normalised."""
     n, b = rows_of(layout, T.PARTICLE_INVERSE_MASS), rows_of(layout, T.RIGID_INVERSE_MASS)
@@ -311,14 +356,14 @@ def project(y: np.ndarray, floats: np.ndarray, integers: np.ndarray, layout: np.
         orientations = y[3 * points: 3 * points + 4 * b].reshape((b, 4))
         linear = y[config_size: config_size + 3 * points].reshape((points, 3))
         angular_momentum = y[config_size + 3 * points:].reshape((b, 3))
-        project_joints(floats, integers, layout, positions, orientations, linear, angular_momentum, reach, t)
+        project_joints(floats, integers, layout, cache, positions, orientations, linear, angular_momentum, reach, t)
     rigid_motion.normalise_quaternions(y, layout)
 
 
 @njit(cache=True, error_model="numpy")
 def advance(y: np.ndarray, t: float, h: float, steps: int, form: int, a: np.ndarray, weights: np.ndarray,
             nodes: np.ndarray, rate: np.ndarray, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
-            config_size: int) -> int:
+            cache: np.ndarray, config_size: int) -> int:
     """``steps`` fixed steps of ``h`` [s] from time ``t`` [s], in place, each followed by the projection; returns
     the right-hand sides evaluated. ``form``: an explicit Runge–Kutta method with tableau ``a`` (s, s), ``weights``
     b (s,) and ``nodes`` c (s,); semi-implicit Euler (kick, drift); or velocity Verlet (half kick, drift, half kick
@@ -345,24 +390,24 @@ def advance(y: np.ndarray, t: float, h: float, steps: int, form: int, a: np.ndar
                     if a[i, j] != 0.0:
                         for m in range(size):
                             stage[m] = stage[m] + (h * a[i, j]) * k[j, m]
-                rhs(now + nodes[i] * h, stage, floats, integers, layout, config_size, engaged, unused,
+                rhs(now + nodes[i] * h, stage, floats, integers, layout, cache, config_size, engaged, unused,
                     no_stabilisation, k[i])
             evaluations += stages
             for i in range(stages):
                 if weights[i] != 0.0:
                     for m in range(size):
                         y[m] += (h * weights[i]) * k[i, m]
-            project(y, floats, integers, layout, config_size, no_stabilisation, now + h)
+            project(y, floats, integers, layout, cache, config_size, no_stabilisation, now + h)
     elif form == FORM_SYMPLECTIC_EULER:
         kick = np.empty(len(motion))
         for step in range(steps):
             now = t + step * h
-            motion_rate(now, config, motion, floats, integers, layout, engaged, unused, no_stabilisation, kick)
+            motion_rate(now, config, motion, floats, integers, layout, cache, engaged, unused, no_stabilisation, kick)
             evaluations += 1
             for m in range(len(motion)):
                 motion[m] += kick[m] * h
             rigid_motion.drift(config, motion, h, floats, layout)
-            project(y, floats, integers, layout, config_size, no_stabilisation, now + h)
+            project(y, floats, integers, layout, cache, config_size, no_stabilisation, now + h)
     else:
         predicted = np.empty(len(motion))
         following = np.empty(len(motion))
@@ -372,12 +417,12 @@ def advance(y: np.ndarray, t: float, h: float, steps: int, form: int, a: np.ndar
                 predicted[m] = motion[m] + rate[m] * h
                 motion[m] += rate[m] * (0.5 * h)
             rigid_motion.drift(config, motion, h, floats, layout)
-            motion_rate(now + h, config, predicted, floats, integers, layout, engaged, unused, no_stabilisation,
+            motion_rate(now + h, config, predicted, floats, integers, layout, cache, engaged, unused, no_stabilisation,
                         following)
             evaluations += 1
             for m in range(len(motion)):
                 motion[m] += following[m] * (0.5 * h)
-            project(y, floats, integers, layout, config_size, no_stabilisation, now + h)
+            project(y, floats, integers, layout, cache, config_size, no_stabilisation, now + h)
             for m in range(len(motion)):
                 rate[m] = following[m]
     return evaluations

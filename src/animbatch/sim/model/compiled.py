@@ -293,7 +293,9 @@ class CompiledDynamics(Dynamics):
         if isinstance(found, str):
             raise ValueError(f"this model cannot be compiled: {found}")
         self.tables = found
-        self._packed = (found.floats, found.integers, found.layout)
+        # the tables and this system's own factor cache (the last factorisation of the joints' coupling matrix)
+        self._packed = (found.floats, found.integers, found.layout,
+                        np.zeros(stepper.factor_cache_size(found.layout)))
         self._forms = {"runge_kutta": stepper.FORM_RUNGE_KUTTA, "symplectic_euler": stepper.FORM_SYMPLECTIC_EULER,
                        "verlet": stepper.FORM_VERLET}
         self._no_rows = np.zeros(0, bool)
