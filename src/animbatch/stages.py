@@ -38,6 +38,7 @@ from animbatch.scene import LoadedScene, physics_fingerprint
 from animbatch.scene import loader as scene_loader
 from animbatch.scene.overrides import Override
 from animbatch.scene.schema import label_names, label_speed_names
+from animbatch.sim.contact.stepping import measure_contact_search
 from animbatch.sim.integrators import DEFAULT_DT, IntegrationResult, SolverStats
 from animbatch.sim.integrators.budget import wall_budget
 from animbatch.sim.integrators.checkpoint import integrate_with_checkpoints
@@ -87,12 +88,14 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
         particle_steps = frame_steps * (len(model.frame_times) - 1)
         systems = compile_particles(spec, model, scene_folder(scene)) if spec.emitters else None
         pools = particle_costs(spec, systems, particle_steps)
-        cost = estimate_cost(model, spec.solver, pools, particle_steps)
+        search = measure_contact_search(system)
+        cost = estimate_cost(model, spec.solver, pools, particle_steps, contact_seconds=search)
         # compiled equations of motion where the numpy ones would take long enough to repay loading them; the
         # estimate that may refuse the run is then of the compiled ones
-        system = dynamics_for(model, cost.seconds_of("integration"))
+        system = dynamics_for(model, cost.seconds_of("integration") + cost.seconds_of("contacts"))
         if type(system) is not Dynamics:
-            cost = estimate_cost(model, spec.solver, pools, particle_steps, rhs_seconds=measure_rhs(model, system))
+            cost = estimate_cost(model, spec.solver, pools, particle_steps, rhs_seconds=measure_rhs(model, system),
+                                 contact_seconds=search)
         check_cost(cost, spec.solver.max_cost)  # refuse what would run for hours or cannot fit, before it starts
         estimated = cost.seconds
     with wall_budget(spec.solver.max_cost, float(model.frame_times[0]), float(model.frame_times[-1])):

@@ -406,13 +406,14 @@ class SolveResult:
 COMPILED_CONTACTS = 1000
 
 
-def compiled_contacts(count: int) -> bool:
-    """Whether an impulse solve of ``count`` contacts runs its sweeps compiled: where it pays, and once the kernels
-    are built (:func:`build_contact_kernels`)."""
+def compiled_contacts(count: int, *, long_run: bool = False) -> bool:
+    """Whether an impulse solve of ``count`` contacts runs its sweeps compiled: where it pays (many contacts, or a
+    ``long_run`` of small solves: a pile of a dozen bodies solves thousands of times), and once the kernels are
+    built (:func:`build_contact_kernels`)."""
     from animbatch.sim.kernels import MIN_WORK, kernels_ready
 
-    return kernels_ready(MIN_WORK if count >= COMPILED_CONTACTS else 0.0, build_contact_kernels, "contact solver",
-                         "numpy solves the contacts")
+    return kernels_ready(MIN_WORK if count >= COMPILED_CONTACTS or long_run else 0.0, build_contact_kernels,
+                         "contact solver", "numpy solves the contacts")
 
 
 @functools.cache
@@ -442,7 +443,7 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
                    warm: tuple[np.ndarray, np.ndarray] | None = None,
                    kinematic: np.ndarray | None = None,
                    couple: Callable[[BodyVelocities], None] | None = None,
-                   jointed: JointedResponse | None = None) -> SolveResult:
+                   jointed: JointedResponse | None = None, long_run: bool = False) -> SolveResult:
     """Change ``bodies.v`` and ``bodies.omega`` in place so that the contacts hold, over a step of ``h`` [s].
 
     ``x``: centres of mass (P + 1, 3) [m]. ``bounce``: apply restitution (off when re-projecting velocities that
@@ -453,7 +454,8 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
     bodies, applied to their velocities in place before the contacts and after them, and ``jointed`` their rows:
     every contact impulse then moves the bodies within the joints, and the normals of the contacts on jointed
     bodies are solved directly every :data:`BLOCK_EVERY` sweeps (one system, see
-    :mod:`~animbatch.sim.contact.jointed` and :class:`JointedNormals`).
+    :mod:`~animbatch.sim.contact.jointed` and :class:`JointedNormals`). ``long_run``: the sweeps run compiled
+    whatever the count (see :func:`compiled_contacts`).
     """
     count = contacts.count
     result = SolveResult(np.zeros(count), np.zeros((count, 2)))
@@ -464,7 +466,8 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
     rows = ContactRows(contacts, bodies, x, kinematic, jointed)
     block = JointedNormals.of(rows, jointed) if jointed is not None else None
     n = rows.n
-    kernel: Any = rows.kernel_rows() if jointed is None and compiled_contacts(count) else None
+    kernel: Any = (rows.kernel_rows() if jointed is None and compiled_contacts(count, long_run=long_run)
+                   else None)
     if kernel is not None:
         from animbatch.sim.kernels import contact_impulses as kernels
 

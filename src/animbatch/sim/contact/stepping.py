@@ -20,6 +20,8 @@ the loader refuses them for scenes with contacts.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from animbatch.sim.contact.contacts import contact_codes
@@ -32,6 +34,22 @@ from animbatch.sim.forces.gravity import gravity_magnitude
 from animbatch.sim.model.dynamics import Dynamics
 
 DEFAULT_REST_SPEED = 0.01  # m/s
+
+
+def measure_contact_search(system: Dynamics, repeats: int = 2) -> float:
+    """Wall time [s] of one step's contact search at the model's start (the fastest of a few), for the cost
+    estimate; 0 without contacts."""
+    model = system.model
+    if model.contact_world is None or model.contact_settings is None:
+        return 0.0
+    state = system.kinematics(*system.split(np.array(model.y0, float)), t=float(model.frame_times[0]), copy=True)
+    margin = 2 * model.contact_settings.slop + 1e-9
+    best = np.inf
+    for _ in range(repeats + 1):  # the first builds what is built once (mesh trees) and is not counted
+        started = time.perf_counter()
+        detect(model.contact_world, state, margin, edges=True)
+        best = min(best, time.perf_counter() - started)
+    return float(best)
 
 
 class ContactResolver:
@@ -153,7 +171,8 @@ class ContactResolver:
             jointed = JointedResponse(joints.velocity_rows(state, len(bodies.v)), inverse_mass_matrix(bodies))
         result = solve_impulses(contacts, bodies, x, h, iterations=self.settings.iterations,
                                 rest_speed=self.rest_speed(h), slop=self.settings.slop, bounce=bounce, warm=warm,
-                                kinematic=kinematic, couple=couple if joints is not None else None, jointed=jointed)
+                                kinematic=kinematic, couple=couple if joints is not None else None, jointed=jointed,
+                                long_run=self.system.long_run)
         if bounce:  # remember the impulses of the main solve (not of end-of-step re-projections)
             self.impacts.record(t + result.arrival * h, contacts.probe_body, result.impact)
 

@@ -88,11 +88,13 @@ class CostEstimate:
 
 
 def estimate_cost(model: Model, solver: StepSettings, particle_pools: Sequence[tuple[Any, ...]] = (),
-                  particle_steps: int = 0, rhs_seconds: float | None = None) -> CostEstimate:
+                  particle_steps: int = 0, rhs_seconds: float | None = None,
+                  contact_seconds: float = 0.0) -> CostEstimate:
     """The estimated cost of integrating ``model`` with ``solver`` settings, and of the emitted particles
     ``particle_pools``: (emitter name, pool capacity, particles born over the run[, seconds per particle-step, default
     PARTICLE_STEP_SECONDS]), each advanced ``particle_steps`` times. ``rhs_seconds``: time of one right-hand side [s]
-    (measured here when not given)."""
+    (measured here when not given); ``contact_seconds``: time of one step's contact search [s] (the contacts'
+    package measures it: :func:`animbatch.sim.contact.stepping.measure_contact_search`)."""
     times = np.asarray(model.frame_times)
     frames = len(times)
     states = int(np.size(model.y0))
@@ -108,6 +110,10 @@ def estimate_cost(model: Model, solver: StepSettings, particle_pools: Sequence[t
                               detail=f"{method}: about {steps:.3g} steps ({why}) × {per_step} "
                                      f"right-hand sides of {1e6 * rhs:.3g} µs ({states} state variables)"))
         terms += _implicit_terms(model, method, steps, states, rhs)
+        if contact_seconds:
+            terms.append(CostTerm("contacts", seconds=steps * contact_seconds,
+                                  detail=f"about {steps:.3g} contact searches of {1e3 * contact_seconds:.3g} ms (at "
+                                         "the start; a pile that has formed costs more)"))
     for name, capacity, births, *cost in particle_pools:
         alive = min(births, capacity)
         particle_step = float(cost[0]) if cost else PARTICLE_STEP_SECONDS

@@ -350,13 +350,16 @@ class CompiledDynamics(Dynamics):
 def dynamics_for(model: Model, numpy_seconds: float) -> Dynamics:
     """The Dynamics to integrate ``model`` with: compiled where every part of it has a compiled form, its numpy run
     would take ``numpy_seconds`` [s] ≥ :data:`COMPILE_AFTER` (or ``ANIMBATCH_KERNELS=numba`` asks for it) and the
-    kernels build; else numpy."""
-    from animbatch.sim.kernels import MIN_WORK, kernels_ready
+    kernels build; else numpy, marked as a long run when it is one (its contacts then solve compiled)."""
+    from animbatch.sim.kernels import MIN_WORK, compiled_kernels, kernels_ready
 
+    long_run = compiled_kernels(MIN_WORK if numpy_seconds >= COMPILE_AFTER else 0.0)
     tables = stepper_tables(model)
-    if isinstance(tables, str):
-        return Dynamics(model)
-    if not kernels_ready(MIN_WORK if numpy_seconds >= COMPILE_AFTER else 0.0, build_stepper_kernels,
-                         "equations of motion", "numpy integrates the bodies"):
-        return Dynamics(model)
-    return CompiledDynamics(model, tables)
+    if isinstance(tables, str) or not (long_run and kernels_ready(MIN_WORK, build_stepper_kernels,
+                                                                  "equations of motion",
+                                                                  "numpy integrates the bodies")):
+        system = Dynamics(model)
+    else:
+        system = CompiledDynamics(model, tables)
+    system.long_run = long_run
+    return system

@@ -44,6 +44,9 @@ class Dynamics:
         self.engaged_stops: np.ndarray | None = None
         #: Baumgarte's ω [1/s] for the joints; fixed-step methods set 0, as they project after every step instead
         self.joint_stabilisation = STABILISATION_RATE
+        #: Whether the run is long enough to repay loading compiled kernels (:func:`~animbatch.sim.model.compiled.
+        #: dynamics_for` decides): contacts then solve their impulse sweeps compiled however few they are
+        self.long_run = False
         self._clock_start = 3 * n + 7 * b  # the clocks' proper times close the configuration
         self._config_size = self._clock_start + (self.clocks.count if self.clocks is not None else 0)
         self._inverse_mass = (1.0 / model.bodies.mass[:n])[:, None]
