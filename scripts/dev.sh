@@ -2,7 +2,8 @@
 # One entry point that sets everything up from nothing and then does one job.
 #
 #   bash scripts/dev.sh demo    set up, then render scenes/projectile.yaml into renders/
-#   bash scripts/dev.sh test    set up, then run the whole test suite (what CI runs)
+#   bash scripts/dev.sh test    set up, then run the whole test suite (what CI runs); --fast: the fast tier only
+#                               (no test marked slow: whole-pipeline renders, long simulations), for the inner loop
 #   bash scripts/dev.sh bench   set up, then run the benchmark suite and print its table
 #   bash scripts/dev.sh gallery set up, then redraw docs/gallery.md: one still per bundled scene at final quality
 #   bash scripts/dev.sh accuracy  set up, then regenerate docs/accuracy.md (studies of the bundled scenes)
@@ -141,8 +142,13 @@ case "$command" in
         setup
         ensure_browser
         build_kernels
+        tier=()
+        if [ "${1:-}" = "--fast" ]; then  # the inner loop: every test but those marked slow
+            shift
+            tier=(-m "not slow")
+        fi
         # Spread the tests over the machine's cores (at most 4: each render test holds a software OpenGL context).
-        exec "$venv/bin/python" -m pytest -n auto --maxprocesses=4 "$@"
+        exec "$venv/bin/python" -m pytest -n auto --maxprocesses=4 "${tier[@]}" "$@"
         ;;
     bench)
         setup

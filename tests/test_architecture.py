@@ -109,6 +109,7 @@ def test_ruff_finds_nothing():
     assert done.returncode == 0, done.stdout + done.stderr
 
 
+@pytest.mark.slow
 def test_the_simulation_type_checks():
     """mypy finds no error in the simulation (the files of pyproject's [tool.mypy]): the Model's tables are typed,
     optional parts are narrowed where used, and no ``type: ignore`` is left that is not needed."""
@@ -133,6 +134,7 @@ HEAVY = ("scipy.integrate", "scipy.sparse", "scipy.spatial", "scipy.linalg", "sc
          "trimesh", "matplotlib", "dask", "imageio", "numba")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("arguments", [["--help"], ["validate", str(ROOT / "scenes" / "projectile.yaml")],
                                        ["validate", str(ROOT / "scenes" / "dominoes.yaml")]],
                          ids=["help", "validate projectile", "validate dominoes"])

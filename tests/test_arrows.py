@@ -90,6 +90,7 @@ render:
 """
 
 
+@pytest.mark.slow
 @pytest.mark.render
 def test_a_force_arrow_points_along_its_force_and_the_legend_names_it():
     """Seen from the side, the gravity arrow runs straight down from the ball's centre, 0.6 m long on screen (the

@@ -25,6 +25,7 @@ render: {{resolution: [96, 64]}}
 """
 
 
+@pytest.mark.slow
 def test_a_batch_of_three_scenes_on_two_workers_gives_complete_videos_and_reports_a_failure(tmp_cwd):
     """Three scenes (45, 60 and 30 frames, in chunks of 20 frames) and one that diverges. The three MP4s have every
     frame at the scene's size and rate, each job wrote its report, the summary lists all four, and the batch exits
@@ -61,6 +62,7 @@ solver: {method: euler, dt: 0.01}
     assert failed["status"] == "failed" and failed["exit_code"] == 3 and "'" in failed["error"]
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_batch_loses_no_frame_and_redraws_none(tmp_cwd):
     """Two workers render a 360-frame scene in 12 chunks; once frames are appearing, one worker process is killed
     (SIGKILL). Dask reruns its tasks elsewhere: the batch completes, the MP4 has all 360 frames, every PNG is complete,
@@ -101,6 +103,7 @@ def test_a_worker_killed_mid_batch_loses_no_frame_and_redraws_none(tmp_cwd):
     assert {name: (frames / name).stat().st_ino for name in existing} == existing
 
 
+@pytest.mark.slow
 def test_a_sweep_renders_one_variant_per_value_with_metrics_and_a_contact_sheet(tmp_cwd):
     """--sweep springs[0].stiffness=20,80,320 on a bob on a spring: three variants named by their value, each with
     its video; sweep.csv lists each with its energy drift (a conservative scene: below 1e-4 of its energy scale at the

@@ -20,6 +20,7 @@ CHEAP = {"simulation, encoding, start-up": (
          "drawing": (["render", "stream"], {"render"})}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("half", list(CHEAP))
 def test_the_cheap_benchmarks_run_and_report_every_number(tmp_path, half):
     names, reported = CHEAP[half]

@@ -38,6 +38,7 @@ def beam_on_ridge(ridge_is_a_body: bool) -> np.ndarray:
         return api.simulate(scene(text)).positions[:, 0, 1]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ridge_is_a_body", [False, True])
 def test_a_beam_laid_across_a_ridge_rests_on_it_edge_on_edge(ridge_is_a_body):
     height = beam_on_ridge(ridge_is_a_body)
@@ -71,6 +72,7 @@ def test_edge_contact_geometry_of_two_crossed_boxes():
                              reach) == []
 
 
+@pytest.mark.slow
 def test_a_plank_laid_across_another_face_on_face_rests_on_it():
     """No corner of either plank lies on the other: the four crossings of their edges hold the upper one (before
     polyhedra met edge to edge at face ties, it fell through the lower plank to the floor)."""

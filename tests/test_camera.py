@@ -104,6 +104,7 @@ render:
 """
 
 
+@pytest.mark.slow
 def test_a_following_camera_keeps_the_body_at_the_centre_of_every_frame():
     """A ball crossing 6 m at 5 m/s stays at the image centre (its red pixels' centroid within 3 px, within 1 px of
     where it was at the first frame) at every frame, where the camera fitted to the whole motion sees it cross."""
@@ -129,6 +130,7 @@ CAMERAS = FOLLOW.replace("  camera: {follow: ball, follow_lag: 0}\n", """  forma
 """)
 
 
+@pytest.mark.slow
 def test_camera_all_renders_every_camera_into_its_own_video_from_one_bake(tmp_path):
     scene = tmp_path / "chase.yaml"
     scene.write_text(CAMERAS)

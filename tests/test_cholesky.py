@@ -113,6 +113,7 @@ def test_subtrees_shared_among_threads_cover_every_supernode_once_and_solve_to_r
     assert tasks == [[5]] and top == []
 
 
+@pytest.mark.slow
 def test_backward_euler_gives_the_same_cloth_with_either_solver(monkeypatch):
     """A 16×16 cloth falling from horizontal, one step per frame: the compiled Cholesky (forced) and SuperLU give
     the same motion to round-off, and the run reports the same work."""

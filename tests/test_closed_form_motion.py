@@ -17,6 +17,7 @@ from conftest import assert_velocity_is_the_paths_derivative, scene
 G = 9.81
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ratio", [0.8, 2.0])
 def test_a_shaker_plate_throws_a_resting_ball_only_when_a_omega_squared_exceeds_g(ratio):
     """A plate oscillating vertically as A sin(ω t) accelerates downwards by up to A ω². Below g (ratio 0.8) the
@@ -47,6 +48,7 @@ def test_a_shaker_plate_throws_a_resting_ball_only_when_a_omega_squared_exceeds_
         assert gap.min() > -1e-3
 
 
+@pytest.mark.slow
 def test_a_turntable_carries_a_crate_round_at_omega_r():
     """A disc spinning at ω = 1.5 rad/s about the vertical through its centre; a crate at r = 0.5 m with μ = 0.8
     (ω² r = 1.1 m/s² < μ g) is brought up to speed by friction, then rides round at ω r on its circle."""
@@ -74,6 +76,7 @@ def test_a_turntable_carries_a_crate_round_at_omega_r():
     np.testing.assert_allclose(trajectory.positions[late, 0, 1], 0.05, atol=2e-4)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("restitution", [1.0, 0.5])
 def test_a_body_moving_at_constant_velocity_bats_a_ball_at_1_plus_e_times_v(restitution):
     loaded = scene(f"""

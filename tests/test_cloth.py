@@ -95,6 +95,7 @@ def test_dihedral_angle_of_a_known_fold_and_its_balanced_forces():
     assert np.allclose(np.cross(x[0], forces[0]).sum(axis=0), 0, atol=1e-14)
 
 
+@pytest.mark.slow
 def test_dihedral_springs_unfold_a_folded_cloth_and_conserve_energy_undamped():
     """A free 3 × 3 cloth with structural and dihedral springs, its top row folded up by 40° about the middle row
     (a rigid fold: no spring is stretched, only the hinges bend): it unfolds and swings through flat, with total
@@ -153,6 +154,7 @@ def test_hanging_cloth_settles_where_the_net_force_on_every_free_vertex_is_zero(
 STIFF_CLOTH = dict(stiffness=2.0e4, damping=0.0, size="[12, 9]", duration=3.0, fps=60)
 
 
+@pytest.mark.slow
 def test_stiff_cloth_under_backward_euler_is_bounded_and_never_gains_energy():
     """A stiff undamped cloth (ω dt ≈ 60 for its fastest mode) dropped from horizontal, pinned at two corners:
     backward Euler at dt = 1/60 keeps it bounded, its total energy (kinetic, elastic, gravitational) never rises
@@ -246,6 +248,7 @@ def stiff_oscillator_chain(method: str) -> str:
     """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["Radau", "BDF"])
 def test_implicit_adaptive_methods_with_the_sparse_jacobian_follow_the_exact_linear_motion(method):
     """Radau and BDF, given the analytic sparse Jacobian (and reusing their Newton factors across small step
@@ -269,6 +272,7 @@ def test_implicit_adaptive_methods_with_the_sparse_jacobian_follow_the_exact_lin
     assert np.abs(positions[:, :, 1:]).max() < 1e-12
 
 
+@pytest.mark.slow
 def test_implicit_adaptive_methods_reuse_newton_factors_without_losing_accuracy(monkeypatch):
     """On a stiff falling cloth, BDF factors its Newton matrix far less often when factors are reused across small
     step changes, and lands where it lands when it refactors at every change (both within tolerance of each other)."""
@@ -310,6 +314,7 @@ def test_fixed_pins_never_move_and_keyframed_pins_follow_their_path():
     assert np.array_equal(anchors.velocities(1.5)[right], [0, 0, 0])
 
 
+@pytest.mark.slow
 def test_vertices_pinned_to_a_rigid_body_move_with_it_and_pull_on_it():
     """A cloth hanging from a spinning, thrown box: the attached corners stay at their body points, and the whole
     system's momentum changes at exactly (M_box + m_free_vertices) g, so the cloth's springs pull on the box."""
@@ -372,6 +377,7 @@ def test_gusts_stay_within_their_amplitude_and_repeat():
 # ------------------------------------------------------------------------------------------------ contact
 
 
+@pytest.mark.slow
 def test_cloth_draped_over_a_sphere_never_passes_through_it():
     """A cloth dropped on a sphere collider: no vertex ever comes closer to the centre than R + its radius (less
     the slop), and the part of the cloth lying on the sphere comes to rest there (its hanging corners still

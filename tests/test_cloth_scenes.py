@@ -35,6 +35,7 @@ def cloth_vertices(model, trajectory) -> np.ndarray:
                      for x, t in zip(trajectory.positions, trajectory.times)])
 
 
+@pytest.mark.slow
 def test_flag_streams_downwind_and_flaps_and_its_pole_costs_no_contact_pass():
     """In the wind the flag's free edge stays downwind of the pole by most of the flag's length and the cross gusts
     move it sideways by centimetres. The pole is scenery (the flag does not collide): no contact pass is compiled."""
@@ -46,6 +47,7 @@ def test_flag_streams_downwind_and_flaps_and_its_pole_costs_no_contact_pass():
     assert np.ptp(streaming[..., 2].mean(axis=1)) > 0.05
 
 
+@pytest.mark.slow
 def test_draped_cloth_never_enters_the_sphere_and_its_cap_comes_to_rest():
     """No vertex ever comes closer to the sphere's centre than R + its radius (less the contact slop); the cap of
     the sheet that lies on the sphere comes to rest there, held by friction."""
@@ -59,6 +61,7 @@ def test_draped_cloth_never_enters_the_sphere_and_its_cap_comes_to_rest():
     assert np.linalg.norm(trajectory.velocities[-1][lying], axis=1).max() < 0.02
 
 
+@pytest.mark.slow
 def test_curtain_corners_never_move_its_swing_dies_down_and_its_top_edge_sags():
     """The pinned corners stay exactly where they started; still air takes out the swing (in the last second the
     kinetic energy is below 0.1 % of its peak); the free top edge sags between the corners, lowest in the middle."""
@@ -73,6 +76,7 @@ def test_curtain_corners_never_move_its_swing_dies_down_and_its_top_edge_sags():
     assert top[0] - top.min() > 0.02
 
 
+@pytest.mark.slow
 def test_jelly_falls_freely_then_lands_without_entering_the_floor_and_settles():
     """Until its lowest vertex reaches the floor the block's centre of mass falls exactly as backward Euler's free
     fall, y0 - g t (t + h) / 2 with h the step (its springs are internal forces: they and their derivatives cancel in
@@ -95,6 +99,7 @@ def test_jelly_falls_freely_then_lands_without_entering_the_floor_and_settles():
     assert 0.4 * body.size[1] + radius < centre[-1, 1] < 0.5 * body.size[1] + radius
 
 
+@pytest.mark.slow
 def test_bead_stays_within_its_stated_distance_of_the_wire_and_loops():
     """The bead stays within (m g + m v0²/r) / ks = 3.0 mm of the circle and comes close to that bound (at the
     bottom), loops the loop, and passes the bottom with nearly its launch speed (less than 1 % lost per loop)."""
@@ -110,6 +115,7 @@ def test_bead_stays_within_its_stated_distance_of_the_wire_and_loops():
     assert 0 < energy[0] - energy[-1] < 0.01 * energy[0] * loops
 
 
+@pytest.mark.slow
 def test_bead_under_backward_euler_never_rises_above_its_starting_energy_at_a_bounded_cost():
     """Backward Euler at one step per frame (ω dt = 2.4 for the controller's 141 rad/s): the curve's turn is left
     out of the definite derivative, so the energy guard halves a rising step at most three times. At every frame the

@@ -40,6 +40,7 @@ CLOSED_FORMS = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("closed_form, method", [
     *[(test, method) for test in CLOSED_FORMS for method in test_contacts.BOTH],
     # the tumbling box through the time-stepping path only: the event-driven one spends 4 s on it for no new rows
@@ -76,6 +77,7 @@ fields: [{{type: gravity}}]
 """
 
 
+@pytest.mark.slow
 def test_compiled_sweeps_give_the_numpy_solver_s_pile(monkeypatch):
     """144 balls and 4 turned crates dropped on a floor and a half-buried stone: the same motion, to round-off, with
     the compiled sweeps as with the numpy ones (a quarter second, while the pile forms)."""
@@ -91,6 +93,7 @@ def test_compiled_sweeps_give_the_numpy_solver_s_pile(monkeypatch):
     assert np.array_equal(impacts[:, 1], expected[:, 1]) and np.abs(impacts[:, 0] - expected[:, 0]).max() < 1e-12
 
 
+@pytest.mark.slow
 def test_kernels_that_fail_to_build_leave_the_contacts_to_numpy_and_say_so(monkeypatch):
     """numba loads but cannot compile the contact sweeps: the solve warns and gives the numpy solver's result."""
     from numba.core.errors import TypingError

@@ -18,6 +18,7 @@ def simulate(name: str, *overrides: str):
     return api.simulate(load_scene(SCENES / name, list(overrides)))
 
 
+@pytest.mark.slow
 def test_bouncing_balls_apexes_fall_as_e_to_the_2n_and_the_softest_ball_comes_to_rest():
     """Apex n of a ball dropped from h0 onto a floor with restitution e is e^(2n) h0; the ball stops at
     t0 (1 + e)/(1 - e), t0 = sqrt(2 h0 / g), once the bounces (a geometric series) have added up."""
@@ -41,6 +42,7 @@ def test_bouncing_balls_apexes_fall_as_e_to_the_2n_and_the_softest_ball_comes_to
     assert np.abs(trajectory.velocities[at_rest, 2, 1]).max() > 0.1
 
 
+@pytest.mark.slow
 def test_newtons_cradle_passes_the_swing_to_the_last_ball():
     """Elastic impacts of equal masses in a row exchange velocities: ball 5 swings up to ball 1's start height
     while balls 2-4 barely move (their springs stretch a little: 20 kN/m strings are stiff, not rigid)."""
@@ -55,6 +57,7 @@ def test_newtons_cradle_passes_the_swing_to_the_last_ball():
     assert heights[-1, 0] == pytest.approx(0.2, abs=2e-3)
 
 
+@pytest.mark.slow
 def test_slope_materials_hold_or_slide_as_their_friction_coefficients_say():
     """On a 20° ramp, tan 20° = 0.36: wood (μs 0.38), steel (0.78) and rubber (0.55) hold; Teflon and ice slide
     from rest with s = ½ g (sin θ − μk cos θ) t²."""
@@ -90,6 +93,7 @@ def test_collision_lab_meets_its_comment():
     assert v["ball2"] == pytest.approx([4, 4 - G * t, 0], abs=1e-7)
 
 
+@pytest.mark.slow
 def test_energy_drift_scene_warns_as_its_comment_says():
     """Explicit Euler over ten orbits: the energy drifts by about 30 % of its 2.04 J binding energy, the angular
     momentum by about 12 %, and the run warns; verlet at the same step does not."""

@@ -124,6 +124,7 @@ def bouncing(method: str, e: float = 0.8, duration: float = 6, fps: int = 200) -
     return trajectory, trajectory.positions[:, 0, 1] - 0.1
 
 
+@pytest.mark.slow
 def test_frames_on_both_sides_of_an_impact_are_exact():
     """Frames just before and after the first impact (t_c = sqrt(2 h / g)) lie on the closed-form fall and
     rebound: the impact is found at its exact time, without overshoot."""
@@ -139,6 +140,7 @@ def test_frames_on_both_sides_of_an_impact_are_exact():
     assert height.min() >= -1e-12  # never below the floor
 
 
+@pytest.mark.slow
 def test_apex_heights_follow_e_to_the_2n_and_bouncing_ends_at_the_series_time():
     """Apex n is at e^(2n) h₀, and the ball stops at t₀ (1 + 2e/(1-e)) minus the bounces below the rest speed."""
     e = 0.8
@@ -159,6 +161,7 @@ def test_apex_heights_follow_e_to_the_2n_and_bouncing_ends_at_the_series_time():
     assert np.abs(height[t > at_rest]).max() < 1e-12 and np.abs(velocity[t > at_rest]).max() < 1e-9
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method, accuracy", [("RK45", 1e-8), ("symplectic_euler", 3e-3), ("verlet", 3e-3),
                                               ("backward_euler", 3e-3)])
 def test_impact_times_are_logged_and_follow_the_bounce_series(method, accuracy):
@@ -184,6 +187,7 @@ def test_impact_times_are_logged_and_follow_the_bounce_series(method, accuracy):
         assert time == pytest.approx(exact[k], abs=accuracy * (k + 1))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", BOTH)
 def test_resting_contact_is_still(method):
     """A ball and a box placed on the ground stay where they are, with zero velocity, frame after frame. (With
@@ -228,6 +232,7 @@ def on_slope(method: str, degrees: float, speed: float = 0.0, duration: float = 
     return trajectory, along, normal, down
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", BOTH)
 def test_block_sticks_when_tan_theta_is_below_mu_s(method):
     """μs = 0.5: at 25° (tan = 0.47) the block stays put, exactly."""
@@ -235,6 +240,7 @@ def test_block_sticks_when_tan_theta_is_below_mu_s(method):
     assert np.abs(along).max() < 1e-12
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", BOTH)
 def test_block_slides_with_a_equal_g_sin_minus_mu_k_cos(method):
     """At 35° (tan = 0.7 > μs) it slides with a = g (sin θ - μk cos θ)."""
@@ -245,6 +251,7 @@ def test_block_slides_with_a_equal_g_sin_minus_mu_k_cos(method):
     assert np.allclose(along, expected, atol=tolerance)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", BOTH)
 def test_sliding_block_stops_and_stays_stopped(method):
     """Pushed down a 10° slope at 2 m/s with μk > tan θ, it slows at g (μk cos θ - sin θ), stops at the predicted
@@ -261,6 +268,7 @@ def test_sliding_block_stops_and_stays_stopped(method):
     assert np.all(speed_along >= -1e-9)  # and never backwards
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", BOTH)
 def test_sliding_sphere_starts_rolling_at_the_predicted_time(method):
     """A ball launched sliding (v₀, ω = 0) slows under kinetic friction until v = ω r at t* = 2 v₀ / (7 μ g),
@@ -320,6 +328,7 @@ def test_fast_ball_does_not_tunnel_through_a_thin_wall(method):
 # ------------------------------------------------------------------------------------------------ rigid
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", BOTH)
 def test_box_dropped_on_its_edge_tumbles_and_lands_flat(method):
     """A cube dropped resting on an edge (turned 30°) gets spin from the impact at the edge, topples and ends flat
@@ -342,6 +351,7 @@ def test_box_dropped_on_its_edge_tumbles_and_lands_flat(method):
     assert trajectory.positions[-1, 0, 1] == pytest.approx(0.1, abs=1e-3)
 
 
+@pytest.mark.slow
 def test_stacked_boxes_cylinders_and_a_compound_come_to_rest_at_their_shapes_heights():
     """Box on box (a moving body's box as a solid for another's corners, here with flush side faces, where the
     corners lie on the lower box's sides as much as on its top), a cylinder lying and one standing, and a dumbbell
@@ -409,6 +419,7 @@ def test_broad_phase_finds_exactly_the_pairs_a_brute_force_search_finds():
     assert reported == brute and len(brute) > 10
 
 
+@pytest.mark.slow
 def test_static_sphere_box_and_mesh_colliders_hold_a_resting_ball(tmp_path):
     """A ball comes to rest on top of a fixed sphere, a fixed box and a mesh slab at the heights their shapes give."""
     import trimesh

@@ -160,6 +160,7 @@ def test_spring_to_a_moving_anchor_drags_its_body_along():
     assert x[-1] == pytest.approx([0, hand - 0.5 - 0.2 * G / 200, 0], abs=1e-6)
 
 
+@pytest.mark.slow
 def test_controller_on_a_rigid_body_point_holds_it_like_a_pendulum_pivot():
     """A 1 kg box held at a corner by a damped PD controller to a fixed point, with some air drag on its turning:
     it comes to rest with the corner m g / ks below the target and its centre of mass straight below the corner

@@ -25,6 +25,7 @@ def test_every_fixed_step_method_has_an_expected_order():
     assert set(EXPECTED_ORDER) == set(FIXED_STEP_SCHEMES)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", sorted(EXPECTED_ORDER))
 def test_fixed_step_methods_converge_at_their_order(method):
     """Halving dt divides the error by 2^order (order 1: Euler variants; order 2: midpoint, Verlet) — with damping,
@@ -36,6 +37,7 @@ def test_fixed_step_methods_converge_at_their_order(method):
     assert np.all(np.abs(orders - expected) < 0.15), f"observed orders {orders} for {method}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ADAPTIVE)
 def test_adaptive_methods_get_more_accurate_with_tighter_tolerance(method):
     """Tightening rtol/atol by 10⁴ reduces the error at least 30-fold, and the tight run is accurate to 1e-6."""

@@ -61,6 +61,7 @@ def test_round_distances_match_their_closed_forms():
             assert step == pytest.approx(1e-6, rel=1e-3)
 
 
+@pytest.mark.slow
 def test_round_distance_is_the_distance_to_the_surface_for_points_outside():
     """Against a dense sampling of the cylinder's surface: the sampled distance is never below the exact one, and
     exceeds it by no more than the sampling's spacing."""
@@ -83,6 +84,7 @@ def test_round_distance_is_the_distance_to_the_surface_for_points_outside():
     assert np.all(sampled - d[outside] < 5e-3)  # the sampling's spacing (3.5 mm around, 5 mm along)
 
 
+@pytest.mark.slow
 def test_segment_distance_matches_a_brute_force_search():
     rng = np.random.default_rng(5)
     sa, da, sb, db = (rng.normal(size=(100, 3)) for _ in range(4))
@@ -132,6 +134,7 @@ def test_planks_crossed_face_on_face_touch_at_the_corners_of_their_overlap():
 # ------------------------------------------------------------------------------------------------ motion
 
 
+@pytest.mark.slow
 def test_a_capsule_rolls_down_an_incline_at_the_closed_form_acceleration(tmp_path):
     """A solid capsule lying across a 20° incline rolls without slipping: a = g sin θ / (1 + I_axis / (m r²)),
     with its axial moment from the cylinder and the two hemispheres."""
@@ -155,6 +158,7 @@ colliders: [{{type: plane, normal: {normal}, material: wood}}]
     assert expected < 9.81 * np.sin(theta) / 1.4  # slower than a solid sphere's 5/7: most of its mass is the cylinder
 
 
+@pytest.mark.slow
 def test_round_sides_rest_on_each_other_and_on_edges(tmp_path):
     """Crossed rods, crossed capsules, a ball on a lying cylinder, a log across a stair's edge and a log along a
     ridge: each comes to rest where the shapes touch (no probe sits where these sides touch)."""
@@ -188,6 +192,7 @@ colliders:
     assert np.all(np.hypot(across[:, 0] - edge[0], across[:, 1] - edge[1])[turning] > 0.03 - 3e-3)
 
 
+@pytest.mark.slow
 def test_prisms_crossed_ridge_on_ridge_rest_edge_on_edge(tmp_path):
     """A triangular prism (a convex mesh) laid ridge down across another's ridge: their edges cross and hold it, at
     the sum of their apex heights; the vertices alone would let it fall through."""
@@ -212,6 +217,7 @@ contacts: {}
     assert apex[-1] == pytest.approx(height, abs=2e-3)
 
 
+@pytest.mark.slow
 def test_mesh_bodies_rest_on_a_box_body_and_carry_one(tmp_path):
     """A tetrahedron (a convex mesh) dropped onto a box body lies on a face, its centre of mass a quarter of its
     height over the table (its vertices against the box); a box-shaped mesh slab beside it carries a box dropped on

@@ -142,6 +142,7 @@ PLUNGE = """
 FREE_FALL_TIME = np.pi / 2 * np.sqrt(1.0 / (2 * 4.0))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["RK45", "DOP853", "Radau", "BDF", "LSODA"])
 def test_a_gravitational_plunge_names_the_pair_and_softening_not_another_solver(method):
     """Every adaptive method stops at the free-fall time (LSODA by the stall check, which turns a five-minute crawl
@@ -204,6 +205,7 @@ def test_advice_without_springs_or_encounters_names_the_fastest_body():
     assert "Radau or BDF" not in implicit and "verlet" in implicit
 
 
+@pytest.mark.slow
 def test_a_plunge_in_a_scene_with_contacts_gets_the_same_advice_fitted_to_its_contact_settings():
     """With a floor and contacts between bodies switched off, Radau fails at the same free-fall time inside the
     contact path: the message names the pair and says how to let them collide in this scene (contacts.bodies)."""

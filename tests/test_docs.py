@@ -45,6 +45,7 @@ def test_every_key_is_documented():
     assert len(list(key_paths())) > 60
 
 
+@pytest.mark.slow
 def test_json_schema_is_valid_and_accepts_the_bundled_scenes():
     """'animbatch schema' prints a valid JSON Schema under which every scene in scenes/ is valid."""
     result = CliRunner().invoke(cli, ["schema"])

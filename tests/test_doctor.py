@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 from click.testing import CliRunner
 from PIL import Image
 
@@ -14,6 +15,7 @@ from animbatch.cli import cli
 from animbatch.render import backend as backends
 
 
+@pytest.mark.slow
 def test_doctor_draws_a_test_frame_with_each_available_backend_and_encodes_each_format():
     """On this machine (EGL and/or OSMesa, the ffmpeg of imageio-ffmpeg): every backend whose libraries load draws
     the test ball (checked by its pixels) with a first-frame and a per-frame time; mp4, webm and gif encode; exit 0."""
@@ -31,6 +33,7 @@ def test_doctor_draws_a_test_frame_with_each_available_backend_and_encodes_each_
     assert all(video[kind]["ok"] for kind in ("ffmpeg", "mp4", "webm", "gif")), video
 
 
+@pytest.mark.slow
 def test_a_backend_without_its_library_is_reported_with_the_command_that_installs_it(monkeypatch):
     """OSMesa's library 'missing': its line says which library cannot be loaded, and the fixes list the apt-get
     command; EGL is still checked and usable."""
@@ -43,6 +46,7 @@ def test_a_backend_without_its_library_is_reported_with_the_command_that_install
     assert "osmesa: apt-get install libosmesa6" in text
 
 
+@pytest.mark.slow
 def test_no_backend_at_all_exits_1_and_says_what_to_install(monkeypatch):
     """With no off-screen OpenGL library, doctor exits 1, names both backends' packages and says it cannot render."""
     monkeypatch.setattr(backends, "library_loads", lambda name: False)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+import pytest
 
 from animbatch import api
 from animbatch.errors import AccuracyWarning
@@ -13,6 +14,7 @@ from animbatch.stages import quantity_series
 from conftest import scene
 
 
+@pytest.mark.slow
 def test_dominoes_fall_one_after_the_other_and_come_to_rest_leaning_on_each_other():
     count = 4
     tiles = "\n".join(

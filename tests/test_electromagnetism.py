@@ -38,6 +38,7 @@ def test_a_charge_across_a_magnetic_field_circles_at_the_cyclotron_radius_and_pe
     assert np.linalg.norm(x - [0, -1, 0], axis=1) == pytest.approx(np.ones(len(t)), abs=1e-8)  # r = m v / (q B)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver, tolerance", [("{method: Radau, rtol: 1.0e-9, atol: 1.0e-11}", 1e-6),
                                                ("{method: midpoint, dt: 0.001}", 1e-5)])
 def test_implicit_and_fixed_step_methods_follow_the_cyclotron_circle(solver, tolerance):

@@ -28,6 +28,7 @@ render:
 """
 
 
+@pytest.mark.slow
 def test_the_panel_sits_under_the_view_and_its_cursor_follows_time():
     scene = stages.parse_scene(SCENE)
     model = api.compile_model(scene)

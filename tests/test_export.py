@@ -157,6 +157,7 @@ def read_ply(path) -> tuple[np.ndarray, np.ndarray | None]:
     return vertices, triangles
 
 
+@pytest.mark.slow
 def test_ply_and_obj_sequences_hold_the_cloth_and_the_particles_of_every_frame(tmp_cwd):
     """One file per frame and object. The sheet's triangles are the same in every file and its pinned corners stay
     put; each drop's PLY vertex carries its serial as id, its age and radius, and its height is the straight rise

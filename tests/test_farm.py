@@ -74,6 +74,7 @@ def test_cache_is_reused_for_a_new_camera_and_redone_for_new_physics_or_solver(t
     assert len(simulated) == 4
 
 
+@pytest.mark.slow
 def test_a_render_checks_its_trajectory_and_prepares_its_frames_folder_once(throw, tmp_cwd, monkeypatch):
     """run (bake then draw) and render (a given trajectory) check the trajectory against the scene at most once and
     prepare the frames folder once, whatever path the frames take to the renderer."""
@@ -96,6 +97,7 @@ def test_a_render_checks_its_trajectory_and_prepares_its_frames_folder_once(thro
     assert len(prepared) + len(prepared_in_frames) + len(prepared_in_stream) == 1
 
 
+@pytest.mark.slow
 def test_chunked_rendering_gives_the_pixels_of_a_single_pass(throw, tmp_cwd):
     """Three chunks (0-16, 17-33, 34-49) in three renderers draw exactly the pixels of one pass over all frames: the
     camera is fitted to the whole trajectory, never to a chunk."""
@@ -163,6 +165,7 @@ def test_an_interrupted_render_resumes_without_redrawing_finished_frames(throw, 
     assert sorted(p.name for p in folder.glob("frame_*.png")) == [f"frame_{i:05d}.png" for i in range(20)]
 
 
+@pytest.mark.slow
 def test_a_render_over_its_budget_exits_4_keeps_its_frames_and_a_larger_budget_finishes_it(throw, tmp_cwd,
                                                                                             monkeypatch):
     """render.max_cost: with every frame costing 0.5 s more (a slowed renderer), 20 frames project to over 10 s, over
@@ -212,6 +215,7 @@ def test_frames_of_another_picture_are_never_reused(throw, tmp_cwd, monkeypatch)
     assert old.mean() > 200 > 60 > new.mean()  # white background, then black
 
 
+@pytest.mark.slow
 def test_encode_needs_every_frame_and_writes_mp4_webm_and_gif(throw, tmp_cwd):
     """'animbatch encode' names the missing frames and the command to render them; once all are there it writes
     every format asked for, with the scene's frame count, size and frame rate (GIF: 1/100 s ticks, so 25 fps)."""
@@ -231,6 +235,7 @@ def test_encode_needs_every_frame_and_writes_mp4_webm_and_gif(throw, tmp_cwd):
         assert sum(1 for _ in reader) == 50
 
 
+@pytest.mark.slow
 def test_encode_takes_the_size_the_frames_were_rendered_at_and_says_what_differs(throw, tmp_cwd):
     """After 'render --resolution 48x32' (frames kept as PNG), a plain 'encode' expects the scene's 96×64: it says the
     frames on disk are 48×32, how to encode them as they are, and how to draw them at 96×64. 'encode --resolution
@@ -254,6 +259,7 @@ def test_encode_takes_the_size_the_frames_were_rendered_at_and_says_what_differs
     assert f"render them first: animbatch render {throw} --frames 7-7 --resolution 48x32" in message
 
 
+@pytest.mark.slow
 def test_parallel_workers_draw_the_same_frames_as_one_process(throw, tmp_cwd):
     """--jobs 2 renders the 50 frames in two worker processes (spawned, each with its own renderer): the frames are
     identical to those of one process, and the report says two workers drew all 50."""
@@ -301,6 +307,7 @@ echo $((RANDOM + 1000))
 """
 
 
+@pytest.mark.slow
 def test_slurm_script_submits_bake_then_an_array_of_render_chunks_then_encode(throw, tmp_cwd):
     """'animbatch farm slurm' writes a script whose three sbatch calls chain by afterok; run against a stand-in
     sbatch that executes each job (array tasks in turn), it produces the complete video: 50 frames in 3 tasks."""
@@ -358,6 +365,7 @@ def run_openjd_job(template: dict, parameters: dict[str, str]) -> list[list[str]
     return commands
 
 
+@pytest.mark.slow
 def test_openjd_template_bakes_then_renders_frame_chunks_then_encodes(throw, tmp_cwd):
     """'animbatch farm openjd' writes a job template of three steps (Bake; Render, one task per chunk of at most 20
     frames, after Bake; Encode after Render). Run step by step with its parameters, it gives the complete video."""
@@ -461,6 +469,7 @@ def test_background_frame_writer_finishes_handed_frames_when_interrupted_and_rai
             background.submit(0, np.zeros((HEIGHT, WIDTH, 3), np.uint8))
 
 
+@pytest.mark.slow
 def test_a_streamed_render_puts_every_frame_in_every_video_in_order(throw, tmp_cwd):
     """render (one process) pipes each frame into ffmpeg as it is drawn: the mp4 and the gif hold all 50 frames at
     the scene's size and rate, and frame k of the video is frame k drawn (the PNG of the same run), not a neighbour

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 
 from fuzzing import check, mutants
@@ -15,6 +16,7 @@ from fuzzing import check, mutants
 EXAMPLES = int(os.environ.get("ANIMBATCH_FUZZ_EXAMPLES", "200"))
 
 
+@pytest.mark.slow
 @settings(max_examples=EXAMPLES, deadline=None, derandomize=EXAMPLES <= 200, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(mutants())

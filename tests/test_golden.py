@@ -51,6 +51,7 @@ def draw_frame(name: str, frame: int) -> np.ndarray:
                              (trajectory.particles, frame))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, frame, shows", FRAMES, ids=[name for name, _, _ in FRAMES])
 def test_a_frame_looks_as_it_did(name, frame, shows, tmp_path):
     image = draw_frame(name, frame)

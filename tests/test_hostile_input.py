@@ -280,6 +280,7 @@ def test_a_run_that_exceeds_its_budget_stops_early_saying_how_far_it_got(monkeyp
     assert "--max-cost" in message
 
 
+@pytest.mark.slow
 def test_emitted_particles_stop_at_the_budget_too(monkeypatch):
     monkeypatch.setattr(stages, "estimate_cost", lambda *args, **kwargs: CostEstimate())
     loaded = scene("""
@@ -315,6 +316,7 @@ def test_max_cost_on_the_command_line_takes_units(tmp_path):
     assert result.exit_code == 1 and "solver.max_cost" in result.output
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["symplectic_euler", "RK45"])  # fixed-step resolver and impact events
 def test_a_feather_light_ball_in_a_break_stops_with_a_named_divergence_not_a_kd_tree_overflow(method):
     """Found by the long fuzz run: ball4 at 1e-9 kg among 0.17 kg balls is kicked past 1e100 m/s and the contact
@@ -343,6 +345,7 @@ RESTING_JELLY = """
     """
 
 
+@pytest.mark.slow
 def test_backward_euler_step_halving_stops_at_the_budget(monkeypatch):
     """Found by the long fuzz run: a lattice at rest without gravity made the energy guard halve every step ten
     times over (each halving a sparse factorisation; 56 s for 0.03 s). With the guard's rounding floor removed to

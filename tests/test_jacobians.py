@@ -90,6 +90,7 @@ def finite_difference(dynamics: Dynamics, term, t: float, y: np.ndarray, which: 
     return result
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_every_analytic_jacobian_matches_finite_differences(seed):
     """Springs (to particles, anchors, moving anchors and body points), dampers, quadratic and linear drag, wind, PD
@@ -169,6 +170,7 @@ def test_system_jacobian_has_the_first_order_form():
     assert np.allclose(analytic, numeric, atol=1e-6)
 
 
+@pytest.mark.slow
 def test_newton_matrices_drop_only_the_weak_couplings_and_keep_the_solution():
     """Radau's and BDF's Newton matrices leave out the bend springs of a cloth whose structural springs are 40×
     stiffer (blocks two vertices apart, at most 1.2 % of the diagonal blocks; shear ones are 5 % or more) and keep
@@ -222,6 +224,7 @@ def test_newton_matrices_drop_only_the_weak_couplings_and_keep_the_solution():
     assert np.abs(solver[0.0] - solver[linear_algebra.WEAK_COUPLING]).max() < 1e-6
 
 
+@pytest.mark.slow
 def test_compiled_spring_forces_are_the_numpy_ones(monkeypatch):
     """Springs between particles, to a fixed anchor and to a moving one, in a cloth and alone: the compiled forces
     (forced) and the numpy ones agree to round-off at a random state; springs at a body point keep to numpy."""

@@ -43,6 +43,7 @@ def exact_period(amplitude_deg: float, length: float = 1.0) -> float:
     return 4 * np.sqrt(length / G) * ellipk(np.sin(np.radians(amplitude_deg) / 2) ** 2)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("amplitude", [5.0, 90.0, 170.0])
 def test_a_pendulum_on_a_rod_keeps_the_elliptic_integral_period(amplitude):
     trajectory, period = pendulum(amplitude, "{method: DOP853, rtol: 1.0e-11, atol: 1.0e-13}",
@@ -53,6 +54,7 @@ def test_a_pendulum_on_a_rod_keeps_the_elliptic_integral_period(amplitude):
     assert trajectory.ledger["joints"]["max_violation"] < 1e-9
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["verlet", "symplectic_euler", "backward_euler"])
 def test_fixed_step_methods_keep_the_rod_exactly_and_the_period_to_their_order(method):
     trajectory, period = pendulum(60.0, f"{{method: {method}, dt: 0.001}}", duration=2.5 * exact_period(60.0))
@@ -91,6 +93,7 @@ def test_a_chaotic_double_pendulum_keeps_its_energy_and_its_rods_with_an_adaptiv
     assert trajectory.ledger["conservation"]["energy"]["conserved"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["verlet", "symplectic_euler", "backward_euler"])
 def test_fixed_step_methods_keep_the_rods_and_any_energy_gain_is_their_error_shrinking_with_the_step(method):
     """The projection keeps the rods to rounding after every step. A chaotic double pendulum moves fast, and a
@@ -107,6 +110,7 @@ def test_fixed_step_methods_keep_the_rods_and_any_energy_gain_is_their_error_shr
         assert gains[1] < 0.01
 
 
+@pytest.mark.slow
 def test_a_free_rod_keeps_its_length_momentum_and_angular_momentum():
     """Two particles on a rod, thrown spinning with no forces: the centre of mass moves uniformly and L is
     constant (the rod's tension is internal)."""
@@ -178,6 +182,7 @@ def test_a_rods_tension_is_a_force_of_its_own_in_the_arrows():
     np.testing.assert_allclose(vectors["acceleration"][:, 0], 0.0, atol=1e-6)
 
 
+@pytest.mark.slow
 def test_a_chain_of_twenty_links_comes_to_rest_as_the_catenary():
     """Twenty rods of 5 cm between anchors 0.8 m apart, settled by light drag. At rest the horizontal tension H is
     the same in every link and each bead turns the chain by its weight, tan θ_k = tan θ₁ + (k − 1) m g / H (the
@@ -219,6 +224,7 @@ fields: [{{type: gravity}}, {{type: drag, model: linear, coefficient: 0.02}}]
     assert np.abs(at_rest[:, 1] - catenary).max() < 0.1 * ell  # the discretisation's error, not the solver's
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver", ["{method: DOP853, rtol: 1.0e-9, atol: 1.0e-11}", "{method: verlet, dt: 0.001}"])
 def test_a_closed_four_bar_linkage_keeps_its_loop_closed_and_its_energy(solver):
     """Ground link between two fixed pivots, a crank, a coupler and a rocker of point masses: a closed loop of
@@ -247,6 +253,7 @@ def test_a_closed_four_bar_linkage_keeps_its_loop_closed_and_its_energy(solver):
     assert np.ptp(trajectory.positions[:, 0, 0]) > 0.1, "it moves"
 
 
+@pytest.mark.slow
 def test_info_lists_the_rods_and_how_they_are_held(tmp_path):
     import subprocess
     import sys
@@ -288,6 +295,7 @@ def test_an_atwood_machine_accelerates_at_the_closed_form_rate(solver, tolerance
     np.testing.assert_allclose(arrows["joint"][:, :, 1], 1.5 * G, atol=1e-5)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver", ["{method: DOP853, rtol: 1.0e-10, atol: 1.0e-12}", "{method: verlet, dt: 0.001}"])
 def test_a_pendulum_from_an_accelerating_anchor_swings_about_the_tilted_vertical(solver):
     """A hand accelerating at a = 3 m/s² sideways (an anchor on keyframes along x = ½ a t²) carries a bob on a 1 m

@@ -59,6 +59,7 @@ def test_emitters_are_refused_under_the_analytic_method():
         scene("duration: 1\nsolver: {method: analytic}\nemitters: [{name: spray, rate: 10}]")
 
 
+@pytest.mark.slow
 @pytest.mark.render
 def test_two_renders_composed_side_by_side_keep_frames_size_and_fps(tmp_path):
     import imageio_ffmpeg

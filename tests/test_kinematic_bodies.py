@@ -33,6 +33,7 @@ def bat(shape: str, restitution: float, speed: float = 2.0):
     return api.simulate(loaded)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("restitution", [1.0, 0.5])
 @pytest.mark.parametrize("shape", ["{type: box, size: [0.1, 0.4, 1.2]}",
                                    "{type: capsule, radius: 0.05, length: 1.2}"])
@@ -47,6 +48,7 @@ def test_a_bat_on_keyframes_sends_a_ball_off_at_1_plus_e_times_its_speed(shape, 
     assert energy["conserved"] is False and "kinematic bodies (keyframes or motion) do work" in energy["reason"]
 
 
+@pytest.mark.slow
 def test_a_body_on_keyframes_turns_as_its_path_says_about_its_position():
     """A compound whose centre of mass is off its origin turns about the origin: its centre of mass goes round a
     circle and its angular velocity is the path's."""
@@ -73,6 +75,7 @@ def test_a_body_on_keyframes_turns_as_its_path_says_about_its_position():
     np.testing.assert_allclose(turned, angle, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_a_moving_log_carries_a_crate_by_friction():
     """A log (a cylinder body on keyframes) lying under a crate moves 1 m along its axis with a smooth start and
     stop; its acceleration stays below μ g, so the crate rides along without slipping."""
@@ -98,6 +101,7 @@ def test_a_moving_log_carries_a_crate_by_friction():
     np.testing.assert_allclose(trajectory.positions[:, 1, 1], 0.3, atol=5e-4)
 
 
+@pytest.mark.slow
 def test_particles_bounce_off_a_body_on_keyframes():
     loaded = scene("""
         duration: 1.0

@@ -55,6 +55,7 @@ def kepler_energy_drift(trajectory) -> float:
 # ------------------------------------------------------------------------------------------------ drift warning
 
 
+@pytest.mark.slow
 def test_explicit_euler_over_ten_kepler_orbits_warns_with_the_energy_drift_and_the_fix():
     """Euler at 1 ms spirals the orbit out over ten periods: the ledger's energy drift is max|E - E₀|/|E₀| with E₀
     the closed-form binding energy (-2.04 J), far above 1 %, and the warning names both drifting quantities, the
@@ -73,6 +74,7 @@ def test_explicit_euler_over_ten_kepler_orbits_warns_with_the_energy_drift_and_t
     assert "1 accuracy warning" in summary(ledger)
 
 
+@pytest.mark.slow
 def test_a_symplectic_method_at_the_same_step_keeps_the_orbit_and_gives_no_warning():
     """Verlet at the same 1 ms keeps the energy within 1e-4 of |E₀| and the angular momentum to round-off."""
     _, trajectory, warned = kepler("{method: verlet, dt: 1.0e-3}")
@@ -82,6 +84,7 @@ def test_a_symplectic_method_at_the_same_step_keeps_the_orbit_and_gives_no_warni
     assert drift["energy"]["drift"] < 1e-4 and drift["angular_momentum"]["drift"] < 1e-12
 
 
+@pytest.mark.slow
 def test_the_drift_threshold_is_the_scenes_to_set():
     """solver.drift_warning = 0.5 lets the same 30 % drift pass without a warning, and the ledger records it."""
     _, trajectory, warned = kepler("{method: euler, dt: 1.0e-3, drift_warning: 0.5}")
@@ -89,6 +92,7 @@ def test_the_drift_threshold_is_the_scenes_to_set():
     assert 0.1 < trajectory.ledger["conservation"]["energy"]["drift"] < 0.5
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver", ["{method: euler, dt: 1.0e-3}", "{method: symplectic_euler, dt: 2.0e-2}",
                                     "{method: RK23, rtol: 1.0e-2, atol: 1.0e-5}",
                                     "{method: RK45, rtol: 1.0e-3, atol: 1.0e-6}"])
@@ -225,6 +229,7 @@ def test_an_adaptive_run_reports_its_smallest_largest_and_mean_steps():
 EMITTER = "emitters: [{name: spray, rate: 200, lifetime: 0.5, source: {type: point}, speed: 2}]"
 
 
+@pytest.mark.slow
 def test_every_part_of_a_run_reports_its_work():
     """A scene of emitters only reports its particles' steps (not "0 steps"); with a body too, both parts; an
     implicit method its factorisations. 0.5 s at 20 fps is 10 frames, 9 intervals of 5 steps of 0.01 s: 45 steps."""
@@ -288,6 +293,7 @@ def test_a_cloths_speed_is_that_of_its_centre_of_mass():
     assert np.allclose(series.speeds[:, 0], G * trajectory.times, rtol=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.render
 def test_render_with_plot_writes_the_quantities_and_the_ledger_beside_the_report(tmp_cwd):
     """render --plot: report.json holds the ledger; quantities.csv has one row per frame; quantities.png is a
@@ -314,6 +320,7 @@ render: {resolution: [64, 48]}
     assert "drift: energy" in result.output
 
 
+@pytest.mark.slow
 def test_plot_command_draws_a_trajectory(tmp_cwd):
     """animbatch plot --trajectory writes the CSV and the PNG into renders/<scene>/ and prints the ledger."""
     (tmp_cwd / "s.yaml").write_text("name: s\nduration: 0.5\nbodies: [{name: ball}]\nfields: [{type: gravity}]\n")

@@ -34,6 +34,7 @@ def paddle(speed: float, restitution: float, keys: str | None = None, ball_at: s
     return api.simulate(loaded), loaded
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("restitution", [1.0, 0.5, 0.0])
 def test_a_paddle_moving_at_v_sends_a_ball_at_rest_off_at_1_plus_e_times_v(restitution):
     trajectory, _ = paddle(2.0, restitution)
@@ -42,6 +43,7 @@ def test_a_paddle_moving_at_v_sends_a_ball_at_rest_off_at_1_plus_e_times_v(resti
     assert "moving colliders do work" in trajectory.ledger["conservation"]["energy"]["reason"]
 
 
+@pytest.mark.slow
 def test_a_turning_paddle_hits_with_the_speed_of_its_surface_there():
     """Turning at ω about its centre, the paddle's face at lever r moves at ω r: an elastic ball there leaves at
     about 2 ω r (the face has turned by a few degrees at the impact, so within 3 %)."""
@@ -72,12 +74,14 @@ def crate_on_platform(friction: float, distance: float = 1.0) -> tuple:
     return trajectory, distance * (3 * s**2 - 2 * s**3)  # the clamped cubic between two keys
 
 
+@pytest.mark.slow
 def test_a_platform_carries_a_crate_by_friction_when_its_acceleration_is_below_mu_g():
     trajectory, platform = crate_on_platform(0.5)  # largest acceleration 6 d / T² = 1.5 m/s² < 0.5 g
     np.testing.assert_allclose(trajectory.positions[:, 0, 0], platform, atol=1e-3)  # within a step's travel
     np.testing.assert_allclose(trajectory.positions[:, 0, 1], 0.2, atol=2e-4)
 
 
+@pytest.mark.slow
 def test_on_ice_the_platform_slides_out_from_under_the_crate_which_lags_at_mu_g():
     trajectory, platform = crate_on_platform(0.05)  # 1.5 m/s² > 0.05 g = 0.49 m/s²: it slips at once
     early = trajectory.times <= 0.4  # slipping forwards relative to it: friction accelerates it at μ g
@@ -119,6 +123,7 @@ def test_moving_colliders_are_refused_with_adaptive_methods():
     assert "colliders on keyframes need a fixed-step method; RK45 is adaptive" in str(error.value)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["box", "sphere"])
 def test_a_moving_collider_sends_resting_particles_off_at_1_plus_e_times_its_speed(kind):
     """Particles hanging at rest (no gravity) in the path of a paddle collider moving at V = 2 m/s leave at

@@ -35,6 +35,7 @@ def pucks(method: str, e: float) -> tuple:
     return model, trajectory, states(model, trajectory)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("e", [1.0, 0.5])
 @pytest.mark.parametrize("method", ADAPTIVE + FIXED)
 def test_head_on_pucks_leave_with_the_textbook_velocities(method, e):
@@ -193,6 +194,7 @@ def test_a_small_body_crossing_a_thin_slab_between_two_frames_is_seen(impact_sea
     assert len(warned) == 1 and "between two frames" in warned[0] and "'slab'" in warned[0]
 
 
+@pytest.mark.slow
 def test_bodies_placed_inside_each_other_are_named_with_the_overlap():
     """Two balls of radius 0.1 m whose centres start 0.15 m apart overlap by 0.05 m: the warning says the scene
     placed them so, by how much, and to move them apart; it is not called a missed collision."""

@@ -28,6 +28,7 @@ def paddle(path, kind: str) -> str:
             "keyframes: [{time: 0}, {time: 1, offset: [2, 0, 0]}]}")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["plane", "mesh"])
 @pytest.mark.parametrize("restitution", [1.0, 0.5])
 def test_a_moving_plane_or_mesh_sends_a_ball_at_rest_off_at_1_plus_e_times_its_speed(tmp_path, kind, restitution):
@@ -45,6 +46,7 @@ colliders:
     assert trajectory.ledger["conservation"]["energy"]["conserved"] is False  # the collider does work
 
 
+@pytest.mark.slow
 def test_a_rising_floor_lifts_a_crate_and_a_cloth_lying_on_it(tmp_path):
     """The floor plane rises 1 m in 2 s along a clamped cubic (largest acceleration 1.5 m/s², less than g, so
     nothing leaves it): the crate rides at the floor's height plus its half side; every cloth vertex stays on the
@@ -85,6 +87,7 @@ def tray(path, kind: str) -> str:
     return f"{{type: mesh, file: tray.stl, material: pad, {keys}}}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["plane", "mesh"])
 def test_on_a_floor_tilted_to_30_degrees_a_block_slides_at_g_sin_minus_mu_g_cos(tmp_path, kind):
     """Once the tilt is held, the block slides down the 30° slope at g (sin θ − μ cos θ) for μ = 0.2; with
@@ -113,6 +116,7 @@ fields: [{{type: gravity}}]
     np.testing.assert_allclose(stuck.positions[-1, 0], turned, atol=2e-3)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["plane", "mesh"])
 def test_a_moving_plane_or_mesh_sends_resting_particles_off_at_1_plus_e_times_its_speed(tmp_path, kind):
     """Particles hanging at rest (no gravity) in the path of the collider moving at V = 2 m/s leave at
@@ -134,6 +138,7 @@ emitters:
     np.testing.assert_allclose(velocity[last], np.tile([3.0, 0, 0], (20, 1)), atol=3e-4)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("shape", ["{type: box, size: [0.1, 0.1, 0.1]}", "{type: cylinder, radius: 0.05, length: 0.1}"])
 def test_a_crate_and_a_drum_rest_on_a_fixed_mesh_slab_and_do_not_sink_through_it(tmp_path, shape):
     """A mesh collider is solid from both faces, so a corner probe that sinks a hair below its top face must be
@@ -155,6 +160,7 @@ fields: [{{type: gravity}}]
     np.testing.assert_allclose(trajectory.positions[:, 0, 1], 0.05, atol=2e-4)
 
 
+@pytest.mark.slow
 def test_the_overlap_audit_sees_a_lowering_floor_where_its_path_puts_it(tmp_path):
     """A crate riding a floor that sinks 0.5 m is never inside it; an audit that put the floor where it starts (the
     old fault) found the crate 0.4 m under it."""

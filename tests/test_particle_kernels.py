@@ -68,6 +68,7 @@ def by_serial(frames, frame: int) -> tuple[np.ndarray, np.ndarray]:
     return serials[order], frames.positions[frame][order].astype(float)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("method", "mode"), [("verlet", "bounce"), ("verlet", "stick"), ("symplectic_euler", "die"),
                                              ("euler", "bounce")])
 def test_the_compiled_pool_moves_the_same_particles_to_the_same_places_as_numpy(monkeypatch, method, mode):
@@ -111,6 +112,7 @@ def test_compiled_particles_fall_as_the_closed_form_of_quadratic_drag(monkeypatc
     assert expected[-1] / trajectory.times[-1] > 0.6 * terminal  # far enough to feel the drag
 
 
+@pytest.mark.slow
 def test_the_kernel_is_chosen_only_where_it_applies_and_pays(monkeypatch):
     """auto: numpy for small work, the kernel for large; numba: the kernel whatever the size; numpy: never. A field
     or collider the kernel does not cover keeps the numpy code. A wrong setting is named."""
@@ -136,6 +138,7 @@ def test_the_kernel_is_chosen_only_where_it_applies_and_pays(monkeypatch):
         kernels.compiled_kernels()
 
 
+@pytest.mark.slow
 def test_a_kernel_that_fails_to_build_leaves_the_run_to_numpy_and_says_so(monkeypatch):
     """numba loads but cannot compile (an LLVM or type error): the run goes on with the numpy code, whose results it
     gives, and warns once, naming the emitter and the setting that silences it."""
@@ -155,6 +158,7 @@ def test_a_kernel_that_fails_to_build_leaves_the_run_to_numpy_and_says_so(monkey
     np.testing.assert_array_equal(fallen.particles[0].positions, reference.particles[0].positions)
 
 
+@pytest.mark.slow
 def test_the_cost_pre_flight_prices_compiled_pools_at_the_kernel_s_cost(monkeypatch):
     """A pool the kernel will step is estimated at its cost per particle-step, one the numpy code steps at the numpy
     code's (so that a run the kernel makes affordable is not refused before it starts)."""
@@ -174,6 +178,7 @@ def test_the_cost_pre_flight_prices_compiled_pools_at_the_kernel_s_cost(monkeypa
     assert all(cost == PARTICLE_STEP_SECONDS for *_, cost in particle_costs(rk45.spec, systems, 300))
 
 
+@pytest.mark.slow
 def test_a_slow_kernel_build_is_announced_once_and_a_quick_one_never(monkeypatch):
     """A build still running after SLOW_BUILD (numba compiling, the first time on a machine) tells the announce hook
     once, with what is compiling; a build that loads from the cache at once says nothing, nor does any later one."""

@@ -25,6 +25,7 @@ def alive(frames, k: int) -> np.ndarray:
     return frames.serials[k] >= 0
 
 
+@pytest.mark.slow
 def test_a_particle_bounces_off_a_mesh_slab_as_off_a_plane(tmp_path):
     import trimesh
 
@@ -46,6 +47,7 @@ colliders: [{type: mesh, file: slab.stl, position: [0, 0.2, 0], material: bouncy
     assert height.min() >= -1e-6  # never into the slab
 
 
+@pytest.mark.slow
 def test_snow_settles_on_a_crate_a_log_and_a_ball_and_never_inside_them(tmp_path):
     trajectory = run(tmp_path, """duration: 1.2
 fps: 30
@@ -79,6 +81,7 @@ colliders: [{type: plane}]
     assert x[:, 1].min() > 0.005 - 1e-6  # and none under the floor
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("e", [1.0, 0.5])
 def test_a_moving_paddle_sends_resting_particles_off_at_one_plus_e_times_its_speed(tmp_path, e):
     """A box body moving at V = 2 m/s (no gravity) sweeps through particles hanging at rest: each leaves at
@@ -105,6 +108,7 @@ emitters:
     np.testing.assert_allclose(x[:, 1:], frames.positions[0][alive(frames, 0)][:, 1:].astype(float), atol=1e-5)
 
 
+@pytest.mark.slow
 def test_particles_stuck_to_a_moving_body_ride_along_with_it(tmp_path):
     """Dust fired at a crate gliding at constant velocity (no gravity) sticks to its face and then moves with it:
     between the last two frames every stuck particle moved exactly as far as the crate."""

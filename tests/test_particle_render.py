@@ -64,6 +64,7 @@ def draw(loaded, frames: list[int]) -> list[np.ndarray]:
                               trajectory.angular_velocities[k], (trajectory.particles, k)) for k in frames]
 
 
+@pytest.mark.slow
 def test_frames_drawn_in_chunks_have_the_same_pixels_as_one_pass():
     """Frames 12–20 drawn after frames 0–11 by one renderer, or by a fresh renderer as a chunk of their own, are
     pixel-identical (trails come from the trajectory, attributes from the serials, not from the renderer's past)."""
@@ -99,6 +100,7 @@ def test_size_ramp_grows_the_particles_on_screen(style):
     assert covered[0] > 20 and covered[1] > 4 * covered[0]  # 2.8² = 7.8 times the area at age 0.9 s
 
 
+@pytest.mark.slow
 def test_many_particles_make_no_mesh_per_particle(polydata_built):
     """10 000 live particles are drawn with as many PolyData objects as 10 (one cloud per emitter)."""
     built = polydata_built
@@ -112,6 +114,7 @@ def test_many_particles_make_no_mesh_per_particle(polydata_built):
     assert counts[0] == counts[1]
 
 
+@pytest.mark.slow
 def test_glowing_sprites_add_their_light_where_they_overlap():
     """Sprites are emitted light: four dim particles in one spot are several times as bright as one (additive
     blending), where ordinary alpha blending would leave a stack of opaque dim particles as dim as one."""

@@ -62,6 +62,7 @@ def test_keyframed_rate_and_bursts_give_the_integral_of_the_rate_plus_the_bursts
     np.testing.assert_array_equal(trajectory.particles[0].live_counts, expected)
 
 
+@pytest.mark.slow
 def test_a_particle_dies_at_its_lifetime_and_its_slot_is_reused():
     """With lifetime 0.5 s and 10/s, at most 5–6 are alive, the pool never grows past its automatic capacity, and
     slots are reused by later serials (reallocation)."""
@@ -120,6 +121,7 @@ def test_random_attributes_stay_within_their_declared_bounds():
     assert np.ptp(colors[:, 0]) > 0.19
 
 
+@pytest.mark.slow
 def test_two_runs_are_bit_identical_and_attributes_do_not_depend_on_the_step():
     """The same scene gives identical arrays twice; a particle's attributes depend on its serial only, not on the
     step size or how births were batched (counter-based streams)."""
@@ -191,6 +193,7 @@ def test_linear_drag_reaches_terminal_velocity_and_backward_euler_survives_stiff
         run(text.replace("backward_euler", "symplectic_euler").replace("duration: 0.5", "duration: 10"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kernels", ["numpy", "numba"])
 def test_bounce_on_a_plane_rises_to_e_squared_of_the_drop_height(monkeypatch, kernels):
     """A particle dropped from 1 m onto a plane of restitution e rises to e² m (a burst of one, fine steps), in the
@@ -330,6 +333,7 @@ def test_an_emitter_on_a_spinning_body_starts_particles_on_its_surface_with_its_
     assert emitter.body_name == "ball"
 
 
+@pytest.mark.slow
 def test_memory_and_live_count_stay_flat_under_steady_emission():
     """Emitting 5000/s with 1 s lives: after the first second the live count stays within 1 % of 5000, the pool
     never grows, and running four times longer takes no more memory (frames not recorded)."""

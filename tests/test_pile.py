@@ -9,6 +9,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from animbatch import api
 from animbatch.errors import AccuracyWarning
@@ -19,6 +20,7 @@ SHAPES = ["{type: box, size: [0.16, 0.1, 0.12]}", "{type: sphere, radius: 0.06}"
           "{type: mesh, file: gem.obj}"]
 
 
+@pytest.mark.slow
 def test_a_mixed_pile_dropped_in_a_bin_settles_without_overlap_or_energy_gain(tmp_path):
     shutil.copy(Path(__file__).parents[1] / "scenes" / "meshes" / "gem.obj", tmp_path)
     bodies = []

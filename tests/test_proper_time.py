@@ -32,6 +32,7 @@ def twins(solver: str) -> Trajectory:
     return trajectory
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver", [f"{{method: {m}}}" for m in ADAPTIVE] + [f"{{method: {m}, dt: 0.01}}"
                                                                            for m in FIXED_STEP])
 def test_a_clock_at_rest_keeps_coordinate_time_and_one_moving_steadily_runs_slow_by_gamma(solver):

@@ -295,6 +295,7 @@ def on_screen_extent(placement, aspect: float, points: np.ndarray, radius: np.nd
 FRAMED_SCENES = ["projectile", "bouncing_balls", "two_body_orbit", "tumbling_box", "dumbbell"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", FRAMED_SCENES)
 def test_the_fitted_camera_keeps_every_body_inside_the_frame_with_a_margin_over_the_whole_run(name):
     """The default camera is fitted to the whole motion: at every frame of the run every body, with its full

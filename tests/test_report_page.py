@@ -66,6 +66,7 @@ def decoded_frames(video) -> np.ndarray:
     return np.stack([np.frombuffer(frame, np.uint8).reshape(height, width, 3) for frame in reader])
 
 
+@pytest.mark.slow
 def test_the_page_plays_every_video_at_its_size_and_duration_and_seeks_to_the_frame_of_a_time(browser, sweep_page):
     """Three variants of 12 frames at 12 fps: each video reaches readyState ≥ 2 with duration 1 s and 160×96 pixels;
     its poster and energy plot load. Seeking the first to the middle of frame k's interval [k/fps, (k+1)/fps) shows
@@ -107,6 +108,7 @@ def test_the_page_plays_every_video_at_its_size_and_duration_and_seeks_to_the_fr
     page.close()
 
 
+@pytest.mark.slow
 def test_the_sweep_table_sorts_by_a_column_as_numbers(browser, sweep_page):
     """Clicking the mass column's header sorts the rows 5, 20, 100 (numbers, not text); again, 100, 20, 5; the
     variant column sorts with them, and each variant's name links to its section."""
@@ -135,6 +137,7 @@ def test_the_sweep_table_sorts_by_a_column_as_numbers(browser, sweep_page):
     page.close()
 
 
+@pytest.mark.slow
 def test_render_with_report_html_writes_the_page_of_that_render(tmp_cwd):
     """`render --report html`: renders/<scene>/index.html links the video (with its poster, the middle frame) and
     the energy plot, which it draws; every path in it is relative and exists."""

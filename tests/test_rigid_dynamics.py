@@ -32,6 +32,7 @@ def axis_in_world(trajectory, body: int, axis: int) -> np.ndarray:
     return Q.rotate(trajectory.orientations[:, body], np.eye(3)[axis])
 
 
+@pytest.mark.slow
 def test_torque_free_asymmetric_body_conserves_angular_momentum_and_energy():
     """Over 30 s of tumbling (several flips), L (world) and kinetic energy drift less than 1e-8 with DOP853."""
     model, trajectory = run(TUMBLING)
@@ -43,6 +44,7 @@ def test_torque_free_asymmetric_body_conserves_angular_momentum_and_energy():
     assert flips >= 5  # the intermediate axis keeps flipping over
 
 
+@pytest.mark.slow
 def test_spin_about_the_largest_or_smallest_axis_is_stable():
     """The same perturbation about the largest (x) or smallest (z) principal axis does not flip the body."""
     for spin, axis in (("[6.0, 0.15, 0.15]", 0), ("[0.15, 0.15, 6.0]", 2)):
@@ -51,6 +53,7 @@ def test_spin_about_the_largest_or_smallest_axis_is_stable():
         assert alignment.min() > 0.9
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", FIXED_STEP)
 def test_fixed_step_methods_keep_torque_free_angular_momentum(method):
     """Without torque, kicks leave L untouched and Runge-Kutta steps keep it to round-off; energy stays close."""
@@ -84,6 +87,7 @@ def test_free_symmetric_top_precesses_about_l_at_l_over_i1():
     assert np.ptp(axis @ unit) < 1e-8  # the cone angle stays fixed
 
 
+@pytest.mark.slow
 def test_heavy_top_precesses_at_the_analytic_rate():
     """The bundled top's axis turns about the vertical at the steady rate of a heavy symmetric top,
     Ω = (I₃ω₃ - sqrt((I₃ω₃)² - 4 I₁' m g d cos θ)) / (2 I₁' cos θ) (I₁' about the pivot), ≈ m g d / (I₃ ω₃)."""
@@ -184,6 +188,7 @@ HANGING = """
 """
 
 
+@pytest.mark.slow
 def test_spring_at_a_body_point_conserves_energy():
     """An undamped spring hooked to a corner: translation and rotation exchange energy, the total is conserved."""
     model, trajectory = run(HANGING)
@@ -201,6 +206,7 @@ def orientation_error(method: str, dt: float, reference) -> float:
     return max(positions, np.sqrt(2 * turns))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method, order", [("euler", 1), ("midpoint", 2), ("symplectic_euler", 1), ("verlet", 2)])
 def test_fixed_step_methods_converge_at_their_order_on_a_rigid_body(method, order):
     """On a box swinging and turning on a spring (configuration-dependent torque), halving dt divides the error
@@ -212,6 +218,7 @@ def test_fixed_step_methods_converge_at_their_order_on_a_rigid_body(method, orde
     assert np.all(np.abs(observed - order) < 0.25), f"{method}: observed {observed}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ADAPTIVE + FIXED_STEP)
 def test_quaternions_stay_unit_at_every_frame(method):
     """Every method, adaptive or fixed-step, delivers unit quaternions at every frame."""
@@ -228,6 +235,7 @@ def test_quaternions_stay_unit_at_every_frame(method):
 WATER = "{type: buoyancy, density: 1000, level: 0, linear_damping: 8000, angular_damping: 3000}"
 
 
+@pytest.mark.slow
 def test_floating_box_settles_at_archimedes_depth():
     """A 2 × 0.4 × 2 m box of density 300 floats with 0.3 of its height under water: centre at 0.2 - 0.12 m."""
     _, trajectory = run(f"""
@@ -241,6 +249,7 @@ def test_floating_box_settles_at_archimedes_depth():
     assert np.abs(trajectory.velocities[-1]).max() < 1e-3
 
 
+@pytest.mark.slow
 def test_tilted_floating_box_rights_itself():
     """Tilted by 25°, a stable raft turns back upright under the buoyant torque (damped, it settles)."""
     _, trajectory = run(f"""
@@ -280,6 +289,7 @@ def test_spheres_and_particles_float_at_the_depth_of_their_density():
     assert trajectory.positions[-1, names.index("light"), 1] == pytest.approx(r - depth, abs=1e-4)
 
 
+@pytest.mark.slow
 def test_bundled_floating_scene_settles_as_its_comment_says():
     """The log floats with its centre 0.024 m under water, and the balsa cube upright with 15 % submerged."""
     loaded = load_scene(ROOT / "scenes" / "floating.yaml")
@@ -304,6 +314,7 @@ def test_bundled_dumbbell_centre_follows_the_parabola_and_spins_steadily():
     assert start[0] > 0.05  # the centre of mass sits towards the heavier ball (+x), not at the shape origin
 
 
+@pytest.mark.slow
 def test_bundled_hanging_box_settles_with_its_centre_under_the_hook():
     """The box hung from a corner comes to rest with hook, corner and centre of mass on one vertical line (within
     5 mm, for a 40 cm box, by the end of the 12 s scene)."""

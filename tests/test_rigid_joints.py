@@ -57,6 +57,7 @@ def physical_pendulum_period(amplitude_deg: float) -> float:
     return 4 * np.sqrt(inertia / (G * BAR_LENGTH / 2)) * ellipk(np.sin(np.radians(amplitude_deg) / 2) ** 2)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("amplitude", [5.0, 120.0])
 def test_a_bar_on_a_hinge_swings_with_the_physical_pendulums_period(amplitude):
     trajectory, period, loaded = hinged_bar(amplitude, ACCURATE)
@@ -65,6 +66,7 @@ def test_a_bar_on_a_hinge_swings_with_the_physical_pendulums_period(amplitude):
     assert trajectory.ledger["conservation"]["energy"]["drift"] < 1e-8
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method, dt, order", [("verlet", 2e-3, 2), ("symplectic_euler", 1e-3, 1),
                                               ("backward_euler", 1e-3, 1)])
 def test_fixed_step_methods_hold_the_hinge_exactly_and_any_energy_gain_is_their_error(method, dt, order):
@@ -103,6 +105,7 @@ def test_a_hanging_bar_is_held_by_its_weight_and_a_welded_cantilever_by_its_bend
     np.testing.assert_allclose(beam.joint_torques[:, 0], np.tile([0, 0, BAR_MASS * G * 0.5], (len(beam.times), 1)), atol=1e-9)
 
 
+@pytest.mark.slow
 def test_a_chaotic_double_pendulum_of_hinged_bars_keeps_its_energy_and_joints():
     loaded = scene("""
         duration: 20
@@ -126,6 +129,7 @@ def test_a_chaotic_double_pendulum_of_hinged_bars_keeps_its_energy_and_joints():
     assert np.ptp(trajectory.positions[:, 1, 1]) > 1.0  # it really swung
 
 
+@pytest.mark.slow
 def test_a_heavy_top_on_a_ball_joint_keeps_its_energy_and_its_vertical_angular_momentum():
     """A spinning disc on a ball joint, its axis tilted: gravity's torque about the pivot is horizontal, so the
     vertical component of the angular momentum about the pivot stays, as does the energy."""
@@ -236,6 +240,7 @@ def test_slider_limits_stop_the_box(solver, slop):
     assert travel[5] == pytest.approx(0.5 * G * 0.5 * trajectory.times[5] ** 2, abs=1e-6)  # free before
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver, slop", [(ACCURATE, 1e-7), ("{method: verlet, dt: 0.001}", 1e-9)])
 def test_hinge_limits_stop_the_swing(solver, slop):
     trajectory, _, _ = hinged_bar(0.0, solver, duration=2.0, extra=", limits: [-0.5, 0.5]")
@@ -257,6 +262,7 @@ def test_hinge_limits_stop_the_swing(solver, slop):
     assert angle.max() > 0.5 - 1e-3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver, slop", [(ACCURATE, 1e-7), ("{method: verlet, dt: 0.001}", 1e-9)])
 def test_a_weight_on_a_slack_rope_falls_freely_until_the_rope_is_taut(solver, slop):
     loaded = scene(f"""
@@ -312,6 +318,7 @@ def test_a_slider_motor_drives_the_box_to_its_target_critically_damped():
     np.testing.assert_allclose(trajectory.positions[:, 0, 1:], 0, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_bodies_joined_to_each_other_keep_their_momentum_angular_momentum_and_energy():
     """Two boxes on a ball joint, and a third welded to the second, thrown spinning with no forces: the joints are
     internal, so the total momentum and angular momentum stay, and they do no work."""
@@ -366,6 +373,7 @@ def test_a_box_hung_by_a_rod_from_its_corner_rests_with_its_centre_under_the_hoo
     assert trajectory.ledger["joints"]["max_violation"] < 1e-9
 
 
+@pytest.mark.slow
 def test_bodies_a_joint_joins_do_not_collide_with_each_other():
     """Two boxes that overlap where a hinge joins them (as a door's edge sits in its frame): contact between them
     would fight the joint, so jointed pairs never touch; a third, free box still collides with them."""
@@ -401,6 +409,7 @@ def test_choosing_force_arrows_without_showing_forces_is_an_error_with_the_fix()
     assert "show (velocity) does not draw forces: add it, e.g. show: [forces]" in str(error.value)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("weight, plank", [(5.0, 0.5), (50.0, 0.5), (100.0, 0.1)])
 def test_joints_and_contacts_are_solved_together_so_a_weight_on_a_stalk_cannot_press_a_plank_through_the_floor(
         weight, plank):

@@ -5,6 +5,7 @@ g (sin θ − μk cos θ) when it does not."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from animbatch import api
 from conftest import scene
@@ -34,6 +35,7 @@ def log_on_incline(friction: float) -> tuple:
     return trajectory, travel, np.array(normal)
 
 
+@pytest.mark.slow
 def test_a_solid_cylinder_rolls_down_an_incline_at_two_thirds_g_sin_theta():
     trajectory, travel, normal = log_on_incline(1.0)
     t = trajectory.times
@@ -45,6 +47,7 @@ def test_a_solid_cylinder_rolls_down_an_incline_at_two_thirds_g_sin_theta():
     np.testing.assert_allclose(height, RADIUS, atol=2e-4)  # a circle, not a polygon of rim probes
 
 
+@pytest.mark.slow
 def test_on_a_slippery_incline_it_slides_at_g_sin_theta_minus_mu_cos_theta():
     mu = 0.05  # below tan θ / 3 = 0.12: it cannot roll without slipping
     trajectory, travel, _ = log_on_incline(mu)

@@ -24,6 +24,7 @@ SPRING = """
 """
 
 
+@pytest.mark.slow
 def test_python_dash_m_runs_the_command():
     """'python -m animbatch' is the same program as the 'animbatch' console script."""
     result = subprocess.run([sys.executable, "-m", "animbatch", "--version"], capture_output=True, text=True,
@@ -63,6 +64,7 @@ def test_explicit_methods_count_every_evaluation(method):
     assert trajectory.solver_stats["rhs_evaluations"] == trajectory.solver_stats["scipy_nfev"]
 
 
+@pytest.mark.slow
 def test_max_step_limits_adaptive_steps():
     """With max_step, an adaptive method takes at least duration / max_step steps."""
     _, loose = run(SPRING, "solver.method=RK45")

@@ -17,6 +17,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENES = sorted([*(ROOT / "scenes").glob("*.yaml"), *(ROOT / "templates").glob("*.yaml")])
 
 
+@pytest.mark.slow
 @pytest.mark.render
 @pytest.mark.parametrize("path", SCENES, ids=[p.stem for p in SCENES])
 def test_example_scene_renders(path, tmp_path):

@@ -116,6 +116,7 @@ def test_a_stopwatch_times_an_oscillators_period_between_two_upward_crossings():
     assert reading.start == pytest.approx(0.75 * period, abs=2e-5)  # from x = +A: the first upward pass is at 3T/4
 
 
+@pytest.mark.slow
 def test_the_overlay_shows_stopwatches_and_wall_times_and_the_run_reports_them(tmp_path):
     text = BOUNCE.format(watches="      - {name: fall, stop: {body: ball, point: [0, 0.1, 0]}, expected: 0.63855}")
     text += '    render: {time_label: "{stopwatch[fall]:.3f} s {wall_simulate:.1f} {wall_render:.1f} {wall_frame:.1f}"}\n'

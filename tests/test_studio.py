@@ -120,6 +120,7 @@ def test_ambient_occlusion_darkens_the_ground_where_a_body_touches_it_and_nothin
     assert np.abs(darker[-10:, :40]).max() <= 3, "nor the ground far from the ball"
 
 
+@pytest.mark.slow
 def test_the_overlay_draws_the_notes_symbols():
     """π, ω, τ, γ and ≈ (proper time, periods, γ factors) are drawn, not dropped: VTK's own fonts lack them."""
     def ink(label: str) -> int:

@@ -211,6 +211,7 @@ def test_study_without_closed_form_checks_its_reference_and_marks_points_it_cann
     assert all(row.limited_by_reference == (row.position_error <= 2 * result.reference_floor) for row in rows)
 
 
+@pytest.mark.slow
 def test_failed_runs_are_kept_with_their_reason():
     """A step the stability check refuses and a run over its time limit are rows with status and reason, and count
     as failures of their method."""
@@ -343,6 +344,7 @@ def test_a_study_with_collisions_measures_bounce_time_errors():
     assert "contact" in table(result) and "contact_time_error" in csv_text(result).splitlines()[0]
 
 
+@pytest.mark.slow
 def test_bundled_scenes_that_declare_closed_forms_have_them_and_a_tight_run_agrees():
     """Every scene in scenes/ with study.closed_form gets its exact motion, and a DOP853 run at 1e-11 matches it to
     1e-7 of the scene's length scale (so the study measures against the right thing)."""

@@ -84,6 +84,7 @@ def brightest(metallic: float) -> np.ndarray:
     return ball[np.argsort(ball.sum(axis=1))[-30:]].mean(axis=0)
 
 
+@pytest.mark.slow
 @pytest.mark.render
 def test_a_metal_tints_its_highlights_with_its_colour_and_a_dielectric_does_not():
     """Physically based shading: a dielectric reflects about 4 % of every colour alike, so the highlight on red

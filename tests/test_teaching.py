@@ -73,6 +73,7 @@ def test_templates_ship_as_package_data_so_an_installed_wheel_has_them():
     assert {p.stem for p in folder.glob("*.yaml")} == {t.name for t in templates()}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(SOLUTIONS))
 def test_a_solved_template_passes_and_the_template_as_given_does_not(name, tmp_path):
     reference = write(tmp_path, name, SOLUTIONS[name], "solution.yaml")
@@ -82,6 +83,7 @@ def test_a_solved_template_passes_and_the_template_as_given_does_not(name, tmp_p
     assert not unsolved.passed and unsolved.score < unsolved.max_score, unsolved.table()
 
 
+@pytest.mark.slow
 def test_a_wrong_spring_constant_fails_the_check_that_depends_on_it(tmp_path):
     reference = write(tmp_path, "hanging_chain", SOLUTIONS["hanging_chain"], "solution.yaml")
     wrong = dict(SOLUTIONS["hanging_chain"])
@@ -92,6 +94,7 @@ def test_a_wrong_spring_constant_fails_the_check_that_depends_on_it(tmp_path):
     assert "position of 'b4'" in check.output and "tolerance 0.005 m" in check.output and "Hint: k = " in check.output
 
 
+@pytest.mark.slow
 def test_a_wrong_integrator_fails_the_method_check_naming_what_is_asked(tmp_path):
     reference = write(tmp_path, "kepler_orbit", SOLUTIONS["kepler_orbit"], "solution.yaml")
     euler = {**SOLUTIONS["kepler_orbit"], ("solver", "method"): "euler"}
@@ -137,6 +140,7 @@ def test_a_reference_without_checks_is_refused(tmp_path):
         grade(reference, reference)
 
 
+@pytest.mark.slow
 def test_the_command_prints_a_table_writes_json_and_junit_and_exits_by_the_result(tmp_path):
     reference = write(tmp_path, "projectile_drag", SOLUTIONS["projectile_drag"], "solution.yaml")
     mine = start("projectile_drag", tmp_path / "mine.yaml")  # drag left at 0: the path in air fails
@@ -157,6 +161,7 @@ def test_the_command_prints_a_table_writes_json_and_junit_and_exits_by_the_resul
     assert subprocess.run(command, capture_output=True, text=True).returncode == 0
 
 
+@pytest.mark.slow
 def test_new_lists_copies_and_refuses_to_overwrite(tmp_path):
     listing = subprocess.run([sys.executable, "-m", "animbatch", "new", "--list"], capture_output=True, text=True,
                              check=True).stdout
@@ -183,6 +188,7 @@ def test_a_check_naming_an_unknown_body_or_stopwatch_is_refused_with_the_fix(tmp
     assert "assignment.checks[0].stopwatch: unknown stopwatch 'perod'; did you mean 'period'?" in message
 
 
+@pytest.mark.slow
 def test_conserved_quantities_are_checked_by_their_drift(tmp_path):
     """The solved orbit keeps momentum and angular momentum to round-off, so tight drift checks pass; energy with
     Euler drifts and fails."""

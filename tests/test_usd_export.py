@@ -188,6 +188,7 @@ def test_shapes_have_the_scenes_sizes_and_colours(tmp_cwd):
     assert np.allclose(sphere.GetDisplayColorAttr().Get()[0], [1, 0, 0])
 
 
+@pytest.mark.slow
 def test_colliders_are_meshes_and_a_moving_one_moves_as_its_keyframes_say(tmp_cwd):
     """The floor is a 6 m square at y = 0; the box's mesh spans its size around its position; at frame k the box's
     transform moves it by the linear keyframes' offset (0.8 t, 0, 0); the invisible collider is left out."""
@@ -271,6 +272,7 @@ def test_cloth_keeps_its_triangles_and_moves_as_simulated(tmp_cwd):
         assert hanging[:, 1].min() < start_pinned[:, 1].min() - 0.01  # the rest of it sags
 
 
+@pytest.mark.slow
 def test_emitted_particles_keep_their_ids_and_attributes(tmp_cwd):
     """The points at each frame are the trajectory's live particles, id for serial; a particle keeps its id as it
     flies: over three frames its positions are equally spaced on a line (constant velocity), its age grows by one

@@ -136,6 +136,7 @@ def relative_energy(model, trajectory) -> np.ndarray:
     return energy / abs(energy[0]) - np.sign(energy[0])
 
 
+@pytest.mark.slow
 def test_symplectic_orbit_energy_stays_bounded_while_explicit_rk_drifts():
     """Over 30 orbits Verlet's energy error oscillates in a band and does not grow; RK45's error accumulates
     (secular drift); its angular momentum drifts too while Verlet keeps it to round-off (central forces)."""
@@ -166,6 +167,7 @@ def test_explicit_euler_spirals_out_at_the_rate_its_error_analysis_gives(dt):
     assert energy[-1] == pytest.approx(4 * np.pi * dt, rel=0.06)
 
 
+@pytest.mark.slow
 def test_backward_euler_on_an_orbit_takes_its_steps_without_halving():
     """Gravitation has no derivatives in the implicit solve, so it enters explicitly and the orbit is stepped like
     symplectic Euler: energy oscillates within O(h) and never drifts. The energy guard of backward Euler (halve a
@@ -244,6 +246,7 @@ def test_near_collision_with_an_adaptive_method_conserves_energy_and_momentum():
     assert np.abs(trajectory.velocities.sum(axis=1)).max() < 1e-12
 
 
+@pytest.mark.slow
 def test_near_collision_at_a_fixed_step_is_stopped_unless_softened():
     """Verlet at dt = 1 ms cannot follow the unsoftened pass: the two bodies leave with hundreds of times the
     scene's energy, and the energy guard stops the run, naming the body and suggesting softening. Softened by 5 cm,
@@ -269,6 +272,7 @@ def test_near_collision_at_a_fixed_step_is_stopped_unless_softened():
 # ------------------------------------------------------------------------------------------------ contact
 
 
+@pytest.mark.slow
 def test_zeno_bouncing_ends_at_rest_without_gaining_energy():
     """A ball with e = 0.5: infinitely many bounces in finite time (t₀ (1 + 2e / (1 - e)) = 3 t₀). The event-driven
     path ends them all by then, puts the ball to rest exactly on the ground, and its energy never rises."""
@@ -292,6 +296,7 @@ def test_zeno_bouncing_ends_at_rest_without_gaining_energy():
 BOUNCING_BALLS = Path(__file__).resolve().parents[2] / "scenes" / "bouncing_balls.yaml"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA"])
 @pytest.mark.parametrize("rtol, atol", [(1.0e-5, 1.0e-7), (1.0e-3, 5.0e-3)])
 def test_balls_at_rest_stay_on_the_floor_while_others_bounce_at_loose_tolerances(method, rtol, atol):
@@ -316,6 +321,7 @@ def test_balls_at_rest_stay_on_the_floor_while_others_bounce_at_loose_tolerances
         assert np.abs(trajectory.velocities[resting, column]).max() < 1e-4
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["RK23", "RK45", "DOP853", "Radau"])
 def test_bounces_are_exact_at_the_loosest_tolerance_when_free_flight_is_a_parabola(method):
     """Runge–Kutta methods of order two and more integrate a parabola exactly, so with impacts located on their
@@ -383,6 +389,7 @@ BENCHMARK_CLOTH = stiff_cloth("[1.0, 1.0]", "[16, 16]", "{stiffness: 2000, dampi
                               "{stiffness: 500, damping: 0.075}", "{stiffness: 50, damping: 0.0075}")
 
 
+@pytest.mark.slow
 def test_stiff_cloth_with_bdf_and_its_jacobian_loses_energy_and_never_gains_it():
     """A stiff damped cloth (ω ≈ 2·10⁴ rad/s) falling from horizontal with BDF and the analytic Jacobian: bounded,
     its total energy non-increasing (to the tolerance), no spring stretched by more than 1 %."""
@@ -397,6 +404,7 @@ def test_stiff_cloth_with_bdf_and_its_jacobian_loses_energy_and_never_gains_it()
     assert (length / springs.rest_length[free]).max() < 1.01
 
 
+@pytest.mark.slow
 def test_bdf_at_a_loose_tolerance_stays_below_the_steps_where_newton_failed():
     """The 16×16 benchmark cloth (structural 2000 N/m, 0.2 kg/m²) with BDF at rtol 1e-2: without the cap, scipy's
     step controller grows the step straight back to where Newton's iteration fails, and factorises the Newton
@@ -446,6 +454,7 @@ def test_lsoda_on_a_large_spring_system_is_warned_about_and_a_small_one_is_not()
         assert preflight(compile_scene(small.spec), "LSODA") == []
 
 
+@pytest.mark.slow
 def test_a_stiff_pd_controller_counts_as_a_spring_for_the_pre_flight_check():
     """A controller is a virtual spring to its target: verlet at one step per frame on the bead (ks = 2000 N/m on
     0.1 kg: ω = 141 rad/s, critically damped) is refused before it starts, naming the controller, instead of blowing
