@@ -5,7 +5,9 @@ arithmetic: a step of a 20-link hinge chain is dozens of numpy calls on 3-vector
 :class:`~animbatch.sim.model.dynamics.Dynamics` with its hot forms (``rhs``, ``motion_rate``, ``drift``,
 ``project``) each one compiled call (:mod:`animbatch.sim.kernels.stepper`), and with :meth:`~CompiledDynamics.advance`,
 which steps a whole frame of a fixed-step method in one call. Everything else (energies, joint reactions, events,
-contacts) is inherited and stays numpy, which remains the reference the kernels are tested against.
+contacts) is inherited and stays numpy, which remains the reference the kernels are tested against. A scene with
+contacts takes the compiled forms step by step, with the contact solve between its kick and its drift in numpy
+(:class:`~animbatch.sim.contact.stepping.ContactResolver`).
 
 A model is compiled when every part of it has a compiled form (:func:`stepper_tables` names the first that has
 none) and when its numpy run would take long enough to repay loading numba (:func:`dynamics_for`).
@@ -212,8 +214,6 @@ def stepper_tables(model: Model) -> PackedTables | str:
         return "it has proper-time clocks"
     if model.kinematic is not None:
         return "it has rigid bodies on keyframes"
-    if model.contact_world is not None:
-        return "it has contacts"
     if not model.layout.size:
         return "it has no bodies"
     paths = _Paths()
