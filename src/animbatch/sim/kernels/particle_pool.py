@@ -303,49 +303,84 @@ def _push_out(solids, gap, p0, p1, p2, u0, u1, u2, r):
 
 #: Particles taken through the steps of a call together: their arithmetic interleaves (a single particle's steps
 #: are one long chain of dependent square roots and divisions, which leaves the core waiting), and their state stays
-#: in the first-level cache between steps.
+#: in the first-level cache between steps. At most 64: a block's particles that need the collision code are marked
+#: in the bits of one integer.
 BLOCK = 32
 
 
 @njit(cache=True, inline="always")
+def _motion(i, h, x, v, a, mass, radius, method, fields):
+    """One step ``h`` [s] of particle ``i``'s motion under the fields, without colliders: the start s, the end p,
+    the velocity u and the acceleration c there (each three numbers)."""
+    m = mass[i]
+    r = radius[i]
+    s0, s1, s2 = x[i, 0], x[i, 1], x[i, 2]  # the step's path starts here
+    u0, u1, u2 = v[i, 0], v[i, 1], v[i, 2]
+    c0, c1, c2 = a[i, 0], a[i, 1], a[i, 2]
+    if method == METHOD_VERLET:
+        p0 = s0 + h * u0 + (0.5 * h * h) * c0
+        p1 = s1 + h * u1 + (0.5 * h * h) * c1
+        p2 = s2 + h * u2 + (0.5 * h * h) * c2
+        n0, n1, n2 = _acceleration(fields, p0, p1, p2, u0 + h * c0, u1 + h * c1, u2 + h * c2, m, r)
+        u0 = u0 + (0.5 * h) * (c0 + n0)
+        u1 = u1 + (0.5 * h) * (c1 + n1)
+        u2 = u2 + (0.5 * h) * (c2 + n2)
+        c0, c1, c2 = n0, n1, n2
+    else:
+        c0, c1, c2 = _acceleration(fields, s0, s1, s2, u0, u1, u2, m, r)
+        if method == METHOD_SYMPLECTIC_EULER:
+            u0 = u0 + h * c0
+            u1 = u1 + h * c1
+            u2 = u2 + h * c2
+            p0 = s0 + h * u0
+            p1 = s1 + h * u1
+            p2 = s2 + h * u2
+        else:  # explicit Euler: positions move with the velocity from before the step
+            p0 = s0 + h * u0
+            p1 = s1 + h * u1
+            p2 = s2 + h * u2
+            u0 = u0 + h * c0
+            u1 = u1 + h * c1
+            u2 = u2 + h * c2
+    return s0, s1, s2, p0, p1, p2, u0, u1, u2, c0, c1, c2
+
+
+@njit(cache=True, inline="always")
+def _clear(solids, s0, s1, s2, p0, p1, p2, r, gap):
+    """Whether the path s → p of a particle of radius ``r`` certainly meets no solid and ends outside them all (so
+    that neither a hit nor a push can follow): it ends a radius or more in front of every plane, and stays outside
+    a sphere around each sphere and box grown by the radius."""
+    travel = math.sqrt((p0 - s0) ** 2 + (p1 - s1) ** 2 + (p2 - s2) ** 2)
+    for k in range(solids.shape[0]):
+        c0, c1, c2 = solids[k, CENTRE], solids[k, CENTRE + 1], solids[k, CENTRE + 2]
+        if solids[k, SOLID] == SOLID_PLANE:
+            ahead = ((p0 - c0) * solids[k, NORMAL] + (p1 - c1) * solids[k, NORMAL + 1]
+                     + (p2 - c2) * solids[k, NORMAL + 2])
+            if ahead < r:
+                return False
+        else:
+            if solids[k, SOLID] == SOLID_SPHERE:
+                reach = solids[k, RADIUS] + r
+            else:
+                reach = math.sqrt((solids[k, HALF] + r) ** 2 + (solids[k, HALF + 1] + r) ** 2
+                                  + (solids[k, HALF + 2] + r) ** 2)
+            if math.sqrt((p0 - c0) ** 2 + (p1 - c1) ** 2 + (p2 - c2) ** 2) - travel <= reach + gap:
+                return False
+    return True
+
+
+@njit(cache=True)
 def _step(i, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, method, fields, solids, mode,
           max_bounces, gap, gravity, age, collide):
-    """One step ``h`` [s] ending at ``t_to`` of particle ``i`` (in place). Returns its hits on solids and whether it
-    died."""
+    """One step ``h`` [s] ending at ``t_to`` of particle ``i`` (in place), with everything collisions can do.
+    Returns its hits on solids and whether it died. (A call, not inlined: the particles the block's fast pass
+    leaves to it are few, and its code kept out of that pass lets the pass stay lean.)"""
     if not alive[i]:
         return 0, False
     hits = 0
     if not stuck[i]:
-        m = mass[i]
         r = radius[i]
-        s0, s1, s2 = x[i, 0], x[i, 1], x[i, 2]  # the step's path starts here
-        u0, u1, u2 = v[i, 0], v[i, 1], v[i, 2]
-        c0, c1, c2 = a[i, 0], a[i, 1], a[i, 2]
-        if method == METHOD_VERLET:
-            p0 = s0 + h * u0 + (0.5 * h * h) * c0
-            p1 = s1 + h * u1 + (0.5 * h * h) * c1
-            p2 = s2 + h * u2 + (0.5 * h * h) * c2
-            n0, n1, n2 = _acceleration(fields, p0, p1, p2, u0 + h * c0, u1 + h * c1, u2 + h * c2, m, r)
-            u0 = u0 + (0.5 * h) * (c0 + n0)
-            u1 = u1 + (0.5 * h) * (c1 + n1)
-            u2 = u2 + (0.5 * h) * (c2 + n2)
-            c0, c1, c2 = n0, n1, n2
-        else:
-            c0, c1, c2 = _acceleration(fields, s0, s1, s2, u0, u1, u2, m, r)
-            if method == METHOD_SYMPLECTIC_EULER:
-                u0 = u0 + h * c0
-                u1 = u1 + h * c1
-                u2 = u2 + h * c2
-                p0 = s0 + h * u0
-                p1 = s1 + h * u1
-                p2 = s2 + h * u2
-            else:  # explicit Euler: positions move with the velocity from before the step
-                p0 = s0 + h * u0
-                p1 = s1 + h * u1
-                p2 = s2 + h * u2
-                u0 = u0 + h * c0
-                u1 = u1 + h * c1
-                u2 = u2 + h * c2
+        s0, s1, s2, p0, p1, p2, u0, u1, u2, c0, c1, c2 = _motion(i, h, x, v, a, mass, radius, method, fields)
         if collide:
             which, fraction, n0, n1, n2 = _first_hit(solids, s0, s1, s2, p0, p1, p2, r)
             if which >= 0:
@@ -370,6 +405,49 @@ def _step(i, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, meth
     return hits, False
 
 
+@njit(cache=True)
+def _advance_block(low, high, x, v, a, alive, stuck, mass, radius, birth, lifetime, times, method, fields, solids,
+                   mode, max_bounces, gap, gravity, age, collide):
+    """The steps between the instants ``times`` of the particles ``low … high − 1`` (a block, at most 64); returns
+    (hits, deaths). Each step is two passes. The first moves every particle whose path is clear of every solid
+    (:func:`_clear`), in a loop without calls, which the compiler turns into vector instructions; it leaves the
+    others as they were and marks them. The second takes the marked ones through :func:`_step`, collisions and all,
+    from the same start: the same arithmetic, so every particle ends where :func:`_step` alone would put it."""
+    for i in range(low, high):  # a stuck particle is held: no velocity, no acceleration
+        if alive[i] and stuck[i]:
+            v[i, 0] = v[i, 1] = v[i, 2] = a[i, 0] = a[i, 1] = a[i, 2] = 0.0
+    hits = 0
+    deaths = 0
+    for k in range(times.shape[0] - 1):
+        h = times[k + 1] - times[k]
+        t_to = times[k + 1]
+        marked = 0
+        for i in range(low, high):
+            if not alive[i]:
+                continue
+            if stuck[i]:
+                marked |= 1 << (i - low)
+                continue
+            s0, s1, s2, p0, p1, p2, u0, u1, u2, c0, c1, c2 = _motion(i, h, x, v, a, mass, radius, method, fields)
+            if collide and not _clear(solids, s0, s1, s2, p0, p1, p2, radius[i], gap):
+                marked |= 1 << (i - low)
+                continue
+            x[i, 0], x[i, 1], x[i, 2] = p0, p1, p2
+            v[i, 0], v[i, 1], v[i, 2] = u0, u1, u2
+            a[i, 0], a[i, 1], a[i, 2] = c0, c1, c2
+            if age and t_to - birth[i] >= lifetime[i]:
+                alive[i] = False
+                v[i, 0] = v[i, 1] = v[i, 2] = 0.0
+                deaths += 1
+        for j in range(high - low):
+            if (marked >> j) & 1:
+                hit, died = _step(low + j, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, method,
+                                  fields, solids, mode, max_bounces, gap, gravity, age, collide)
+                hits += hit
+                deaths += died
+    return hits, deaths
+
+
 @njit(cache=True, parallel=True)
 def advance_pool(x, v, a, alive, stuck, mass, radius, birth, lifetime, times, method, fields, solids, mode,
                  max_bounces, gap, gravity, age):
@@ -382,19 +460,9 @@ def advance_pool(x, v, a, alive, stuck, mass, radius, birth, lifetime, times, me
     count = x.shape[0]
     for block in prange((count + BLOCK - 1) // BLOCK):
         low = block * BLOCK
-        high = min(low + BLOCK, count)
-        for i in range(low, high):  # a stuck particle is held: no velocity, no acceleration
-            if alive[i] and stuck[i]:
-                v[i, 0] = v[i, 1] = v[i, 2] = a[i, 0] = a[i, 1] = a[i, 2] = 0.0
-        hits = 0
-        deaths = 0
-        for k in range(times.shape[0] - 1):
-            h = times[k + 1] - times[k]
-            for i in range(low, high):
-                hit, died = _step(i, h, times[k + 1], x, v, a, alive, stuck, mass, radius, birth, lifetime, method,
-                                  fields, solids, mode, max_bounces, gap, gravity, age, collide)
-                hits += hit
-                deaths += died
+        hits, deaths = _advance_block(low, min(low + BLOCK, count), x, v, a, alive, stuck, mass, radius, birth,
+                                      lifetime, times, method, fields, solids, mode, max_bounces, gap, gravity, age,
+                                      collide)
         hit_total += hits
         death_total += deaths
     return hit_total, death_total
