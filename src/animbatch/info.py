@@ -14,6 +14,7 @@ from animbatch.sim.integrators import DEFAULT_DT
 from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.ledger import conservation_laws, step_note
 from animbatch.sim.model import Model
+from animbatch.sim.model.compiled import stepper_tables
 from animbatch.summary import describe_solver, plural
 
 
@@ -94,6 +95,13 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
     absent = [name for name in (*FIELD_TERMS, "spring", "controller", "dihedral") if name not in declared]
     if absent:
         lines.append(f"           not compiled (not declared): {', '.join(absent)}")
+    if model.layout.size:
+        tables = stepper_tables(model)
+        lines.append("kernels    " + ("the equations of motion have a compiled form, taken when the numpy run would "
+                                      "take a second or more (ANIMBATCH_KERNELS=numba|numpy chooses)"
+                                      + ("; the contact search and solve stay numpy" if model.contact_world is not None
+                                         else "")
+                                      if not isinstance(tables, str) else f"numpy equations of motion: {tables}"))
     bodies = model.bodies
     counts = [plural(model.particle_count, "particle")] if model.particle_count else []
     counts += [plural(model.rigid_count, "rigid body", "rigid bodies")] if model.rigid_count else []

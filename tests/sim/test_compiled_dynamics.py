@@ -265,3 +265,17 @@ def test_with_contacts_the_compiled_forms_take_the_steps_around_the_numpy_contac
     assert runs["numba"].solver_stats["impacts"]  # the bodies did meet the floor
     np.testing.assert_allclose(runs["numba"].positions, runs["numpy"].positions, rtol=0, atol=1e-9)
     np.testing.assert_allclose(runs["numba"].orientations, runs["numpy"].orientations, rtol=0, atol=1e-9)
+
+
+def test_info_says_whether_a_scene_has_compiled_equations_of_motion_and_why_not():
+    """'animbatch info' names the kernels line: compiled where every part has a compiled form, else the reason."""
+    from animbatch.info import describe_model
+
+    jointed = scene("duration: 1\nfps: 10\n" + "\n".join(line[8:] for line in SCENES["rods, a rope and a pulley"]
+                                                          .splitlines()))
+    assert "kernels    the equations of motion have a compiled form" in describe_model(
+        jointed, compile_scene(jointed.spec))
+    dragged = scene("duration: 1\nfps: 10\nbodies: [{name: p, mass: 1, radius: 0.1}]\n"
+                    "fields: [{type: drag, model: linear, coefficient: 1}]\n")
+    assert ("kernels    numpy equations of motion: its drag term has no compiled form"
+            in describe_model(dragged, compile_scene(dragged.spec)))
