@@ -38,3 +38,26 @@ def test_the_cheap_benchmarks_run_and_report_every_number(tmp_path, half):
             assert math.isfinite(value) and value >= 0, row
     # the table on stdout lists every row
     assert len([line for line in finished.stdout.splitlines() if line.strip()]) >= len(rows) + 3
+
+
+def test_the_peers_benchmark_builds_each_case_twice_from_the_same_numbers():
+    """The MuJoCo comparison (benchmarks/peers.py, run only where the bench extra is installed) keeps its two sides
+    alike: the animbatch chain and the MJCF chain have the same bars, masses and hinges, and both parse."""
+    from xml.etree import ElementTree
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import peers
+    from animbatch.compile.model import compile_scene
+    from animbatch.stages import parse_scene
+
+    model = compile_scene(parse_scene(peers.chain_scene(count=5, mass=0.2), filename="chain.yaml").spec)
+    assert model.rigid_count == 5 and model.joints.count == 5
+    assert model.rigid.mass == pytest.approx([0.2] * 5)
+    xml = ElementTree.fromstring(peers.chain_mjcf(count=5, mass=0.2))
+    assert len(xml.findall(".//joint[@type='hinge']")) == 5
+    assert [float(geom.get("mass")) for geom in xml.iter("geom")] == pytest.approx([0.2] * 5)
+    assert compile_scene(parse_scene(peers.bar_scene(100), filename="bar.yaml").spec).joints.count == 1
+    # a 1 m bar about its end: 2π √(2L/3g) for small swings, some 7 % longer at 60°
+    assert peers.bar_period() == pytest.approx(2 * math.pi * math.sqrt(2 * 1.0 / (3 * 9.81)) * 1.073, rel=1e-3)
+    ElementTree.fromstring(peers.bar_mjcf())
+    ElementTree.fromstring(peers.double_pendulum_mjcf())
