@@ -9,7 +9,8 @@ tables of :mod:`animbatch.sim.kernels.tables`. Same formulas, so the two agree t
 Slot arrays (S = J + M + 1: joined bodies, anchors on keyframes, the world): ``sx``, ``sv`` (S, 3) [m, m/s];
 ``srotation`` (S, 3, 3); ``somega`` (S, 3) [rad/s]; ``sinverse_inertia`` (S, 3, 3), world axes; ``sspin`` (S, 3)
 [rad/s²], the torque-free ``−I⁻¹ (ω × L)``; ``sacceleration`` (S, 3) [m/s²], the anchors' prescribed ones. Rows
-(R): ``violation`` C (R,), ``linear``, ``angular`` (R, 2, 3), ``bias`` J̇u (R,).
+(R): ``violation`` C (R,), ``jac`` (R, 2, 6): per end, the linear part of the Jacobian then its angular part (one
+array, so that the coupling matrix is assembled from six contiguous numbers per end), ``bias`` J̇u (R,).
 """
 
 from __future__ import annotations
@@ -123,8 +124,9 @@ def point(slot: int, offset: Vector, sx: np.ndarray, sv: np.ndarray, srotation: 
 @njit(cache=True, error_model="numpy")
 def _segment_rows(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, first: int, sx: np.ndarray,
                   sv: np.ndarray, srotation: np.ndarray, somega: np.ndarray, violation: np.ndarray,
-                  linear: np.ndarray, angular: np.ndarray, bias: np.ndarray) -> None:
+                  jac: np.ndarray, bias: np.ndarray) -> None:
     """Rods, ropes and pulleys: ``C = sign (Σ |d| − length)`` (:class:`~animbatch.sim.joints.kinds.SegmentRows`)."""
+    linear, angular = jac[:, :, :3], jac[:, :, 3:]
     ends = table(integers, layout, T.SEGMENT_ENDS, 5)
     offsets = blocks(floats, layout, T.SEGMENT_OFFSETS, 2, 3)
     rows = table(floats, layout, T.SEGMENT_ROWS, 2)
@@ -162,9 +164,10 @@ def _segment_rows(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, 
 
 @njit(cache=True, error_model="numpy")
 def _point_rows(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, first: int, sx: np.ndarray,
-                sv: np.ndarray, srotation: np.ndarray, somega: np.ndarray, violation: np.ndarray, linear: np.ndarray,
-                angular: np.ndarray, bias: np.ndarray) -> None:
+                sv: np.ndarray, srotation: np.ndarray, somega: np.ndarray, violation: np.ndarray, jac: np.ndarray,
+                bias: np.ndarray) -> None:
     """Ball joints: ``C = p_a − p_b``, three rows each (:class:`~animbatch.sim.joints.kinds.PointRows`)."""
+    linear, angular = jac[:, :, :3], jac[:, :, 3:]
     bodies = table(integers, layout, T.POINT_BODIES, 2)
     offsets = blocks(floats, layout, T.POINT_OFFSETS, 2, 3)
     for j in range(len(bodies)):
@@ -187,8 +190,9 @@ def _point_rows(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, fi
 
 @njit(cache=True, error_model="numpy")
 def _axis_rows(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, first: int, srotation: np.ndarray,
-               somega: np.ndarray, violation: np.ndarray, angular: np.ndarray, bias: np.ndarray) -> None:
+               somega: np.ndarray, violation: np.ndarray, jac: np.ndarray, bias: np.ndarray) -> None:
     """Hinge axes: ``C_i = n · u_i``, two rows each (:class:`~animbatch.sim.joints.kinds.AxisRows`)."""
+    angular = jac[:, :, 3:]
     bodies = table(integers, layout, T.AXIS_BODIES, 2)
     axes = table(floats, layout, T.AXIS_AXIS, 3)
     across = blocks(floats, layout, T.AXIS_ACROSS, 2, 3)
@@ -211,9 +215,10 @@ def _axis_rows(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, fir
 
 @njit(cache=True, error_model="numpy")
 def _lock_rows(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, first: int, srotation: np.ndarray,
-               somega: np.ndarray, violation: np.ndarray, angular: np.ndarray, bias: np.ndarray) -> None:
+               somega: np.ndarray, violation: np.ndarray, jac: np.ndarray, bias: np.ndarray) -> None:
     """Welds and sliders: ``C = vee(skew(R_a Q R_bᵀ))``, three rows each
     (:class:`~animbatch.sim.joints.kinds.LockRows`)."""
+    angular = jac[:, :, 3:]
     bodies = table(integers, layout, T.LOCK_BODIES, 2)
     relative = blocks(floats, layout, T.LOCK_RELATIVE, 3, 3)
     product = np.empty((3, 3))
@@ -255,10 +260,11 @@ def travel(offset_a: Vector, offset_b: Vector, direction: Vector, a: int, b: int
 
 @njit(cache=True, error_model="numpy")
 def _slide_rows(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, first: int, sx: np.ndarray,
-                sv: np.ndarray, srotation: np.ndarray, somega: np.ndarray, violation: np.ndarray, linear: np.ndarray,
-                angular: np.ndarray, bias: np.ndarray) -> None:
+                sv: np.ndarray, srotation: np.ndarray, somega: np.ndarray, violation: np.ndarray, jac: np.ndarray,
+                bias: np.ndarray) -> None:
     """Slider rows: ``C = sign (s − bound)``, ``s = (p_a − p_b) · n``
     (:class:`~animbatch.sim.joints.kinds.SlideRows`)."""
+    linear, angular = jac[:, :, :3], jac[:, :, 3:]
     bodies = table(integers, layout, T.SLIDE_BODIES, 2)
     offsets = blocks(floats, layout, T.SLIDE_OFFSETS, 2, 3)
     directions = table(floats, layout, T.SLIDE_DIRECTION, 3)
@@ -294,8 +300,9 @@ def hinge_angle(a: int, b: int, axis: Vector, first_reference: Vector, second_re
 
 @njit(cache=True, error_model="numpy")
 def _angle_rows(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, first: int, srotation: np.ndarray,
-                somega: np.ndarray, violation: np.ndarray, angular: np.ndarray, bias: np.ndarray) -> None:
+                somega: np.ndarray, violation: np.ndarray, jac: np.ndarray, bias: np.ndarray) -> None:
     """Hinge limits: ``C = sign (θ − bound)`` (:class:`~animbatch.sim.joints.kinds.AngleRows`)."""
+    angular = jac[:, :, 3:]
     bodies = table(integers, layout, T.ANGLE_BODIES, 2)
     axes = table(floats, layout, T.ANGLE_AXIS, 3)
     references = blocks(floats, layout, T.ANGLE_REFERENCES, 2, 3)
@@ -316,19 +323,17 @@ def _angle_rows(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, fi
 
 @njit(cache=True, error_model="numpy")
 def rows(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, sx: np.ndarray, sv: np.ndarray,
-         srotation: np.ndarray, somega: np.ndarray, violation: np.ndarray, linear: np.ndarray, angular: np.ndarray,
-         bias: np.ndarray) -> None:
-    """Every row's C, Jacobian parts and bias at the slots' motion, kind by kind."""
-    linear[:] = 0.0
-    angular[:] = 0.0
+         srotation: np.ndarray, somega: np.ndarray, violation: np.ndarray, jac: np.ndarray, bias: np.ndarray) -> None:
+    """Every row's C, Jacobian (R, 2, 6: per end the linear part, then the angular part) and bias at the slots'
+    motion, kind by kind."""
+    jac[:] = 0.0
     first = column(integers, layout, T.KIND_ROWS)
-    _segment_rows(floats, integers, layout, first[SEGMENT], sx, sv, srotation, somega, violation, linear, angular,
-                  bias)
-    _point_rows(floats, integers, layout, first[POINT], sx, sv, srotation, somega, violation, linear, angular, bias)
-    _axis_rows(floats, integers, layout, first[AXIS], srotation, somega, violation, angular, bias)
-    _lock_rows(floats, integers, layout, first[LOCK], srotation, somega, violation, angular, bias)
-    _slide_rows(floats, integers, layout, first[SLIDE], sx, sv, srotation, somega, violation, linear, angular, bias)
-    _angle_rows(floats, integers, layout, first[ANGLE], srotation, somega, violation, angular, bias)
+    _segment_rows(floats, integers, layout, first[SEGMENT], sx, sv, srotation, somega, violation, jac, bias)
+    _point_rows(floats, integers, layout, first[POINT], sx, sv, srotation, somega, violation, jac, bias)
+    _axis_rows(floats, integers, layout, first[AXIS], srotation, somega, violation, jac, bias)
+    _lock_rows(floats, integers, layout, first[LOCK], srotation, somega, violation, jac, bias)
+    _slide_rows(floats, integers, layout, first[SLIDE], sx, sv, srotation, somega, violation, jac, bias)
+    _angle_rows(floats, integers, layout, first[ANGLE], srotation, somega, violation, jac, bias)
 
 
 @njit(cache=True, error_model="numpy")
@@ -375,23 +380,21 @@ def motor_loads(t: float, floats: np.ndarray, integers: np.ndarray, layout: np.n
 
 
 @njit(cache=True, error_model="numpy")
-def apply(row_bodies: np.ndarray, linear: np.ndarray, angular: np.ndarray, velocity: np.ndarray,
-          omega: np.ndarray, out: np.ndarray) -> None:
+def apply(row_bodies: np.ndarray, jac: np.ndarray, velocity: np.ndarray, omega: np.ndarray, out: np.ndarray) -> None:
     """``J u`` (R,) for slot velocities ``velocity``, ``omega`` (S, 3), into ``out``."""
     for r in range(len(out)):
         value = 0.0
         for end in range(2):
             s = row_bodies[r, end]
-            value += (linear[r, end, 0] * velocity[s, 0] + linear[r, end, 1] * velocity[s, 1]
-                      + linear[r, end, 2] * velocity[s, 2])
-            value += (angular[r, end, 0] * omega[s, 0] + angular[r, end, 1] * omega[s, 1]
-                      + angular[r, end, 2] * omega[s, 2])
+            value += (jac[r, end, 0] * velocity[s, 0] + jac[r, end, 1] * velocity[s, 1]
+                      + jac[r, end, 2] * velocity[s, 2])
+            value += (jac[r, end, 3] * omega[s, 0] + jac[r, end, 4] * omega[s, 1] + jac[r, end, 5] * omega[s, 2])
         out[r] = value
 
 
 @njit(cache=True, error_model="numpy")
-def apply_transpose(row_bodies: np.ndarray, linear: np.ndarray, angular: np.ndarray, multiplier: np.ndarray,
-                    force: np.ndarray, torque: np.ndarray) -> None:
+def apply_transpose(row_bodies: np.ndarray, jac: np.ndarray, multiplier: np.ndarray, force: np.ndarray,
+                    torque: np.ndarray) -> None:
     """``Jᵀ λ``: the forces and torques (S, 3) that rows with multipliers λ (R,) exert on the slots, into ``force``,
     ``torque`` (overwritten)."""
     force[:] = 0.0
@@ -401,11 +404,5 @@ def apply_transpose(row_bodies: np.ndarray, linear: np.ndarray, angular: np.ndar
         for end in range(2):
             s = row_bodies[r, end]
             for c in range(3):
-                force[s, c] += value * linear[r, end, c]
-                torque[s, c] += value * angular[r, end, c]
-
-
-@njit(cache=True, error_model="numpy")
-def slot_inverse_masses(floats: np.ndarray, layout: np.ndarray) -> np.ndarray:
-    """The slots' inverse masses (S,) [1/kg]."""
-    return column(floats, layout, T.SLOT_INVERSE_MASS)
+                force[s, c] += value * jac[r, end, c]
+                torque[s, c] += value * jac[r, end, 3 + c]

@@ -26,38 +26,37 @@ PIVOT_TOLERANCE = 1e-12
 
 
 @njit(cache=True, error_model="numpy")
-def assemble(integers: np.ndarray, layout: np.ndarray, linear: np.ndarray, angular: np.ndarray,
-             row_bodies: np.ndarray, inverse_mass: np.ndarray, inverse_inertia: np.ndarray, active: np.ndarray,
-             values: np.ndarray, diagonal: np.ndarray) -> None:
+def assemble(integers: np.ndarray, layout: np.ndarray, jac: np.ndarray, row_bodies: np.ndarray,
+             inverse_mass: np.ndarray, inverse_inertia: np.ndarray, active: np.ndarray, values: np.ndarray,
+             diagonal: np.ndarray) -> None:
     """The lower triangle of ``A = J M⁻¹ Jᵀ`` (in elimination order) into ``values`` (E,), and its diagonal into
-    ``diagonal`` (R,), from the rows' Jacobian parts ``linear``, ``angular`` (R, 2, 3), their slots ``row_bodies``
-    (R, 2), and the slots' inverse masses (S,) and world inverse inertias (S, 3, 3). Rows not ``active`` are
-    decoupled: their own 1 on the diagonal (their multiplier comes out zero for a zero right-hand side)."""
+    ``diagonal`` (R,), from the rows' Jacobian ``jac`` (R, 2, 6: per end the linear part, then the angular one),
+    their slots ``row_bodies`` (R, 2), and the slots' inverse masses (S,) and world inverse inertias (S, 3, 3). Rows
+    not ``active`` are decoupled: their own 1 on the diagonal (their multiplier comes out zero for a zero right-hand
+    side)."""
     pairs = table(integers, layout, T.PAIRS, 5)
     order = column(integers, layout, T.ORDER)
     column_start = column(integers, layout, T.COLUMN_START)
-    # M⁻¹ Jᵀ once per row end, then one dot product per pair of ends that meet at a body
-    count = len(linear)
+    # M⁻¹ Jᵀ once per row end, then one dot product of six per pair of ends that meet at a body
+    count = len(jac)
     scaled = np.empty((count, 2, 6))
     for r in range(count):
         for end in range(2):
             body = row_bodies[r, end]
             tensor = inverse_inertia[body]
             for c in range(3):
-                scaled[r, end, c] = linear[r, end, c] * inverse_mass[body]
-                scaled[r, end, 3 + c] = (tensor[c, 0] * angular[r, end, 0] + tensor[c, 1] * angular[r, end, 1]
-                                         + tensor[c, 2] * angular[r, end, 2])
+                scaled[r, end, c] = jac[r, end, c] * inverse_mass[body]
+                scaled[r, end, 3 + c] = (tensor[c, 0] * jac[r, end, 3] + tensor[c, 1] * jac[r, end, 4]
+                                         + tensor[c, 2] * jac[r, end, 5])
     values[:] = 0.0
     for p in range(len(pairs)):
         row_a, end_a, row_b, end_b = pairs[p, 0], pairs[p, 1], pairs[p, 2], pairs[p, 3]
         if not (active[row_a] and active[row_b]):
             continue
-        values[pairs[p, 4]] += (linear[row_a, end_a, 0] * scaled[row_b, end_b, 0]
-                                + linear[row_a, end_a, 1] * scaled[row_b, end_b, 1]
-                                + linear[row_a, end_a, 2] * scaled[row_b, end_b, 2]
-                                + angular[row_a, end_a, 0] * scaled[row_b, end_b, 3]
-                                + angular[row_a, end_a, 1] * scaled[row_b, end_b, 4]
-                                + angular[row_a, end_a, 2] * scaled[row_b, end_b, 5])
+        value = 0.0
+        for c in range(6):
+            value += jac[row_a, end_a, c] * scaled[row_b, end_b, c]
+        values[pairs[p, 4]] += value
     for k in range(len(order)):
         if not active[order[k]]:
             values[column_start[k]] += 1.0

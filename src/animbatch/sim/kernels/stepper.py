@@ -36,15 +36,15 @@ ACTIVE_SET_PASSES = 4
 def factor_cache_size(layout: np.ndarray) -> int:
     """The length of the factor cache (:func:`_solve`) of a model's joints."""
     rows = rows_of(layout, T.ROW_BODIES)
-    return 1 + 14 * rows + 9 * rows_of(layout, T.SLOT_RIGID) + rows_of(layout, T.COLUMN_ROWS) + rows
+    return 1 + 13 * rows + 9 * rows_of(layout, T.SLOT_RIGID) + rows_of(layout, T.COLUMN_ROWS) + rows
 
 
 @njit(cache=True, error_model="numpy")
-def _solve(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, row_bodies: np.ndarray, linear: np.ndarray,
-           angular: np.ndarray, inverse_mass: np.ndarray, inverse_inertia: np.ndarray, active: np.ndarray,
-           right: np.ndarray, out: np.ndarray) -> None:
-    """λ (R,) with ``(J M⁻¹ Jᵀ) λ = right`` for rows with Jacobian parts ``linear``, ``angular`` (R, 2, 3) on slots
-    of ``inverse_mass`` (S,) and world ``inverse_inertia`` (S, 3, 3); rows not ``active`` held at zero.
+def _solve(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, row_bodies: np.ndarray, jac: np.ndarray,
+           inverse_mass: np.ndarray, inverse_inertia: np.ndarray, active: np.ndarray, right: np.ndarray,
+           out: np.ndarray) -> None:
+    """λ (R,) with ``(J M⁻¹ Jᵀ) λ = right`` for rows with Jacobian ``jac`` (R, 2, 6) on slots of ``inverse_mass``
+    (S,) and world ``inverse_inertia`` (S, 3, 3); rows not ``active`` held at zero.
 
     ``cache`` (:func:`factor_cache_size`) keeps the last factorisation with what it was made from: a step solves at
     the same positions twice (Verlet's rate at the drifted positions, then the projection's first Gauss–Newton
@@ -52,21 +52,21 @@ def _solve(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, row_bodi
     comparison is exact, so results are the same bit for bit."""
     count = len(right)
     entries = rows_of(layout, T.COLUMN_ROWS)
-    key = cache[1: 1 + 14 * count + 9 * len(inverse_inertia)]
+    key = cache[1: 1 + 13 * count + 9 * len(inverse_inertia)]
     values = cache[1 + len(key): 1 + len(key) + entries]
     diagonal = cache[1 + len(key) + entries: 1 + len(key) + entries + count]
     same = cache[0] == 1.0
     k = 0
     for r in range(count):
         for end in range(2):
-            for c in range(3):
-                same = same and key[k] == linear[r, end, c] and key[k + 1] == angular[r, end, c]
-                key[k], key[k + 1] = linear[r, end, c], angular[r, end, c]
-                k += 2
+            for c in range(6):
+                same = same and key[k] == jac[r, end, c]
+                key[k] = jac[r, end, c]
+                k += 1
         flag = 1.0 if active[r] else 0.0
         same = same and key[k] == flag
         key[k] = flag
-        k += 2
+        k += 1
     for s in range(len(inverse_inertia)):
         for i in range(3):
             for j in range(3):
@@ -74,8 +74,8 @@ def _solve(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, row_bodi
                 key[k] = inverse_inertia[s, i, j]
                 k += 1
     if not same:
-        sparse_ldl.assemble(integers, layout, linear, angular, row_bodies, inverse_mass, inverse_inertia, active,
-                            values, diagonal)
+        sparse_ldl.assemble(integers, layout, jac, row_bodies, inverse_mass, inverse_inertia, active, values,
+                            diagonal)
         sparse_ldl.factor(integers, layout, values, diagonal)
         cache[0] = 1.0
     masked = np.empty(count)
@@ -86,8 +86,7 @@ def _solve(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, row_bodi
 
 @njit(cache=True, error_model="numpy")
 def _solve_active(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, row_bodies: np.ndarray,
-                  linear: np.ndarray,
-                  angular: np.ndarray, inverse_mass: np.ndarray, inverse_inertia: np.ndarray, right: np.ndarray,
+                  jac: np.ndarray, inverse_mass: np.ndarray, inverse_inertia: np.ndarray, right: np.ndarray,
                   reached: np.ndarray, out: np.ndarray) -> None:
     """λ over the bilateral rows and the unilateral rows ``reached``, dropping unilateral rows whose λ would pull
     and solving again (``Joints._solve_active``)."""
@@ -97,7 +96,7 @@ def _solve_active(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, r
     for r in range(count):
         active[r] = unilateral[r] == 0 or reached[r]
     for _ in range(ACTIVE_SET_PASSES):
-        _solve(integers, layout, cache, row_bodies, linear, angular, inverse_mass, inverse_inertia, active, right,
+        _solve(integers, layout, cache, row_bodies, jac, inverse_mass, inverse_inertia, active, right,
                out)
         pulling = False
         for r in range(count):
@@ -147,8 +146,8 @@ def add_joint_loads(t: float, floats: np.ndarray, integers: np.ndarray, layout: 
                 applied_force[s, c] += motor_force[s, c]
                 applied_torque[s, c] += motor_torque[s, c]
     violation, bias = np.empty(rows), np.empty(rows)
-    linear, angular = np.empty((rows, 2, 3)), np.empty((rows, 2, 3))
-    joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, linear, angular, bias)
+    jac = np.empty((rows, 2, 6))
+    joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, jac, bias)
     acceleration, angular_acceleration = np.empty((slots, 3)), np.empty((slots, 3))
     for s in range(slots):
         for c in range(3):
@@ -158,8 +157,8 @@ def add_joint_loads(t: float, floats: np.ndarray, integers: np.ndarray, layout: 
         turn = rigid_motion.rotate(sinverse_inertia[s], rigid_motion.vector(applied_torque, s))
         rigid_motion.store(angular_acceleration, s, rigid_motion.plus(turn, rigid_motion.vector(sspin, s)))
     rate, pushed, right = np.empty(rows), np.empty(rows), np.empty(rows)
-    joint_rows.apply(row_bodies, linear, angular, sv, somega, rate)
-    joint_rows.apply(row_bodies, linear, angular, acceleration, angular_acceleration, pushed)
+    joint_rows.apply(row_bodies, jac, sv, somega, rate)
+    joint_rows.apply(row_bodies, jac, acceleration, angular_acceleration, pushed)
     w = stabilisation
     for r in range(rows):
         right[r] = -(pushed[r] + bias[r] + 2 * w * rate[r] + w**2 * violation[r])
@@ -168,16 +167,16 @@ def add_joint_loads(t: float, floats: np.ndarray, integers: np.ndarray, layout: 
     if use_engaged:
         for r in range(rows):
             active[r] = unilateral[r] == 0 or engaged[r]
-        _solve(integers, layout, cache, row_bodies, linear, angular, inverse_mass, sinverse_inertia, active, right,
+        _solve(integers, layout, cache, row_bodies, jac, inverse_mass, sinverse_inertia, active, right,
                multipliers)
     else:
         for r in range(rows):
             active[r] = violation[r] <= 0
-        _solve_active(integers, layout, cache, row_bodies, linear, angular, inverse_mass, sinverse_inertia, right,
+        _solve_active(integers, layout, cache, row_bodies, jac, inverse_mass, sinverse_inertia, right,
                       active,
                       multipliers)
     joint_force, joint_torque = np.empty((slots, 3)), np.empty((slots, 3))
-    joint_rows.apply_transpose(row_bodies, linear, angular, multipliers, joint_force, joint_torque)
+    joint_rows.apply_transpose(row_bodies, jac, multipliers, joint_force, joint_torque)
     for s in range(count):
         for c in range(3):
             force[points[s], c] += joint_force[s, c] + motor_force[s, c]
@@ -286,7 +285,7 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
     sx, sv, somega = np.empty((slots, 3)), np.empty((slots, 3)), np.empty((slots, 3))
     srotation, sinverse_inertia = np.empty((slots, 3, 3)), np.empty((slots, 3, 3))
     violation, bias = np.empty(rows), np.empty(rows)
-    linear_rows, angular_rows = np.empty((rows, 2, 3)), np.empty((rows, 2, 3))
+    jac = np.empty((rows, 2, 6))
     joint_force, joint_torque = np.empty((slots, 3)), np.empty((slots, 3))
     active = np.ones(rows, np.bool_)
     right, step = np.empty(rows), np.empty(rows)
@@ -294,8 +293,7 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
     for _ in range(PROJECTION_ITERATIONS):
         _projection_motion(floats, integers, layout, positions, orientations, linear, angular_momentum,
                            mass_of_linear, t, sx, sv, srotation, somega, sinverse_inertia)
-        joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, linear_rows, angular_rows,
-                        bias)
+        joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, jac, bias)
         largest = 0.0
         for r in range(rows):
             active[r] = unilateral[r] == 0 or violation[r] < 0
@@ -307,10 +305,9 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
             break
         if not any_unilateral:
             active[:] = True
-        _solve(integers, layout, cache, row_bodies, linear_rows, angular_rows, inverse_mass, sinverse_inertia, active,
-               right,
+        _solve(integers, layout, cache, row_bodies, jac, inverse_mass, sinverse_inertia, active, right,
                step)
-        joint_rows.apply_transpose(row_bodies, linear_rows, angular_rows, step, joint_force, joint_torque)
+        joint_rows.apply_transpose(row_bodies, jac, step, joint_force, joint_torque)
         for s in range(count):
             for c in range(3):
                 positions[points[s], c] += joint_force[s, c] * inverse_mass[s]
@@ -323,18 +320,16 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
     if not settled:
         _projection_motion(floats, integers, layout, positions, orientations, linear, angular_momentum,
                            mass_of_linear, t, sx, sv, srotation, somega, sinverse_inertia)
-        joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, linear_rows, angular_rows,
-                        bias)
+        joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, jac, bias)
     rate = np.empty(rows)
-    joint_rows.apply(row_bodies, linear_rows, angular_rows, sv, somega, rate)
+    joint_rows.apply(row_bodies, jac, sv, somega, rate)
     limit = max(tolerance, reach)
     for r in range(rows):
         active[r] = violation[r] <= limit and rate[r] < 0  # reached, and approaching
         right[r] = -rate[r]
-    _solve_active(integers, layout, cache, row_bodies, linear_rows, angular_rows, inverse_mass, sinverse_inertia,
-                  right,
+    _solve_active(integers, layout, cache, row_bodies, jac, inverse_mass, sinverse_inertia, right,
                   active, step)
-    joint_rows.apply_transpose(row_bodies, linear_rows, angular_rows, step, joint_force, joint_torque)
+    joint_rows.apply_transpose(row_bodies, jac, step, joint_force, joint_torque)
     for s in range(count):
         scale = mass_of_linear[s] * inverse_mass[s]
         for c in range(3):
