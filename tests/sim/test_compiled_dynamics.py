@@ -104,12 +104,24 @@ SCENES = {
         joints:
           - {type: distance, between: [crate, trolley], attach: [[0, 0.15, 0], null]}
         """,
+    "gravitation and Coulomb pairs": """
+        bodies:
+          - {name: star, mass: 1.0, radius: 0.1, velocity: [0, -0.001, 0]}
+          - {name: planet, mass: 1.0e-3, radius: 0.04, position: [1, 0, 0], velocity: [0, 1, 0]}
+          - {name: plus, mass: 0.1, radius: 0.02, charge: 1.0e-5, position: [0, 1, 0]}
+          - {name: minus, mass: 0.1, radius: 0.02, charge: -2.0e-5, position: [0.3, 1.2, 0.1]}
+        fields:
+          - {type: gravity}
+          - {type: gravitation, G: 1.0, bodies: [star, planet], softening: 0.01}
+          - {type: coulomb, k: 8.99e9, bodies: [plus, minus]}
+        """,
 }
 
 
 def _model(name: str, solver: str = "{method: verlet, dt: 0.001}"):
-    text = f"duration: 0.2\nfps: 20\nsolver: {solver}\n" + "\n".join(
-        line[8:] for line in SCENES[name].splitlines()) + "\nfields: [{type: gravity}]\n"
+    body = "\n".join(line[8:] for line in SCENES[name].splitlines())
+    text = (f"duration: 0.2\nfps: 20\nsolver: {solver}\n" + body
+            + ("" if "fields:" in body else "\nfields: [{type: gravity}]\n"))
     return compile_scene(scene(text).spec)
 
 

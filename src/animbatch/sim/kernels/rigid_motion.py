@@ -239,8 +239,8 @@ def _spring_end(point: int, offset: Vector, n: int, x: np.ndarray, v: np.ndarray
 def add_forces(t: float, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, x: np.ndarray,
                v: np.ndarray, rotation: np.ndarray, omega: np.ndarray, force: np.ndarray, torque: np.ndarray) -> None:
     """Set ``force`` (P, 3) [N] and ``torque`` (B, 3) [N·m] to the forces of the terms at time ``t`` [s]: the
-    constant ones, then every spring ``f1 = −(ks (|L| − r) + kd (ṗ1 − ṗ2)·u) u`` on its first end (with its torque
-    ``r × f1`` at a body point), ``−f1`` on its second."""
+    constant ones, every spring ``f1 = −(ks (|L| − r) + kd (ṗ1 − ṗ2)·u) u`` on its first end (with its torque
+    ``r × f1`` at a body point), ``−f1`` on its second, then the inverse-square pairs (:func:`add_pair_forces`)."""
     n = rows_of(layout, T.PARTICLE_INVERSE_MASS)
     # element by element: numba's array-to-array assignment compiles its shape error messages, several seconds
     constant_force = table(floats, layout, T.CONSTANT_FORCE, 3)
@@ -279,6 +279,37 @@ def add_forces(t: float, floats: np.ndarray, integers: np.ndarray, layout: np.nd
             store(force, j, minus(vector(force, j), f1))
             if j >= n:
                 store(torque, j - n, minus(vector(torque, j - n), cross(lever2, f1)))
+    add_pair_forces(floats, integers, layout, x, force)
+
+
+@njit(cache=True, error_model="numpy")
+def add_pair_forces(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, x: np.ndarray,
+                    force: np.ndarray) -> None:
+    """Add the inverse-square pair laws' forces (gravitation, Coulomb) to ``force`` (P, 3) [N]:
+    ``f_i = κ s_i Σ_j s_j (x_j − x_i) / (|x_j − x_i|² + ε²)^(3/2)`` over the other points j of each term
+    (:class:`~animbatch.sim.forces.gravitation.InverseSquarePairs`)."""
+    terms = table(floats, layout, T.PAIR_TERMS, 2)
+    start = column(integers, layout, T.PAIR_START)
+    points = column(integers, layout, T.PAIR_POINTS)
+    source = column(floats, layout, T.PAIR_SOURCE)
+    for term in range(len(terms)):
+        coupling, eps2 = terms[term, 0], terms[term, 1] ** 2
+        for a in range(start[term], start[term + 1]):
+            i = points[a]
+            f0 = f1 = f2 = 0.0
+            for b in range(start[term], start[term + 1]):
+                if b == a:
+                    continue
+                j = points[b]
+                d0, d1, d2 = x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2]
+                weight = source[b] * (d0 * d0 + d1 * d1 + d2 * d2 + eps2) ** -1.5
+                f0 += weight * d0
+                f1 += weight * d1
+                f2 += weight * d2
+            scale = coupling * source[a]
+            force[i, 0] += f0 * scale
+            force[i, 1] += f1 * scale
+            force[i, 2] += f2 * scale
 
 
 @njit(cache=True, error_model="numpy")

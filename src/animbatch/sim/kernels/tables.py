@@ -79,8 +79,13 @@ UPDATE_START = 50  # int (R + 1,): each column's updates
 UPDATES = 51  # int (U, 3): target entry, the two entries whose product (over the pivot) it loses
 
 
+# inverse-square pair laws (gravitation, Coulomb): term t acts between the points PAIR_START[t] … PAIR_START[t + 1] − 1
+PAIR_TERMS = 52  # (T, 2): coupling κ (G, or −k), softening ε [m]
+PAIR_START = 53  # int (T + 1,)
+PAIR_POINTS = 54  # int (S,): the points of every term, one after the other
+PAIR_SOURCE = 55  # (S,): each point's source strength (mass [kg], or charge [C])
 #: How many fields there are.
-FIELD_COUNT = 52
+FIELD_COUNT = 56
 
 #: Each field's shape after its first axis.
 TRAILING: dict[int, tuple[int, ...]] = {
@@ -96,7 +101,8 @@ TRAILING: dict[int, tuple[int, ...]] = {
     SLIDE_BOUNDS: (2,), ANGLE_BODIES: (2,), ANGLE_AXIS: (3,), ANGLE_REFERENCES: (2, 3),
     ANGLE_BOUNDS: (2,), MOTOR_BODIES: (2,), MOTOR_KIND: (2,), MOTOR_AXIS: (3,),
     MOTOR_REFERENCES: (2, 3), MOTOR_OFFSETS: (2, 3), MOTOR_GAINS: (4,), ORDER: (),
-    COLUMN_START: (), COLUMN_ROWS: (), PAIRS: (5,), UPDATE_START: (), UPDATES: (3,),
+    COLUMN_START: (), COLUMN_ROWS: (), PAIRS: (5,), UPDATE_START: (), UPDATES: (3,), PAIR_TERMS: (2,),
+    PAIR_START: (), PAIR_POINTS: (), PAIR_SOURCE: (),
 }
 
 #: The integer fields (the others are float64).
@@ -104,7 +110,7 @@ INTEGER_FIELDS = frozenset({
     SPRING_ENDS, ANCHOR_PATH, PATH_KEYS, JOINT_POINTS, SLOT_RIGID, SLOT_PATH,
     ROW_BODIES, ROW_UNILATERAL, KIND_ROWS, SEGMENT_ENDS, POINT_BODIES, AXIS_BODIES,
     LOCK_BODIES, SLIDE_BODIES, ANGLE_BODIES, MOTOR_BODIES, MOTOR_KIND, ORDER,
-    COLUMN_START, COLUMN_ROWS, PAIRS, UPDATE_START, UPDATES,
+    COLUMN_START, COLUMN_ROWS, PAIRS, UPDATE_START, UPDATES, PAIR_START, PAIR_POINTS,
 })
 
 #: The six row kinds in KIND_ROWS' order.

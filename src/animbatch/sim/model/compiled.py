@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from animbatch.sim.forces.gravitation import InverseSquarePairs
 from animbatch.sim.forces.gravity import UniformGravity
 from animbatch.sim.forces.springs import SpringForces
 from animbatch.sim.joints import (
@@ -90,6 +91,7 @@ def _anchor_paths(anchors: AnchorMotion, paths: _Paths) -> np.ndarray:
 def _force_fields(model: Model, paths: _Paths) -> Fields | str:
     constant_force = np.zeros((model.body_count, 3))
     springs: SpringForces | None = None
+    pairs: list[InverseSquarePairs] = []
     for term in model.force_terms:
         if isinstance(term, UniformGravity):
             if term.index is None:
@@ -98,9 +100,17 @@ def _force_fields(model: Model, paths: _Paths) -> Fields | str:
                 np.add.at(constant_force, term.index, term.weight)
         elif isinstance(term, SpringForces) and springs is None:
             springs = term
+        elif isinstance(term, InverseSquarePairs):
+            pairs.append(term)
         else:
             return f"its {term.label} term has no compiled form"
     fields = {T.CONSTANT_FORCE: constant_force, T.CONSTANT_TORQUE: np.zeros((model.rigid_count, 3))}
+    if pairs:
+        points = [np.arange(model.body_count) if term.index is None else np.asarray(term.index) for term in pairs]
+        fields.update({T.PAIR_TERMS: np.array([[term.coupling, term.softening] for term in pairs]),
+                       T.PAIR_START: np.concatenate([[0], np.cumsum([len(p) for p in points])]),
+                       T.PAIR_POINTS: np.concatenate(points),
+                       T.PAIR_SOURCE: np.concatenate([term.source for term in pairs])})
     if springs is not None:
         s = springs.springs
         fields.update({
