@@ -21,9 +21,10 @@ methods' events track probes only.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -207,6 +208,93 @@ def segment_parameters(start_a: np.ndarray, along_a: np.ndarray, start_b: np.nda
 def _box_hull(half: tuple[float, float, float]) -> BodyHull:
     """A box of half sides ``half`` as a hull about its centre (body −1: a pose is given wherever it is used)."""
     return BodyHull.of_box(-1, np.zeros(3), np.eye(3), np.array(half))
+
+
+@dataclass(frozen=True, eq=False)
+class PackedPolyhedra:
+    """A world's polyhedra as :mod:`animbatch.sim.kernels.hull_edges` takes them: ``shapes`` (the packed vertex,
+    edge, axis and face tables with their starts, and reaches), and per solid (the fixed boxes, then the moving boxes,
+    then the hulls) ``solids``: shape, body, kind, base, probe base, material and size (see that module)."""
+
+    shapes: tuple[np.ndarray, ...]
+    solids: tuple[np.ndarray, ...]
+    fixed_count: int
+    excluded: np.ndarray  # sorted int64 keys of body pairs that never touch
+
+    @classmethod
+    def of_world(cls, world: ContactWorld) -> PackedPolyhedra:
+        statics = world.statics
+        rounds = world.cylinders.count if world.cylinders is not None else 0
+        first_hull = world.probes.count + 12 * world.boxes.count + 2 * rounds
+        edge_base = np.concatenate([[0], np.cumsum([len(h.edges) for h in world.hulls])]).astype(int)
+        solids: list[tuple[BodyHull, int, int, int, int, int, float]] = []
+        for j in range(len(statics.box_centre)):
+            half = statics.box_half[j]
+            solids.append((_box_hull(tuple(half)), STATIC, STATIC_EDGE, 12 * j, -1, int(statics.box_material[j]),
+                           float(np.linalg.norm(half))))
+        for k in range(world.boxes.count):
+            half, body = world.boxes.half[k], int(world.boxes.owner[k])
+            solids.append((_box_hull(tuple(half)), body, BODY_EDGE, 12 * k, world.probes.count + 12 * k,
+                           int(world.body_material[body]), float(np.linalg.norm(half))))
+        for k, hull in enumerate(world.hulls):
+            solids.append((hull, hull.owner, HULL_EDGE, int(edge_base[k]), first_hull + int(edge_base[k]),
+                           int(world.body_material[hull.owner]), hull.reach))
+        hulls = [solid[0] for solid in solids]
+
+        def packed(parts: list[np.ndarray], columns: int, dtype: type) -> tuple[np.ndarray, np.ndarray]:
+            start = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)
+            rows: np.ndarray = np.concatenate(parts).astype(dtype) if parts else np.zeros((0, columns), dtype)
+            return np.ascontiguousarray(rows.reshape(-1, columns)), start
+
+        shapes = (*packed([h.vertices for h in hulls], 3, float), *packed([h.edges for h in hulls], 2, np.int64),
+                  *packed([h.edge_axes for h in hulls], 3, float), *packed([h.normals for h in hulls], 3, float),
+                  np.array([h.reach for h in hulls], float))
+        columns = list(zip(*[solid[1:] for solid in solids])) or [()] * 6
+        ints = tuple(np.array(column, np.int64) for column in columns[:5])
+        excluded = np.zeros(0, np.int64) if world.excluded is None else np.asarray(world.excluded, np.int64)
+        return cls(shapes, (np.arange(len(solids), dtype=np.int64), *ints, np.array(columns[5], float)),
+                   len(statics.box_centre), np.sort(excluded))
+
+
+_PACKED: weakref.WeakKeyDictionary[Any, PackedPolyhedra] = weakref.WeakKeyDictionary()
+
+
+def compiled_edge_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders,
+                           box_centres: np.ndarray, box_rotations: np.ndarray, margin: float,
+                           travel: np.ndarray | None) -> Contacts:
+    """:func:`edge_contacts` in one compiled call (:mod:`animbatch.sim.kernels.hull_edges`): the same contacts in
+    the same order, to round-off."""
+    from animbatch.sim.kernels import hull_edges
+
+    packed = _PACKED.get(world)
+    if packed is None:
+        packed = _PACKED[world] = PackedPolyhedra.of_world(world)
+    centres = [statics.box_centre.reshape(-1, 3), box_centres.reshape(-1, 3)]
+    rotations = [statics.box_rotation.reshape(-1, 3, 3), box_rotations.reshape(-1, 3, 3)]
+    if world.hulls:
+        assert state.rotation is not None
+        owners = np.array([hull.owner for hull in world.hulls])
+        centres.append(state.x[owners])
+        rotations.append(state.rotation[owners - state.first_rigid])
+    steps = travel if travel is not None else np.zeros(len(world.body_material))
+    search: Any = hull_edges.edge_contacts  # takes the packed tables unpacked
+    ints, floats = search(
+        *packed.shapes, *packed.solids, np.ascontiguousarray(np.concatenate(centres), float),
+        np.ascontiguousarray(np.concatenate(rotations), float), packed.fixed_count, bool(world.bodies_collide),
+        np.ascontiguousarray(world.collides, np.bool_), packed.excluded, np.asarray(steps, float), float(margin))
+    return make_contacts(world, ints[:, 0], ints[:, 2], floats[:, :3], floats[:, 3:6], floats[:, 6], ints[:, 5],
+                         ints[:, 1], ints[:, 3], ints[:, 4])
+
+
+def build_edge_kernels() -> None:
+    """Compile (or load from the disk cache) the edge search on nothing, with the argument types of a run."""
+    from animbatch.sim.kernels import hull_edges
+
+    floats, ints, starts = np.zeros((0, 3)), np.zeros((0, 2), np.int64), np.zeros(1, np.int64)
+    none, no_ints = np.zeros(0), np.zeros(0, np.int64)
+    hull_edges.edge_contacts(floats, starts, ints, starts, floats, starts, floats, starts, none, no_ints, no_ints,
+                             no_ints, no_ints, no_ints, no_ints, none, floats, np.zeros((0, 3, 3)), 0, True,
+                             np.zeros(0, np.bool_), no_ints, none, 0.0)
 
 
 def edge_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders, box_centres: np.ndarray,

@@ -1,0 +1,220 @@
+"""The compiled contact search (animbatch.sim.kernels.hull_edges, …) against the numpy code it replaces: the same
+contacts, in the same order, to round-off, over many states near touching; and a mutated kernel must fail."""
+
+from __future__ import annotations
+
+import textwrap
+
+import numpy as np
+import pytest
+
+from animbatch.compile.model import compile_scene
+from animbatch.sim.contact import contacts, hulls
+from animbatch.sim.contact.contacts import Contacts, contact_codes
+from animbatch.sim.contact.detection import body_box_poses, detect
+from animbatch.sim.model.dynamics import Dynamics
+from animbatch.stages import parse_scene
+
+pytest.importorskip("numba", reason="numba is not installed: numpy finds every contact")
+from animbatch.sim.kernels import probe_search  # noqa: E402  (needs numba)
+
+PRISM = [(-0.5, 0, -0.1), (-0.5, 0, 0.1), (-0.5, 0.2, 0), (0.5, 0, -0.1), (0.5, 0, 0.1), (0.5, 0.2, 0)]
+PRISM_FACES = [(1, 2, 3), (4, 6, 5), (1, 4, 5), (1, 5, 2), (2, 5, 6), (2, 6, 3), (3, 6, 4), (3, 4, 1)]
+TURNED_X, TURNED_Z = "{axis: [1, 0, 0], angle: 45}", "{axis: [0, 0, 1], angle: 45}"
+REST = 2 * 0.1 * np.sqrt(2)  # a 0.2 m square beam turned 45° lying across a ridge turned 45°: centre height
+
+
+@pytest.fixture(scope="module")
+def polyhedra(tmp_path_factory):
+    """A model whose polyhedra touch edge on edge in every way the search knows, side by side: a beam across a fixed
+    ridge, a beam across a ridge body, a plank across a plank face on face, a prism ridge on ridge, and a box
+    on a gem."""
+    folder = tmp_path_factory.mktemp("meshes")
+    prism = folder / "prism.obj"
+    prism.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in PRISM)
+                     + "".join(f"f {a} {b} {c}\n" for a, b, c in PRISM_FACES))
+    beam = "type: rigid, shape: {type: box, size: [1.0, 0.2, 0.2]}, density: 500"
+    text = f"""
+        duration: 0.1
+        fps: 10
+        bodies:
+          - {{name: beam1, {beam}, position: [0, {REST - 0.002}, 0], orientation: {TURNED_X}}}
+          - {{name: ridge, type: rigid, shape: {{type: box, size: [0.2, 0.2, 1.0]}}, density: 500,
+              position: [3, 0, 0], orientation: {TURNED_Z}}}
+          - {{name: beam2, {beam}, position: [3, {REST - 0.001}, 0], orientation: {TURNED_X}}}
+          - {{name: low, type: rigid, shape: {{type: box, size: [1.0, 0.1, 0.2]}}, density: 500, position: [6, 0, 0]}}
+          - {{name: high, type: rigid, shape: {{type: box, size: [0.2, 0.1, 1.0]}}, density: 500,
+              position: [6, 0.099, 0]}}
+          - {{name: prism1, type: rigid, shape: {{type: mesh, file: prism.obj}}, density: 500,
+              position: [9, 0, 0], orientation: {{axis: [0, 1, 0], angle: 90}}}}
+          - {{name: prism2, type: rigid, shape: {{type: mesh, file: prism.obj}}, density: 500,
+              position: [9, {0.2 + 2 / 3 * 0.2 - 0.002}, 0], orientation: {{axis: [1, 0, 0], angle: 180}}}}
+          - {{name: gem, type: rigid, shape: {{type: mesh, file: prism.obj}}, density: 2600, position: [12, 0, 0]}}
+          - {{name: cube, type: rigid, shape: {{type: box, size: [0.2, 0.2, 0.2]}}, density: 500,
+              position: [12, 0.33, 0], orientation: {TURNED_X}}}
+        colliders:
+          - {{type: box, position: [0, 0, 0], size: [0.2, 0.2, 1.0], orientation: {TURNED_Z}}}
+        contacts: {{}}
+        """
+    loaded = parse_scene(textwrap.dedent(text), filename="polyhedra.yaml", path=folder / "polyhedra.yaml")
+    return compile_scene(loaded.spec, folder)
+
+
+def _states(model, count: int, scale: float) -> list[np.ndarray]:
+    """The start and states near it (positions and orientations jittered by about ``scale``), normalised."""
+    rng = np.random.default_rng(11)
+    found = [model.y0.copy()]
+    system = Dynamics(model)
+    for _ in range(count - 1):
+        y = model.y0 + scale * rng.normal(size=model.y0.shape)
+        system.project(y, joints=False)
+        found.append(y)
+    return found
+
+
+def _edge_contacts(model, y: np.ndarray, compiled: bool) -> Contacts:
+    system = Dynamics(model)
+    state = system.kinematics(*system.split(np.array(y, float)), t=0.0, copy=True)
+    world = model.contact_world
+    centres, rotations = body_box_poses(world, state)
+    search = hulls.compiled_edge_contacts if compiled else hulls.edge_contacts
+    travel = np.full(model.body_count, 0.002)
+    return search(world, state, world.statics_at(0.0), centres, rotations, 0.001, travel)
+
+
+def _same(numpy_found: Contacts, compiled_found: Contacts) -> None:
+    assert compiled_found.count == numpy_found.count
+    for name in Contacts.FIELDS:
+        numpy_value, compiled_value = getattr(numpy_found, name), getattr(compiled_found, name)
+        assert compiled_value.shape == numpy_value.shape, name
+        np.testing.assert_allclose(compiled_value, numpy_value, rtol=0, atol=1e-12, err_msg=name)
+
+
+def test_crossing_edges_are_the_numpy_ones(polyhedra):
+    """Every kind of edge pair (fixed box, box body, face on face, hull on hull, box on hull), at 60 states near
+    touching: the same contacts in the same order."""
+    found = 0
+    kinds = set()
+    for y in _states(polyhedra, 60, 0.004):
+        numpy_found = _edge_contacts(polyhedra, y, compiled=False)
+        _same(numpy_found, _edge_contacts(polyhedra, y, compiled=True))
+        found += numpy_found.count
+        kinds |= set(numpy_found.solid_kind.tolist())
+    assert found > 60  # the states do touch edge on edge
+    assert kinds == {hulls.STATIC_EDGE, hulls.BODY_EDGE, hulls.HULL_EDGE}
+
+
+def test_the_kernel_constants_are_the_numpy_ones():
+    from animbatch.sim.kernels import hull_edges
+
+    for name in ("END", "TIE", "PARALLEL", "MAX_EDGE_DIRECTIONS"):
+        assert getattr(hull_edges, name) == getattr(hulls, name), name
+
+
+def test_a_mutated_kernel_is_caught(polyhedra, monkeypatch):
+    """The comparison can fail: a kernel whose normals point the wrong way, or that loses a contact, is caught."""
+    original = hulls.compiled_edge_contacts
+    y = _states(polyhedra, 1, 0.0)[0]
+    assert _edge_contacts(polyhedra, y, compiled=False).count
+
+    def flipped(*args):
+        found = original(*args)
+        return Contacts(*(-found.normal if name == "normal" else getattr(found, name) for name in Contacts.FIELDS))
+
+    def lossy(*args):
+        found = original(*args)
+        return found.select(np.arange(found.count) > 0)
+
+    for mutant in (flipped, lossy):
+        monkeypatch.setattr(hulls, "compiled_edge_contacts", mutant)
+        with pytest.raises(AssertionError):
+            _same(_edge_contacts(polyhedra, y, compiled=False), _edge_contacts(polyhedra, y, compiled=True))
+
+
+#: Probes of every kind against every solid the compiled probe search takes: particles and balls on a plane, in a
+#: fixed sphere's bowl and on a fixed box, a ball on a box body; box corners on boxes (fixed and moving, face on face and corner on face);
+#: two balls joined (never touching) and a cloth (its vertices never touch one another).
+PROBES = """
+    duration: 0.1
+    fps: 10
+    bodies:
+      - {name: p1, mass: 0.01, radius: 0.02, position: [0, 0.019, 0]}
+      - {name: p2, mass: 0.01, radius: 0.005, position: [0.03, 0.004, 0]}
+      - {name: ball1, type: rigid, shape: {type: sphere, radius: 0.1}, density: 500, position: [0.3, 0.099, 0]}
+      - {name: ball2, type: rigid, shape: {type: sphere, radius: 0.1}, density: 500, position: [0.3, 0.297, 0]}
+      - {name: ball3, type: rigid, shape: {type: sphere, radius: 0.05}, density: 500, position: [2, 1.45, 0]}
+      - {name: crate, type: rigid, shape: {type: box, size: [0.2, 0.2, 0.2]}, density: 500,
+         position: [1, 0.6 , 0], orientation: {axis: [0, 1, 0], angle: 20}}
+      - {name: lid, type: rigid, shape: {type: box, size: [0.3, 0.1, 0.3]}, density: 500, position: [1, 0.749, 0]}
+      - {name: tip, type: rigid, shape: {type: box, size: [0.1, 0.1, 0.1]}, density: 500,
+         position: [1, 0.86, 0], orientation: {axis: [1, 1, 0], angle: 40}}
+      - {name: on_box, type: rigid, shape: {type: sphere, radius: 0.05}, density: 500, position: [1.22, 0.549, 0.22]}
+      - {name: on_lid, type: rigid, shape: {type: sphere, radius: 0.03}, density: 500, position: [1.12, 0.828, 0.12]}
+      - {name: joined, type: rigid, shape: {type: sphere, radius: 0.1}, density: 500, position: [0.3, 0.495, 0]}
+      - {name: sheet, type: cloth, grid: {size: [0.3, 0.3], resolution: [4, 4]}, density: 0.15, radius: 0.01,
+         position: [-1, 0.01, 0], orientation: {axis: [1, 0, 0], angle: -90}}
+    joints:
+      - {type: distance, between: [ball2, joined]}
+    colliders:
+      - {type: plane}
+      - {type: sphere, position: [2, 1, 0], radius: 0.4}
+      - {type: box, position: [1, 0.25, 0], size: [0.6, 0.5, 0.6]}
+    contacts: {}
+    """
+
+
+def _found(model, y: np.ndarray, compiled: bool) -> Contacts:
+    system = Dynamics(model)
+    state = system.kinematics(*system.split(np.array(y, float)), t=0.0, copy=True)
+    found = detect(model.contact_world, state, 0.001, np.full(model.body_count, 0.003), edges=True,
+                   compiled=compiled)
+    return found.select(np.argsort(contact_codes(found), kind="stable"))
+
+
+@pytest.fixture(scope="module", params=["probes", "polyhedra"])
+def touching(request, polyhedra):
+    return compile_scene(parse_scene(textwrap.dedent(PROBES), filename="probes.yaml").spec) \
+        if request.param == "probes" else polyhedra
+
+
+def test_probe_contacts_are_the_numpy_ones(touching):
+    """Every contact of a step's search, at 40 states near touching: the same set (the order of the parts differs,
+    and the contact solver does not depend on it)."""
+    kinds = set()
+    for y in _states(touching, 40, 0.003):
+        numpy_found = _found(touching, y, compiled=False)
+        _same(numpy_found, _found(touching, y, compiled=True))
+        kinds |= set(numpy_found.solid_kind.tolist())
+    if touching.contact_world.statics.sphere_centre.size:  # the probes scene: every kind the kernel measures
+        assert {probe_search.PLANE, probe_search.STATIC_SPHERE, probe_search.STATIC_BOX, probe_search.STATIC_BOX_FACE,
+                probe_search.BODY_SPHERE, probe_search.BODY_BOX, probe_search.BODY_BOX_FACE} <= kinds
+    else:  # the polyhedra: hull vertices on hulls (numpy both ways) beside the compiled edges
+        assert {contacts.BODY_HULL, contacts.HULL_EDGE, contacts.BODY_EDGE} <= kinds
+
+
+def test_the_probe_kernel_kinds_are_the_numpy_ones():
+    for name in ("PLANE", "STATIC_SPHERE", "STATIC_BOX", "BODY_SPHERE", "BODY_BOX", "STATIC_BOX_FACE",
+                 "BODY_BOX_FACE", "STATIC"):
+        assert getattr(probe_search, name) == getattr(contacts, name), name
+
+
+def test_a_mutated_probe_search_is_caught(monkeypatch):
+    """A probe search that loses a contact, or measures a gap a hair off, fails the comparison."""
+    from animbatch.sim.contact import detection
+
+    model = compile_scene(parse_scene(textwrap.dedent(PROBES), filename="probes.yaml").spec)
+    original = detection._compiled_probe_contacts
+    y = model.y0
+
+    def lossy(*args):
+        found = original(*args)
+        return found.select(np.arange(found.count) > 0)
+
+    def off(*args):
+        found = original(*args)
+        return Contacts(*(found.gap + 1e-9 if name == "gap" else getattr(found, name) for name in Contacts.FIELDS))
+
+    for mutant in (lossy, off):
+        monkeypatch.setattr(detection, "_compiled_probe_contacts", mutant)
+        with pytest.raises(AssertionError):
+            _same(_found(model, y, compiled=False), _found(model, y, compiled=True))
