@@ -15,7 +15,9 @@ looked for at half the distance they close, and passed through each other.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -55,7 +57,7 @@ from animbatch.sim.contact.geometry import (
     to_sphere,
     to_triangles,
 )
-from animbatch.sim.contact.hulls import BodyHull, edge_contacts, to_hull
+from animbatch.sim.contact.hulls import BodyHull, compiled_edge_contacts, edge_contacts, to_hull
 from animbatch.sim.contact.materials import MaterialTable
 from animbatch.sim.contact.meshes import TriangleGroup
 from animbatch.sim.contact.moving import MovingColliders
@@ -211,11 +213,12 @@ def _contacts(world: ContactWorld, probes: np.ndarray, centres: np.ndarray, dist
 
 
 def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.ndarray | None = None, *,
-           edges: bool = False) -> Contacts:
+           edges: bool = False, compiled: bool = False) -> Contacts:
     """Every probe–solid pair whose gap is below ``margin`` [m] plus how far both sides can travel (``travel`` (P,)
     [m] per body, the most any of its points moves in the coming step; None: nothing moves), as contacts; with
     ``edges``, also the contacts that probes miss: edges crossing edges (:mod:`animbatch.sim.contact.hulls`),
-    cylinders' rims on planes, and the sides of rounds (:mod:`animbatch.sim.contact.sides`)."""
+    cylinders' rims on planes, and the sides of rounds (:mod:`animbatch.sim.contact.sides`). ``compiled``: search
+    with the compiled kernels where there are some (the same contacts, to round-off)."""
     check_scale(world, state, travel)
     centres = probe_centres(world, state)
     active = world.collides[world.probes.owner]
@@ -231,23 +234,29 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
         found = np.asarray(tree.query_ball_point(centre, radius + reach), dtype=np.intp)
         return found[active[found]] if len(found) else found
 
-    for k in range(len(statics.plane_point)):
-        d, n = to_plane(centres[everywhere], statics.plane_point[k], statics.plane_normal[k])
-        parts.append(_contacts(world, everywhere, centres[everywhere], d, np.array(n), np.full(len(d), STATIC),
-                               np.full(len(d), statics.plane_material[k]), margin, PLANE, np.full(len(d), k), travel))
-    for k in range(len(statics.sphere_centre)):
-        chosen = near(statics.sphere_centre[k], statics.sphere_radius[k])
-        d, n = to_sphere(centres[chosen], np.broadcast_to(statics.sphere_centre[k], (len(chosen), 3)),
-                         np.full(len(chosen), statics.sphere_radius[k]))
-        parts.append(_contacts(world, chosen, centres[chosen], d, n, np.full(len(chosen), STATIC),
-                               np.full(len(chosen), statics.sphere_material[k]), margin, STATIC_SPHERE,
-                               np.full(len(chosen), k), travel))
     box_centres, box_rotations = body_box_poses(world, state)
-    for k in range(len(statics.box_centre)):
-        chosen = near(statics.box_centre[k], float(np.linalg.norm(statics.box_half[k])))
-        parts.append(_box_contacts(world, chosen, centres, statics.box_centre[k], statics.box_rotation[k],
-                                   statics.box_half[k], STATIC, statics.box_material[k], margin,
-                                   (STATIC_BOX, STATIC_BOX_FACE), k, box_centres, box_rotations, travel))
+    by_kernel = compiled and world.probes.count <= COMPILED_PROBES
+    if by_kernel:
+        parts.append(_compiled_probe_contacts(world, statics, centres, active, margin, largest_travel, box_centres,
+                                              box_rotations, travel))
+    else:
+        for k in range(len(statics.plane_point)):
+            d, n = to_plane(centres[everywhere], statics.plane_point[k], statics.plane_normal[k])
+            parts.append(_contacts(world, everywhere, centres[everywhere], d, np.array(n), np.full(len(d), STATIC),
+                                   np.full(len(d), statics.plane_material[k]), margin, PLANE, np.full(len(d), k),
+                                   travel))
+        for k in range(len(statics.sphere_centre)):
+            chosen = near(statics.sphere_centre[k], statics.sphere_radius[k])
+            d, n = to_sphere(centres[chosen], np.broadcast_to(statics.sphere_centre[k], (len(chosen), 3)),
+                             np.full(len(chosen), statics.sphere_radius[k]))
+            parts.append(_contacts(world, chosen, centres[chosen], d, n, np.full(len(chosen), STATIC),
+                                   np.full(len(chosen), statics.sphere_material[k]), margin, STATIC_SPHERE,
+                                   np.full(len(chosen), k), travel))
+        for k in range(len(statics.box_centre)):
+            chosen = near(statics.box_centre[k], float(np.linalg.norm(statics.box_half[k])))
+            parts.append(_box_contacts(world, chosen, centres, statics.box_centre[k], statics.box_rotation[k],
+                                       statics.box_half[k], STATIC, statics.box_material[k], margin,
+                                       (STATIC_BOX, STATIC_BOX_FACE), k, box_centres, box_rotations, travel))
     for group in world.triangles:
         points = centres[everywhere]
         if group.path >= 0:
@@ -261,14 +270,91 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
             parts.append(_contacts(world, probes, centres[probes], d, n, np.full(len(probes), STATIC),
                                    statics.triangle_material[triangles], margin, TRIANGLE, triangles, travel))
     if world.bodies_collide and tree is not None:
-        parts += _between_bodies(world, state, centres, tree, active, margin, box_centres, box_rotations, travel)
+        parts += _between_bodies(world, state, centres, tree, active, margin, box_centres, box_rotations, travel,
+                                 spheres_and_boxes=not by_kernel)
     if edges and (world.boxes.count or world.hulls):
-        parts.append(edge_contacts(world, state, statics, box_centres, box_rotations, margin, travel))
+        search = compiled_edge_contacts if compiled else edge_contacts
+        parts.append(search(world, state, statics, box_centres, box_rotations, margin, travel))
     if edges and world.cylinders is not None and len(statics.plane_point):
         parts.append(rim_contacts(world, state, statics, margin, travel))
     if edges and world.cylinders is not None:
         parts.append(side_contacts(world, state, statics, box_centres, box_rotations, margin, travel))
     return Contacts.concatenate(parts)
+
+
+#: Scenes with at most this many probes search them with the compiled kernel (every pair tested: the k-d tree
+#: pays beyond); more, the numpy search.
+COMPILED_PROBES = 1000
+
+
+@dataclass(frozen=True, eq=False)
+class _ProbeTables:
+    """What the compiled probe search takes that does not change in a run, typed as it takes it."""
+
+    owner: np.ndarray
+    box: np.ndarray
+    radius: np.ndarray
+    group: np.ndarray
+    material: np.ndarray
+    collides: np.ndarray
+    excluded: np.ndarray
+    box_owner: np.ndarray
+    box_half: np.ndarray
+
+    @classmethod
+    def of_world(cls, world: ContactWorld) -> _ProbeTables:
+        probes, count = world.probes, len(world.body_material)
+        group = np.full(count, -1, np.int64) if world.group is None else np.asarray(world.group, np.int64)
+        excluded = np.zeros(0, np.int64) if world.excluded is None else np.sort(np.asarray(world.excluded, np.int64))
+        return cls(np.asarray(probes.owner, np.int64), np.asarray(probes.box, np.int64),
+                   np.asarray(probes.radius, float), group, np.asarray(world.body_material, np.int64),
+                   np.asarray(world.collides, np.bool_), excluded, np.asarray(world.boxes.owner, np.int64),
+                   np.ascontiguousarray(world.boxes.half, float).reshape(-1, 3))
+
+
+_TABLES: weakref.WeakKeyDictionary[ContactWorld, _ProbeTables] = weakref.WeakKeyDictionary()
+
+
+def _compiled_probe_contacts(world: ContactWorld, statics: StaticColliders, centres: np.ndarray, active: np.ndarray,
+                             margin: float, largest_travel: float, box_centres: np.ndarray, box_rotations: np.ndarray,
+                             travel: np.ndarray | None) -> Contacts:
+    """The probes' contacts with planes, fixed spheres and boxes, other probes and body boxes, measured by one
+    compiled call (:mod:`animbatch.sim.kernels.probe_search`): the numpy search's contacts, to round-off."""
+    from animbatch.sim.kernels import probe_search
+
+    tables = _TABLES.get(world)
+    if tables is None:
+        tables = _TABLES[world] = _ProbeTables.of_world(world)
+
+    def floats3(rows: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(rows, float).reshape(-1, 3)
+
+    def ints(values: np.ndarray) -> np.ndarray:
+        return np.asarray(values, np.int64)
+
+    search: Any = probe_search.probe_candidates
+    found, measured = search(
+        floats3(centres), tables.owner, tables.box, tables.radius, np.asarray(active, np.bool_), tables.group,
+        tables.material, tables.collides, tables.excluded, floats3(statics.plane_point),
+        floats3(statics.plane_normal), ints(statics.plane_material), floats3(statics.sphere_centre),
+        np.asarray(statics.sphere_radius, float), ints(statics.sphere_material), floats3(statics.box_centre),
+        np.ascontiguousarray(statics.box_rotation, float).reshape(-1, 3, 3), floats3(statics.box_half),
+        ints(statics.box_material), tables.box_owner, floats3(box_centres),
+        np.ascontiguousarray(box_rotations, float).reshape(-1, 3, 3), tables.box_half, bool(world.bodies_collide),
+        float(margin), float(largest_travel))
+    probe = found[:, 0].astype(np.intp)
+    return _contacts(world, probe, centres[probe], measured[:, 0], measured[:, 1:], found[:, 1].astype(np.intp),
+                     found[:, 2].astype(np.intp), margin, found[:, 3].astype(np.intp), found[:, 4].astype(np.intp),
+                     travel)
+
+
+def build_probe_kernels() -> None:
+    """Compile (or load from the disk cache) the probe search on nothing, with the argument types of a run."""
+    from animbatch.sim.kernels import probe_search
+
+    f3, f33, f, i, b = np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.bool_)
+    search: Any = probe_search.probe_candidates
+    search(f3, i, i, f, b, i, i, b, i, f3, f3, i, f3, f, i, f3, f33, f3, i, i, f3, f33, f3, True, 0.0, 0.0)
 
 
 def rim_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders, margin: float,
@@ -336,12 +422,13 @@ def _box_contacts(world: ContactWorld, chosen: np.ndarray, centres: np.ndarray, 
 
 def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray, tree: cKDTree, active: np.ndarray,
                     margin: float, box_centres: np.ndarray, box_rotations: np.ndarray,
-                    travel: np.ndarray | None) -> list[Contacts]:
-    """Probe spheres against other bodies' probe spheres, and probes against other bodies' boxes, round solids and
-    hulls."""
+                    travel: np.ndarray | None, *, spheres_and_boxes: bool = True) -> list[Contacts]:
+    """Probe spheres against other bodies' probe spheres (``spheres_and_boxes``), and probes against other bodies'
+    boxes (likewise), round solids and hulls."""
     probes, parts = world.probes, []
     closing = margin + 2 * (float(travel.max(initial=0.0)) if travel is not None else 0.0)  # both sides move
-    pairs = tree.query_pairs(2 * float(probes.radius.max()) + closing, output_type="ndarray")
+    pairs = (tree.query_pairs(2 * float(probes.radius.max()) + closing, output_type="ndarray") if spheres_and_boxes
+             else np.zeros((0, 2), np.intp))
     if len(pairs):
         i, j = pairs[:, 0], pairs[:, 1]
         keep = (probes.owner[i] != probes.owner[j]) & active[i] & active[j] & (probes.radius[j] > 0)
@@ -355,7 +442,7 @@ def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray,
         parts.append(_contacts(world, i, centres[i], d, n, owner_j, world.body_material[owner_j], margin,
                                BODY_SPHERE, j, travel))
     boxes = world.boxes
-    for k in range(boxes.count):
+    for k in range(boxes.count if spheres_and_boxes else 0):
         owner = boxes.owner[k]
         if not world.collides[owner]:
             continue

@@ -20,14 +20,38 @@ Only the columns of contacts on jointed bodies change; a pile of free bodies nex
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import scipy.sparse as sp
+from scipy.linalg import cho_factor, cho_solve
 from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import splu
 
 #: Joint systems up to this many rows are solved dense (a pseudo-inverse: redundant rows, as in closed loops, are
 #: fine); larger ones by sparse LU.
 DENSE_ROWS = 600
+
+
+#: A Cholesky factor whose smallest pivot² falls below this times the largest diagonal entry is too near singular
+#: (redundant rows): the pseudo-inverse is used instead.
+RANK_TOLERANCE = 1e-10
+
+
+def _dense_solver(system: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """``right ↦ system⁺ right`` for the symmetric positive semi-definite ``G M⁻¹ Gᵀ``: by Cholesky when it is
+    well inside full rank (a tree of joints: a ragdoll, a chain; about fifty times cheaper than an eigen-solve),
+    else by the pseudo-inverse (redundant rows, as closed loops have)."""
+    if len(system):
+        try:
+            factor = cho_factor(system, lower=True, check_finite=False)
+            pivots = np.diag(factor[0])
+            if np.min(pivots) ** 2 > RANK_TOLERANCE * np.max(np.diag(system)):
+                return lambda right: cho_solve(factor, right, check_finite=False)
+        except np.linalg.LinAlgError:
+            pass
+    pseudo = np.linalg.pinv(system, hermitian=True)
+    return lambda right: pseudo @ right
 
 
 class JointedResponse:
@@ -40,8 +64,7 @@ class JointedResponse:
         self.push = (inverse @ self.rows.T).tocsc()  # M⁻¹ Gᵀ (6N, R)
         system = self.rows @ self.push
         if system.shape[0] <= DENSE_ROWS:
-            pseudo = np.linalg.pinv(system.toarray(), hermitian=True)
-            self._solve = lambda right: pseudo @ right
+            self._solve = _dense_solver(system.toarray())
         else:
             factor = splu(sp.csc_matrix(system))
             self._solve = factor.solve

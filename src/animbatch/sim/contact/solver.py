@@ -423,6 +423,8 @@ def build_contact_kernels() -> str | None:
     from animbatch.sim.kernels import build_failure
 
     def build() -> None:
+        from animbatch.sim.contact.detection import build_probe_kernels
+        from animbatch.sim.contact.hulls import build_edge_kernels
         from animbatch.sim.kernels import contact_impulses as kernels
 
         impulses: Any = kernels  # the kernels take the rows unpacked (ContactRows.kernel_rows)
@@ -434,6 +436,8 @@ def build_contact_kernels() -> str | None:
         impulses.impulse_iterations(velocity, *one, *rows, np.ones((3, 1)), np.zeros(1), np.zeros(1),
                                     np.zeros((1, 2)), np.zeros(1), np.zeros(1), np.zeros(1, bool), 1, 0.0)
         impulses.push_iterations(velocity, *one, *rows, np.ones((3, 1)), np.zeros(1), 0.0, 1)
+        build_edge_kernels()
+        build_probe_kernels()
 
     return build_failure(build)
 

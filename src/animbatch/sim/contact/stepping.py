@@ -28,7 +28,13 @@ from animbatch.sim.contact.contacts import contact_codes
 from animbatch.sim.contact.detection import body_reach, detect
 from animbatch.sim.contact.impacts import ImpactLog
 from animbatch.sim.contact.jointed import JointedResponse
-from animbatch.sim.contact.solver import BodyVelocities, inverse_mass_matrix, solve_impulses, tangent_basis
+from animbatch.sim.contact.solver import (
+    BodyVelocities,
+    compiled_contacts,
+    inverse_mass_matrix,
+    solve_impulses,
+    tangent_basis,
+)
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.forces.gravity import gravity_magnitude
 from animbatch.sim.model.dynamics import Dynamics
@@ -149,7 +155,8 @@ class ContactResolver:
         # a moving collider closes on everything at its own speed)
         if self.world.moving is not None:
             speed = speed + self.world.moving.largest_speed(t, state.x, self.reach)
-        contacts = detect(self.world, state, 2 * self.settings.slop + 1e-9, travel=1.5 * h * speed, edges=True)
+        contacts = detect(self.world, state, 2 * self.settings.slop + 1e-9, travel=1.5 * h * speed, edges=True,
+                          compiled=compiled_contacts(0, long_run=self.system.long_run))
         self.contacts_last_step = contacts.count
         if not contacts.count:
             return None

@@ -1,0 +1,248 @@
+"""Compiled probe search: probes (spheres and box corners fixed to bodies) against planes, fixed spheres and boxes,
+other bodies' probe spheres and other bodies' boxes, in one call per step. It replaces the per-solid loops of
+:func:`animbatch.sim.contact.detection.detect` (a k-d tree query, then a dozen small numpy operations per solid) for
+scenes with few probes (:data:`animbatch.sim.contact.detection.COMPILED_PROBES`): the pairs are tested all against
+all, with the k-d tree's own reach, so the candidates are the numpy search's.
+
+Each candidate is measured as the numpy code measures it (:func:`~animbatch.sim.contact.geometry.to_sphere`,
+``to_box``, ``separating_direction``, ``to_box_face``), in the same order of operations, so the distances and
+normals agree to round-off; which candidates become contacts (the gap against the pair's closing margin) is then
+decided by the numpy side for every candidate at once.
+
+Arrays: probes ``centres`` (Q, 3) [m], ``owner``, ``box`` (Q,) (the body box whose corner a probe is, or −1),
+``radius`` (Q,) [m], ``active`` (Q,) bool; per body ``group`` (P,) (−1: none), ``material`` (P,), ``collides`` (P,)
+bool; ``excluded`` sorted int64 keys ``low · P + high`` of body pairs that never touch. Solids: planes (point,
+normal, material), fixed spheres (centre, radius, material), fixed boxes and body boxes (centre (X, 3), rotation
+(X, 3, 3) box-to-world, half sides (X, 3), material or owner).
+Found: integer rows (K, 5) ``probe, solid body, solid material, kind, solid index`` and float rows (K, 4)
+``distance`` [m] of the probe's centre to the solid, outward ``normal`` (3).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+#: The contact kinds of animbatch.sim.contact.contacts (a kernel may not import it; the tests check they agree).
+PLANE, STATIC_SPHERE, STATIC_BOX, BODY_SPHERE, BODY_BOX, STATIC_BOX_FACE, BODY_BOX_FACE = 0, 1, 2, 4, 5, 6, 7
+STATIC = -1
+
+
+@njit(cache=True, error_model="numpy")
+def _add(ints: np.ndarray, floats: np.ndarray, count: int, probe: int, body: int, material: int, kind: int,
+         index: int, distance: float, n0: float, n1: float, n2: float) -> tuple[np.ndarray, np.ndarray]:
+    """Row ``count`` of the candidates, the tables doubled first when full."""
+    if count == len(ints):
+        more_ints = np.empty((2 * len(ints), 5), np.int64)
+        more_floats = np.empty((2 * len(ints), 4))
+        for k in range(count):
+            for c in range(5):
+                more_ints[k, c] = ints[k, c]
+            for c in range(4):
+                more_floats[k, c] = floats[k, c]
+        ints, floats = more_ints, more_floats
+    ints[count, 0], ints[count, 1], ints[count, 2], ints[count, 3], ints[count, 4] = probe, body, material, kind, index
+    floats[count, 0], floats[count, 1], floats[count, 2], floats[count, 3] = distance, n0, n1, n2
+    return ints, floats
+
+
+@njit(cache=True, error_model="numpy")
+def _near(point: np.ndarray, centre: np.ndarray, reach: float) -> bool:
+    """Whether ``point`` lies within ``reach`` of ``centre`` (the k-d tree's ball query)."""
+    d0, d1, d2 = point[0] - centre[0], point[1] - centre[1], point[2] - centre[2]
+    return math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) <= reach
+
+
+@njit(cache=True, error_model="numpy")
+def _allowed(first: int, second: int, excluded: np.ndarray, body_count: int) -> bool:
+    """Whether two bodies may touch: their key is not among the sorted ``excluded``."""
+    key = min(first, second) * body_count + max(first, second)
+    at = np.searchsorted(excluded, key)
+    return not (at < len(excluded) and excluded[at] == key)
+
+
+@njit(cache=True, error_model="numpy")
+def _local(point: np.ndarray, centre: np.ndarray, rotation: np.ndarray) -> tuple[float, float, float]:
+    """``Rᵀ (p − c)``."""
+    d0, d1, d2 = point[0] - centre[0], point[1] - centre[1], point[2] - centre[2]
+    return (rotation[0, 0] * d0 + rotation[1, 0] * d1 + rotation[2, 0] * d2,
+            rotation[0, 1] * d0 + rotation[1, 1] * d1 + rotation[2, 1] * d2,
+            rotation[0, 2] * d0 + rotation[1, 2] * d1 + rotation[2, 2] * d2)
+
+
+@njit(cache=True, error_model="numpy")
+def _to_box(point: np.ndarray, centre: np.ndarray, rotation: np.ndarray, half: np.ndarray
+            ) -> tuple[float, float, float, float]:
+    """Signed distance of a point to a box and the outward normal (world axes); inside, the nearest face's."""
+    local = _local(point, centre, rotation)
+    outside = np.empty(3)
+    for i in range(3):
+        outside[i] = local[i] - min(max(local[i], -half[i]), half[i])
+    distance = math.sqrt(outside[0] * outside[0] + outside[1] * outside[1] + outside[2] * outside[2])
+    normal_local = np.zeros(3)
+    if distance > 1e-12:
+        for i in range(3):
+            normal_local[i] = outside[i] / distance
+        signed = distance
+    else:  # inside: leave through the nearest face
+        axis, least = 0, half[0] - abs(local[0])
+        for i in range(1, 3):
+            if half[i] - abs(local[i]) < least:
+                axis, least = i, half[i] - abs(local[i])
+        normal_local[axis] = 1.0 if local[axis] >= 0 else -1.0
+        signed = -least
+    n = np.empty(3)
+    for i in range(3):
+        n[i] = rotation[i, 0] * normal_local[0] + rotation[i, 1] * normal_local[1] + rotation[i, 2] * normal_local[2]
+    return signed, n[0], n[1], n[2]
+
+
+@njit(cache=True, error_model="numpy")
+def _extent(axis: np.ndarray, rotation: np.ndarray, half: np.ndarray) -> float:
+    """How far a box (rotation box-to-world, half sides) reaches from its centre along a unit axis."""
+    reach = 0.0
+    for j in range(3):
+        reach += abs(axis[0] * rotation[0, j] + axis[1] * rotation[1, j] + axis[2] * rotation[2, j]) * half[j]
+    return reach
+
+
+@njit(cache=True, error_model="numpy")
+def _separating_direction(centre_a: np.ndarray, rotation_a: np.ndarray, half_a: np.ndarray, centre_b: np.ndarray,
+                          rotation_b: np.ndarray, half_b: np.ndarray) -> np.ndarray:
+    """The unit direction from box b towards box a along the face axis (of either) on which they overlap least."""
+    best, best_value, best_along = 0, np.inf, 0.0
+    axis = np.empty(3)
+    for m in range(6):
+        for i in range(3):
+            axis[i] = rotation_a[i, m] if m < 3 else rotation_b[i, m - 3]
+        reach = _extent(axis, rotation_a, half_a) + _extent(axis, rotation_b, half_b)
+        along = (axis[0] * (centre_a[0] - centre_b[0]) + axis[1] * (centre_a[1] - centre_b[1])
+                 + axis[2] * (centre_a[2] - centre_b[2]))
+        if reach - abs(along) < best_value:
+            best, best_value, best_along = m, reach - abs(along), along
+    direction = np.empty(3)
+    sign = 1.0 if best_along >= 0 else -1.0
+    for i in range(3):
+        direction[i] = sign * (rotation_a[i, best] if best < 3 else rotation_b[i, best - 3])
+    return direction
+
+
+@njit(cache=True, error_model="numpy")
+def _box_candidates(ints: np.ndarray, floats: np.ndarray, count: int, probe: int, centres: np.ndarray,
+                    box: np.ndarray, centre: np.ndarray, rotation: np.ndarray, half: np.ndarray, body: int,
+                    material: int, kinds: tuple[int, int], index: int, box_centre: np.ndarray,
+                    box_rotation: np.ndarray, box_half: np.ndarray, tolerance: float
+                    ) -> tuple[np.ndarray, np.ndarray, int]:
+    """Probe against one box: a corner of another box against the face the two boxes' separating axis picks (when
+    it lies within that face's extent, to ``tolerance``), anything else against the box as a whole."""
+    point = centres[probe]
+    distance, n0, n1, n2 = _to_box(point, centre, rotation, half)
+    kind, solid = kinds[0], index
+    own = box[probe]
+    if own >= 0:
+        direction = _separating_direction(box_centre[own], box_rotation[own], box_half[own], centre, rotation, half)
+        local_direction = _local(direction, np.zeros(3), rotation)
+        axis = 0
+        for i in range(1, 3):
+            if abs(local_direction[i]) > abs(local_direction[axis]):
+                axis = i
+        positive = local_direction[axis] >= 0
+        local = _local(point, centre, rotation)
+        on_face = True
+        for i in range(3):
+            if i != axis and abs(local[i]) - half[i] > tolerance:
+                on_face = False
+        if on_face:
+            sign = 1.0 if positive else -1.0
+            distance = sign * local[axis] - half[axis]
+            n0, n1, n2 = rotation[0, axis] * sign, rotation[1, axis] * sign, rotation[2, axis] * sign
+            kind, solid = kinds[1], 6 * index + 2 * axis + (1 if positive else 0)
+    ints, floats = _add(ints, floats, count, probe, body, material, kind, solid, distance, n0, n1, n2)
+    return ints, floats, count + 1
+
+
+@njit(cache=True, error_model="numpy")
+def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, radius: np.ndarray,
+                     active: np.ndarray, group: np.ndarray, material: np.ndarray, collides: np.ndarray,
+                     excluded: np.ndarray, plane_point: np.ndarray, plane_normal: np.ndarray,
+                     plane_material: np.ndarray, sphere_centre: np.ndarray, sphere_radius: np.ndarray,
+                     sphere_material: np.ndarray, static_centre: np.ndarray, static_rotation: np.ndarray,
+                     static_half: np.ndarray, static_material: np.ndarray, box_owner: np.ndarray,
+                     box_centre: np.ndarray, box_rotation: np.ndarray, box_half: np.ndarray, bodies_collide: bool,
+                     margin: float, largest_travel: float) -> tuple[np.ndarray, np.ndarray]:
+    """Every probe–solid pair the numpy search measures (see the module notes), measured, in its order: planes,
+    fixed spheres, fixed boxes, then (``bodies_collide``) probe spheres and body boxes."""
+    body_count = len(material)
+    widest = 0.0
+    for q in range(len(radius)):
+        widest = max(widest, radius[q])
+    reach = margin + largest_travel + widest  # the fixed solids' k-d tree reach
+    tolerance = margin + 2 * largest_travel  # a corner within this of a face's extent is on it
+    ints = np.empty((64, 5), np.int64)
+    floats = np.empty((64, 4))
+    count = 0
+    for k in range(len(plane_point)):
+        for q in range(len(owner)):
+            if active[q]:
+                point = centres[q]
+                distance = ((point[0] - plane_point[k, 0]) * plane_normal[k, 0]
+                            + (point[1] - plane_point[k, 1]) * plane_normal[k, 1]
+                            + (point[2] - plane_point[k, 2]) * plane_normal[k, 2])
+                ints, floats = _add(ints, floats, count, q, STATIC, plane_material[k], PLANE, k, distance,
+                                    plane_normal[k, 0], plane_normal[k, 1], plane_normal[k, 2])
+                count += 1
+    for k in range(len(sphere_centre)):
+        for q in range(len(owner)):
+            if active[q] and _near(centres[q], sphere_centre[k], sphere_radius[k] + reach):
+                ints, floats, count = _sphere(ints, floats, count, q, centres[q], sphere_centre[k], sphere_radius[k],
+                                              STATIC, sphere_material[k], STATIC_SPHERE, k)
+    for k in range(len(static_centre)):
+        size = math.sqrt(static_half[k, 0] ** 2 + static_half[k, 1] ** 2 + static_half[k, 2] ** 2)
+        for q in range(len(owner)):
+            if active[q] and _near(centres[q], static_centre[k], size + reach):
+                ints, floats, count = _box_candidates(
+                    ints, floats, count, q, centres, box, static_centre[k], static_rotation[k], static_half[k],
+                    STATIC, static_material[k], (STATIC_BOX, STATIC_BOX_FACE), k, box_centre, box_rotation, box_half,
+                    tolerance)
+    if not bodies_collide or not len(owner):
+        return ints[:count], floats[:count]
+    closing = margin + 2 * largest_travel  # both sides move
+    for i in range(len(owner)):
+        for j in range(i + 1, len(owner)):
+            a, b = owner[i], owner[j]
+            if (a == b or not active[i] or not active[j] or radius[j] <= 0
+                    or not _near(centres[i], centres[j], 2 * widest + closing)
+                    or not _allowed(a, b, excluded, body_count)
+                    or (group[a] >= 0 and group[a] == group[b])):
+                continue
+            ints, floats, count = _sphere(ints, floats, count, i, centres[i], centres[j], radius[j], b, material[b],
+                                          BODY_SPHERE, j)
+    for k in range(len(box_owner)):
+        body = box_owner[k]
+        if not collides[body]:
+            continue
+        size = math.sqrt(box_half[k, 0] ** 2 + box_half[k, 1] ** 2 + box_half[k, 2] ** 2)
+        for q in range(len(owner)):
+            if (owner[q] != body and active[q] and _near(centres[q], box_centre[k], size + closing + widest)
+                    and _allowed(body, owner[q], excluded, body_count)):
+                ints, floats, count = _box_candidates(
+                    ints, floats, count, q, centres, box, box_centre[k], box_rotation[k], box_half[k], body,
+                    material[body], (BODY_BOX, BODY_BOX_FACE), k, box_centre, box_rotation, box_half, tolerance)
+    return ints[:count], floats[:count]
+
+
+@njit(cache=True, error_model="numpy")
+def _sphere(ints: np.ndarray, floats: np.ndarray, count: int, probe: int, point: np.ndarray, centre: np.ndarray,
+            radius: float, body: int, material: int, kind: int, index: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Probe against a sphere: the distance of its centre to the sphere and the outward normal ((0, 1, 0) at the
+    centre)."""
+    d0, d1, d2 = point[0] - centre[0], point[1] - centre[1], point[2] - centre[2]
+    length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    if length > 1e-12:
+        n0, n1, n2 = d0 / length, d1 / length, d2 / length
+    else:
+        n0, n1, n2 = 0.0, 1.0, 0.0
+    ints, floats = _add(ints, floats, count, probe, body, material, kind, index, length - radius, n0, n1, n2)
+    return ints, floats, count + 1
