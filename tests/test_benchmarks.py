@@ -61,3 +61,12 @@ def test_the_peers_benchmark_builds_each_case_twice_from_the_same_numbers():
     assert peers.bar_period() == pytest.approx(2 * math.pi * math.sqrt(2 * 1.0 / (3 * 9.81)) * 1.073, rel=1e-3)
     ElementTree.fromstring(peers.bar_mjcf())
     ElementTree.fromstring(peers.double_pendulum_mjcf())
+    # the pile: the same dozen boxes on both sides; the ragdoll: eleven bodies, four ball joints' worth of each side
+    pile = compile_scene(parse_scene(peers.pile_scene(duration=0.1), filename="pile.yaml").spec)
+    assert pile.rigid_count == peers.PILE_COUNT
+    assert pile.rigid.mass == pytest.approx([peers.PILE_DENSITY * peers.PILE_SIDE ** 3] * peers.PILE_COUNT)
+    assert len(ElementTree.fromstring(peers.pile_mjcf()).findall(".//freejoint")) == peers.PILE_COUNT
+    ragdoll = ElementTree.fromstring(peers.ragdoll_mjcf())
+    assert len(ragdoll.findall(".//body")) == 11
+    assert len(ragdoll.findall(".//joint[@type='ball']")) == 6
+    assert len(ragdoll.findall(".//joint[@type='hinge']")) == 4
