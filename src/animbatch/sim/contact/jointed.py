@@ -33,6 +33,10 @@ from scipy.sparse.linalg import splu
 DENSE_ROWS = 600
 
 
+#: Systems of up to this many velocity components (6 per body) keep the joint rows and ``M⁻¹ Gᵀ`` dense: a ragdoll's
+#: or a welded body's few dozen columns cost microseconds as arrays, and a hundred scipy.sparse constructions a step
+#: (each some 20 µs of checks) were most of a jointed contact step.
+DENSE_COLUMNS = 1200
 #: A Cholesky factor whose smallest pivot² falls below this times the largest diagonal entry is too near singular
 #: (redundant rows): the pseudo-inverse is used instead.
 RANK_TOLERANCE = 1e-10
@@ -54,6 +58,11 @@ def _dense_solver(system: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     return lambda right: pseudo @ right
 
 
+def _array(matrix: sp.spmatrix | np.ndarray) -> np.ndarray:
+    """A sparse matrix's entries as an array (an array as it is)."""
+    return np.asarray(matrix.toarray()) if isinstance(matrix, sp.spmatrix | sp.sparray) else np.asarray(matrix)
+
+
 class JointedResponse:
     """The joints' rows ``rows`` (R, 6N) and the inverse mass matrix ``inverse`` (6N, 6N), both over the flat
     velocity of N bodies, and the factorised ``G M⁻¹ Gᵀ``."""
@@ -63,15 +72,25 @@ class JointedResponse:
         self._groups: np.ndarray | None = None
         self.push = (inverse @ self.rows.T).tocsc()  # M⁻¹ Gᵀ (6N, R)
         system = self.rows @ self.push
+        # small systems: the same products on arrays (see DENSE_COLUMNS)
+        self._dense = self.rows.shape[1] <= DENSE_COLUMNS
+        self._rows_array = self.rows.toarray() if self._dense else None
+        self._push_array = self.push.toarray() if self._dense else None
         if system.shape[0] <= DENSE_ROWS:
             self._solve = _dense_solver(system.toarray())
         else:
             factor = splu(sp.csc_matrix(system))
             self._solve = factor.solve
 
-    def _touched(self, response: sp.spmatrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _touched(self, response: sp.spmatrix | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """For a response (6N, K): the columns that move jointed bodies, their ``G response`` (R, k) and
         ``(G M⁻¹ Gᵀ)⁻¹ G response``."""
+        if self._rows_array is not None:
+            rates = self._rows_array @ _array(response)
+            touched = np.flatnonzero(np.any(rates != 0, axis=0))
+            rates = rates[:, touched]
+            return touched, rates, (np.asarray(self._solve(rates)) if len(touched)
+                                    else np.zeros((self.rows.shape[0], 0)))
         moved = sp.csc_matrix(self.rows @ response)
         touched = np.flatnonzero(np.diff(moved.indptr) > 0)
         if not len(touched):
@@ -82,6 +101,10 @@ class JointedResponse:
     def correct(self, response: sp.spmatrix) -> sp.csc_matrix:
         """``K Jᵀ`` from ``M⁻¹ Jᵀ`` (6N, K): the response within the joints."""
         touched, _, multipliers = self._touched(response)
+        if self._push_array is not None:
+            corrected = response.toarray()
+            corrected[:, touched] -= self._push_array @ multipliers
+            return sp.csc_matrix(corrected)
         response = sp.csc_matrix(response)
         if not len(touched):
             return response
@@ -90,7 +113,12 @@ class JointedResponse:
                               shape=(len(touched), response.shape[1]))
         return sp.csc_matrix(response - correction @ place)
 
-    def lost(self, response: sp.spmatrix) -> np.ndarray:
+    @property
+    def dense(self) -> bool:
+        """Whether :meth:`lost` takes responses as arrays (small systems)."""
+        return self._dense
+
+    def lost(self, response: sp.spmatrix | np.ndarray) -> np.ndarray:
         """For each column (K,) of ``M⁻¹ Jᵀ``: how much of ``J M⁻¹ Jᵀ`` (a row's inverse effective mass) the joints
         take away, ``J M⁻¹ Gᵀ (G M⁻¹ Gᵀ)⁻¹ G M⁻¹ Jᵀ`` ≥ 0."""
         lost = np.zeros(response.shape[1])

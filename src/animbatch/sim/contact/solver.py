@@ -218,6 +218,16 @@ class ContactRows:
                                                                                             row.ang_b)))
         return 1.0 / inverse
 
+    def _dense_response(self, row: _Direction, first: bool) -> np.ndarray:
+        """The response ``M⁻¹ Jᵀ`` (6 (P + 1), K) of one end of a row as an array: body a's ``lin_a``, ``turn_a``
+        (``first``), or body b's ``−lin_b``, ``−turn_b``. (Entries of bodies that cannot move are zero already.)"""
+        body, linear, angular = (self.a, row.lin_a, row.turn_a) if first else (self.b, -row.lin_b, -row.turn_b)
+        response = np.zeros((6 * self.size, self.count))
+        columns = np.arange(self.count)[:, None]
+        response[3 * body[:, None] + np.arange(3), columns] = linear
+        response[3 * (self.size + body[:, None]) + np.arange(3), columns] = angular
+        return response
+
     def _jointed_weight(self, row: _Direction, jointed: JointedResponse) -> np.ndarray:
         """Effective mass along a row with the joints: each end's inverse effective mass less what the joints take
         away, split among the contacts of its whole jointed group (the group moves as one under any of them), or
@@ -225,9 +235,13 @@ class ContactRows:
         a, b = self.a, self.b
         own_a = np.einsum("ki,ki->k", row.lin_a, row.d) + np.einsum("ki,ki->k", row.turn_a, row.ang_a)
         own_b = np.einsum("ki,ki->k", row.lin_b, row.d) + np.einsum("ki,ki->k", row.turn_b, row.ang_b)
-        lost_a = jointed.lost(self._sparse((row,), response=True, ends=(True, False)))
-        lost_b = jointed.lost(self._sparse((row,), response=True, ends=(False, True)))
-        lost_both = jointed.lost(self._sparse((row,), response=True))
+        if jointed.dense:  # each end's response as an array: no sparse matrices to build
+            end_a, end_b = self._dense_response(row, True), self._dense_response(row, False)
+            lost_a, lost_b, lost_both = (jointed.lost(r) for r in (end_a, end_b, end_a + end_b))
+        else:
+            lost_a = jointed.lost(self._sparse((row,), response=True, ends=(True, False)))
+            lost_b = jointed.lost(self._sparse((row,), response=True, ends=(False, True)))
+            lost_both = jointed.lost(self._sparse((row,), response=True))
         group = jointed.groups(self.size)
         group[-1] = -1  # the fixed body: no share
         shares = np.bincount(np.concatenate([group[a], group[b]]) + 1, minlength=group.max() + 2).astype(float)
