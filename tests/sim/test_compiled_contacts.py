@@ -133,7 +133,7 @@ def test_a_mutated_kernel_is_caught(polyhedra, monkeypatch):
 
 #: Probes of every kind against every solid the compiled probe search takes: particles and balls on a plane, in a
 #: fixed sphere's bowl and on a fixed box, a ball on a box body; box corners on boxes (fixed and moving, face on face and corner on face);
-#: two balls joined (never touching) and a cloth (its vertices never touch one another).
+#: balls on a log, at its rim and on a pill; two balls joined (never touching) and a cloth (its vertices never touch one another).
 PROBES = """
     duration: 0.1
     fps: 10
@@ -150,6 +150,13 @@ PROBES = """
          position: [1, 0.86, 0], orientation: {axis: [1, 1, 0], angle: 40}}
       - {name: on_box, type: rigid, shape: {type: sphere, radius: 0.05}, density: 500, position: [1.22, 0.549, 0.22]}
       - {name: on_lid, type: rigid, shape: {type: sphere, radius: 0.03}, density: 500, position: [1.12, 0.828, 0.12]}
+      - {name: log, type: rigid, shape: {type: cylinder, radius: 0.05, length: 0.3}, density: 500,
+         position: [3, 0.2, 0], orientation: {axis: [0, 0, 1], angle: 90}}
+      - {name: pill, type: rigid, shape: {type: capsule, radius: 0.04, length: 0.2}, density: 500,
+         position: [3, 0.04, 0.3], orientation: {axis: [1, 0, 0], angle: 90}}
+      - {name: on_log, type: rigid, shape: {type: sphere, radius: 0.03}, density: 500, position: [3.1, 0.279, 0]}
+      - {name: at_rim, type: rigid, shape: {type: sphere, radius: 0.03}, density: 500, position: [3.03, 0.38, 0]}
+      - {name: on_pill, type: rigid, shape: {type: sphere, radius: 0.03}, density: 500, position: [3, 0.109, 0.3]}
       - {name: joined, type: rigid, shape: {type: sphere, radius: 0.1}, density: 500, position: [0.3, 0.495, 0]}
       - {name: sheet, type: cloth, grid: {size: [0.3, 0.3], resolution: [4, 4]}, density: 0.15, radius: 0.01,
          position: [-1, 0.01, 0], orientation: {axis: [1, 0, 0], angle: -90}}
@@ -187,14 +194,15 @@ def test_probe_contacts_are_the_numpy_ones(touching):
         kinds |= set(numpy_found.solid_kind.tolist())
     if touching.contact_world.statics.sphere_centre.size:  # the probes scene: every kind the kernel measures
         assert {probe_search.PLANE, probe_search.STATIC_SPHERE, probe_search.STATIC_BOX, probe_search.STATIC_BOX_FACE,
-                probe_search.BODY_SPHERE, probe_search.BODY_BOX, probe_search.BODY_BOX_FACE} <= kinds
+                probe_search.BODY_SPHERE, probe_search.BODY_BOX, probe_search.BODY_BOX_FACE,
+                probe_search.BODY_ROUND} <= kinds
     else:  # the polyhedra: hull vertices on hulls (numpy both ways) beside the compiled edges
         assert {contacts.BODY_HULL, contacts.HULL_EDGE, contacts.BODY_EDGE} <= kinds
 
 
 def test_the_probe_kernel_kinds_are_the_numpy_ones():
     for name in ("PLANE", "STATIC_SPHERE", "STATIC_BOX", "BODY_SPHERE", "BODY_BOX", "STATIC_BOX_FACE",
-                 "BODY_BOX_FACE", "STATIC"):
+                 "BODY_BOX_FACE", "BODY_ROUND", "STATIC"):
         assert getattr(probe_search, name) == getattr(contacts, name), name
 
 
@@ -218,3 +226,23 @@ def test_a_mutated_probe_search_is_caught(monkeypatch):
         monkeypatch.setattr(detection, "_compiled_probe_contacts", mutant)
         with pytest.raises(AssertionError):
             _same(_found(model, y, compiled=False), _found(model, y, compiled=True))
+
+
+@pytest.mark.parametrize("rounded", [False, True])
+def test_the_round_distance_is_the_numpy_one_everywhere(rounded):
+    """Points all round a cylinder or capsule (outside, inside, on its axis, on its end planes, at its centre)."""
+    from animbatch.sim.contact.geometry import to_round
+
+    rng = np.random.default_rng(5)
+    axis = np.array([0.3, 0.9, -0.2]) / np.linalg.norm([0.3, 0.9, -0.2])
+    centre, half, radius = np.array([0.1, -0.2, 0.3]), 0.25, 0.1
+    points = centre + rng.normal(scale=0.3, size=(400, 3))
+    points[:40] = centre + rng.uniform(-0.4, 0.4, size=(40, 1)) * axis  # on the axis
+    points[40:60] = centre + np.array([[-half], [half]]).repeat(10, axis=0) * axis + 0.05 * rng.normal(size=(20, 3))
+    points[60] = centre
+    count = len(points)
+    distance, normal = to_round(points, np.tile(centre, (count, 1)), np.tile(axis, (count, 1)), np.full(count, half),
+                                np.full(count, radius), np.full(count, rounded))
+    for k in range(count):
+        found = probe_search._to_round(points[k], centre, axis, half, radius, rounded)
+        np.testing.assert_allclose(found, [distance[k], *normal[k]], rtol=0, atol=1e-13, err_msg=str(points[k]))

@@ -237,8 +237,8 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
     box_centres, box_rotations = body_box_poses(world, state)
     by_kernel = compiled and world.probes.count <= COMPILED_PROBES
     if by_kernel:
-        parts.append(_compiled_probe_contacts(world, statics, centres, active, margin, largest_travel, box_centres,
-                                              box_rotations, travel))
+        parts.append(_compiled_probe_contacts(world, state, statics, centres, active, margin, largest_travel,
+                                              box_centres, box_rotations, travel))
     else:
         for k in range(len(statics.plane_point)):
             d, n = to_plane(centres[everywhere], statics.plane_point[k], statics.plane_normal[k])
@@ -300,26 +300,31 @@ class _ProbeTables:
     excluded: np.ndarray
     box_owner: np.ndarray
     box_half: np.ndarray
+    rounds: tuple[np.ndarray, ...]  # owner, half length, radius, capsule or not (C,)
 
     @classmethod
     def of_world(cls, world: ContactWorld) -> _ProbeTables:
-        probes, count = world.probes, len(world.body_material)
+        probes, count, rounds = world.probes, len(world.body_material), world.cylinders
         group = np.full(count, -1, np.int64) if world.group is None else np.asarray(world.group, np.int64)
         excluded = np.zeros(0, np.int64) if world.excluded is None else np.sort(np.asarray(world.excluded, np.int64))
         return cls(np.asarray(probes.owner, np.int64), np.asarray(probes.box, np.int64),
                    np.asarray(probes.radius, float), group, np.asarray(world.body_material, np.int64),
                    np.asarray(world.collides, np.bool_), excluded, np.asarray(world.boxes.owner, np.int64),
-                   np.ascontiguousarray(world.boxes.half, float).reshape(-1, 3))
+                   np.ascontiguousarray(world.boxes.half, float).reshape(-1, 3),
+                   (np.zeros(0, np.int64), np.zeros(0), np.zeros(0), np.zeros(0, np.bool_)) if rounds is None else
+                   (np.asarray(rounds.owner, np.int64), np.asarray(rounds.half_length, float),
+                    np.asarray(rounds.radius, float), np.asarray(rounds.rounded, np.bool_)))
 
 
 _TABLES: weakref.WeakKeyDictionary[ContactWorld, _ProbeTables] = weakref.WeakKeyDictionary()
 
 
-def _compiled_probe_contacts(world: ContactWorld, statics: StaticColliders, centres: np.ndarray, active: np.ndarray,
-                             margin: float, largest_travel: float, box_centres: np.ndarray, box_rotations: np.ndarray,
-                             travel: np.ndarray | None) -> Contacts:
-    """The probes' contacts with planes, fixed spheres and boxes, other probes and body boxes, measured by one
-    compiled call (:mod:`animbatch.sim.kernels.probe_search`): the numpy search's contacts, to round-off."""
+def _compiled_probe_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders, centres: np.ndarray,
+                             active: np.ndarray, margin: float, largest_travel: float, box_centres: np.ndarray,
+                             box_rotations: np.ndarray, travel: np.ndarray | None) -> Contacts:
+    """The probes' contacts with planes, fixed spheres and boxes, other probes, body boxes and round solids,
+    measured by one compiled call (:mod:`animbatch.sim.kernels.probe_search`): the numpy search's contacts, to
+    round-off."""
     from animbatch.sim.kernels import probe_search
 
     tables = _TABLES.get(world)
@@ -332,6 +337,8 @@ def _compiled_probe_contacts(world: ContactWorld, statics: StaticColliders, cent
     def ints(values: np.ndarray) -> np.ndarray:
         return np.asarray(values, np.int64)
 
+    rounds_at = ((np.zeros((0, 3)), np.zeros((0, 3))) if world.cylinders is None else
+                 tuple(np.ascontiguousarray(a, float) for a in round_poses(world, state)))
     search: Any = probe_search.probe_candidates
     found, measured = search(
         floats3(centres), tables.owner, tables.box, tables.radius, np.asarray(active, np.bool_), tables.group,
@@ -340,8 +347,8 @@ def _compiled_probe_contacts(world: ContactWorld, statics: StaticColliders, cent
         np.asarray(statics.sphere_radius, float), ints(statics.sphere_material), floats3(statics.box_centre),
         np.ascontiguousarray(statics.box_rotation, float).reshape(-1, 3, 3), floats3(statics.box_half),
         ints(statics.box_material), tables.box_owner, floats3(box_centres),
-        np.ascontiguousarray(box_rotations, float).reshape(-1, 3, 3), tables.box_half, bool(world.bodies_collide),
-        float(margin), float(largest_travel))
+        np.ascontiguousarray(box_rotations, float).reshape(-1, 3, 3), tables.box_half, tables.rounds[0],
+        *rounds_at, *tables.rounds[1:], bool(world.bodies_collide), float(margin), float(largest_travel))
     probe = found[:, 0].astype(np.intp)
     return _contacts(world, probe, centres[probe], measured[:, 0], measured[:, 1:], found[:, 1].astype(np.intp),
                      found[:, 2].astype(np.intp), margin, found[:, 3].astype(np.intp), found[:, 4].astype(np.intp),
@@ -354,7 +361,8 @@ def build_probe_kernels() -> None:
 
     f3, f33, f, i, b = np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.bool_)
     search: Any = probe_search.probe_candidates
-    search(f3, i, i, f, b, i, i, b, i, f3, f3, i, f3, f, i, f3, f33, f3, i, i, f3, f33, f3, True, 0.0, 0.0)
+    search(f3, i, i, f, b, i, i, b, i, f3, f3, i, f3, f, i, f3, f33, f3, i, i, f3, f33, f3, i, f3, f3, f, f, b, True,
+           0.0, 0.0)
 
 
 def rim_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders, margin: float,
@@ -423,8 +431,8 @@ def _box_contacts(world: ContactWorld, chosen: np.ndarray, centres: np.ndarray, 
 def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray, tree: cKDTree, active: np.ndarray,
                     margin: float, box_centres: np.ndarray, box_rotations: np.ndarray,
                     travel: np.ndarray | None, *, spheres_and_boxes: bool = True) -> list[Contacts]:
-    """Probe spheres against other bodies' probe spheres (``spheres_and_boxes``), and probes against other bodies'
-    boxes (likewise), round solids and hulls."""
+    """Probe spheres against other bodies' probe spheres, and probes against other bodies' boxes and round solids
+    (these three unless ``spheres_and_boxes`` is false: the compiled probe search has them) and hulls."""
     probes, parts = world.probes, []
     closing = margin + 2 * (float(travel.max(initial=0.0)) if travel is not None else 0.0)  # both sides move
     pairs = (tree.query_pairs(2 * float(probes.radius.max()) + closing, output_type="ndarray") if spheres_and_boxes
@@ -465,7 +473,7 @@ def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray,
             return found
         return found[(probes.owner[found] != owner) & active[found] & world.allowed(owner, probes.owner[found])]
 
-    if world.cylinders is not None:
+    if world.cylinders is not None and spheres_and_boxes:
         rounds = world.cylinders
         centre, axis = round_poses(world, state)
         for k in range(rounds.count):

@@ -27,6 +27,7 @@ from numba import njit
 
 #: The contact kinds of animbatch.sim.contact.contacts (a kernel may not import it; the tests check they agree).
 PLANE, STATIC_SPHERE, STATIC_BOX, BODY_SPHERE, BODY_BOX, STATIC_BOX_FACE, BODY_BOX_FACE = 0, 1, 2, 4, 5, 6, 7
+BODY_ROUND = 11
 STATIC = -1
 
 
@@ -170,10 +171,14 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
                      plane_material: np.ndarray, sphere_centre: np.ndarray, sphere_radius: np.ndarray,
                      sphere_material: np.ndarray, static_centre: np.ndarray, static_rotation: np.ndarray,
                      static_half: np.ndarray, static_material: np.ndarray, box_owner: np.ndarray,
-                     box_centre: np.ndarray, box_rotation: np.ndarray, box_half: np.ndarray, bodies_collide: bool,
-                     margin: float, largest_travel: float) -> tuple[np.ndarray, np.ndarray]:
+                     box_centre: np.ndarray, box_rotation: np.ndarray, box_half: np.ndarray, round_owner: np.ndarray,
+                     round_centre: np.ndarray, round_axis: np.ndarray, round_half_length: np.ndarray,
+                     round_radius: np.ndarray, round_rounded: np.ndarray, bodies_collide: bool, margin: float,
+                     largest_travel: float) -> tuple[np.ndarray, np.ndarray]:
     """Every probe–solid pair the numpy search measures (see the module notes), measured, in its order: planes,
-    fixed spheres, fixed boxes, then (``bodies_collide``) probe spheres and body boxes."""
+    fixed spheres, fixed boxes, then (``bodies_collide``) probe spheres, body boxes and round solids (cylinders and
+    capsules: ``round_*`` (C,) owner, centre and unit axis (C, 3) [m], half length of the straight part [m], radius
+    [m], whether capsule)."""
     body_count = len(material)
     widest = 0.0
     for q in range(len(radius)):
@@ -230,7 +235,69 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
                 ints, floats, count = _box_candidates(
                     ints, floats, count, q, centres, box, box_centre[k], box_rotation[k], box_half[k], body,
                     material[body], (BODY_BOX, BODY_BOX_FACE), k, box_centre, box_rotation, box_half, tolerance)
+    for k in range(len(round_owner)):
+        body = round_owner[k]
+        if not collides[body]:
+            continue
+        for q in range(len(owner)):
+            if (owner[q] != body and active[q]
+                    and _near(centres[q], round_centre[k], round_half_length[k] + round_radius[k] + closing + widest)
+                    and _allowed(body, owner[q], excluded, body_count)):
+                distance, n0, n1, n2 = _to_round(centres[q], round_centre[k], round_axis[k], round_half_length[k],
+                                                 round_radius[k], round_rounded[k])
+                ints, floats = _add(ints, floats, count, q, body, material[body], BODY_ROUND, k, distance, n0, n1,
+                                    n2)
+                count += 1
     return ints[:count], floats[:count]
+
+
+@njit(cache=True, error_model="numpy")
+def _to_round(point: np.ndarray, centre: np.ndarray, axis: np.ndarray, half_length: float, radius: float,
+              rounded: bool) -> tuple[float, float, float, float]:
+    """Signed distance of a point to a cylinder (flat ends) or a capsule (``rounded``) and the outward normal, as
+    :func:`animbatch.sim.contact.geometry.to_round`."""
+    offset = np.empty(3)
+    for i in range(3):
+        offset[i] = point[i] - centre[i]
+    along = offset[0] * axis[0] + offset[1] * axis[1] + offset[2] * axis[2]
+    radial = np.empty(3)
+    for i in range(3):
+        radial[i] = offset[i] - along * axis[i]
+    rho = math.sqrt(radial[0] * radial[0] + radial[1] * radial[1] + radial[2] * radial[2])
+    # across the axis from a point on it: any direction across will do
+    h0, h1, h2 = (1.0, 0.0, 0.0) if abs(axis[0]) < 0.9 else (0.0, 1.0, 0.0)
+    f0, f1, f2 = axis[1] * h2 - axis[2] * h1, axis[2] * h0 - axis[0] * h2, axis[0] * h1 - axis[1] * h0
+    size = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+    f0, f1, f2 = f0 / size, f1 / size, f2 / size
+    if rounded:
+        along_clipped = min(max(along, -half_length), half_length)
+        d0 = point[0] - (centre[0] + along_clipped * axis[0])
+        d1 = point[1] - (centre[1] + along_clipped * axis[1])
+        d2 = point[2] - (centre[2] + along_clipped * axis[2])
+        length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        if abs(along) <= half_length and rho <= 1e-12:
+            return length - radius, f0, f1, f2
+        if length > 1e-12:
+            return length - radius, d0 / length, d1 / length, d2 / length
+        return length - radius, 0.0, 1.0, 0.0
+    if rho > 1e-12:
+        u0, u1, u2 = radial[0] / rho, radial[1] / rho, radial[2] / rho
+    else:
+        u0, u1, u2 = f0, f1, f2
+    sign = 1.0 if along > 0 else (-1.0 if along < 0 else 0.0)
+    if abs(along) > 0:
+        e0, e1, e2 = sign * axis[0], sign * axis[1], sign * axis[2]
+    else:
+        e0, e1, e2 = axis[0], axis[1], axis[2]
+    d_rho, d_along = rho - radius, abs(along) - half_length
+    out_rho, out_along = max(d_rho, 0.0), max(d_along, 0.0)
+    rim = math.hypot(out_rho, out_along)
+    if rim > 0:
+        return (rim, (out_rho * u0 + out_along * e0) / rim, (out_rho * u1 + out_along * e1) / rim,
+                (out_rho * u2 + out_along * e2) / rim)
+    if d_rho >= d_along:
+        return max(d_rho, d_along), u0, u1, u2
+    return max(d_rho, d_along), e0, e1, e2
 
 
 @njit(cache=True, error_model="numpy")
