@@ -246,3 +246,68 @@ def test_the_round_distance_is_the_numpy_one_everywhere(rounded):
     for k in range(count):
         found = probe_search._to_round(points[k], centre, axis, half, radius, rounded)
         np.testing.assert_allclose(found, [distance[k], *normal[k]], rtol=0, atol=1e-13, err_msg=str(points[k]))
+
+
+#: Round sides against everything they meet: two rods crossed, a log across a fixed box's edge, a log across a crate's
+#: edge, two logs side by side (a stretch, held at both ends), a pill across a log, a capsule along a prism's ridge.
+SIDES = """
+    duration: 0.1
+    fps: 10
+    bodies:
+      - {name: rod1, type: rigid, shape: {type: cylinder, radius: 0.02, length: 1.0}, density: 500,
+         position: [0, 0.02, 0], orientation: {axis: [0, 1, 0], angle: 90}}
+      - {name: rod2, type: rigid, shape: {type: cylinder, radius: 0.02, length: 1.0}, density: 500,
+         position: [0, 0.0598, 0], orientation: {axis: [0, 1, 0], angle: 30}}
+      - {name: log1, type: rigid, shape: {type: cylinder, radius: 0.05, length: 0.6}, density: 500,
+         position: [3, 0.5498, 0]}
+      - {name: crate, type: rigid, shape: {type: box, size: [0.3, 0.3, 0.3]}, density: 500, position: [6, 0.15, 0],
+         orientation: {axis: [0, 0, 1], angle: 45}}
+      - {name: log2, type: rigid, shape: {type: cylinder, radius: 0.05, length: 0.6}, density: 500,
+         position: [6, 0.2619, 0]}
+      - {name: log3, type: rigid, shape: {type: cylinder, radius: 0.05, length: 0.6}, density: 500,
+         position: [9, 0.05, 0]}
+      - {name: log4, type: rigid, shape: {type: cylinder, radius: 0.05, length: 0.6}, density: 500,
+         position: [9, 0.05, 0.0999]}
+      - {name: pill, type: rigid, shape: {type: capsule, radius: 0.04, length: 0.4}, density: 500,
+         position: [9, 0.139, 0.05], orientation: {axis: [0, 1, 0], angle: 90}}
+    colliders:
+      - {type: plane}
+      - {type: box, position: [3, 0.25, 0], size: [0.4, 0.5, 0.4], orientation: {axis: [1, 0, 0], angle: 45}}
+    contacts: {}
+    """
+
+
+def _sides(model, y: np.ndarray, compiled: bool) -> Contacts:
+    from animbatch.sim.contact import sides
+
+    system = Dynamics(model)
+    state = system.kinematics(*system.split(np.array(y, float)), t=0.0, copy=True)
+    world = model.contact_world
+    centres, rotations = body_box_poses(world, state)
+    search = sides.compiled_side_contacts if compiled else sides.side_contacts
+    found = search(world, state, world.statics_at(0.0), centres, rotations, 0.001,
+                   np.full(model.body_count, 0.002))
+    return found.select(np.argsort(contact_codes(found), kind="stable"))
+
+
+def test_round_sides_are_the_numpy_ones():
+    """Side contacts at 40 states near touching: the same set (rods crossed, on edges, side by side)."""
+    model = compile_scene(parse_scene(textwrap.dedent(SIDES), filename="sides.yaml").spec)
+    found, kinds, stretches = 0, set(), 0
+    for y in _states(model, 40, 0.002):
+        numpy_found = _sides(model, y, compiled=False)
+        _same(numpy_found, _sides(model, y, compiled=True))
+        found += numpy_found.count
+        kinds |= set(numpy_found.solid_kind.tolist())
+        stretches += int(np.sum(numpy_found.solid_index % 2 == 1))  # the far end of a stretch
+    assert found > 80 and stretches > 10
+    assert kinds == {contacts.SIDE_EDGE, contacts.SIDE_ROUND}
+
+
+def test_the_side_kernel_constants_are_the_numpy_ones():
+    from animbatch.sim.contact import sides
+    from animbatch.sim.kernels import round_sides
+
+    for name in ("NEAREST_PASSES", "END_PASSES", "SHORT_STRETCH"):
+        assert getattr(round_sides, name) == getattr(sides, name), name
+    assert (round_sides.SIDE_ROUND, round_sides.SIDE_EDGE) == (contacts.SIDE_ROUND, contacts.SIDE_EDGE)

@@ -61,7 +61,7 @@ from animbatch.sim.contact.hulls import BodyHull, compiled_edge_contacts, edge_c
 from animbatch.sim.contact.materials import MaterialTable
 from animbatch.sim.contact.meshes import TriangleGroup
 from animbatch.sim.contact.moving import MovingColliders
-from animbatch.sim.contact.sides import side_contacts
+from animbatch.sim.contact.sides import compiled_side_contacts, side_contacts
 
 #: For each kind of contact with a collider: which of MovingColliders' solid arrays its index runs over, and the
 #: index's stride (a box face is 6 × box + face, a box edge 12 × box + edge).
@@ -278,7 +278,8 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
     if edges and world.cylinders is not None and len(statics.plane_point):
         parts.append(rim_contacts(world, state, statics, margin, travel))
     if edges and world.cylinders is not None:
-        parts.append(side_contacts(world, state, statics, box_centres, box_rotations, margin, travel))
+        sides = compiled_side_contacts if compiled else side_contacts
+        parts.append(sides(world, state, statics, box_centres, box_rotations, margin, travel))
     return Contacts.concatenate(parts)
 
 

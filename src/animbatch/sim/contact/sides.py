@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -132,6 +132,47 @@ def side_contacts(world: ContactWorld, state: Kinematics, statics: StaticCollide
                       rounds.count * (ways[1].solid_index // 2) + (ways[1].probe - first)]
         parts += [ways[0], ways[1].select(~np.isin(pair_codes[1], pair_codes[0]))]
     return Contacts.concatenate(parts)
+
+
+def compiled_side_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders,
+                           box_centres: np.ndarray, box_rotations: np.ndarray, margin: float,
+                           travel: np.ndarray | None) -> Contacts:
+    """:func:`side_contacts` in one compiled call (:mod:`animbatch.sim.kernels.round_sides`): the same contacts to
+    round-off, in another order."""
+    from animbatch.sim.kernels import round_sides
+
+    rounds = world.cylinders
+    assert rounds is not None and state.rotation is not None
+    rigid = rounds.owner - state.first_rigid
+    centre = state.x[rounds.owner] + state.lever(rigid, rounds.offset)
+    axis = np.einsum("kij,kj->ki", state.rotation[rigid], rounds.axis)
+    steps = travel if travel is not None else np.zeros(len(world.body_material))
+    edges = edge_set(world, state, statics, box_centres, box_rotations)
+    if len(edges.start) and not world.bodies_collide:
+        keep = edges.body == STATIC
+        edges = EdgeSet(*(getattr(edges, name)[keep] for name in ("start", "end", "body", "material", "number")))
+    excluded = np.zeros(0, np.int64) if world.excluded is None else np.sort(np.asarray(world.excluded, np.int64))
+    search: Any = round_sides.side_contacts
+    ints, floats = search(
+        np.ascontiguousarray(centre, float), np.ascontiguousarray(axis, float),
+        np.asarray(rounds.half_length, float), np.asarray(rounds.radius, float), np.asarray(rounds.rounded, np.bool_),
+        np.asarray(rounds.owner, np.int64), np.asarray(world.collides, np.bool_),
+        np.asarray(world.body_material, np.int64), np.asarray(steps, float), excluded,
+        np.ascontiguousarray(edges.start, float).reshape(-1, 3), np.ascontiguousarray(edges.end, float).reshape(-1, 3),
+        np.asarray(edges.body, np.int64), np.asarray(edges.material, np.int64), np.asarray(edges.number, np.int64),
+        bool(world.bodies_collide), float(margin), world.probes.count + 12 * world.boxes.count + rounds.count,
+        np.linspace(0.0, 1.0, GRID))
+    return make_contacts(world, ints[:, 0], ints[:, 1], floats[:, :3], floats[:, 3:6], floats[:, 6], ints[:, 2],
+                         ints[:, 5], ints[:, 3], ints[:, 4])
+
+
+def build_side_kernels() -> None:
+    """Compile (or load from the disk cache) the side search on nothing, with the argument types of a run."""
+    from animbatch.sim.kernels import round_sides
+
+    f3, f, i, b = np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.bool_)
+    search: Any = round_sides.side_contacts
+    search(f3, f3, f, f, b, i, b, i, f, i, f3, f3, i, i, i, True, 0.0, 0, np.linspace(0.0, 1.0, GRID))
 
 
 def _touching(world: ContactWorld, k: np.ndarray, centre: np.ndarray, axis: np.ndarray, owner: np.ndarray,

@@ -439,6 +439,7 @@ def build_contact_kernels() -> str | None:
     def build() -> None:
         from animbatch.sim.contact.detection import build_probe_kernels
         from animbatch.sim.contact.hulls import build_edge_kernels
+        from animbatch.sim.contact.sides import build_side_kernels
         from animbatch.sim.kernels import contact_impulses as kernels
 
         impulses: Any = kernels  # the kernels take the rows unpacked (ContactRows.kernel_rows)
@@ -452,6 +453,7 @@ def build_contact_kernels() -> str | None:
         impulses.push_iterations(velocity, *one, *rows, np.ones((3, 1)), np.zeros(1), 0.0, 1)
         build_edge_kernels()
         build_probe_kernels()
+        build_side_kernels()
 
     return build_failure(build)
 
