@@ -72,14 +72,18 @@ def _states(model, count: int, scale: float) -> list[np.ndarray]:
     return found
 
 
-def _edge_contacts(model, y: np.ndarray, compiled: bool) -> Contacts:
+def _searched(model, y: np.ndarray, search) -> Contacts:
+    """What one of the searches that take the box poses (edges, sides) finds at state ``y``: margin 1 mm, every body
+    travelling 2 mm."""
     system = Dynamics(model)
     state = system.kinematics(*system.split(np.array(y, float)), t=0.0, copy=True)
     world = model.contact_world
     centres, rotations = body_box_poses(world, state)
-    search = hulls.compiled_edge_contacts if compiled else hulls.edge_contacts
-    travel = np.full(model.body_count, 0.002)
-    return search(world, state, world.statics_at(0.0), centres, rotations, 0.001, travel)
+    return search(world, state, world.statics_at(0.0), centres, rotations, 0.001, np.full(model.body_count, 0.002))
+
+
+def _edge_contacts(model, y: np.ndarray, compiled: bool) -> Contacts:
+    return _searched(model, y, hulls.compiled_edge_contacts if compiled else hulls.edge_contacts)
 
 
 def _same(numpy_found: Contacts, compiled_found: Contacts) -> None:
@@ -280,13 +284,7 @@ SIDES = """
 def _sides(model, y: np.ndarray, compiled: bool) -> Contacts:
     from animbatch.sim.contact import sides
 
-    system = Dynamics(model)
-    state = system.kinematics(*system.split(np.array(y, float)), t=0.0, copy=True)
-    world = model.contact_world
-    centres, rotations = body_box_poses(world, state)
-    search = sides.compiled_side_contacts if compiled else sides.side_contacts
-    found = search(world, state, world.statics_at(0.0), centres, rotations, 0.001,
-                   np.full(model.body_count, 0.002))
+    found = _searched(model, y, sides.compiled_side_contacts if compiled else sides.side_contacts)
     return found.select(np.argsort(contact_codes(found), kind="stable"))
 
 

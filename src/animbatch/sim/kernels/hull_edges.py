@@ -21,6 +21,8 @@ import math
 import numpy as np
 from numba import njit
 
+from animbatch.sim.kernels.probe_search import _allowed, grown
+
 #: The constants of animbatch.sim.contact.hulls (a kernel may not import the numpy side; the tests check they agree).
 END = 1e-3
 TIE = 1e-7
@@ -86,16 +88,8 @@ def _supporting(verts: np.ndarray, edges: np.ndarray, first: int, count: int, al
 @njit(cache=True, error_model="numpy")
 def _record(ints: np.ndarray, floats: np.ndarray, count: int, row_ints: np.ndarray, row_floats: np.ndarray
             ) -> tuple[np.ndarray, np.ndarray]:
-    """Row ``count`` of the found contacts, the tables doubled first when full."""
-    if count == len(ints):
-        more_ints = np.empty((2 * len(ints), INT_COLUMNS), np.int64)
-        more_floats = np.empty((2 * len(ints), FLOAT_COLUMNS))
-        for k in range(count):
-            for c in range(INT_COLUMNS):
-                more_ints[k, c] = ints[k, c]
-            for c in range(FLOAT_COLUMNS):
-                more_floats[k, c] = floats[k, c]
-        ints, floats = more_ints, more_floats
+    """Row ``count`` of the found contacts."""
+    ints, floats = grown(ints, floats, count)
     for c in range(INT_COLUMNS):
         ints[count, c] = row_ints[c]
     for c in range(FLOAT_COLUMNS):
@@ -201,15 +195,6 @@ def _pair(vertices: np.ndarray, vertex_start: np.ndarray, edges: np.ndarray, edg
                 for c in range(7):
                     found[at, c] = row[c]
     return found_edges, found
-
-
-@njit(cache=True, error_model="numpy")
-def _allowed(first: int, second: int, excluded: np.ndarray, body_count: int) -> bool:
-    """Whether two bodies may touch: their key ``low · P + high`` is not among the sorted ``excluded``."""
-    low, high = min(first, second), max(first, second)
-    key = low * body_count + high
-    at = np.searchsorted(excluded, key)
-    return not (at < len(excluded) and excluded[at] == key)
 
 
 @njit(cache=True, error_model="numpy")

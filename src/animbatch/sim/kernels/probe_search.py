@@ -32,18 +32,25 @@ STATIC = -1
 
 
 @njit(cache=True, error_model="numpy")
+def grown(ints: np.ndarray, floats: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """The tables of found rows (integer and float columns) with room for row ``count``: doubled when full."""
+    if count < len(ints):
+        return ints, floats
+    more_ints = np.empty((2 * len(ints), ints.shape[1]), np.int64)
+    more_floats = np.empty((2 * len(ints), floats.shape[1]))
+    for k in range(count):
+        for c in range(ints.shape[1]):
+            more_ints[k, c] = ints[k, c]
+        for c in range(floats.shape[1]):
+            more_floats[k, c] = floats[k, c]
+    return more_ints, more_floats
+
+
+@njit(cache=True, error_model="numpy")
 def _add(ints: np.ndarray, floats: np.ndarray, count: int, probe: int, body: int, material: int, kind: int,
          index: int, distance: float, n0: float, n1: float, n2: float) -> tuple[np.ndarray, np.ndarray]:
-    """Row ``count`` of the candidates, the tables doubled first when full."""
-    if count == len(ints):
-        more_ints = np.empty((2 * len(ints), 5), np.int64)
-        more_floats = np.empty((2 * len(ints), 4))
-        for k in range(count):
-            for c in range(5):
-                more_ints[k, c] = ints[k, c]
-            for c in range(4):
-                more_floats[k, c] = floats[k, c]
-        ints, floats = more_ints, more_floats
+    """Row ``count`` of the candidates."""
+    ints, floats = grown(ints, floats, count)
     ints[count, 0], ints[count, 1], ints[count, 2], ints[count, 3], ints[count, 4] = probe, body, material, kind, index
     floats[count, 0], floats[count, 1], floats[count, 2], floats[count, 3] = distance, n0, n1, n2
     return ints, floats

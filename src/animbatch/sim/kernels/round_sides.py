@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numba import njit
 
-from animbatch.sim.kernels.probe_search import _allowed, _to_round
+from animbatch.sim.kernels.probe_search import _allowed, _to_round, grown
 
 #: The constants of animbatch.sim.contact (a kernel may not import it; the tests check they agree).
 SIDE_ROUND, SIDE_EDGE = 13, 14
@@ -143,15 +143,7 @@ def _touching(ints: np.ndarray, floats: np.ndarray, count: int, k: int, centre: 
         distance, n0, n1, n2 = _to_round(p, centre[k], axis[k], half_length[k], radius[k], rounded[k])
         gap = distance - other_radius
         lift = other_radius + 0.5 * gap  # the segment's surface point nearest the round, then midway to it
-        if count == len(ints):
-            more_ints = np.empty((2 * len(ints), 6), np.int64)
-            more_floats = np.empty((2 * len(ints), 7))
-            for m in range(count):
-                for c in range(6):
-                    more_ints[m, c] = ints[m, c]
-                for c in range(7):
-                    more_floats[m, c] = floats[m, c]
-            ints, floats = more_ints, more_floats
+        ints, floats = grown(ints, floats, count)
         ints[count, 0], ints[count, 1], ints[count, 2] = owner[k], other_body, other_material
         ints[count, 3], ints[count, 4], ints[count, 5] = kind, 2 * index + end, probe
         floats[count, 0], floats[count, 1], floats[count, 2] = p[0] - n0 * lift, p[1] - n1 * lift, p[2] - n2 * lift
