@@ -57,7 +57,7 @@ from animbatch.sim.contact.geometry import (
     to_sphere,
     to_triangles,
 )
-from animbatch.sim.contact.hulls import BodyHull, compiled_edge_contacts, edge_contacts, to_hull
+from animbatch.sim.contact.hulls import BodyHull, compiled_edge_contacts, edge_contacts, pack_rows, to_hull
 from animbatch.sim.contact.materials import MaterialTable
 from animbatch.sim.contact.meshes import TriangleGroup
 from animbatch.sim.contact.moving import MovingColliders
@@ -271,7 +271,7 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
                                    statics.triangle_material[triangles], margin, TRIANGLE, triangles, travel))
     if world.bodies_collide and tree is not None:
         parts += _between_bodies(world, state, centres, tree, active, margin, box_centres, box_rotations, travel,
-                                 spheres_and_boxes=not by_kernel)
+                                 probe_solids=not by_kernel)
     if edges and (world.boxes.count or world.hulls):
         search = compiled_edge_contacts if compiled else edge_contacts
         parts.append(search(world, state, statics, box_centres, box_rotations, margin, travel))
@@ -302,6 +302,7 @@ class _ProbeTables:
     box_owner: np.ndarray
     box_half: np.ndarray
     rounds: tuple[np.ndarray, ...]  # owner, half length, radius, capsule or not (C,)
+    hulls: tuple[np.ndarray, ...]  # owner, reach (H,); packed vertices, triangles and planes with their starts
 
     @classmethod
     def of_world(cls, world: ContactWorld) -> _ProbeTables:
@@ -314,7 +315,17 @@ class _ProbeTables:
                    np.ascontiguousarray(world.boxes.half, float).reshape(-1, 3),
                    (np.zeros(0, np.int64), np.zeros(0), np.zeros(0), np.zeros(0, np.bool_)) if rounds is None else
                    (np.asarray(rounds.owner, np.int64), np.asarray(rounds.half_length, float),
-                    np.asarray(rounds.radius, float), np.asarray(rounds.rounded, np.bool_)))
+                    np.asarray(rounds.radius, float), np.asarray(rounds.rounded, np.bool_)),
+                   _packed_hulls(world.hulls))
+
+
+def _packed_hulls(hulls: tuple[BodyHull, ...]) -> tuple[np.ndarray, ...]:
+    """Owners and reaches (H,), then vertices (V, 3), triangles (T, 3) and planes (F, 4) ``n, d``, each packed with
+    its start table (H + 1,)."""
+    packed = pack_rows
+    return (np.array([h.owner for h in hulls], np.int64), np.array([h.reach for h in hulls], float),
+            *packed([h.vertices for h in hulls], 3, float), *packed([h.triangles for h in hulls], 3, np.int64),
+            *packed([np.column_stack([h.normals, h.offsets]) for h in hulls], 4, float))
 
 
 _TABLES: weakref.WeakKeyDictionary[ContactWorld, _ProbeTables] = weakref.WeakKeyDictionary()
@@ -340,6 +351,10 @@ def _compiled_probe_contacts(world: ContactWorld, state: Kinematics, statics: St
 
     rounds_at = ((np.zeros((0, 3)), np.zeros((0, 3))) if world.cylinders is None else
                  tuple(np.ascontiguousarray(a, float) for a in round_poses(world, state)))
+    owners = tables.hulls[0]
+    hull_poses = ((np.zeros((0, 3)), np.zeros((0, 3, 3))) if not len(owners) or state.rotation is None else
+                  (np.ascontiguousarray(state.x[owners], float),
+                   np.ascontiguousarray(state.rotation[owners - state.first_rigid], float)))
     search: Any = probe_search.probe_candidates
     found, measured = search(
         floats3(centres), tables.owner, tables.box, tables.radius, np.asarray(active, np.bool_), tables.group,
@@ -349,7 +364,8 @@ def _compiled_probe_contacts(world: ContactWorld, state: Kinematics, statics: St
         np.ascontiguousarray(statics.box_rotation, float).reshape(-1, 3, 3), floats3(statics.box_half),
         ints(statics.box_material), tables.box_owner, floats3(box_centres),
         np.ascontiguousarray(box_rotations, float).reshape(-1, 3, 3), tables.box_half, tables.rounds[0],
-        *rounds_at, *tables.rounds[1:], bool(world.bodies_collide), float(margin), float(largest_travel))
+        *rounds_at, *tables.rounds[1:], *tables.hulls[:2], *hull_poses, *tables.hulls[2:],
+        bool(world.bodies_collide), float(margin), float(largest_travel))
     probe = found[:, 0].astype(np.intp)
     return _contacts(world, probe, centres[probe], measured[:, 0], measured[:, 1:], found[:, 1].astype(np.intp),
                      found[:, 2].astype(np.intp), margin, found[:, 3].astype(np.intp), found[:, 4].astype(np.intp),
@@ -362,8 +378,9 @@ def build_probe_kernels() -> None:
 
     f3, f33, f, i, b = np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.bool_)
     search: Any = probe_search.probe_candidates
-    search(f3, i, i, f, b, i, i, b, i, f3, f3, i, f3, f, i, f3, f33, f3, i, i, f3, f33, f3, i, f3, f3, f, f, b, True,
-           0.0, 0.0)
+    search(f3, i, i, f, b, i, i, b, i, f3, f3, i, f3, f, i, f3, f33, f3, i, i, f3, f33, f3, i, f3, f3, f, f, b, i, f,
+           f3, f33, f3, np.zeros(1, np.int64), np.zeros((0, 3), np.int64), np.zeros(1, np.int64), np.zeros((0, 4)),
+           np.zeros(1, np.int64), True, 0.0, 0.0)
 
 
 def rim_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders, margin: float,
@@ -431,12 +448,12 @@ def _box_contacts(world: ContactWorld, chosen: np.ndarray, centres: np.ndarray, 
 
 def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray, tree: cKDTree, active: np.ndarray,
                     margin: float, box_centres: np.ndarray, box_rotations: np.ndarray,
-                    travel: np.ndarray | None, *, spheres_and_boxes: bool = True) -> list[Contacts]:
-    """Probe spheres against other bodies' probe spheres, and probes against other bodies' boxes and round solids
-    (these three unless ``spheres_and_boxes`` is false: the compiled probe search has them) and hulls."""
+                    travel: np.ndarray | None, *, probe_solids: bool = True) -> list[Contacts]:
+    """Probe spheres against other bodies' probe spheres, and probes against other bodies' boxes, round solids and
+    hulls (unless ``probe_solids`` is false: the compiled probe search has them all)."""
     probes, parts = world.probes, []
     closing = margin + 2 * (float(travel.max(initial=0.0)) if travel is not None else 0.0)  # both sides move
-    pairs = (tree.query_pairs(2 * float(probes.radius.max()) + closing, output_type="ndarray") if spheres_and_boxes
+    pairs = (tree.query_pairs(2 * float(probes.radius.max()) + closing, output_type="ndarray") if probe_solids
              else np.zeros((0, 2), np.intp))
     if len(pairs):
         i, j = pairs[:, 0], pairs[:, 1]
@@ -451,7 +468,7 @@ def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray,
         parts.append(_contacts(world, i, centres[i], d, n, owner_j, world.body_material[owner_j], margin,
                                BODY_SPHERE, j, travel))
     boxes = world.boxes
-    for k in range(boxes.count if spheres_and_boxes else 0):
+    for k in range(boxes.count if probe_solids else 0):
         owner = boxes.owner[k]
         if not world.collides[owner]:
             continue
@@ -474,7 +491,7 @@ def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray,
             return found
         return found[(probes.owner[found] != owner) & active[found] & world.allowed(owner, probes.owner[found])]
 
-    if world.cylinders is not None and spheres_and_boxes:
+    if world.cylinders is not None and probe_solids:
         rounds = world.cylinders
         centre, axis = round_poses(world, state)
         for k in range(rounds.count):
@@ -488,7 +505,7 @@ def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray,
                 parts.append(_contacts(world, chosen, centres[chosen], d, normal, np.full(count, owner),
                                        np.full(count, world.body_material[owner]), margin, BODY_ROUND,
                                        np.full(count, k), travel))
-    for k, hull in enumerate(world.hulls):
+    for k, hull in enumerate(world.hulls if probe_solids else ()):
         chosen = near_solid(hull.owner, state.x[hull.owner], hull.reach)
         if len(chosen):
             assert state.rotation is not None

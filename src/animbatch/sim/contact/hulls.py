@@ -210,6 +210,14 @@ def _box_hull(half: tuple[float, float, float]) -> BodyHull:
     return BodyHull.of_box(-1, np.zeros(3), np.eye(3), np.array(half))
 
 
+def pack_rows(parts: list[np.ndarray], columns: int, dtype: type) -> tuple[np.ndarray, np.ndarray]:
+    """Row tables (n_i, columns) one after the other, as one contiguous table and its start table (len + 1,): part
+    i's rows are ``rows[start[i]:start[i + 1]]`` (how the compiled searches take a list of shapes)."""
+    start = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)
+    rows: np.ndarray = np.concatenate(parts).astype(dtype) if parts else np.zeros((0, columns), dtype)
+    return np.ascontiguousarray(rows.reshape(-1, columns)), start
+
+
 @dataclass(frozen=True, eq=False)
 class PackedPolyhedra:
     """A world's polyhedra as :mod:`animbatch.sim.kernels.hull_edges` takes them: ``shapes`` (the packed vertex,
@@ -240,12 +248,7 @@ class PackedPolyhedra:
             solids.append((hull, hull.owner, HULL_EDGE, int(edge_base[k]), first_hull + int(edge_base[k]),
                            int(world.body_material[hull.owner]), hull.reach))
         hulls = [solid[0] for solid in solids]
-
-        def packed(parts: list[np.ndarray], columns: int, dtype: type) -> tuple[np.ndarray, np.ndarray]:
-            start = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)
-            rows: np.ndarray = np.concatenate(parts).astype(dtype) if parts else np.zeros((0, columns), dtype)
-            return np.ascontiguousarray(rows.reshape(-1, columns)), start
-
+        packed = pack_rows
         shapes = (*packed([h.vertices for h in hulls], 3, float), *packed([h.edges for h in hulls], 2, np.int64),
                   *packed([h.edge_axes for h in hulls], 3, float), *packed([h.normals for h in hulls], 3, float),
                   np.array([h.reach for h in hulls], float))

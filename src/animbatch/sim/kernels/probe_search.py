@@ -27,7 +27,7 @@ from numba import njit
 
 #: The contact kinds of animbatch.sim.contact.contacts (a kernel may not import it; the tests check they agree).
 PLANE, STATIC_SPHERE, STATIC_BOX, BODY_SPHERE, BODY_BOX, STATIC_BOX_FACE, BODY_BOX_FACE = 0, 1, 2, 4, 5, 6, 7
-BODY_ROUND = 11
+BODY_ROUND, BODY_HULL = 11, 12
 STATIC = -1
 
 
@@ -180,12 +180,17 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
                      static_half: np.ndarray, static_material: np.ndarray, box_owner: np.ndarray,
                      box_centre: np.ndarray, box_rotation: np.ndarray, box_half: np.ndarray, round_owner: np.ndarray,
                      round_centre: np.ndarray, round_axis: np.ndarray, round_half_length: np.ndarray,
-                     round_radius: np.ndarray, round_rounded: np.ndarray, bodies_collide: bool, margin: float,
-                     largest_travel: float) -> tuple[np.ndarray, np.ndarray]:
+                     round_radius: np.ndarray, round_rounded: np.ndarray, hull_owner: np.ndarray,
+                     hull_reach: np.ndarray, hull_centre: np.ndarray, hull_rotation: np.ndarray,
+                     hull_vertices: np.ndarray, hull_vertex_start: np.ndarray, hull_triangles: np.ndarray,
+                     hull_triangle_start: np.ndarray, hull_planes: np.ndarray, hull_plane_start: np.ndarray,
+                     bodies_collide: bool, margin: float, largest_travel: float) -> tuple[np.ndarray, np.ndarray]:
     """Every probe–solid pair the numpy search measures (see the module notes), measured, in its order: planes,
     fixed spheres, fixed boxes, then (``bodies_collide``) probe spheres, body boxes and round solids (cylinders and
     capsules: ``round_*`` (C,) owner, centre and unit axis (C, 3) [m], half length of the straight part [m], radius
-    [m], whether capsule)."""
+    [m], whether capsule) and convex hulls (``hull_*`` (H,) owner, reach [m], centre (H, 3) [m] and rotation
+    (H, 3, 3) of the owner; packed vertices (V, 3) [m] and triangles (T, 3) (vertex numbers within the hull) in body
+    axes, face planes (F, 4) ``n, d`` (inside: ``n · x ≤ d``), each with its start table (H + 1,))."""
     body_count = len(material)
     widest = 0.0
     for q in range(len(radius)):
@@ -255,7 +260,90 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
                 ints, floats = _add(ints, floats, count, q, body, material[body], BODY_ROUND, k, distance, n0, n1,
                                     n2)
                 count += 1
+    for k in range(len(hull_owner)):
+        body = hull_owner[k]
+        if not collides[body]:
+            continue
+        for q in range(len(owner)):
+            if (owner[q] != body and active[q]
+                    and _near(centres[q], hull_centre[k], hull_reach[k] + closing + widest)
+                    and _allowed(body, owner[q], excluded, body_count)):
+                distance, n0, n1, n2 = _to_hull(
+                    centres[q], hull_centre[k], hull_rotation[k],
+                    hull_vertices[hull_vertex_start[k]:hull_vertex_start[k + 1]],
+                    hull_triangles[hull_triangle_start[k]:hull_triangle_start[k + 1]],
+                    hull_planes[hull_plane_start[k]:hull_plane_start[k + 1]])
+                ints, floats = _add(ints, floats, count, q, body, material[body], BODY_HULL, k, distance, n0, n1,
+                                    n2)
+                count += 1
     return ints[:count], floats[:count]
+
+
+@njit(cache=True, error_model="numpy")
+def _to_hull(point: np.ndarray, centre: np.ndarray, rotation: np.ndarray, vertices: np.ndarray,
+             triangles: np.ndarray, planes: np.ndarray) -> tuple[float, float, float, float]:
+    """Signed distance of a point to a convex hull and the outward normal (world axes), as
+    :func:`animbatch.sim.contact.hulls.to_hull`: inside, the nearest face's plane; outside, the nearest
+    triangle."""
+    local = np.empty(3)
+    local[0], local[1], local[2] = _local(point, centre, rotation)
+    face, distance = 0, -np.inf
+    for f in range(len(planes)):
+        height = planes[f, 0] * local[0] + planes[f, 1] * local[1] + planes[f, 2] * local[2] - planes[f, 3]
+        if height > distance:
+            face, distance = f, height
+    m0, m1, m2 = planes[face, 0], planes[face, 1], planes[face, 2]
+    if distance > 0:  # to the nearest triangle: exact near edges and corners too
+        distance = np.inf
+        for t in range(len(triangles)):
+            d, t0, t1, t2 = _to_triangle(local, vertices[triangles[t, 0]], vertices[triangles[t, 1]],
+                                         vertices[triangles[t, 2]])
+            if d < distance:
+                distance, m0, m1, m2 = d, t0, t1, t2
+    return (distance, rotation[0, 0] * m0 + rotation[0, 1] * m1 + rotation[0, 2] * m2,
+            rotation[1, 0] * m0 + rotation[1, 1] * m1 + rotation[1, 2] * m2,
+            rotation[2, 0] * m0 + rotation[2, 1] * m1 + rotation[2, 2] * m2)
+
+
+@njit(cache=True, error_model="numpy")
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(cache=True, error_model="numpy")
+def _to_triangle(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[float, float, float, float]:
+    """Unsigned distance of a point to a triangle and the unit direction from its closest point to the point (the
+    face normal, towards the point, on it), as :func:`animbatch.sim.contact.geometry.to_triangles` without sides
+    (Ericson, "Real-Time Collision Detection", 5.1.5)."""
+    ab, ac, ap, bp, cp = b - a, c - a, p - a, p - b, p - c
+    d1, d2 = _dot(ab, ap), _dot(ac, ap)
+    d3, d4 = _dot(ab, bp), _dot(ac, bp)
+    d5, d6 = _dot(ab, cp), _dot(ac, cp)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    if d1 <= 0 and d2 <= 0:
+        closest = a
+    elif d3 >= 0 and d4 <= d3:
+        closest = b
+    elif d6 >= 0 and d5 <= d6:
+        closest = c
+    elif vc <= 0 and d1 >= 0 and d3 <= 0:
+        closest = a + ab * (d1 / (d1 - d3))
+    elif vb <= 0 and d2 >= 0 and d6 <= 0:
+        closest = a + ac * (d2 / (d2 - d6))
+    elif va <= 0 and (d4 - d3) >= 0 and (d5 - d6) >= 0:
+        closest = b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)))
+    else:
+        denominator = 1.0 / (va + vb + vc)
+        closest = a + ab * (vb * denominator) + ac * (vc * denominator)
+    offset = p - closest
+    distance = math.sqrt(_dot(offset, offset))
+    f0, f1, f2 = ab[1] * ac[2] - ab[2] * ac[1], ab[2] * ac[0] - ab[0] * ac[2], ab[0] * ac[1] - ab[1] * ac[0]
+    size = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+    f0, f1, f2 = f0 / size, f1 / size, f2 / size
+    if distance > 1e-9:
+        return distance, offset[0] / distance, offset[1] / distance, offset[2] / distance
+    side = 1.0 if f0 * ap[0] + f1 * ap[1] + f2 * ap[2] >= 0 else -1.0
+    return distance, side * f0, side * f1, side * f2
 
 
 @njit(cache=True, error_model="numpy")
