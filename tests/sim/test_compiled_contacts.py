@@ -331,3 +331,32 @@ def test_the_hull_distance_is_the_numpy_one_everywhere():
     for k in range(len(points)):
         found = probe_search._to_hull(points[k], centre, turn, vertices, triangles, planes)
         np.testing.assert_allclose(found, [distance[k], *normal[k]], rtol=0, atol=1e-13, err_msg=str(points[k]))
+
+
+def test_the_compiled_contact_rows_are_the_numpy_ones():
+    """Directions, lever arms, responses and split effective masses of 60 random contacts among 8 bodies (particles,
+    rigid bodies, the fixed body last), normals along every axis (both tangent-basis branches)."""
+    from animbatch.sim.contact.solver import BodyVelocities, CompiledRows, ContactRows
+
+    rng = np.random.default_rng(4)
+    count, size = 60, 8
+    inverse_mass = np.concatenate([rng.uniform(0.2, 5.0, size - 1), [0.0]])
+    inverse_inertia = np.zeros((size, 3, 3))
+    for body in range(3, size - 1):  # bodies 0-2 are particles
+        turn = rng.normal(size=(3, 3))
+        inverse_inertia[body] = turn @ turn.T + np.eye(3)
+    bodies = BodyVelocities(rng.normal(size=(size, 3)), rng.normal(size=(size, 3)), inverse_mass, inverse_inertia)
+    normal = rng.normal(size=(count, 3))
+    normal[:5] = [[1, 0, 0], [0, 1, 0], [0, 0, -1], [0.6, 0.8, 0], [-1, 0, 0]]
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    first = rng.integers(0, size - 1, count)
+    second = np.where(rng.random(count) < 0.3, -1, (first + rng.integers(1, size - 1, count)) % (size - 1))
+    z = np.zeros(count)
+    found = Contacts(first, second, rng.normal(size=(count, 3)), normal, z, z, z, z, np.arange(count),
+                     np.zeros(count, np.intp), np.zeros(count, np.intp))
+    x = rng.normal(size=(size, 3))
+    numpy_rows = ContactRows(found, bodies, x).kernel_rows()
+    compiled_rows = CompiledRows(found, bodies, x).kernel_rows()
+    assert len(numpy_rows) == len(compiled_rows) == 10
+    for numpy_value, compiled_value in zip(numpy_rows, compiled_rows):
+        np.testing.assert_allclose(compiled_value, numpy_value, rtol=1e-12, atol=1e-14)

@@ -112,7 +112,59 @@ class _Direction:
     turn_b: np.ndarray
 
 
-class ContactRows:
+class FlatVelocities:
+    """The flat velocity vector ``V = [v.ravel(), ω.ravel()]`` (6 (P + 1),) of ``bodies`` (``size`` P + 1 of them),
+    which the contact sweeps iterate on."""
+
+    bodies: BodyVelocities
+    size: int
+
+    def flat(self, v: np.ndarray | None = None, w: np.ndarray | None = None) -> np.ndarray:
+        """``V`` (6 (P + 1),) from linear and angular velocities (default: the bodies')."""
+        v = self.bodies.v if v is None else v
+        w = self.bodies.omega if w is None else w
+        return np.concatenate([v.ravel(), w.ravel()])
+
+    def unflat(self, velocity: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> None:
+        """Write ``V`` back into linear and angular velocity arrays (default: the bodies')."""
+        v = self.bodies.v if v is None else v
+        w = self.bodies.omega if w is None else w
+        half = 3 * self.size
+        v[:] = velocity[:half].reshape(-1, 3)
+        w[:] = velocity[half:].reshape(-1, 3)
+
+
+class CompiledRows(FlatVelocities):
+    """The rows of K contacts as the compiled sweeps take them (:meth:`kernel_rows`), built in one compiled call
+    (:func:`animbatch.sim.kernels.contact_impulses.contact_rows`): what :class:`ContactRows` gives the compiled
+    path (the normals and tangent bases, the flat velocity), without its numpy rows and sparse forms."""
+
+    def __init__(self, contacts: Contacts, bodies: BodyVelocities, x: np.ndarray,
+                 kinematic: np.ndarray | None = None) -> None:
+        from animbatch.sim.kernels import contact_impulses
+
+        self.bodies = bodies
+        self.count = contacts.count
+        self.size = len(x)
+        self.a = contacts.probe_body.astype(np.int64)
+        self.b = np.where(contacts.solid_body < 0, len(x) - 1, contacts.solid_body).astype(np.int64)
+        if kinematic is not None:  # contacts with moving colliders: their slots in bodies (else −1)
+            self.b = np.where(kinematic >= 0, kinematic, self.b).astype(np.int64)
+        build: Any = contact_impulses.contact_rows
+        self._rows = build(self.a, self.b, np.ascontiguousarray(contacts.normal, float),
+                           np.ascontiguousarray(contacts.point, float), np.ascontiguousarray(x, float),
+                           np.ascontiguousarray(bodies.inverse_mass, float),
+                           np.ascontiguousarray(bodies.inverse_inertia, float))
+        direction = self._rows[0]
+        self.n, self.t1, self.t2 = direction[0], direction[1], direction[2]
+
+    def kernel_rows(self) -> tuple[Any, ...]:
+        """As :meth:`ContactRows.kernel_rows`."""
+        return (self.a, self.b, *self._rows)
+
+
+
+class ContactRows(FlatVelocities):
     """The rows of K contacts on the bodies of ``bodies``: directions, lever arms, effective masses, and how to read
     relative motion along a row and apply impulses (or forces) to the bodies.
 
@@ -255,21 +307,7 @@ class ContactRows:
         """Effective mass of each row along ``direction`` (K, 3), with masses split among contacts."""
         return self._weight(self._direction(direction))
 
-    # -- flat velocity vectors: what the solver iterates on --------------------------------------------------------
-
-    def flat(self, v: np.ndarray | None = None, w: np.ndarray | None = None) -> np.ndarray:
-        """``V`` (6 (P + 1),) from linear and angular velocities (default: the bodies')."""
-        v = self.bodies.v if v is None else v
-        w = self.bodies.omega if w is None else w
-        return np.concatenate([v.ravel(), w.ravel()])
-
-    def unflat(self, velocity: np.ndarray, v: np.ndarray | None = None, w: np.ndarray | None = None) -> None:
-        """Write ``V`` back into linear and angular velocity arrays (default: the bodies')."""
-        v = self.bodies.v if v is None else v
-        w = self.bodies.omega if w is None else w
-        half = 3 * self.size
-        v[:] = velocity[:half].reshape(-1, 3)
-        w[:] = velocity[half:].reshape(-1, 3)
+    # -- flat velocity vectors (FlatVelocities): what the solver iterates on -----------------------------------------
 
     def response_normal_columns(self, chosen: np.ndarray) -> np.ndarray:
         """The velocity change (6 (P + 1), J) per unit normal impulse of the ``chosen`` contacts."""
@@ -411,6 +449,8 @@ class SolveResult:
     impact: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     # (K,) fraction of the step at which each gap closes (straight-line motion)
     arrival: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    # (K, 3) the tangential impulses as world vectors (impulse solves)
+    tangent_vector: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
 
 #: Impulse solves of at least this many contacts run their sweeps compiled
@@ -483,12 +523,13 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         return result
     if couple is not None:  # start on the joints: with their rows in the response, the contacts keep them
         couple(bodies)
-    rows = ContactRows(contacts, bodies, x, kinematic, jointed)
-    block = JointedNormals.of(rows, jointed) if jointed is not None else None
+    compiled = jointed is None and compiled_contacts(count, long_run=long_run)
+    rows: CompiledRows | ContactRows = (CompiledRows(contacts, bodies, x, kinematic) if compiled
+                                        else ContactRows(contacts, bodies, x, kinematic, jointed))
+    block = JointedNormals.of(rows, jointed) if jointed is not None and isinstance(rows, ContactRows) else None
     n = rows.n
-    kernel: Any = (rows.kernel_rows() if jointed is None and compiled_contacts(count, long_run=long_run)
-                   else None)
-    if kernel is not None:
+    kernel: Any = rows.kernel_rows() if isinstance(rows, CompiledRows) else None
+    if isinstance(rows, CompiledRows):
         from animbatch.sim.kernels import contact_impulses as kernels
 
         contact_impulses: Any = kernels  # the kernels take the rows unpacked (ContactRows.kernel_rows)
@@ -522,13 +563,13 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         normal_impulse = np.where(fast, 0.0, warm[0])  # impacts start afresh; resting contacts from last step
         tangent_impulse = np.stack([np.einsum("ki,ki->k", warm[1], rows.t1),
                                     np.einsum("ki,ki->k", warm[1], rows.t2)], axis=1) * (~fast)[:, None]
-        if kernel is not None:
+        if isinstance(rows, CompiledRows):
             contact_impulses.apply_impulses(velocity, normal_impulse, tangent_impulse, *kernel[:2], *kernel[5:9])
         else:
             rows.push_normal(velocity, normal_impulse)
             rows.push_tangent(velocity, tangent_impulse)
     tolerance = VELOCITY_TOLERANCE * (1.0 + float(np.abs(approach).max(initial=0.0)))
-    if kernel is not None:  # the same sweeps, compiled
+    if isinstance(rows, CompiledRows):  # the same sweeps, compiled
         normal_impulse, tangent_impulse = normal_impulse.astype(np.float64), tangent_impulse.astype(np.float64)
         contact_impulses.impulse_iterations(velocity, *kernel, target.astype(np.float64), normal_impulse,
                                             tangent_impulse, contacts.static_friction.astype(np.float64),
@@ -544,6 +585,7 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
     rows.unflat(velocity)
     result.normal_impulse[:] = normal_impulse
     result.tangent_impulse[:] = tangent_impulse
+    result.tangent_vector = tangent_impulse[:, [0]] * rows.t1 + tangent_impulse[:, [1]] * rows.t2
     # split impulse: push apart through positions only, the overlaps that exceed the slop by more than a trifle
     # (pushing converges geometrically onto the slop; chasing the last nanometre would cost a solve every step)
     overlap = np.maximum(-gap - slop, 0.0)
@@ -552,7 +594,7 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         pseudo = np.zeros_like(velocity)
         push_target = BAUMGARTE * overlap / h
         enough = PUSH_TOLERANCE * float(push_target.max())
-        if kernel is not None:
+        if isinstance(rows, CompiledRows):
             contact_impulses.push_iterations(pseudo, *kernel, push_target, enough, min(iterations, PUSH_ITERATIONS))
         else:
             _pushes(rows, pseudo, push_target, enough, min(iterations, PUSH_ITERATIONS))

@@ -33,7 +33,6 @@ from animbatch.sim.contact.solver import (
     compiled_contacts,
     inverse_mass_matrix,
     solve_impulses,
-    tangent_basis,
 )
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.forces.gravity import gravity_magnitude
@@ -183,9 +182,7 @@ class ContactResolver:
         if bounce:  # remember the impulses of the main solve (not of end-of-step re-projections)
             self.impacts.record(t + result.arrival * h, contacts.probe_body, result.impact)
 
-            t1, t2 = tangent_basis(contacts.normal)
-            tangential = result.tangent_impulse[:, [0]] * t1 + result.tangent_impulse[:, [1]] * t2
-            self._remember(codes, result.normal_impulse, tangential, h)
+            self._remember(codes, result.normal_impulse, result.tangent_vector, h)
         self._write_back(motion, state, bodies)
         if result.pseudo_v is None:
             return None

@@ -149,3 +149,61 @@ def push_iterations(pseudo: np.ndarray, a: np.ndarray, b: np.ndarray, direction:
             new = max(push[k] - pushed[k] * weight[0, k], 0.0)
             _apply(pseudo, bodies, 0, k, new - push[k], a, b, lin_a, lin_b, turn_a, turn_b)
             push[k] = new
+
+
+@njit(cache=True, error_model="numpy")
+def contact_rows(a: np.ndarray, b: np.ndarray, normal: np.ndarray, point: np.ndarray, x: np.ndarray,
+                 inverse_mass: np.ndarray, inverse_inertia: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                            np.ndarray]:
+    """The rows of K contacts as :class:`animbatch.sim.contact.solver.ContactRows` builds them, in one pass:
+    ``direction`` (normal, then the tangent basis of ``tangent_basis``), ``arm_a``, ``arm_b`` (``r × d``),
+    ``lin_a``, ``lin_b`` (``d / m``), ``turn_a``, ``turn_b`` (``I⁻¹ (r × d)``), all (3, K, 3), and the effective
+    masses ``weight`` (3, K) with each body's inverse mass and inertia times its number of contacts (mass
+    splitting; the fixed body, last, counts once). ``x`` (B, 3) [m] centres of mass, ``inverse_mass`` (B,),
+    ``inverse_inertia`` (B, 3, 3) world axes."""
+    count, bodies = len(a), len(x)
+    shares = np.zeros(bodies)
+    for k in range(count):
+        shares[a[k]] += 1.0
+        shares[b[k]] += 1.0
+    shares[bodies - 1] = 1.0
+    direction = np.empty((3, count, 3))
+    arm_a, arm_b = np.empty((3, count, 3)), np.empty((3, count, 3))
+    lin_a, lin_b = np.empty((3, count, 3)), np.empty((3, count, 3))
+    turn_a, turn_b = np.empty((3, count, 3)), np.empty((3, count, 3))
+    weight = np.empty((3, count))
+    for k in range(count):
+        n0, n1, n2 = normal[k, 0], normal[k, 1], normal[k, 2]
+        h0, h1, h2 = (1.0, 0.0, 0.0) if abs(n0) < 0.6 else (0.0, 1.0, 0.0)
+        f0, f1, f2 = n1 * h2 - n2 * h1, n2 * h0 - n0 * h2, n0 * h1 - n1 * h0
+        size = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+        f0, f1, f2 = f0 / size, f1 / size, f2 / size
+        direction[0, k, 0], direction[0, k, 1], direction[0, k, 2] = n0, n1, n2
+        direction[1, k, 0], direction[1, k, 1], direction[1, k, 2] = f0, f1, f2
+        direction[2, k, 0], direction[2, k, 1] = n1 * f2 - n2 * f1, n2 * f0 - n0 * f2
+        direction[2, k, 2] = n0 * f1 - n1 * f0
+        i, j = a[k], b[k]
+        for row in range(3):
+            inverse = 0.0
+            for end in range(2):
+                body = i if end == 0 else j
+                arm, lin, turn = (arm_a, lin_a, turn_a) if end == 0 else (arm_b, lin_b, turn_b)
+                r0, r1, r2 = point[k, 0] - x[body, 0], point[k, 1] - x[body, 1], point[k, 2] - x[body, 2]
+                d0, d1, d2 = direction[row, k, 0], direction[row, k, 1], direction[row, k, 2]
+                arm[row, k, 0], arm[row, k, 1] = r1 * d2 - r2 * d1, r2 * d0 - r0 * d2
+                arm[row, k, 2] = r0 * d1 - r1 * d0
+                for c in range(3):
+                    lin[row, k, c] = inverse_mass[body] * direction[row, k, c]
+                    turn[row, k, c] = (inverse_inertia[body, c, 0] * arm[row, k, 0]
+                                       + inverse_inertia[body, c, 1] * arm[row, k, 1]
+                                       + inverse_inertia[body, c, 2] * arm[row, k, 2])
+                own = 0.0
+                for c in range(3):
+                    own += lin[row, k, c] * direction[row, k, c]
+                turned = 0.0
+                for c in range(3):
+                    turned += turn[row, k, c] * arm[row, k, c]
+                inverse += shares[body] * (own + turned)
+            weight[row, k] = 1.0 / inverse
+    return direction, arm_a, arm_b, lin_a, lin_b, turn_a, turn_b, weight
