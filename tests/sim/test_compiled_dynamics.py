@@ -255,9 +255,9 @@ def test_the_compiled_equations_are_chosen_where_they_pay(monkeypatch):
 def test_with_contacts_the_compiled_forms_take_the_steps_around_the_numpy_contact_solve(monkeypatch):
     """A hinged bar swinging down onto a floor and a box landing beside it: the compiled kick, drift and projection
     with the numpy contact solve between them give the numpy run's motion, frame by frame: to round-off until the
-    bar lands (after 0.12 s), and to a millimetre after. (It lands on two corners at once, whose contact matrix is
-    singular: the impulse solve stops at its tolerance somewhere along that direction, and where it stops moves by
-    a percent of an impulse when its inputs move by round-off.)"""
+    bar lands (after 0.12 s), and to a centimetre after. (The bar lands on two corners at once and the box on
+    several, redundant contacts whose impulse solve stops at its iteration limit somewhere along the directions
+    the contacts leave free; where it stops moves by a percent of an impulse when its inputs move by round-off.)"""
     from animbatch import api
 
     text = f"""
@@ -279,7 +279,7 @@ def test_with_contacts_the_compiled_forms_take_the_steps_around_the_numpy_contac
         runs[choice] = api.simulate(scene(text))
     assert runs["numba"].solver_stats["impacts"]  # the bodies did meet the floor
     before = runs["numpy"].times < 0.12
-    for name, landed in (("positions", 1e-3), ("orientations", 1e-3)):
+    for name, landed in (("positions", 1e-2), ("orientations", 1e-2)):
         compiled, numpy_run = getattr(runs["numba"], name), getattr(runs["numpy"], name)
         np.testing.assert_allclose(compiled[before], numpy_run[before], rtol=0, atol=1e-9)
         np.testing.assert_allclose(compiled, numpy_run, rtol=0, atol=landed)

@@ -98,13 +98,13 @@ class JointedResponse:
         rates = moved[:, touched].toarray()
         return touched, rates, np.asarray(self._solve(rates))
 
-    def correct(self, response: sp.spmatrix) -> sp.csc_matrix:
-        """``K Jᵀ`` from ``M⁻¹ Jᵀ`` (6N, K): the response within the joints."""
+    def correct(self, response: sp.spmatrix | np.ndarray) -> sp.csc_matrix | np.ndarray:
+        """``K Jᵀ`` from ``M⁻¹ Jᵀ`` (6N, K): the response within the joints (an array for an array)."""
         touched, _, multipliers = self._touched(response)
         if self._push_array is not None:
-            corrected = response.toarray()
+            corrected = np.array(_array(response))
             corrected[:, touched] -= self._push_array @ multipliers
-            return sp.csc_matrix(corrected)
+            return corrected if isinstance(response, np.ndarray) else sp.csc_matrix(corrected)
         response = sp.csc_matrix(response)
         if not len(touched):
             return response

@@ -112,6 +112,12 @@ class _Direction:
     turn_b: np.ndarray
 
 
+#: Row matrices (J, or the response M⁻¹ Jᵀ) of at most this many entries are built as arrays: a product with a few
+#: thousand entries costs a microsecond as an array and some twenty as a scipy.sparse matrix (its checks), and the
+#: sweeps of a small scene take hundreds of them a step.
+DENSE_ENTRIES = 20_000
+
+
 class FlatVelocities:
     """The flat velocity vector ``V = [v.ravel(), ω.ravel()]`` (6 (P + 1),) of ``bodies`` (``size`` P + 1 of them),
     which the contact sweeps iterate on."""
@@ -201,20 +207,20 @@ class ContactRows(FlatVelocities):
 
     # the sparse forms, built on first use (the compiled iterations read the rows themselves)
     @functools.cached_property
-    def _jacobian_normal(self) -> sp.csr_matrix:
+    def _jacobian_normal(self) -> sp.csr_matrix | np.ndarray:
         return self._sparse((self.normal_row,), response=False)
 
     @functools.cached_property
-    def _jacobian_tangent(self) -> sp.csr_matrix:
+    def _jacobian_tangent(self) -> sp.csr_matrix | np.ndarray:
         return self._sparse((self.first_row, self.second_row), response=False)
 
     @functools.cached_property
-    def _response_normal(self) -> sp.csr_matrix | sp.csc_matrix:
+    def _response_normal(self) -> sp.csr_matrix | sp.csc_matrix | np.ndarray:
         response = self._sparse((self.normal_row,), response=True)
         return self._jointed.correct(response) if self._jointed is not None else response
 
     @functools.cached_property
-    def _response_tangent(self) -> sp.csr_matrix | sp.csc_matrix:
+    def _response_tangent(self) -> sp.csr_matrix | sp.csc_matrix | np.ndarray:
         response = self._sparse((self.first_row, self.second_row), response=True)
         return self._jointed.correct(response) if self._jointed is not None else response
 
@@ -229,8 +235,9 @@ class ContactRows(FlatVelocities):
                 np.stack([self.w_n, self.w_1, self.w_2]))
 
     def _sparse(self, rows: tuple[_Direction, ...], *, response: bool, ends: tuple[bool, bool] = (True, True)
-                ) -> sp.csr_matrix | sp.csc_matrix:
-        """``J`` (R K, 6 (P + 1)) for the given row directions, or the response ``B`` (6 (P + 1), R K).
+                ) -> sp.csr_matrix | sp.csc_matrix | np.ndarray:
+        """``J`` (R K, 6 (P + 1)) for the given row directions, or the response ``B`` (6 (P + 1), R K); as an array
+        for small systems (:data:`DENSE_ENTRIES`).
 
         Entries that can only ever meet zeros are left out: the fixed body's (its velocity is zero and its inverse
         mass too) and the angular ones of bodies that do not turn (particles). For a pile of particles on the ground
@@ -251,6 +258,10 @@ class ContactRows(FlatVelocities):
                      else [row.d, row.ang_a, -row.d, -row.ang_b], axis=1)[keep].ravel() for row in rows])
         indices = np.tile(columns[keep].ravel(), len(rows))
         indptr = np.concatenate([[0], np.cumsum(np.tile(per_row, len(rows)))])
+        if len(rows) * k * 6 * size <= DENSE_ENTRIES:
+            dense = np.zeros((len(rows) * k, 6 * size))
+            dense[np.repeat(np.arange(len(rows) * k), np.diff(indptr)), indices] = data
+            return dense.T if response else dense
         matrix = sp.csr_matrix((data, indices, indptr), shape=(len(rows) * k, 6 * size))
         return matrix.T if response else matrix
 
@@ -311,11 +322,15 @@ class ContactRows(FlatVelocities):
 
     def response_normal_columns(self, chosen: np.ndarray) -> np.ndarray:
         """The velocity change (6 (P + 1), J) per unit normal impulse of the ``chosen`` contacts."""
-        return sp.csc_matrix(self._response_normal)[:, chosen].toarray()
+        response = self._response_normal
+        if isinstance(response, np.ndarray):
+            return response[:, chosen]
+        return sp.csc_matrix(response)[:, chosen].toarray()
 
-    def normal_jacobian_rows(self, chosen: np.ndarray) -> sp.csr_matrix:
+    def normal_jacobian_rows(self, chosen: np.ndarray) -> sp.csr_matrix | np.ndarray:
         """The normal rows (J, 6 (P + 1)) of the ``chosen`` contacts."""
-        return sp.csr_matrix(self._jacobian_normal)[chosen]
+        jacobian = self._jacobian_normal
+        return jacobian[chosen] if isinstance(jacobian, np.ndarray) else sp.csr_matrix(jacobian)[chosen]
 
     def normal_velocity(self, velocity: np.ndarray) -> np.ndarray:
         """Relative normal velocities (K,) for the flat velocity ``V``."""
