@@ -360,3 +360,50 @@ def test_the_compiled_contact_rows_are_the_numpy_ones():
     assert len(numpy_rows) == len(compiled_rows) == 10
     for numpy_value, compiled_value in zip(numpy_rows, compiled_rows):
         np.testing.assert_allclose(compiled_value, numpy_value, rtol=1e-12, atol=1e-14)
+
+
+def test_the_compiled_jointed_sweeps_are_the_numpy_ones(monkeypatch):
+    """Every impulse solve of a jointed scene (a plank on the floor under a weight on a stalk, joined by a hinge, and
+    a ball-jointed pair tumbling onto them): the compiled sweeps on the row arrays, with the jointed contacts'
+    normals solved at once every few sweeps, give the numpy sweeps' impulses and velocities."""
+    from animbatch import api
+    from animbatch.sim.contact import solver
+    from conftest import scene
+
+    text = """
+        duration: 0.4
+        fps: 10
+        solver: {method: symplectic_euler, dt: 0.001}
+        bodies:
+          - {name: plank, type: rigid, shape: {type: box, size: [0.6, 0.04, 0.2]}, density: 300, position: [0, 0.02, 0]}
+          - {name: weight, type: rigid, shape: {type: sphere, radius: 0.08}, density: 8000, position: [0.25, 0.3, 0]}
+          - {name: upper, type: rigid, shape: {type: capsule, radius: 0.03, length: 0.2}, density: 900,
+             position: [-0.1, 0.3, 0.05], angular_velocity: [1, 0, 2]}
+          - {name: lower, type: rigid, shape: {type: capsule, radius: 0.03, length: 0.2}, density: 900,
+             position: [-0.1, 0.1, 0.05]}
+        joints:
+          - {type: hinge, between: [weight, plank], anchor: [0.25, 0.04, 0], axis: [0, 0, 1]}
+          - {type: ball, between: [upper, lower], anchor: [-0.1, 0.2, 0.05]}
+        colliders: [{type: plane}]
+        fields: [{type: gravity}]
+    """
+    original, compared = solver._sweeps, []
+
+    def both(rows, contacts, velocity, *rest):
+        start = velocity.copy()
+        found = original(rows, contacts, velocity, *rest)
+        if rows.dense:
+            compiled_velocity = start.copy()
+            copied = [np.array(r) if isinstance(r, np.ndarray) else r for r in rest]
+            compiled = solver._compiled_dense_sweeps(rows, contacts, compiled_velocity, *copied)
+            scale = max(1.0, float(np.abs(found[0]).max()))
+            np.testing.assert_allclose(compiled[0], found[0], rtol=0, atol=1e-9 * scale)
+            np.testing.assert_allclose(compiled[1], found[1], rtol=0, atol=1e-9 * scale)
+            np.testing.assert_allclose(compiled_velocity, velocity, rtol=0, atol=1e-9)
+            compared.append(rest[-3] is not None)  # whether the jointed normals' block took part
+        return found
+
+    monkeypatch.setattr(solver, "_sweeps", both)
+    monkeypatch.setenv("ANIMBATCH_KERNELS", "numpy")
+    api.simulate(scene(text))
+    assert len(compared) > 100 and any(compared)

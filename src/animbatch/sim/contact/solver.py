@@ -205,6 +205,11 @@ class ContactRows(FlatVelocities):
             rows = (self.normal_row, self.first_row, self.second_row)
             self.w_n, self.w_1, self.w_2 = (self._jointed_weight(row, jointed) for row in rows)
 
+    @property
+    def dense(self) -> bool:
+        """Whether the row matrices are arrays (small systems, :data:`DENSE_ENTRIES`)."""
+        return isinstance(self._jacobian_normal, np.ndarray) and isinstance(self._response_tangent, np.ndarray)
+
     # the sparse forms, built on first use (the compiled iterations read the rows themselves)
     @functools.cached_property
     def _jacobian_normal(self) -> sp.csr_matrix | np.ndarray:
@@ -590,6 +595,10 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
                                             tangent_impulse, contacts.static_friction.astype(np.float64),
                                             contacts.kinetic_friction.astype(np.float64), sticking, iterations,
                                             tolerance)
+    elif compiled_contacts(count, long_run=long_run) and rows.dense:  # small jointed scenes: array rows, compiled
+        normal_impulse, tangent_impulse = _compiled_dense_sweeps(rows, contacts, velocity, target, normal_impulse,
+                                                                 tangent_impulse, sticking, block, iterations,
+                                                                 tolerance)
     else:
         normal_impulse, tangent_impulse = _sweeps(rows, contacts, velocity, target, normal_impulse, tangent_impulse,
                                                   sticking, block, iterations, tolerance)
@@ -644,6 +653,28 @@ def _sweeps(rows: ContactRows, contacts: Contacts, velocity: np.ndarray, target:
         tangent_impulse, gripping = rows.friction_step(velocity, tangent_impulse, normal_impulse,
                                                        contacts.static_friction, sticking, contacts.kinetic_friction)
     return normal_impulse, tangent_impulse
+
+
+def _compiled_dense_sweeps(rows: ContactRows, contacts: Contacts, velocity: np.ndarray, target: np.ndarray,
+                           normal_impulse: np.ndarray, tangent_impulse: np.ndarray, sticking: np.ndarray,
+                           block: JointedNormals | None, iterations: int, tolerance: float
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_sweeps` in one compiled call (:func:`animbatch.sim.kernels.contact_impulses.dense_sweeps`), for rows
+    kept as arrays."""
+    from animbatch.sim.kernels import contact_impulses
+
+    sweeps: Any = contact_impulses.dense_sweeps
+
+    def array(matrix: Any) -> np.ndarray:
+        return np.ascontiguousarray(matrix, dtype=np.float64)
+
+    chosen = block.chosen.astype(np.int64) if block is not None else np.zeros(0, np.int64)
+    matrix = array(block.matrix) if block is not None else np.zeros((0, 0))
+    return sweeps(velocity, array(rows._jacobian_normal), array(rows._jacobian_tangent), array(rows._response_normal),
+                  array(rows._response_tangent), array(np.stack([rows.w_n, rows.w_1, rows.w_2])),
+                  array(target), array(normal_impulse), array(tangent_impulse), array(contacts.static_friction),
+                  array(contacts.kinetic_friction), np.asarray(sticking, np.bool_), chosen, matrix, BLOCK_EVERY,
+                  ACTIVE_SET_PASSES, int(iterations), float(tolerance))
 
 
 def _pushes(rows: ContactRows, pseudo: np.ndarray, push_target: np.ndarray, enough: float, iterations: int) -> None:

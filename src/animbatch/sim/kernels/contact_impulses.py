@@ -207,3 +207,84 @@ def contact_rows(a: np.ndarray, b: np.ndarray, normal: np.ndarray, point: np.nda
                 inverse += shares[body] * (own + turned)
             weight[row, k] = 1.0 / inverse
     return direction, arm_a, arm_b, lin_a, lin_b, turn_a, turn_b, weight
+
+
+@njit(cache=True, error_model="numpy")
+def _block_solve(normal_impulse: np.ndarray, normal_now: np.ndarray, chosen: np.ndarray, matrix: np.ndarray,
+                 passes: int) -> np.ndarray:
+    """:meth:`animbatch.sim.contact.solver.JointedNormals.solve`: the chosen rows' normal impulses by active sets,
+    the others as they were."""
+    start = normal_impulse[chosen]
+    active = (start > 0) | (normal_now[chosen] < 0)
+    result = normal_impulse.copy()
+    found = start.copy()
+    for _ in range(passes):
+        found = start.copy()
+        if active.any():
+            where = np.flatnonzero(active)
+            system = np.empty((len(where), len(where)))
+            right = np.empty(len(where))
+            for i in range(len(where)):
+                right[i] = -normal_now[chosen[where[i]]]
+                for j in range(len(where)):
+                    system[i, j] = matrix[where[i], where[j]]
+            change = np.linalg.lstsq(system, right, rcond=1e-12)[0]
+            for i in range(len(where)):
+                found[where[i]] += change[i]
+        negative = active & (found < 0)
+        if not negative.any():
+            break
+        active &= ~negative
+    for i in range(len(chosen)):
+        result[chosen[i]] = max(found[i], 0.0)
+    return result
+
+
+@njit(cache=True, error_model="numpy")
+def dense_sweeps(velocity: np.ndarray, jacobian_normal: np.ndarray, jacobian_tangent: np.ndarray,
+                 response_normal: np.ndarray, response_tangent: np.ndarray, weight: np.ndarray,
+                 target: np.ndarray, normal_impulse: np.ndarray, tangent_impulse: np.ndarray,
+                 static_friction: np.ndarray, kinetic_friction: np.ndarray, sticking: np.ndarray,
+                 block_chosen: np.ndarray, block_matrix: np.ndarray, block_every: int, block_passes: int,
+                 iterations: int, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """The numpy sweeps of :func:`animbatch.sim.contact.solver._sweeps` on the row matrices as arrays (what small
+    jointed scenes use: the responses are the joints' ``K Jᵀ``): ``jacobian_normal`` (K, V), ``jacobian_tangent``
+    (2K, V), ``response_normal`` (V, K), ``response_tangent`` (V, 2K), ``weight`` (3, K); the jointed contacts'
+    normals (``block_chosen``, none: empty) solved at once every ``block_every`` sweeps. ``velocity`` (V,) changes
+    in place; returns the normal (K,) and tangential (K, 2) impulses."""
+    count = len(target)
+    gripping = np.zeros(count, np.bool_)
+    for iteration in range(iterations + 1):
+        normal_now = jacobian_normal @ velocity - target
+        if iteration > 0:
+            worst = 0.0
+            for k in range(count):
+                worst = max(worst, abs(normal_now[k]) if normal_impulse[k] > 0 else max(-normal_now[k], 0.0))
+            tangential = jacobian_tangent @ velocity
+            for k in range(count):
+                if gripping[k]:
+                    worst = max(worst, math.sqrt(tangential[k] ** 2 + tangential[count + k] ** 2))
+            if worst <= tolerance or iteration == iterations:
+                break
+        updated = np.maximum(normal_impulse - normal_now * weight[0], 0.0)
+        if len(block_chosen) and iteration % block_every == 0:
+            updated = _block_solve(normal_impulse, normal_now, block_chosen, block_matrix, block_passes)
+        velocity += response_normal @ (updated - normal_impulse)
+        normal_impulse = updated
+        # one Coulomb projection: stop the sliding if the static cone allows it, else the kinetic limit against it
+        current = jacobian_tangent @ velocity
+        change = np.empty(2 * count)
+        fresh = np.empty((count, 2))
+        for k in range(count):
+            wanted0 = tangent_impulse[k, 0] - current[k] * weight[1, k]
+            wanted1 = tangent_impulse[k, 1] - current[count + k] * weight[2, k]
+            size = math.sqrt(wanted0 * wanted0 + wanted1 * wanted1)
+            holds = sticking[k] and size <= static_friction[k] * normal_impulse[k]
+            limit = size if holds else kinetic_friction[k] * normal_impulse[k]
+            scale = min(size, limit) / size if size > 0 else 0.0
+            fresh[k, 0], fresh[k, 1] = wanted0 * scale, wanted1 * scale
+            change[k], change[count + k] = fresh[k, 0] - tangent_impulse[k, 0], fresh[k, 1] - tangent_impulse[k, 1]
+            gripping[k] = holds
+        velocity += response_tangent @ change
+        tangent_impulse = fresh
+    return normal_impulse, tangent_impulse
