@@ -362,6 +362,7 @@ def test_the_compiled_contact_rows_are_the_numpy_ones():
         np.testing.assert_allclose(compiled_value, numpy_value, rtol=1e-12, atol=1e-14)
 
 
+@pytest.mark.slow
 def test_the_compiled_jointed_sweeps_are_the_numpy_ones(monkeypatch):
     """Every impulse solve of a jointed scene (a plank on the floor under a weight on a stalk, joined by a hinge, and
     a ball-jointed pair tumbling onto them): the compiled sweeps on the row arrays, with the jointed contacts'

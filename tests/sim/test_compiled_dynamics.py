@@ -252,6 +252,7 @@ def test_the_compiled_equations_are_chosen_where_they_pay(monkeypatch):
     assert type(dynamics_for(model, 100.0)) is Dynamics
 
 
+@pytest.mark.slow
 def test_with_contacts_the_compiled_forms_take_the_steps_around_the_numpy_contact_solve(monkeypatch):
     """A hinged bar swinging down onto a floor and a box landing beside it: the compiled kick, drift and projection
     with the numpy contact solve between them give the numpy run's motion, frame by frame: to round-off until the
