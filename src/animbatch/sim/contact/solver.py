@@ -203,7 +203,9 @@ class ContactRows(FlatVelocities):
         self._jointed = jointed
         if jointed is not None:  # contacts on jointed bodies move them within the joints (sim/contact/jointed.py)
             rows = (self.normal_row, self.first_row, self.second_row)
-            self.w_n, self.w_1, self.w_2 = (self._jointed_weight(row, jointed) for row in rows)
+            lost = self._jointed_losses(rows, jointed)
+            self.w_n, self.w_1, self.w_2 = (self._jointed_weight(row, jointed, *losses)
+                                            for row, losses in zip(rows, lost))
 
     @property
     def dense(self) -> bool:
@@ -296,20 +298,30 @@ class ContactRows(FlatVelocities):
         response[3 * (self.size + body[:, None]) + np.arange(3), columns] = angular
         return response
 
-    def _jointed_weight(self, row: _Direction, jointed: JointedResponse) -> np.ndarray:
+    def _jointed_losses(self, rows: tuple[_Direction, ...], jointed: JointedResponse
+                        ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Per row direction, what the joints take from the inverse effective mass (K,) of its first end, its
+        second end and both together (:meth:`JointedResponse.lost`). Small systems: all nine responses as one array,
+        one product and one solve."""
+        if jointed.dense:
+            responses = []
+            for row in rows:
+                end_a, end_b = self._dense_response(row, True), self._dense_response(row, False)
+                responses += [end_a, end_b, end_a + end_b]
+            lost = jointed.lost(np.concatenate(responses, axis=1)).reshape(len(rows), 3, self.count)
+            return [(lost[r, 0], lost[r, 1], lost[r, 2]) for r in range(len(rows))]
+        return [(jointed.lost(self._sparse((row,), response=True, ends=(True, False))),
+                 jointed.lost(self._sparse((row,), response=True, ends=(False, True))),
+                 jointed.lost(self._sparse((row,), response=True))) for row in rows]
+
+    def _jointed_weight(self, row: _Direction, jointed: JointedResponse, lost_a: np.ndarray, lost_b: np.ndarray,
+                        lost_both: np.ndarray) -> np.ndarray:
         """Effective mass along a row with the joints: each end's inverse effective mass less what the joints take
-        away, split among the contacts of its whole jointed group (the group moves as one under any of them), or
-        for two ends in one group, the pair's together."""
+        away (``lost_*`` (K,), :meth:`_jointed_losses`), split among the contacts of its whole jointed group (the
+        group moves as one under any of them), or for two ends in one group, the pair's together."""
         a, b = self.a, self.b
         own_a = np.einsum("ki,ki->k", row.lin_a, row.d) + np.einsum("ki,ki->k", row.turn_a, row.ang_a)
         own_b = np.einsum("ki,ki->k", row.lin_b, row.d) + np.einsum("ki,ki->k", row.turn_b, row.ang_b)
-        if jointed.dense:  # each end's response as an array: no sparse matrices to build
-            end_a, end_b = self._dense_response(row, True), self._dense_response(row, False)
-            lost_a, lost_b, lost_both = (jointed.lost(r) for r in (end_a, end_b, end_a + end_b))
-        else:
-            lost_a = jointed.lost(self._sparse((row,), response=True, ends=(True, False)))
-            lost_b = jointed.lost(self._sparse((row,), response=True, ends=(False, True)))
-            lost_both = jointed.lost(self._sparse((row,), response=True))
         group = jointed.groups(self.size)
         group[-1] = -1  # the fixed body: no share
         shares = np.bincount(np.concatenate([group[a], group[b]]) + 1, minlength=group.max() + 2).astype(float)
