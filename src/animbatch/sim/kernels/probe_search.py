@@ -72,6 +72,15 @@ def _allowed(first: int, second: int, excluded: np.ndarray, body_count: int) -> 
 
 
 @njit(cache=True, error_model="numpy")
+def _touchable(q: int, body: int, owner: np.ndarray, active: np.ndarray, centres: np.ndarray, centre: np.ndarray,
+               reach: float, excluded: np.ndarray, body_count: int) -> bool:
+    """Whether probe q may touch a solid of ``body`` around ``centre``: another body's, active, within ``reach`` [m]
+    (the k-d tree's ball query), and no joint holds the two."""
+    return (owner[q] != body and active[q] and _near(centres[q], centre, reach)
+            and _allowed(body, owner[q], excluded, body_count))
+
+
+@njit(cache=True, error_model="numpy")
 def _local(point: np.ndarray, centre: np.ndarray, rotation: np.ndarray) -> tuple[float, float, float]:
     """``Rᵀ (p − c)``."""
     d0, d1, d2 = point[0] - centre[0], point[1] - centre[1], point[2] - centre[2]
@@ -242,8 +251,8 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
             continue
         size = math.sqrt(box_half[k, 0] ** 2 + box_half[k, 1] ** 2 + box_half[k, 2] ** 2)
         for q in range(len(owner)):
-            if (owner[q] != body and active[q] and _near(centres[q], box_centre[k], size + closing + widest)
-                    and _allowed(body, owner[q], excluded, body_count)):
+            if _touchable(q, body, owner, active, centres, box_centre[k], size + closing + widest, excluded,
+                          body_count):
                 ints, floats, count = _box_candidates(
                     ints, floats, count, q, centres, box, box_centre[k], box_rotation[k], box_half[k], body,
                     material[body], (BODY_BOX, BODY_BOX_FACE), k, box_centre, box_rotation, box_half, tolerance)
@@ -252,9 +261,8 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
         if not collides[body]:
             continue
         for q in range(len(owner)):
-            if (owner[q] != body and active[q]
-                    and _near(centres[q], round_centre[k], round_half_length[k] + round_radius[k] + closing + widest)
-                    and _allowed(body, owner[q], excluded, body_count)):
+            if _touchable(q, body, owner, active, centres, round_centre[k],
+                          round_half_length[k] + round_radius[k] + closing + widest, excluded, body_count):
                 distance, n0, n1, n2 = _to_round(centres[q], round_centre[k], round_axis[k], round_half_length[k],
                                                  round_radius[k], round_rounded[k])
                 ints, floats = _add(ints, floats, count, q, body, material[body], BODY_ROUND, k, distance, n0, n1,
@@ -265,9 +273,8 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
         if not collides[body]:
             continue
         for q in range(len(owner)):
-            if (owner[q] != body and active[q]
-                    and _near(centres[q], hull_centre[k], hull_reach[k] + closing + widest)
-                    and _allowed(body, owner[q], excluded, body_count)):
+            if _touchable(q, body, owner, active, centres, hull_centre[k], hull_reach[k] + closing + widest,
+                          excluded, body_count):
                 distance, n0, n1, n2 = _to_hull(
                     centres[q], hull_centre[k], hull_rotation[k],
                     hull_vertices[hull_vertex_start[k]:hull_vertex_start[k + 1]],
