@@ -74,9 +74,16 @@ ROOT = Path(__file__).resolve().parents[1]
 Row = dict[str, object]
 
 
+#: Set by ``--quick``: a smoke run, whose numbers must exist, not be the best of several (no warm-up, one run).
+SMOKE = False
+
+
 def best_of(repeats: int, work: Callable[[], None]) -> float:
-    """Minimum wall time [s] over ``repeats`` runs, after one warm-up run."""
-    work()
+    """Minimum wall time [s] over ``repeats`` runs, after one warm-up run (one run, no warm-up, in a smoke run)."""
+    if SMOKE:
+        repeats = 1
+    else:
+        work()
     times = []
     for _ in range(repeats):
         started = time.perf_counter()
@@ -156,7 +163,7 @@ def bench_pool(quick: bool) -> list[Row]:
     anchor = _anchor_loops()
     rows: list[Row] = []
     fused = 33
-    sizes = [1_000, 10_000] if quick else [1_000, 100_000, 1_000_000]
+    sizes = [1_000] if quick else [1_000, 100_000, 1_000_000]
     for count in sizes:
         text = (f"duration: 1\nfps: 30\nsolver: {{method: verlet, dt: 0.001}}\n"
                 f"emitters: [{{name: e, bursts: [{{time: 0, count: {count}}}], source: {{type: box, position: "
@@ -279,8 +286,9 @@ def bench_rigid(quick: bool) -> list[Row]:
     return rows
 
 
-def pile_scene(count: int, iterations: int) -> str:
-    """``count`` steel balls (r = 2 cm) in a loose grid of 25 × 25 per layer, above a wooden box 1.2 m wide."""
+def pile_scene(count: int, iterations: int, duration: float = 1.0) -> str:
+    """``count`` steel balls (r = 2 cm) in a loose grid of 25 × 25 per layer, above a wooden box 1.2 m wide, for
+    ``duration`` [s]."""
     radius, spacing, side = 0.02, 0.045, 25
     index = np.arange(count)
     rng = np.random.default_rng(0)
@@ -291,7 +299,7 @@ def pile_scene(count: int, iterations: int) -> str:
                        f"position: [{x:.4f}, {y:.4f}, {z:.4f}]}}" for i, (x, y, z) in enumerate(positions))
     wall = side * spacing / 2 + 0.06
     return f"""
-duration: 1.0
+duration: {duration}
 fps: 10
 solver: {{method: symplectic_euler, dt: 2.0e-3}}
 bodies:
@@ -318,8 +326,8 @@ def bench_contacts(quick: bool) -> list[Row]:
     from animbatch.stages import parse_scene
 
     rows = []
-    for count, iterations in ([(1_000, 300)] if quick else [(1_000, 300), (10_000, 300), (10_000, 30)]):
-        loaded = parse_scene(pile_scene(count, iterations))
+    for count, iterations in ([(200, 300)] if quick else [(1_000, 300), (10_000, 300), (10_000, 30)]):
+        loaded = parse_scene(pile_scene(count, iterations, duration=0.3 if quick else 1.0))
         model = compile_scene(loaded.spec)
         system = Dynamics(model)
         integrator = make_integrator(loaded.spec.solver, model)
@@ -585,7 +593,7 @@ def bench_render(quick: bool) -> list[Row]:
     rows = []
     for label, count, quality, sprites, target, least_ratio, frames in RENDER_CASES:
         if quick:
-            count, frames = min(count, 200), 6
+            count, frames = min(count, 200), 2
         fps, _, backend = render_frames(count, quality, frames, sprites)
         bare = bare_frames(count, quality, frames, sprites)
         goal = []
@@ -605,8 +613,8 @@ def bench_render(quick: bool) -> list[Row]:
 def bench_encode(quick: bool) -> list[Row]:
     from animbatch.encode import Mp4Writer, PngSequenceWriter
 
-    _, images, _ = render_frames(10_000, "draft", 16, sprites=True)
-    frames = 60 if quick else 240
+    _, images, _ = render_frames(1_000 if quick else 10_000, "draft", 4 if quick else 16, sprites=True)
+    frames = 12 if quick else 240
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         for preset in ("ultrafast", "veryfast", "medium"):
@@ -743,7 +751,7 @@ def bench_startup(quick: bool) -> list[Row]:
 
 def bench_stream(quick: bool) -> list[Row]:
     """A simple render end to end next to its drawing alone (issue 23's target: at most 1.15×), in one process, from
-    a baked trajectory: ``scenes/bouncing_balls.yaml``, 150 frames at 1280×720 (40 with --quick).
+    a baked trajectory: ``scenes/bouncing_balls.yaml``, 150 frames at 1280×720 (8 with --quick).
 
     * drawing alone: the renderer's draw of every frame, nothing written;
     * streamed (what ``animbatch render`` does on one machine): every frame piped to ffmpeg as it is drawn;
@@ -758,7 +766,7 @@ def bench_stream(quick: bool) -> list[Row]:
     from animbatch.render.backend import select_backend
     from animbatch.render.frames import FrameRenderer
 
-    frames = 40 if quick else 150
+    frames = 8 if quick else 150
     scene = api.load_scene(ROOT / "scenes" / "bouncing_balls.yaml",
                            ["render.resolution=[1280, 720]", f"duration={frames / 30}", "fps=30", "render.formats=[mp4]"])
     model = api.compile_model(scene)
@@ -890,9 +898,9 @@ def bench_farm(quick: bool) -> list[Row]:
     return rows
 
 
-def ledger_particles_scene(count: int) -> str:
-    """``count`` particles under gravity and drag thrown up from a grid and bouncing on the floor for 2 s (contacts
-    with the floor only), symplectic Euler at 1 ms."""
+def ledger_particles_scene(count: int, duration: float = 2.0) -> str:
+    """``count`` particles under gravity and drag thrown up from a grid and bouncing on the floor for ``duration``
+    [s] (contacts with the floor only), symplectic Euler at 1 ms."""
     rng = np.random.default_rng(0)
     side = int(np.ceil(np.sqrt(count)))
     index = np.arange(count)
@@ -901,7 +909,7 @@ def ledger_particles_scene(count: int) -> str:
     bodies = "\n".join(f"  - {{name: p{i}, radius: 0.02, mass: 0.01, position: {p.round(4).tolist()}, "
                        f"velocity: {v.round(4).tolist()}}}" for i, (p, v) in enumerate(zip(positions, velocities)))
     return f"""
-duration: 2
+duration: {duration}
 fps: 30
 solver: {{method: symplectic_euler, dt: 1.0e-3}}
 bodies:
@@ -924,8 +932,8 @@ def bench_ledger(quick: bool) -> list[Row]:
     from animbatch.stages import parse_scene
 
     rows = []
-    count, side = (300, 16) if quick else (1000, 32)
-    cases = {f"{count} particles bouncing, symplectic_euler": ledger_particles_scene(count),
+    count, side = (100, 8) if quick else (1000, 32)
+    cases = {f"{count} particles bouncing, symplectic_euler": ledger_particles_scene(count, 0.5 if quick else 2.0),
              f"{side}×{side} cloth, backward_euler 1 step/frame": cloth_scene(side, 1.0 if quick else 3.0,
                                                                           "{method: backward_euler, dt: 0.0333334}")}
     for label, text in cases.items():
@@ -1073,6 +1081,8 @@ def main() -> int:
                         help="run only the cloth methods whose label starts with NAME (e.g. BDF)")
     parser.add_argument("--json", type=Path, help="also write the rows to this JSON file")
     args = parser.parse_args()
+    global SMOKE
+    SMOKE = args.quick
     print(f"animbatch benchmarks on {platform.node()}: {os.cpu_count()} CPUs, Python {platform.python_version()}, "
           f"numpy {np.__version__}", flush=True)
     rows: list[Row] = []
