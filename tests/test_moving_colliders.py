@@ -90,25 +90,29 @@ def test_on_ice_the_platform_slides_out_from_under_the_crate_which_lags_at_mu_g(
     assert trajectory.positions[-1, 0, 0] < platform[-1] - 0.05
 
 
-def test_a_collider_path_holds_its_keys_and_its_velocity_is_the_paths_derivative():
-    loaded = parse_scene("""
+@pytest.mark.parametrize("interpolation", ["linear", "cubic"])
+def test_a_collider_path_holds_its_keys_and_its_velocity_is_the_paths_derivative(interpolation):
+    loaded = parse_scene(f"""
         duration: 1
-        solver: {method: verlet}
-        bodies: [{name: ball, position: [0, 1, 0]}]
+        solver: {{method: verlet}}
+        bodies: [{{name: ball, position: [0, 1, 0]}}]
         colliders:
           - type: box
             position: [1, 0, 0]
             size: [1, 1, 1]
+            interpolation: {interpolation}
             keyframes:
-              - {time: 0, offset: [0, 0, 0]}
-              - {time: 1, offset: [1, 2, 0], rotation: {axis: [0, 0, 1], angle: 90}}
-              - {time: 3, offset: [0, 0, 1], rotation: {axis: [1, 0, 0], angle: 30}}
+              - {{time: 0, offset: [0, 0, 0]}}
+              - {{time: 1, offset: [1, 2, 0], rotation: {{axis: [0, 0, 1], angle: 90}}}}
+              - {{time: 3, offset: [0, 0, 1], rotation: {{axis: [1, 0, 0], angle: 30}}}}
     """, filename="test.yaml")
     path = pose_path(loaded.spec.colliders[0])
     centre, turn = path.pose(1.0)
     np.testing.assert_allclose(centre, [2, 2, 0], atol=1e-12)
     np.testing.assert_allclose(turn @ [1, 0, 0], [0, 1, 0], atol=1e-12)
     assert_velocity_is_the_paths_derivative(path, (0.3, 1.7, 2.4))
+    between = path.turn(2.0)  # slerp's half-way turn, or the spline's: a rotation either way
+    np.testing.assert_allclose(between @ between.T, np.eye(3), atol=1e-12)
     np.testing.assert_allclose(path.velocity(5.0)[0], 0)  # held after the last key
 
 

@@ -15,6 +15,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from animbatch import quaternion
+
 if TYPE_CHECKING:  # SciPy's interpolation and rotations load when a path is built, not with the package
     from scipy.spatial.transform import Rotation
 
@@ -101,10 +103,6 @@ class AnchorMotion:
         return result
 
 
-#: Half the time step [s] of the central difference that gives a turn's angular velocity.
-TURN_RATE_STEP = 1e-6
-
-
 @dataclass(frozen=True, eq=False)
 class PosePath:
     """How a kinematic solid (a moving collider, a rigid body on keyframes) moves: its rest centre ``centre`` (3,)
@@ -118,20 +116,33 @@ class PosePath:
     interpolation: str
 
     def __post_init__(self) -> None:
-        if len(self.times) > 1:
-            cubic = self.interpolation == "cubic"
-            from scipy.interpolate import CubicHermiteSpline
-            from scipy.spatial.transform import RotationSpline, Slerp
+        if len(self.times) < 2:
+            return
+        # Both interpolants turn key k's rotation R_k by exp(r) for a rotation vector r that depends on the time:
+        # slerp (as SciPy's Slerp) by r = α φ_k, φ_k the turn from key k to k + 1 in key k's axes; the cubic (SciPy's
+        # RotationSpline) by a cubic polynomial r(t) per interval. They are evaluated here from those pieces: a step
+        # reads the turn and its rate at a few instants, and SciPy's rotation objects cost more than the arithmetic.
+        object.__setattr__(self, "_keys", self.turns.as_matrix())
+        if self.interpolation != "cubic":
+            object.__setattr__(self, "_steps", (self.turns[:-1].inv() * self.turns[1:]).as_rotvec())
+            return
+        from scipy.interpolate import CubicHermiteSpline
+        from scipy.spatial.transform import RotationSpline
 
-            spline = RotationSpline(self.times, self.turns) if cubic else Slerp(self.times, self.turns)
-            object.__setattr__(self, "_turn", spline)
-            # A rotation spline through two keys turns at a constant rate, and through more it starts and ends
-            # turning: a jolt at the first and last keys. Eased, it is read at a warped time that passes every key
-            # at its own time with rate 1, and the first and last at rate 0 (a monotone Hermite cubic: Fritsch–
-            # Carlson), so a cubic turn starts and ends at rest like the offsets' clamped spline.
-            slopes = np.ones(len(self.times))
-            slopes[[0, -1]] = 0.0 if cubic else 1.0
-            object.__setattr__(self, "_ease", CubicHermiteSpline(self.times, self.times, slopes))
+        object.__setattr__(self, "_rotation_vector", RotationSpline(self.times, self.turns).interpolator)
+        # A rotation spline through two keys turns at a constant rate, and through more it starts and ends turning:
+        # a jolt at the first and last keys. Eased, it is read at a warped time that passes every key at its own
+        # time with rate 1, and the first and last at rate 0 (a monotone Hermite cubic: Fritsch–Carlson), so a
+        # cubic turn starts and ends at rest like the offsets' clamped spline.
+        slopes = np.ones(len(self.times))
+        slopes[[0, -1]] = 0.0
+        object.__setattr__(self, "_ease", CubicHermiteSpline(self.times, self.times, slopes))
+
+    def _segment(self, t: float) -> tuple[int, float]:
+        """The key interval (index k) holding time t [s], clamped to the keys, and how far along it t is (0 … 1)."""
+        clamped = min(max(t, float(self.times[0])), float(self.times[-1]))
+        k = min(max(int(np.searchsorted(self.times, clamped, side="right")) - 1, 0), len(self.times) - 2)
+        return k, (clamped - float(self.times[k])) / float(self.times[k + 1] - self.times[k])
 
     def turn(self, t: float) -> np.ndarray:
         """The turn (3, 3) at time t [s], held before the first key and after the last."""
@@ -142,8 +153,17 @@ class PosePath:
         if found is None:  # a step asks for the same few instants many times (poses, velocities, contacts)
             if len(cache) > 16:
                 cache.clear()
-            eased = float(self._ease(float(np.clip(t, self.times[0], self.times[-1]))))  # type: ignore[attr-defined]
-            found = cache[t] = self._turn(eased).as_matrix()  # type: ignore[attr-defined]
+            if self.interpolation != "cubic":
+                k, along = self._segment(t)
+                turned = along * self._steps[k]  # type: ignore[attr-defined]
+            else:
+                eased = float(self._ease(float(np.clip(t, self.times[0], self.times[-1]))))  # type: ignore[attr-defined]
+                k, _ = self._segment(eased)
+                turned = self._rotation_vector(eased)  # type: ignore[attr-defined]
+            keys: np.ndarray = self._keys  # type: ignore[attr-defined]
+            found = keys[k] @ quaternion.to_matrix(quaternion.from_rotation_vector(turned))
+            found.setflags(write=False)  # shared by every caller at this instant
+            cache[t] = found
         return found
 
     def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -152,15 +172,39 @@ class PosePath:
 
     def velocity(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Velocity of the centre (3,) [m/s] and angular velocity (3,) [rad/s], world axes, at time t."""
-        velocity = self.offsets.velocity(t)
-        if len(self.times) == 1 or t < self.times[0] or t > self.times[-1]:
-            return velocity, np.zeros(3)
-        early = max(t - TURN_RATE_STEP, float(self.times[0]))
-        late = min(t + TURN_RATE_STEP, float(self.times[-1]))
-        from scipy.spatial.transform import Rotation
+        cache: dict[float, tuple[np.ndarray, np.ndarray]] = self.__dict__.setdefault("_velocities_at", {})
+        found = cache.get(t)
+        if found is None:
+            if len(cache) > 16:
+                cache.clear()
+            found = (self.offsets.velocity(t), self._angular_velocity(t))
+            for vector in found:
+                vector.setflags(write=False)  # shared by every caller at this instant
+            cache[t] = found
+        return found
 
-        change = Rotation.from_matrix(self.turn(late) @ self.turn(early).T).as_rotvec()
-        return velocity, change / (late - early)
+    def _angular_velocity(self, t: float) -> np.ndarray:
+        """The turn's rate (3,) [rad/s], world axes, at time t [s]: the exact derivative of the interpolant."""
+        if len(self.times) == 1 or t < self.times[0] or t > self.times[-1]:
+            return np.zeros(3)
+        if self.interpolation != "cubic":  # slerp: the key's turn φ_k over the interval, in world axes
+            k, _ = self._segment(t)
+            keys: np.ndarray = self._keys  # type: ignore[attr-defined]
+            return keys[k] @ self._steps[k] / float(self.times[k + 1] - self.times[k])  # type: ignore[attr-defined]
+        # R = R_k exp(r(s)) at the eased time s: the rate in the turned body's axes is ṙ − k₁ r × ṙ + k₂ r × (r × ṙ)
+        # (the rotation vector's derivative mapped to an angular rate, as SciPy's RotationSpline), scaled by the
+        # easing's slope and turned into world axes
+        eased = float(self._ease(t))  # type: ignore[attr-defined]
+        r = self._rotation_vector(eased)  # type: ignore[attr-defined]
+        r_dot = self._rotation_vector(eased, 1)  # type: ignore[attr-defined]
+        angle = float(np.sqrt(r @ r))
+        if angle > 1e-4:
+            k1, k2 = (1 - np.cos(angle)) / angle**2, (angle - np.sin(angle)) / angle**3
+        else:  # their series, as SciPy's
+            k1, k2 = 0.5 - angle**2 / 24, 1 / 6 - angle**2 / 120
+        across = np.cross(r, r_dot)
+        body_rate = r_dot - k1 * across + k2 * np.cross(r, across)
+        return float(self._ease(t, 1)) * (self.turn(t) @ body_rate)
 
     def matrix(self, t: float) -> np.ndarray:
         """The 4 × 4 transform from the rest pose to the pose at time t (for drawing)."""
