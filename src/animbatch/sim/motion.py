@@ -10,8 +10,8 @@ the exact derivatives of the interpolant, so dampers see the anchor's true speed
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -114,6 +114,12 @@ class PosePath:
     offsets: KeyframePath
     turns: Rotation
     interpolation: str
+    # built from the keys in __post_init__ (two or more keys): the keys' turns (K, 3, 3); slerp's turns between
+    # keys (K − 1, 3); the cubic's rotation vector r(s) and the easing s(t) (SciPy piecewise polynomials)
+    _keys: np.ndarray = field(init=False, repr=False)
+    _steps: np.ndarray = field(init=False, repr=False)
+    _rotation_vector: Any = field(init=False, repr=False)
+    _ease: Any = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if len(self.times) < 2:
@@ -155,13 +161,12 @@ class PosePath:
                 cache.clear()
             if self.interpolation != "cubic":
                 k, along = self._segment(t)
-                turned = along * self._steps[k]  # type: ignore[attr-defined]
+                turned = along * self._steps[k]
             else:
-                eased = float(self._ease(float(np.clip(t, self.times[0], self.times[-1]))))  # type: ignore[attr-defined]
+                eased = float(self._ease(float(np.clip(t, self.times[0], self.times[-1]))))
                 k, _ = self._segment(eased)
-                turned = self._rotation_vector(eased)  # type: ignore[attr-defined]
-            keys: np.ndarray = self._keys  # type: ignore[attr-defined]
-            found = keys[k] @ quaternion.to_matrix(quaternion.from_rotation_vector(turned))
+                turned = self._rotation_vector(eased)
+            found = self._keys[k] @ quaternion.to_matrix(quaternion.from_rotation_vector(turned))
             found.setflags(write=False)  # shared by every caller at this instant
             cache[t] = found
         return found
@@ -189,14 +194,13 @@ class PosePath:
             return np.zeros(3)
         if self.interpolation != "cubic":  # slerp: the key's turn φ_k over the interval, in world axes
             k, _ = self._segment(t)
-            keys: np.ndarray = self._keys  # type: ignore[attr-defined]
-            return keys[k] @ self._steps[k] / float(self.times[k + 1] - self.times[k])  # type: ignore[attr-defined]
+            return self._keys[k] @ self._steps[k] / float(self.times[k + 1] - self.times[k])
         # R = R_k exp(r(s)) at the eased time s: the rate in the turned body's axes is ṙ − k₁ r × ṙ + k₂ r × (r × ṙ)
         # (the rotation vector's derivative mapped to an angular rate, as SciPy's RotationSpline), scaled by the
         # easing's slope and turned into world axes
-        eased = float(self._ease(t))  # type: ignore[attr-defined]
-        r = self._rotation_vector(eased)  # type: ignore[attr-defined]
-        r_dot = self._rotation_vector(eased, 1)  # type: ignore[attr-defined]
+        eased = float(self._ease(t))
+        r = self._rotation_vector(eased)
+        r_dot = self._rotation_vector(eased, 1)
         angle = float(np.sqrt(r @ r))
         if angle > 1e-4:
             k1, k2 = (1 - np.cos(angle)) / angle**2, (angle - np.sin(angle)) / angle**3
