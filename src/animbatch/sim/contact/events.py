@@ -43,7 +43,7 @@ from animbatch.sim.contact.detection import (
     turn_angle,
 )
 from animbatch.sim.contact.impacts import ImpactLog
-from animbatch.sim.contact.solver import BodyVelocities, ContactRows, solve_forces, solve_impulses
+from animbatch.sim.contact.solver import BodyVelocities, ContactFrame, ContactRows, solve_forces, solve_impulses
 from animbatch.sim.contact.stepping import DEFAULT_REST_SPEED
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.model.dynamics import Dynamics
@@ -227,13 +227,14 @@ class ContactEvents:
             bodies.omega[n:n + b] = np.einsum("bij,bj->bi", bodies.inverse_inertia[n:n + b], torque - spin)
         velocities = self._velocities(state)
         x = np.vstack([state.x, np.zeros((1, 3))])
-        normal_bias, tangent_bias = self._biases(contacts, state, velocities, x)
+        frame = ContactFrame.of(contacts, x)
+        normal_bias, tangent_bias = self._biases(contacts, state, velocities, x, frame)
         warm = self._warm_forces
         if warm is not None and len(warm[0]) != contacts.count:
             warm = None
         result = solve_forces(contacts, bodies, x, normal_bias=normal_bias, tangent_bias=tangent_bias,
                               sticking=self.resting.sticking, slide_direction=self.resting.slide_direction,
-                              iterations=self.settings.iterations, warm=warm)
+                              iterations=self.settings.iterations, warm=warm, frame=frame)
         # consecutive evaluations see nearly the same contacts: start the next solve from this one
         self._warm_forces = (result.normal_impulse.copy(), result.tangent_impulse.copy())
         rate[: 3 * n] = bodies.v[:n].ravel()
@@ -251,21 +252,19 @@ class ContactEvents:
             bodies.omega[n:count] = state.omega
         return bodies
 
-    def _biases(self, contacts: Contacts, state: Kinematics, velocities: BodyVelocities,
-                x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _biases(self, contacts: Contacts, state: Kinematics, velocities: BodyVelocities, x: np.ndarray,
+                rows: ContactFrame) -> tuple[np.ndarray, np.ndarray]:
         """Velocity products and stabilisation terms of the resting contacts' gaps and tangential motion."""
-
-        rows = ContactRows(contacts, velocities, x)
-        w = velocities.omega
+        v, w = velocities.v, velocities.omega
         a, b = rows.a, rows.b
         # The gap and the slip follow the probe's centre, a point of the body: a sphere's contact point slides over
         # its surface and has no centripetal term of its own (a corner's centre is the corner itself).
         centre = probe_centres(self.world, state)[contacts.probe] - x[a]
         centripetal = cross(w[a], cross(w[a], centre)) - cross(w[b], cross(w[b], rows.r_b))
-        normal_velocity = rows.relative(rows.n)
+        normal_velocity = rows.along(rows.n, v, w)
         normal_bias = (np.einsum("ki,ki->k", centripetal, rows.n) + STIFFNESS * contacts.gap
                        + DAMPING * normal_velocity)
-        slip = rows.tangential()
+        slip = np.stack([rows.along(rows.t1, v, w), rows.along(rows.t2, v, w)], axis=1)
         tangent_bias = np.stack([np.einsum("ki,ki->k", centripetal, rows.t1),
                                  np.einsum("ki,ki->k", centripetal, rows.t2)], axis=1) + DAMPING * slip
         return normal_bias, tangent_bias

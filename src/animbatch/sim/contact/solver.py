@@ -170,6 +170,48 @@ class CompiledRows(FlatVelocities):
 
 
 
+@dataclass(frozen=True, eq=False)
+class ContactFrame:
+    """Where and along what K contacts act: their ends ``a``, ``b`` (K,) (indices into the bodies, the fixed one
+    last; a moving collider's slot for contacts with one), the normal ``n`` and tangents ``t1``, ``t2`` (K, 3) and
+    each end's lever arm ``r_a``, ``r_b`` (K, 3) [m] from its centre to the contact point."""
+
+    a: np.ndarray
+    b: np.ndarray
+    n: np.ndarray
+    t1: np.ndarray
+    t2: np.ndarray
+    r_a: np.ndarray
+    r_b: np.ndarray
+
+    @classmethod
+    def of(cls, contacts: Contacts, x: np.ndarray, kinematic: np.ndarray | None = None) -> ContactFrame:
+        """The frame of ``contacts`` on bodies centred at ``x`` (P + 1, 3) [m]; ``kinematic`` (K,): the slot of the
+        moving collider each contact touches (−1: none)."""
+        a = contacts.probe_body
+        b = np.where(contacts.solid_body < 0, len(x) - 1, contacts.solid_body)
+        if kinematic is not None:
+            b = np.where(kinematic >= 0, kinematic, b)
+        t1, t2 = tangent_basis(contacts.normal)
+        return cls(a, b, contacts.normal, t1, t2, contacts.point - x[a], contacts.point - x[b])
+
+    def along(self, direction: np.ndarray, v: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Relative velocity (or acceleration) (K,) of the contact points along ``direction`` (K, 3), for the
+        bodies' linear and angular velocities (or accelerations) ``v``, ``w`` (P + 1, 3)."""
+        a, b = self.a, self.b
+        return (np.einsum("ki,ki->k", v[a] - v[b], direction)
+                + np.einsum("ki,ki->k", w[a], cross(self.r_a, direction))
+                - np.einsum("ki,ki->k", w[b], cross(self.r_b, direction)))
+
+    def ends(self, directions: np.ndarray) -> np.ndarray:
+        """What rows along ``directions`` (R, K, 3) measure at each end: ``[d, r_a × d]`` on body a and
+        ``−[d, r_b × d]`` on body b, (R K, 2, 6), rows in the order of ``directions``."""
+        d = np.broadcast_to(directions.reshape(-1, 1, 3), (directions.shape[0] * directions.shape[1], 2, 3))
+        lever = np.tile(np.stack([self.r_a, self.r_b], axis=1), (directions.shape[0], 1, 1))
+        sign = np.array([1.0, -1.0])[None, :, None]
+        return np.concatenate([sign * d, sign * cross(lever, d)], axis=2)
+
+
 class ContactRows(FlatVelocities):
     """The rows of K contacts on the bodies of ``bodies``: directions, lever arms, effective masses, and how to read
     relative motion along a row and apply impulses (or forces) to the bodies.
@@ -186,13 +228,9 @@ class ContactRows(FlatVelocities):
         self.bodies = bodies
         self.count = contacts.count
         self.size = len(x)
-        self.a = contacts.probe_body
-        self.b = np.where(contacts.solid_body < 0, len(x) - 1, contacts.solid_body)
-        if kinematic is not None:  # contacts with moving colliders: their slots in bodies (else −1)
-            self.b = np.where(kinematic >= 0, kinematic, self.b)
-        self.n = contacts.normal
-        self.t1, self.t2 = tangent_basis(self.n)
-        self.r_a, self.r_b = contacts.point - x[self.a], contacts.point - x[self.b]
+        frame = ContactFrame.of(contacts, x, kinematic)
+        self.a, self.b, self.n, self.t1, self.t2 = frame.a, frame.b, frame.n, frame.t1, frame.t2
+        self.r_a, self.r_b = frame.r_a, frame.r_b
         # mass splitting: each body is shared by the contacts touching it
         shares = np.bincount(np.concatenate([self.a, self.b]), minlength=len(x)).astype(float)
         shares[-1] = 1.0
@@ -702,21 +740,10 @@ def _pushes(rows: ContactRows, pseudo: np.ndarray, push_target: np.ndarray, enou
         push = updated
 
 
-def _generalised(rows: ContactRows, body: np.ndarray, sign: float, linear: np.ndarray, lever: np.ndarray,
-                 columns: dict[int, int], size: int) -> np.ndarray:
-    """Rows (K, 6 B) that place ``sign · [linear, lever × linear]`` in each contact's body's six columns."""
-    matrix = np.zeros((len(body), size))
-    for k, (owner, vector, arm) in enumerate(zip(body, linear, lever)):
-        if owner in columns:
-            column = 6 * columns[owner]
-            matrix[k, column:column + 3] += sign * vector
-            matrix[k, column + 3:column + 6] += sign * cross(arm, vector)
-    return matrix
-
-
 def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarray, *, normal_bias: np.ndarray,
                  tangent_bias: np.ndarray, sticking: np.ndarray, slide_direction: np.ndarray,
-                 iterations: int, warm: tuple[np.ndarray, np.ndarray] | None = None) -> SolveResult:
+                 iterations: int, warm: tuple[np.ndarray, np.ndarray] | None = None,
+                 frame: ContactFrame | None = None) -> SolveResult:
     """Forces of resting contacts, changing the accelerations in ``accelerations`` (``v``: linear, ``omega``:
     angular) in place.
 
@@ -724,7 +751,7 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
     products, stabilisation); the normal rows make ``relative acceleration + normal_bias ≥ 0``. ``tangent_bias``
     (K, 2): the same for the contact points' tangential acceleration. ``sticking`` (K,) bool; ``slide_direction``
     (K, 3): unit slip direction of sliding contacts (friction opposes it). ``warm``: normal (K,) and tangential
-    (K, 2) forces to start from.
+    (K, 2) forces to start from. ``frame``: the contacts' frame, when the caller has it already.
 
     Resting contacts are few, so this builds their small contact matrix ``A = J M⁻¹ Fᵀ`` (J: what each row measures,
     F: the force each row applies; a sliding contact's normal row also carries its kinetic friction, ``n - μk d``)
@@ -735,26 +762,21 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
     result = SolveResult(np.zeros(count), np.zeros((count, 2)))
     if count == 0:
         return result
-    rows = ContactRows(contacts, accelerations, x)
-    bodies = [int(i) for i in np.unique(np.concatenate([rows.a, rows.b])) if i != rows.size - 1]
-    columns = {body: k for k, body in enumerate(bodies)}
-    size = 6 * len(bodies)
-    inverse = np.zeros((size, size))
-    for body, k in columns.items():
-        inverse[6 * k:6 * k + 3, 6 * k:6 * k + 3] = accelerations.inverse_mass[body] * np.eye(3)
-        inverse[6 * k + 3:6 * k + 6, 6 * k + 3:6 * k + 6] = accelerations.inverse_inertia[body]
+    rows = frame if frame is not None else ContactFrame.of(contacts, x)
     sliding = ~sticking
     normal_force_direction = rows.n - (contacts.kinetic_friction * sliding)[:, None] * slide_direction
-
-    def jacobian(direction: np.ndarray) -> np.ndarray:
-        return (_generalised(rows, rows.a, 1.0, direction, rows.r_a, columns, size)
-                + _generalised(rows, rows.b, -1.0, direction, rows.r_b, columns, size))
-
-    measure = np.vstack([jacobian(rows.n), jacobian(rows.t1), jacobian(rows.t2)])  # (3K, 6B)
-    force = np.vstack([jacobian(normal_force_direction), jacobian(rows.t1), jacobian(rows.t2)])
-    matrix = measure @ inverse @ force.T  # (3K, 3K): row i's acceleration per unit of force j
-    free = np.concatenate([rows.relative(rows.n) + normal_bias, rows.relative(rows.t1) + tangent_bias[:, 0],
-                           rows.relative(rows.t2) + tangent_bias[:, 1]])
+    measure = rows.ends(np.stack([rows.n, rows.t1, rows.t2]))  # (3K, 2, 6): each row at each of its ends
+    force = rows.ends(np.stack([normal_force_direction, rows.t1, rows.t2]))
+    body = np.tile(np.stack([rows.a, rows.b], axis=1), (3, 1))  # (3K, 2)
+    response = np.concatenate([accelerations.inverse_mass[body][:, :, None] * force[:, :, :3],  # M⁻¹ Fᵀ per end
+                               np.einsum("reij,rej->rei", accelerations.inverse_inertia[body], force[:, :, 3:])],
+                              axis=2)
+    # row i's acceleration per unit of force j, through the bodies their ends share (the fixed one responds not)
+    shared = body[:, :, None, None] == body[None, None, :, :]
+    matrix = np.einsum("iejf,iex,jfx->ij", shared, measure, response)  # (3K, 3K)
+    v, w = accelerations.v, accelerations.omega
+    free = np.concatenate([rows.along(rows.n, v, w) + normal_bias, rows.along(rows.t1, v, w) + tangent_bias[:, 0],
+                           rows.along(rows.t2, v, w) + tangent_bias[:, 1]])
     solution = np.zeros(3 * count)
     if warm is not None:
         solution[:count] = warm[0]
@@ -784,10 +806,9 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
             break
     normal_force = solution[:count]
     tangent_force = np.stack([solution[count:2 * count], solution[2 * count:]], axis=1)
-    change = inverse @ (force.T @ solution)  # (6B,): accelerations added by the forces
-    for body, k in columns.items():
-        accelerations.v[body] += change[6 * k:6 * k + 3]
-        accelerations.omega[body] += change[6 * k + 3:6 * k + 6]
+    change = response * solution[:, None, None]  # (3K, 2, 6): the accelerations the forces add at each end
+    np.add.at(accelerations.v, body, change[:, :, :3])
+    np.add.at(accelerations.omega, body, change[:, :, 3:])
     result.normal_impulse[:] = normal_force
     result.tangent_impulse[:] = tangent_force
     return result

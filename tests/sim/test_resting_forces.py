@@ -1,0 +1,136 @@
+"""The resting-contact forces of adaptive methods (:func:`animbatch.sim.contact.solver.solve_forces`) against
+statics and Coulomb's law in closed form: a box standing on its four bottom corners carries its weight and neither
+sinks nor tips, on a level floor and held by friction on a slope; the same box pushed sideways on a level floor
+slides at μk g; a crate on another crate presses on it with its own weight."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from animbatch.sim.contact.contacts import PLANE, STATIC, Contacts
+from animbatch.sim.contact.solver import BodyVelocities, solve_forces
+
+G = 9.81
+
+
+def box_inverse_inertia(mass: float, size: tuple[float, float, float]) -> np.ndarray:
+    x, y, z = size
+    return np.diag(12.0 / (mass * np.array([y * y + z * z, x * x + z * z, x * x + y * y])))
+
+
+def corners_on_floor(body: int, centre: np.ndarray, size: tuple[float, float, float], mu: float,
+                     solid_body: int = STATIC, normal: np.ndarray | None = None) -> Contacts:
+    """The four bottom corners of a box (``size`` [m], centre ``centre``) touching a surface below them."""
+    half = np.array(size) / 2
+    signs = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]])
+    points = np.stack([centre[0] + signs[:, 0] * half[0], np.full(4, centre[1] - half[1]),
+                       centre[2] + signs[:, 1] * half[2]], axis=1)
+    k = len(points)
+    return Contacts(np.full(k, body), np.full(k, solid_body), points,
+                    np.tile([0.0, 1.0, 0.0] if normal is None else normal, (k, 1)), np.zeros(k), np.zeros(k),
+                    np.full(k, mu), np.full(k, mu), np.arange(k), np.full(k, PLANE), np.zeros(k, np.intp))
+
+
+def bodies_under_gravity(masses: list[float], size: tuple[float, float, float]) -> BodyVelocities:
+    """Accelerations of free boxes under gravity, and the fixed body last."""
+    count = len(masses)
+    v = np.zeros((count + 1, 3))
+    v[:count, 1] = -G
+    inverse_inertia = np.zeros((count + 1, 3, 3))
+    inverse_inertia[:count] = [box_inverse_inertia(m, size) for m in masses]
+    return BodyVelocities(v, np.zeros((count + 1, 3)), np.append(1.0 / np.array(masses), 0.0), inverse_inertia)
+
+
+def test_a_box_on_four_corners_carries_its_weight_without_sinking_or_tipping():
+    mass, size = 2.0, (0.4, 0.2, 0.3)
+    centre = np.array([0.3, 0.1, -0.2])
+    contacts = corners_on_floor(0, centre, size, mu=0.5)
+    accelerations = bodies_under_gravity([mass], size)
+    result = solve_forces(contacts, accelerations, np.array([centre, np.zeros(3)]), normal_bias=np.zeros(4),
+                          tangent_bias=np.zeros((4, 2)), sticking=np.ones(4, bool),
+                          slide_direction=np.zeros((4, 3)), iterations=200)
+    assert result.normal_impulse.sum() == pytest.approx(mass * G, rel=1e-6)
+    assert np.all(result.normal_impulse >= 0)
+    np.testing.assert_allclose(accelerations.v[0], 0.0, atol=1e-6)
+    np.testing.assert_allclose(accelerations.omega[0], 0.0, atol=1e-5)
+    np.testing.assert_allclose(accelerations.v[1], 0.0)  # the fixed body does not move
+
+
+def test_a_box_held_by_friction_on_a_30_degree_slope_neither_slides_nor_tips():
+    """Friction up the slope (m g sin θ) acts at the contact points, below the centre: only uneven normal forces
+    (the lower corners pressing harder) keep the box from tipping."""
+    mass, size, theta = 2.0, (0.4, 0.2, 0.3), np.radians(30)
+    turn = np.array([[np.cos(theta), -np.sin(theta), 0], [np.sin(theta), np.cos(theta), 0], [0, 0, 1]])
+    centre = np.array([0.1, 0.5, 0.0])
+    half = np.array(size) / 2
+    corners = np.array([[sx * half[0], -half[1], sz * half[2]] for sx in (1, -1) for sz in (1, -1)])
+    points = centre + corners @ turn.T
+    normal = turn @ [0.0, 1.0, 0.0]
+    contacts = Contacts(np.zeros(4, np.intp), np.full(4, STATIC), points, np.tile(normal, (4, 1)), np.zeros(4),
+                        np.zeros(4), np.full(4, 0.8), np.full(4, 0.8), np.arange(4), np.full(4, PLANE),
+                        np.zeros(4, np.intp))
+    accelerations = bodies_under_gravity([mass], size)
+    accelerations.inverse_inertia[0] = turn @ box_inverse_inertia(mass, size) @ turn.T
+    result = solve_forces(contacts, accelerations, np.array([centre, np.zeros(3)]), normal_bias=np.zeros(4),
+                          tangent_bias=np.zeros((4, 2)), sticking=np.ones(4, bool),
+                          slide_direction=np.zeros((4, 3)), iterations=500)
+    assert result.normal_impulse.sum() == pytest.approx(mass * G * np.cos(theta), rel=1e-5)
+    lower = points[:, 1] < centre[1] - half[1] * np.cos(theta)  # the two corners down the slope
+    assert result.normal_impulse[lower].sum() > result.normal_impulse[~lower].sum() * 1.2
+    np.testing.assert_allclose(accelerations.v[0], 0.0, atol=1e-5)
+    np.testing.assert_allclose(accelerations.omega[0], 0.0, atol=1e-4)
+
+
+def test_a_box_sliding_on_a_level_floor_slows_at_mu_k_g():
+    mass, size, mu = 1.5, (0.2, 0.2, 0.2), 0.3
+    centre = np.array([0.0, 0.1, 0.0])
+    contacts = corners_on_floor(0, centre, size, mu=mu)
+    accelerations = bodies_under_gravity([mass], size)
+    slide = np.tile([1.0, 0.0, 0.0], (4, 1))  # sliding along +x: friction acts along −x
+    solve_forces(contacts, accelerations, np.array([centre, np.zeros(3)]), normal_bias=np.zeros(4),
+                 tangent_bias=np.zeros((4, 2)), sticking=np.zeros(4, bool), slide_direction=slide,
+                 iterations=200)
+    assert accelerations.v[0, 0] == pytest.approx(-mu * G, rel=1e-6)
+    assert accelerations.v[0, 1] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_a_crate_on_a_crate_presses_it_onto_the_floor_with_its_own_weight():
+    """The upper crate sits off-centre (but over the lower one's middle half): the floor's contacts take the whole
+    weight, unevenly, and neither crate turns."""
+    size, lower, upper = (0.2, 0.2, 0.2), 3.0, 1.0
+    centres = np.array([[0.0, 0.1, 0.0], [0.04, 0.3, 0.0], [0.0, 0.0, 0.0]])
+    floor = corners_on_floor(0, centres[0], size, mu=0.5)
+    on_top = corners_on_floor(1, centres[1], size, mu=0.5, solid_body=0)
+    contacts = Contacts.concatenate([floor, on_top])
+    accelerations = bodies_under_gravity([lower, upper], size)
+    result = solve_forces(contacts, accelerations, centres, normal_bias=np.zeros(8), tangent_bias=np.zeros((8, 2)),
+                          sticking=np.ones(8, bool), slide_direction=np.zeros((8, 3)), iterations=500)
+    assert result.normal_impulse[4:].sum() == pytest.approx(upper * G, rel=1e-5)
+    assert result.normal_impulse[:4].sum() == pytest.approx((lower + upper) * G, rel=1e-5)
+    np.testing.assert_allclose(accelerations.v[:2], 0.0, atol=1e-5)
+    np.testing.assert_allclose(accelerations.omega[:2], 0.0, atol=1e-4)
+
+
+def test_one_corner_of_a_falling_box_on_another_free_box_pushes_both_as_the_effective_mass_says():
+    """Two free boxes in space touch at one point off both centres, frictionless; the upper one is pulled down. The
+    contact force makes the relative normal acceleration zero: f = −a·n / (w_a + w_b), w = 1/m + (r × n)ᵀ I⁻¹
+    (r × n) for each end; then each box gets ±f n / m and ±I⁻¹ (r × n) f."""
+    size = (0.4, 0.2, 0.3)
+    masses = [2.0, 5.0]  # upper (a), lower (b)
+    centres = np.array([[0.1, 0.25, 0.05], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    point, normal = np.array([0.25, 0.1, 0.12]), np.array([0.0, 1.0, 0.0])
+    contacts = Contacts(np.array([0]), np.array([1]), point[None], normal[None], np.zeros(1), np.zeros(1),
+                        np.zeros(1), np.zeros(1), np.zeros(1, np.intp), np.full(1, PLANE), np.zeros(1, np.intp))
+    accelerations = bodies_under_gravity(masses, size)
+    accelerations.v[1] = 0.0  # only the upper box is pulled
+    inverse = accelerations.inverse_inertia[:2].copy()
+    solve_forces(contacts, accelerations, centres, normal_bias=np.zeros(1), tangent_bias=np.zeros((1, 2)),
+                 sticking=np.zeros(1, bool), slide_direction=np.zeros((1, 3)), iterations=50)
+    arm_a, arm_b = np.cross(point - centres[0], normal), np.cross(point - centres[1], normal)
+    w_a, w_b = 1 / masses[0] + arm_a @ inverse[0] @ arm_a, 1 / masses[1] + arm_b @ inverse[1] @ arm_b
+    force = G / (w_a + w_b)  # the upper box approaches at g
+    np.testing.assert_allclose(accelerations.v[0], [0, -G, 0] + force * normal / masses[0], atol=1e-9)
+    np.testing.assert_allclose(accelerations.v[1], -force * normal / masses[1], atol=1e-9)
+    np.testing.assert_allclose(accelerations.omega[0], inverse[0] @ arm_a * force, atol=1e-9)
+    np.testing.assert_allclose(accelerations.omega[1], -inverse[1] @ arm_b * force, atol=1e-9)
