@@ -150,7 +150,7 @@ def _anchor_loops():  # type: ignore[no-untyped-def]
     return steps
 
 
-def bench_pool(quick: bool) -> list[Row]:
+def bench_pool(quick: bool, sizes: list[int] | None = None) -> list[Row]:
     """An emitter's pool of N particles (gravity, quadratic drag, bouncing on a floor; velocity Verlet at 1 ms)
     stepped by the compiled kernel, one step per call (as with births every step) and a frame's 33 steps per call
     (no births: fused), by the numpy code, and by the anchor: a plain numba loop of the same physics, measured in the
@@ -163,7 +163,7 @@ def bench_pool(quick: bool) -> list[Row]:
     anchor = _anchor_loops()
     rows: list[Row] = []
     fused = 33
-    sizes = [1_000] if quick else [1_000, 100_000, 1_000_000]
+    sizes = sizes or ([1_000] if quick else [1_000, 100_000, 1_000_000])
     for count in sizes:
         text = (f"duration: 1\nfps: 30\nsolver: {{method: verlet, dt: 0.001}}\n"
                 f"emitters: [{{name: e, bursts: [{{time: 0, count: {count}}}], source: {{type: box, position: "

@@ -408,3 +408,43 @@ def test_the_compiled_jointed_sweeps_are_the_numpy_ones(monkeypatch):
     monkeypatch.setenv("ANIMBATCH_KERNELS", "numpy")
     api.simulate(scene(text))
     assert len(compared) > 100 and any(compared)
+
+
+@pytest.mark.slow
+def test_a_run_whose_contacts_cost_more_than_estimated_goes_compiled_partway_and_the_same_way_every_time(
+        monkeypatch):
+    """A box held by friction on a floor that tilts to 30°: the estimate (one contact search at the start) calls it
+    short, so it starts in numpy, but its four redundant corners take many sweeps a step. By the counted numpy cost
+    the rest of the run goes compiled, at the same step on every run (two runs agree exactly), and ends where a run
+    in numpy all the way puts the box."""
+    from animbatch.compile.solver import make_integrator
+    from animbatch.sim.contact import stepping
+
+    monkeypatch.setenv("ANIMBATCH_KERNELS", "auto")
+    loaded = parse_scene("""
+        duration: 0.6
+        fps: 20
+        solver: {method: symplectic_euler, dt: 2.0e-3}
+        materials: {pad: {restitution: 0, static_friction: 0.8, kinetic_friction: 0.8}}
+        bodies:
+          - {name: block, type: rigid, shape: {type: box, size: [0.1, 0.1, 0.1]}, density: 500,
+             position: [0.5, 0.05, 0], material: pad}
+        colliders:
+          - {type: plane, material: pad, keyframes: [{time: 0}, {time: 0.5, rotation: {axis: [0, 0, 1], angle: 30}}]}
+        fields: [{type: gravity}]
+    """, filename="tilt.yaml")
+    model = compile_scene(loaded.spec)
+
+    def run() -> tuple[bool, np.ndarray]:
+        system = Dynamics(model)
+        assert not system.long_run  # as the estimate left it
+        result = make_integrator(loaded.spec.solver, model).integrate(system, model.y0, model.frame_times)
+        return system.long_run, result.states[-1]
+
+    (switched, end), (again, end_again) = run(), run()
+    assert switched and again
+    np.testing.assert_array_equal(end, end_again)
+    monkeypatch.setattr(stepping, "COMPILE_CONTACTS_AFTER", np.inf)  # numpy all the way: the same box, near enough
+    stayed, numpy_end = run()
+    assert not stayed
+    np.testing.assert_allclose(model.positions(numpy_end)[0], model.positions(end)[0], atol=1e-4)

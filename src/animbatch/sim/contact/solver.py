@@ -521,6 +521,8 @@ class SolveResult:
     arrival: np.ndarray = field(default_factory=lambda: np.zeros(0))
     # (K, 3) the tangential impulses as world vectors (impulse solves)
     tangent_vector: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    # how many sweeps numpy made (0 when they ran compiled): what the caller counts to know when compiling pays
+    numpy_sweeps: int = 0
 
 
 #: Impulse solves of at least this many contacts run their sweeps compiled
@@ -650,8 +652,8 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
                                                                  tangent_impulse, sticking, block, iterations,
                                                                  tolerance)
     else:
-        normal_impulse, tangent_impulse = _sweeps(rows, contacts, velocity, target, normal_impulse, tangent_impulse,
-                                                  sticking, block, iterations, tolerance)
+        normal_impulse, tangent_impulse, result.numpy_sweeps = _sweeps(
+            rows, contacts, velocity, target, normal_impulse, tangent_impulse, sticking, block, iterations, tolerance)
     if couple is not None:  # end on the joints
         rows.unflat(velocity)
         couple(bodies)
@@ -680,9 +682,10 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
 
 def _sweeps(rows: ContactRows, contacts: Contacts, velocity: np.ndarray, target: np.ndarray,
             normal_impulse: np.ndarray, tangent_impulse: np.ndarray, sticking: np.ndarray,
-            block: JointedNormals | None, iterations: int, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+            block: JointedNormals | None, iterations: int, tolerance: float) -> tuple[np.ndarray, np.ndarray, int]:
     """The impulse solver's sweeps in numpy (changing ``velocity`` in place), normal then friction, until every
-    contact does what it must or after ``iterations``: the accumulated normal (K,) and tangential (K, 2) impulses."""
+    contact does what it must or after ``iterations``: the accumulated normal (K,) and tangential (K, 2) impulses,
+    and how many sweeps that took."""
     gripping = np.zeros(len(target), bool)  # which contacts hold by friction; set by the first iteration
     for iteration in range(iterations + 1):
         normal_now = rows.normal_velocity(velocity) - target
@@ -694,7 +697,7 @@ def _sweeps(rows: ContactRows, contacts: Contacts, velocity: np.ndarray, target:
             slip = np.linalg.norm(rows.tangent_velocity(velocity), axis=1)
             if (max(float(violation.max()), float((slip * gripping).max(initial=0.0))) <= tolerance
                     or iteration == iterations):
-                break
+                return normal_impulse, tangent_impulse, iteration
         updated = np.maximum(normal_impulse - normal_now * rows.w_n, 0.0)
         if block is not None and iteration % BLOCK_EVERY == 0:  # the jointed contacts' normals at once
             updated = block.solve(normal_impulse, normal_now)
@@ -702,7 +705,7 @@ def _sweeps(rows: ContactRows, contacts: Contacts, velocity: np.ndarray, target:
         normal_impulse = updated
         tangent_impulse, gripping = rows.friction_step(velocity, tangent_impulse, normal_impulse,
                                                        contacts.static_friction, sticking, contacts.kinetic_friction)
-    return normal_impulse, tangent_impulse
+    return normal_impulse, tangent_impulse, iterations
 
 
 def _compiled_dense_sweeps(rows: ContactRows, contacts: Contacts, velocity: np.ndarray, target: np.ndarray,

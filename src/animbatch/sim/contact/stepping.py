@@ -40,6 +40,16 @@ from animbatch.sim.model.dynamics import Dynamics
 
 DEFAULT_REST_SPEED = 0.01  # m/s
 
+#: What numpy's contact steps cost, to know when compiling them pays: about a millisecond a step with contacts
+#: (search, rows, write-back) and 60 µs a sweep of the impulse solver (measured on a box resting on a tilting floor,
+#: whose redundant corners take some 80 sweeps a step). A run starts in numpy unless its estimate says it is long
+#: (:func:`animbatch.sim.model.compiled.dynamics_for`); once its contact steps have cost this much [s] by these
+#: counts, the rest of it searches and solves compiled. Counted, not timed, so that a scene runs the same way on
+#: every machine and under any load.
+NUMPY_CONTACT_STEP = 1e-3
+NUMPY_SWEEP = 60e-6
+COMPILE_CONTACTS_AFTER = 1.0
+
 
 def measure_contact_search(system: Dynamics, repeats: int = 2) -> float:
     """Wall time [s] of one step's contact search at the model's start (the fastest of a few), for the cost
@@ -75,6 +85,19 @@ class ContactResolver:
         self._warm_codes = np.zeros(0, np.int64)
         self._warm_normal = np.zeros(0)
         self._warm_tangent = np.zeros((0, 3))
+        self._numpy_seconds = 0.0  # what numpy's contact steps have cost so far, by the counts above
+
+    def _count_numpy_work(self, sweeps: int) -> None:
+        """Count a contact step's numpy work (``sweeps`` of the impulse solver); past
+        :data:`COMPILE_CONTACTS_AFTER`, the run is a long one and its contacts go compiled from the next step."""
+        if self.system.long_run:
+            return
+        self._numpy_seconds += NUMPY_CONTACT_STEP + NUMPY_SWEEP * sweeps
+        if self._numpy_seconds >= COMPILE_CONTACTS_AFTER:
+            from animbatch.sim.kernels import MIN_WORK, compiled_kernels
+
+            self.system.long_run = compiled_kernels(MIN_WORK)
+            self._numpy_seconds = -np.inf  # asked once: numba may be unavailable or refused
 
     def rest_speed(self, h: float) -> float:
         """Impacts slower than this do not bounce; sticking is allowed below it (at least 3 g h)."""
@@ -179,6 +202,7 @@ class ContactResolver:
                                 rest_speed=self.rest_speed(h), slop=self.settings.slop, bounce=bounce, warm=warm,
                                 kinematic=kinematic, couple=couple if joints is not None else None, jointed=jointed,
                                 long_run=self.system.long_run)
+        self._count_numpy_work(result.numpy_sweeps)
         if bounce:  # remember the impulses of the main solve (not of end-of-step re-projections)
             self.impacts.record(t + result.arrival * h, contacts.probe_body, result.impact)
 
