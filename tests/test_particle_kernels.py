@@ -68,14 +68,26 @@ def by_serial(frames, frame: int) -> tuple[np.ndarray, np.ndarray]:
     return serials[order], frames.positions[frame][order].astype(float)
 
 
+#: Gravity and one drag per emitter (the kernel reads such fields once per call, as scalars: field_summary), wind
+#: on one of them.
+ONE_DRAG_EACH = """fields:
+  - {{type: gravity}}
+  - {{type: drag, model: quadratic, coefficient: 2.0e-5, bodies: [jet]}}
+  - {{type: wind, velocity: [-1, 0, 0.5], model: linear, coefficient: 1.0e-3, bodies: [burst]}}
+colliders:"""
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize(("method", "mode"), [("verlet", "bounce"), ("verlet", "stick"), ("symplectic_euler", "die"),
-                                             ("euler", "bounce")])
-def test_the_compiled_pool_moves_the_same_particles_to_the_same_places_as_numpy(monkeypatch, method, mode):
+@pytest.mark.parametrize(("method", "mode", "fields"), [
+    ("verlet", "bounce", "table"), ("verlet", "stick", "table"), ("symplectic_euler", "die", "table"),
+    ("euler", "bounce", "table"), ("verlet", "bounce", "one drag each")])
+def test_the_compiled_pool_moves_the_same_particles_to_the_same_places_as_numpy(monkeypatch, method, mode, fields):
     """Every frame holds the same particles, each within round-off of where the numpy code puts it (positions are
     stored as float32), and births, deaths and collisions are counted alike: every method and every collision mode
-    of the kernel, once each at least."""
-    text = SCENE.format(method=method, mode=mode)
+    of the kernel, once each at least, with fields the kernel reads from its table (two drags on each emitter) and
+    as scalars (one drag each)."""
+    text = SCENE if fields == "table" else SCENE[:SCENE.index("fields:")] + ONE_DRAG_EACH + SCENE.split("colliders:")[1]
+    text = text.format(method=method, mode=mode)
     reference = simulate(text, monkeypatch, "numpy")
     compiled = simulate(text, monkeypatch, "numba")
     assert reference.particle_stats["kernels"] == "numpy" and compiled.particle_stats["kernels"] == "numba"

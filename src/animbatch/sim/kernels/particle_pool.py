@@ -3,15 +3,17 @@
 This is the compiled form of :meth:`animbatch.sim.particles.simulate.EmitterRun.step` for the common case of
 particles under gravity, drag, wind and buoyancy, meeting fixed colliders (planes, spheres, boxes: floors, walls,
 crates) or nothing, stepped with explicit Euler, semi-implicit Euler or velocity Verlet. Each particle is
-independent of the others, so a thread takes a block of particles through all the steps of a call while their state
-stays in the first-level cache: the pool's arrays are read and written once per call, not once per operation and
-step as in the numpy code. With births during a frame the pool is stepped one step per call (births come between
+independent of the others, so a thread takes each particle through all the steps of a call with its state in
+registers: the pool's arrays are read and written once per call, not once per operation and step as in the numpy
+code. With births during a frame the pool is stepped one step per call (births come between
 steps); without, a whole frame's steps are one call.
 
-Every operation is the numpy code's, in the same order, so the two agree to round-off (the tests compare them):
+Every operation is the numpy code's, in the same order, so the two agree to round-off (the tests compare them); but
+drag divides by the mass once per particle, not per component, and a table of gravities and at most one drag (the
+common emitter) is read once per call into scalars (:func:`field_summary`), its gravities summed first:
 
-* fields, in the order declared (``FIELD_GRAVITY``: ``a += g``; ``FIELD_DRAG``: ``a += f(u) / m``, ``u = v - w``,
-  linear ``-C u``, quadratic ``-C |u| u``, Stokes ``-6 π η r u``; ``FIELD_BUOYANCY``: ``a += ρ g V_sub up / m``
+* fields, in the order declared (``FIELD_GRAVITY``: ``a += g``; ``FIELD_DRAG``: ``a -= (s / m) u`` with
+  ``u = v - w`` and s = C (linear), C |u| (quadratic) or 6 π η r (Stokes); ``FIELD_BUOYANCY``: ``a += ρ g V_sub up / m``
   and the fluid's damping ``-c v V_sub / (V m)``);
 * the step (:mod:`animbatch.sim.integrators.particle_kernels`);
 * the path ``x0 → x1`` against every collider grown by the radius (planes, then spheres, then boxes; the earliest
@@ -85,9 +87,10 @@ def _acceleration(fields, x0, x1, x2, v0, v1, v2, mass, radius):
                 scale = 6.0 * np.pi * fields[f, VISCOSITY] * radius
             else:
                 scale = fields[f, COEFFICIENT]
-            a0 += -(scale * u0) / mass
-            a1 += -(scale * u1) / mass
-            a2 += -(scale * u2) / mass
+            per_mass = scale / mass  # one division, not three: the divisions are what a particle-step waits on
+            a0 -= per_mass * u0
+            a1 -= per_mass * u1
+            a2 -= per_mass * u2
         else:  # buoyancy: ρ g V_sub up / m, V_sub the sphere's cap under the surface; damping -c v V_sub / V
             up0, up1, up2 = fields[f, VECTOR], fields[f, VECTOR + 1], fields[f, VECTOR + 2]
             depth = min(max(fields[f, LEVEL] - ((x0 * up0 + x1 * up1 + x2 * up2) - radius), 0.0), 2 * radius)
@@ -102,6 +105,56 @@ def _acceleration(fields, x0, x1, x2, v0, v1, v2, mass, radius):
                 a1 -= slowing * v1
                 a2 -= slowing * v2
     return a0, a1, a2
+
+
+@njit(cache=True)
+def field_summary(fields):
+    """The field table in scalars, when it is gravity and at most one drag (the common emitter): whether it is, and
+    (g0, g1, g2, q, l, s, w0, w1, w2): the gravities summed, and the drag's scale s(u) = q |u| + l + s r per law
+    (quadratic: q = C; linear: l = C; Stokes: s = 6 π η; all 0 without drag) and its wind (0 without). Read once per
+    call, so that the particle loop holds them in registers (it cannot keep a table's entries there: every store to
+    the pool might, for all the compiler knows, change the table), and branch-free: one sum serves every law."""
+    g0 = g1 = g2 = 0.0
+    quadratic = linear = stokes = w0 = w1 = w2 = 0.0
+    drags = 0
+    simple = True
+    for f in range(fields.shape[0]):
+        kind = fields[f, KIND]
+        if kind == FIELD_GRAVITY:
+            g0 += fields[f, VECTOR]
+            g1 += fields[f, VECTOR + 1]
+            g2 += fields[f, VECTOR + 2]
+        elif kind == FIELD_DRAG and drags == 0:
+            drags += 1
+            law = fields[f, LAW]
+            if law == LAW_QUADRATIC:
+                quadratic = fields[f, COEFFICIENT]
+            elif law == LAW_STOKES:
+                stokes = 6.0 * np.pi * fields[f, VISCOSITY]
+            else:
+                linear = fields[f, COEFFICIENT]
+            if fields[f, HAS_WIND]:
+                w0, w1, w2 = fields[f, VECTOR], fields[f, VECTOR + 1], fields[f, VECTOR + 2]
+        else:
+            simple = False
+    return simple, (g0, g1, g2, quadratic, linear, stokes, w0, w1, w2)
+
+
+@njit(cache=True, inline="always")
+def _summary_acceleration(summary, v0, v1, v2, mass, radius):
+    """a(v) [m/s²] of one particle under the fields of :func:`field_summary`."""
+    g0, g1, g2, quadratic, linear, stokes, w0, w1, w2 = summary
+    u0, u1, u2 = v0 - w0, v1 - w1, v2 - w2
+    per_mass = (math.sqrt(u0 * u0 + u1 * u1 + u2 * u2) * quadratic + linear + stokes * radius) / mass
+    return g0 - per_mass * u0, g1 - per_mass * u1, g2 - per_mass * u2
+
+
+@njit(cache=True, inline="always")
+def _field_acceleration(fields, simple, summary, x0, x1, x2, v0, v1, v2, mass, radius):
+    """a(x, v) [m/s²] of one particle: from the summary when the table has one, else from the table."""
+    if simple:
+        return _summary_acceleration(summary, v0, v1, v2, mass, radius)
+    return _acceleration(fields, x0, x1, x2, v0, v1, v2, mass, radius)
 
 
 @njit(cache=True)
@@ -301,15 +354,8 @@ def _push_out(solids, gap, p0, p1, p2, u0, u1, u2, r):
     return p0, p1, p2, u0, u1, u2
 
 
-#: Particles taken through the steps of a call together: their arithmetic interleaves (a single particle's steps
-#: are one long chain of dependent square roots and divisions, which leaves the core waiting), and their state stays
-#: in the first-level cache between steps. At most 64: a block's particles that need the collision code are marked
-#: in the bits of one integer.
-BLOCK = 32
-
-
 @njit(cache=True, inline="always")
-def _motion(i, h, x, v, a, mass, radius, method, fields):
+def _motion(i, h, x, v, a, mass, radius, method, fields, simple, summary):
     """One step ``h`` [s] of particle ``i``'s motion under the fields, without colliders: the start s, the end p,
     the velocity u and the acceleration c there (each three numbers)."""
     m = mass[i]
@@ -321,13 +367,14 @@ def _motion(i, h, x, v, a, mass, radius, method, fields):
         p0 = s0 + h * u0 + (0.5 * h * h) * c0
         p1 = s1 + h * u1 + (0.5 * h * h) * c1
         p2 = s2 + h * u2 + (0.5 * h * h) * c2
-        n0, n1, n2 = _acceleration(fields, p0, p1, p2, u0 + h * c0, u1 + h * c1, u2 + h * c2, m, r)
+        n0, n1, n2 = _field_acceleration(fields, simple, summary, p0, p1, p2, u0 + h * c0, u1 + h * c1, u2 + h * c2,
+                                         m, r)
         u0 = u0 + (0.5 * h) * (c0 + n0)
         u1 = u1 + (0.5 * h) * (c1 + n1)
         u2 = u2 + (0.5 * h) * (c2 + n2)
         c0, c1, c2 = n0, n1, n2
     else:
-        c0, c1, c2 = _acceleration(fields, s0, s1, s2, u0, u1, u2, m, r)
+        c0, c1, c2 = _field_acceleration(fields, simple, summary, s0, s1, s2, u0, u1, u2, m, r)
         if method == METHOD_SYMPLECTIC_EULER:
             u0 = u0 + h * c0
             u1 = u1 + h * c1
@@ -350,7 +397,7 @@ def _clear(solids, s0, s1, s2, p0, p1, p2, r, gap):
     """Whether the path s → p of a particle of radius ``r`` certainly meets no solid and ends outside them all (so
     that neither a hit nor a push can follow): it ends a radius or more in front of every plane, and stays outside
     a sphere around each sphere and box grown by the radius."""
-    travel = math.sqrt((p0 - s0) ** 2 + (p1 - s1) ** 2 + (p2 - s2) ** 2)
+    travel = -1.0  # the path's length, found at the first solid that needs it (planes do not)
     for k in range(solids.shape[0]):
         c0, c1, c2 = solids[k, CENTRE], solids[k, CENTRE + 1], solids[k, CENTRE + 2]
         if solids[k, SOLID] == SOLID_PLANE:
@@ -364,14 +411,16 @@ def _clear(solids, s0, s1, s2, p0, p1, p2, r, gap):
             else:
                 reach = math.sqrt((solids[k, HALF] + r) ** 2 + (solids[k, HALF + 1] + r) ** 2
                                   + (solids[k, HALF + 2] + r) ** 2)
+            if travel < 0.0:
+                travel = math.sqrt((p0 - s0) ** 2 + (p1 - s1) ** 2 + (p2 - s2) ** 2)
             if math.sqrt((p0 - c0) ** 2 + (p1 - c1) ** 2 + (p2 - c2) ** 2) - travel <= reach + gap:
                 return False
     return True
 
 
 @njit(cache=True)
-def _step(i, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, method, fields, solids, mode,
-          max_bounces, gap, gravity, age, collide):
+def _step(i, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, method, fields, simple, summary,
+          solids, mode, max_bounces, gap, gravity, age, collide):
     """One step ``h`` [s] ending at ``t_to`` of particle ``i`` (in place), with everything collisions can do.
     Returns its hits on solids and whether it died. (A call, not inlined: the particles the block's fast pass
     leaves to it are few, and its code kept out of that pass lets the pass stay lean.)"""
@@ -380,7 +429,8 @@ def _step(i, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, meth
     hits = 0
     if not stuck[i]:
         r = radius[i]
-        s0, s1, s2, p0, p1, p2, u0, u1, u2, c0, c1, c2 = _motion(i, h, x, v, a, mass, radius, method, fields)
+        s0, s1, s2, p0, p1, p2, u0, u1, u2, c0, c1, c2 = _motion(i, h, x, v, a, mass, radius, method, fields, simple,
+                                                                 summary)
         if collide:
             which, fraction, n0, n1, n2 = _first_hit(solids, s0, s1, s2, p0, p1, p2, r)
             if which >= 0:
@@ -405,32 +455,46 @@ def _step(i, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, meth
     return hits, False
 
 
-@njit(cache=True)
-def _advance_block(low, high, x, v, a, alive, stuck, mass, radius, birth, lifetime, times, method, fields, solids,
-                   mode, max_bounces, gap, gravity, age, collide):
-    """The steps between the instants ``times`` of the particles ``low … high − 1`` (a block, at most 64); returns
-    (hits, deaths). Each step is two passes. The first moves every particle whose path is clear of every solid
-    (:func:`_clear`), in a loop without calls, which the compiler turns into vector instructions; it leaves the
-    others as they were and marks them. The second takes the marked ones through :func:`_step`, collisions and all,
-    from the same start: the same arithmetic, so every particle ends where :func:`_step` alone would put it."""
-    for i in range(low, high):  # a stuck particle is held: no velocity, no acceleration
-        if alive[i] and stuck[i]:
+@njit(cache=True, parallel=True)
+def advance_pool(x, v, a, alive, stuck, mass, radius, birth, lifetime, times, method, fields, solids, mode,
+                 max_bounces, gap, gravity, age):
+    """The steps between the instants ``times`` (S + 1,) [s], for every live, free particle (in place); with
+    ``age``, particles die at the end of the step their age reaches their lifetime. ``mode``: a MODE_* code;
+    ``gravity``: |g| [m/s²] (normal speeds below 2 h |g| do not bounce). Returns (hits on solids, deaths).
+
+    Each particle is taken through all the steps of the call in turn (its state in registers). A step whose path is
+    clear of every solid (:func:`_clear`) is the motion alone; the others, and stuck particles, go through
+    :func:`_step` from the same start: the same arithmetic, so every particle ends where :func:`_step` alone would
+    put it."""
+    hit_total = 0
+    death_total = 0
+    collide = mode != MODE_PASS and solids.shape[0] > 0
+    simple, summary = field_summary(fields)
+    for i in prange(x.shape[0]):
+        if not alive[i]:
+            continue
+        if stuck[i]:  # held: no velocity, no acceleration
             v[i, 0] = v[i, 1] = v[i, 2] = a[i, 0] = a[i, 1] = a[i, 2] = 0.0
-    hits = 0
-    deaths = 0
-    for k in range(times.shape[0] - 1):
-        h = times[k + 1] - times[k]
-        t_to = times[k + 1]
-        marked = 0
-        for i in range(low, high):
-            if not alive[i]:
-                continue
+        for k in range(times.shape[0] - 1):
+            h = times[k + 1] - times[k]
+            t_to = times[k + 1]
             if stuck[i]:
-                marked |= 1 << (i - low)
+                hit, died = _step(i, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, method,
+                                  fields, simple, summary, solids, mode, max_bounces, gap, gravity, age, collide)
+                hit_total += hit
+                if died:  # nothing more for it in this call
+                    death_total += 1
+                    break
                 continue
-            s0, s1, s2, p0, p1, p2, u0, u1, u2, c0, c1, c2 = _motion(i, h, x, v, a, mass, radius, method, fields)
+            s0, s1, s2, p0, p1, p2, u0, u1, u2, c0, c1, c2 = _motion(i, h, x, v, a, mass, radius, method, fields,
+                                                                     simple, summary)
             if collide and not _clear(solids, s0, s1, s2, p0, p1, p2, radius[i], gap):
-                marked |= 1 << (i - low)
+                hit, died = _step(i, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, method,
+                                  fields, simple, summary, solids, mode, max_bounces, gap, gravity, age, collide)
+                hit_total += hit
+                if died:  # nothing more for it in this call
+                    death_total += 1
+                    break
                 continue
             x[i, 0], x[i, 1], x[i, 2] = p0, p1, p2
             v[i, 0], v[i, 1], v[i, 2] = u0, u1, u2
@@ -438,33 +502,8 @@ def _advance_block(low, high, x, v, a, alive, stuck, mass, radius, birth, lifeti
             if age and t_to - birth[i] >= lifetime[i]:
                 alive[i] = False
                 v[i, 0] = v[i, 1] = v[i, 2] = 0.0
-                deaths += 1
-        for j in range(high - low):
-            if (marked >> j) & 1:
-                hit, died = _step(low + j, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, method,
-                                  fields, solids, mode, max_bounces, gap, gravity, age, collide)
-                hits += hit
-                deaths += died
-    return hits, deaths
-
-
-@njit(cache=True, parallel=True)
-def advance_pool(x, v, a, alive, stuck, mass, radius, birth, lifetime, times, method, fields, solids, mode,
-                 max_bounces, gap, gravity, age):
-    """The steps between the instants ``times`` (S + 1,) [s], for every live, free particle (in place); with
-    ``age``, particles die at the end of the step their age reaches their lifetime. ``mode``: a MODE_* code;
-    ``gravity``: |g| [m/s²] (normal speeds below 2 h |g| do not bounce). Returns (hits on solids, deaths)."""
-    hit_total = 0
-    death_total = 0
-    collide = mode != MODE_PASS and solids.shape[0] > 0
-    count = x.shape[0]
-    for block in prange((count + BLOCK - 1) // BLOCK):
-        low = block * BLOCK
-        hits, deaths = _advance_block(low, min(low + BLOCK, count), x, v, a, alive, stuck, mass, radius, birth,
-                                      lifetime, times, method, fields, solids, mode, max_bounces, gap, gravity, age,
-                                      collide)
-        hit_total += hits
-        death_total += deaths
+                death_total += 1
+                break
     return hit_total, death_total
 
 
