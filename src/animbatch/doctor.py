@@ -261,6 +261,7 @@ def check_kernels() -> list[Check]:
     from animbatch.sim.integrators.linear_algebra import build_step_kernels
     from animbatch.sim.kernels import compiled_kernels, kernel_cache_folder
     from animbatch.sim.model.compiled import build_stepper_kernels
+    from animbatch.sim.particles.compiled import build_particle_kernels
 
     if not compiled_kernels():
         return [Check("numba", False, "not used (ANIMBATCH_KERNELS=numpy, or numba does not load): numpy runs "
@@ -268,7 +269,8 @@ def check_kernels() -> list[Check]:
                                       "numba", required=False)]
     checks = []
     for name, build in (("bodies, joints", build_stepper_kernels), ("contact solver", build_contact_kernels),
-                        ("spring forces", build_spring_kernel), ("cloth steps", build_step_kernels)):
+                        ("spring forces", build_spring_kernel), ("cloth steps", build_step_kernels),
+                        ("particles", build_particle_kernels)):
         started = time.perf_counter()
         failure = build()
         seconds = time.perf_counter() - started

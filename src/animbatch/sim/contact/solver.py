@@ -563,6 +563,15 @@ def build_contact_kernels() -> str | None:
         impulses.impulse_iterations(velocity, *one, *rows, np.ones((3, 1)), np.zeros(1), np.zeros(1),
                                     np.zeros((1, 2)), np.zeros(1), np.zeros(1), np.zeros(1, bool), 1, 0.0)
         impulses.push_iterations(velocity, *one, *rows, np.ones((3, 1)), np.zeros(1), 0.0, 1)
+        impulses.contact_rows(*one, np.array([[0.0, 1.0, 0.0]]), np.zeros((1, 3)), np.zeros((2, 3)), np.ones(2),
+                              np.zeros((2, 3, 3)))
+        # the jointed scenes' sweeps on array rows (one contact, two bodies: 12 velocity columns), with the block
+        # of jointed normals and without
+        for chosen, block in ((np.zeros(0, np.int64), np.zeros((0, 0))), (np.zeros(1, np.int64), np.ones((1, 1)))):
+            impulses.dense_sweeps(velocity, np.zeros((1, 12)), np.zeros((2, 12)), np.zeros((12, 1)),
+                                  np.zeros((12, 2)), np.ones((3, 1)), np.zeros(1), np.zeros(1), np.zeros((1, 2)),
+                                  np.zeros(1), np.zeros(1), np.zeros(1, np.bool_), chosen, block, BLOCK_EVERY,
+                                  ACTIVE_SET_PASSES, 1, 0.0)
         build_edge_kernels()
         build_probe_kernels()
         build_side_kernels()

@@ -41,8 +41,18 @@ def build_spring_kernel() -> str | None:
     def build() -> None:
         from animbatch.sim.kernels.assembly import spring_forces
 
+        def frozen(array: np.ndarray) -> np.ndarray:
+            array.setflags(write=False)
+            return array
+
         spring_forces(np.zeros((2, 3)), np.zeros((2, 3)), np.array([0]), np.array([1]), np.zeros(1, bool),
                       np.zeros((1, 3)), np.zeros((1, 3)), np.ones(1), np.ones(1), np.ones(1), np.zeros((2, 3)))
+        # and as a model calls them: its spring tables are read-only arrays (numba compiles those apart), its fixed
+        # anchors too
+        for anchors in (frozen(np.zeros((1, 3))), np.zeros((1, 3))):
+            spring_forces(np.zeros((2, 3)), np.zeros((2, 3)), frozen(np.array([0])), frozen(np.array([1])),
+                          frozen(np.zeros(1, bool)), anchors, np.zeros((1, 3)), frozen(np.ones(1)), frozen(np.ones(1)),
+                          frozen(np.ones(1)), np.zeros((2, 3)))
 
     return build_failure(build)
 

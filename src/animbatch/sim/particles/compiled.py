@@ -15,6 +15,7 @@ births; the particles themselves are the same.
 
 from __future__ import annotations
 
+import functools
 import warnings
 from dataclasses import dataclass
 from typing import Any
@@ -102,10 +103,13 @@ class CompiledPool:
         """Build (or load from the disk cache) every kernel on a pool of one particle before the run starts, so that a
         kernel that fails to build is found before any particle has moved, and so that the first compilation is not
         counted in any frame's time."""
+        from animbatch.sim.kernels.particle_pool import age_pool
+
         pool = ParticlePool(1)
         self.advance(pool, 0.0, 1.0, 1, 0, 1, age=True)
         self.collide_newborns(pool, np.zeros(1, np.int64), np.zeros((1, 3)), 1.0)
         self.age(pool, 1.0)
+        age_pool(pool.alive, pool.stuck, pool.v, pool.birth, pool.lifetime, 1.0)  # what large pools age with
 
     def advance(self, pool: ParticlePool, start: float, stop: float, steps: int, first: int, last: int, *,
                 age: bool) -> int:
@@ -151,6 +155,20 @@ class CompiledPool:
                 pool.kill(aged)
             return
         pool.died += int(age_pool(pool.alive, pool.stuck, pool.v, pool.birth, pool.lifetime, float(now)))
+
+
+@functools.cache
+def build_particle_kernels() -> str | None:
+    """Build (or load from numba's disk cache) the emitted particles' kernels on a pool of one particle under
+    gravity over a floor; None, or what failed."""
+    from animbatch.sim.kernels import particle_pool as kernel
+
+    fields = np.zeros((1, kernel.FIELD_COLUMNS))
+    fields[0, kernel.KIND], fields[0, kernel.VECTOR + 1] = kernel.FIELD_GRAVITY, -9.81
+    solids = np.zeros((1, kernel.SOLID_COLUMNS))
+    solids[0, kernel.SOLID], solids[0, kernel.NORMAL + 1] = kernel.SOLID_PLANE, 1.0
+    pool = CompiledPool(kernel.METHOD_VERLET, kernel.MODE_BOUNCE, fields, solids, 9.81)
+    return build_failure(pool.compile_now)
 
 
 def solid_table(colliders: ParticleColliders, kernel: Any) -> np.ndarray:
