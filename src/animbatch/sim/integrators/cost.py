@@ -174,6 +174,14 @@ def _fastest_motions(model: Model) -> list[tuple[float, str]]:
         found.append((float(np.sqrt(omega2[i, j])),
                       f"tightest {'gravitating' if term.kind == 'gravitation' else 'charged'} pair "
                       f"({names[index[i]]!r} and {names[index[j]]!r})"))
+    if model.rigid_count:
+        # a body spinning at ω turns its orientation's quaternion at ω/2: each component a sinusoid the method must
+        # follow (a spinning top at 400 rad/s takes some 1600 DOP853 steps over 2.5 s at rtol 1e-8)
+        spin = np.linalg.norm(np.asarray(model.angular_velocities(model.y0[None])[0])[model.particle_count:], axis=1)
+        if spin.size and spin.max() > 0:
+            fastest = int(np.argmax(spin))
+            found.append((float(spin[fastest]) / 2, f"spin of {model.bodies.names[model.particle_count + fastest]!r}"
+                                                    f" ({spin[fastest]:.3g} rad/s: its quaternion turns at half that)"))
     return found
 
 
