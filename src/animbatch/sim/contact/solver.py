@@ -714,7 +714,7 @@ def _sweeps(rows: ContactRows, contacts: Contacts, velocity: np.ndarray, target:
         normal_impulse = updated
         tangent_impulse, gripping = rows.friction_step(velocity, tangent_impulse, normal_impulse,
                                                        contacts.static_friction, sticking, contacts.kinetic_friction)
-    return normal_impulse, tangent_impulse, iterations
+    return normal_impulse, tangent_impulse, 1  # only with iterations = 0: the loop returns from within otherwise
 
 
 def _compiled_dense_sweeps(rows: ContactRows, contacts: Contacts, velocity: np.ndarray, target: np.ndarray,
