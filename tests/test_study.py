@@ -297,6 +297,19 @@ def test_outputs_table_csv_json_and_plot(projectile_study, tmp_path):
     assert not list(tmp_path.glob(".*partial*"))
 
 
+def test_a_written_study_reads_back_with_the_same_runs_and_figures_of_merit(projectile_study, tmp_path):
+    """``docs/accuracy.md`` can be rebuilt from the scenes' saved study.json (``--only`` restudies one scene): the
+    result read back has every run and the same times to each target and orders as the study that wrote it."""
+    from animbatch.study.study import StudyResult
+
+    paths = write_outputs(projectile_study, tmp_path)
+    back = StudyResult.from_dict(json.loads(paths["json"].read_text()))
+    assert back.rows == projectile_study.rows and back.seconds == projectile_study.seconds > 0
+    assert back.reference_floor == projectile_study.reference_floor
+    assert [(m.method, m.time_to, m.order, m.failures) for m in back.merits] == [
+        (m.method, m.time_to, m.order, m.failures) for m in projectile_study.merits]
+
+
 def test_study_command(tmp_cwd):
     (tmp_cwd / "ball.yaml").write_text(PROJECTILE)
     result = CliRunner().invoke(cli, ["study", "ball.yaml", "--methods", "RK45,verlet", "--repeats", "1"])

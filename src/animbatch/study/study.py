@@ -10,8 +10,9 @@ reference and its work, and each method's figures of merit.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 from animbatch.compile.model import compile_scene
@@ -82,6 +83,7 @@ class StudyResult:
     rows: list[StudyRow]
     merits: list[MethodMerit]
     skipped: dict[str, str] = field(default_factory=dict)
+    seconds: float | None = None  # wall time of the whole study (reference and every run)
 
     def as_dict(self) -> dict[str, Any]:
         """Plain data for JSON (non-finite numbers as None)."""
@@ -89,13 +91,25 @@ class StudyResult:
             "scene": self.scene, "reference": self.reference, "reference_floor": self.reference_floor,
             "reference_impacts": self.reference_impacts,
             "length_scale_m": self.length_scale, "speed_scale_m_per_s": self.speed_scale,
-            "conserved": self.conserved, "skipped": self.skipped,
+            "conserved": self.conserved, "skipped": self.skipped, "study_seconds": self.seconds,
             "runs": [{**row.__dict__, "error_over_tolerance": row.error_over_tolerance} for row in self.rows],
             "figures_of_merit": [{"method": m.method, "order": m.order, "failures": m.failures,
                                   **{f"time_to_{t:g}_s": m.time_to[t].seconds for t in TARGETS},
                                   **{f"time_to_{t:g}_is_bound": m.time_to[t].bound for t in TARGETS}}
                                  for m in self.merits],
         })
+
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> StudyResult:
+        """The result :meth:`as_dict` wrote (``study.json``), its figures of merit computed again from its runs."""
+        names = {f.name for f in fields(StudyRow)}
+        rows = [StudyRow(**{k: v for k, v in run.items() if k in names}) for run in data["runs"]]
+        floor = data["reference_floor"]
+        floor = math.inf if floor is None else float(floor)  # as_dict writes an unchecked reference's inf as null
+        return cls(data["scene"], data["reference"], data["reference_impacts"], floor, data["length_scale_m"],
+                   data["speed_scale_m_per_s"], data["conserved"], rows, merits(rows, floor), data["skipped"],
+                   data.get("study_seconds"))
 
 
 def _finite(value: Any) -> Any:
@@ -148,6 +162,7 @@ def run_study(scene: LoadedScene, *, model: Model | None = None, methods: list[s
               progress: Callable[[str], None] = lambda message: None) -> StudyResult:
     """Study ``scene`` with its ``study`` settings (``methods`` overrides ``study.methods``). ``progress`` receives
     one line per run."""
+    started = time.perf_counter()
     settings = scene.spec.study
     model = model if model is not None else compile_scene(scene.spec)
     if not model.layout.size:
@@ -175,4 +190,5 @@ def run_study(scene: LoadedScene, *, model: Model | None = None, methods: list[s
         progress(f"[{number}/{len(plan)}] {setting.method} {setting.label}: {shown}")
     impacts = len(reference.motion.impacts) if model.contact_world is not None else None
     return StudyResult(scene.name, reference.description, impacts, reference.floor, reference.scales.length,
-                       reference.scales.speed, which, rows, merits(rows, reference.floor), skipped)
+                       reference.scales.speed, which, rows, merits(rows, reference.floor), skipped,
+                       time.perf_counter() - started)
