@@ -261,12 +261,10 @@ class ContactEvents:
         # its surface and has no centripetal term of its own (a corner's centre is the corner itself).
         centre = probe_centres(self.world, state)[contacts.probe] - x[a]
         centripetal = cross(w[a], cross(w[a], centre)) - cross(w[b], cross(w[b], rows.r_b))
-        normal_velocity = rows.along(rows.n, v, w)
-        normal_bias = (np.einsum("ki,ki->k", centripetal, rows.n) + STIFFNESS * contacts.gap
-                       + DAMPING * normal_velocity)
-        slip = np.stack([rows.along(rows.t1, v, w), rows.along(rows.t2, v, w)], axis=1)
-        tangent_bias = np.stack([np.einsum("ki,ki->k", centripetal, rows.t1),
-                                 np.einsum("ki,ki->k", centripetal, rows.t2)], axis=1) + DAMPING * slip
+        velocity = rows.along(v, w)  # (3, K): normal, first and second tangent
+        inward = np.einsum("ki,dki->dk", centripetal, rows.directions)
+        normal_bias = inward[0] + STIFFNESS * contacts.gap + DAMPING * velocity[0]
+        tangent_bias = (inward[1:] + DAMPING * velocity[1:]).T
         return normal_bias, tangent_bias
 
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:

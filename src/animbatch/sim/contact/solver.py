@@ -36,6 +36,7 @@ exactly ``½ μ (1 - e²) Δv²`` (μ: reduced mass, Δv: approach speed) — th
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -195,13 +196,18 @@ class ContactFrame:
         t1, t2 = tangent_basis(contacts.normal)
         return cls(a, b, contacts.normal, t1, t2, contacts.point - x[a], contacts.point - x[b])
 
-    def along(self, direction: np.ndarray, v: np.ndarray, w: np.ndarray) -> np.ndarray:
-        """Relative velocity (or acceleration) (K,) of the contact points along ``direction`` (K, 3), for the
-        bodies' linear and angular velocities (or accelerations) ``v``, ``w`` (P + 1, 3)."""
+    def along(self, v: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Relative velocity (or acceleration) of the contact points along the normal, first and second tangent
+        (3, K), for the bodies' linear and angular velocities (or accelerations) ``v``, ``w`` (P + 1, 3): the points'
+        ``v + w × r`` on body a minus on body b, read along each direction (one product for the three)."""
         a, b = self.a, self.b
-        return (np.einsum("ki,ki->k", v[a] - v[b], direction)
-                + np.einsum("ki,ki->k", w[a], cross(self.r_a, direction))
-                - np.einsum("ki,ki->k", w[b], cross(self.r_b, direction)))
+        relative = v[a] + cross(w[a], self.r_a) - v[b] - cross(w[b], self.r_b)
+        return np.einsum("ki,dki->dk", relative, self.directions)
+
+    @functools.cached_property
+    def directions(self) -> np.ndarray:
+        """The normal, first and second tangent stacked (3, K, 3)."""
+        return np.stack([self.n, self.t1, self.t2])
 
     def ends(self, directions: np.ndarray) -> np.ndarray:
         """What rows along ``directions`` (R, K, 3) measure at each end: ``[d, r_a × d]`` on body a and
@@ -777,8 +783,11 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
     rows = frame if frame is not None else ContactFrame.of(contacts, x)
     sliding = ~sticking
     normal_force_direction = rows.n - (contacts.kinetic_friction * sliding)[:, None] * slide_direction
-    measure = rows.ends(np.stack([rows.n, rows.t1, rows.t2]))  # (3K, 2, 6): each row at each of its ends
-    force = rows.ends(np.stack([normal_force_direction, rows.t1, rows.t2]))
+    measure = rows.ends(rows.directions)  # (3K, 2, 6): each row at each of its ends
+    force = measure  # the rows push along what they measure, but a sliding contact's normal row (with its friction)
+    if sliding.any():
+        force = measure.copy()
+        force[:count] = rows.ends(normal_force_direction[None])
     body = np.tile(np.stack([rows.a, rows.b], axis=1), (3, 1))  # (3K, 2)
     response = np.concatenate([accelerations.inverse_mass[body][:, :, None] * force[:, :, :3],  # M⁻¹ Fᵀ per end
                                np.einsum("reij,rej->rei", accelerations.inverse_inertia[body], force[:, :, 3:])],
@@ -787,8 +796,7 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
     shared = body[:, :, None, None] == body[None, None, :, :]
     matrix = np.einsum("iejf,iex,jfx->ij", shared, measure, response)  # (3K, 3K)
     v, w = accelerations.v, accelerations.omega
-    free = np.concatenate([rows.along(rows.n, v, w) + normal_bias, rows.along(rows.t1, v, w) + tangent_bias[:, 0],
-                           rows.along(rows.t2, v, w) + tangent_bias[:, 1]])
+    free = (rows.along(v, w) + np.stack([normal_bias, tangent_bias[:, 0], tangent_bias[:, 1]])).ravel()
     solution = np.zeros(3 * count)
     if warm is not None:
         solution[:count] = warm[0]
@@ -805,7 +813,7 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
                 t1 = solution[j1] - (free[j1] + matrix[j1] @ solution) / diagonal[j1]
                 solution[j1] = t1
                 t2 = solution[j2] - (free[j2] + matrix[j2] @ solution) / diagonal[j2]
-                size_t = np.hypot(t1, t2)
+                size_t = math.hypot(t1, t2)  # scalars: math, not numpy (a sweep is many of these)
                 cap = limit[k] * solution[i]
                 scale = 1.0 if size_t <= cap else cap / size_t
                 solution[j1], solution[j2] = t1 * scale, t2 * scale
