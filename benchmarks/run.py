@@ -40,8 +40,11 @@ Prints one table. Measures:
     20-bar hinge chain, one hinged bar, a double pendulum), with both sides' accuracy (benchmarks/peers.py; MuJoCo
     comes with the ``bench`` extra).
 
+14. grading: ``animbatch grade`` of each teaching template against itself (both runs and every check).
+
 Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, rigid, contacts, render,
-encode, cloth, fountain, lean, farm, ledger, joints, startup, stream, pool, export, peers), ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick),
+encode, cloth, fountain, lean, farm, ledger, joints, startup, stream, pool, export, peers, grade),
+``--budget SECONDS`` (per cloth method, default 900; 60 with --quick),
 ``--cloth-method NAME`` (only the cloth methods whose label starts with NAME, e.g. ``BDF``; repeatable),
 ``--json FILE`` (also write the rows as JSON).
 """
@@ -55,6 +58,7 @@ import platform
 import sys
 import tempfile
 import time
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -749,6 +753,26 @@ def bench_startup(quick: bool) -> list[Row]:
     return rows
 
 
+def bench_grade(quick: bool) -> list[Row]:
+    """``animbatch grade`` of each teaching template against itself, as a course grades a solved one against the
+    reference: wall time of the whole grade (both runs simulated, every check judged), best of two (issue 36's
+    target: at most 1 s). With --quick, the first two templates only."""
+    from animbatch.teaching.grade import grade
+    from animbatch.teaching.templates import start, templates
+
+    target = 1.0
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        for template in templates()[:2] if quick else templates():
+            scene = start(template.name, Path(folder) / f"{template.name}.yaml")
+            with warnings.catch_warnings():  # a template as given may be inaccurate on purpose (the task)
+                warnings.simplefilter("ignore")
+                seconds = best_of(2, lambda scene=scene: grade(scene, scene))  # type: ignore[misc]
+            rows.append({"benchmark": "grade", "case": f"{template.name} as given, against itself", "value": seconds,
+                         "unit": f"s (target ≤ {target:g} s: {'met' if seconds <= target else 'MISSED'})"})
+    return rows
+
+
 def bench_stream(quick: bool) -> list[Row]:
     """A simple render end to end next to its drawing alone (issue 23's target: at most 1.15×), in one process, from
     a baked trajectory: ``scenes/bouncing_balls.yaml``, 150 frames at 1280×720 (8 with --quick).
@@ -1069,7 +1093,7 @@ BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "rigid": bench_rig
               "render": bench_render, "encode": bench_encode, "cloth": bench_cloth, "fountain": bench_fountain,
               "lean": bench_lean, "farm": bench_farm, "ledger": bench_ledger, "joints": bench_joints,
               "startup": bench_startup, "stream": bench_stream, "pool": bench_pool, "export": bench_export,
-              "peers": bench_peers}
+              "peers": bench_peers, "grade": bench_grade}
 
 
 def main() -> int:

@@ -15,8 +15,8 @@ ROOT = Path(__file__).resolve().parents[1]
 #: The cheap benchmarks (a few seconds each with --quick), in two halves that the test workers run side by side, each
 #: with the first words of the rows it must report.
 CHEAP = {"simulation, encoding, start-up": (
-             ["particles", "ivp", "rigid", "contacts", "lean", "ledger", "joints", "pool", "encode", "startup"],
-             {"particle", "solve_ivp", "rigid", "contacts", "only", "accuracy", "joints", "encode", "start-up"}),
+             ["particles", "ivp", "rigid", "contacts", "lean", "ledger", "joints", "pool", "encode", "startup", "grade"],
+             {"particle", "solve_ivp", "rigid", "contacts", "only", "accuracy", "joints", "encode", "start-up", "grade"}),
          "drawing": (["render", "stream"], {"render"})}
 
 
