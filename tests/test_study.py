@@ -308,6 +308,18 @@ def test_a_written_study_reads_back_with_the_same_runs_and_figures_of_merit(proj
     assert back.reference_floor == projectile_study.reference_floor
     assert [(m.method, m.time_to, m.order, m.failures) for m in back.merits] == [
         (m.method, m.time_to, m.order, m.failures) for m in projectile_study.merits]
+    # the reference's accuracy is read back and used: with every run limited by a reference good to 1e-2 only, no
+    # method can be said to reach 1e-3, though every run's own error is round-off
+    from dataclasses import replace
+
+    from animbatch.study.study import merits
+
+    rows = [replace(row, limited_by_reference=True) for row in projectile_study.rows]
+    coarse = replace(projectile_study, rows=rows, reference_floor=1e-2, merits=merits(rows, 1e-2))
+    paths = write_outputs(coarse, tmp_path / "coarse")
+    back = StudyResult.from_dict(json.loads(paths["json"].read_text()))
+    assert back.reference_floor == 1e-2
+    assert all(m.time_to[1e-3].seconds is None for m in back.merits)
 
 
 def test_study_command(tmp_cwd):

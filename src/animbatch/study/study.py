@@ -99,7 +99,6 @@ class StudyResult:
                                  for m in self.merits],
         })
 
-
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> StudyResult:
         """The result :meth:`as_dict` wrote (``study.json``), its figures of merit computed again from its runs."""

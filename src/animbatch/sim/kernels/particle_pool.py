@@ -422,8 +422,8 @@ def _clear(solids, s0, s1, s2, p0, p1, p2, r, gap):
 def _step(i, h, t_to, x, v, a, alive, stuck, mass, radius, birth, lifetime, method, fields, simple, summary,
           solids, mode, max_bounces, gap, gravity, age, collide):
     """One step ``h`` [s] ending at ``t_to`` of particle ``i`` (in place), with everything collisions can do.
-    Returns its hits on solids and whether it died. (A call, not inlined: the particles the block's fast pass
-    leaves to it are few, and its code kept out of that pass lets the pass stay lean.)"""
+    Returns its hits on solids and whether it died. (A call, not inlined: the steps :func:`advance_pool`'s clear
+    path leaves to it are few, and its code kept out of that path lets the path stay lean.)"""
     if not alive[i]:
         return 0, False
     hits = 0
