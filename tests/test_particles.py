@@ -62,6 +62,25 @@ def test_keyframed_rate_and_bursts_give_the_integral_of_the_rate_plus_the_bursts
     np.testing.assert_array_equal(trajectory.particles[0].live_counts, expected)
 
 
+def test_the_schedule_counts_births_at_many_times_at_once_and_bounds_the_pool_by_rate_times_life():
+    """born_by_each gives born_by at every time (rate ramp, held rate, bursts, times before and after emission), and
+    the pool's bound is the most born within one lifetime: r L for a constant rate r (plus its margin of at most two),
+    and a burst's whole count when the burst outlives the spacing to the next."""
+    from animbatch.sim.particles.schedule import EmissionSchedule
+
+    ramp = EmissionSchedule(np.array([0.5, 1.5, 2.5]), np.array([0.0, 80.0, 80.0]), np.array([1.0, 1.0, 2.0]),
+                            np.array([7, 5, 30]))
+    times = np.concatenate([np.linspace(-1.0, 3.5, 997), [0.5, 1.0, 1.5, 2.0, 2.5]])
+    np.testing.assert_array_equal(ramp.born_by_each(times), [ramp.born_by(t) for t in times])
+    # C(t) = 40 (t − 0.5)² on the ramp, then 40 + 80 (t − 1.5): by 2.0 s, 80 from the rate and 42 from the bursts
+    assert ramp.born_by(2.0) == 80 + 42 and ramp.born_by(1.0) == 10 + 12
+    steady = EmissionSchedule(np.array([0.0, 10.0]), np.array([100.0, 100.0]), np.zeros(0), np.zeros(0, np.int64))
+    for life in (0.05, 0.5, 2.0):
+        assert 100 * life <= steady.most_alive(life, 10.0) <= 100 * life + 2
+    burst = EmissionSchedule(np.array([0.0, 1.0]), np.zeros(2), np.array([0.2, 0.6]), np.array([50, 50]))
+    assert burst.most_alive(0.3, 1.0) == 50 + 1 and burst.most_alive(0.5, 1.0) == 100 + 1
+
+
 @pytest.mark.slow
 def test_a_particle_dies_at_its_lifetime_and_its_slot_is_reused():
     """With lifetime 0.5 s and 10/s, at most 5–6 are alive, the pool never grows past its automatic capacity, and
