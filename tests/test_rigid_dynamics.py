@@ -289,6 +289,34 @@ def test_spheres_and_particles_float_at_the_depth_of_their_density():
     assert trajectory.positions[-1, names.index("light"), 1] == pytest.approx(r - depth, abs=1e-4)
 
 
+def test_a_dumbbell_of_two_spheres_floats_level_with_both_centres_at_the_surface():
+    """Two spheres 0.6 m apart on one rigid body (a compound: off-centre sphere pieces, summed per body), of half
+    the water's density and dropped tilted by 20°, float with both centres on the surface: each sinks by its own
+    cap, so the lower one is pushed up harder and the dumbbell rights itself to level."""
+    _, trajectory = run("""
+        duration: 5
+        fps: 10
+        bodies:
+          - name: dumbbell
+            type: rigid
+            density: 500
+            shape:
+              type: compound
+              parts:
+                - {shape: {type: sphere, radius: 0.1}, offset: [-0.3, 0, 0]}
+                - {shape: {type: sphere, radius: 0.1}, offset: [0.3, 0, 0]}
+            position: [0, 0.15, 0]
+            orientation: {axis: [0, 0, 1], angle: 20}
+        fields:
+          - {type: gravity}
+          - {type: buoyancy, density: 1000, level: 0, linear_damping: 200, angular_damping: 20}
+    """)
+    assert trajectory.positions[-1, 0, 1] == pytest.approx(0.0, abs=1e-4)
+    along = axis_in_world(trajectory, 0, 0)
+    assert np.degrees(np.arcsin(abs(along[0, 1]))) == pytest.approx(20, abs=1e-9)
+    assert abs(along[-1, 1]) < 1e-4  # level: its axis horizontal
+
+
 @pytest.mark.slow
 def test_bundled_floating_scene_settles_as_its_comment_says():
     """The log floats with its centre 0.024 m under water, and the balsa cube upright with 15 % submerged."""

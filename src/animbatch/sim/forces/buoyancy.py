@@ -16,6 +16,7 @@ that floating bodies settle. All bodies are handled in one vectorised pass.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,6 +66,16 @@ class Buoyancy(ForceTerm):
     first_rigid: int
     names: tuple[str, ...]
 
+    @functools.cached_property
+    def _off_centre_spheres(self) -> np.ndarray:
+        """Indices of the sphere pieces on rigid bodies whose centre is not the body's centre of mass."""
+        return np.flatnonzero((self.sphere_rigid >= 0) & np.any(self.sphere_offset != 0, axis=1))
+
+    @functools.cached_property
+    def _one_sphere_each(self) -> bool:
+        """Whether no point owns two sphere pieces."""
+        return len(np.unique(self.sphere_owner)) == len(self.sphere_owner)
+
     @property
     def dissipative(self) -> bool:
         return True  # buoyancy alone is conservative, but its damping is not; the fluid's energy is not tracked
@@ -75,14 +86,18 @@ class Buoyancy(ForceTerm):
         volume = np.zeros(count)
         moment = np.zeros((count, 3))
         if len(self.sphere_owner):
-            centres = state.x[self.sphere_owner].copy()
-            on_rigid = self.sphere_rigid >= 0
-            if on_rigid.any():
-                centres[on_rigid] += state.lever(self.sphere_rigid[on_rigid], self.sphere_offset[on_rigid])
+            centres = state.x[self.sphere_owner]  # a copy (fancy indexing)
+            off_centre = self._off_centre_spheres
+            if len(off_centre):  # spheres of compounds; a sphere shape's own sphere sits at its centre of mass
+                centres[off_centre] += state.lever(self.sphere_rigid[off_centre], self.sphere_offset[off_centre])
             caps, centroids = spherical_caps(centres, self.sphere_radius, self.level, self.up)
-            volume += np.bincount(self.sphere_owner, weights=caps, minlength=count)
-            for k in range(3):
-                moment[:, k] += np.bincount(self.sphere_owner, weights=caps * centroids[:, k], minlength=count)
+            if self._one_sphere_each:  # the common case: assign, no sums (the same numbers: 0 + w is w)
+                volume[self.sphere_owner] = caps
+                moment[self.sphere_owner] = caps[:, None] * centroids
+            else:
+                volume += np.bincount(self.sphere_owner, weights=caps, minlength=count)
+                for k in range(3):
+                    moment[:, k] += np.bincount(self.sphere_owner, weights=caps * centroids[:, k], minlength=count)
         if len(self.triangles):
             assert state.rotation is not None
             world = np.einsum("tij,tcj->tci", state.rotation[self.triangle_rigid], self.triangles)
