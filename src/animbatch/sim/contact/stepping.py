@@ -24,7 +24,8 @@ import time
 
 import numpy as np
 
-from animbatch.sim.contact.contacts import contact_codes
+from animbatch.sim.contact.clearance import Clearance
+from animbatch.sim.contact.contacts import Contacts, contact_codes
 from animbatch.sim.contact.detection import body_reach, detect
 from animbatch.sim.contact.impacts import ImpactLog
 from animbatch.sim.contact.jointed import JointedResponse
@@ -39,6 +40,7 @@ from animbatch.sim.forces.gravity import gravity_magnitude
 from animbatch.sim.model.dynamics import Dynamics
 
 DEFAULT_REST_SPEED = 0.01  # m/s
+NO_CONTACTS = Contacts.concatenate([])
 
 #: What numpy's contact steps cost, to know when compiling them pays: about a millisecond a step with contacts
 #: (search, rows, write-back) and 60 µs a sweep of the impulse solver (measured on a box resting on a tilting floor,
@@ -86,6 +88,8 @@ class ContactResolver:
         self._warm_normal = np.zeros(0)
         self._warm_tangent = np.zeros((0, 3))
         self._numpy_seconds = 0.0  # what numpy's contact steps have cost so far, by the counts above
+        # the search is skipped while nothing can be near (colliders on keyframes move by themselves: never then)
+        self.clearance = Clearance(self.reach) if self.world.moving is None else None
 
     def _count_numpy_work(self, sweeps: int) -> None:
         """Count a contact step's numpy work (``sweeps`` of the impulse solver); past
@@ -98,6 +102,26 @@ class ContactResolver:
 
             self.system.long_run = compiled_kernels(MIN_WORK)
             self._numpy_seconds = -np.inf  # asked once: numba may be unavailable or refused
+
+    def _search(self, state: Kinematics, travel: np.ndarray) -> Contacts:
+        """The contacts within the step's reach (``travel`` (P,) [m] per body): none without a search while the
+        last search that looked further still vouches for it (:class:`~animbatch.sim.contact.clearance.Clearance`;
+        never with colliders on keyframes, which move by themselves)."""
+        margin = 2 * self.settings.slop + 1e-9
+        compiled = compiled_contacts(0, long_run=self.system.long_run)
+        clearance = self.clearance
+        if clearance is None:
+            return detect(self.world, state, margin, travel=travel, edges=True, compiled=compiled)
+        if clearance.clear(state, travel):
+            return NO_CONTACTS
+        ahead = clearance.look_ahead(travel, margin)
+        if ahead > 0:
+            contacts = detect(self.world, state, margin + 2 * ahead, travel=travel, edges=True, compiled=compiled)
+            if not contacts.count:
+                clearance.found_nothing(state, ahead)
+                return contacts
+            clearance.found_something()
+        return detect(self.world, state, margin, travel=travel, edges=True, compiled=compiled)
 
     def rest_speed(self, h: float) -> float:
         """Impacts slower than this do not bounce; sticking is allowed below it (at least 3 g h)."""
@@ -177,8 +201,7 @@ class ContactResolver:
         # a moving collider closes on everything at its own speed)
         if self.world.moving is not None:
             speed = speed + self.world.moving.largest_speed(t, state.x, self.reach)
-        contacts = detect(self.world, state, 2 * self.settings.slop + 1e-9, travel=1.5 * h * speed, edges=True,
-                          compiled=compiled_contacts(0, long_run=self.system.long_run))
+        contacts = self._search(state, travel=1.5 * h * speed)
         self.contacts_last_step = contacts.count
         if not contacts.count:
             return None

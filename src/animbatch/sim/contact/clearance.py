@@ -1,0 +1,78 @@
+"""Skipping the contact search while nothing can be near anything (conservative advancement).
+
+A body in free flight costs the fixed-step contact path a whole search every step, only to find nothing. Instead,
+now and then the search looks further than the step needs: ``D`` [m] further on each side of every pair, so by
+``2 D`` on the margin. When even that finds nothing, no pair can come within the step's search distance until some
+body has moved, or turned, by ``D`` less its coming step's travel, and the search is skipped until then. How far a
+body has moved is measured on the state itself, not predicted: a point at ``r`` from the centre of mass moves by at
+most ``|Δx| + ‖ΔR‖_F |r|``, with ``Δx`` and ``ΔR`` the changes of the body's centre and rotation since the search
+that looked further. So the contacts found are exactly those the search of every step would find (none), whatever
+the method, the joints or the forces do in between.
+
+A search that looks further and finds something was wasted: the next try waits twice as many steps (at most
+:data:`LONGEST_WAIT`), so that bodies resting on the ground pay almost nothing for it.
+
+Colliders on keyframes move by themselves, so a world that has any is searched every step.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from animbatch.sim.bodies import Kinematics
+
+#: How far ahead the search looks, in steps of the fastest body's travel, and at least this many margins.
+AHEAD_STEPS = 8.0
+AHEAD_MARGINS = 4.0
+#: The most steps between two tries of a search that looks further.
+LONGEST_WAIT = 64
+
+
+class Clearance:
+    """Whether the contact search of a step can be skipped, for bodies reaching ``reach`` (P,) [m] from their
+    centres of mass."""
+
+    def __init__(self, reach: np.ndarray) -> None:
+        self.reach = np.asarray(reach, float)
+        self.ahead = 0.0  # D [m] of the last search that looked further and found nothing (0: none holds)
+        self._x = np.zeros((0, 3))  # centres (P, 3) and rigid rotations (B, 3, 3) at that search
+        self._rotation: np.ndarray | None = None
+        self._wait = 0  # steps until the next try
+        self._next_wait = 1
+
+    def clear(self, state: Kinematics, travel: np.ndarray) -> bool:
+        """Whether no pair can be within the search distance of this step: every body has moved since the last
+        search that looked further, plus its ``travel`` (P,) [m] in this step, by less than that search looked."""
+        if self.ahead <= 0.0:
+            return False
+        moved = np.linalg.norm(state.x - self._x, axis=1)
+        if self._rotation is not None and state.rotation is not None:
+            turned = np.linalg.norm(state.rotation - self._rotation, axis=(1, 2))  # ‖ΔR‖_F ≥ ‖ΔR‖₂
+            moved[state.first_rigid:] += turned * self.reach[state.first_rigid:]
+        if float(np.max(moved + travel, initial=0.0)) <= self.ahead:  # NaN compares False: search
+            return True
+        self.ahead = 0.0
+        return False
+
+    def look_ahead(self, travel: np.ndarray, margin: float) -> float:
+        """How much further [m] (D) this step's search should look on each side of every pair, or 0 to search as
+        usual (waiting after a wasted try)."""
+        if self._wait > 0:
+            self._wait -= 1
+            return 0.0
+        largest = float(np.max(travel, initial=0.0))
+        if not np.isfinite(largest):
+            return 0.0
+        return AHEAD_STEPS * largest + AHEAD_MARGINS * margin
+
+    def found_nothing(self, state: Kinematics, ahead: float) -> None:
+        """The search that looked ``ahead`` [m] further found no contact: skip until the bodies have moved that far."""
+        self.ahead = ahead
+        self._x = state.x.copy()
+        self._rotation = state.rotation.copy() if state.rotation is not None else None
+        self._next_wait = 1
+
+    def found_something(self) -> None:
+        """The search that looked further found contacts: wait longer before the next try."""
+        self._wait = self._next_wait
+        self._next_wait = min(2 * self._next_wait, LONGEST_WAIT)

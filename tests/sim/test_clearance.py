@@ -1,0 +1,109 @@
+"""Skipping the contact search in free flight (animbatch.sim.contact.clearance): a run that skips gives exactly the
+trajectory of a run that searches every step, while searching a small fraction of the steps; and the bound that
+allows a skip counts turning as well as moving (a mutant that forgets turning lets a spinning rod's tip through)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from animbatch import api
+from animbatch.sim.contact import clearance, stepping
+from conftest import scene
+
+# A ball thrown across a room, over a low box, into a wall, then falling to the floor (long free flights between
+# contacts), and a 2 m rod spinning end over end at 20 rad/s, its centre 0.8 m above the floor, so that its tips
+# strike the floor.
+THROWN = """
+    duration: 1.6
+    fps: 20
+    solver: {method: symplectic_euler, dt: 1.0e-3}
+    materials: {m: {restitution: 0.6, static_friction: 0.3, kinetic_friction: 0.3}}
+    bodies:
+      - {name: ball, type: rigid, shape: {type: sphere, radius: 0.05}, density: 500, position: [0, 1.0, 0],
+         velocity: [3, 2, 0], material: m}
+      - {name: rod, type: rigid, shape: {type: rod, length: 2.0, radius: 0.02}, density: 500,
+         position: [-3, 0.8, 0], angular_velocity: [20, 0, 0], material: m}
+    colliders:
+      - {type: plane, material: m}
+      - {type: box, position: [1.0, 0.1, 0], size: [0.2, 0.2, 1.0], material: m}
+      - {type: plane, point: [2.5, 0, 0], normal: [-1, 0, 0], material: m}
+    fields: [{type: gravity, g: [0, -3, 0]}]
+"""
+
+
+# In a weak field: the rod starts along the floor (its axis is z), so a search that looks 0.5 m further finds
+# nothing, and it turns its tips into the floor within a tenth of a second.
+SPINNING = """
+    duration: 0.5
+    fps: 20
+    solver: {method: symplectic_euler, dt: 1.0e-3}
+    materials: {m: {restitution: 0.6, static_friction: 0.3, kinetic_friction: 0.3}}
+    bodies:
+      - {name: rod, type: rigid, shape: {type: rod, length: 2.0, radius: 0.02}, density: 500,
+         position: [-3, 0.8, 0], angular_velocity: [20, 0, 0], material: m}
+    colliders: [{type: plane, material: m}]
+    fields: [{type: gravity, g: [0, -0.1, 0]}]
+"""
+
+
+def trajectories(monkeypatch, *, skipping: bool):
+    searches = []
+    original = stepping.detect
+
+    def counted(*args, **kwargs):
+        searches.append(1)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(stepping, "detect", counted)
+    if not skipping:
+        monkeypatch.setattr(clearance.Clearance, "clear", lambda self, state, travel: False)
+        monkeypatch.setattr(clearance.Clearance, "look_ahead", lambda self, travel, margin: 0.0)
+    trajectory = api.simulate(scene(THROWN))
+    monkeypatch.undo()
+    return trajectory, len(searches)
+
+
+def test_skipping_the_search_in_free_flight_changes_nothing_and_searches_a_fraction_of_the_steps(monkeypatch):
+    searched, every_step = trajectories(monkeypatch, skipping=False)
+    skipped, fewer = trajectories(monkeypatch, skipping=True)
+    assert fewer < every_step / 3
+    # the ball and the rod's tips both strike something
+    assert {body for _, body in searched.solver_stats["impacts"]} == {0, 1}
+    np.testing.assert_array_equal(skipped.positions, searched.positions)
+    np.testing.assert_array_equal(skipped.orientations, searched.orientations)
+    assert skipped.solver_stats["impacts"] == searched.solver_stats["impacts"]
+
+
+def test_a_skip_that_forgets_the_turn_misses_the_spinning_rods_tip(monkeypatch):
+    """The mutant measures only how far each centre moved: the rod's centre hardly moves while its tips sweep
+    metres, so the mutant skips the searches that would have found a tip at the floor, and the rod spins through
+    it."""
+    searched = api.simulate(scene(SPINNING))
+    original = clearance.Clearance.clear
+
+    def centres_only(self, state, travel):
+        reach, self.reach = self.reach, np.zeros_like(self.reach)
+        try:
+            return original(self, state, travel)
+        finally:
+            self.reach = reach
+
+    monkeypatch.setattr(clearance.Clearance, "clear", centres_only)
+    with pytest.warns(UserWarning, match="missed a collision"):
+        mutant = api.simulate(scene(SPINNING))
+    monkeypatch.undo()
+    assert searched.solver_stats["impacts"] and not mutant.solver_stats["impacts"]
+    assert not np.allclose(mutant.positions, searched.positions, atol=1e-3)
+
+
+@pytest.mark.parametrize("travel", [np.array([0.0, 0.0]), np.array([0.01, np.nan])])
+def test_a_clearance_never_vouches_for_a_state_it_cannot_measure(travel):
+    """Without a search that looked further, or with a travel that is not a number, the search runs."""
+    from animbatch.sim.bodies import Kinematics
+
+    state = Kinematics(np.zeros((2, 3)), np.zeros((2, 3)), None, None, 2, 0.0)
+    fresh = clearance.Clearance(np.zeros(2))
+    assert not fresh.clear(state, travel)
+    fresh.found_nothing(state, 1.0)
+    assert fresh.clear(state, travel) == bool(np.all(np.isfinite(travel)))
