@@ -217,7 +217,7 @@ class VelocityVerlet(PartitionedScheme):
         self.evaluations += 1
         motion += np.multiply(rate_next, 0.5 * h, out=work)
         if constraint is not None:  # end-of-step velocities back onto the contacts, without bouncing again
-            constraint.resolve(config, motion, h, bounce=False)
+            constraint.resolve(config, motion, h, bounce=False, t=t + h)
         self.system.project(y, t=t + h)
         self._rate, self._rate_next = rate_next, rate
 
