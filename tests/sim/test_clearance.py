@@ -47,7 +47,25 @@ SPINNING = """
 """
 
 
-def trajectories(monkeypatch, *, skipping: bool):
+# Colliders on keyframes: a bat swinging about its end and a paddle sliding at 2 m/s, towards balls at rest.
+PADDLES = """
+    duration: 1.0
+    fps: 20
+    solver: {method: verlet, dt: 1.0e-3}
+    materials: {m: {restitution: 0.8, static_friction: 0, kinetic_friction: 0}}
+    bodies:
+      - {name: near, type: rigid, shape: {type: sphere, radius: 0.05}, density: 500, position: [0, 0, 0], material: m}
+      - {name: far, type: rigid, shape: {type: sphere, radius: 0.05}, density: 500, position: [0.6, 0, 3.3],
+         material: m}
+    colliders:
+      - {type: box, position: [-1, 0, 0], size: [0.1, 0.4, 0.4], material: m, interpolation: linear,
+         keyframes: [{time: 0}, {time: 1, offset: [2, 0, 0]}]}
+      - {type: box, position: [0.6, 0, 3], size: [1.0, 0.1, 0.1], material: m, interpolation: linear,
+         keyframes: [{time: 0}, {time: 1, rotation: {axis: [0, 1, 0], angle: 180}}]}
+"""
+
+
+def trajectories(monkeypatch, *, skipping: bool, text: str = THROWN):
     searches = []
     original = stepping.detect
 
@@ -59,7 +77,7 @@ def trajectories(monkeypatch, *, skipping: bool):
     if not skipping:
         monkeypatch.setattr(clearance.Clearance, "clear", lambda self, state, travel: False)
         monkeypatch.setattr(clearance.Clearance, "look_ahead", lambda self, travel, margin: 0.0)
-    trajectory = api.simulate(scene(THROWN))
+    trajectory = api.simulate(scene(text))
     monkeypatch.undo()
     return trajectory, len(searches)
 
@@ -73,6 +91,21 @@ def test_skipping_the_search_in_free_flight_changes_nothing_and_searches_a_fract
     np.testing.assert_array_equal(skipped.positions, searched.positions)
     np.testing.assert_array_equal(skipped.orientations, searched.orientations)
     assert skipped.solver_stats["impacts"] == searched.solver_stats["impacts"]
+
+
+def test_colliders_on_keyframes_count_their_own_moves_and_turns(monkeypatch):
+    """The sliding paddle and the swinging bat strike their balls in the same steps whether the search is skipped
+    or not; a mutant that ignores the colliders' moves lets both pass through their balls."""
+    searched, every_step = trajectories(monkeypatch, skipping=False, text=PADDLES)
+    skipped, fewer = trajectories(monkeypatch, skipping=True, text=PADDLES)
+    assert {body for _, body in searched.solver_stats["impacts"]} == {0, 1}
+    assert fewer < every_step / 2
+    np.testing.assert_array_equal(skipped.positions, searched.positions)
+    monkeypatch.setattr(clearance.Clearance, "_colliders_within", lambda self, t: True)
+    with pytest.warns(UserWarning, match="missed a collision"):
+        mutant = api.simulate(scene(PADDLES))
+    monkeypatch.undo()
+    assert not mutant.solver_stats["impacts"]
 
 
 def test_a_skip_that_forgets_the_turn_misses_the_spinning_rods_tip(monkeypatch):

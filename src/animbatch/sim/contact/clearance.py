@@ -12,7 +12,9 @@ the method, the joints or the forces do in between.
 A search that looks further and finds something was wasted: the next try waits twice as many steps (at most
 :data:`LONGEST_WAIT`), so that bodies resting on the ground pay almost nothing for it.
 
-Colliders on keyframes move by themselves, so a world that has any is searched every step.
+Colliders on keyframes move by themselves: their surfaces' moves since that search count as well (``|Δc| +
+‖ΔR‖_F`` times how far the solid reaches from its path's centre). A plane reaches without end, so a plane that has
+turned since then brings the search back.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from animbatch.sim.bodies import Kinematics
+from animbatch.sim.contact.moving import MovingColliders
 
 #: How far ahead the search looks, in steps of the fastest body's travel, and at least this many margins.
 AHEAD_STEPS = 8.0
@@ -30,10 +33,12 @@ LONGEST_WAIT = 64
 
 class Clearance:
     """Whether the contact search of a step can be skipped, for bodies reaching ``reach`` (P,) [m] from their
-    centres of mass."""
+    centres of mass, among the colliders on keyframes ``moving`` (None: none)."""
 
-    def __init__(self, reach: np.ndarray) -> None:
+    def __init__(self, reach: np.ndarray, moving: MovingColliders | None = None) -> None:
         self.reach = np.asarray(reach, float)
+        self.moving = moving
+        self._poses: list[tuple[np.ndarray, np.ndarray]] = []  # each moving collider's centre and turn then
         self.ahead = 0.0  # D [m] of the last search that looked further and found nothing (0: none holds)
         self._x = np.zeros((0, 3))  # centres (P, 3) and rigid rotations (B, 3, 3) at that search
         self._rotation: np.ndarray | None = None
@@ -49,10 +54,25 @@ class Clearance:
         if self._rotation is not None and state.rotation is not None:
             turned = np.linalg.norm(state.rotation - self._rotation, axis=(1, 2))  # ‖ΔR‖_F ≥ ‖ΔR‖₂
             moved[state.first_rigid:] += turned * self.reach[state.first_rigid:]
-        if float(np.max(moved + travel, initial=0.0)) <= self.ahead:  # NaN compares False: search
-            return True
+        if float(np.max(moved + travel, initial=0.0)) <= self.ahead and self._colliders_within(state.t):
+            return True  # (NaN compares False: search)
         self.ahead = 0.0
         return False
+
+    def _colliders_within(self, t: float) -> bool:
+        """Whether no moving collider's surface has moved by more than the search looked further, by time t [s]."""
+        if self.moving is None:
+            return True
+        for path, reach, (centre, turn) in zip(self.moving.paths, self.moving.reach, self._poses):
+            now, turned = path.pose(t)
+            shift = float(np.linalg.norm(now - centre))
+            if not np.array_equal(turned, turn):
+                if not np.isfinite(reach):  # a turned plane: its far points moved without bound
+                    return False
+                shift += float(np.linalg.norm(turned - turn)) * float(reach)
+            if not shift <= self.ahead:
+                return False
+        return True
 
     def look_ahead(self, travel: np.ndarray, margin: float) -> float:
         """How much further [m] (D) this step's search should look on each side of every pair, or 0 to search as
@@ -70,6 +90,9 @@ class Clearance:
         self.ahead = ahead
         self._x = state.x.copy()
         self._rotation = state.rotation.copy() if state.rotation is not None else None
+        if self.moving is not None:
+            self._poses = [(np.array(centre, float), np.array(turn, float))
+                           for centre, turn in (path.pose(state.t) for path in self.moving.paths)]
         self._next_wait = 1
 
     def found_something(self) -> None:

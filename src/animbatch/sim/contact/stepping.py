@@ -88,8 +88,7 @@ class ContactResolver:
         self._warm_normal = np.zeros(0)
         self._warm_tangent = np.zeros((0, 3))
         self._numpy_seconds = 0.0  # what numpy's contact steps have cost so far, by the counts above
-        # the search is skipped while nothing can be near (colliders on keyframes move by themselves: never then)
-        self.clearance = Clearance(self.reach) if self.world.moving is None else None
+        self.clearance = Clearance(self.reach, self.world.moving)  # the search is skipped while nothing can be near
 
     def _count_numpy_work(self, sweeps: int) -> None:
         """Count a contact step's numpy work (``sweeps`` of the impulse solver); past
@@ -105,13 +104,10 @@ class ContactResolver:
 
     def _search(self, state: Kinematics, travel: np.ndarray) -> Contacts:
         """The contacts within the step's reach (``travel`` (P,) [m] per body): none without a search while the
-        last search that looked further still vouches for it (:class:`~animbatch.sim.contact.clearance.Clearance`;
-        never with colliders on keyframes, which move by themselves)."""
+        last search that looked further still vouches for it (:class:`~animbatch.sim.contact.clearance.Clearance`)."""
         margin = 2 * self.settings.slop + 1e-9
         compiled = compiled_contacts(0, long_run=self.system.long_run)
         clearance = self.clearance
-        if clearance is None:
-            return detect(self.world, state, margin, travel=travel, edges=True, compiled=compiled)
         if clearance.clear(state, travel):
             return NO_CONTACTS
         ahead = clearance.look_ahead(travel, margin)
