@@ -376,9 +376,9 @@ def test_memory_and_live_count_stay_flat_under_steady_emission():
         tracemalloc.stop()
         return peak
 
-    short, long = measure(2.0), measure(8.0)
+    short, long = measure(1.5), measure(6.0)
     assert long < 1.2 * short
-    records, _ = simulate_particles(systems.emitters, systems.colliders, np.arange(0, 4, 1 / 30),
+    records, _ = simulate_particles(systems.emitters, systems.colliders, np.arange(0, 3, 1 / 30),
                                         loaded.spec.solver, None, dt=0.01)
     steady = records[0].live_counts[40:]
     assert abs(steady - 5000).max() <= 50
