@@ -68,11 +68,13 @@ def parse_scene(text: str, *, filename: str = "<scene>", overrides: Sequence[Ove
 
 
 def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progress | None = None,
-             checkpoint: tuple[int, Path] | None = None) -> Trajectory:
+             checkpoint: tuple[int, Path] | None = None, reactions: bool = True) -> Trajectory:
     """Integrate the scene and sample it at the frame times. Raises SimulationError on divergence or failure.
 
     ``checkpoint``: (every N frames, file): integrate in segments, saving the states after each and resuming from
-    the file when it exists (see :mod:`animbatch.sim.integrators.checkpoint`)."""
+    the file when it exists (see :mod:`animbatch.sim.integrators.checkpoint`). ``reactions``: also each joint's
+    reaction at every frame (what trajectory files store; a millisecond or so a frame, as much as the whole
+    integration of a small jointed scene), for callers that read them; without, they are None."""
     spec = scene.spec
     model = model if model is not None else compile_model(scene)
     integrator = make_integrator(spec.solver, model)
@@ -107,9 +109,9 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
     ledger = build_ledger(model, states, stats, particle_stats, method=spec.solver.method,
                           adaptive=spec.solver.is_adaptive, requested_dt=spec.solver.dt or DEFAULT_DT,
                           rtol=spec.solver.rtol, drift_warning=spec.solver.drift_warning)
-    reactions: tuple[np.ndarray | None, ...] = (None, None, None)
-    if model.joints is not None and len(states):
-        reactions = Dynamics(model).joint_reactions(model.frame_times, states)
+    joint_loads: tuple[np.ndarray | None, ...] = (None, None, None)
+    if reactions and model.joints is not None and len(states):
+        joint_loads = Dynamics(model).joint_reactions(model.frame_times, states)
     return Trajectory(
         times=model.frame_times.copy(), body_names=model.body_names, positions=model.positions(states),
         velocities=model.velocities(states), orientations=model.orientations(states),
@@ -120,8 +122,8 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
         solver_stats={**stats, "warnings": warnings}, particles=tuple(particles), particle_stats=particle_stats,
         ledger=ledger.as_dict(), clock_names=model.clocks.names if model.clocks is not None else (),
         proper_times=model.proper_times(states) if model.clocks is not None else None,
-        joint_names=model.joints.names if model.joints is not None else (), joint_forces=reactions[0],
-        joint_torques=reactions[1], motor_efforts=reactions[2] if model.joints is not None
+        joint_names=model.joints.names if model.joints is not None else (), joint_forces=joint_loads[0],
+        joint_torques=joint_loads[1], motor_efforts=joint_loads[2] if model.joints is not None
         and model.joints.motors is not None else None)
 
 
