@@ -181,10 +181,11 @@ class ContactResolver:
         order = np.argsort(codes)
         self._warm_codes, self._warm_normal, self._warm_tangent = codes[order], normal[order] / h, tangent[order] / h
 
-    def resolve(self, config: np.ndarray, motion: np.ndarray, h: float, *, bounce: bool = True,
-                t: float = 0.0) -> np.ndarray | None:
-        """Change the motion so that all contacts hold over the step of ``h`` [s] from time ``t``; impacts are
-        logged at the time within the step where their gap closes.
+    def resolve(self, config: np.ndarray, motion: np.ndarray, h: float, *, t: float,
+                bounce: bool = True) -> np.ndarray | None:
+        """Change the motion so that all contacts hold over the step of ``h`` [s] from time ``t`` (required: it places
+        the colliders on keyframes; an end-of-step re-projection passes the step's end); impacts are logged at the
+        time within the step where their gap closes.
 
         Returns the motion to drift with when overlaps must also be pushed apart (the corrected motion plus the
         split-impulse pseudo-velocities), or None to drift with the motion itself.

@@ -70,8 +70,8 @@ class VelocityConstraint(Protocol):
     @property
     def impacts(self) -> ImpactRecord: ...  # what it logged
 
-    def resolve(self, config: np.ndarray, motion: np.ndarray, h: float, *, bounce: bool = True,
-                t: float = 0.0) -> np.ndarray | None:
+    def resolve(self, config: np.ndarray, motion: np.ndarray, h: float, *, t: float,
+                bounce: bool = True) -> np.ndarray | None:
         """Correct ``motion`` in place for a step of ``h`` [s] from ``t``; return the motion to drift with when it
         differs (overlaps pushed apart), else None. ``bounce`` False: project only (end-of-step velocities)."""
         ...
