@@ -11,58 +11,42 @@ from animbatch import api
 from animbatch.sim.contact import clearance, stepping
 from conftest import scene
 
-# A ball thrown across a room, over a low box, into a wall, then falling to the floor (long free flights between
-# contacts), and a 2 m rod spinning end over end at 20 rad/s, its centre 0.8 m above the floor, so that its tips
-# strike the floor.
-THROWN = """
-    duration: 1.6
-    fps: 20
-    solver: {method: symplectic_euler, dt: 1.0e-3}
-    materials: {m: {restitution: 0.6, static_friction: 0.3, kinetic_friction: 0.3}}
-    bodies:
-      - {name: ball, type: rigid, shape: {type: sphere, radius: 0.05}, density: 500, position: [0, 1.0, 0],
-         velocity: [3, 2, 0], material: m}
-      - {name: rod, type: rigid, shape: {type: rod, length: 2.0, radius: 0.02}, density: 500,
-         position: [-3, 0.8, 0], angular_velocity: [20, 0, 0], material: m}
-    colliders:
-      - {type: plane, material: m}
-      - {type: box, position: [1.0, 0.1, 0], size: [0.2, 0.2, 1.0], material: m}
-      - {type: plane, point: [2.5, 0, 0], normal: [-1, 0, 0], material: m}
-    fields: [{type: gravity, g: [0, -3, 0]}]
-"""
+
+def world(duration: float, method: str, bodies: list[str], colliders: list[str], g: float | None = None,
+          restitution: float = 0.6, friction: float = 0.3) -> str:
+    """A scene of ``bodies`` and ``colliders`` (flow mappings) of one material, at 20 fps and steps of 1 ms, in
+    gravity ``g`` [m/s², downwards] or none."""
+    field = f"{{type: gravity, g: [0, {-g}, 0]}}" if g is not None else ""
+    return (f"duration: {duration}\nfps: 20\nsolver: {{method: {method}, dt: 1.0e-3}}\n"
+            f"materials: {{m: {{restitution: {restitution}, static_friction: {friction}, "
+            f"kinetic_friction: {friction}}}}}\n"
+            f"bodies: [{', '.join(bodies)}]\ncolliders: [{', '.join(colliders)}]\nfields: [{field}]\n")
 
 
-# In a weak field: the rod starts along the floor (its axis is z), so a search that looks 0.5 m further finds
-# nothing, and it turns its tips into the floor within a tenth of a second.
-SPINNING = """
-    duration: 0.5
-    fps: 20
-    solver: {method: symplectic_euler, dt: 1.0e-3}
-    materials: {m: {restitution: 0.6, static_friction: 0.3, kinetic_friction: 0.3}}
-    bodies:
-      - {name: rod, type: rigid, shape: {type: rod, length: 2.0, radius: 0.02}, density: 500,
-         position: [-3, 0.8, 0], angular_velocity: [20, 0, 0], material: m}
-    colliders: [{type: plane, material: m}]
-    fields: [{type: gravity, g: [0, -0.1, 0]}]
-"""
+def ball(name: str, position: str, velocity: str = "[0, 0, 0]") -> str:
+    return (f"{{name: {name}, type: rigid, shape: {{type: sphere, radius: 0.05}}, density: 500, position: {position}, "
+            f"velocity: {velocity}, material: m}}")
 
 
-# Colliders on keyframes: a bat swinging about its end and a paddle sliding at 2 m/s, towards balls at rest.
-PADDLES = """
-    duration: 1.0
-    fps: 20
-    solver: {method: verlet, dt: 1.0e-3}
-    materials: {m: {restitution: 0.8, static_friction: 0, kinetic_friction: 0}}
-    bodies:
-      - {name: near, type: rigid, shape: {type: sphere, radius: 0.05}, density: 500, position: [0, 0, 0], material: m}
-      - {name: far, type: rigid, shape: {type: sphere, radius: 0.05}, density: 500, position: [0.6, 0, 3.3],
-         material: m}
-    colliders:
-      - {type: box, position: [-1, 0, 0], size: [0.1, 0.4, 0.4], material: m, interpolation: linear,
-         keyframes: [{time: 0}, {time: 1, offset: [2, 0, 0]}]}
-      - {type: box, position: [0.6, 0, 3], size: [1.0, 0.1, 0.1], material: m, interpolation: linear,
-         keyframes: [{time: 0}, {time: 1, rotation: {axis: [0, 1, 0], angle: 180}}]}
-"""
+# A 2 m rod spinning end over end at 20 rad/s, its centre 0.8 m above the floor: it starts along the floor (its axis
+# is z), so a search that looks 0.5 m further finds nothing, and it turns its tips into the floor within a tenth of
+# a second.
+ROD = ("{name: rod, type: rigid, shape: {type: rod, length: 2.0, radius: 0.02}, density: 500, position: [-3, 0.8, 0], "
+       "angular_velocity: [20, 0, 0], material: m}")
+FLOOR = "{type: plane, material: m}"
+# The rod, and a ball thrown across a room, over a low box, into a wall, then falling to the floor (long free flights
+# between contacts).
+THROWN = world(1.6, "symplectic_euler", [ball("ball", "[0, 1.0, 0]", "[3, 2, 0]"), ROD],
+               [FLOOR, "{type: box, position: [1.0, 0.1, 0], size: [0.2, 0.2, 1.0], material: m}",
+                "{type: plane, point: [2.5, 0, 0], normal: [-1, 0, 0], material: m}"], g=3.0)
+# The rod alone in a weak field.
+SPINNING = world(0.5, "symplectic_euler", [ROD], [FLOOR], g=0.1)
+# Colliders on keyframes: a paddle sliding at 2 m/s and a bat swinging about its centre, towards balls at rest.
+PADDLES = world(1.0, "verlet", [ball("near", "[0, 0, 0]"), ball("far", "[0.6, 0, 3.3]")], [
+    "{type: box, position: [-1, 0, 0], size: [0.1, 0.4, 0.4], material: m, interpolation: linear, "
+    "keyframes: [{time: 0}, {time: 1, offset: [2, 0, 0]}]}",
+    "{type: box, position: [0.6, 0, 3], size: [1.0, 0.1, 0.1], material: m, interpolation: linear, "
+    "keyframes: [{time: 0}, {time: 1, rotation: {axis: [0, 1, 0], angle: 180}}]}"], restitution=0.8, friction=0.0)
 
 
 def trajectories(monkeypatch, *, skipping: bool, text: str = THROWN):

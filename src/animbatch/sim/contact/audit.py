@@ -44,8 +44,8 @@ from animbatch.sim.contact.detection import (
     closing_margin,
     detect,
     evaluate_pairs,
+    points_moved,
     probe_centres,
-    turn_angle,
 )
 
 #: Points between consecutive frames at which the straight path is checked.
@@ -112,10 +112,7 @@ class OverlapAudit:
 
     def _travel(self, s0: Any, s1: Any) -> np.ndarray:
         """How far each body's points move between two states (P,) [m]: translation plus reach times the turn."""
-        travel = np.linalg.norm(s1.x - s0.x, axis=1)
-        if s0.rotation is not None:
-            travel[s0.first_rigid:] += self.reach[s0.first_rigid:] * turn_angle(s0.rotation, s1.rotation)
-        return travel
+        return points_moved(self.reach, s0, s1)
 
     def _allowance(self, contacts: Contacts) -> np.ndarray:
         radius = self.radius[contacts.probe_body]

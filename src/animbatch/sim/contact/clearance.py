@@ -5,23 +5,27 @@ now and then the search looks further than the step needs: ``D`` [m] further on 
 ``2 D`` on the margin. When even that finds nothing, no pair can come within the step's search distance until some
 body has moved, or turned, by ``D`` less its coming step's travel, and the search is skipped until then. How far a
 body has moved is measured on the state itself, not predicted: a point at ``r`` from the centre of mass moves by at
-most ``|Δx| + ‖ΔR‖_F |r|``, with ``Δx`` and ``ΔR`` the changes of the body's centre and rotation since the search
-that looked further. So the contacts found are exactly those the search of every step would find (none), whatever
-the method, the joints or the forces do in between.
+most ``|Δx| + |r| θ``, with ``Δx`` the move of the body's centre and θ the angle it turned since the search that
+looked further (:func:`~animbatch.sim.contact.detection.points_moved`, as the overlap audit measures it). So the
+contacts found are exactly those the search of every step would find (none), whatever the method, the joints or the
+forces do in between.
 
 A search that looks further and finds something was wasted: the next try waits twice as many steps (at most
 :data:`LONGEST_WAIT`), so that bodies resting on the ground pay almost nothing for it.
 
-Colliders on keyframes move by themselves: their surfaces' moves since that search count as well (``|Δc| +
-‖ΔR‖_F`` times how far the solid reaches from its path's centre). A plane reaches without end, so a plane that has
-turned since then brings the search back.
+Colliders on keyframes move by themselves: their surfaces' moves since that search count as well (``|Δc| + θ``
+times how far the solid reaches from its path's centre). A plane reaches without end, so a plane that has turned
+since then brings the search back.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from animbatch.sim.bodies import Kinematics
+from animbatch.sim.contact.detection import points_moved, turn_angle
 from animbatch.sim.contact.moving import MovingColliders
 
 #: How far ahead the search looks, in steps of the fastest body's travel, and at least this many margins.
@@ -40,20 +44,16 @@ class Clearance:
         self.moving = moving
         self._poses: list[tuple[np.ndarray, np.ndarray]] = []  # each moving collider's centre and turn then
         self.ahead = 0.0  # D [m] of the last search that looked further and found nothing (0: none holds)
-        self._x = np.zeros((0, 3))  # centres (P, 3) and rigid rotations (B, 3, 3) at that search
-        self._rotation: np.ndarray | None = None
+        self._then: Kinematics | None = None  # the bodies at that search (their own copies)
         self._wait = 0  # steps until the next try
         self._next_wait = 1
 
     def clear(self, state: Kinematics, travel: np.ndarray) -> bool:
         """Whether no pair can be within the search distance of this step: every body has moved since the last
         search that looked further, plus its ``travel`` (P,) [m] in this step, by less than that search looked."""
-        if self.ahead <= 0.0:
+        if self.ahead <= 0.0 or self._then is None:
             return False
-        moved = np.linalg.norm(state.x - self._x, axis=1)
-        if self._rotation is not None and state.rotation is not None:
-            turned = np.linalg.norm(state.rotation - self._rotation, axis=(1, 2))  # ‖ΔR‖_F ≥ ‖ΔR‖₂
-            moved[state.first_rigid:] += turned * self.reach[state.first_rigid:]
+        moved = points_moved(self.reach, self._then, state)
         if float(np.max(moved + travel, initial=0.0)) <= self.ahead and self._colliders_within(state.t):
             return True  # (NaN compares False: search)
         self.ahead = 0.0
@@ -69,7 +69,7 @@ class Clearance:
             if not np.array_equal(turned, turn):
                 if not np.isfinite(reach):  # a turned plane: its far points moved without bound
                     return False
-                shift += float(np.linalg.norm(turned - turn)) * float(reach)
+                shift += float(reach * turn_angle(turn, turned))
             if not shift <= self.ahead:
                 return False
         return True
@@ -88,8 +88,9 @@ class Clearance:
     def found_nothing(self, state: Kinematics, ahead: float) -> None:
         """The search that looked ``ahead`` [m] further found no contact: skip until the bodies have moved that far."""
         self.ahead = ahead
-        self._x = state.x.copy()
-        self._rotation = state.rotation.copy() if state.rotation is not None else None
+        self._then = replace(state, x=state.x.copy(), v=state.v.copy(),
+                             rotation=None if state.rotation is None else state.rotation.copy(),
+                             omega=None if state.omega is None else state.omega.copy())
         if self.moving is not None:
             self._poses = [(np.array(centre, float), np.array(turn, float))
                            for centre, turn in (path.pose(state.t) for path in self.moving.paths)]

@@ -140,6 +140,16 @@ def turn_angle(r0: np.ndarray, r1: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip((trace - 1) / 2, -1.0, 1.0))
 
 
+def points_moved(reach: np.ndarray, s0: Kinematics, s1: Kinematics) -> np.ndarray:
+    """How far each body's points move between two states (P,) [m], for bodies reaching ``reach`` (P,) [m] from their
+    centres of mass: the centre's move plus the reach times the angle turned (a point at r moves by at most
+    ``|Δx| + |r| θ``)."""
+    moved = np.linalg.norm(s1.x - s0.x, axis=1)
+    if s0.rotation is not None and s1.rotation is not None:
+        moved[s0.first_rigid:] += reach[s0.first_rigid:] * turn_angle(s0.rotation, s1.rotation)
+    return moved
+
+
 def check_scale(world: ContactWorld, state: Kinematics, travel: np.ndarray | None) -> None:
     """Stop a run whose bodies have left every physical scale (a feather-light body kicked by heavy ones, say)
     before the k-d tree search overflows on them: every method's contact search comes through here, and the
