@@ -20,13 +20,13 @@ def compiled_sweeps(monkeypatch):
 
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
     calls = []
-    sweeps = contact_impulses.impulse_iterations
+    solve = contact_impulses.solve_contacts
 
     def counted(*args):
-        calls.append(len(args[1]))
-        return sweeps(*args)
+        calls.append(len(args[0]))
+        return solve(*args)
 
-    monkeypatch.setattr(contact_impulses, "impulse_iterations", counted)
+    monkeypatch.setattr(contact_impulses, "solve_contacts", counted)
     return calls
 
 
@@ -107,7 +107,7 @@ def test_kernels_that_fail_to_build_leave_the_contacts_to_numpy_and_say_so(monke
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numpy")
     _, reference = run(pile())
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
-    monkeypatch.setattr(contact_impulses, "impulse_iterations", broken)
+    monkeypatch.setattr(contact_impulses, "solve_contacts", broken)
     solver.build_contact_kernels.cache_clear()
     try:
         with pytest.warns(RuntimeWarning, match=r"compiled contact solver could not be built \(TypingError"):

@@ -336,7 +336,8 @@ def test_the_hull_distance_is_the_numpy_one_everywhere():
 def test_the_compiled_contact_rows_are_the_numpy_ones():
     """Directions, lever arms, responses and split effective masses of 60 random contacts among 8 bodies (particles,
     rigid bodies, the fixed body last), normals along every axis (both tangent-basis branches)."""
-    from animbatch.sim.contact.solver import BodyVelocities, CompiledRows, ContactRows
+    from animbatch.sim.contact.solver import BodyVelocities, ContactRows
+    from animbatch.sim.kernels import contact_impulses
 
     rng = np.random.default_rng(4)
     count, size = 60, 8
@@ -356,10 +357,74 @@ def test_the_compiled_contact_rows_are_the_numpy_ones():
                      np.zeros(count, np.intp), np.zeros(count, np.intp))
     x = rng.normal(size=(size, 3))
     numpy_rows = ContactRows(found, bodies, x).kernel_rows()
-    compiled_rows = CompiledRows(found, bodies, x).kernel_rows()
+    a, b = first.astype(np.int64), np.where(second < 0, size - 1, second).astype(np.int64)
+    compiled_rows = (a, b, *contact_impulses.contact_rows(a, b, normal, found.point, x, inverse_mass,
+                                                          inverse_inertia))
     assert len(numpy_rows) == len(compiled_rows) == 10
     for numpy_value, compiled_value in zip(numpy_rows, compiled_rows):
         np.testing.assert_allclose(compiled_value, numpy_value, rtol=1e-12, atol=1e-14)
+
+
+def random_solve(seed: int, count: int = 40, size: int = 8):
+    """K random contacts among bodies (particles, rigid bodies, a moving collider, the fixed body last): some
+    approaching fast, some resting, some in the air within the step's reach, some overlapping past the slop; with a
+    warm start. Returns (contacts, bodies, x, warm, kinematic slots)."""
+    from animbatch.sim.contact.solver import BodyVelocities
+
+    rng = np.random.default_rng(seed)
+    inverse_mass = np.concatenate([rng.uniform(0.2, 5.0, size - 2), [0.0, 0.0]])  # a moving collider, the fixed body
+    inverse_inertia = np.zeros((size, 3, 3))
+    for body in range(2, size - 2):  # bodies 0-1 are particles
+        turn = rng.normal(size=(3, 3))
+        inverse_inertia[body] = turn @ turn.T + np.eye(3)
+    v, omega = rng.normal(size=(size, 3)), rng.normal(size=(size, 3)) * 0.3
+    omega[[0, 1, size - 1]] = 0.0  # particles do not turn
+    v[-1] = 0.0  # nor does the fixed body move
+    driven = np.arange(size) == size - 2  # the moving collider's velocity is prescribed
+    bodies = BodyVelocities(v, omega, inverse_mass, inverse_inertia, driven)
+    normal = rng.normal(size=(count, 3))
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    first = rng.integers(0, size - 2, count)
+    second = np.where(rng.random(count) < 0.4, -1, (first + rng.integers(1, size - 2, count)) % (size - 2))
+    gap = rng.choice([-3e-3, -5e-5, 0.0, 2e-4, 5e-3], count) * rng.uniform(0.5, 1.5, count)
+    found = Contacts(first, second, rng.normal(size=(count, 3)) * 0.2, normal, gap,
+                     rng.uniform(0, 0.9, count), rng.uniform(0.2, 1.0, count), rng.uniform(0.1, 0.5, count),
+                     np.arange(count), np.zeros(count, np.intp), np.zeros(count, np.intp))
+    warm = rng.uniform(0, 0.05, count), rng.normal(size=(count, 3)) * 0.01
+    kinematic = np.where(rng.random(count) < 0.15, size - 2, -1)
+    return found, bodies, rng.normal(size=(size, 3)), warm, kinematic
+
+
+@pytest.mark.parametrize("h, bounce", [(1e-3, True), (1e-3, False), (0.0, True)])
+def test_the_compiled_impulse_solve_is_the_numpy_one(h, bounce, monkeypatch):
+    """One impulse solve of random contacts (impacts, resting, speculative and overlapping ones, a moving collider,
+    a warm start), compiled in one call and in numpy: the same impulses, impacts, arrival times, velocities and
+    pushes, to round-off."""
+    import copy
+
+    from animbatch.sim import kernels
+    from animbatch.sim.contact import solver
+
+    for seed in range(3):
+        found, bodies, x, warm, kinematic = random_solve(seed)
+        settings = dict(iterations=300, rest_speed=0.01, slop=1e-4, bounce=bounce, warm=warm, kinematic=kinematic)
+        compiled_bodies = copy.deepcopy(bodies)
+        monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numpy")
+        expected = solver.solve_impulses(found, bodies, x, h, **settings)
+        monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
+        result = solver.solve_impulses(found, compiled_bodies, x, h, long_run=True, **settings)
+        assert expected.numpy_sweeps > 0 and result.numpy_sweeps == 0  # one of each
+        scale = max(1.0, float(np.abs(expected.normal_impulse).max()))
+        for name in ("normal_impulse", "tangent_impulse", "tangent_vector", "arrival"):
+            np.testing.assert_allclose(getattr(result, name), getattr(expected, name), rtol=0, atol=1e-9 * scale,
+                                       err_msg=name)
+        assert np.array_equal(result.impact, expected.impact) and (expected.impact.any() or not bounce or not h)
+        np.testing.assert_allclose(compiled_bodies.v, bodies.v, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(compiled_bodies.omega, bodies.omega, rtol=0, atol=1e-9)
+        assert (result.pseudo_v is None) == (expected.pseudo_v is None) == (h == 0)
+        if h:
+            np.testing.assert_allclose(result.pseudo_v, expected.pseudo_v, rtol=0, atol=1e-9)
+            np.testing.assert_allclose(result.pseudo_omega, expected.pseudo_omega, rtol=0, atol=1e-9)
 
 
 @pytest.mark.slow

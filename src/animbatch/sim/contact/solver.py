@@ -141,36 +141,6 @@ class FlatVelocities:
         w[:] = velocity[half:].reshape(-1, 3)
 
 
-class CompiledRows(FlatVelocities):
-    """The rows of K contacts as the compiled sweeps take them (:meth:`kernel_rows`), built in one compiled call
-    (:func:`animbatch.sim.kernels.contact_impulses.contact_rows`): what :class:`ContactRows` gives the compiled
-    path (the normals and tangent bases, the flat velocity), without its numpy rows and sparse forms."""
-
-    def __init__(self, contacts: Contacts, bodies: BodyVelocities, x: np.ndarray,
-                 kinematic: np.ndarray | None = None) -> None:
-        from animbatch.sim.kernels import contact_impulses
-
-        self.bodies = bodies
-        self.count = contacts.count
-        self.size = len(x)
-        self.a = contacts.probe_body.astype(np.int64)
-        self.b = np.where(contacts.solid_body < 0, len(x) - 1, contacts.solid_body).astype(np.int64)
-        if kinematic is not None:  # contacts with moving colliders: their slots in bodies (else −1)
-            self.b = np.where(kinematic >= 0, kinematic, self.b).astype(np.int64)
-        build: Any = contact_impulses.contact_rows
-        self._rows = build(self.a, self.b, np.ascontiguousarray(contacts.normal, float),
-                           np.ascontiguousarray(contacts.point, float), np.ascontiguousarray(x, float),
-                           np.ascontiguousarray(bodies.inverse_mass, float),
-                           np.ascontiguousarray(bodies.inverse_inertia, float))
-        direction = self._rows[0]
-        self.n, self.t1, self.t2 = direction[0], direction[1], direction[2]
-
-    def kernel_rows(self) -> tuple[Any, ...]:
-        """As :meth:`ContactRows.kernel_rows`."""
-        return (self.a, self.b, *self._rows)
-
-
-
 @dataclass(frozen=True, eq=False)
 class ContactFrame:
     """Where and along what K contacts act: their ends ``a``, ``b`` (K,) (indices into the bodies, the fixed one
@@ -560,17 +530,12 @@ def build_contact_kernels() -> str | None:
         from animbatch.sim.contact.sides import build_side_kernels
         from animbatch.sim.kernels import contact_impulses as kernels
 
-        impulses: Any = kernels  # the kernels take the rows unpacked (ContactRows.kernel_rows)
-        one: Any = np.zeros(1, np.int64), np.ones(1, np.int64)
-        rows: Any = [np.zeros((3, 1, 3)) for _ in range(7)]
+        impulses: Any = kernels
         velocity = np.zeros(12)
-        impulses.rates(velocity, 0, *one, *rows[:3])
-        impulses.apply_impulses(velocity, np.zeros(1), np.zeros((1, 2)), *one, *rows[3:])
-        impulses.impulse_iterations(velocity, *one, *rows, np.ones((3, 1)), np.zeros(1), np.zeros(1),
-                                    np.zeros((1, 2)), np.zeros(1), np.zeros(1), np.zeros(1, bool), 1, 0.0)
-        impulses.push_iterations(velocity, *one, *rows, np.ones((3, 1)), np.zeros(1), 0.0, 1)
-        impulses.contact_rows(*one, np.array([[0.0, 1.0, 0.0]]), np.zeros((1, 3)), np.zeros((2, 3)), np.ones(2),
-                              np.zeros((2, 3, 3)))
+        one: Any = np.zeros(1, np.int64), np.ones(1, np.int64)
+        impulses.solve_contacts(*one, np.array([[0.0, 1.0, 0.0]]), np.zeros((1, 3)), np.full(1, -1.0), np.zeros(1),
+                                np.zeros(1), np.zeros(1), np.zeros((2, 3)), np.ones(2), np.zeros((2, 3, 3)), velocity,
+                                np.zeros(1), np.zeros((1, 3)), 1e-3, True, 0.01, 1e-4, 1, _COMPILED_SETTINGS)
         # the jointed scenes' sweeps on array rows (one contact, two bodies: 12 velocity columns), with the block
         # of jointed normals and without
         for chosen, block in ((np.zeros(0, np.int64), np.zeros((0, 0))), (np.zeros(1, np.int64), np.ones((1, 1)))):
@@ -610,23 +575,14 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         return result
     if couple is not None:  # start on the joints: with their rows in the response, the contacts keep them
         couple(bodies)
-    compiled = jointed is None and compiled_contacts(count, long_run=long_run)
-    rows: CompiledRows | ContactRows = (CompiledRows(contacts, bodies, x, kinematic) if compiled
-                                        else ContactRows(contacts, bodies, x, kinematic, jointed))
-    block = JointedNormals.of(rows, jointed) if jointed is not None and isinstance(rows, ContactRows) else None
+    if jointed is None and couple is None and compiled_contacts(count, long_run=long_run):
+        return _solve_compiled(contacts, bodies, x, h, iterations=iterations, rest_speed=rest_speed, slop=slop,
+                               bounce=bounce, warm=warm, kinematic=kinematic)
+    rows = ContactRows(contacts, bodies, x, kinematic, jointed)
+    block = JointedNormals.of(rows, jointed) if jointed is not None else None
     n = rows.n
-    kernel: Any = rows.kernel_rows() if isinstance(rows, CompiledRows) else None
-    if isinstance(rows, CompiledRows):
-        from animbatch.sim.kernels import contact_impulses as kernels
-
-        contact_impulses: Any = kernels  # the kernels take the rows unpacked (ContactRows.kernel_rows)
-        start = rows.flat()
-        approach = contact_impulses.rates(start, 0, *kernel[:5])
-        sticking = np.hypot(contact_impulses.rates(start, 1, *kernel[:5]),
-                            contact_impulses.rates(start, 2, *kernel[:5])) <= rest_speed
-    else:
-        approach = rows.relative(n)
-        sticking = np.linalg.norm(rows.tangential(), axis=1) <= rest_speed
+    approach = rows.relative(n)
+    sticking = np.linalg.norm(rows.tangential(), axis=1) <= rest_speed
     fast = approach < -rest_speed
     gap = contacts.gap
     bounce_target = -contacts.restitution * approach if bounce else np.zeros(count)
@@ -650,19 +606,10 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         normal_impulse = np.where(fast, 0.0, warm[0])  # impacts start afresh; resting contacts from last step
         tangent_impulse = np.stack([np.einsum("ki,ki->k", warm[1], rows.t1),
                                     np.einsum("ki,ki->k", warm[1], rows.t2)], axis=1) * (~fast)[:, None]
-        if isinstance(rows, CompiledRows):
-            contact_impulses.apply_impulses(velocity, normal_impulse, tangent_impulse, *kernel[:2], *kernel[5:9])
-        else:
-            rows.push_normal(velocity, normal_impulse)
-            rows.push_tangent(velocity, tangent_impulse)
+        rows.push_normal(velocity, normal_impulse)
+        rows.push_tangent(velocity, tangent_impulse)
     tolerance = VELOCITY_TOLERANCE * (1.0 + float(np.abs(approach).max(initial=0.0)))
-    if isinstance(rows, CompiledRows):  # the same sweeps, compiled
-        normal_impulse, tangent_impulse = normal_impulse.astype(np.float64), tangent_impulse.astype(np.float64)
-        contact_impulses.impulse_iterations(velocity, *kernel, target.astype(np.float64), normal_impulse,
-                                            tangent_impulse, contacts.static_friction.astype(np.float64),
-                                            contacts.kinetic_friction.astype(np.float64), sticking, iterations,
-                                            tolerance)
-    elif compiled_contacts(count, long_run=long_run) and rows.dense:  # small jointed scenes: array rows, compiled
+    if compiled_contacts(count, long_run=long_run) and rows.dense:  # small jointed scenes: array rows, compiled
         normal_impulse, tangent_impulse = _compiled_dense_sweeps(rows, contacts, velocity, target, normal_impulse,
                                                                  tangent_impulse, sticking, block, iterations,
                                                                  tolerance)
@@ -685,14 +632,52 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         pseudo = np.zeros_like(velocity)
         push_target = BAUMGARTE * overlap / h
         enough = PUSH_TOLERANCE * float(push_target.max())
-        if isinstance(rows, CompiledRows):
-            contact_impulses.push_iterations(pseudo, *kernel, push_target, enough, min(iterations, PUSH_ITERATIONS))
-        else:
-            _pushes(rows, pseudo, push_target, enough, min(iterations, PUSH_ITERATIONS))
+        _pushes(rows, pseudo, push_target, enough, min(iterations, PUSH_ITERATIONS))
         pseudo_v, pseudo_w = np.zeros_like(bodies.v), np.zeros_like(bodies.omega)
         rows.unflat(pseudo, pseudo_v, pseudo_w)
         result.pseudo_v, result.pseudo_omega = pseudo_v, pseudo_w
     return result
+
+
+def _solve_compiled(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h: float, *, iterations: int,
+                    rest_speed: float, slop: float, bounce: bool, warm: tuple[np.ndarray, np.ndarray] | None,
+                    kinematic: np.ndarray | None) -> SolveResult:
+    """:func:`solve_impulses` without joints in one compiled call
+    (:func:`animbatch.sim.kernels.contact_impulses.solve_contacts`): the same steps in the same order, so the same
+    impulses and velocities to round-off (tests compare them); what a step of a long run with contacts pays in
+    Python is only this call's arguments."""
+    from animbatch.sim.kernels import contact_impulses
+
+    solve: Any = contact_impulses.solve_contacts
+    count, size = contacts.count, len(x)
+    a = contacts.probe_body.astype(np.int64)
+    b = np.where(contacts.solid_body < 0, size - 1, contacts.solid_body).astype(np.int64)
+    if kinematic is not None:  # contacts with moving colliders: their slots in bodies (else −1)
+        b = np.where(kinematic >= 0, kinematic, b).astype(np.int64)
+    velocity = np.concatenate([bodies.v.ravel(), bodies.omega.ravel()])
+    warm_normal, warm_tangent = warm if warm is not None else (np.zeros(count), np.zeros((count, 3)))
+
+    def floats(values: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(values, np.float64)
+
+    normal_impulse, tangent_impulse, tangent_vector, impact, arrival, pseudo = solve(
+        a, b, floats(contacts.normal), floats(contacts.point), floats(contacts.gap), floats(contacts.restitution),
+        floats(contacts.static_friction), floats(contacts.kinetic_friction), floats(x), floats(bodies.inverse_mass),
+        floats(bodies.inverse_inertia), velocity, floats(warm_normal), floats(warm_tangent), float(h), bool(bounce),
+        float(rest_speed), float(slop), int(iterations), _COMPILED_SETTINGS)
+    half = 3 * size
+    bodies.v[:] = velocity[:half].reshape(-1, 3)
+    bodies.omega[:] = velocity[half:].reshape(-1, 3)
+    result = SolveResult(normal_impulse, tangent_impulse, impact=impact, arrival=arrival,
+                         tangent_vector=tangent_vector)
+    if len(pseudo):
+        result.pseudo_v, result.pseudo_omega = pseudo[:half].reshape(-1, 3), pseudo[half:].reshape(-1, 3)
+    return result
+
+
+#: The solver's constants as :func:`animbatch.sim.kernels.contact_impulses.solve_contacts` takes them.
+_COMPILED_SETTINGS = np.array([VELOCITY_TOLERANCE, BAUMGARTE, OVERLAP_TOLERANCE, PUSH_TOLERANCE, PUSH_ITERATIONS],
+                              float)
 
 
 def _sweeps(rows: ContactRows, contacts: Contacts, velocity: np.ndarray, target: np.ndarray,

@@ -51,17 +51,6 @@ def _apply(velocity: np.ndarray, bodies: int, row: int, k: int, amount: float, a
 
 
 @njit(cache=True)
-def rates(velocity: np.ndarray, row: int, a: np.ndarray, b: np.ndarray, direction: np.ndarray, arm_a: np.ndarray,
-          arm_b: np.ndarray) -> np.ndarray:
-    """Relative velocities (K,) along row ``row`` of every contact."""
-    bodies = len(velocity) // 6
-    out = np.empty(len(a))
-    for k in range(len(a)):
-        out[k] = _rate(velocity, bodies, row, k, a, b, direction, arm_a, arm_b)
-    return out
-
-
-@njit(cache=True)
 def apply_impulses(velocity: np.ndarray, normal: np.ndarray, tangent: np.ndarray, a: np.ndarray, b: np.ndarray,
                    lin_a: np.ndarray, lin_b: np.ndarray, turn_a: np.ndarray, turn_b: np.ndarray) -> None:
     """Normal impulses (K,) and tangential ones (K, 2) into the velocities, all at once."""
@@ -288,3 +277,90 @@ def dense_sweeps(velocity: np.ndarray, jacobian_normal: np.ndarray, jacobian_tan
         velocity += response_tangent @ change
         tangent_impulse = fresh
     return normal_impulse, tangent_impulse
+
+
+@njit(cache=True, error_model="numpy")
+def solve_contacts(a: np.ndarray, b: np.ndarray, normal: np.ndarray, point: np.ndarray, gap: np.ndarray,
+                   restitution: np.ndarray, static: np.ndarray, kinetic: np.ndarray, x: np.ndarray,
+                   inverse_mass: np.ndarray, inverse_inertia: np.ndarray, velocity: np.ndarray,
+                   warm_normal: np.ndarray, warm_tangent: np.ndarray, h: float, bounce: bool, rest_speed: float,
+                   slop: float, iterations: int, settings: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A whole impulse solve of :func:`animbatch.sim.contact.solver.solve_impulses` (without joints) in one call:
+    the rows (:func:`contact_rows`), each contact's approach and whether it sticks, its velocity target (bounce,
+    speculative gap, rest), the warm start, the sweeps (:func:`impulse_iterations`) and the split impulse's push
+    (:func:`push_iterations`), in the numpy code's order.
+
+    Contacts (K,): ``a``, ``b`` body slots, ``normal``, ``point`` (K, 3), ``gap`` [m], ``restitution``, ``static``
+    and ``kinetic`` friction; bodies (B, the fixed one last): ``x`` (B, 3), ``inverse_mass`` (B,),
+    ``inverse_inertia`` (B, 3, 3), ``velocity`` (6 B,) flat, changed in place; the warm start's normal impulses (K,)
+    and tangential impulse vectors (K, 3). ``settings``: the solver's constants ``[VELOCITY_TOLERANCE, BAUMGARTE,
+    OVERLAP_TOLERANCE, PUSH_TOLERANCE, PUSH_ITERATIONS]``.
+
+    Returns the normal (K,) and tangential (K, 2) impulses, the tangential ones as world vectors (K, 3), which
+    contacts are impacts (K,) and where in the step their gaps close (K,), and the push's pseudo-velocities (6 B,)
+    (empty when nothing overlaps beyond the slop)."""
+    count = len(a)
+    bodies = len(velocity) // 6
+    direction, arm_a, arm_b, lin_a, lin_b, turn_a, turn_b, weight = contact_rows(a, b, normal, point, x,
+                                                                               inverse_mass, inverse_inertia)
+    approach = np.empty(count)
+    sticking = np.empty(count, np.bool_)
+    largest = 0.0
+    for k in range(count):
+        approach[k] = _rate(velocity, bodies, 0, k, a, b, direction, arm_a, arm_b)
+        first = _rate(velocity, bodies, 1, k, a, b, direction, arm_a, arm_b)
+        second = _rate(velocity, bodies, 2, k, a, b, direction, arm_a, arm_b)
+        sticking[k] = np.hypot(first, second) <= rest_speed
+        largest = max(largest, abs(approach[k]))
+    target = np.empty(count)
+    impact = np.zeros(count, np.bool_)
+    arrival = np.zeros(count)
+    normal_impulse = np.empty(count)
+    tangent_impulse = np.empty((count, 2))
+    for k in range(count):
+        fast = approach[k] < -rest_speed
+        bounce_target = -restitution[k] * approach[k] if bounce else 0.0
+        if h > 0:
+            arrives = approach[k] * h < -gap[k]  # reaches the surface within this step
+            arriving = bounce_target if bounce else approach[k]
+            if gap[k] > 0:
+                target[k] = arriving if arrives and fast else -gap[k] / h
+            else:
+                target[k] = bounce_target if fast else 0.0
+            impact[k] = bounce and fast and (gap[k] <= 0 or arrives)
+            if approach[k] < 0:
+                arrival[k] = min(max(gap[k] / (-approach[k] * h), 0.0), 1.0)
+        else:
+            target[k] = bounce_target if fast else 0.0
+            impact[k] = fast and bounce
+        # impacts start afresh; resting contacts from last step's impulses
+        normal_impulse[k] = 0.0 if fast else warm_normal[k]
+        for row in range(2):
+            along = (warm_tangent[k, 0] * direction[row + 1, k, 0] + warm_tangent[k, 1] * direction[row + 1, k, 1]
+                     + warm_tangent[k, 2] * direction[row + 1, k, 2])
+            tangent_impulse[k, row] = 0.0 if fast else along
+    apply_impulses(velocity, normal_impulse, tangent_impulse, a, b, lin_a, lin_b, turn_a, turn_b)
+    tolerance = settings[0] * (1.0 + largest)
+    impulse_iterations(velocity, a, b, direction, arm_a, arm_b, lin_a, lin_b, turn_a, turn_b, weight, target,
+                       normal_impulse, tangent_impulse, static, kinetic, sticking, iterations, tolerance)
+    tangent_vector = np.empty((count, 3))
+    for k in range(count):
+        for c in range(3):
+            tangent_vector[k, c] = (tangent_impulse[k, 0] * direction[1, k, c]
+                                    + tangent_impulse[k, 1] * direction[2, k, c])
+    # split impulse: push apart through positions only, the overlaps that exceed the slop by more than a trifle
+    push_target = np.zeros(count)
+    strongest = 0.0
+    for k in range(count):
+        overlap = max(-gap[k] - slop, 0.0)
+        if overlap < settings[2] * max(slop, 1e-6):
+            overlap = 0.0
+        push_target[k] = settings[1] * overlap / h if h > 0 else 0.0
+        strongest = max(strongest, push_target[k])
+    if strongest <= 0:
+        return normal_impulse, tangent_impulse, tangent_vector, impact, arrival, np.zeros(0)
+    pseudo = np.zeros(len(velocity))
+    push_iterations(pseudo, a, b, direction, arm_a, arm_b, lin_a, lin_b, turn_a, turn_b, weight, push_target,
+                    settings[3] * strongest, min(iterations, int(settings[4])))
+    return normal_impulse, tangent_impulse, tangent_vector, impact, arrival, pseudo
