@@ -43,13 +43,13 @@ DEFAULT_REST_SPEED = 0.01  # m/s
 NO_CONTACTS = Contacts.concatenate([])
 
 #: What numpy's contact steps cost, to know when compiling them pays: about a millisecond a step with contacts
-#: (search, rows, write-back) and 60 µs a sweep of the impulse solver (measured on a box resting on a tilting floor,
+#: (search, rows, write-back) and 35 µs a sweep of the impulse solver (measured on a box resting on a tilting floor,
 #: whose redundant corners take some 80 sweeps a step). A run starts in numpy unless its estimate says it is long
 #: (:func:`animbatch.sim.model.compiled.dynamics_for`); once its contact steps have cost this much [s] by these
 #: counts, the rest of it searches and solves compiled. Counted, not timed, so that a scene runs the same way on
 #: every machine and under any load.
 NUMPY_CONTACT_STEP = 1e-3
-NUMPY_SWEEP = 60e-6
+NUMPY_SWEEP = 35e-6
 COMPILE_CONTACTS_AFTER = 1.0
 
 
