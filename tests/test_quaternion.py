@@ -1,0 +1,46 @@
+"""Quaternion helpers against their definitions: the rotation matrix against Rodrigues' formula, the rate against
+the derivative of a rotation at constant angular velocity, over single quaternions and stacks of them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from animbatch import quaternion
+
+
+def rodrigues(axis: np.ndarray, angle: float) -> np.ndarray:
+    """R = I + sin θ K + (1 − cos θ) K² for the unit axis's cross-product matrix K."""
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+@pytest.mark.parametrize("shape", [(), (1,), (7,), (3, 5)])
+def test_the_matrix_of_a_quaternion_is_rodrigues_rotation_by_its_angle_about_its_axis(shape):
+    rng = np.random.default_rng(len(shape))
+    axes = rng.normal(size=(*shape, 3))
+    axes /= np.linalg.norm(axes, axis=-1, keepdims=True)
+    angles = rng.uniform(-np.pi, np.pi, shape)
+    q = np.concatenate([np.cos(angles / 2)[..., None], np.sin(angles / 2)[..., None] * axes], axis=-1)
+    scaled = q * rng.uniform(0.5, 2.0, (*shape, 1))  # not unit: the matrix is the same rotation
+    matrices = quaternion.to_matrix(scaled)
+    assert matrices.shape == (*shape, 3, 3)
+    for index in np.ndindex(shape):
+        np.testing.assert_allclose(matrices[index], rodrigues(axes[index], angles[index]), atol=1e-14)
+
+
+def test_the_rate_is_the_derivative_of_a_turn_at_constant_angular_velocity():
+    """q(t) = exp(ω t / 2) ⊗ q₀ turns at the world angular velocity ω: its derivative at t = 0 (central difference)
+    is ``rate(q₀, ω)``, for each of a stack of bodies and for one body alone."""
+    rng = np.random.default_rng(3)
+    start = rng.normal(size=(6, 4))
+    start /= np.linalg.norm(start, axis=-1, keepdims=True)
+    omega = rng.normal(size=(6, 3)) * 3
+
+    def turned(t: float) -> np.ndarray:
+        return quaternion.multiply(quaternion.from_rotation_vector(omega * t), start)
+
+    h = 1e-5
+    difference = (turned(h) - turned(-h)) / (2 * h)
+    np.testing.assert_allclose(quaternion.rate(start, omega), difference, atol=1e-9)
+    np.testing.assert_allclose(quaternion.rate(start[2], omega[2]), difference[2], atol=1e-9)
