@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import functools
 import math
+import operator
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -461,6 +462,9 @@ BLOCK_CONTACTS = 400
 #: Passes of the active-set search for the jointed contacts' normal impulses.
 ACTIVE_SET_PASSES = 8
 
+#: Resting-contact force solves of at most this many rows (three a contact) sweep on Python floats, larger ones on
+#: numpy arrays (see :func:`solve_forces`).
+SMALL_FORCE_ROWS = 48
 #: Resting-contact forces are converged when every contact's acceleration target is met to this [m/s²].
 ACCELERATION_TOLERANCE = 1e-9
 #: Impulses are converged when every contact's velocity target is met to this, relative to the approach speeds.
@@ -797,19 +801,32 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
     diagonal = np.diag(matrix).copy()
     diagonal[diagonal <= 0] = np.inf
     limit = contacts.static_friction
+    # a row update reads one row of A against the whole solution: for a few resting contacts (a box on its corners)
+    # Python floats do that faster than numpy's scalars and views (a microsecond a row against three)
+    small = 3 * count <= SMALL_FORCE_ROWS
+    coupling: Any = matrix.tolist() if small else matrix
+    constant: Any = free.tolist() if small else free
+    pivot: Any = diagonal.tolist() if small else diagonal
+    holds: Any = sticking.tolist() if small else sticking
+    cone: Any = limit.tolist() if small else limit
     for _ in range(iterations):
+        current: Any = solution.tolist() if small else solution
+
+        def update(row: int) -> float:
+            along = sum(map(operator.mul, coupling[row], current)) if small else coupling[row] @ current
+            return current[row] - (constant[row] + along) / pivot[row]
+
         for k in range(count):
-            i = k
-            solution[i] = max(solution[i] - (free[i] + matrix[i] @ solution) / diagonal[i], 0.0)
-            if sticking[k]:
+            current[k] = max(update(k), 0.0)
+            if holds[k]:
                 j1, j2 = count + k, 2 * count + k
-                t1 = solution[j1] - (free[j1] + matrix[j1] @ solution) / diagonal[j1]
-                solution[j1] = t1
-                t2 = solution[j2] - (free[j2] + matrix[j2] @ solution) / diagonal[j2]
+                t1 = current[j1] = update(j1)
+                t2 = update(j2)
                 size_t = math.hypot(t1, t2)  # scalars: math, not numpy (a sweep is many of these)
-                cap = limit[k] * solution[i]
+                cap = cone[k] * current[k]
                 scale = 1.0 if size_t <= cap else cap / size_t
-                solution[j1], solution[j2] = t1 * scale, t2 * scale
+                current[j1], current[j2] = t1 * scale, t2 * scale
+        solution = np.array(current, float) if small else solution
         residual = free + matrix @ solution
         normal_residual = np.where(solution[:count] > 0, np.abs(residual[:count]),
                                    np.maximum(-residual[:count], 0.0))
