@@ -477,3 +477,29 @@ def test_an_event_loop_that_stops_advancing_is_stopped_with_a_clear_error(monkey
             colliders: [{{type: plane}}]
             fields: [{{type: gravity}}]
         """)
+
+
+def test_resting_forces_on_python_floats_are_the_array_ones(monkeypatch):
+    """A box held by friction on its four corners on a 20° slope under RK45 (μs = 0.5 > tan 20°): the resting-contact
+    solve of a few contacts sweeps on Python floats; forced onto numpy arrays it gives the same motion, and in both
+    the box stays where it was put."""
+    from animbatch.sim.contact import solver
+
+    theta = np.radians(20)
+    normal = [-float(np.sin(theta)), float(np.cos(theta)), 0.0]
+    text = f"""
+        duration: 0.3
+        fps: 20
+        solver: {{method: RK45, rtol: 1.0e-8}}
+        {materials(0.0, 0.5, 0.3)}
+        bodies:
+          - {{name: block, type: rigid, shape: {{type: box, size: [0.2, 0.1, 0.2]}}, density: 500, material: m,
+             position: {(0.05 * np.array(normal)).tolist()}, orientation: {{axis: [0, 0, 1], angle: 20}}}}
+        colliders: [{{type: plane, normal: {normal}, material: m}}]
+        fields: [{{type: gravity}}]
+    """
+    _, floats = run(text)
+    monkeypatch.setattr(solver, "SMALL_FORCE_ROWS", 0)
+    _, arrays = run(text)
+    np.testing.assert_allclose(floats.positions, arrays.positions, rtol=0, atol=1e-12)
+    assert np.abs(floats.positions - floats.positions[0]).max() < 1e-9
