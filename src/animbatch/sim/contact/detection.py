@@ -236,7 +236,10 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
     everywhere = np.flatnonzero(active)
     largest_travel = float(travel.max(initial=0.0)) if travel is not None else 0.0
     reach = margin + largest_travel + (float(world.probes.radius.max()) if world.probes.count else 0.0)
-    tree = cKDTree(centres) if world.probes.count else None
+    box_centres, box_rotations = body_box_poses(world, state)
+    by_kernel = compiled and world.probes.count <= COMPILED_PROBES
+    # the compiled search tests every pair itself; the numpy one finds them through a k-d tree of the probes
+    tree = cKDTree(centres) if world.probes.count and not by_kernel else None
 
     def near(centre: np.ndarray, radius: float) -> np.ndarray:
         if tree is None:  # no probes: nothing is near anything
@@ -244,8 +247,6 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
         found = np.asarray(tree.query_ball_point(centre, radius + reach), dtype=np.intp)
         return found[active[found]] if len(found) else found
 
-    box_centres, box_rotations = body_box_poses(world, state)
-    by_kernel = compiled and world.probes.count <= COMPILED_PROBES
     if by_kernel:
         parts.append(_compiled_probe_contacts(world, state, statics, centres, active, margin, largest_travel,
                                               box_centres, box_rotations, travel))
@@ -280,8 +281,7 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
             parts.append(_contacts(world, probes, centres[probes], d, n, np.full(len(probes), STATIC),
                                    statics.triangle_material[triangles], margin, TRIANGLE, triangles, travel))
     if world.bodies_collide and tree is not None:
-        parts += _between_bodies(world, state, centres, tree, active, margin, box_centres, box_rotations, travel,
-                                 probe_solids=not by_kernel)
+        parts += _between_bodies(world, state, centres, tree, active, margin, box_centres, box_rotations, travel)
     if edges and (world.boxes.count or world.hulls):
         search = compiled_edge_contacts if compiled else edge_contacts
         parts.append(search(world, state, statics, box_centres, box_rotations, margin, travel))
@@ -458,13 +458,13 @@ def _box_contacts(world: ContactWorld, chosen: np.ndarray, centres: np.ndarray, 
 
 def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray, tree: cKDTree, active: np.ndarray,
                     margin: float, box_centres: np.ndarray, box_rotations: np.ndarray,
-                    travel: np.ndarray | None, *, probe_solids: bool = True) -> list[Contacts]:
+                    travel: np.ndarray | None) -> list[Contacts]:
     """Probe spheres against other bodies' probe spheres, and probes against other bodies' boxes, round solids and
-    hulls (unless ``probe_solids`` is false: the compiled probe search has them all)."""
+    hulls, found through the k-d ``tree`` of the probes' centres (the numpy search; the compiled one tests them
+    all itself)."""
     probes, parts = world.probes, []
     closing = margin + 2 * (float(travel.max(initial=0.0)) if travel is not None else 0.0)  # both sides move
-    pairs = (tree.query_pairs(2 * float(probes.radius.max()) + closing, output_type="ndarray") if probe_solids
-             else np.zeros((0, 2), np.intp))
+    pairs = tree.query_pairs(2 * float(probes.radius.max()) + closing, output_type="ndarray")
     if len(pairs):
         i, j = pairs[:, 0], pairs[:, 1]
         keep = (probes.owner[i] != probes.owner[j]) & active[i] & active[j] & (probes.radius[j] > 0)
@@ -478,7 +478,7 @@ def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray,
         parts.append(_contacts(world, i, centres[i], d, n, owner_j, world.body_material[owner_j], margin,
                                BODY_SPHERE, j, travel))
     boxes = world.boxes
-    for k in range(boxes.count if probe_solids else 0):
+    for k in range(boxes.count):
         owner = boxes.owner[k]
         if not world.collides[owner]:
             continue
@@ -501,7 +501,7 @@ def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray,
             return found
         return found[(probes.owner[found] != owner) & active[found] & world.allowed(owner, probes.owner[found])]
 
-    if world.cylinders is not None and probe_solids:
+    if world.cylinders is not None:
         rounds = world.cylinders
         centre, axis = round_poses(world, state)
         for k in range(rounds.count):
@@ -515,7 +515,7 @@ def _between_bodies(world: ContactWorld, state: Kinematics, centres: np.ndarray,
                 parts.append(_contacts(world, chosen, centres[chosen], d, normal, np.full(count, owner),
                                        np.full(count, world.body_material[owner]), margin, BODY_ROUND,
                                        np.full(count, k), travel))
-    for k, hull in enumerate(world.hulls if probe_solids else ()):
+    for k, hull in enumerate(world.hulls):
         chosen = near_solid(hull.owner, state.x[hull.owner], hull.reach)
         if len(chosen):
             assert state.rotation is not None
