@@ -70,3 +70,42 @@ def test_a_tree_of_joints_is_solved_by_cholesky_and_redundant_rows_by_the_pseudo
         np.testing.assert_allclose(solve(right), np.linalg.pinv(matrix, hermitian=True) @ right, rtol=1e-8,
                                    atol=1e-10)
         assert ("cho_solve" in solve.__code__.co_names) == by_cholesky
+
+
+def test_the_inverse_mass_matrix_moves_each_body_by_its_mass_and_world_inertia():
+    """``M⁻¹ V`` over the flat velocity ``[v, ω]`` of particles (no inertia), rigid bodies, a body of no mass (a
+    moving collider) and the fixed body: ``v / m`` and ``I⁻¹ ω`` body by body."""
+    from animbatch.sim.contact.solver import BodyVelocities, inverse_mass_matrix
+
+    rng = np.random.default_rng(5)
+    count = 7
+    inverse_inertia = np.zeros((count, 3, 3))
+    for body in range(2, 5):
+        a = rng.normal(size=(3, 3))
+        inverse_inertia[body] = np.linalg.inv(a @ a.T + np.eye(3))
+    inverse_mass = np.concatenate([rng.uniform(0.2, 3.0, 5), [0.0, 0.0]])
+    bodies = BodyVelocities(np.zeros((count, 3)), np.zeros((count, 3)), inverse_mass, inverse_inertia)
+    v, omega = rng.normal(size=(count, 3)), rng.normal(size=(count, 3))
+    moved = inverse_mass_matrix(bodies) @ np.concatenate([v.ravel(), omega.ravel()])
+    np.testing.assert_allclose(moved[:3 * count], (inverse_mass[:, None] * v).ravel(), rtol=1e-15)
+    np.testing.assert_allclose(moved[3 * count:], np.einsum("bij,bj->bi", inverse_inertia, omega).ravel(),
+                               rtol=1e-14, atol=1e-15)
+
+
+def test_bodies_joined_directly_or_through_others_share_a_group():
+    """Joints 0–1 and 1–2 (one through the other), 3–4, and a limit row on body 5 alone: three groups, {0, 1, 2},
+    {3, 4}, {5}, and body 6 that nothing holds is its own; an entry stored as zero joins nothing."""
+    size = 7
+    entries = []  # (row, column, value)
+    for row, bodies in enumerate(((0, 1), (1, 2), (3, 4), (5,))):
+        for body in bodies:
+            entries += [(row, 3 * body, 1.0), (row, 3 * size + 3 * body + 2, 0.5)]  # a linear and an angular column
+    entries.append((3, 3 * 6, 0.0))  # body 6 in body 5's row, stored but zero (and row 4 empty)
+    row, column, value = map(np.array, zip(*entries))
+    matrix = sp.csr_matrix((value, (row, column)), shape=(5, 6 * size))
+    assert matrix.nnz == len(entries)
+    response = JointedResponse(matrix, sp.identity(6 * size, format="csr"))
+    labels = response.groups(size)
+    assert labels[0] == labels[1] == labels[2] and labels[3] == labels[4]
+    assert len({labels[0], labels[3], labels[5], labels[6]}) == 4
+    assert np.array_equal(response.groups(size), labels)  # kept: the same labels from the cache

@@ -63,6 +63,11 @@ def _array(matrix: sp.spmatrix | np.ndarray) -> np.ndarray:
     return np.asarray(matrix.toarray()) if isinstance(matrix, sp.spmatrix | sp.sparray) else np.asarray(matrix)
 
 
+#: Body groups of recent joint structures (see :meth:`JointedResponse.groups`), oldest first, at most this many.
+GROUPS_KEPT = 16
+_GROUPS: dict[tuple[int, bytes], np.ndarray] = {}
+
+
 class JointedResponse:
     """The joints' rows ``rows`` (R, 6N) and the inverse mass matrix ``inverse`` (6N, 6N), both over the flat
     velocity of N bodies, and the factorised ``G M⁻¹ Gᵀ``."""
@@ -128,11 +133,22 @@ class JointedResponse:
 
     def groups(self, size: int) -> np.ndarray:
         """A label (size,) per body: bodies joined (directly or through others) share one; a body no joint holds
-        has its own. (Asked for by every row direction and the normal block: found once.)"""
+        has its own. (Asked for by every row direction and the normal block: found once, and kept across steps for
+        the same joints, which a new response each step would otherwise find again.)"""
         if self._groups is None or len(self._groups) != size:
-            ends = sp.csr_matrix(self.rows.astype(bool).astype(float))
-            body_of_column = np.arange(6 * size) % (3 * size) // 3
-            incidence = ends @ sp.csr_matrix((np.ones(6 * size), (np.arange(6 * size), body_of_column)),
-                                             shape=(6 * size, size))
-            self._groups = connected_components(incidence.T @ incidence, directed=False)[1]
+            rows = self.rows
+            entries = np.repeat(np.arange(rows.shape[0]), np.diff(rows.indptr))[rows.data != 0]
+            body = (rows.indices[rows.data != 0] % (3 * size)) // 3
+            # each body a row touches, linked to the first body that row touches
+            first = np.full(rows.shape[0], -1)
+            first[entries[::-1]] = body[::-1]
+            links = np.stack([first[entries], body])
+            key = (size, links.tobytes())
+            found = _GROUPS.get(key)
+            if found is None:
+                graph = sp.csr_matrix((np.ones(links.shape[1]), (links[0], links[1])), shape=(size, size))
+                found = _GROUPS[key] = connected_components(graph, directed=False)[1]
+                if len(_GROUPS) > GROUPS_KEPT:
+                    _GROUPS.pop(next(iter(_GROUPS)))
+            self._groups = found
         return self._groups.copy()
