@@ -441,3 +441,56 @@ def test_joints_and_contacts_are_solved_together_so_a_weight_on_a_stalk_cannot_p
     assert trajectory.ledger["contacts"]["missed"] is None
     assert trajectory.positions[:, 0, 1].min() > 0.01 - 2e-3
     np.testing.assert_allclose(trajectory.positions[-1, 1], [0, 0.3, 0], atol=2e-3)  # standing, balanced
+
+
+def test_the_rows_kept_for_velocity_projections_follow_the_positions_not_the_last_call():
+    """The joints keep the rows of the last positions for the velocity-level uses of a contact step: asked again
+    at new positions (a bar turned on its hinge, then moved off it, then turned about its centre) they give the rows
+    there, as joints that never kept any do; and projected velocities hold the hinge point still at each."""
+    from animbatch.compile.model import compile_scene
+    from animbatch.sim.model.dynamics import Dynamics
+
+    loaded = scene("""
+        bodies:
+          - {name: bar, type: rigid, shape: {type: box, size: [1.0, 0.05, 0.05]}, mass: 2, position: [0.5, 0, 0]}
+        joints: [{type: hinge, between: [bar], anchor: [0, 0, 0], axis: [0, 0, 1]}]
+        fields: [{type: gravity}]
+    """)
+    states = []
+    for angle, shift in ((0.0, 0.0), (0.7, 0.0), (0.7, 0.1), (0.9, 0.1)):  # turned, moved alone, turned alone
+        turn = np.array([np.cos(angle / 2), 0, 0, np.sin(angle / 2)])
+        model = compile_scene(loaded.spec)
+        system = Dynamics(model)
+        config, motion = system.split(np.array(model.y0, float))
+        config[:3] = 0.5 * np.array([np.cos(0.7 if shift else angle), np.sin(0.7 if shift else angle), 0.0]) + shift
+        config[3:7] = turn
+        motion[:] = [0.3, -0.2, 0.1, 0.4, 0.5, 1.5]  # momentum and angular momentum that break the hinge
+        states.append(system.kinematics(config, motion, copy=True))
+    joints = Dynamics(compile_scene(loaded.spec)).joints
+    assert joints is not None
+    for state in states:
+        fresh = Dynamics(compile_scene(loaded.spec)).joints
+        np.testing.assert_array_equal(joints.velocity_rows(state, 2).toarray(), fresh.velocity_rows(state, 2).toarray())
+        v, omega = state.v.copy(), state.omega.copy()
+        joints.project_velocities(state, v, omega)
+        lever = state.rotation[0] @ np.array([-0.5, 0, 0])  # from the centre to the bar's hinge point
+        np.testing.assert_allclose(v[0] + np.cross(omega[0], lever), 0.0, atol=1e-12)
+    # a bob on a rod: its row's direction follows the bob's position alone (a particle does not turn)
+    rod = scene("""
+        anchors: [{name: pivot, position: [0, 0, 0]}]
+        bodies: [{name: bob, mass: 1.0, position: [1.0, 0, 0], velocity: [0.4, 0.3, 0]}]
+        joints: [{type: distance, between: [pivot, bob]}]
+    """)
+    joints = Dynamics(compile_scene(rod.spec)).joints
+    assert joints is not None
+    for place in ([1.0, 0, 0], [0.6, -0.8, 0]):
+        model = compile_scene(rod.spec)
+        system = Dynamics(model)
+        config, motion = system.split(np.array(model.y0, float))
+        config[:3] = place
+        state = system.kinematics(config, motion, copy=True)
+        fresh = Dynamics(compile_scene(rod.spec)).joints
+        np.testing.assert_array_equal(joints.velocity_rows(state, 1).toarray(), fresh.velocity_rows(state, 1).toarray())
+        v = state.v.copy()
+        joints.project_velocities(state, v, None)
+        assert abs(v[0] @ np.array(place)) < 1e-12  # no speed along the rod

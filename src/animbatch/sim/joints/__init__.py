@@ -213,6 +213,20 @@ class Joints:
     def rows(self, motion: JoinedMotion) -> Rows:
         return Rows.concatenate([kind.rows(motion) for kind in self.kinds])
 
+    def _held_rows(self, motion: JoinedMotion) -> Rows:
+        """The rows at ``motion``'s positions for the velocity-level uses (projecting velocities, the contact
+        solver's Jacobian), which read only their Jacobian and violation, both functions of the positions alone:
+        kept for the last positions, since a contact step asks three times at the same ones. Their bias, which the
+        velocities set, is left out (NaN), so that a use that needs it cannot take a stale one."""
+        key = (motion.x.tobytes(), motion.rotation.tobytes())
+        last = self._cache.get("held_rows")
+        if last is not None and last[0] == key:
+            return last[1]
+        rows = self.rows(motion)
+        held = Rows(rows.violation, rows.linear, rows.angular, np.full_like(rows.bias, np.nan))
+        self._cache["held_rows"] = (key, held)
+        return held
+
     def violation(self, motion: JoinedMotion) -> np.ndarray:
         """How far each row is from holding (R,) [m or rad], ≥ 0: |C| for bilateral rows, how far past its limit
         for unilateral ones (a slack rope, a hinge inside its limits: 0)."""
@@ -312,7 +326,7 @@ class Joints:
         bodies = self._cache["bodies"]
         moving = Kinematics(state.x, v, state.rotation, omega, state.first_rigid, state.t)
         motion = self.motion(moving)
-        rows = self.rows(motion)
+        rows = self._held_rows(motion)
         rate = apply(rows, bodies, (motion.v, motion.omega))
         reached = rows.violation <= PROJECTION_TOLERANCE * max(self.scale, 1.0)
         impulse = self._solve_active(rows, motion, -rate, reached & (rate < 0))
@@ -329,7 +343,7 @@ class Joints:
         the model (anchors and the world do not move in it): ``J V`` is each row's rate. For the contact solver,
         which solves contacts within the joints' constraints with it."""
         motion = self.motion(state)
-        rows = self.rows(motion)
+        rows = self._held_rows(motion)
         holding = ~self._cache["unilateral"] | (rows.violation <= PROJECTION_TOLERANCE * max(self.scale, 1.0))
         bodies = self._cache["bodies"][holding]
         count = len(self.points)
