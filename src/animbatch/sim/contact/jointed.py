@@ -21,6 +21,7 @@ Only the columns of contacts on jointed bodies change; a pile of free bodies nex
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -75,14 +76,19 @@ class JointedResponse:
     def __init__(self, rows: sp.csr_matrix, inverse: sp.spmatrix) -> None:
         self.rows = rows.tocsr()
         self._groups: np.ndarray | None = None
-        self.push = (inverse @ self.rows.T).tocsc()  # M⁻¹ Gᵀ (6N, R)
-        system = self.rows @ self.push
-        # small systems: the same products on arrays (see DENSE_COLUMNS)
+        # small systems: the same products on arrays, with no sparse form of M⁻¹ Gᵀ at all (see DENSE_COLUMNS)
         self._dense = self.rows.shape[1] <= DENSE_COLUMNS
-        self._rows_array = self.rows.toarray() if self._dense else None
-        self._push_array = self.push.toarray() if self._dense else None
+        self._rows_array = self._push_array = None
+        self.push: Any = None  # M⁻¹ Gᵀ (6N, R) as a sparse matrix, for large systems only
+        if self._dense:
+            self._rows_array = self.rows.toarray()
+            self._push_array = np.asarray(inverse @ self._rows_array.T)  # M⁻¹ Gᵀ (6N, R)
+            system: Any = self._rows_array @ self._push_array
+        else:
+            self.push = (inverse @ self.rows.T).tocsc()
+            system = self.rows @ self.push
         if system.shape[0] <= DENSE_ROWS:
-            self._solve = _dense_solver(system.toarray())
+            self._solve = _dense_solver(_array(system))
         else:
             factor = splu(sp.csc_matrix(system))
             self._solve = factor.solve
