@@ -66,6 +66,7 @@ def trajectories(monkeypatch, *, skipping: bool, text: str = THROWN):
     return trajectory, len(searches)
 
 
+@pytest.mark.slow  # several seconds: two runs of thousands of contact steps each
 def test_skipping_the_search_in_free_flight_changes_nothing_and_searches_a_fraction_of_the_steps(monkeypatch):
     searched, every_step = trajectories(monkeypatch, skipping=False)
     skipped, fewer = trajectories(monkeypatch, skipping=True)
@@ -77,6 +78,7 @@ def test_skipping_the_search_in_free_flight_changes_nothing_and_searches_a_fract
     assert skipped.solver_stats["impacts"] == searched.solver_stats["impacts"]
 
 
+@pytest.mark.slow  # several seconds: two runs of thousands of contact steps each
 def test_colliders_on_keyframes_count_their_own_moves_and_turns(monkeypatch):
     """The sliding paddle and the swinging bat strike their balls in the same steps whether the search is skipped
     or not; a mutant that ignores the colliders' moves lets both pass through their balls."""
