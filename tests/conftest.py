@@ -50,6 +50,14 @@ def tmp_cwd(tmp_path, monkeypatch):
     return tmp_path
 
 
+def counting(monkeypatch, module, name: str) -> list[int]:
+    """Patch ``module.name`` to count its calls (and still do its work): a list that grows by one a call."""
+    calls: list[int] = []
+    original = getattr(module, name)
+    monkeypatch.setattr(module, name, lambda *a, **k: calls.append(1) or original(*a, **k))
+    return calls
+
+
 @pytest.fixture
 def polydata_built(monkeypatch) -> list[int]:
     """A list that grows by one for every pyvista.PolyData built (to check that frames update meshes in place)."""

@@ -8,7 +8,7 @@ import pytest
 
 import test_contacts
 from animbatch.sim import kernels
-from conftest import run
+from conftest import counting, run
 
 pytest.importorskip("numba", reason="numba is not installed: numpy solves every contact")
 
@@ -19,15 +19,7 @@ def compiled_sweeps(monkeypatch):
     from animbatch.sim.kernels import contact_impulses
 
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
-    calls = []
-    solve = contact_impulses.solve_contacts
-
-    def counted(*args):
-        calls.append(len(args[0]))
-        return solve(*args)
-
-    monkeypatch.setattr(contact_impulses, "solve_contacts", counted)
-    return calls
+    return counting(monkeypatch, contact_impulses, "solve_contacts")
 
 
 CLOSED_FORMS = [

@@ -15,6 +15,7 @@ from animbatch import api
 from animbatch.cli import cli
 from animbatch.farm import FrameRange, bake, frame_is_complete, parse_frames, render_frames
 from animbatch.farm import cache as farm_cache
+from conftest import counting
 
 pytestmark = pytest.mark.render
 
@@ -44,14 +45,6 @@ def throw(tmp_cwd):
 
 def pixels(path) -> np.ndarray:
     return np.asarray(Image.open(path).convert("RGB"))
-
-
-def counting(monkeypatch, module, name):
-    """Patch ``module.name`` to count its calls (and still do its work)."""
-    calls = []
-    original = getattr(module, name)
-    monkeypatch.setattr(module, name, lambda *a, **k: calls.append(1) or original(*a, **k))
-    return calls
 
 
 def test_cache_is_reused_for_a_new_camera_and_redone_for_new_physics_or_solver(throw, monkeypatch):

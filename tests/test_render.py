@@ -16,6 +16,7 @@ from animbatch.errors import RenderError
 from animbatch.render import backend as backend_module
 from animbatch.render.camera import place_camera
 from animbatch.scene.schema import CameraSpec
+from conftest import counting
 
 pytestmark = pytest.mark.render
 
@@ -312,14 +313,7 @@ def test_rigid_body_turns_by_its_transform_not_a_new_mesh(tmp_cwd, monkeypatch):
     import pyvista as pv
 
     (tmp_cwd / "turning.yaml").write_text(ROTATING)
-    built = []
-    original_box = pv.Box
-
-    def counting_box(*args, **kwargs):
-        built.append(1)
-        return original_box(*args, **kwargs)
-
-    monkeypatch.setattr(pv, "Box", counting_box)
+    built = counting(monkeypatch, pv, "Box")
     api.run(tmp_cwd / "turning.yaml", out_dir="renders")
     first = np.asarray(Image.open(tmp_cwd / "renders" / "turning" / "frames" / "frame_00000.png"))
     last = np.asarray(Image.open(tmp_cwd / "renders" / "turning" / "frames" / "frame_00001.png"))

@@ -9,7 +9,7 @@ import pytest
 
 from animbatch import api
 from animbatch.sim.contact import clearance, stepping
-from conftest import scene
+from conftest import counting, scene
 
 
 def world(duration: float, method: str, bodies: list[str], colliders: list[str], g: float | None = None,
@@ -50,14 +50,7 @@ PADDLES = world(1.0, "verlet", [ball("near", "[0, 0, 0]"), ball("far", "[0.6, 0,
 
 
 def trajectories(monkeypatch, *, skipping: bool, text: str = THROWN):
-    searches = []
-    original = stepping.detect
-
-    def counted(*args, **kwargs):
-        searches.append(1)
-        return original(*args, **kwargs)
-
-    monkeypatch.setattr(stepping, "detect", counted)
+    searches = counting(monkeypatch, stepping, "detect")
     if not skipping:
         monkeypatch.setattr(clearance.Clearance, "clear", lambda self, state, travel: False)
         monkeypatch.setattr(clearance.Clearance, "look_ahead", lambda self, travel, margin: 0.0)

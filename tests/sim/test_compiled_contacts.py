@@ -356,7 +356,11 @@ def test_the_compiled_contact_rows_are_the_numpy_ones():
     found = Contacts(first, second, rng.normal(size=(count, 3)), normal, z, z, z, z, np.arange(count),
                      np.zeros(count, np.intp), np.zeros(count, np.intp))
     x = rng.normal(size=(size, 3))
-    numpy_rows = ContactRows(found, bodies, x).kernel_rows()
+    rows = ContactRows(found, bodies, x)
+    directions = (rows.normal_row, rows.first_row, rows.second_row)  # in the kernel's order, stacked as it returns
+    numpy_rows = (rows.a, rows.b, *(np.stack([getattr(row, name) for row in directions])
+                                    for name in ("d", "ang_a", "ang_b", "lin_a", "lin_b", "turn_a", "turn_b")),
+                  np.stack([rows.w_n, rows.w_1, rows.w_2]))
     a, b = first.astype(np.int64), np.where(second < 0, size - 1, second).astype(np.int64)
     compiled_rows = (a, b, *contact_impulses.contact_rows(a, b, normal, found.point, x, inverse_mass,
                                                           inverse_inertia))

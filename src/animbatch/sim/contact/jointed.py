@@ -143,12 +143,12 @@ class JointedResponse:
         the same joints, which a new response each step would otherwise find again.)"""
         if self._groups is None or len(self._groups) != size:
             rows = self.rows
-            entries = np.repeat(np.arange(rows.shape[0]), np.diff(rows.indptr))[rows.data != 0]
-            body = (rows.indices[rows.data != 0] % (3 * size)) // 3
+            stored = rows.data != 0  # an entry stored as zero joins nothing
+            entries = np.repeat(np.arange(rows.shape[0]), np.diff(rows.indptr))[stored]  # each entry's row, sorted
+            body = (rows.indices[stored] % (3 * size)) // 3
             # each body a row touches, linked to the first body that row touches
-            first = np.full(rows.shape[0], -1)
-            first[entries[::-1]] = body[::-1]
-            links = np.stack([first[entries], body])
+            _, first_entry, per_row = np.unique(entries, return_index=True, return_counts=True)
+            links = np.stack([np.repeat(body[first_entry], per_row), body])
             key = (size, links.tobytes())
             found = _GROUPS.get(key)
             if found is None:

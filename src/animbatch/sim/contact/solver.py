@@ -149,6 +149,15 @@ class FlatVelocities:
         w[:] = velocity[half:].reshape(-1, 3)
 
 
+def contact_ends(contacts: Contacts, size: int, kinematic: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Each contact's two ends (K,) as slots of ``size`` bodies: its probe's body, and the solid's body, the fixed
+    one (the last slot) for fixed solids, or the slot ``kinematic`` (K,) gives for a moving collider (−1: none)."""
+    b = np.where(contacts.solid_body < 0, size - 1, contacts.solid_body)
+    if kinematic is not None:
+        b = np.where(kinematic >= 0, kinematic, b)
+    return contacts.probe_body, b
+
+
 @dataclass(frozen=True, eq=False)
 class ContactFrame:
     """Where and along what K contacts act: their ends ``a``, ``b`` (K,) (indices into the bodies, the fixed one
@@ -167,10 +176,7 @@ class ContactFrame:
     def of(cls, contacts: Contacts, x: np.ndarray, kinematic: np.ndarray | None = None) -> ContactFrame:
         """The frame of ``contacts`` on bodies centred at ``x`` (P + 1, 3) [m]; ``kinematic`` (K,): the slot of the
         moving collider each contact touches (−1: none)."""
-        a = contacts.probe_body
-        b = np.where(contacts.solid_body < 0, len(x) - 1, contacts.solid_body)
-        if kinematic is not None:
-            b = np.where(kinematic >= 0, kinematic, b)
+        a, b = contact_ends(contacts, len(x), kinematic)
         t1, t2 = tangent_basis(contacts.normal)
         return cls(a, b, contacts.normal, t1, t2, contacts.point - x[a], contacts.point - x[b])
 
@@ -252,16 +258,6 @@ class ContactRows(FlatVelocities):
     def _response_tangent(self) -> sp.csr_matrix | sp.csc_matrix | np.ndarray:
         response = self._sparse((self.first_row, self.second_row), response=True)
         return self._jointed.correct(response) if self._jointed is not None else response
-
-    def kernel_rows(self) -> tuple[Any, ...]:
-        """The rows as :mod:`animbatch.sim.kernels.contact_impulses` takes them: ``a``, ``b`` (K,), then
-        ``direction``, ``arm_a``, ``arm_b``, ``lin_a``, ``lin_b``, ``turn_a``, ``turn_b`` (3, K, 3) and ``weight``
-        (3, K), rows in the order normal, first tangent, second tangent."""
-        rows = (self.normal_row, self.first_row, self.second_row)
-        stacked = [np.ascontiguousarray(np.stack([getattr(row, name) for row in rows]), dtype=np.float64)
-                   for name in ("d", "ang_a", "ang_b", "lin_a", "lin_b", "turn_a", "turn_b")]
-        return (self.a.astype(np.int64), self.b.astype(np.int64), *stacked,
-                np.stack([self.w_n, self.w_1, self.w_2]))
 
     def _sparse(self, rows: tuple[_Direction, ...], *, response: bool, ends: tuple[bool, bool] = (True, True)
                 ) -> sp.csr_matrix | sp.csc_matrix | np.ndarray:
@@ -414,7 +410,6 @@ class ContactRows(FlatVelocities):
         velocity = self.flat(v, w)
         self.push_normal(velocity, amount)
         self.unflat(velocity, v, w)
-
 
 
 class JointedNormals:
@@ -646,10 +641,7 @@ def _solve_compiled(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h
 
     solve: Any = contact_impulses.solve_contacts
     count, size = contacts.count, len(x)
-    a = contacts.probe_body.astype(np.int64)
-    b = np.where(contacts.solid_body < 0, size - 1, contacts.solid_body).astype(np.int64)
-    if kinematic is not None:  # contacts with moving colliders: their slots in bodies (else −1)
-        b = np.where(kinematic >= 0, kinematic, b).astype(np.int64)
+    a, b = (np.asarray(end, np.int64) for end in contact_ends(contacts, size, kinematic))
     velocity = np.concatenate([bodies.v.ravel(), bodies.omega.ravel()])
     warm_normal, warm_tangent = warm if warm is not None else (np.zeros(count), np.zeros((count, 3)))
 
@@ -816,19 +808,20 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
     pivot: Any = diagonal.tolist() if small else diagonal
     holds: Any = sticking.tolist() if small else sticking
     cone: Any = limit.tolist() if small else limit
+
+    def update(row: int, current: Any) -> float:
+        """Row ``row``'s value that meets its target with the others at ``current`` (Gauss–Seidel)."""
+        along = sum(map(operator.mul, coupling[row], current)) if small else coupling[row] @ current
+        return current[row] - (constant[row] + along) / pivot[row]
+
     for _ in range(iterations):
         current: Any = solution.tolist() if small else solution
-
-        def update(row: int) -> float:
-            along = sum(map(operator.mul, coupling[row], current)) if small else coupling[row] @ current
-            return current[row] - (constant[row] + along) / pivot[row]
-
         for k in range(count):
-            current[k] = max(update(k), 0.0)
+            current[k] = max(update(k, current), 0.0)
             if holds[k]:
                 j1, j2 = count + k, 2 * count + k
-                t1 = current[j1] = update(j1)
-                t2 = update(j2)
+                t1 = current[j1] = update(j1, current)
+                t2 = update(j2, current)
                 size_t = math.hypot(t1, t2)  # scalars: math, not numpy (a sweep is many of these)
                 cap = cone[k] * current[k]
                 scale = 1.0 if size_t <= cap else cap / size_t
