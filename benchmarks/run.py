@@ -191,37 +191,42 @@ def bench_pool(quick: bool, sizes: list[int] | None = None) -> list[Row]:
         x, v, a = pool.x.copy(), pool.v.copy(), pool.acceleration.copy()
         mass, radius = pool.mass.copy(), pool.radius.copy()
 
-        def timed(work: Callable[[], None], steps: int, repeats: int = 5) -> float:
-            """Steps per second of ``work`` (``steps`` steps from the pool's first state), best of ``repeats``."""
-            best = np.inf
+        def reset() -> None:
+            """Every run starts in flight, 1 m over the floor."""
+            for name, value in saved.items():
+                np.copyto(getattr(pool, name), value)
+            np.copyto(x, saved["x"]), np.copyto(v, saved["v"]), np.copyto(a, saved["acceleration"])
+
+        def timed(cases: dict[str, tuple[Callable[[], None], int]], repeats: int) -> dict[str, float]:
+            """Steps per second of each case's work (its steps from the pool's first state), best of ``repeats``
+            rounds that take the cases in turn: this machine's speed drifts by tens of percent within seconds, and
+            a ratio of two cases timed minutes apart measures the drift."""
+            best = dict.fromkeys(cases, np.inf)
             for _ in range(repeats):
-                for name, value in saved.items():  # every run starts in flight, 1 m over the floor
-                    np.copyto(getattr(pool, name), value)
-                np.copyto(x, saved["x"]), np.copyto(v, saved["v"]), np.copyto(a, saved["acceleration"])
-                started = time.perf_counter()
-                work()
-                best = min(best, time.perf_counter() - started)
-            return steps / best
+                for case, (work, _steps) in cases.items():
+                    reset()
+                    started = time.perf_counter()
+                    work()
+                    best[case] = min(best[case], time.perf_counter() - started)
+            return {case: steps / best[case] for case, (_work, steps) in cases.items()}
 
         steps = 99  # 0.1 s at 1 ms: the drops are still falling, as in a fountain's jet
         numpy_steps = 10 if count >= 1_000_000 else 33
         anchor(x, v, a, mass, radius, 1e-3, 1, -9.81, 1e-6, 0.5)  # compiled (or loaded from its cache)
         compiled.kernel.advance(pool, 0.0, 1e-3, 1, 0, 1, age=True)
-        measured = {
-            "kernel, one step per call": timed(lambda: [compiled.kernel.advance(pool, k * 1e-3, (k + 1) * 1e-3, 1, 0,
-                                                                                1, age=True) for k in range(steps)],
-                                               steps),
-            f"kernel, {fused} steps per call (fused)": timed(lambda: [compiled.kernel.advance(
+        measured = timed({
+            "kernel, one step per call": (lambda: [compiled.kernel.advance(pool, k * 1e-3, (k + 1) * 1e-3, 1, 0, 1,
+                                                                           age=True) for k in range(steps)], steps),
+            "anchor: plain numba loop, one step per call": (
+                lambda: [anchor(x, v, a, mass, radius, 1e-3, 1, -9.81, 1e-6, 0.5) for _ in range(steps)], steps),
+            f"kernel, {fused} steps per call (fused)": (lambda: [compiled.kernel.advance(
                 pool, k * fused * 1e-3, (k + 1) * fused * 1e-3, fused, 0, fused, age=True)
                 for k in range(steps // fused)], steps),
-            "numpy code (EmitterRun.step)": timed(lambda: [numpy_run.step(k * 1e-3, (k + 1) * 1e-3)
-                                                           for k in range(numpy_steps)], numpy_steps, repeats=1),
-            "anchor: plain numba loop, one step per call": timed(
-                lambda: [anchor(x, v, a, mass, radius, 1e-3, 1, -9.81, 1e-6, 0.5) for _ in range(steps)], steps),
-            f"anchor: plain numba loop, {fused} steps per call": timed(
+            f"anchor: plain numba loop, {fused} steps per call": (
                 lambda: [anchor(x, v, a, mass, radius, 1e-3, fused, -9.81, 1e-6, 0.5) for _ in range(steps // fused)],
-                steps),
-        }
+                steps)}, repeats=7)
+        measured |= timed({"numpy code (EmitterRun.step)": (lambda: [numpy_run.step(k * 1e-3, (k + 1) * 1e-3)
+                                                                    for k in range(numpy_steps)], numpy_steps)}, 1)
         for case, rate in measured.items():
             rows.append({"benchmark": "particle pool", "case": f"N = {count:.0e}: {case}", "value": rate,
                          "unit": "steps/s"})

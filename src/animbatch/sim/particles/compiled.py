@@ -42,13 +42,16 @@ KERNEL_METHODS = ("euler", "symplectic_euler", "verlet")
 class CompiledPool:
     """The numbers the kernel needs for one emitter: its method and collision mode codes, its field table
     (F, FIELD_COLUMNS) and collider table (S, SOLID_COLUMNS) (see :mod:`animbatch.sim.kernels.particle_pool`), and
-    |g| [m/s²]."""
+    |g| [m/s²]; the colliders again as the kernel's quick clearance test reads them: the planes (P, 6), each a point
+    and a unit normal, and the spheres and boxes as a collider table, or None when there are none."""
 
     method: int
     mode: int
     fields: np.ndarray
     solids: np.ndarray
     gravity: float
+    planes: np.ndarray
+    others: np.ndarray | None
 
     @classmethod
     def of(cls, emitter: Emitter, colliders: ParticleColliders | None, method: str, gravity: float, work: float
@@ -80,7 +83,8 @@ class CompiledPool:
                 row[kernel.VECTOR:kernel.VECTOR + 3] = f.wind if f.wind is not None else 0.0
         solids = solid_table(colliders, kernel) if colliders is not None else np.zeros((0, kernel.SOLID_COLUMNS))
         mode = emitter.collision if colliders is not None else "pass"
-        compiled = cls(kernel.METHOD_CODES[method], kernel.MODE_CODES[mode], table, solids, float(gravity))
+        compiled = cls(kernel.METHOD_CODES[method], kernel.MODE_CODES[mode], table, solids, float(gravity),
+                       *clearance_tables(solids, kernel))
         # a kernel that does not build must not stop the run
         failure = watched(lambda: build_failure(compiled.compile_now), "particle")
         if failure is not None:
@@ -121,16 +125,21 @@ class CompiledPool:
 
         # the instants as the numpy loop computes them, so that both take the same steps
         times = start + (stop - start) * np.arange(first, last + 1) / steps
+        # no particle can die in these steps: their ages are not read (two arrays fewer through memory a step)
+        age = age and pool.may_die_by(float(times[-1]))
         threads = numba.get_num_threads()
         if pool.capacity * (last - first) < SERIAL_WORK:  # waking the threads would cost more than the work
             numba.set_num_threads(1)
         try:
-            hits, deaths = advance_pool(pool.x, pool.v, pool.acceleration, pool.alive, pool.stuck, pool.mass,
-                                        pool.radius, pool.birth, pool.lifetime, times, self.method, self.fields,
-                                        self.solids, self.mode, MAX_BOUNCES, SURFACE_GAP, self.gravity, age)
+            hits, deaths, soonest = advance_pool(pool.x, pool.v, pool.acceleration, pool.alive, pool.stuck,
+                                                 pool.mass, pool.radius, pool.birth, pool.lifetime, times,
+                                                 self.method, self.fields, self.solids, self.planes, self.others,
+                                                 self.mode, MAX_BOUNCES, SURFACE_GAP, self.gravity, age)
         finally:
             numba.set_num_threads(threads)
         pool.died += int(deaths)
+        if age:
+            pool.first_death = float(soonest)
         return int(hits)
 
     def collide_newborns(self, pool: ParticlePool, slots: np.ndarray, starts: np.ndarray, h: float) -> int:
@@ -148,27 +157,50 @@ class CompiledPool:
         """Particles whose age at ``now`` [s] reached their lifetime die."""
         from animbatch.sim.kernels.particle_pool import age_pool
 
+        if not pool.may_die_by(now):
+            return
         if pool.capacity < SERIAL_WORK:
             alive, lifetime = pool.alive, pool.lifetime
             aged = alive & (now - pool.birth >= lifetime)
             if aged.any():
                 pool.kill(aged)
             return
-        pool.died += int(age_pool(pool.alive, pool.stuck, pool.v, pool.birth, pool.lifetime, float(now)))
+        deaths, soonest = age_pool(pool.alive, pool.stuck, pool.v, pool.birth, pool.lifetime, float(now))
+        pool.died += int(deaths)
+        pool.first_death = float(soonest)
 
 
 @functools.cache
 def build_particle_kernels() -> str | None:
     """Build (or load from numba's disk cache) the emitted particles' kernels on a pool of one particle under
-    gravity over a floor; None, or what failed."""
+    gravity, twice: over a floor alone, and over a floor and a sphere (the kernel's two compilations: planes only,
+    and with spheres or boxes); None, or what failed."""
     from animbatch.sim.kernels import particle_pool as kernel
 
     fields = np.zeros((1, kernel.FIELD_COLUMNS))
     fields[0, kernel.KIND], fields[0, kernel.VECTOR + 1] = kernel.FIELD_GRAVITY, -9.81
-    solids = np.zeros((1, kernel.SOLID_COLUMNS))
-    solids[0, kernel.SOLID], solids[0, kernel.NORMAL + 1] = kernel.SOLID_PLANE, 1.0
-    pool = CompiledPool(kernel.METHOD_VERLET, kernel.MODE_BOUNCE, fields, solids, 9.81)
-    return build_failure(pool.compile_now)
+    floor = np.zeros(kernel.SOLID_COLUMNS)
+    floor[kernel.SOLID], floor[kernel.NORMAL + 1] = kernel.SOLID_PLANE, 1.0
+    ball = np.zeros(kernel.SOLID_COLUMNS)
+    ball[kernel.SOLID], ball[kernel.RADIUS] = kernel.SOLID_SPHERE, 1.0
+    for solids in (floor[None], np.stack([floor, ball])):
+        pool = CompiledPool(kernel.METHOD_VERLET, kernel.MODE_BOUNCE, fields, solids, 9.81,
+                            *clearance_tables(solids, kernel))
+        failure = build_failure(pool.compile_now)
+        if failure is not None:
+            return failure
+    return None
+
+
+def clearance_tables(solids: np.ndarray, kernel: Any) -> tuple[np.ndarray, np.ndarray | None]:
+    """The collider table ``solids`` (S, SOLID_COLUMNS) split for the kernel's quick clearance test: its planes
+    (P, 6), each a point and a unit normal, and its spheres and boxes as a collider table, or None when it has
+    none."""
+    is_plane = solids[:, kernel.SOLID] == kernel.SOLID_PLANE
+    planes = np.ascontiguousarray(np.hstack([solids[is_plane, kernel.CENTRE:kernel.CENTRE + 3],
+                                             solids[is_plane, kernel.NORMAL:kernel.NORMAL + 3]]))
+    others = np.ascontiguousarray(solids[~is_plane]) if (~is_plane).any() else None
+    return planes, others
 
 
 def solid_table(colliders: ParticleColliders, kernel: Any) -> np.ndarray:

@@ -18,6 +18,8 @@ class ParticlePool:
     collider; ``-2 - m``: the m-th collider on keyframes) and, on a body, its place ``stuck_at`` (C, 3) in the
     body's axes from its centre of mass [m]; ``serial`` (C,) int64 (-1 when the slot was never used);
     ``birth``, ``lifetime`` [s], ``mass`` [kg], ``radius`` [m] (C,). ``dropped``: births that found no free slot.
+    ``first_death`` [s]: no live particle dies before it (a lower bound of birth + lifetime over the live slots,
+    lowered at every birth, raised by whoever reads every age), so that steps before it need not read the ages.
     """
 
     def __init__(self, capacity: int) -> None:
@@ -37,6 +39,7 @@ class ParticlePool:
         self.dropped = 0
         self.born = 0
         self.died = 0
+        self.first_death = np.inf
 
     @property
     def live_count(self) -> int:
@@ -48,6 +51,18 @@ class ParticlePool:
         self.dropped += count - len(free)
         self.born += len(free)
         return free
+
+    def start_lives(self, slots: np.ndarray, birth: np.ndarray, lifetime: np.ndarray) -> None:
+        """Set the birth instants and lifetimes [s] of the particles born into ``slots``."""
+        self.birth[slots] = birth
+        self.lifetime[slots] = lifetime
+        if len(slots):
+            self.first_death = min(self.first_death, float(np.min(birth + lifetime)))
+
+    def may_die_by(self, now: float) -> bool:
+        """Whether a live particle may have reached its lifetime at ``now`` [s]: ``now - birth >= lifetime``, which
+        cannot hold while ``now`` is clearly (by more than round-off) before :attr:`first_death`."""
+        return now >= self.first_death - 1e-9 * (1.0 + abs(self.first_death))
 
     def kill(self, slots: np.ndarray) -> None:
         """Free ``slots`` (indices or a boolean mask)."""

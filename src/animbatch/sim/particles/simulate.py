@@ -158,8 +158,7 @@ class EmitterRun:
         pool.alive[slots] = True
         pool.stuck[slots] = False
         pool.serial[slots] = births.serials[take]
-        pool.birth[slots] = births.times[take]
-        pool.lifetime[slots] = newborn.lifetime[take]
+        pool.start_lives(slots, births.times[take], newborn.lifetime[take])
         pool.mass[slots] = newborn.mass[take]
         pool.radius[slots] = newborn.radius[take]
         # each newborn moves for the rest of the step from its own birth instant: one step of the method (Verlet
