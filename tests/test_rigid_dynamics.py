@@ -265,6 +265,31 @@ def test_tilted_floating_box_rights_itself():
     assert np.all(up[:, 1] > 0)  # it never capsized
 
 
+def test_a_sphere_s_submerged_cap_has_the_volume_and_centroid_of_the_sliced_ball(recwarn):
+    """The cap under the surface against the ball sliced into thin discs (volume and centroid), dry, half and fully
+    wet; tilted 'up' too; a sphere of no size (a particle of radius 0) is dry and warns of nothing."""
+    from animbatch.sim.forces.buoyancy import spherical_caps
+
+    up = np.array([0.0, 0.6, 0.8])
+    radius, centre_height = 0.3, 1.0
+    levels = [0.5, 0.8, 0.95, 1.0, 1.2, 1.5]  # under the bottom, wet up to 0.1 … 0.7 m, and over the top
+    centres = np.tile(centre_height * up + np.array([0.0, -0.8, 0.6]) * 2.0, (len(levels), 1))  # off-axis centres
+    radii = np.full(len(levels), radius)
+    for k, level in enumerate(levels):
+        volume, centroid = spherical_caps(centres[k:k + 1], radii[k:k + 1], level, up)
+        z = np.linspace(-radius, radius, 200_001)[:-1] + radius / 200_000  # disc centres along up, from the centre
+        area = np.pi * (radius**2 - z**2)
+        wet = z + centre_height <= level
+        expected = np.sum(area[wet]) * (2 * radius / 200_000)
+        assert volume[0] == pytest.approx(expected, rel=1e-4, abs=1e-12)
+        if expected > 0:
+            height = np.sum((area * z)[wet]) / np.sum(area[wet])
+            np.testing.assert_allclose(centroid[0], centres[k] + height * up, rtol=0, atol=1e-5)
+    volume, centroid = spherical_caps(np.zeros((1, 3)), np.zeros(1), 1.0, up)
+    assert volume[0] == 0 and np.all(np.isfinite(centroid))
+    assert not [w for w in recwarn.list if issubclass(w.category, RuntimeWarning)]
+
+
 def test_spheres_and_particles_float_at_the_depth_of_their_density():
     """A rigid sphere and a particle of half the water's density float with their centres at the surface; a
     sphere of 0.1 times its density sits with a cap of volume 0.1 V under water."""

@@ -29,10 +29,11 @@ from animbatch.sim.rigid.polyhedra import submerged_volume_and_moment
 def spherical_caps(centres: np.ndarray, radii: np.ndarray, level: float, up: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Submerged volume (K,) and its centroid (K, 3) for spheres (K, 3), (K,) under a surface at height ``level``."""
-    depth = np.clip(level - (centres @ up - radii), 0.0, 2 * radii)  # h: how far the bottom is under the surface
-    volume = np.pi * depth**2 * (3 * radii - depth) / 3
-    with np.errstate(divide="ignore", invalid="ignore"):
-        below = np.where(depth > 0, 3 * (2 * radii - depth) ** 2 / (4 * (3 * radii - depth)), 0.0)
+    # h: how far the bottom is under the surface (minimum and maximum: np.clip's wrapper costs more than the sum here)
+    depth = np.minimum(np.maximum(level - (centres @ up - radii), 0.0), 2 * radii)
+    rest = 3 * radii - depth  # >= r > 0 wherever the sphere is wet; 0 only for a dry sphere of no size
+    volume = np.pi * depth**2 * rest / 3
+    below = np.where(depth > 0, 3 * (2 * radii - depth) ** 2 / (4 * np.maximum(rest, np.finfo(float).tiny)), 0.0)
     return volume, centres - below[:, None] * up
 
 
@@ -110,18 +111,28 @@ class Buoyancy(ForceTerm):
         centre = np.divide(moment, volume[:, None], out=state.x.copy(), where=volume[:, None] > 0)
         return volume, centre
 
+    @functools.cached_property
+    def _rigid_selected(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Which selected points are rigid bodies (S,) bool, their point indices and their rigid indices."""
+        rigid = self.bodies >= self.first_rigid
+        return rigid, self.bodies[rigid], self.bodies[rigid] - self.first_rigid
+
+    @functools.cached_property
+    def _has_volume(self) -> np.ndarray:
+        """Which selected points have a volume (S,) bool (a particle of no radius has none)."""
+        return self.full_volume > 0
+
     def accumulate(self, t: float, state: Kinematics, force: np.ndarray, torque: np.ndarray | None) -> None:
         volume, centre = self.submerged(state)
         lift = (self.density * self.g * volume)[:, None] * self.up  # (P, 3)
         fraction = np.divide(volume[self.bodies], self.full_volume, out=np.zeros(len(self.bodies)),
-                             where=self.full_volume > 0)
+                             where=self._has_volume)
         pushed = lift[self.bodies]
         if self.linear_damping:
             pushed = pushed - (self.linear_damping * fraction)[:, None] * state.v[self.bodies]
         force[self.bodies] += pushed
         if torque is not None and state.omega is not None:
-            rigid = self.bodies >= self.first_rigid
-            points, which = self.bodies[rigid], self.bodies[rigid] - self.first_rigid
+            rigid, points, which = self._rigid_selected
             torque[which] += cross(centre[points] - state.x[points], lift[points])
             if self.angular_damping:
                 torque[which] -= (self.angular_damping * fraction[rigid])[:, None] * state.omega[which]
