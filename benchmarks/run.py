@@ -205,6 +205,7 @@ def bench_pool(quick: bool, sizes: list[int] | None = None) -> list[Row]:
             for _ in range(repeats):
                 for case, (work, _steps) in cases.items():
                     reset()
+                    time.sleep(0.05)  # the previous case's numba threads go back to sleep (they spin a while)
                     started = time.perf_counter()
                     work()
                     best[case] = min(best[case], time.perf_counter() - started)
