@@ -412,3 +412,32 @@ def test_trajectory_files_keep_the_particles(tmp_path):
     assert loaded.particles[0].name == "e"
     for part in ("positions", "serials", "ages"):
         assert np.array_equal(getattr(loaded.particles[0], part), getattr(trajectory.particles[0], part))
+
+
+def test_a_pool_ages_its_particles_at_their_lifetimes_and_reads_no_age_before_the_first_can_die():
+    """Deaths come at ``now - birth >= lifetime``; ``first_death`` is the survivors' earliest birth + lifetime after
+    every ageing, falls with each birth, and while ``now`` is before it ageing reads nothing (ages changed behind
+    the pool's back are then not seen: the bound is what decides)."""
+    from animbatch.sim.particles.pool import ParticlePool
+
+    pool = ParticlePool(6)
+    slots = pool.allocate(4)
+    pool.alive[slots] = True
+    pool.start_lives(slots, np.array([0.0, 0.0, 0.5, 0.1]), np.array([1.0, 2.0, 2.0, 0.2]))
+    assert pool.first_death == pytest.approx(0.3)
+    pool.age(0.3)  # 0.3 - 0.1 < 0.2 in floating point: the fourth lives on, as the rule says
+    assert pool.alive[:4].all() and pool.first_death == pytest.approx(0.3)
+    pool.age(0.31)
+    assert pool.alive[:4].tolist() == [True, True, True, False] and pool.first_death == 1.0
+    pool.lifetime[0] = 0.5  # not seen: no particle may die before 1.0 by the bound
+    pool.age(0.9)
+    assert pool.alive[0] and pool.died == 1
+    pool.lifetime[0] = 1.0
+    newborn = pool.allocate(1)
+    pool.alive[newborn] = True
+    pool.start_lives(newborn, np.array([0.9]), np.array([0.05]))
+    assert pool.first_death == pytest.approx(0.95)
+    pool.age(0.96)
+    assert not pool.alive[newborn[0]] and pool.first_death == 1.0
+    pool.age(2.5)
+    assert not pool.alive.any() and pool.died == 5 and pool.first_death == np.inf

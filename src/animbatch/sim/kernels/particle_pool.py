@@ -3,9 +3,9 @@
 This is the compiled form of :meth:`animbatch.sim.particles.simulate.EmitterRun.step` for the common case of
 particles under gravity, drag, wind and buoyancy, meeting fixed colliders (planes, spheres, boxes: floors, walls,
 crates) or nothing, stepped with explicit Euler, semi-implicit Euler or velocity Verlet. Each particle is
-independent of the others, so a thread takes each particle through all the steps of a call with its state in
-registers: the pool's arrays are read and written once per call, not once per operation and step as in the numpy
-code. With births during a frame the pool is stepped one step per call (births come between
+independent of the others, so a thread takes each particle through all the steps of a call: its row of the pool's
+arrays is read and written once a step, not once per operation as in the numpy code (which also goes through the
+whole pool for each). With births during a frame the pool is stepped one step per call (births come between
 steps); without, a whole frame's steps are one call.
 
 Every operation is the numpy code's, in the same order, so the two agree to round-off (the tests compare them); but
@@ -501,10 +501,10 @@ def advance_pool(x, v, a, alive, stuck, mass, radius, birth, lifetime, times, me
     ``mode``: a MODE_* code; ``gravity``: |g| [m/s²] (normal speeds below 2 h |g| do not bounce). Returns (hits on
     solids, deaths, the earliest instant [s] a live particle dies at: birth + lifetime, inf unless ``age``).
 
-    Each particle is taken through the steps of the call in turn, its state in registers, as long as each step's
-    path is clear of every solid (:func:`_planes_clear`, :func:`_clear`): the motion alone. From the first step that
-    is not, and for stuck particles, the rest go through :func:`_step` from the same start: the same arithmetic, so
-    every particle ends where :func:`_step` alone would put it."""
+    Each particle is taken through the steps of the call in turn (its state read and written once a step), as long
+    as each step's path is clear of every solid (:func:`_planes_clear`, :func:`_clear`): the motion alone. From the
+    first step that is not, and for stuck particles, the rest go through :func:`_step` from the same start: the same
+    arithmetic, so every particle ends where :func:`_step` alone would put it."""
     hit_total = 0
     death_total = 0
     soonest = np.inf

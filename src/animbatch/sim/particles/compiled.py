@@ -157,13 +157,10 @@ class CompiledPool:
         """Particles whose age at ``now`` [s] reached their lifetime die."""
         from animbatch.sim.kernels.particle_pool import age_pool
 
-        if not pool.may_die_by(now):
+        if pool.capacity < SERIAL_WORK:  # numpy's passes cost less than waking the threads
+            pool.age(now)
             return
-        if pool.capacity < SERIAL_WORK:
-            alive, lifetime = pool.alive, pool.lifetime
-            aged = alive & (now - pool.birth >= lifetime)
-            if aged.any():
-                pool.kill(aged)
+        if not pool.may_die_by(now):
             return
         deaths, soonest = age_pool(pool.alive, pool.stuck, pool.v, pool.birth, pool.lifetime, float(now))
         pool.died += int(deaths)

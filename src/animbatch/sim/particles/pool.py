@@ -64,6 +64,17 @@ class ParticlePool:
         cannot hold while ``now`` is clearly (by more than round-off) before :attr:`first_death`."""
         return now >= self.first_death - 1e-9 * (1.0 + abs(self.first_death))
 
+    def age(self, now: float) -> None:
+        """Particles whose age at ``now`` [s] reached their lifetime (``now - birth >= lifetime``) die, and
+        :attr:`first_death` becomes the survivors' earliest; nothing is read while no particle may die."""
+        if not self.may_die_by(now):
+            return
+        aged = self.alive & (now - self.birth >= self.lifetime)
+        if aged.any():
+            self.kill(aged)
+        alive = self.alive
+        self.first_death = float(np.min(self.birth[alive] + self.lifetime[alive])) if alive.any() else np.inf
+
     def kill(self, slots: np.ndarray) -> None:
         """Free ``slots`` (indices or a boolean mask)."""
         self.died += int(np.count_nonzero(self.alive[slots]))

@@ -138,9 +138,7 @@ class EmitterRun:
         if self.colliders is not None:
             start[born] = born_at  # a newborn's path starts where it was born
             self.collide(start, h, poses)
-        aged = pool.alive & (t1 - pool.birth >= pool.lifetime)
-        if aged.any():
-            pool.kill(aged)
+        pool.age(t1)
 
     def give_birth(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
         """Births in ``(t0, t1]``: fill free slots; return the slots and the birth points (K, 3)."""
