@@ -15,7 +15,7 @@ import pytest
 
 from animbatch.errors import AccuracyWarning
 from animbatch.sim.invariants import kinetic_energy, linear_momentum
-from conftest import ADAPTIVE, run, states
+from conftest import ADAPTIVE, counting, run, states
 
 FIXED = ["symplectic_euler", "verlet"]
 
@@ -155,7 +155,21 @@ def impact_search_off(monkeypatch):
                         lambda self, y0, y1, h, t1=0.0: (Contacts.concatenate([]), np.zeros(0)))
 
 
-def test_a_collision_the_method_misses_is_reported_with_both_bodies_and_the_time(impact_search_off):
+@pytest.fixture(params=["numpy", "numba"])
+def audit_search(request, monkeypatch) -> tuple[bool, list[int]]:
+    """The overlap audit searching the frames with numpy, or with the compiled probe search (which it takes where
+    numba is loaded already, as after any compiled run): both must find the same overlap. Returns whether the
+    compiled search is expected, and a list that grows by one per compiled search."""
+    from animbatch.sim.contact import detection
+
+    if request.param == "numba":
+        pytest.importorskip("numba")
+    else:
+        monkeypatch.setenv("ANIMBATCH_KERNELS", "numpy")
+    return request.param == "numba", counting(monkeypatch, detection, "_compiled_probe_contacts")
+
+
+def test_a_collision_the_method_misses_is_reported_with_both_bodies_and_the_time(impact_search_off, audit_search):
     """Should the impact search ever miss (here it is switched off), the run does not pass silently: the ledger
     finds the pucks deepest inside each other at t = 1 s, when their centres meet (closed form: centres 2 - 2t apart,
     overlap 0.2 - |2 - 2t|, so 0.2 m), and warns, naming both bodies, the method and what to change."""
@@ -172,9 +186,11 @@ def test_a_collision_the_method_misses_is_reported_with_both_bodies_and_the_time
     assert (missed["body"], missed["solid"]) in (("a", "body 'b'"), ("b", "body 'a'"))
     assert missed["depth"] == pytest.approx(0.2, abs=1e-9) and missed["time"] == pytest.approx(1.0)
     assert len(warned) == 1 and "RK45 missed a collision" in warned[0] and "solver.max_step" in warned[0]
+    compiled, searches = audit_search
+    assert bool(searches) == compiled
 
 
-def test_a_small_body_crossing_a_thin_slab_between_two_frames_is_seen(impact_search_off):
+def test_a_small_body_crossing_a_thin_slab_between_two_frames_is_seen(impact_search_off, audit_search):
     """A 5 mm pellet passing a 1 cm slab within one frame (each moves 3.3 m per frame) is inside it for 0.1 ms only:
     the audit looks where the two come closest between the frames, and finds the pellet's centre on the slab's
     mid-plane at t = 4 m / 200 m/s = 0.02 s, 5 mm + 5 mm deep."""
@@ -192,6 +208,8 @@ def test_a_small_body_crossing_a_thin_slab_between_two_frames_is_seen(impact_sea
     assert missed["between_frames"] and missed["body"] in ("pellet", "slab")
     assert missed["time"] == pytest.approx(0.02, abs=1e-9) and missed["depth"] == pytest.approx(0.01, abs=1e-9)
     assert len(warned) == 1 and "between two frames" in warned[0] and "'slab'" in warned[0]
+    compiled, searches = audit_search
+    assert bool(searches) == compiled
 
 
 @pytest.mark.slow
