@@ -59,10 +59,13 @@ class Contacts:
 
     @classmethod
     def concatenate(cls, parts: list[Contacts]) -> Contacts:
-        if not parts:
+        found = [p for p in parts if len(p.probe_body)]  # most searches find nothing most steps
+        if len(found) == 1:
+            return found[0]
+        if not found:
             z3, z, zi = np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.intp)
             return cls(zi, zi, z3, z3, z, z, z, z, zi, zi, zi)
-        return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in cls.FIELDS))
+        return cls(*(np.concatenate([getattr(p, name) for p in found]) for name in cls.FIELDS))
 
     def select(self, chosen: np.ndarray) -> Contacts:
         """The contacts at indices or mask ``chosen``."""

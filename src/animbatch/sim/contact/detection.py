@@ -313,6 +313,7 @@ class _ProbeTables:
     box_half: np.ndarray
     rounds: tuple[np.ndarray, ...]  # owner, half length, radius, capsule or not (C,)
     hulls: tuple[np.ndarray, ...]  # owner, reach (H,); packed vertices, triangles and planes with their starts
+    fixed: tuple[np.ndarray, ...] | None  # the fixed solids' arguments (None where colliders move)
 
     @classmethod
     def of_world(cls, world: ContactWorld) -> _ProbeTables:
@@ -326,7 +327,22 @@ class _ProbeTables:
                    (np.zeros(0, np.int64), np.zeros(0), np.zeros(0), np.zeros(0, np.bool_)) if rounds is None else
                    (np.asarray(rounds.owner, np.int64), np.asarray(rounds.half_length, float),
                     np.asarray(rounds.radius, float), np.asarray(rounds.rounded, np.bool_)),
-                   _packed_hulls(world.hulls))
+                   _packed_hulls(world.hulls), None if world.moving is not None else _static_arguments(world.statics))
+
+
+def _static_arguments(statics: StaticColliders) -> tuple[np.ndarray, ...]:
+    """The fixed solids as the compiled probe search takes them: planes' points, normals and materials, spheres'
+    centres, radii and materials, boxes' centres, rotations, half sides and materials."""
+    def floats3(rows: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(rows, float).reshape(-1, 3)
+
+    def ints(values: np.ndarray) -> np.ndarray:
+        return np.asarray(values, np.int64)
+
+    return (floats3(statics.plane_point), floats3(statics.plane_normal), ints(statics.plane_material),
+            floats3(statics.sphere_centre), np.asarray(statics.sphere_radius, float), ints(statics.sphere_material),
+            floats3(statics.box_centre), np.ascontiguousarray(statics.box_rotation, float).reshape(-1, 3, 3),
+            floats3(statics.box_half), ints(statics.box_material))
 
 
 def _packed_hulls(hulls: tuple[BodyHull, ...]) -> tuple[np.ndarray, ...]:
@@ -356,9 +372,6 @@ def _compiled_probe_contacts(world: ContactWorld, state: Kinematics, statics: St
     def floats3(rows: np.ndarray) -> np.ndarray:
         return np.ascontiguousarray(rows, float).reshape(-1, 3)
 
-    def ints(values: np.ndarray) -> np.ndarray:
-        return np.asarray(values, np.int64)
-
     rounds_at = ((np.zeros((0, 3)), np.zeros((0, 3))) if world.cylinders is None else
                  tuple(np.ascontiguousarray(a, float) for a in round_poses(world, state)))
     owners = tables.hulls[0]
@@ -368,11 +381,9 @@ def _compiled_probe_contacts(world: ContactWorld, state: Kinematics, statics: St
     search: Any = probe_search.probe_candidates
     found, measured = search(
         floats3(centres), tables.owner, tables.box, tables.radius, np.asarray(active, np.bool_), tables.group,
-        tables.material, tables.collides, tables.excluded, floats3(statics.plane_point),
-        floats3(statics.plane_normal), ints(statics.plane_material), floats3(statics.sphere_centre),
-        np.asarray(statics.sphere_radius, float), ints(statics.sphere_material), floats3(statics.box_centre),
-        np.ascontiguousarray(statics.box_rotation, float).reshape(-1, 3, 3), floats3(statics.box_half),
-        ints(statics.box_material), tables.box_owner, floats3(box_centres),
+        tables.material, tables.collides, tables.excluded,
+        *(tables.fixed if tables.fixed is not None else _static_arguments(statics)), tables.box_owner,
+        floats3(box_centres),
         np.ascontiguousarray(box_rotations, float).reshape(-1, 3, 3), tables.box_half, tables.rounds[0],
         *rounds_at, *tables.rounds[1:], *tables.hulls[:2], *hull_poses, *tables.hulls[2:],
         bool(world.bodies_collide), float(margin), float(largest_travel))
@@ -393,29 +404,45 @@ def build_probe_kernels() -> None:
            np.zeros(1, np.int64), True, 0.0, 0.0)
 
 
+#: For each world, its colliding cylinders and rods (indices into its round solids), for the rim search.
+_PLAIN_CYLINDERS: weakref.WeakKeyDictionary[ContactWorld, np.ndarray] = weakref.WeakKeyDictionary()
+
+
 def rim_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders, margin: float,
                  travel: np.ndarray | None) -> Contacts:
     """The exact contacts of cylinders with planes: at each cylinder's point deepest towards the plane (on a rim), so
     that a cylinder rolls on a plane as a circle, not as the polygon of its rim probes. Vectorised over cylinders,
     one pass per plane."""
     cylinders = world.cylinders
-    assert cylinders is not None
-    centres, axes = round_poses(world, state)
-    reach = margin + (travel[cylinders.owner] if travel is not None else 0.0)
+    assert cylinders is not None and state.rotation is not None
+    plain = _PLAIN_CYLINDERS.get(world)
+    if plain is None:  # the colliding cylinders and rods (a capsule's caps are probes), found once per world
+        plain = _PLAIN_CYLINDERS[world] = np.flatnonzero(world.collides[cylinders.owner] & ~cylinders.rounded)
+    if not len(plain):
+        return Contacts.concatenate([])
+    owners = cylinders.owner[plain]
+    rigid = owners - state.first_rigid
+    centres = state.x[owners] + state.lever(rigid, cylinders.offset[plain])
+    axes = np.einsum("kij,kj->ki", state.rotation[rigid], cylinders.axis[plain])
+    half_length, radius = cylinders.half_length[plain], cylinders.radius[plain]
+    reach = margin + (travel[owners] if travel is not None else 0.0)
     first = world.probes.count + 12 * world.boxes.count  # "probe" numbers past the probes and the box edges
     parts = []
     for k in range(len(statics.plane_point)):
         normal = statics.plane_normal[k]
-        point, found = cylinder_support(centres, axes, cylinders.half_length, cylinders.radius, -normal)
+        point, found = cylinder_support(centres, axes, half_length, radius, -normal)
         depth = (point - statics.plane_point[k]) @ normal
-        keep = found & (depth < reach) & world.collides[cylinders.owner] & ~cylinders.rounded  # caps: probes
-        owner, depth = cylinders.owner[keep], depth[keep]
+        keep = found & (depth < reach)
+        if not keep.any():
+            continue
+        owner, depth = owners[keep], depth[keep]
         touching = point[keep] - 0.5 * depth[:, None] * normal
         parts.append(make_contacts(world, owner, np.full(len(owner), STATIC), touching,
                                    np.broadcast_to(normal, (len(owner), 3)), depth,
-                                   np.full(len(owner), statics.plane_material[k]), first + np.flatnonzero(keep),
+                                   np.full(len(owner), statics.plane_material[k]), first + plain[keep],
                                    PLANE_RIM, np.full(len(owner), k)))
     return Contacts.concatenate(parts)
+
 
 
 def body_box_poses(world: ContactWorld, state: Kinematics) -> tuple[np.ndarray, np.ndarray]:

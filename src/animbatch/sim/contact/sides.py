@@ -21,6 +21,7 @@ Side contacts are fixed-step contacts (:class:`~animbatch.sim.contact.stepping.C
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -134,6 +135,60 @@ def side_contacts(world: ContactWorld, state: Kinematics, statics: StaticCollide
     return Contacts.concatenate(parts)
 
 
+@dataclass(frozen=True, eq=False)
+class _SideTables:
+    """What the compiled side search takes that does not change in a run, typed as it takes it: the rounds'
+    ``half_length``, ``radius``, ``rounded`` and ``owner`` (C,), every body's ``collides`` and ``material`` (P,),
+    the ``excluded`` pair keys (sorted), the search ``grid``, the first contact number, and the fixed boxes' edges
+    (None where colliders move, which places them anew each step)."""
+
+    half_length: np.ndarray
+    radius: np.ndarray
+    rounded: np.ndarray
+    owner: np.ndarray
+    collides: np.ndarray
+    material: np.ndarray
+    excluded: np.ndarray
+    grid: np.ndarray
+    first: int
+    fixed_edges: EdgeSet | None
+
+    @classmethod
+    def of_world(cls, world: ContactWorld) -> _SideTables:
+        rounds = world.cylinders
+        assert rounds is not None
+        excluded = np.zeros(0, np.int64) if world.excluded is None else np.sort(np.asarray(world.excluded, np.int64))
+        fixed = None
+        if world.moving is None:
+            statics = world.statics
+            starts, ends = box_edges(statics.box_centre.reshape(-1, 3), statics.box_rotation.reshape(-1, 3, 3),
+                                     statics.box_half.reshape(-1, 3))
+            fixed = EdgeSet(starts, ends, np.full(len(starts), STATIC, np.intp),
+                            np.repeat(statics.box_material, 12).astype(np.intp), np.zeros(len(starts), np.intp))
+        return cls(np.asarray(rounds.half_length, float), np.asarray(rounds.radius, float),
+                   np.asarray(rounds.rounded, np.bool_), np.asarray(rounds.owner, np.int64),
+                   np.asarray(world.collides, np.bool_), np.asarray(world.body_material, np.int64), excluded,
+                   np.linspace(0.0, 1.0, GRID), world.probes.count + 12 * world.boxes.count + rounds.count, fixed)
+
+
+_SIDE_TABLES: weakref.WeakKeyDictionary[Any, _SideTables] = weakref.WeakKeyDictionary()
+
+
+def _edges_for_sides(world: ContactWorld, state: Kinematics, statics: StaticColliders, box_centres: np.ndarray,
+                     box_rotations: np.ndarray, tables: _SideTables) -> EdgeSet:
+    """The edges a round's side can meet (:func:`edge_set`); only the fixed boxes' where bodies do not collide,
+    and those built once where the colliders do not move."""
+    if world.bodies_collide or tables.fixed_edges is None:
+        edges = edge_set(world, state, statics, box_centres, box_rotations)
+        if len(edges.start) and not world.bodies_collide:
+            keep = edges.body == STATIC
+            edges = EdgeSet(*(getattr(edges, name)[keep] for name in ("start", "end", "body", "material", "number")))
+        return edges
+    fixed = tables.fixed_edges  # numbered after all the body boxes' edges, as edge_set numbers them
+    return EdgeSet(fixed.start, fixed.end, fixed.body, fixed.material,
+                   12 * world.boxes.count + np.arange(len(fixed.start)))
+
+
 def compiled_side_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders,
                            box_centres: np.ndarray, box_rotations: np.ndarray, margin: float,
                            travel: np.ndarray | None) -> Contacts:
@@ -143,25 +198,23 @@ def compiled_side_contacts(world: ContactWorld, state: Kinematics, statics: Stat
 
     rounds = world.cylinders
     assert rounds is not None and state.rotation is not None
+    tables = _SIDE_TABLES.get(world)
+    if tables is None:
+        tables = _SIDE_TABLES[world] = _SideTables.of_world(world)
     rigid = rounds.owner - state.first_rigid
     centre = state.x[rounds.owner] + state.lever(rigid, rounds.offset)
     axis = np.einsum("kij,kj->ki", state.rotation[rigid], rounds.axis)
     steps = travel if travel is not None else np.zeros(len(world.body_material))
-    edges = edge_set(world, state, statics, box_centres, box_rotations)
-    if len(edges.start) and not world.bodies_collide:
-        keep = edges.body == STATIC
-        edges = EdgeSet(*(getattr(edges, name)[keep] for name in ("start", "end", "body", "material", "number")))
-    excluded = np.zeros(0, np.int64) if world.excluded is None else np.sort(np.asarray(world.excluded, np.int64))
+    edges = _edges_for_sides(world, state, statics, box_centres, box_rotations, tables)
     search: Any = round_sides.side_contacts
     ints, floats = search(
-        np.ascontiguousarray(centre, float), np.ascontiguousarray(axis, float),
-        np.asarray(rounds.half_length, float), np.asarray(rounds.radius, float), np.asarray(rounds.rounded, np.bool_),
-        np.asarray(rounds.owner, np.int64), np.asarray(world.collides, np.bool_),
-        np.asarray(world.body_material, np.int64), np.asarray(steps, float), excluded,
+        np.ascontiguousarray(centre, float), np.ascontiguousarray(axis, float), tables.half_length, tables.radius,
+        tables.rounded, tables.owner, tables.collides, tables.material, np.asarray(steps, float), tables.excluded,
         np.ascontiguousarray(edges.start, float).reshape(-1, 3), np.ascontiguousarray(edges.end, float).reshape(-1, 3),
         np.asarray(edges.body, np.int64), np.asarray(edges.material, np.int64), np.asarray(edges.number, np.int64),
-        bool(world.bodies_collide), float(margin), world.probes.count + 12 * world.boxes.count + rounds.count,
-        np.linspace(0.0, 1.0, GRID))
+        bool(world.bodies_collide), float(margin), tables.first, tables.grid)
+    if not len(ints):
+        return Contacts.concatenate([])
     return make_contacts(world, ints[:, 0], ints[:, 1], floats[:, :3], floats[:, 3:6], floats[:, 6], ints[:, 2],
                          ints[:, 5], ints[:, 3], ints[:, 4])
 
