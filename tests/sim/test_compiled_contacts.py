@@ -517,3 +517,24 @@ def test_a_run_whose_contacts_cost_more_than_estimated_goes_compiled_partway_and
     stayed, numpy_end = run()
     assert not stayed
     np.testing.assert_allclose(model.positions(numpy_end)[0], model.positions(end)[0], atol=1e-4)
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_the_contacts_a_search_returns_are_contiguous_even_when_one_kind_finds_them_all(compiled):
+    """A log lying across a fixed box's top, its ends over the sides, touches its two edges and nothing else: the side search alone finds contacts. The contacts
+    handed to the impulse kernels are C-contiguous arrays whichever search found them (a view of a search's result
+    columns would make numba compile the solver once more, for strided arrays, in the middle of a run)."""
+    model = compile_scene(parse_scene(textwrap.dedent("""
+        duration: 0.1
+        bodies:
+          - {name: log, type: rigid, shape: {type: cylinder, radius: 0.05, length: 1.6}, density: 500,
+             position: [0, 0.5501, 0]}
+        colliders:
+          - {type: box, position: [0, 0.25, 0], size: [0.6, 0.5, 0.6]}
+        """), filename="log.yaml").spec)
+    system = Dynamics(model)
+    state = system.kinematics(*system.split(np.array(model.y0, float)), t=0.0, copy=True)
+    found = detect(model.contact_world, state, 0.01, edges=True, compiled=compiled)
+    assert found.count and set(found.solid_kind) == {contacts.SIDE_EDGE}
+    for name in Contacts.FIELDS:
+        assert getattr(found, name).flags.c_contiguous, name

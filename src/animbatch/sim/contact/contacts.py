@@ -60,8 +60,8 @@ class Contacts:
     @classmethod
     def concatenate(cls, parts: list[Contacts]) -> Contacts:
         found = [p for p in parts if len(p.probe_body)]  # most searches find nothing most steps
-        if len(found) == 1:
-            return found[0]
+        if len(found) == 1:  # as it is, but contiguous (a search's columns may be views; kernels take C arrays)
+            return cls(*(np.ascontiguousarray(getattr(found[0], name)) for name in cls.FIELDS))
         if not found:
             z3, z, zi = np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.intp)
             return cls(zi, zi, z3, z3, z, z, z, z, zi, zi, zi)

@@ -154,11 +154,14 @@ def check_scale(world: ContactWorld, state: Kinematics, travel: np.ndarray | Non
     """Stop a run whose bodies have left every physical scale (a feather-light body kicked by heavy ones, say)
     before the k-d tree search overflows on them: every method's contact search comes through here, and the
     per-frame or per-step divergence checks only catch values that are no longer finite."""
+    within = float(np.abs(state.x).max(initial=0.0)) < RUNAWAY_SCALE  # (false for NaN)
+    if travel is not None:
+        within = within and float(travel.max(initial=0.0)) < RUNAWAY_SCALE
+    if within:
+        return
     size = np.max(np.abs(state.x), axis=1)
     if travel is not None:
         size = np.maximum(size, travel)
-    if np.all(size < RUNAWAY_SCALE):  # also false for NaN
-        return
     body = int(np.argmax(np.where(np.isfinite(size), size, np.inf)))
     name = world.body_names[body] if world.body_names else f"number {body}"
     mass = f" (mass {float(world.body_mass[body]):.3g} kg)" if world.body_mass is not None else ""
@@ -182,11 +185,22 @@ def body_reach(world: ContactWorld, body_count: int) -> np.ndarray:
 def probe_centres(world: ContactWorld, state: Kinematics) -> np.ndarray:
     """World positions (Q, 3) of all probes."""
     probes = world.probes
-    centres = state.x[probes.owner].copy()
-    on_rigid = (probes.owner >= state.first_rigid) & np.any(probes.offset != 0, axis=1)
-    if on_rigid.any():
-        centres[on_rigid] += state.lever(probes.owner[on_rigid] - state.first_rigid, probes.offset[on_rigid])
+    centres = state.x[probes.owner]  # (a fancy index: a copy)
+    found = _OFF_CENTRE.get(world)
+    if found is None or found[0] != state.first_rigid:  # which probes a turn moves: the same every step
+        on_rigid = np.flatnonzero((probes.owner >= state.first_rigid) & np.any(probes.offset != 0, axis=1))
+        found = _OFF_CENTRE[world] = (state.first_rigid, on_rigid, probes.owner[on_rigid] - state.first_rigid,
+                                      probes.offset[on_rigid])
+    _, on_rigid, rigid, offset = found
+    if len(on_rigid):
+        centres[on_rigid] += state.lever(rigid, offset)
     return centres
+
+
+#: For each world: the first rigid body's index, and its probes off their body's centre of mass (indices (Q',),
+#: their rigid bodies (Q',) and offsets (Q', 3)), which move with the body's turn.
+_OFF_CENTRE: weakref.WeakKeyDictionary[ContactWorld, tuple[int, np.ndarray, np.ndarray, np.ndarray]] = \
+    weakref.WeakKeyDictionary()
 
 
 def closing_margin(world: ContactWorld, probes: np.ndarray, solid_body: np.ndarray, margin: float,
@@ -207,8 +221,12 @@ def _contacts(world: ContactWorld, probes: np.ndarray, centres: np.ndarray, dist
     radius = world.probes.radius[probes]
     gap = distance - radius
     keep = gap < closing_margin(world, probes, solid_body, margin, travel)
-    probes, gap, normal, radius = probes[keep], gap[keep], normal[keep], radius[keep]
-    centres, solid_body, solid_material = centres[keep], solid_body[keep], solid_material[keep]
+    every = bool(keep.all())  # (the compiled search hands over only pairs within the largest reach: often all)
+    if every:  # the contacts' own arrays, contiguous, as the selections below make them
+        probes, normal = probes.copy(), np.ascontiguousarray(normal)
+    else:
+        probes, gap, normal, radius = probes[keep], gap[keep], normal[keep], radius[keep]
+        centres, solid_body, solid_material = centres[keep], solid_body[keep], solid_material[keep]
     owner = world.probes.owner[probes]
     point = centres - normal * (radius + 0.5 * gap)[:, None]  # midway between the two surfaces
     a, b = world.body_material[owner], solid_material
@@ -216,10 +234,10 @@ def _contacts(world: ContactWorld, probes: np.ndarray, centres: np.ndarray, dist
     restitution = table.restitution[a, b]
     if world.group is not None:
         restitution = np.where(world.group[owner] >= 0, 0.0, restitution)
+    kinds, index = np.broadcast_to(np.asarray(kind, np.intp), keep.shape), np.broadcast_to(solid_index, keep.shape)
     return Contacts(owner, solid_body, point, normal, gap, restitution, table.static_friction[a, b],
-                    table.kinetic_friction[a, b], probes,
-                    np.broadcast_to(np.asarray(kind, np.intp), keep.shape)[keep].copy(),
-                    np.broadcast_to(solid_index, keep.shape)[keep].astype(np.intp))
+                    table.kinetic_friction[a, b], probes, kinds.copy() if every else kinds[keep],
+                    (index if every else index[keep]).astype(np.intp))
 
 
 def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.ndarray | None = None, *,
