@@ -479,6 +479,38 @@ def test_an_event_loop_that_stops_advancing_is_stopped_with_a_clear_error(monkey
         """)
 
 
+def test_the_gaps_alone_are_the_gaps_of_the_evaluated_pairs():
+    """The event search asks for pairs' gaps alone (detection.pair_gaps, without building the contacts): over the
+    frames of balls and boxes bouncing among a plane, a fixed box and each other, every pair found near touching has
+    the gap that evaluating it as a contact gives, to the last bit."""
+    from animbatch.sim.model.dynamics import Dynamics
+
+    model, trajectory = run("""
+        duration: 0.6
+        fps: 10
+        solver: {method: symplectic_euler, dt: 1.0e-3}
+        bodies:
+          - {name: a, radius: 0.1, position: [0, 0.3, 0], velocity: [1, 0, 0]}
+          - {name: b, type: rigid, shape: {type: box, size: [0.2, 0.2, 0.2]}, density: 500, position: [0.4, 0.5, 0],
+             angular_velocity: [1, 2, 3]}
+          - {name: c, type: rigid, shape: {type: sphere, radius: 0.1}, density: 500, position: [0.8, 0.2, 0.05]}
+        colliders:
+          - {type: plane}
+          - {type: box, position: [1.2, 0.2, 0], size: [0.4, 0.4, 0.4]}
+        fields: [{type: gravity}]
+        """)
+    system, world = Dynamics(model), model.contact_world
+    compared = 0
+    for y, t in zip(states(model, trajectory), model.frame_times):
+        state = system.kinematics(*system.split(y), t=float(t), copy=True)
+        near = detection.detect(world, state, 0.5)
+        gaps = detection.pair_gaps(world, state, near.probe, near.solid_kind, near.solid_index)
+        evaluated = detection.evaluate_pairs(world, state, near.probe, near.solid_kind, near.solid_index)
+        assert np.array_equal(gaps, evaluated.gap) and np.array_equal(gaps, near.gap)
+        compared += near.count
+    assert compared > 100
+
+
 def test_resting_forces_on_python_floats_are_the_array_ones(monkeypatch):
     """A box held by friction on its four corners on a 20° slope under RK45 (μs = 0.5 > tan 20°): the resting-contact
     solve of a few contacts sweeps on Python floats; forced onto numpy arrays it gives the same motion, and in both

@@ -45,6 +45,7 @@ from animbatch.sim.contact.detection import (
     closing_margin,
     detect,
     evaluate_pairs,
+    pair_gaps,
     points_moved,
     probe_centres,
 )
@@ -183,7 +184,7 @@ class OverlapAudit:
             return []
         quiet = ~(np.isin(candidates.probe_body, bounced) | np.isin(candidates.solid_body, bounced))
         candidates = candidates.select(quiet)
-        gaps = [evaluate_pairs(self.world, state, candidates.probe, candidates.solid_kind, candidates.solid_index).gap
+        gaps = [pair_gaps(self.world, state, candidates.probe, candidates.solid_kind, candidates.solid_index)
                 for state in (start, end)]
         closing = closing_margin(self.world, candidates.probe, candidates.solid_body, 0.0, travel)
         allowance = self._allowance(candidates)

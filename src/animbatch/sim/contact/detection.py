@@ -586,6 +586,23 @@ def evaluate_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, ki
                    index: np.ndarray) -> Contacts:
     """The contacts of given probe–solid pairs (K,) at ``state``, whatever their distance (for tracking contacts
     between events)."""
+    centres, distance, normal, solid_body, material = _pair_geometry(world, state, probe, kind, index)
+    return _contacts(world, probe, centres, distance, normal, solid_body, material, np.inf, kind, index)
+
+
+def pair_gaps(world: ContactWorld, state: Kinematics, probe: np.ndarray, kind: np.ndarray,
+              index: np.ndarray) -> np.ndarray:
+    """The gaps (K,) [m] of given probe–solid pairs at ``state``: :func:`evaluate_pairs`'s, without building the
+    contacts (the event search asks for gaps alone, a root search many times over)."""
+    _, distance, *_ = _pair_geometry(world, state, probe, kind, index)
+    return distance - world.probes.radius[probe]
+
+
+def _pair_geometry(world: ContactWorld, state: Kinematics, probe: np.ndarray, kind: np.ndarray, index: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For given probe–solid pairs (K,) at ``state``: the probes' centres (K, 3), the distances of the centres to
+    the solids (K,) [m] and the solids' normals there (K, 3), the solids' bodies (K,) (``STATIC`` for colliders)
+    and their materials (K,)."""
     all_centres = probe_centres(world, state)
     centres = all_centres[probe]
     statics, probes = world.statics_at(state.t), world.probes
@@ -646,4 +663,4 @@ def evaluate_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, ki
             owner = world.boxes.owner[box]
             solid_body[k] = owner
             material[k] = world.body_material[owner]
-    return _contacts(world, probe, centres, distance, normal, solid_body, material, np.inf, kind, index)
+    return centres, distance, normal, solid_body, material

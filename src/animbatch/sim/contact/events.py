@@ -39,6 +39,7 @@ from animbatch.sim.contact.detection import (
     closing_margin,
     detect,
     evaluate_pairs,
+    pair_gaps,
     probe_centres,
     turn_angle,
 )
@@ -225,7 +226,7 @@ class ContactEvents:
             bodies.v[n:n + b] = force / rigid.mass[:, None]
             spin = cross(omega, angular)  # dL/dt = I ω̇ + ω × L
             bodies.omega[n:n + b] = np.einsum("bij,bj->bi", bodies.inverse_inertia[n:n + b], torque - spin)
-        velocities = self._velocities(state)
+        velocities = self._velocities(state, masses=bodies)
         x = np.vstack([state.x, np.zeros((1, 3))])
         frame = ContactFrame.of(contacts, x)
         normal_bias, tangent_bias = self._biases(contacts, state, velocities, x, frame)
@@ -244,8 +245,11 @@ class ContactEvents:
             rate[3 * n + 3 * b:] = (np.einsum("bij,bj->bi", inertia_world, bodies.omega[n:n + b]) + spin).ravel()
         return contacts, result, bodies, tangent_bias
 
-    def _velocities(self, state: Kinematics) -> BodyVelocities:
-        bodies = self._inertia(state)
+    def _velocities(self, state: Kinematics, *, masses: BodyVelocities | None = None) -> BodyVelocities:
+        """The bodies' velocities at ``state``, with their inverse masses and inertias (those of ``masses`` where
+        given, for the same state: read, never written, so both may share them)."""
+        bodies = self._inertia(state) if masses is None else BodyVelocities(
+            np.zeros_like(masses.v), np.zeros_like(masses.omega), masses.inverse_mass, masses.inverse_inertia)
         count, n = self.system.model.body_count, self.system.model.particle_count
         bodies.v[:count] = state.v
         if state.omega is not None:
@@ -339,19 +343,19 @@ class ContactEvents:
         # Quick exclusion: a gap that changes by at most ``closing`` and is positive at both ends, with the two
         # ends' gaps together larger than ``closing``, stays positive in between (triangle inequality).
         ends = [self._state(solver.y_start if hasattr(solver, "y_start") else interpolant(t0)), self._state(solver.y)]
-        end_gaps = [evaluate_pairs(self.world, state, candidates.probe, candidates.solid_kind,
-                                   candidates.solid_index).gap for state in ends]
+        end_gaps = [pair_gaps(self.world, state, candidates.probe, candidates.solid_kind, candidates.solid_index)
+                    for state in ends]
         if np.all(end_gaps[1] > 0) and np.all(closing < end_gaps[0] + end_gaps[1]):
             return None
         times = np.linspace(t0, t1, SAMPLES + 1)
 
         def gaps(t: float, chosen: Any = slice(None)) -> np.ndarray:
-            return evaluate_pairs(self.world, self._state(interpolant(t)), candidates.probe[chosen],
-                                  candidates.solid_kind[chosen], candidates.solid_index[chosen]).gap
+            return pair_gaps(self.world, self._state(interpolant(t)), candidates.probe[chosen],
+                             candidates.solid_kind[chosen], candidates.solid_index[chosen])
 
         sampled = [self._state(interpolant(t)) for t in times]
-        values = np.array([evaluate_pairs(self.world, state, candidates.probe, candidates.solid_kind,
-                                          candidates.solid_index).gap for state in sampled])  # (S + 1, C)
+        values = np.array([pair_gaps(self.world, state, candidates.probe, candidates.solid_kind,
+                                     candidates.solid_index) for state in sampled])  # (S + 1, C)
         travel = self._sample_travel(sampled, candidates)  # (S, C)
         # A probe that starts the step touching the solid (it bounced off at the event that began the step, or left
         # rest a hair inside the solid at a loose tolerance) impacts when it comes back to its starting depth, not

@@ -754,6 +754,22 @@ def _pushes(rows: ContactRows, pseudo: np.ndarray, push_target: np.ndarray, enou
         push = updated
 
 
+def _small_converged(coupling: list[list[float]], constant: list[float], current: list[float], holds: list[bool],
+                     cone: list[float], count: int) -> bool:
+    """:func:`solve_forces`' test of a small solution, in floats: every pressing normal row (``count``, then the
+    two tangential blocks) at zero residual and no free one pulled in, and every sticking contact strictly inside
+    its cone with no tangential residual, all to :data:`ACCELERATION_TOLERANCE`."""
+    residual = [c + sum(map(operator.mul, row, current)) for row, c in zip(coupling, constant)]
+    for k in range(count):
+        if (abs(residual[k]) if current[k] > 0 else max(-residual[k], 0.0)) > ACCELERATION_TOLERANCE:
+            return False
+        j1, j2 = count + k, 2 * count + k
+        if (holds[k] and math.hypot(current[j1], current[j2]) < cone[k] * current[k] * (1 - 1e-9)
+                and math.hypot(residual[j1], residual[j2]) > ACCELERATION_TOLERANCE):
+            return False
+    return True
+
+
 def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarray, *, normal_bias: np.ndarray,
                  tangent_bias: np.ndarray, sticking: np.ndarray, slide_direction: np.ndarray,
                  iterations: int, warm: tuple[np.ndarray, np.ndarray] | None = None,
@@ -814,8 +830,8 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
         along = sum(map(operator.mul, coupling[row], current)) if small else coupling[row] @ current
         return current[row] - (constant[row] + along) / pivot[row]
 
+    current: Any = solution.tolist() if small else solution  # (numpy: the same array, updated in place)
     for _ in range(iterations):
-        current: Any = solution.tolist() if small else solution
         for k in range(count):
             current[k] = max(update(k, current), 0.0)
             if holds[k]:
@@ -826,7 +842,10 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
                 cap = cone[k] * current[k]
                 scale = 1.0 if size_t <= cap else cap / size_t
                 current[j1], current[j2] = t1 * scale, t2 * scale
-        solution = np.array(current, float) if small else solution
+        if small:  # judged in floats too: a dozen rows cost less than numpy's calls on them
+            if _small_converged(coupling, constant, current, holds, cone, count):
+                break
+            continue
         residual = free + matrix @ solution
         normal_residual = np.where(solution[:count] > 0, np.abs(residual[:count]),
                                    np.maximum(-residual[:count], 0.0))
@@ -834,6 +853,8 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
         inside = np.hypot(solution[count:2 * count], solution[2 * count:]) < limit * solution[:count] * (1 - 1e-9)
         if max(float(normal_residual.max()), float((tangential * inside).max())) <= ACCELERATION_TOLERANCE:
             break
+    if small:
+        solution = np.array(current, float)
     normal_force = solution[:count]
     tangent_force = np.stack([solution[count:2 * count], solution[2 * count:]], axis=1)
     change = response * solution[:, None, None]  # (3K, 2, 6): the accelerations the forces add at each end
