@@ -11,7 +11,7 @@ from animbatch.sim.contact import detection
 from animbatch.sim.contact.materials import BUILT_IN, MaterialTable
 from animbatch.sim.invariants import kinetic_energy, linear_momentum
 from animbatch.sim.preflight import StabilityWarning
-from conftest import run, states
+from conftest import counting, run, states
 
 G = 9.81
 BOTH = ["RK45", "symplectic_euler"]  # the event-driven and the time-stepping paths
@@ -509,6 +509,36 @@ def test_the_gaps_alone_are_the_gaps_of_the_evaluated_pairs():
         assert np.array_equal(gaps, evaluated.gap) and np.array_equal(gaps, near.gap)
         compared += near.count
     assert compared > 100
+
+
+def test_a_block_sliding_down_a_slope_under_rk45_solves_its_resting_forces_once_per_state(monkeypatch):
+    """RK45 ends each step with the right-hand side at the step's end (first same as last), and the contact modes
+    are checked at that same state: the resting forces found there are used again, not solved again (only a
+    restart, or the first settling of the contacts, solves them anew). The block slides at g (sin θ − μk cos θ)
+    all the same."""
+    from animbatch.sim.contact.events import ContactEvents
+
+    theta = np.radians(20)
+    normal = [-float(np.sin(theta)), float(np.cos(theta)), 0.0]
+    forces = counting(monkeypatch, ContactEvents, "_contact_forces")
+    right_hand_sides = counting(monkeypatch, ContactEvents, "rhs")
+    restarts = counting(monkeypatch, ContactEvents, "restart")
+    _, trajectory = run(f"""
+        duration: 0.6
+        fps: 20
+        solver: {{method: RK45, rtol: 1.0e-8}}
+        {materials(0.0, 0.1, 0.1)}
+        bodies:
+          - {{name: block, type: rigid, shape: {{type: box, size: [0.2, 0.1, 0.2]}}, density: 500, material: m,
+             position: {(0.05 * np.array(normal)).tolist()}, orientation: {{axis: [0, 0, 1], angle: 20}}}}
+        colliders: [{{type: plane, normal: {normal}, material: m}}]
+        fields: [{{type: gravity}}]
+    """)
+    assert len(right_hand_sides) > 50 and len(forces) - len(right_hand_sides) <= len(restarts) + 1  # + the settling
+    down = np.array([-np.cos(theta), -np.sin(theta), 0.0])
+    along = (trajectory.positions[:, 0] - trajectory.positions[0, 0]) @ down
+    expected = 0.5 * G * (np.sin(theta) - 0.1 * np.cos(theta)) * trajectory.times ** 2
+    np.testing.assert_allclose(along, expected, atol=1e-6)
 
 
 def test_resting_forces_on_python_floats_are_the_array_ones(monkeypatch):

@@ -120,6 +120,10 @@ class ContactEvents:
         self._stalled = 0  # consecutive events that did not move time forward
         self._budget = 0
         self._method = ""
+        # the last right-hand side's contact forces: (t, y, the resting set, what _contact_forces returned). The
+        # explicit pairs end a step with the right-hand side at its end (first same as last), where the mode
+        # functions are asked for next: the same forces, not solved again
+        self._last_forces: tuple[float, np.ndarray, Resting, Any] | None = None
 
     # ------------------------------------------------------------------------------------- as StepEvents
 
@@ -274,15 +278,22 @@ class ContactEvents:
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         dydt = self.system.rhs(t, y)
         if self.resting.count:
-            self._contact_forces(t, y, dydt)
+            self._last_forces = (t, y.copy(), self.resting, self._contact_forces(t, y, dydt))
         return dydt
+
+    def _forces_at(self, t: float, y: np.ndarray) -> tuple[Contacts, Any, BodyVelocities, np.ndarray]:
+        """:meth:`_contact_forces` at a state, taken from the last right-hand side when that was at this state
+        with these resting contacts."""
+        last = self._last_forces
+        if last is not None and last[0] == t and last[2] is self.resting and np.array_equal(last[1], y):
+            return last[3]
+        return self._contact_forces(t, y, self.system.rhs(t, y))
 
     # ------------------------------------------------------------------------------------- events
 
     def _mode_functions(self, t: float, y: np.ndarray) -> np.ndarray:
         """For each resting contact, a value that changes sign when its mode must change (R,)."""
-        dydt = self.system.rhs(t, y)
-        contacts, result, accelerations, tangent_bias = self._contact_forces(t, y, dydt)
+        contacts, result, accelerations, tangent_bias = self._forces_at(t, y)
         state = self._state(y)
         velocities = self._velocities(state)
 
