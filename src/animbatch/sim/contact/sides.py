@@ -163,15 +163,17 @@ class _SideTables:
             statics = world.statics
             starts, ends = box_edges(statics.box_centre.reshape(-1, 3), statics.box_rotation.reshape(-1, 3, 3),
                                      statics.box_half.reshape(-1, 3))
+            # numbered after all the body boxes' edges, as edge_set numbers them
             fixed = EdgeSet(starts, ends, np.full(len(starts), STATIC, np.intp),
-                            np.repeat(statics.box_material, 12).astype(np.intp), np.zeros(len(starts), np.intp))
+                            np.repeat(statics.box_material, 12).astype(np.intp),
+                            12 * world.boxes.count + np.arange(len(starts), dtype=np.intp))
         return cls(np.asarray(rounds.half_length, float), np.asarray(rounds.radius, float),
                    np.asarray(rounds.rounded, np.bool_), np.asarray(rounds.owner, np.int64),
                    np.asarray(world.collides, np.bool_), np.asarray(world.body_material, np.int64), excluded,
                    np.linspace(0.0, 1.0, GRID), world.probes.count + 12 * world.boxes.count + rounds.count, fixed)
 
 
-_SIDE_TABLES: weakref.WeakKeyDictionary[Any, _SideTables] = weakref.WeakKeyDictionary()
+_SIDE_TABLES: weakref.WeakKeyDictionary[ContactWorld, _SideTables] = weakref.WeakKeyDictionary()
 
 
 def _edges_for_sides(world: ContactWorld, state: Kinematics, statics: StaticColliders, box_centres: np.ndarray,
@@ -184,9 +186,7 @@ def _edges_for_sides(world: ContactWorld, state: Kinematics, statics: StaticColl
             keep = edges.body == STATIC
             edges = EdgeSet(*(getattr(edges, name)[keep] for name in ("start", "end", "body", "material", "number")))
         return edges
-    fixed = tables.fixed_edges  # numbered after all the body boxes' edges, as edge_set numbers them
-    return EdgeSet(fixed.start, fixed.end, fixed.body, fixed.material,
-                   12 * world.boxes.count + np.arange(len(fixed.start)))
+    return tables.fixed_edges
 
 
 def compiled_side_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders,
