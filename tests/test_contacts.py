@@ -511,6 +511,26 @@ def test_the_gaps_alone_are_the_gaps_of_the_evaluated_pairs():
     assert compared > 100
 
 
+SLOPE_DEGREES = 20
+
+
+def block_on_slope(duration: float, mu_s: float, mu_k: float) -> str:
+    """A 0.2 × 0.1 × 0.2 m block resting on its four bottom corners on a plane tilted by SLOPE_DEGREES, under RK45."""
+    theta = np.radians(SLOPE_DEGREES)
+    normal = [-float(np.sin(theta)), float(np.cos(theta)), 0.0]
+    return f"""
+        duration: {duration}
+        fps: 20
+        solver: {{method: RK45, rtol: 1.0e-8}}
+        {materials(0.0, mu_s, mu_k)}
+        bodies:
+          - {{name: block, type: rigid, shape: {{type: box, size: [0.2, 0.1, 0.2]}}, density: 500, material: m,
+             position: {(0.05 * np.array(normal)).tolist()}, orientation: {{axis: [0, 0, 1], angle: {SLOPE_DEGREES}}}}}
+        colliders: [{{type: plane, normal: {normal}, material: m}}]
+        fields: [{{type: gravity}}]
+    """
+
+
 def test_a_block_sliding_down_a_slope_under_rk45_solves_its_resting_forces_once_per_state(monkeypatch):
     """RK45 ends each step with the right-hand side at the step's end (first same as last), and the contact modes
     are checked at that same state: the resting forces found there are used again, not solved again (only a
@@ -518,22 +538,11 @@ def test_a_block_sliding_down_a_slope_under_rk45_solves_its_resting_forces_once_
     all the same."""
     from animbatch.sim.contact.events import ContactEvents
 
-    theta = np.radians(20)
-    normal = [-float(np.sin(theta)), float(np.cos(theta)), 0.0]
     forces = counting(monkeypatch, ContactEvents, "_contact_forces")
     right_hand_sides = counting(monkeypatch, ContactEvents, "rhs")
     restarts = counting(monkeypatch, ContactEvents, "restart")
-    _, trajectory = run(f"""
-        duration: 0.6
-        fps: 20
-        solver: {{method: RK45, rtol: 1.0e-8}}
-        {materials(0.0, 0.1, 0.1)}
-        bodies:
-          - {{name: block, type: rigid, shape: {{type: box, size: [0.2, 0.1, 0.2]}}, density: 500, material: m,
-             position: {(0.05 * np.array(normal)).tolist()}, orientation: {{axis: [0, 0, 1], angle: 20}}}}
-        colliders: [{{type: plane, normal: {normal}, material: m}}]
-        fields: [{{type: gravity}}]
-    """)
+    _, trajectory = run(block_on_slope(0.6, 0.1, 0.1))
+    theta = np.radians(SLOPE_DEGREES)
     assert len(right_hand_sides) > 50 and len(forces) - len(right_hand_sides) <= len(restarts) + 1  # + the settling
     down = np.array([-np.cos(theta), -np.sin(theta), 0.0])
     along = (trajectory.positions[:, 0] - trajectory.positions[0, 0]) @ down
@@ -547,19 +556,7 @@ def test_resting_forces_on_python_floats_are_the_array_ones(monkeypatch):
     the box stays where it was put."""
     from animbatch.sim.contact import solver
 
-    theta = np.radians(20)
-    normal = [-float(np.sin(theta)), float(np.cos(theta)), 0.0]
-    text = f"""
-        duration: 0.3
-        fps: 20
-        solver: {{method: RK45, rtol: 1.0e-8}}
-        {materials(0.0, 0.5, 0.3)}
-        bodies:
-          - {{name: block, type: rigid, shape: {{type: box, size: [0.2, 0.1, 0.2]}}, density: 500, material: m,
-             position: {(0.05 * np.array(normal)).tolist()}, orientation: {{axis: [0, 0, 1], angle: 20}}}}
-        colliders: [{{type: plane, normal: {normal}, material: m}}]
-        fields: [{{type: gravity}}]
-    """
+    text = block_on_slope(0.3, 0.5, 0.3)
     _, floats = run(text)
     monkeypatch.setattr(solver, "SMALL_FORCE_ROWS", 0)
     _, arrays = run(text)

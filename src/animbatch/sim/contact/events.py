@@ -295,7 +295,7 @@ class ContactEvents:
         """For each resting contact, a value that changes sign when its mode must change (R,)."""
         contacts, result, accelerations, tangent_bias = self._forces_at(t, y)
         state = self._state(y)
-        velocities = self._velocities(state)
+        velocities = self._velocities(state, masses=accelerations)  # the same state: the same inertias
 
         x = np.vstack([state.x, np.zeros((1, 3))])
         rows = ContactRows(contacts, velocities, x)
