@@ -38,7 +38,7 @@ from animbatch.scene import LoadedScene, physics_fingerprint
 from animbatch.scene import loader as scene_loader
 from animbatch.scene.overrides import Override
 from animbatch.scene.schema import label_names, label_speed_names
-from animbatch.sim.contact.stepping import measure_contact_search
+from animbatch.sim.contact.stepping import measure_contact_search, numpy_contact_solve
 from animbatch.sim.integrators import DEFAULT_DT, IntegrationResult, SolverStats
 from animbatch.sim.integrators.budget import wall_budget
 from animbatch.sim.integrators.checkpoint import integrate_with_checkpoints
@@ -90,10 +90,12 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
         particle_steps = frame_steps * (len(model.frame_times) - 1)
         systems = compile_particles(spec, model, scene_folder(scene)) if spec.emitters else None
         pools = particle_costs(spec, systems, particle_steps)
-        search = measure_contact_search(system)
-        cost = estimate_cost(model, spec.solver, pools, particle_steps, contact_seconds=search)
+        search, touching = measure_contact_search(system)
+        cost = estimate_cost(model, spec.solver, pools, particle_steps,
+                             contact_seconds=search + numpy_contact_solve(touching))
         # compiled equations of motion where the numpy ones would take long enough to repay loading them; the
-        # estimate that may refuse the run is then of the compiled ones
+        # estimate that may refuse the run is then of the compiled ones (whose contact solve costs little beside
+        # the search)
         system = dynamics_for(model, cost.seconds_of("integration") + cost.seconds_of("contacts"))
         if type(system) is not Dynamics:
             cost = estimate_cost(model, spec.solver, pools, particle_steps, rhs_seconds=measure_rhs(model, system),

@@ -538,3 +538,38 @@ def test_the_contacts_a_search_returns_are_contiguous_even_when_one_kind_finds_t
     assert found.count and set(found.solid_kind) == {contacts.SIDE_EDGE}
     for name in Contacts.FIELDS:
         assert getattr(found, name).flags.c_contiguous, name
+
+
+def test_a_short_run_resting_on_its_contacts_is_estimated_by_its_solve_and_goes_compiled_from_the_start(monkeypatch):
+    """A ball resting on a 25° slope for 1 s at 1 ms: one contact search costs a fraction of a millisecond, but each
+    numpy contact step also builds rows and sweeps (some 2 ms in all, measured). The estimate counts that solve for
+    the contact the search finds at the start, so its 1000 steps come to more than COMPILE_AFTER and the run is
+    compiled from its first step; the searched time alone would have kept it in numpy."""
+    from animbatch import api, stages
+    from animbatch.sim.contact.stepping import NUMPY_CONTACT_STEP, measure_contact_search, numpy_contact_solve
+    from animbatch.sim.model.compiled import COMPILE_AFTER
+
+    monkeypatch.setenv("ANIMBATCH_KERNELS", "auto")
+    theta = np.radians(25)
+    normal = [-float(np.sin(theta)), float(np.cos(theta)), 0.0]
+    loaded = parse_scene(textwrap.dedent(f"""
+        duration: 1
+        fps: 20
+        solver: {{method: symplectic_euler, dt: 0.001}}
+        materials: {{m: {{restitution: 0, static_friction: 0.5, kinetic_friction: 0.3}}}}
+        bodies: [{{name: ball, radius: 0.05, position: {(0.05 * np.array(normal)).tolist()}, material: m}}]
+        colliders: [{{type: plane, normal: {normal}, material: m}}]
+        fields: [{{type: gravity}}]
+    """), filename="slope.yaml")
+    model = compile_scene(loaded.spec)
+    search, touching = measure_contact_search(Dynamics(model))
+    assert touching == 1 and 1000 * search < COMPILE_AFTER  # the search alone would call it short
+    assert numpy_contact_solve(touching) >= NUMPY_CONTACT_STEP and numpy_contact_solve(0) == 0.0
+    chosen = []
+    original = stages.dynamics_for
+    monkeypatch.setattr(stages, "dynamics_for", lambda model, seconds: chosen.append(
+        (seconds, original(model, seconds))) or chosen[-1][1])
+    trajectory = api.simulate(loaded, model=model)
+    (estimated, system), = chosen
+    assert estimated >= 1000 * NUMPY_CONTACT_STEP > COMPILE_AFTER and system.long_run
+    assert np.abs(trajectory.positions[:, 0] - trajectory.positions[0, 0]).max() < 1e-12  # μs > tan 25°: it stays

@@ -42,31 +42,39 @@ from animbatch.sim.model.dynamics import Dynamics
 DEFAULT_REST_SPEED = 0.01  # m/s
 NO_CONTACTS = Contacts.concatenate([])
 
-#: What numpy's contact steps cost, to know when compiling them pays: about a millisecond a step with contacts
-#: (search, rows, write-back) and 35 µs a sweep of the impulse solver (measured on a box resting on a tilting floor,
-#: whose redundant corners take some 80 sweeps a step). A run starts in numpy unless its estimate says it is long
-#: (:func:`animbatch.sim.model.compiled.dynamics_for`); once its contact steps have cost this much [s] by these
-#: counts, the rest of it searches and solves compiled. Counted, not timed, so that a scene runs the same way on
-#: every machine and under any load.
-NUMPY_CONTACT_STEP = 1e-3
-NUMPY_SWEEP = 35e-6
+#: What numpy's contact steps cost, to know when compiling them pays: about 2 ms a step with contacts (search, rows,
+#: write-back) and 150 µs a sweep of the impulse solver (measured against the compiled path on a ball resting on a
+#: slope, a box sliding on a floor, `mixed_pile` and `dominoes`, whose piles take 100-140 sweeps a step: 2.2-2.5 ms
+#: a step, 170-260 µs a sweep). A run starts in numpy unless its estimate says it is long
+#: (:func:`animbatch.sim.model.compiled.dynamics_for`; the estimate counts a step and a sweep per contact found at
+#: the start); once its contact steps have cost :data:`COMPILE_CONTACTS_AFTER` [s] by these counts, the rest of it
+#: searches and solves compiled. Counted, not timed, so that a scene switches at the same step on every machine and
+#: under any load.
+NUMPY_CONTACT_STEP = 2e-3
+NUMPY_SWEEP = 150e-6
 COMPILE_CONTACTS_AFTER = 1.0
 
 
-def measure_contact_search(system: Dynamics, repeats: int = 2) -> float:
-    """Wall time [s] of one step's contact search at the model's start (the fastest of a few), for the cost
-    estimate; 0 without contacts."""
+def measure_contact_search(system: Dynamics, repeats: int = 2) -> tuple[float, int]:
+    """Wall time [s] of one step's contact search at the model's start (the fastest of a few), and the contacts it
+    found, for the cost estimate; (0, 0) without contacts."""
     model = system.model
     if model.contact_world is None or model.contact_settings is None:
-        return 0.0
+        return 0.0, 0
     state = system.kinematics(*system.split(np.array(model.y0, float)), t=float(model.frame_times[0]), copy=True)
     margin = 2 * model.contact_settings.slop + 1e-9
-    best = np.inf
+    best, found = np.inf, 0
     for _ in range(repeats + 1):  # the first builds what is built once (mesh trees) and is not counted
         started = time.perf_counter()
-        detect(model.contact_world, state, margin, edges=True)
+        found = detect(model.contact_world, state, margin, edges=True).count
         best = min(best, time.perf_counter() - started)
-    return float(best)
+    return float(best), int(found)
+
+
+def numpy_contact_solve(contacts: int) -> float:
+    """What a numpy contact step that finds ``contacts`` costs besides its search [s], by the counts above: its rows
+    and write-back, and a sweep per contact at least (none without contacts: the search alone)."""
+    return NUMPY_CONTACT_STEP + NUMPY_SWEEP * contacts if contacts else 0.0
 
 
 class ContactResolver:

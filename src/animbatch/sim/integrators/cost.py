@@ -93,8 +93,9 @@ def estimate_cost(model: Model, solver: StepSettings, particle_pools: Sequence[t
     """The estimated cost of integrating ``model`` with ``solver`` settings, and of the emitted particles
     ``particle_pools``: (emitter name, pool capacity, particles born over the run[, seconds per particle-step, default
     PARTICLE_STEP_SECONDS]), each advanced ``particle_steps`` times. ``rhs_seconds``: time of one right-hand side [s]
-    (measured here when not given); ``contact_seconds``: time of one step's contact search [s] (the contacts'
-    package measures it: :func:`animbatch.sim.contact.stepping.measure_contact_search`)."""
+    (measured here when not given); ``contact_seconds``: time of one step's contacts [s]: the search, which the
+    contacts' package measures (:func:`animbatch.sim.contact.stepping.measure_contact_search`), and for numpy's
+    path the solve of the contacts it found (:func:`animbatch.sim.contact.stepping.numpy_contact_solve`)."""
     times = np.asarray(model.frame_times)
     frames = len(times)
     states = int(np.size(model.y0))
@@ -112,7 +113,7 @@ def estimate_cost(model: Model, solver: StepSettings, particle_pools: Sequence[t
         terms += _implicit_terms(model, method, steps, states, rhs)
         if contact_seconds:
             terms.append(CostTerm("contacts", seconds=steps * contact_seconds,
-                                  detail=f"about {steps:.3g} contact searches of {1e3 * contact_seconds:.3g} ms (at "
+                                  detail=f"about {steps:.3g} contact steps of {1e3 * contact_seconds:.3g} ms (at "
                                          "the start; a pile that has formed costs more)"))
     for name, capacity, births, *cost in particle_pools:
         alive = min(births, capacity)

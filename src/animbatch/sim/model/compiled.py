@@ -40,8 +40,11 @@ from animbatch.sim.model.model import Model
 from animbatch.sim.motion import AnchorMotion, KeyframePath
 
 #: A numpy run estimated to take at least this long [s] is compiled: loading numba and the kernels from its disk
-#: cache takes about a second, and the compiled run a small fraction of the numpy one.
-COMPILE_AFTER = 1.0
+#: cache takes about a second, and the compiled run a small fraction of the numpy one. Half a second, not one:
+#: numpy runs take two to four times their estimate (adaptive step counts come out low, and a step's projection
+#: and contact solve are only partly counted), measured on jointed boxes under DOP853 (estimated 0.9 s, ran 4.6 s)
+#: and on resting contacts.
+COMPILE_AFTER = 0.5
 
 Fields = dict[int, np.ndarray]
 
