@@ -3,6 +3,8 @@ solver itself on a pile of balls and boxes."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -107,3 +109,33 @@ def test_kernels_that_fail_to_build_leave_the_contacts_to_numpy_and_say_so(monke
     finally:
         solver.build_contact_kernels.cache_clear()
     np.testing.assert_array_equal(fallen.positions, reference.positions)
+
+
+def test_kernels_are_cached_in_their_folder_even_when_numba_was_imported_first(tmp_path):
+    """numba reads NUMBA_CACHE_DIR once, when it is first imported. A program that imports numba before animbatch (a
+    notebook) must still find the kernels in animbatch's cache folder: otherwise numba compiles every kernel again
+    (a minute and more) into a __pycache__ beside the sources. In a fresh process that imports numba first, with an
+    empty cache, a kernel's first call writes its machine code under animbatch's folder."""
+    import subprocess
+    import sys
+    import textwrap
+
+    program = textwrap.dedent(f"""
+        import os
+        os.environ.pop("NUMBA_CACHE_DIR", None)
+        os.environ["XDG_CACHE_HOME"] = {str(tmp_path)!r}
+        import numba
+        assert not numba.config.CACHE_DIR
+        import numpy as np
+        from animbatch.sim import kernels
+        from animbatch.sim.kernels import rigid_motion
+        q = np.array([2.0, 0.0, 0.0, 0.0])
+        rigid_motion.normalise(q)
+        assert q[0] == 1.0
+        print(kernels.kernel_cache_folder())
+    """)
+    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    folder = Path(done.stdout.strip())
+    assert folder.is_relative_to(tmp_path)
+    assert [path.name for path in folder.rglob("*.nbi") if "normalise" in path.name]

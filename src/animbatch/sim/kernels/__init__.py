@@ -21,6 +21,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
+import sys
 import threading
 import warnings
 from collections.abc import Callable
@@ -50,8 +51,12 @@ def kernel_cache_folder() -> Path:
     return base / "animbatch" / "kernels" / digest.hexdigest()[:16]
 
 
-# before numba is first imported (it reads the variable once)
-os.environ.setdefault("NUMBA_CACHE_DIR", str(kernel_cache_folder()))
+# before numba is first imported (it reads the variable once); where it was imported first (a notebook, a program
+# of the user's), its setting is read anew for each kernel defined, so the kernels are still found in this folder
+# rather than compiled again (a minute and more) into a __pycache__ beside the sources, which may not be writable
+_folder = os.environ.setdefault("NUMBA_CACHE_DIR", str(kernel_cache_folder()))
+if "numba" in sys.modules and not getattr(sys.modules["numba"].config, "CACHE_DIR", None):
+    sys.modules["numba"].config.CACHE_DIR = _folder
 
 
 @functools.cache
