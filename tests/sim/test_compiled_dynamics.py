@@ -239,9 +239,24 @@ def test_models_the_kernels_do_not_cover_say_why():
         assert type(dynamics_for(model, 100.0)) is Dynamics
 
 
+def test_a_long_run_with_nothing_to_compile_is_not_marked_long(monkeypatch):
+    """A long run marks its contacts for the compiled search and solve (loading numba, most of a second). A model
+    with no compiled form and no contacts (a body under linear drag) has nothing that would use them: it stays an
+    ordinary numpy run, and numba is not asked for. The same body over a floor is marked."""
+    asked = []
+    monkeypatch.setattr(kernels, "compiled_kernels", lambda work=float("inf"): asked.append(work) or work > 0)
+    monkeypatch.setenv(kernels.KERNELS_VARIABLE, "auto")
+    text = ("duration: 1\nfps: 10\nbodies:\n  - {name: p, mass: 1, radius: 0.1, position: [0, 1, 0]}\n"
+            "fields: [{type: drag, model: linear, coefficient: 1}]\n")
+    free = dynamics_for(compile_scene(scene(text).spec), 100.0)
+    assert type(free) is Dynamics and not free.long_run and asked == [0.0]
+    floored = dynamics_for(compile_scene(scene(text + "colliders: [{type: plane}]\n").spec), 100.0)
+    assert type(floored) is Dynamics and floored.long_run and asked[-1] == kernels.MIN_WORK
+
+
 def test_the_compiled_equations_are_chosen_where_they_pay(monkeypatch):
-    """Compiled when the numpy run would take a second or more (or when asked for), numpy when it would not (loading
-    numba costs about that) or when asked for."""
+    """Compiled when the numpy run is estimated at half a second or more (or when asked for), numpy when it is not
+    (loading numba costs about a second, and numpy runs take two to four times their estimate) or when asked for."""
     model = _model("hinge chain with a limit")
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "auto")
     assert type(dynamics_for(model, 5.0)) is CompiledDynamics

@@ -363,11 +363,13 @@ class CompiledDynamics(Dynamics):
 def dynamics_for(model: Model, numpy_seconds: float) -> Dynamics:
     """The Dynamics to integrate ``model`` with: compiled where every part of it has a compiled form, its numpy run
     would take ``numpy_seconds`` [s] ≥ :data:`COMPILE_AFTER` (or ``ANIMBATCH_KERNELS=numba`` asks for it) and the
-    kernels build; else numpy, marked as a long run when it is one (its contacts then solve compiled)."""
+    kernels build; else numpy, marked as a long run when it is one (its contacts then solve compiled). A model with
+    neither a compiled form nor contacts has nothing to compile: numba is not even loaded for it (most of a second)."""
     from animbatch.sim.kernels import MIN_WORK, compiled_kernels, kernels_ready
 
-    long_run = compiled_kernels(MIN_WORK if numpy_seconds >= COMPILE_AFTER else 0.0)
     tables = stepper_tables(model)
+    compilable = not isinstance(tables, str) or model.contact_world is not None
+    long_run = compiled_kernels(MIN_WORK if numpy_seconds >= COMPILE_AFTER and compilable else 0.0)
     if isinstance(tables, str) or not (long_run and kernels_ready(MIN_WORK, build_stepper_kernels,
                                                                   "equations of motion",
                                                                   "numpy integrates the bodies")):
