@@ -129,8 +129,8 @@ setup() {
 }
 
 build_kernels() {
-    # The compiled kernels (numba), built once per machine and version into the user's cache (about four minutes on 2 cores
-    # the first time, a second after): here, once, rather than in every test process at once.
+    # The compiled kernels (numba), built once per machine and version into the user's cache (about four minutes
+    # on 2 cores the first time, a second after): here, once, rather than in every test process at once.
     say "compiled kernels (the first time on a machine this compiles them: about four minutes):"
     if ! "$venv/bin/animbatch" doctor --kernels >&2; then
         say "some compiled kernels could not be built: numpy runs those parts (see 'animbatch doctor --kernels')."
