@@ -111,6 +111,7 @@ def test_kernels_that_fail_to_build_leave_the_contacts_to_numpy_and_say_so(monke
     np.testing.assert_array_equal(fallen.positions, reference.positions)
 
 
+@pytest.mark.slow
 def test_kernels_are_cached_in_their_folder_even_when_numba_was_imported_first(tmp_path):
     """numba reads NUMBA_CACHE_DIR once, when it is first imported. A program that imports numba before animbatch (a
     notebook) must still find the kernels in animbatch's cache folder: otherwise numba compiles every kernel again

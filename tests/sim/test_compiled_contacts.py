@@ -540,6 +540,7 @@ def test_the_contacts_a_search_returns_are_contiguous_even_when_one_kind_finds_t
         assert getattr(found, name).flags.c_contiguous, name
 
 
+@pytest.mark.slow
 def test_a_short_run_resting_on_its_contacts_is_estimated_by_its_solve_and_goes_compiled_from_the_start(monkeypatch):
     """A ball resting on a 25° slope for 1 s at 1 ms: one contact search costs a fraction of a millisecond, but each
     numpy contact step also builds rows and sweeps (some 2 ms in all, measured). The estimate counts that solve for
