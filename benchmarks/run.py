@@ -225,7 +225,7 @@ def bench_pool(quick: bool, sizes: list[int] | None = None) -> list[Row]:
                 for k in range(steps // fused)], steps),
             f"anchor: plain numba loop, {fused} steps per call": (
                 lambda: [anchor(x, v, a, mass, radius, 1e-3, fused, -9.81, 1e-6, 0.5) for _ in range(steps // fused)],
-                steps)}, repeats=7)
+                steps)}, repeats=1 if quick else 7)  # --quick: numbers that exist, not the best of several
         measured |= timed({"numpy code (EmitterRun.step)": (lambda: [numpy_run.step(k * 1e-3, (k + 1) * 1e-3)
                                                                     for k in range(numpy_steps)], numpy_steps)}, 1)
         for case, rate in measured.items():
@@ -806,7 +806,8 @@ def bench_stream(quick: bool) -> list[Row]:
     width, height = (320, 180) if quick else (1280, 720)  # --quick checks the three paths run, not their speed
     size = f"{width}×{height}"
     scene = api.load_scene(ROOT / "scenes" / "bouncing_balls.yaml",
-                           [f"render.resolution=[{width}, {height}]", f"duration={frames / 30}", "fps=30", "render.formats=[mp4]"])
+                           [f"render.resolution=[{width}, {height}]", f"duration={frames / 30}", "fps=30",
+                            "render.formats=[mp4]"])
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
     out = Path(tempfile.mkdtemp(prefix="animbatch-stream-"))
