@@ -52,7 +52,7 @@ NO_CONTACTS = Contacts.concatenate([])
 #: under any load.
 NUMPY_CONTACT_STEP = 2e-3
 NUMPY_SWEEP = 150e-6
-COMPILE_CONTACTS_AFTER = 1.0
+COMPILE_CONTACTS_AFTER = 0.5  # as COMPILE_AFTER: numpy runs take 2-4x their estimate
 
 
 def measure_contact_search(system: Dynamics, repeats: int = 2) -> tuple[float, int]:
