@@ -423,3 +423,113 @@ def test_the_accuracy_page_holds_the_guide_and_the_ledger_as_the_generator_write
     table = text.split(LEDGER, 1)[1].strip().splitlines()
     assert len(table) == 2 + len(LEDGER_RUNS)
     assert [row.split("|")[1].strip() for row in table[2:]] == [method for method, _ in LEDGER_RUNS]
+
+
+# ------------------------------------------------------------------------------------------------ emitters
+
+EMITTER_BURST = """
+    duration: 1.0
+    fps: 10
+    seed: 3
+    emitters:
+      - name: puff
+        source: {type: sphere, position: [0, 1, 0], radius: 0.1}
+        bursts: [{time: 0, count: 200}]
+        speed: {mean: 4, spread: 1}
+        direction: {cone: 60}
+        lifetime: 5
+        radius: 0.01
+        mass: 1.0e-3
+    fields: [{type: gravity}]
+    study: {rtols: [1.0e-3, 1.0e-6], dt_levels: 4, repeats: 1}
+"""
+
+
+def test_a_scene_of_emitters_is_studied_particle_by_particle():
+    """200 particles burst at t = 0 under gravity alone: each one is a projectile, so explicit Euler lags each by
+    g h t / 2 at time t (the same for all of them), and Verlet and RK45 are exact to round-off. The errors are
+    measured particle by particle against a tight DOP853 run; nothing is conserved (births and deaths)."""
+    result = run_study(scene(EMITTER_BURST), methods=["RK45", "euler", "verlet"])
+    assert result.reference.startswith("DOP853 at rtol 1e-12, checked against DOP853 at rtol 1e-11")
+    assert result.reference_floor < 1e-13
+    assert result.conserved == {"energy": False, "momentum": False, "angular_momentum": False}
+    euler = [row for row in result.rows if row.method == "euler"]
+    assert [row.dt for row in euler] == pytest.approx([0.1 / 2**k for k in range(4)])
+    t = np.arange(10) / 10  # the frame times
+    for row in euler:
+        expected = np.sqrt(np.mean((G * row.dt * t / 2) ** 2)) / result.length_scale
+        assert row.position_error == pytest.approx(expected, rel=1e-6)
+        assert row.energy_drift is None
+    exact = [row for row in result.rows if row.method in ("verlet", "RK45")]
+    assert len(exact) == 6 and all(row.position_error < 1e-12 for row in exact)
+
+
+def test_emitted_particles_converge_at_their_methods_order_under_drag():
+    """With linear drag (velocity-dependent: Verlet's predicted velocity matters) Euler and backward Euler converge
+    at order 1 and Verlet at order 2, measured over every particle of the burst."""
+    loaded = scene(EMITTER_BURST.replace("fields: [{type: gravity}]",
+                                         "fields: [{type: gravity}, {type: drag, model: linear, coefficient: 2.0e-3}]"))
+    merits = {m.method: m for m in run_study(loaded, methods=["euler", "backward_euler", "verlet"]).merits}
+    assert merits["euler"].order == pytest.approx(1.0, abs=0.1)
+    assert merits["backward_euler"].order == pytest.approx(1.0, abs=0.1)
+    assert merits["verlet"].order == pytest.approx(2.0, abs=0.1)
+
+
+def test_particles_are_matched_by_serial_whatever_slot_holds_them():
+    """Two runs may hold a particle in different pool slots: the study compares it with itself, by serial, and
+    leaves out frames where it is not alive."""
+    from animbatch.study.particles import particle_motion
+    from animbatch.trajectory import ParticleFrames
+
+    positions = np.arange(2 * 3 * 3, dtype=float).reshape(2, 3, 3)
+    serials = np.array([[0, 1, -1], [2, 0, 1]])
+    first = particle_motion([ParticleFrames("a", positions, serials, np.zeros((2, 3)))], [3])
+    swapped = particle_motion([ParticleFrames("a", positions[:, ::-1], serials[:, ::-1], np.zeros((2, 3)))], [3])
+    np.testing.assert_array_equal(first.positions, swapped.positions)
+    assert np.isnan(first.positions[0, 2]).all()  # serial 2 is not born by frame 0
+    np.testing.assert_array_equal(first.positions[1, 0], positions[1, 1])
+
+
+def test_a_study_finds_mesh_files_beside_the_scene_file(tmp_path, tmp_cwd):
+    """A scene whose body is a mesh file next to it is studied from any folder (it failed with 'no such file')."""
+    import shutil
+    from pathlib import Path
+
+    from animbatch import api
+
+    folder = tmp_path / "elsewhere"
+    (folder / "meshes").mkdir(parents=True)
+    shutil.copy(Path(__file__).resolve().parents[1] / "scenes" / "meshes" / "gem.obj", folder / "meshes")
+    (folder / "gem.yaml").write_text("""
+duration: 0.5
+fps: 10
+bodies: [{name: gem, type: rigid, shape: {type: mesh, file: meshes/gem.obj}, density: 2600, velocity: [1, 2, 0]}]
+fields: [{type: gravity}]
+study: {dt_levels: 2, repeats: 1}
+""")
+    result = run_study(api.load_scene(folder / "gem.yaml"), methods=["verlet"])
+    assert [row.status for row in result.rows] == ["ok", "ok"]
+    assert all(row.position_error < 1e-12 for row in result.rows)
+
+
+def test_a_fixed_step_reference_and_its_accuracy():
+    """``study.reference``: a projectile against symplectic Euler at 1 ms, which leads the parabola by g dt t / 2;
+    its check at 2 ms leads by twice that, so the measured floor is exactly the reference's own error. Explicit
+    Euler at h lags by g h t / 2, so against this reference it is off by g (h + dt) t / 2."""
+    dt = 1e-3
+    loaded = scene(PROJECTILE.replace("study: {closed_form: true,",
+                                      f"study: {{reference: {{method: symplectic_euler, dt: {dt}}},"))
+    result = run_study(loaded, methods=["euler"])
+    assert result.reference == "symplectic_euler at dt 0.001 s, checked against symplectic_euler at dt 0.002 s"
+    t = np.arange(10) / 10
+    assert result.reference_floor == pytest.approx(np.sqrt(np.mean((G * dt * t / 2) ** 2)) / result.length_scale,
+                                                   rel=1e-6)
+    for row in result.rows:
+        expected = np.sqrt(np.mean((G * (row.dt + dt) * t / 2) ** 2)) / result.length_scale
+        assert row.position_error == pytest.approx(expected, rel=1e-6)
+
+
+def test_a_study_has_one_reference():
+    with pytest.raises(SceneError, match=r"study.reference.*closed_form .*or reference .*not both"):
+        scene(PROJECTILE.replace("study: {closed_form: true,",
+                                 "study: {closed_form: true, reference: {method: verlet, dt: 1.0e-3},"))

@@ -90,6 +90,7 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
     ("`render.energy_panel`", "render.energy_panel.", schema.EnergyPanelSpec),
     ("`render.video`", "render.video.", schema.VideoSpec),
     ("`study`", "study.", schema.StudySpec),
+    ("`study.reference`", "study.reference.", schema.StudyReferenceSpec),
 ]
 
 

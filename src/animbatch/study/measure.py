@@ -3,11 +3,11 @@
 Every error is dimensionless, relative to the scene's scales (:class:`Scales`), so that scenes of marbles and of
 planets read alike:
 
-* ``position_error``: the RMS over all frames and bodies of how far each body is from where the reference puts it,
-  over the length scale L. A rigid body's distance adds its orientation error (angle) times its radius, the
-  distance its surface is off: what a viewer sees.
+* ``position_error``: the RMS over all frames and bodies (or emitted particles alive in both runs) of how far each
+  body is from where the reference puts it, over the length scale L. A rigid body's distance adds its orientation
+  error (angle) times its radius, the distance its surface is off: what a viewer sees.
 * ``final_error``: at the last frame, the RMS over bodies of ``√(|Δx|²/L² + |Δv|²/V²)`` (the state a continuation
-  would start from).
+  would start from; ``|Δx|/L`` alone for emitted particles, whose velocities are not recorded).
 * drifts, only where the scene conserves the quantity (:func:`conserved`): the largest change from the first frame
   of the total energy over ``M V²``, of the linear momentum over ``M V`` and of the angular momentum over ``M V L``
   (M the total mass).
@@ -99,13 +99,16 @@ def position_error(model: Model, run: Motion, reference: Motion, scales: Scales)
     distance = np.linalg.norm(run.positions - reference.positions, axis=-1)  # (F, P)
     if model.rigid is not None:
         distance = distance + _rotation_angle(run.orientations, reference.orientations) * model.bodies.radius
-    return float(np.sqrt(np.mean(distance**2)) / scales.length)
+    alive = np.isfinite(distance)  # emitted particles: only where both runs hold the particle (NaN elsewhere)
+    return float(np.sqrt(np.mean(distance[alive]**2)) / scales.length) if alive.any() else 0.0
 
 
 def final_error(run: Motion, reference: Motion, scales: Scales) -> float:
     dx = np.linalg.norm(run.positions[-1] - reference.positions[-1], axis=-1) / scales.length
     dv = np.linalg.norm(run.velocities[-1] - reference.velocities[-1], axis=-1) / scales.speed
-    return float(np.sqrt(np.mean(dx**2 + dv**2)))
+    dv = np.where(np.isnan(dv), 0.0, dv)  # emitted particles' velocities are not recorded: positions alone
+    alive = np.isfinite(dx)
+    return float(np.sqrt(np.mean(dx[alive]**2 + dv[alive]**2))) if alive.any() else 0.0
 
 
 def contact_time_error(run: Motion, reference: Motion) -> float | None:

@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,9 +64,11 @@ def _first_scales(model: Model) -> np.ndarray:
     return guess.tolerance_scale(model)
 
 
-def find_reference(model: Model, *, closed_form: bool, timeout: float, progress=print) -> Reference:  # type: ignore[no-untyped-def]
+def find_reference(model: Model, *, closed_form: bool, timeout: float, progress=print,  # type: ignore[no-untyped-def]
+                   fixed: tuple[str, float] | None = None) -> Reference:
     """The study's reference for ``model``; ``timeout`` [s] per reference run (raises StudyError, naming every run
-    tried and why it failed, when no tight run succeeds in time)."""
+    tried and why it failed, when no tight run succeeds in time). ``fixed``: (method, dt [s]) of a fixed-step
+    reference instead of the tight adaptive one, checked against the same method at twice the step."""
     if closed_form:
         exact = exact_motion(model)
         orientations = np.zeros((*exact.positions.shape[:2], 4))
@@ -75,6 +78,15 @@ def find_reference(model: Model, *, closed_form: bool, timeout: float, progress=
         return Reference(motion, f"closed form ({forms})", Scales.of_motion(model, motion.positions,
                                                                              motion.velocities), ROUND_OFF, ROUND_OFF)
     scale = _first_scales(model)
+    if fixed is not None:
+        method, dt = fixed
+        progress(f"reference: {method} at dt {dt:.3g} s …")
+        primary = execute(model, RunSetting(method, dt=dt), scale, repeats=0, timeout=timeout)
+        if primary.status != "ok":
+            raise StudyError(f"no reference for the study: {method} at dt {dt:.3g} s (study.reference) "
+                             f"{primary.status}: {primary.reason}. Give it more time (--timeout T: reference runs get "
+                             "10 T, at least 120 s) or shorten the scene (--set duration=…).")
+        return _checked(model, primary, RunSetting(method, dt=2 * dt), scale, timeout, progress)
     stiff = is_stiff(model)
     attempts: list[RunOutcome] = []
     for rtol in REFERENCE_RTOLS:
@@ -94,9 +106,16 @@ def find_reference(model: Model, *, closed_form: bool, timeout: float, progress=
             f"no reference for the study: every tight run failed ({tried}). Errors are measured against a tight "
             f"run, so it has to succeed: shorten the scene (--set duration=…), give it more time (--timeout T: "
             f"reference runs get 10 T, at least 120 s), or use --closed-form where every body has one.")
-    assert primary.setting.rtol is not None and primary.states is not None
+    assert primary.setting.rtol is not None
     check_setting = (RunSetting("Radau", rtol=max(1e-9, 10 * primary.setting.rtol)) if stiff or
                      primary.setting.method == "Radau" else RunSetting("DOP853", rtol=10 * primary.setting.rtol))
+    return _checked(model, primary, check_setting, scale, timeout, progress)
+
+
+def _checked(model: Model, primary: RunOutcome, check_setting: RunSetting, scale: np.ndarray, timeout: float,
+             progress: Callable[[str], None]) -> Reference:
+    """The reference ``primary``, its accuracy measured by a second run with ``check_setting``."""
+    assert primary.states is not None
     progress(f"reference check: {check_setting.method} at {check_setting.label} …")
     check = execute(model, check_setting, scale, repeats=0, timeout=timeout)
     motion = Motion.of_states(model, primary.states, primary.impacts)

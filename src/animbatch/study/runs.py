@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -49,8 +50,9 @@ class RunSetting:
 
 @dataclass
 class RunOutcome:
-    """What one setting did: ``status`` ok, failed or timeout (with ``reason``), its frames (F, n) when ok, the
-    work (minimum ``wall_time`` [s] over the timed repeats, RHS evaluations, steps, Jacobians, factorisations)."""
+    """What one setting did: ``status`` ok, failed or timeout (with ``reason``), its frames (F, n) when ok (or
+    its emitters' particles), the work (minimum ``wall_time`` [s] over the timed repeats, RHS evaluations, steps,
+    Jacobians, factorisations)."""
 
     setting: RunSetting
     status: str
@@ -63,6 +65,7 @@ class RunOutcome:
     lu_decompositions: int | None = None
     wall_times: list[float] = field(default_factory=list)
     impacts: list[tuple[float, int]] = field(default_factory=list)  # (time [s], body) of each bounce, in order
+    particles: list[Any] | None = None  # a scene of emitters: each emitter's ParticleFrames instead of states
 
 
 class RunTimeout(Exception):

@@ -15,13 +15,15 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from typing import Any
 
-from animbatch.compile.model import compile_scene
+from animbatch.compile.particles import ParticleSystems, compile_particles
 from animbatch.errors import SceneError, SceneIssue
 from animbatch.scene import LoadedScene
 from animbatch.sim.closed_forms import NoClosedForm
 from animbatch.sim.model import Model
+from animbatch.stages import compile_model, scene_folder
 from animbatch.study.measure import Motion, conserved, contact_time_error, drifts, final_error, position_error
 from animbatch.study.merit import Point, TimeTo, observed_order, time_to
+from animbatch.study.particles import births_by_end, execute_particles, particle_motion, particle_reference
 from animbatch.study.reference import REFERENCE_MARGIN, Reference, find_reference
 from animbatch.study.runs import RunOutcome, applicable_methods, execute, plan_settings
 
@@ -121,20 +123,25 @@ def _finite(value: Any) -> Any:
     return value
 
 
-def _row(model: Model, outcome: RunOutcome, reference: Reference, which: dict[str, bool]) -> StudyRow:
+def _row(model: Model, outcome: RunOutcome, reference: Reference, which: dict[str, bool],
+         systems: ParticleSystems | None = None) -> StudyRow:
     setting = outcome.setting
     row = StudyRow(setting.method, setting.label, setting.rtol, setting.dt, outcome.status, outcome.reason,
                    wall_time=outcome.wall_time, rhs_evaluations=outcome.rhs_evaluations, steps=outcome.steps,
                    jacobian_evaluations=outcome.jacobian_evaluations, lu_decompositions=outcome.lu_decompositions)
-    if outcome.status != "ok" or outcome.states is None:
+    if outcome.status != "ok" or (outcome.states is None and outcome.particles is None):
         return row
-    run = Motion.of_states(model, outcome.states, outcome.impacts)
+    if outcome.particles is not None:
+        run = particle_motion(outcome.particles, births_by_end(model, systems))
+    else:
+        run = Motion.of_states(model, outcome.states, outcome.impacts)
     scales = reference.scales
     row.position_error = position_error(model, run, reference.motion, scales)
     row.final_error = final_error(run, reference.motion, scales)
-    drift = drifts(model, outcome.states, scales, which)
-    row.energy_drift, row.momentum_drift = drift["energy"], drift["momentum"]
-    row.angular_momentum_drift = drift["angular_momentum"]
+    if outcome.states is not None:
+        drift = drifts(model, outcome.states, scales, which)
+        row.energy_drift, row.momentum_drift = drift["energy"], drift["momentum"]
+        row.angular_momentum_drift = drift["angular_momentum"]
     row.limited_by_reference = reference.limits(row.position_error, row.final_error)
     if model.contact_world is not None:
         row.contact_time_error = contact_time_error(run, reference.motion)
@@ -163,13 +170,19 @@ def run_study(scene: LoadedScene, *, model: Model | None = None, methods: list[s
     one line per run."""
     started = time.perf_counter()
     settings = scene.spec.study
-    model = model if model is not None else compile_scene(scene.spec)
-    if not model.layout.size:
+    model = model if model is not None else compile_model(scene)  # mesh files beside the scene file
+    # a scene of emitters only is studied on its particles; a scene with bodies on its bodies
+    systems = None if model.layout.size else compile_particles(scene.spec, model, scene_folder(scene))
+    if not model.layout.size and systems is None:
         raise SceneError([SceneIssue(scene.source.source_of(("bodies",)), "bodies",
-                                     "the scene has no bodies to integrate (emitters are not studied)")])
+                                     "the scene has neither bodies nor emitters: nothing to study")])
+    reference_timeout = max(10 * settings.timeout, 120.0)
+    fixed = (settings.reference.method, settings.reference.dt) if settings.reference is not None else None
     try:
-        reference = find_reference(model, closed_form=settings.closed_form, timeout=max(10 * settings.timeout, 120.0),
-                                   progress=progress)
+        reference = (particle_reference(model, systems, timeout=reference_timeout, progress=progress, fixed=fixed)
+                     if systems is not None else
+                     find_reference(model, closed_form=settings.closed_form, timeout=reference_timeout,
+                                    progress=progress, fixed=fixed))
     except NoClosedForm as error:
         raise SceneError([SceneIssue(scene.source.source_of(("study", "closed_form")), "study.closed_form",
                                      f"{error}. Remove study.closed_form to measure errors against a tight "
@@ -177,12 +190,17 @@ def run_study(scene: LoadedScene, *, model: Model | None = None, methods: list[s
     chosen, skipped = applicable_methods(model, methods or settings.methods)
     frame_interval = float(model.frame_times[1] - model.frame_times[0]) if len(model.frame_times) > 1 else 0.1
     plan = plan_settings(chosen, settings.rtols, frame_interval, settings.dt_levels)
-    tolerance_scale = reference.scales.tolerance_scale(model)
-    which = conserved(model)
+    which = conserved(model) if systems is None else {"energy": False, "momentum": False,
+                                                      "angular_momentum": False}  # drag, births and deaths
     rows = []
     for number, setting in enumerate(plan, 1):
-        outcome = execute(model, setting, tolerance_scale, repeats=settings.repeats, timeout=settings.timeout)
-        row = _row(model, outcome, reference, which)
+        if systems is not None:
+            outcome = execute_particles(model, systems, setting, reference.scales, repeats=settings.repeats,
+                                        timeout=settings.timeout)
+        else:
+            outcome = execute(model, setting, reference.scales.tolerance_scale(model), repeats=settings.repeats,
+                              timeout=settings.timeout)
+        row = _row(model, outcome, reference, which, systems)
         rows.append(row)
         shown = (f"error {row.position_error:.2e}, {row.wall_time:.3g} s" if row.status == "ok"
                  else f"{row.status}: {row.reason.splitlines()[0][:100]}")

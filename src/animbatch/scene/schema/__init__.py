@@ -160,6 +160,7 @@ from animbatch.scene.schema.rigid import (
 from animbatch.scene.schema.scene import (
     PRESENTATION_KEYS,
     SceneSpec,
+    StudyReferenceSpec,
     StudySpec,
 )
 from animbatch.scene.schema.solver import (
@@ -304,6 +305,7 @@ __all__ = [
     "SphereSource",
     "SpringFamilySpec",
     "SpringSpec",
+    "StudyReferenceSpec",
     "StudySpec",
     "SurfaceSource",
     "TARGET_SPECS",

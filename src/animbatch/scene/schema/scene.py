@@ -5,10 +5,10 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from animbatch.scene.schema.assignment import AssignmentSpec
-from animbatch.scene.schema.base import Name, SceneModel, key
+from animbatch.scene.schema.base import Name, SceneModel, key, rule_error
 from animbatch.scene.schema.bodies import AnchorSpec
 from animbatch.scene.schema.contacts import ColliderSpec, ContactSpec, MaterialPairSpec, MaterialSpec
 from animbatch.scene.schema.controllers import ControllerSpec
@@ -17,8 +17,16 @@ from animbatch.scene.schema.emitters import EmitterSpec
 from animbatch.scene.schema.fields import FieldSpec
 from animbatch.scene.schema.joints import JointSpec
 from animbatch.scene.schema.render import RenderSpec
-from animbatch.scene.schema.solver import Method, SolverSpec
+from animbatch.scene.schema.solver import FixedStepMethod, Method, SolverSpec
 from animbatch.scene.schema.stopwatches import ClocksSpec, StopwatchSpec
+
+
+class StudyReferenceSpec(SceneModel):
+    """A fixed-step reference for ``animbatch study``, where a tight adaptive run would crawl (a pile, a stack)."""
+    method: FixedStepMethod = key("symplectic_euler", "Fixed-step method of the reference run.")
+    dt: float = key(description="Step of the reference run; it is checked against the same method at twice this "
+                                "step, and that difference is the reference's accuracy.", unit="s", gt=0,
+                    example=1.0e-4)
 
 
 class StudySpec(SceneModel):
@@ -28,6 +36,9 @@ class StudySpec(SceneModel):
                                    "linear drag (and gravity, optionally wind), a mass on one spring to a fixed "
                                    "anchor moving along the spring (gravity allowed along it), or one of a pair "
                                    "attracting each other by gravitation alone (Kepler orbit).")
+    reference: StudyReferenceSpec | None = key(
+        None, "A fixed-step reference run instead of tight DOP853 (for piles and resting stacks, where adaptive "
+              "methods crawl through contact events).", example={"method": "symplectic_euler", "dt": 1.0e-4})
     methods: list[Method] | None = key(None, "Integrators to study (default: every one that applies to the scene).",
                                        example=["RK45", "DOP853", "verlet"])
     rtols: list[Annotated[float, Field(gt=0, lt=1)]] = key(
@@ -39,6 +50,13 @@ class StudySpec(SceneModel):
     repeats: int = key(3, "Timed repeats per run after an untimed one that measures the errors; the minimum wall "
                           "time is reported.", "1", ge=1, le=20)
     timeout: float = key(60.0, "Wall-time limit per run; a run that exceeds it is reported as a timeout.", "s", gt=0)
+
+    @model_validator(mode="after")
+    def _one_reference(self) -> "StudySpec":
+        if self.closed_form and self.reference is not None:
+            raise rule_error("a study has one reference: closed_form (exact motion) or reference (a fixed-step "
+                             "run), not both", "reference")
+        return self
 
 
 class SceneSpec(SceneModel):

@@ -38,6 +38,7 @@ def _canonical_method(value: Any) -> Any:
 
 Method = Annotated[Literal[*ADAPTIVE_METHODS, *FIXED_STEP_METHODS, *KINEMATIC_METHODS],
                    BeforeValidator(_canonical_method)]  # type: ignore[valid-type]
+FixedStepMethod = Annotated[Literal[*FIXED_STEP_METHODS], BeforeValidator(_canonical_method)]  # type: ignore[valid-type]
 
 
 class SolverSpec(SceneModel):

@@ -264,19 +264,20 @@ def _check_budget(t: float, stats: ParticleStats) -> None:
 
 def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, ParticleColliders | None],
                        times: np.ndarray, solver: StepSettings, motion: BodyMotion | None, *, dt: float,
-                       on_frame: Callable[[int, float], None] | None = None, record: bool = True
-                       ) -> tuple[list[ParticleFrames], ParticleStats]:
+                       on_frame: Callable[[int, float], None] | None = None, record: bool = True,
+                       precision: type = np.float32) -> tuple[list[ParticleFrames], ParticleStats]:
     """Simulate every emitter over the frame ``times`` (F,) [s]; fixed-step methods step at most ``dt`` [s].
 
     Returns the particles at each frame (unless ``record`` is False: then only the statistics, for measuring) and the
-    statistics. Raises SimulationError when a particle's state stops being finite."""
+    statistics. Positions are kept in single ``precision`` (what a trajectory stores), unless asked otherwise (a
+    study compares runs beyond it). Raises SimulationError when a particle's state stops being finite."""
     started = time.perf_counter()
     method = solver.method
     frames = len(times)
     total_steps = sum(steps_per_frame(float(b - a), method, dt) for a, b in zip(times[:-1], times[1:]))
     runs = [EmitterRun(e, colliders.get(e.name), method, solver, motion, total_steps) for e in emitters]
     records = [ParticleFrames(run.emitter.name,
-                              np.zeros((frames if record else 1, run.pool.capacity, 3), np.float32),
+                              np.zeros((frames if record else 1, run.pool.capacity, 3), precision),
                               np.full((frames if record else 1, run.pool.capacity), -1, np.int32),
                               np.zeros((frames if record else 1, run.pool.capacity), np.float32)) for run in runs]
     stats = ParticleStats(method)
