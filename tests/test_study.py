@@ -462,6 +462,7 @@ def test_a_scene_of_emitters_is_studied_particle_by_particle():
         assert row.energy_drift is None
     exact = [row for row in result.rows if row.method in ("verlet", "RK45")]
     assert len(exact) == 6 and all(row.position_error < 1e-12 for row in exact)
+    assert len(table(result).splitlines()) > len(result.rows)  # the table prints (work the kernels do not count)
 
 
 def test_emitted_particles_converge_at_their_methods_order_under_drag():

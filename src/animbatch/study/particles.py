@@ -18,7 +18,7 @@ import numpy as np
 from animbatch.compile.particles import ParticleSystems
 from animbatch.errors import SimulationError, StudyError
 from animbatch.sim.model import Model
-from animbatch.sim.particles.simulate import simulate_particles
+from animbatch.sim.particles.simulate import ParticleStats, simulate_particles
 from animbatch.study.measure import Motion, Scales, final_error, position_error
 from animbatch.study.reference import REFERENCE_RTOLS, Reference
 from animbatch.study.runs import RunOutcome, RunSetting, RunTimeout
@@ -72,7 +72,7 @@ def execute_particles(model: Model, systems: ParticleSystems, setting: RunSettin
                           (setting.rtol or 1e-3) * min(scales.length, scales.speed))
     interval = float(model.frame_times[1] - model.frame_times[0]) if len(model.frame_times) > 1 else 1.0
 
-    def run(record: bool) -> tuple[list[ParticleFrames], float, int]:
+    def run(record: bool) -> tuple[list[ParticleFrames], float, ParticleStats]:
         deadline = time.perf_counter() + timeout
 
         def on_frame(frame: int, t: float) -> None:
@@ -83,18 +83,20 @@ def execute_particles(model: Model, systems: ParticleSystems, setting: RunSettin
         records, stats = simulate_particles(systems.emitters, systems.colliders, model.frame_times, steps, None,
                                             dt=setting.dt or interval, on_frame=on_frame, record=record,
                                             precision=np.float64)
-        return records, time.perf_counter() - started, int(stats.steps)
+        return records, time.perf_counter() - started, stats
 
     from threadpoolctl import threadpool_limits  # as for bodies: one thread, so that methods compare fairly
 
     with threadpool_limits(limits=1):
         try:
-            records, first_time, count = run(record=True)
+            records, first_time, stats = run(record=True)
         except RunTimeout:
             return RunOutcome(setting, "timeout", f"took longer than {timeout:g} s")
         except SimulationError as error:
             return RunOutcome(setting, "failed", str(error))
-        outcome = RunOutcome(setting, "ok", steps=count, particles=records)
+        # the compiled kernels count no RHS evaluations (None: not counted, rather than 0)
+        outcome = RunOutcome(setting, "ok", steps=stats.steps, rhs_evaluations=stats.rhs_evaluations or None,
+                             particles=records)
         for _ in range(repeats if first_time < 2.0 else min(repeats, 1)):
             try:
                 outcome.wall_times.append(run(record=False)[1])

@@ -47,8 +47,9 @@ def table(result: StudyResult) -> str:
         lines.append(f"{row.method:<17}{row.setting:<16}{_number(row.position_error):>11}"
                      f"{_number(row.final_error, 1):>10}{_number(row.energy_drift, 1):>10}"
                      + (f"{contact:>16}" if contacts else "") +
-                     f"{'' if ratio is None else f'{ratio:.2g}':>10}{row.wall_time:>10.3g}{row.rhs_evaluations:>9}"
-                     f"{row.steps:>8}{work:>9}  {'limited by reference' if row.limited_by_reference else ''}")
+                     f"{'' if ratio is None else f'{ratio:.2g}':>10}{row.wall_time:>10.3g}"
+                     f"{_count(row.rhs_evaluations):>9}{_count(row.steps):>8}{work:>9}  "
+                     f"{'limited by reference' if row.limited_by_reference else ''}")
     lines += ["", f"{'method':<17}" + "".join(f"{f'time to {t:g} [s]':>18}" for t in TARGETS)
               + f"{'order':>8}{'failed':>8}"]
     for merit in result.merits:
@@ -56,6 +57,11 @@ def table(result: StudyResult) -> str:
         lines.append(f"{merit.method:<17}" + "".join(f"{str(merit.time_to[t]):>18}" for t in TARGETS)
                      + f"{order:>8}{merit.failures:>8}")
     return "\n".join(lines)
+
+
+def _count(value: int | None) -> str:
+    """A count, or '—' where it was not counted (the compiled particle kernels count no RHS evaluations)."""
+    return "—" if value is None else str(value)
 
 
 def csv_text(result: StudyResult) -> str:
