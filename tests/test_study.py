@@ -534,3 +534,30 @@ def test_a_study_has_one_reference():
     with pytest.raises(SceneError, match=r"study.reference.*closed_form .*or reference .*not both"):
         scene(PROJECTILE.replace("study: {closed_form: true,",
                                  "study: {closed_form: true, reference: {method: verlet, dt: 1.0e-3},"))
+
+
+def test_a_study_times_the_equations_of_motion_a_render_would_run(monkeypatch):
+    """Every run of a study (the reference, its check and each setting) integrates what a render with that setting
+    would: here the compiled equations of motion (asked for with ANIMBATCH_KERNELS=numba), which the study timed as
+    numpy before. A hinged bar swinging: Verlet converges at its order 2 on them, and RK45 meets its tolerance."""
+    from animbatch.sim.kernels import KERNELS_VARIABLE
+    from animbatch.sim.model import compiled
+    from conftest import counting
+
+    monkeypatch.setenv(KERNELS_VARIABLE, "numba")
+    built = counting(monkeypatch, compiled, "CompiledDynamics")
+    loaded = scene("""
+        duration: 1.0
+        fps: 10
+        bodies:
+          - {name: bar, type: rigid, shape: {type: box, size: [0.05, 1.0, 0.05]}, density: 500,
+             position: [0.25, -0.433, 0], orientation: {axis: [0, 0, 1], angle: 30}}
+        joints: [{type: hinge, between: [bar], anchor: [0, 0, 0], axis: [0, 0, 1]}]
+        fields: [{type: gravity}]
+        study: {rtols: [1.0e-6], dt_levels: 4, repeats: 1}
+    """)
+    result = run_study(loaded, methods=["RK45", "verlet"])
+    assert len(built) >= 2 + 2 * len(result.rows)  # reference and check, then each run untimed and timed
+    merits = {m.method: m for m in result.merits}
+    assert merits["verlet"].order == pytest.approx(2.0, abs=0.15)
+    assert next(row for row in result.rows if row.method == "RK45").position_error < 1e-5

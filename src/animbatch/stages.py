@@ -40,9 +40,10 @@ from animbatch.scene.overrides import Override
 from animbatch.scene.schema import label_names, label_speed_names
 from animbatch.sim.contact.stepping import measure_contact_search, numpy_contact_solve
 from animbatch.sim.integrators import DEFAULT_DT, IntegrationResult, SolverStats
+from animbatch.sim.integrators.base import StepSettings
 from animbatch.sim.integrators.budget import wall_budget
 from animbatch.sim.integrators.checkpoint import integrate_with_checkpoints
-from animbatch.sim.integrators.cost import check_cost, estimate_cost, measure_rhs
+from animbatch.sim.integrators.cost import CostEstimate, check_cost, estimate_cost, measure_rhs
 from animbatch.sim.integrators.guard import check_energy_growth
 from animbatch.sim.ledger import QuantitySeries, build_ledger
 from animbatch.sim.model import Dynamics, Model
@@ -90,16 +91,7 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
         particle_steps = frame_steps * (len(model.frame_times) - 1)
         systems = compile_particles(spec, model, scene_folder(scene)) if spec.emitters else None
         pools = particle_costs(spec, systems, particle_steps)
-        search, touching = measure_contact_search(system)
-        cost = estimate_cost(model, spec.solver, pools, particle_steps,
-                             contact_seconds=search + numpy_contact_solve(touching))
-        # compiled equations of motion where the numpy ones would take long enough to repay loading them; the
-        # estimate that may refuse the run is then of the compiled ones (whose contact solve costs little beside
-        # the search)
-        system = dynamics_for(model, cost.seconds_of("integration") + cost.seconds_of("contacts"))
-        if type(system) is not Dynamics:
-            cost = estimate_cost(model, spec.solver, pools, particle_steps, rhs_seconds=measure_rhs(model, system),
-                                 contact_seconds=search)
+        system, cost = choose_dynamics(model, spec.solver, pools, particle_steps)
         check_cost(cost, spec.solver.max_cost)  # refuse what would run for hours or cannot fit, before it starts
         estimated = cost.seconds
     with wall_budget(spec.solver.max_cost, float(model.frame_times[0]), float(model.frame_times[-1])):
@@ -127,6 +119,21 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
         joint_names=model.joints.names if model.joints is not None else (), joint_forces=joint_loads[0],
         joint_torques=joint_loads[1], motor_efforts=joint_loads[2] if model.joints is not None
         and model.joints.motors is not None else None)
+
+
+def choose_dynamics(model: Model, solver: StepSettings, pools: Sequence[tuple[Any, ...]] = (),
+                    particle_steps: int = 0) -> tuple[Dynamics, CostEstimate]:
+    """The Dynamics a run of ``model`` with ``solver`` settings integrates, and the run's cost estimate (with the
+    emitters' ``pools`` stepped ``particle_steps`` times): compiled equations of motion where the numpy ones would
+    take long enough to repay loading them. The estimate is then of the compiled ones, whose contact solve costs
+    little beside the search. Every run chooses so, a study's runs too: a study times what a render costs."""
+    search, touching = measure_contact_search(Dynamics(model))
+    cost = estimate_cost(model, solver, pools, particle_steps, contact_seconds=search + numpy_contact_solve(touching))
+    system = dynamics_for(model, cost.seconds_of("integration") + cost.seconds_of("contacts"))
+    if type(system) is not Dynamics:
+        cost = estimate_cost(model, solver, pools, particle_steps, rhs_seconds=measure_rhs(model, system),
+                             contact_seconds=search)
+    return system, cost
 
 
 def _integrate(scene: LoadedScene, model: Model, system: Dynamics, integrator: Any, progress: Progress,

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -23,18 +22,6 @@ from animbatch.study.measure import Motion, Scales, final_error, position_error
 from animbatch.study.reference import REFERENCE_RTOLS, Reference
 from animbatch.study.runs import RunOutcome, RunSetting, RunTimeout
 from animbatch.trajectory import ParticleFrames
-
-
-@dataclass(frozen=True)
-class ParticleSteps:
-    """A study setting in the shape of a scene's solver section (what :func:`simulate_particles` reads):
-    ``atol`` [m and m/s alike] is ``rtol`` times the smaller of the length and speed scales."""
-
-    method: str
-    dt: float | None
-    rtol: float
-    atol: float
-    max_step: float | None = None
 
 
 def particle_motion(records: list[ParticleFrames], births: list[int]) -> Motion:
@@ -68,8 +55,8 @@ def execute_particles(model: Model, systems: ParticleSystems, setting: RunSettin
                       repeats: int, timeout: float) -> RunOutcome:
     """Run the emitters with one setting: untimed for their frames, then ``repeats`` timed runs (one only when a
     run takes more than a few seconds). ``outcome.particles`` holds the frames."""
-    steps = ParticleSteps(setting.method, setting.dt, setting.rtol or 1e-3,
-                          (setting.rtol or 1e-3) * min(scales.length, scales.speed))
+    # atol [m and m/s alike]: rtol times the smaller of the length and speed scales
+    steps = setting.steps(atol=(setting.rtol or 1e-3) * min(scales.length, scales.speed))
     interval = float(model.frame_times[1] - model.frame_times[0]) if len(model.frame_times) > 1 else 1.0
 
     def run(record: bool) -> tuple[list[ParticleFrames], float, ParticleStats]:

@@ -20,6 +20,19 @@ from animbatch.sim.integrate import integrator_for
 from animbatch.sim.integrators import FIXED_STEP_SCHEMES, SCIPY_METHODS, Integrator
 from animbatch.sim.integrators.guard import check_energy_growth
 from animbatch.sim.model import Dynamics, Model
+from animbatch.stages import choose_dynamics
+
+
+@dataclass(frozen=True)
+class StepValues:
+    """Step settings in the shape of a scene's solver section (:class:`~animbatch.sim.integrators.base.StepSettings`):
+    ``dt`` [s] for fixed steps, ``rtol`` and a scalar ``atol`` for adaptive ones."""
+
+    method: str
+    dt: float | None
+    rtol: float
+    atol: float
+    max_step: float | None = None
 
 
 @dataclass(frozen=True)
@@ -38,6 +51,10 @@ class RunSetting:
     @property
     def label(self) -> str:
         return f"rtol {self.rtol:.0e}" if self.adaptive else f"dt {self.dt:.3g} s"
+
+    def steps(self, atol: float) -> StepValues:
+        """This setting as a scene's solver section would give it (what cost estimates and emitters read)."""
+        return StepValues(self.method, self.dt, self.rtol or 1e-3, atol)
 
     def integrator(self, model: Model, tolerance_scale: np.ndarray) -> Integrator:
         """The integrator of this setting for ``model`` (with its contacts, if any)."""
@@ -96,15 +113,17 @@ def plan_settings(methods: list[str], rtols: list[float], frame_interval: float,
     return settings
 
 
-def _integrate(model: Model, integrator: Integrator, timeout: float):  # type: ignore[no-untyped-def]
+def _integrate(model: Model, setting: RunSetting, integrator: Integrator, timeout: float):  # type: ignore[no-untyped-def]
+    """One run of ``setting``, on the equations of motion a render with it would choose (compiled where they repay
+    loading: :func:`animbatch.stages.choose_dynamics`), so that its time is what the setting costs a render."""
     deadline = time.perf_counter() + timeout
 
     def on_frame(frame: int, t: float) -> None:
         if time.perf_counter() > deadline:
             raise RunTimeout
 
-    return integrator.integrate(_with_deadline(Dynamics(model), deadline), model.y0, model.frame_times,
-                                on_frame=on_frame)
+    system, _cost = choose_dynamics(model, setting.steps(atol=1e-6))
+    return integrator.integrate(_with_deadline(system, deadline), model.y0, model.frame_times, on_frame=on_frame)
 
 
 def _with_deadline(system: Dynamics, deadline: float) -> Dynamics:
@@ -132,7 +151,7 @@ def execute(model: Model, setting: RunSetting, tolerance_scale: np.ndarray, *, r
 
     with threadpool_limits(limits=1):
         try:
-            first = _integrate(model, setting.integrator(model, tolerance_scale), timeout)
+            first = _integrate(model, setting, setting.integrator(model, tolerance_scale), timeout)
             check_energy_growth(model, first.states, setting.method, first.stats.dt)  # as every run is checked
         except RunTimeout:
             return RunOutcome(setting, "timeout", f"took longer than {timeout:g} s")
@@ -144,7 +163,7 @@ def execute(model: Model, setting: RunSetting, tolerance_scale: np.ndarray, *, r
         timed = repeats if first.stats.wall_time < 2.0 else min(repeats, 1)
         for _ in range(timed):
             try:
-                outcome.wall_times.append(_integrate(model, setting.integrator(model, tolerance_scale),
+                outcome.wall_times.append(_integrate(model, setting, setting.integrator(model, tolerance_scale),
                                                      timeout).stats.wall_time)
             except RunTimeout:  # the untimed run made it, a timed one did not: keep what was measured
                 outcome.wall_times.append(timeout)
