@@ -153,6 +153,26 @@ def test_the_kernel_is_chosen_only_where_it_applies_and_pays(monkeypatch):
         kernels.compiled_kernels()
 
 
+def test_many_steps_of_a_small_pool_repay_the_kernel_as_its_numpy_steps_would_cost(monkeypatch):
+    """A burst of 2500 sparks for a second: 10⁵ particle-steps at 10 ms steps, 2.5·10⁶ at 1 ms, both far below
+    MIN_WORK, but the numpy code pays about half a millisecond a step whatever the pool's size: 1000 steps cost it
+    ~0.8 s (the kernel runs), 100 steps ~0.08 s (numpy runs, loading numba would cost more)."""
+    from animbatch.sim.particles.compiled import kernel_work
+
+    burst = """
+        duration: 1.0
+        fps: 10
+        solver: {method: verlet, dt: 0.001}
+        emitters: [{name: e, bursts: [{time: 0, count: 2500}], lifetime: 10, speed: 3}]
+        fields: [{type: gravity}, {type: drag, model: quadratic, coefficient: 1.0e-5}]
+        """
+    assert 2500 * 1000 < kernels.MIN_WORK and kernel_work(2500, 1000) == kernels.MIN_WORK
+    assert kernel_work(2500, 100) == 2500 * 100
+    assert simulate(burst, monkeypatch, "auto").particle_stats["kernels"] == "numba"
+    coarse = burst.replace("dt: 0.001", "dt: 0.01")
+    assert simulate(coarse, monkeypatch, "auto").particle_stats["kernels"] == "numpy"
+
+
 @pytest.mark.slow
 def test_a_kernel_that_fails_to_build_leaves_the_run_to_numpy_and_says_so(monkeypatch):
     """numba loads but cannot compile (an LLVM or type error): the run goes on with the numpy code, whose results it

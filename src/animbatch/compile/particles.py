@@ -33,7 +33,7 @@ from animbatch.sim.contact.meshes import TriangleGroup
 from animbatch.sim.forces.drag import AIR_VISCOSITY
 from animbatch.sim.motion import SolidPath
 from animbatch.sim.particles.collisions import ParticleColliders
-from animbatch.sim.particles.compiled import particle_step_seconds
+from animbatch.sim.particles.compiled import kernel_work, particle_step_seconds
 from animbatch.sim.particles.emitter import Emitter, Law
 from animbatch.sim.particles.fields import ParticleField
 from animbatch.sim.particles.obstacles import ParticleObstacles, body_shapes, moving_collider_shapes
@@ -73,7 +73,7 @@ def particle_costs(spec: SceneSpec, systems: ParticleSystems | None, particle_st
     method = spec.solver.method
     return [(name, capacity, births,
              particle_step_seconds(systems.emitter(name), systems.colliders.get(name), method,
-                                   float(capacity) * particle_steps))
+                                   kernel_work(capacity, particle_steps)))
             for name, capacity, births in pool_sizes(spec)]
 
 

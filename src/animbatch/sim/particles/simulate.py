@@ -30,7 +30,7 @@ from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.particles.body_motion import BodyMotion, BodyPose
 from animbatch.sim.particles.collisions import MAX_BOUNCES, ParticleColliders, bounce
-from animbatch.sim.particles.compiled import CompiledPool, colliders_met
+from animbatch.sim.particles.compiled import CompiledPool, colliders_met, kernel_work
 from animbatch.sim.particles.emitter import Emitter
 from animbatch.sim.particles.obstacles import SURFACE_GAP
 from animbatch.sim.particles.pool import ParticlePool
@@ -82,7 +82,8 @@ class EmitterRun:
         self.collisions = 0
         self.steps = 0
         # the compiled kernel, where it covers this emitter's fields, colliders and method (None: numpy)
-        self.kernel = CompiledPool.of(emitter, self.colliders, method, self._gravity, float(emitter.capacity) * steps)
+        self.kernel = CompiledPool.of(emitter, self.colliders, method, self._gravity,
+                                      kernel_work(emitter.capacity, steps))
 
     def advance_frame(self, t0: float, t1: float, count: int, stats: ParticleStats) -> None:
         """Advance the pool over the frame interval ``[t0, t1]`` [s] in ``count`` equal steps."""
