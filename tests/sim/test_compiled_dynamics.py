@@ -256,11 +256,24 @@ def test_a_long_run_with_nothing_to_compile_is_not_marked_long(monkeypatch):
 
 def test_the_compiled_equations_are_chosen_where_they_pay(monkeypatch):
     """Compiled when the numpy run is estimated at half a second or more (or when asked for), numpy when it is not
-    (loading numba costs about a second, and numpy runs take two to four times their estimate) or when asked for."""
+    (loading numba costs about a second, and numpy runs take two to four times their estimate) or when asked for.
+    Once a process has loaded the kernels (an earlier run did), a run estimated at 50 ms goes compiled: it pays only
+    their setup."""
     model = _model("hinge chain with a limit")
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "auto")
-    assert type(dynamics_for(model, 5.0)) is CompiledDynamics
+    monkeypatch.setattr(kernels, "_loaded", set())  # as in a fresh process
     assert type(dynamics_for(model, 0.1)) is Dynamics
+    assert type(dynamics_for(model, 5.0)) is CompiledDynamics
+    assert kernels.kernels_loaded(kernels.STEPPER_KERNELS)
+    assert type(dynamics_for(model, 0.1)) is CompiledDynamics
+    assert type(dynamics_for(model, 0.01)) is Dynamics
+    floored = compile_scene(scene("duration: 1\nfps: 10\nbodies:\n  - {name: p, mass: 1, radius: 0.1, "
+                                  "position: [0, 1, 0]}\nfields: [{type: gravity}]\n"
+                                  "colliders: [{type: plane}]\n").spec)
+    monkeypatch.setattr(kernels, "_loaded", {kernels.STEPPER_KERNELS})  # contacts need theirs loaded too
+    assert not dynamics_for(floored, 0.1).long_run
+    monkeypatch.setattr(kernels, "_loaded", {kernels.STEPPER_KERNELS, kernels.CONTACT_KERNELS})
+    assert dynamics_for(floored, 0.1).long_run
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
     assert type(dynamics_for(model, 0.1)) is CompiledDynamics
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numpy")

@@ -199,7 +199,8 @@ How to read it:
   `study.reference`, otherwise DOP853 at the tightest tolerance that succeeds, each checked against a second run;
   hollow markers are runs whose error is within twice the reference's own accuracy.
 - **time**: the best of several timed runs after an untimed one, with BLAS pinned to one thread, each on what a
-  render with that setting runs (the compiled equations of motion where they repay loading). "Time to 1e-3" is
+  render with that setting runs in a process that has loaded the compiled kernels (as a notebook or a batch worker
+  has: the compiled equations of motion from an estimate of 50 ms). "Time to 1e-3" is
   interpolated in log–log between the runs either side of the target and never extrapolated ("≤" marks a bound:
   even the fastest run was more accurate).
 - **observed order**: the slope of log error against log dt (fixed steps) or against log steps (adaptive), read

@@ -503,10 +503,10 @@ def compiled_contacts(count: int, *, long_run: bool = False) -> bool:
     """Whether an impulse solve of ``count`` contacts runs its sweeps compiled: where it pays (many contacts, or a
     ``long_run`` of small solves: a pile of a dozen bodies solves thousands of times), and once the kernels are
     built (:func:`build_contact_kernels`)."""
-    from animbatch.sim.kernels import MIN_WORK, kernels_ready
+    from animbatch.sim.kernels import CONTACT_KERNELS, MIN_WORK, kernels_ready
 
     return kernels_ready(MIN_WORK if count >= COMPILED_CONTACTS or long_run else 0.0, build_contact_kernels,
-                         "contact solver", "numpy solves the contacts")
+                         CONTACT_KERNELS, "numpy solves the contacts")
 
 
 @functools.cache

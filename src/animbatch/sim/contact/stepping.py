@@ -37,6 +37,7 @@ from animbatch.sim.contact.solver import (
 )
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.forces.gravity import gravity_magnitude
+from animbatch.sim.kernels import CONTACT_KERNELS, MIN_WORK, compiled_kernels, kernels_loaded
 from animbatch.sim.model.dynamics import Dynamics
 
 DEFAULT_REST_SPEED = 0.01  # m/s
@@ -53,6 +54,8 @@ NO_CONTACTS = Contacts.concatenate([])
 NUMPY_CONTACT_STEP = 2e-3
 NUMPY_SWEEP = 150e-6
 COMPILE_CONTACTS_AFTER = 0.5  # as COMPILE_AFTER: numpy runs take 2-4x their estimate
+#: The same, once this process has loaded the contact kernels (as COMPILE_AFTER_LOADED).
+COMPILE_CONTACTS_AFTER_LOADED = 0.05
 
 
 def measure_contact_search(system: Dynamics, repeats: int = 2) -> tuple[float, int]:
@@ -100,13 +103,13 @@ class ContactResolver:
 
     def _count_numpy_work(self, sweeps: int) -> None:
         """Count a contact step's numpy work (``sweeps`` of the impulse solver); past
-        :data:`COMPILE_CONTACTS_AFTER`, the run is a long one and its contacts go compiled from the next step."""
+        :data:`COMPILE_CONTACTS_AFTER` (:data:`COMPILE_CONTACTS_AFTER_LOADED` once the contact kernels are loaded in
+        this process), the run is a long one and its contacts go compiled from the next step."""
         if self.system.long_run:
             return
         self._numpy_seconds += NUMPY_CONTACT_STEP + NUMPY_SWEEP * sweeps
-        if self._numpy_seconds >= COMPILE_CONTACTS_AFTER:
-            from animbatch.sim.kernels import MIN_WORK, compiled_kernels
-
+        if self._numpy_seconds >= (COMPILE_CONTACTS_AFTER_LOADED if kernels_loaded(CONTACT_KERNELS)
+                                   else COMPILE_CONTACTS_AFTER):
             self.system.long_run = compiled_kernels(MIN_WORK)
             self._numpy_seconds = -np.inf  # asked once: numba may be unavailable or refused
 

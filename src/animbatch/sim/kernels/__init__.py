@@ -37,7 +37,11 @@ MIN_WORK = 3e7
 SLOW_BUILD = 1.5
 #: Where to say that a slow build is under way (the CLI prints to stderr); None: say nothing (library use).
 announce: Callable[[str], None] | None = None
+#: The names of two kernel families, as kernels_ready is told them (and kernels_loaded asked about them).
+STEPPER_KERNELS = "equations of motion"
+CONTACT_KERNELS = "contact solver"
 _asked: set[str] = set()  # the kernels whose build has been asked for in this process
+_loaded: set[str] = set()  # the kernels built (or loaded from the disk cache) in this process
 
 
 def kernel_cache_folder() -> Path:
@@ -110,13 +114,23 @@ def watched(built: Callable[[], str | None], what: str) -> str | None:
     """``built()``, telling :data:`announce` when its first call in this process takes longer than
     :data:`SLOW_BUILD` (numba compiling, the first time on a machine)."""
     if what in _asked or announce is None:
-        return built()
-    _asked.add(what)
-    timer = threading.Timer(SLOW_BUILD, announce, [f"compiling the {what} kernels (once on this machine: they are "
-                                                   "cached on disk)…"])
-    timer.daemon = True
-    timer.start()
-    try:
-        return built()
-    finally:
-        timer.cancel()
+        failure = built()
+    else:
+        _asked.add(what)
+        timer = threading.Timer(SLOW_BUILD, announce, [f"compiling the {what} kernels (once on this machine: they "
+                                                       "are cached on disk)…"])
+        timer.daemon = True
+        timer.start()
+        try:
+            failure = built()
+        finally:
+            timer.cancel()
+    if failure is None:
+        _loaded.add(what)
+    return failure
+
+
+def kernels_loaded(*whats: str) -> bool:
+    """Whether each of the kernels ``whats`` (as :func:`kernels_ready` names them) is loaded in this process already:
+    an earlier run paid for loading them, so using them again costs a run only their setup."""
+    return all(what in _loaded for what in whats)

@@ -45,6 +45,9 @@ from animbatch.sim.motion import AnchorMotion, KeyframePath
 #: and contact solve are only partly counted), measured on jointed boxes under DOP853 (estimated 0.9 s, ran 4.6 s)
 #: and on resting contacts.
 COMPILE_AFTER = 0.5
+#: The same, once this process has loaded the kernels a run needs (an earlier run did: in a notebook, a study, a
+#: batch worker, a test session): a compiled run then costs only its setup, some milliseconds.
+COMPILE_AFTER_LOADED = 0.05
 
 Fields = dict[int, np.ndarray]
 
@@ -362,16 +365,25 @@ class CompiledDynamics(Dynamics):
 
 def dynamics_for(model: Model, numpy_seconds: float) -> Dynamics:
     """The Dynamics to integrate ``model`` with: compiled where every part of it has a compiled form, its numpy run
-    would take ``numpy_seconds`` [s] ≥ :data:`COMPILE_AFTER` (or ``ANIMBATCH_KERNELS=numba`` asks for it) and the
-    kernels build; else numpy, marked as a long run when it is one (its contacts then solve compiled). A model with
-    neither a compiled form nor contacts has nothing to compile: numba is not even loaded for it (most of a second)."""
-    from animbatch.sim.kernels import MIN_WORK, compiled_kernels, kernels_ready
+    would take ``numpy_seconds`` [s] ≥ :data:`COMPILE_AFTER` (:data:`COMPILE_AFTER_LOADED` where this process has
+    loaded the kernels it needs already; or ``ANIMBATCH_KERNELS=numba`` asks for it) and the kernels build; else
+    numpy, marked as a long run when it is one (its contacts then solve compiled). A model with neither a compiled
+    form nor contacts has nothing to compile: numba is not even loaded for it (most of a second)."""
+    from animbatch.sim.kernels import (
+        CONTACT_KERNELS,
+        MIN_WORK,
+        STEPPER_KERNELS,
+        compiled_kernels,
+        kernels_loaded,
+        kernels_ready,
+    )
 
     tables = stepper_tables(model)
-    compilable = not isinstance(tables, str) or model.contact_world is not None
-    long_run = compiled_kernels(MIN_WORK if numpy_seconds >= COMPILE_AFTER and compilable else 0.0)
-    if isinstance(tables, str) or not (long_run and kernels_ready(MIN_WORK, build_stepper_kernels,
-                                                                  "equations of motion",
+    needed = ([] if isinstance(tables, str) else [STEPPER_KERNELS]) + (
+        [CONTACT_KERNELS] if model.contact_world is not None else [])
+    threshold = COMPILE_AFTER_LOADED if needed and kernels_loaded(*needed) else COMPILE_AFTER
+    long_run = compiled_kernels(MIN_WORK if numpy_seconds >= threshold and needed else 0.0)
+    if isinstance(tables, str) or not (long_run and kernels_ready(MIN_WORK, build_stepper_kernels, STEPPER_KERNELS,
                                                                   "numpy integrates the bodies")):
         system = Dynamics(model)
     else:
