@@ -64,8 +64,8 @@ solver: {method: euler, dt: 0.01}
 
 @pytest.mark.slow
 def test_a_worker_killed_mid_batch_loses_no_frame_and_redraws_none(tmp_cwd):
-    """Two workers render a 360-frame scene in 12 chunks; once frames are appearing, one worker process is killed
-    (SIGKILL). Dask reruns its tasks elsewhere: the batch completes, the MP4 has all 360 frames, every PNG is complete,
+    """Two workers render a 180-frame scene in 6 chunks; once frames are appearing, one worker process is killed
+    (SIGKILL). Dask reruns its tasks elsewhere: the batch completes, the MP4 has all 180 frames, every PNG is complete,
     and every frame that existed at the kill is the same file afterwards (same inode: not drawn again)."""
     import os
     import signal
@@ -77,7 +77,7 @@ def test_a_worker_killed_mid_batch_loses_no_frame_and_redraws_none(tmp_cwd):
     from animbatch.farm.batch import WORKER_ENV, Job, run_batch
     from animbatch.farm.frames import frame_is_complete
 
-    (tmp_cwd / "long.yaml").write_text(ball("long", 12.0, 0.3).replace("render: {resolution: [96, 64]}",
+    (tmp_cwd / "long.yaml").write_text(ball("long", 6.0, 0.3).replace("render: {resolution: [96, 64]}",
                                                                       "render: {resolution: [96, 64], "
                                                                       "formats: [mp4, png]}"))
     frames = tmp_cwd / "renders" / "long" / "frames"
@@ -94,12 +94,12 @@ def test_a_worker_killed_mid_batch_loses_no_frame_and_redraws_none(tmp_cwd):
         os.kill(next(iter(pids.values())), signal.SIGKILL)
         existing = {path.name: path.stat().st_ino for path in frames.glob("frame_*.png")}
         runner.join(timeout=300)
-    assert 20 <= len(existing) < 360  # the kill came mid-render
+    assert 20 <= len(existing) < 180  # the kill came mid-render
     assert [result.status for result in results] == ["ok"], results
     reader = imageio_ffmpeg.read_frames(str(tmp_cwd / "renders" / "long" / "long.mp4"))
-    assert next(reader)["size"] == (96, 64) and sum(1 for _ in reader) == 360
+    assert next(reader)["size"] == (96, 64) and sum(1 for _ in reader) == 180
     pngs = sorted(frames.glob("frame_*.png"))
-    assert len(pngs) == 360 and all(frame_is_complete(path, (96, 64)) for path in pngs)
+    assert len(pngs) == 180 and all(frame_is_complete(path, (96, 64)) for path in pngs)
     assert {name: (frames / name).stat().st_ino for name in existing} == existing
 
 

@@ -303,18 +303,18 @@ echo $((RANDOM + 1000))
 @pytest.mark.slow
 def test_slurm_script_submits_bake_then_an_array_of_render_chunks_then_encode(throw, tmp_cwd):
     """'animbatch farm slurm' writes a script whose three sbatch calls chain by afterok; run against a stand-in
-    sbatch that executes each job (array tasks in turn), it produces the complete video: 50 frames in 3 tasks."""
+    sbatch that executes each job (array tasks in turn), it produces the complete video: 50 frames in 2 tasks."""
     import os
     import subprocess
     import sys
     from pathlib import Path
 
-    result = CliRunner().invoke(cli, ["farm", "slurm", str(throw), "--chunk-size", "20", "--sbatch-option",
+    result = CliRunner().invoke(cli, ["farm", "slurm", str(throw), "--chunk-size", "25", "--sbatch-option",
                                       "--time=00:10:00"])
     assert result.exit_code == 0, result.output
     script = tmp_cwd / "renders" / "throw" / "submit-slurm.sh"
     text = script.read_text()
-    assert "--array=0-2" in text and text.count("--dependency=afterok:") == 2
+    assert "--array=0-1" in text and text.count("--dependency=afterok:") == 2
     bin_dir = tmp_cwd / "bin"
     bin_dir.mkdir()
     (bin_dir / "sbatch").write_text(FAKE_SBATCH)
@@ -325,7 +325,7 @@ def test_slurm_script_submits_bake_then_an_array_of_render_chunks_then_encode(th
     assert done.returncode == 0, done.stderr
     calls = (tmp_cwd / "sbatch.log").read_text().splitlines()
     assert len(calls) == 3 and all("--time=00:10:00" in call for call in calls)
-    assert "--job-name=throw-bake" in calls[0] and "--array=0-2" in calls[1] and "afterok" in calls[2]
+    assert "--job-name=throw-bake" in calls[0] and "--array=0-1" in calls[1] and "afterok" in calls[2]
     reader = imageio_ffmpeg.read_frames(str(tmp_cwd / "renders" / "throw" / "throw.mp4"))
     assert next(reader)["size"] == (WIDTH, HEIGHT) and sum(1 for _ in reader) == 50
 
@@ -360,21 +360,21 @@ def run_openjd_job(template: dict, parameters: dict[str, str]) -> list[list[str]
 
 @pytest.mark.slow
 def test_openjd_template_bakes_then_renders_frame_chunks_then_encodes(throw, tmp_cwd):
-    """'animbatch farm openjd' writes a job template of three steps (Bake; Render, one task per chunk of at most 20
+    """'animbatch farm openjd' writes a job template of three steps (Bake; Render, one task per chunk of at most 25
     frames, after Bake; Encode after Render). Run step by step with its parameters, it gives the complete video."""
     import yaml
 
-    result = CliRunner().invoke(cli, ["farm", "openjd", str(throw), "--chunk-size", "20"])
+    result = CliRunner().invoke(cli, ["farm", "openjd", str(throw), "--chunk-size", "25"])
     assert result.exit_code == 0, result.output
     template = yaml.safe_load((tmp_cwd / "renders" / "throw" / "openjd-job.yaml").read_text())
     assert template["specificationVersion"] == "jobtemplate-2023-09"
     assert [step["name"] for step in template["steps"]] == ["Bake", "Render", "Encode"]
     render, encode = template["steps"][1:]
     assert render["dependencies"] == [{"dependsOn": "Bake"}] and encode["dependencies"] == [{"dependsOn": "Render"}]
-    assert render["parameterSpace"]["taskParameterDefinitions"][0]["range"] == ["0-19", "20-39", "40-49"]
+    assert render["parameterSpace"]["taskParameterDefinitions"][0]["range"] == ["0-24", "25-49"]
     elsewhere = tmp_cwd / "shared"  # the output folder is a job parameter: a render manager may map it
     commands = run_openjd_job(template, {"OutputDir": str(elsewhere)})
-    assert [c[c.index("--frames") + 1] for c in commands if "--frames" in c] == ["0-19", "20-39", "40-49"]
+    assert [c[c.index("--frames") + 1] for c in commands if "--frames" in c] == ["0-24", "25-49"]
     reader = imageio_ffmpeg.read_frames(str(elsewhere / "throw" / "throw.mp4"))
     assert next(reader)["size"] == (WIDTH, HEIGHT) and sum(1 for _ in reader) == 50
     assert len(list((elsewhere / "throw" / "frames").glob("*.png"))) == 50

@@ -476,6 +476,13 @@ def test_emitted_particles_converge_at_their_methods_order_under_drag():
     assert merits["verlet"].order == pytest.approx(2.0, abs=0.1)
 
 
+def test_a_study_of_more_particles_than_fit_is_refused_before_it_runs():
+    from animbatch.errors import StudyError
+
+    with pytest.raises(StudyError, match=r"600,000 particles at 10 frames .* shorten the scene"):
+        run_study(scene(EMITTER_BURST.replace("count: 200", "count: 600000")), methods=["verlet"])
+
+
 def test_particles_are_matched_by_serial_whatever_slot_holds_them():
     """Two runs may hold a particle in different pool slots: the study compares it with itself, by serial, and
     leaves out frames where it is not alive."""

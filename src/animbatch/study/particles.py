@@ -93,9 +93,26 @@ def execute_particles(model: Model, systems: ParticleSystems, setting: RunSettin
     return outcome
 
 
+#: The most particle-frames (frames × particles born) a study compares: each run's matched positions take 24 bytes
+#: a particle-frame, and the reference, its check and a run are held at once (about 0.4 GB at this bound; a few
+#: frames of many particles also cost the adaptive methods' stages, some 800 bytes a live particle for DOP853).
+MOST_PARTICLE_FRAMES = 5e6
+
+
 def births_by_end(model: Model, systems: ParticleSystems) -> list[int]:
     """How many particles each emitter gives birth to over the scene (their serials are 0 … that - 1)."""
     return [emitter.schedule.born_by(float(model.frame_times[-1])) for emitter in systems.emitters]
+
+
+def check_study_size(model: Model, systems: ParticleSystems) -> None:
+    """Refuse, before any run, a study whose particles would not fit in memory, saying what to change."""
+    born = sum(births_by_end(model, systems))
+    frames = len(model.frame_times)
+    if frames * born > MOST_PARTICLE_FRAMES:
+        raise StudyError(f"the study would compare {born:,} particles at {frames} frames one by one "
+                         f"({frames * born:.3g} particle-frames, at most {MOST_PARTICLE_FRAMES:.0e}, about "
+                         f"{72 * frames * born / 1e9:.1f} GB): shorten the scene (--set duration=…) or lower the "
+                         "emitters' rates or bursts for the study")
 
 
 def particle_reference(model: Model, systems: ParticleSystems, *, timeout: float,
@@ -103,6 +120,7 @@ def particle_reference(model: Model, systems: ParticleSystems, *, timeout: float
     """The emitters' reference: DOP853 at the tightest of :data:`REFERENCE_RTOLS` that succeeds, checked against
     DOP853 a decade looser (as for bodies), or ``fixed``: (method, dt [s]) checked against twice the step. The
     scales come from a Verlet run at one step per frame first."""
+    check_study_size(model, systems)
     births = births_by_end(model, systems)
     interval = float(model.frame_times[1] - model.frame_times[0]) if len(model.frame_times) > 1 else 1.0
     rough = execute_particles(model, systems, RunSetting("verlet", dt=interval), Scales(1.0, 1.0), repeats=0,
