@@ -160,15 +160,23 @@ class EmitterRun:
         pool.start_lives(slots, births.times[take], newborn.lifetime[take])
         pool.mass[slots] = newborn.mass[take]
         pool.radius[slots] = newborn.radius[take]
-        # each newborn moves for the rest of the step from its own birth instant: one step of the method (Verlet
-        # for adaptive methods) of its own length, so that births within a step leave no bands or lag
+        # each newborn moves for the rest of the step from its own birth instant, so that births within a step
+        # leave no bands or lag: one step of the method of its own length, or for an adaptive method its own
+        # flight to the tolerance (a Verlet step of up to a frame held a reference run to 1e-5)
         flight = t1 - births.times[take]
         x, v = newborn.position[take], newborn.velocity[take]
         mass, radius = newborn.mass[take], newborn.radius[take]
-        a = self.acceleration(x, v, mass, radius)
-        method = self.method if self.method in FIXED_METHODS else "verlet"
-        pool.x[slots], pool.v[slots], pool.acceleration[slots] = fixed_step(method, self.acceleration, x, v, a,
-                                                                            mass, radius, flight[:, None])
+        if self.method in FIXED_METHODS:
+            a = self.acceleration(x, v, mass, radius)
+            pool.x[slots], pool.v[slots], pool.acceleration[slots] = fixed_step(
+                self.method, self.acceleration, x, v, a, mass, radius, flight[:, None])
+        else:
+            solver = self.solver
+            x, v, steps = adaptive_segment(self.method, solver.rtol, solver.atol, solver.max_step, self.acceleration,
+                                           x, v, mass, radius, 0.0, 1.0, durations=flight)
+            pool.x[slots], pool.v[slots] = x, v
+            pool.acceleration[slots] = self.acceleration(x, v, mass, radius)
+            self.steps += steps
         return slots, newborn.position[take]
 
     def poses(self, t0: float, t1: float) -> tuple[dict[int, BodyPose], dict[int, BodyPose]] | None:

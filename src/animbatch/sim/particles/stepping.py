@@ -13,8 +13,9 @@ operations, one scatter), since births and deaths change the set of moving parti
   ``(I - h ∂a/∂v) Δv = h a``, a 3×3 system per particle solved in closed form (Sherman–Morrison on
   ``(1 + h α) I + h β û ûᵀ``); then ``x' = x + h v'``. It stays stable under any drag however strong.
 
-Adaptive methods integrate the moving particles with ``scipy.integrate.solve_ivp`` over each frame interval, the
-state interleaved per particle ``[x, v]`` so that the Jacobian (given to Radau and BDF; LSODA estimates it within its
+Adaptive methods integrate the moving particles with ``scipy.integrate.solve_ivp`` over each frame interval (and the
+particles born during it from their own birth instants, in one more call: :func:`adaptive_segment`), the state
+interleaved per particle ``[x, v]`` so that the Jacobian (given to Radau and BDF; LSODA estimates it within its
 band) is block diagonal, 6×6 per particle.
 """
 
@@ -80,27 +81,38 @@ def fixed_step(method: str, acceleration: Accelerations, x: np.ndarray, v: np.nd
 
 
 def adaptive_segment(method: str, rtol: float, atol: float, max_step: float | None, acceleration: Accelerations,
-                     x: np.ndarray, v: np.ndarray, mass: np.ndarray, radius: np.ndarray, t0: float, t1: float
-                     ) -> tuple[np.ndarray, np.ndarray, int]:
-    """Integrate slots (K, 3) from ``t0`` to ``t1`` [s] with a solve_ivp method; returns x, v and the steps taken."""
+                     x: np.ndarray, v: np.ndarray, mass: np.ndarray, radius: np.ndarray, t0: float, t1: float,
+                     durations: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, int]:
+    """Integrate slots (K, 3) from ``t0`` to ``t1`` [s] with a solve_ivp method; returns x, v and the steps taken.
+
+    ``durations`` (K,) [s]: each slot for its own time instead (newborns, from their birth instants to the step's
+    end), all in one call over ``τ`` from 0 to 1: the fields do not depend on time, so slot ``j``'s equations in
+    ``τ = (t − t_birth) / d_j`` are ``dx/dτ = d_j v``, ``dv/dτ = d_j a(x, v)``, exactly."""
     from scipy.integrate import solve_ivp  # kept off the start-up path of validate and --help
 
     count = len(mass)
+    if durations is not None:
+        t0, t1 = 0.0, 1.0
+        if max_step is not None:  # in τ: the longest flight's steps are as long as they may be
+            max_step = max_step / max(float(np.max(durations, initial=0.0)), 1e-300)
     if count == 0 or t1 <= t0:
         return x, v, 0
+    scale = durations[:, None, None] if durations is not None else None
 
     def rhs(t: float, y: np.ndarray) -> np.ndarray:
         state = y.reshape(count, 2, 3)
         rate = np.empty_like(state)
         rate[:, 0] = state[:, 1]
         rate[:, 1] = acceleration(state[:, 0], state[:, 1], mass, radius)
+        if scale is not None:
+            rate *= scale
         return rate.ravel()
 
     options: dict = {"rtol": rtol, "atol": atol}
     if max_step is not None:
         options["max_step"] = max_step
     if method in ("Radau", "BDF"):
-        options["jac"] = _block_jacobian(acceleration, mass, radius, count)
+        options["jac"] = _block_jacobian(acceleration, mass, radius, count, durations)
     elif method == "LSODA":
         options.update(lband=5, uband=5)
     y0 = np.stack([x, v], axis=1).ravel()
@@ -113,10 +125,11 @@ def adaptive_segment(method: str, rtol: float, atol: float, max_step: float | No
     return end[:, 0].copy(), end[:, 1].copy(), len(solution.t) - 1
 
 
-def _block_jacobian(acceleration: Accelerations, mass: np.ndarray, radius: np.ndarray, count: int
-                    ) -> Callable[[float, np.ndarray], sp.bsr_matrix]:
+def _block_jacobian(acceleration: Accelerations, mass: np.ndarray, radius: np.ndarray, count: int,
+                    durations: np.ndarray | None = None) -> Callable[[float, np.ndarray], sp.bsr_matrix]:
     """``∂(dy/dt)/∂y`` of interleaved particle states: 6×6 blocks ``[[0, I], [0, ∂a/∂v]]`` on the diagonal (the
-    position dependence of buoyancy near the surface is left out; Newton's iteration tolerates it)."""
+    position dependence of buoyancy near the surface is left out; Newton's iteration tolerates it), each times its
+    slot's duration where the time is scaled (``durations``, see :func:`adaptive_segment`)."""
     indices = np.arange(count, dtype=np.int32)
     indptr = np.arange(count + 1, dtype=np.int32)
 
@@ -128,6 +141,8 @@ def _block_jacobian(acceleration: Accelerations, mass: np.ndarray, radius: np.nd
         blocks[:, 0:3, 3:6] = np.eye(3)
         blocks[:, 3:6, 3:6] = -(rates[:, 0, None, None] * np.eye(3)
                                 + rates[:, 1, None, None] * unit[:, :, None] * unit[:, None, :])
+        if durations is not None:
+            blocks *= durations[:, None, None]
         return sp.bsr_matrix((blocks, indices, indptr), shape=(6 * count, 6 * count)).tocsc()
 
     return jacobian
