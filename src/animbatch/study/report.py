@@ -34,7 +34,7 @@ def table(result: StudyResult) -> str:
         lines.append(f"skipped {method}: {why}")
     header = (f"{'method':<17}{'setting':<16}{'pos. error':>11}{'final':>10}{'E drift':>10}"
               + (f"{'contact':>16}" if contacts else "") + f"{'err/rtol':>10}"
-              f"{'time [s]':>10}{'RHS':>9}{'steps':>8}{'jac/LU':>9}  note")
+              f"{'time [s]':>10}{'RHS':>9}{'steps':>9}{'jac/LU':>12}  note")
     lines += ["", header, "-" * len(header)]
     for row in result.rows:
         if row.status != "ok":
@@ -48,7 +48,7 @@ def table(result: StudyResult) -> str:
                      f"{_number(row.final_error, 1):>10}{_number(row.energy_drift, 1):>10}"
                      + (f"{contact:>16}" if contacts else "") +
                      f"{'' if ratio is None else f'{ratio:.2g}':>10}{row.wall_time:>10.3g}"
-                     f"{_count(row.rhs_evaluations):>9}{_count(row.steps):>8}{work:>9}  "
+                     f"{_count(row.rhs_evaluations):>9}{_count(row.steps):>9}{work:>12}  "
                      f"{'limited by reference' if row.limited_by_reference else ''}")
     lines += ["", f"{'method':<17}" + "".join(f"{f'time to {t:g} [s]':>18}" for t in TARGETS)
               + f"{'order':>8}{'failed':>8}"]
