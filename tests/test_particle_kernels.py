@@ -166,11 +166,21 @@ def test_many_steps_of_a_small_pool_repay_the_kernel_as_its_numpy_steps_would_co
         emitters: [{name: e, bursts: [{time: 0, count: 2500}], lifetime: 10, speed: 3}]
         fields: [{type: gravity}, {type: drag, model: quadratic, coefficient: 1.0e-5}]
         """
-    assert 2500 * 1000 < kernels.MIN_WORK and kernel_work(2500, 1000) == kernels.MIN_WORK
-    assert kernel_work(2500, 100) == 2500 * 100
+    from animbatch.sim.particles.compiled import numpy_pool_seconds
+
+    assert 2500 * 1000 < kernels.MIN_WORK and kernel_work(2500, 1000, numpy_pool_seconds(2500, 1000)) == \
+        kernels.MIN_WORK
+    assert kernel_work(2500, 100, numpy_pool_seconds(2500, 100)) == 2500 * 100
     assert simulate(burst, monkeypatch, "auto").particle_stats["kernels"] == "numba"
     coarse = burst.replace("dt: 0.001", "dt: 0.01")
     assert simulate(coarse, monkeypatch, "auto").particle_stats["kernels"] == "numpy"
+    # three such emitters at 5 ms steps: 200 steps, 0.15 s each in numpy, 0.46 s together: still numpy; four
+    # (0.62 s together) repay numba for all of them, though each alone would not
+    several = burst.replace("dt: 0.001", "dt: 0.005").replace(
+        "emitters: [{name: e, bursts: [{time: 0, count: 2500}], lifetime: 10, speed: 3}]",
+        "emitters: [" + ", ".join(f"{{name: e{k}, bursts: [{{time: 0, count: 2500}}], lifetime: 10, speed: 3}}"
+                                  for k in range(4)) + "]")
+    assert simulate(several, monkeypatch, "auto").particle_stats["kernels"] == "numba"
 
 
 @pytest.mark.slow

@@ -33,7 +33,7 @@ from animbatch.sim.contact.meshes import TriangleGroup
 from animbatch.sim.forces.drag import AIR_VISCOSITY
 from animbatch.sim.motion import SolidPath
 from animbatch.sim.particles.collisions import ParticleColliders
-from animbatch.sim.particles.compiled import kernel_work, particle_step_seconds
+from animbatch.sim.particles.compiled import kernel_work, numpy_pool_seconds, particle_step_seconds
 from animbatch.sim.particles.emitter import Emitter, Law
 from animbatch.sim.particles.fields import ParticleField
 from animbatch.sim.particles.obstacles import ParticleObstacles, body_shapes, moving_collider_shapes
@@ -71,10 +71,12 @@ def particle_costs(spec: SceneSpec, systems: ParticleSystems | None, particle_st
     if systems is None:
         return []
     method = spec.solver.method
+    sizes = pool_sizes(spec)
+    run_seconds = sum(numpy_pool_seconds(capacity, particle_steps) for _, capacity, _ in sizes)
     return [(name, capacity, births,
              particle_step_seconds(systems.emitter(name), systems.colliders.get(name), method,
-                                   kernel_work(capacity, particle_steps)))
-            for name, capacity, births in pool_sizes(spec)]
+                                   kernel_work(capacity, particle_steps, run_seconds)))
+            for name, capacity, births in sizes]
 
 
 def _capacity(item: Any, schedule: EmissionSchedule, duration: float) -> int:

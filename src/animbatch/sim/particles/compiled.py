@@ -232,21 +232,28 @@ def solid_table(colliders: ParticleColliders, kernel: Any) -> np.ndarray:
 #: What the numpy code's step of a pool costs: a fixed part (some forty numpy calls, whatever the pool's size) and a
 #: part per slot [s]. Measured: 0.45-0.5 ms and 130-270 ns a slot (Verlet under gravity and quadratic drag, with and
 #: without a floor, pools of 100 to 30 000 slots). Fireworks' three pools of 2500 at 1 ms steps took 2 ms a step in
-#: numpy while their 1.2·10⁷ particle-steps, counted alone, were far from paying for numba.
+#: numpy while their 1.2·10⁷ particle-steps, counted alone, were far from paying for numba (and each pool alone, at
+#: 0.46 s, short of COMPILE_AFTER: the decision counts every emitter of the run).
 NUMPY_POOL_STEP = 0.4e-3
 NUMPY_SLOT_STEP = 150e-9
 
 
-def kernel_work(capacity: float, steps: float) -> float:
-    """The work (element-steps) to weigh the kernel by, for a pool of ``capacity`` slots stepped ``steps`` times: its
-    particle-steps, or :data:`~animbatch.sim.kernels.MIN_WORK` (it repays loading numba) where the numpy code's steps
-    would take :data:`~animbatch.sim.model.compiled.COMPILE_AFTER` or more, as for the bodies' equations of motion."""
+def numpy_pool_seconds(capacity: float, steps: float) -> float:
+    """What the numpy code would take [s] to step a pool of ``capacity`` slots ``steps`` times."""
+    return steps * (NUMPY_POOL_STEP + capacity * NUMPY_SLOT_STEP)
+
+
+def kernel_work(capacity: float, steps: float, run_seconds: float) -> float:
+    """The work (element-steps) to weigh the kernel by, for a pool of ``capacity`` slots stepped ``steps`` times in a
+    run whose pools would take ``run_seconds`` [s] in numpy (:func:`numpy_pool_seconds` of every emitter: numba,
+    once loaded, serves them all): the pool's particle-steps, or :data:`~animbatch.sim.kernels.MIN_WORK` (the kernel
+    repays loading numba) where the run would take :data:`~animbatch.sim.model.compiled.COMPILE_AFTER` or more, as
+    for the bodies' equations of motion."""
     from animbatch.sim.kernels import MIN_WORK
     from animbatch.sim.model.compiled import COMPILE_AFTER
 
     particle_steps = capacity * steps
-    numpy_seconds = steps * NUMPY_POOL_STEP + particle_steps * NUMPY_SLOT_STEP
-    return max(particle_steps, MIN_WORK) if numpy_seconds >= COMPILE_AFTER else particle_steps
+    return max(particle_steps, MIN_WORK) if run_seconds >= COMPILE_AFTER else particle_steps
 
 
 def colliders_met(emitter: Emitter, colliders: ParticleColliders | None) -> ParticleColliders | None:

@@ -30,7 +30,7 @@ from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.particles.body_motion import BodyMotion, BodyPose
 from animbatch.sim.particles.collisions import MAX_BOUNCES, ParticleColliders, bounce
-from animbatch.sim.particles.compiled import CompiledPool, colliders_met, kernel_work
+from animbatch.sim.particles.compiled import CompiledPool, colliders_met, kernel_work, numpy_pool_seconds
 from animbatch.sim.particles.emitter import Emitter
 from animbatch.sim.particles.obstacles import SURFACE_GAP
 from animbatch.sim.particles.pool import ParticlePool
@@ -67,9 +67,10 @@ class EmitterRun:
     """The running state of one emitter: its pool, and how it steps."""
 
     def __init__(self, emitter: Emitter, colliders: ParticleColliders | None, method: str, solver: StepSettings,
-                 motion: BodyMotion | None, steps: int = 0) -> None:
-        """``steps``: how many steps the run will take (fixed-step methods), which decides whether the compiled
-        kernel repays loading."""
+                 motion: BodyMotion | None, steps: int = 0, run_seconds: float | None = None) -> None:
+        """``steps``: how many steps the run will take (fixed-step methods), and ``run_seconds`` [s] what all the
+        run's pools would take in numpy (this one's alone when not given): they decide whether the compiled kernel
+        repays loading."""
         self.emitter = emitter
         self.pool = ParticlePool(emitter.capacity)
         self.colliders = colliders_met(emitter, colliders)
@@ -82,8 +83,10 @@ class EmitterRun:
         self.collisions = 0
         self.steps = 0
         # the compiled kernel, where it covers this emitter's fields, colliders and method (None: numpy)
+        if run_seconds is None:
+            run_seconds = numpy_pool_seconds(emitter.capacity, steps)
         self.kernel = CompiledPool.of(emitter, self.colliders, method, self._gravity,
-                                      kernel_work(emitter.capacity, steps))
+                                      kernel_work(emitter.capacity, steps, run_seconds))
 
     def advance_frame(self, t0: float, t1: float, count: int, stats: ParticleStats) -> None:
         """Advance the pool over the frame interval ``[t0, t1]`` [s] in ``count`` equal steps."""
@@ -284,7 +287,8 @@ def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, Parti
     method = solver.method
     frames = len(times)
     total_steps = sum(steps_per_frame(float(b - a), method, dt) for a, b in zip(times[:-1], times[1:]))
-    runs = [EmitterRun(e, colliders.get(e.name), method, solver, motion, total_steps) for e in emitters]
+    run_seconds = sum(numpy_pool_seconds(e.capacity, total_steps) for e in emitters)
+    runs = [EmitterRun(e, colliders.get(e.name), method, solver, motion, total_steps, run_seconds) for e in emitters]
     records = [ParticleFrames(run.emitter.name,
                               np.zeros((frames if record else 1, run.pool.capacity, 3), precision),
                               np.full((frames if record else 1, run.pool.capacity), -1, np.int32),
