@@ -590,3 +590,19 @@ def test_a_study_times_the_equations_of_motion_a_render_would_run(monkeypatch):
     merits = {m.method: m for m in result.merits}
     assert merits["verlet"].order == pytest.approx(2.0, abs=0.15)
     assert next(row for row in result.rows if row.method == "RK45").position_error < 1e-5
+
+
+def test_the_accuracy_page_is_rebuilt_from_saved_studies_alone(projectile_study, tmp_path, monkeypatch):
+    """``--page`` studies nothing: every section comes from its saved study.json (each scene's table rewritten), and
+    the page holds the guide as the generator has it now."""
+    from animbatch.study import document
+
+    for name in document.SCENES:
+        write_outputs(projectile_study, tmp_path / "docs" / "accuracy" / name)
+    (tmp_path / "docs" / "accuracy" / "projectile" / "study.txt").write_text("stale")
+    monkeypatch.setattr(document, "run_study", lambda *a, **k: pytest.fail("--page studied a scene"))
+    monkeypatch.setattr(document, "ledger_section", lambda root: document.LEDGER + "| a table |\n")
+    assert document.main(["--root", str(tmp_path), "--page"]) == 0
+    page = (tmp_path / "docs" / "accuracy.md").read_text()
+    assert all(f"## {name}" in page for name in document.SCENES) and document.GUIDE in page
+    assert (tmp_path / "docs" / "accuracy" / "projectile" / "study.txt").read_text().startswith("study of")
