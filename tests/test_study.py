@@ -465,6 +465,7 @@ def test_a_scene_of_emitters_is_studied_particle_by_particle():
     assert len(table(result).splitlines()) > len(result.rows)  # the table prints (work the kernels do not count)
 
 
+@pytest.mark.slow
 def test_emitted_particles_converge_at_their_methods_order_under_drag():
     """With linear drag (velocity-dependent: Verlet's predicted velocity matters) Euler and backward Euler converge
     at order 1 and Verlet at order 2, measured over every particle of the burst."""
@@ -476,6 +477,7 @@ def test_emitted_particles_converge_at_their_methods_order_under_drag():
     assert merits["verlet"].order == pytest.approx(2.0, abs=0.1)
 
 
+@pytest.mark.slow
 def test_particles_born_between_frames_fly_exactly_under_an_adaptive_method():
     """A hose: 400 drops a second, each born at its own instant within a frame, under quadratic drag. An adaptive
     run integrates each newborn from its birth to the frame's end to its tolerance (in one call, time scaled per
@@ -565,6 +567,7 @@ def test_a_study_has_one_reference():
                                  "study: {closed_form: true, reference: {method: verlet, dt: 1.0e-3},"))
 
 
+@pytest.mark.slow
 def test_a_study_times_the_equations_of_motion_a_render_would_run(monkeypatch):
     """Every run of a study (the reference, its check and each setting) integrates what a render with that setting
     would: here the compiled equations of motion (asked for with ANIMBATCH_KERNELS=numba), which the study timed as
@@ -592,6 +595,7 @@ def test_a_study_times_the_equations_of_motion_a_render_would_run(monkeypatch):
     assert next(row for row in result.rows if row.method == "RK45").position_error < 1e-5
 
 
+@pytest.mark.slow
 def test_the_accuracy_page_is_rebuilt_from_saved_studies_alone(projectile_study, tmp_path, monkeypatch):
     """``--page`` studies nothing: every section comes from its saved study.json (each scene's table rewritten), and
     the page holds the guide as the generator has it now."""
