@@ -500,6 +500,12 @@ def test_particles_born_between_frames_fly_exactly_under_an_adaptive_method():
     assert all(3.5 < coarse / fine < 4.5 for coarse, fine in zip(errors, errors[1:]))
 
 
+def test_an_emitter_study_cannot_ask_for_closed_forms():
+    """Emitted particles have no closed forms here: asking for them is an error at the key, not a silent DOP853."""
+    with pytest.raises(SceneError, match=r"study.closed_form: emitted particles have no closed forms"):
+        run_study(scene(EMITTER_BURST.replace("study: {", "study: {closed_form: true, ")), methods=["verlet"])
+
+
 def test_a_study_of_more_particles_than_fit_is_refused_before_it_runs():
     from animbatch.errors import StudyError
 

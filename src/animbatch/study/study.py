@@ -176,6 +176,10 @@ def run_study(scene: LoadedScene, *, model: Model | None = None, methods: list[s
     if not model.layout.size and systems is None:
         raise SceneError([SceneIssue(scene.source.source_of(("bodies",)), "bodies",
                                      "the scene has neither bodies nor emitters: nothing to study")])
+    if systems is not None and settings.closed_form:
+        raise SceneError([SceneIssue(scene.source.source_of(("study", "closed_form")), "study.closed_form",
+                                     "emitted particles have no closed forms here: remove study.closed_form (the "
+                                     "reference is then a tight DOP853 run, or set study.reference)")])
     reference_timeout = max(10 * settings.timeout, 120.0)
     fixed = (settings.reference.method, settings.reference.dt) if settings.reference is not None else None
     try:
@@ -192,14 +196,15 @@ def run_study(scene: LoadedScene, *, model: Model | None = None, methods: list[s
     plan = plan_settings(chosen, settings.rtols, frame_interval, settings.dt_levels)
     which = conserved(model) if systems is None else {"energy": False, "momentum": False,
                                                       "angular_momentum": False}  # drag, births and deaths
+    tolerance_scale = reference.scales.tolerance_scale(model) if systems is None else None
     rows = []
     for number, setting in enumerate(plan, 1):
         if systems is not None:
             outcome = execute_particles(model, systems, setting, reference.scales, repeats=settings.repeats,
                                         timeout=settings.timeout)
         else:
-            outcome = execute(model, setting, reference.scales.tolerance_scale(model), repeats=settings.repeats,
-                              timeout=settings.timeout)
+            assert tolerance_scale is not None
+            outcome = execute(model, setting, tolerance_scale, repeats=settings.repeats, timeout=settings.timeout)
         row = _row(model, outcome, reference, which, systems)
         rows.append(row)
         shown = (f"error {row.position_error:.2e}, {row.wall_time:.3g} s" if row.status == "ok"
