@@ -57,6 +57,10 @@ STABILISATION_RATE = 20.0
 #: angles), or after PROJECTION_ITERATIONS Gauss–Newton steps.
 PROJECTION_TOLERANCE = 1e-13
 PROJECTION_ITERATIONS = 8
+#: A Gauss–Newton step of the projection reuses the last factorisation of ``J M⁻¹ Jᵀ`` (a chord step: the rows
+#: barely turn over a step's correction) while the steps cut the violation to at most this fraction; else it
+#: factors again at the current positions. Bilateral rows only (a unilateral row's activity may change).
+CHORD_CONTRACTION = 0.01
 #: At most this many passes of dropping unilateral rows that would pull.
 ACTIVE_SET_PASSES = 4
 
@@ -396,14 +400,19 @@ class Joints:
 
         tolerance = PROJECTION_TOLERANCE * max(self.scale, 1.0)
         settled = None  # the motion and rows at the final positions, once they hold (the velocities are unchanged)
+        factored, previous = None, np.inf  # the last factorisation, and the violation it was last used at
         for _ in range(PROJECTION_ITERATIONS):
             motion = current()
             rows = self.rows(motion)
             violated = ~unilateral | (rows.violation < 0)
-            if np.max(np.abs(np.where(violated, rows.violation, 0.0)), initial=0.0) <= tolerance:
+            largest = np.max(np.abs(np.where(violated, rows.violation, 0.0)), initial=0.0)
+            if largest <= tolerance:
                 settled = motion, rows
                 break
-            step = coupling.solve(rows, motion, -rows.violation, violated if unilateral.any() else None)
+            if factored is None or unilateral.any() or largest > CHORD_CONTRACTION * previous:
+                factored = coupling.factored(rows, motion, violated if unilateral.any() else None)
+            previous = largest
+            step = factored.solve(-rows.violation)
             force, torque = apply_transpose(rows, bodies, step, slots)
             positions[self.points] += force[:count] * motion.inverse_mass[:count, None]
             if len(rigid):

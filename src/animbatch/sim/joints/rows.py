@@ -17,9 +17,11 @@ a sparse LU for many).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.linalg import lu_factor, lu_solve
 from scipy.sparse.linalg import splu
 
 from animbatch.quaternion import cross
@@ -134,17 +136,41 @@ class Coupling:
     def solve(self, rows: Rows, motion: JoinedMotion, right: np.ndarray,
               active: np.ndarray | None = None) -> np.ndarray:
         """λ (R,) with ``(J M⁻¹ Jᵀ) λ = right``, rows not ``active`` held at zero."""
-        system = self.matrix(rows, motion, active)
-        if active is not None:
-            right = np.where(active, right, 0.0)
+        return self.factored(rows, motion, active).solve(right)
+
+    def factored(self, rows: Rows, motion: JoinedMotion, active: np.ndarray | None = None) -> FactoredCoupling:
+        """A factorised at ``rows``, to solve with as many right-hand sides as needed."""
+        return FactoredCoupling(self.matrix(rows, motion, active), active)
+
+
+class FactoredCoupling:
+    """A factorised coupling matrix ``system`` (R, R) whose rows not ``active`` are held at zero."""
+
+    def __init__(self, system: sp.spmatrix | np.ndarray, active: np.ndarray | None) -> None:
+        self._active = active
+        self._dense = isinstance(system, np.ndarray)
+        self._factor: Any = None  # None: singular
         try:
-            if isinstance(system, np.ndarray):
-                return np.linalg.solve(system, right)
-            return splu(system).solve(right)
-        except (np.linalg.LinAlgError, RuntimeError):
+            if self._dense:
+                lu, pivots = lu_factor(system, check_finite=False)
+                if np.all(np.diag(lu) != 0):  # as numpy's solve, only an exactly zero pivot is singular
+                    self._factor = lu, pivots
+            else:
+                self._factor = splu(system)
+        except (np.linalg.LinAlgError, RuntimeError, ValueError):
+            pass
+
+    def solve(self, right: np.ndarray) -> np.ndarray:
+        """λ (R,) for ``right`` (R,)."""
+        if self._factor is None:
             # a singular system (a state gone to pieces, or rows that fix the same motion twice): no multipliers,
             # so the state stops being finite and the integrator reports where, as for any divergence
             return np.full(len(right), np.nan)
+        if self._active is not None:
+            right = np.where(self._active, right, 0.0)
+        if self._dense:
+            return lu_solve(self._factor, right, check_finite=False)
+        return self._factor.solve(right)
 
 
 def apply(rows: Rows, bodies: np.ndarray, u: tuple[np.ndarray, np.ndarray]) -> np.ndarray:

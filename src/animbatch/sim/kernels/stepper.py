@@ -30,49 +30,48 @@ FORM_RUNGE_KUTTA, FORM_SYMPLECTIC_EULER, FORM_VERLET = 0, 1, 2
 PROJECTION_ITERATIONS = 8
 PROJECTION_TOLERANCE = 1e-13
 ACTIVE_SET_PASSES = 4
+CHORD_CONTRACTION = 0.01
 
 
 @njit(cache=True, error_model="numpy")
 def factor_cache_size(layout: np.ndarray) -> int:
     """The length of the factor cache (:func:`_solve`) of a model's joints."""
     rows = rows_of(layout, T.ROW_BODIES)
-    return 1 + 13 * rows + 9 * rows_of(layout, T.SLOT_RIGID) + rows_of(layout, T.COLUMN_ROWS) + rows
+    return 1 + 12 * rows_of(layout, T.SLOT_RIGID) + rows + rows_of(layout, T.COLUMN_ROWS) + rows
 
 
 @njit(cache=True, error_model="numpy")
-def _solve(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, row_bodies: np.ndarray, jac: np.ndarray,
-           inverse_mass: np.ndarray, inverse_inertia: np.ndarray, active: np.ndarray, right: np.ndarray,
-           out: np.ndarray) -> None:
+def _solve(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, sx: np.ndarray, srotation: np.ndarray,
+           row_bodies: np.ndarray, jac: np.ndarray, inverse_mass: np.ndarray, inverse_inertia: np.ndarray,
+           active: np.ndarray, right: np.ndarray, out: np.ndarray) -> None:
     """λ (R,) with ``(J M⁻¹ Jᵀ) λ = right`` for rows with Jacobian ``jac`` (R, 2, 6) on slots of ``inverse_mass``
     (S,) and world ``inverse_inertia`` (S, 3, 3); rows not ``active`` held at zero.
 
-    ``cache`` (:func:`factor_cache_size`) keeps the last factorisation with what it was made from: a step solves at
-    the same positions twice (Verlet's rate at the drifted positions, then the projection's first Gauss–Newton
-    step; a projection's velocity solve, then the next kick), and an equal matrix is not factored again. The
-    comparison is exact, so results are the same bit for bit."""
-    count = len(right)
-    entries = rows_of(layout, T.COLUMN_ROWS)
-    key = cache[1: 1 + 13 * count + 9 * len(inverse_inertia)]
-    values = cache[1 + len(key): 1 + len(key) + entries]
-    diagonal = cache[1 + len(key) + entries: 1 + len(key) + entries + count]
+    ``cache`` (:func:`factor_cache_size`) keeps the last factorisation with what it was made from: the slots'
+    positions ``sx`` (S, 3) and rotations ``srotation`` (S, 3, 3), which the Jacobian and the inertias follow from,
+    and the active rows. A step solves at the same positions twice (Verlet's rate at the drifted positions, then the
+    projection's first Gauss–Newton step; a projection's velocity solve, then the next kick), and an equal matrix is
+    not factored again. The comparison is exact, so results are the same bit for bit."""
+    count, slots = len(right), len(inverse_inertia)
+    key = cache[1: 1 + 12 * slots + count]
+    values, diagonal = _factors(layout, cache, count, slots)
     same = cache[0] == 1.0
     k = 0
-    for r in range(count):
-        for end in range(2):
-            for c in range(6):
-                same = same and key[k] == jac[r, end, c]
-                key[k] = jac[r, end, c]
+    for s in range(slots):
+        for c in range(3):
+            same = same and key[k] == sx[s, c]
+            key[k] = sx[s, c]
+            k += 1
+        for i in range(3):
+            for j in range(3):
+                same = same and key[k] == srotation[s, i, j]
+                key[k] = srotation[s, i, j]
                 k += 1
+    for r in range(count):
         flag = 1.0 if active[r] else 0.0
         same = same and key[k] == flag
         key[k] = flag
         k += 1
-    for s in range(len(inverse_inertia)):
-        for i in range(3):
-            for j in range(3):
-                same = same and key[k] == inverse_inertia[s, i, j]
-                key[k] = inverse_inertia[s, i, j]
-                k += 1
     if not same:
         sparse_ldl.assemble(integers, layout, jac, row_bodies, inverse_mass, inverse_inertia, active, values,
                             diagonal)
@@ -85,9 +84,25 @@ def _solve(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, row_bodi
 
 
 @njit(cache=True, error_model="numpy")
-def _solve_active(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, row_bodies: np.ndarray,
-                  jac: np.ndarray, inverse_mass: np.ndarray, inverse_inertia: np.ndarray, right: np.ndarray,
-                  reached: np.ndarray, out: np.ndarray) -> None:
+def _factors(layout: np.ndarray, cache: np.ndarray, count: int, slots: int) -> tuple[np.ndarray, np.ndarray]:
+    """The factor L (its values) and D (``count``,) that ``cache`` (:func:`_solve`) holds, as views."""
+    start = 1 + 12 * slots + count
+    entries = rows_of(layout, T.COLUMN_ROWS)
+    return cache[start: start + entries], cache[start + entries: start + entries + count]
+
+
+@njit(cache=True, error_model="numpy")
+def _solve_factored(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, slots: int, right: np.ndarray,
+                    out: np.ndarray) -> None:
+    """λ (R,) with the factorisation ``cache`` holds, whatever rows it was made at (a chord step)."""
+    values, diagonal = _factors(layout, cache, len(right), slots)
+    sparse_ldl.solve(integers, layout, values, diagonal, right, out)
+
+
+@njit(cache=True, error_model="numpy")
+def _solve_active(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, sx: np.ndarray,
+                  srotation: np.ndarray, row_bodies: np.ndarray, jac: np.ndarray, inverse_mass: np.ndarray,
+                  inverse_inertia: np.ndarray, right: np.ndarray, reached: np.ndarray, out: np.ndarray) -> None:
     """λ over the bilateral rows and the unilateral rows ``reached``, dropping unilateral rows whose λ would pull
     and solving again (``Joints._solve_active``)."""
     unilateral = column(integers, layout, T.ROW_UNILATERAL)
@@ -96,7 +111,7 @@ def _solve_active(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, r
     for r in range(count):
         active[r] = unilateral[r] == 0 or reached[r]
     for _ in range(ACTIVE_SET_PASSES):
-        _solve(integers, layout, cache, row_bodies, jac, inverse_mass, inverse_inertia, active, right,
+        _solve(integers, layout, cache, sx, srotation, row_bodies, jac, inverse_mass, inverse_inertia, active, right,
                out)
         pulling = False
         for r in range(count):
@@ -167,12 +182,12 @@ def add_joint_loads(t: float, floats: np.ndarray, integers: np.ndarray, layout: 
     if use_engaged:
         for r in range(rows):
             active[r] = unilateral[r] == 0 or engaged[r]
-        _solve(integers, layout, cache, row_bodies, jac, inverse_mass, sinverse_inertia, active, right,
+        _solve(integers, layout, cache, sx, srotation, row_bodies, jac, inverse_mass, sinverse_inertia, active, right,
                multipliers)
     else:
         for r in range(rows):
             active[r] = violation[r] <= 0
-        _solve_active(integers, layout, cache, row_bodies, jac, inverse_mass, sinverse_inertia, right,
+        _solve_active(integers, layout, cache, sx, srotation, row_bodies, jac, inverse_mass, sinverse_inertia, right,
                       active,
                       multipliers)
     joint_force, joint_torque = np.empty((slots, 3)), np.empty((slots, 3))
@@ -290,6 +305,7 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
     active = np.ones(rows, np.bool_)
     right, step = np.empty(rows), np.empty(rows)
     settled = False
+    factored, previous = False, np.inf  # a factorisation made here, and the violation it was last used at
     for _ in range(PROJECTION_ITERATIONS):
         _projection_motion(floats, integers, layout, positions, orientations, linear, angular_momentum,
                            mass_of_linear, t, sx, sv, srotation, somega, sinverse_inertia)
@@ -305,8 +321,13 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
             break
         if not any_unilateral:
             active[:] = True
-        _solve(integers, layout, cache, row_bodies, jac, inverse_mass, sinverse_inertia, active, right,
-               step)
+        if not factored or any_unilateral or largest > CHORD_CONTRACTION * previous:
+            _solve(integers, layout, cache, sx, srotation, row_bodies, jac, inverse_mass, sinverse_inertia, active,
+                   right, step)
+            factored = True
+        else:
+            _solve_factored(integers, layout, cache, slots, right, step)
+        previous = largest
         joint_rows.apply_transpose(row_bodies, jac, step, joint_force, joint_torque)
         for s in range(count):
             for c in range(3):
@@ -327,7 +348,7 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
     for r in range(rows):
         active[r] = violation[r] <= limit and rate[r] < 0  # reached, and approaching
         right[r] = -rate[r]
-    _solve_active(integers, layout, cache, row_bodies, jac, inverse_mass, sinverse_inertia, right,
+    _solve_active(integers, layout, cache, sx, srotation, row_bodies, jac, inverse_mass, sinverse_inertia, right,
                   active, step)
     joint_rows.apply_transpose(row_bodies, jac, step, joint_force, joint_torque)
     for s in range(count):
