@@ -37,26 +37,28 @@ def assemble(integers: np.ndarray, layout: np.ndarray, jac: np.ndarray, row_bodi
     pairs = table(integers, layout, T.PAIRS, 5)
     order = column(integers, layout, T.ORDER)
     column_start = column(integers, layout, T.COLUMN_START)
-    # M⁻¹ Jᵀ once per row end, then one dot product of six per pair of ends that meet at a body
+    # M⁻¹ Jᵀ once per row end (flat: end e of row e // 2), then one dot product of six per pair of ends that meet
+    # at a body, written out (a quarter quicker than loops over the six)
     count = len(jac)
-    scaled = np.empty((count, 2, 6))
+    ends = jac.reshape((2 * count, 6))
+    scaled = np.empty((2 * count, 6))
+    for e in range(2 * count):
+        body = row_bodies[e // 2, e % 2]
+        tensor, mass = inverse_inertia[body], inverse_mass[body]
+        for c in range(3):
+            scaled[e, c] = ends[e, c] * mass
+            scaled[e, 3 + c] = tensor[c, 0] * ends[e, 3] + tensor[c, 1] * ends[e, 4] + tensor[c, 2] * ends[e, 5]
+    every_row = True
     for r in range(count):
-        for end in range(2):
-            body = row_bodies[r, end]
-            tensor = inverse_inertia[body]
-            for c in range(3):
-                scaled[r, end, c] = jac[r, end, c] * inverse_mass[body]
-                scaled[r, end, 3 + c] = (tensor[c, 0] * jac[r, end, 3] + tensor[c, 1] * jac[r, end, 4]
-                                         + tensor[c, 2] * jac[r, end, 5])
+        every_row = every_row and active[r]
     values[:] = 0.0
     for p in range(len(pairs)):
-        row_a, end_a, row_b, end_b = pairs[p, 0], pairs[p, 1], pairs[p, 2], pairs[p, 3]
-        if not (active[row_a] and active[row_b]):
+        row_a, row_b = pairs[p, 0], pairs[p, 2]
+        if not every_row and not (active[row_a] and active[row_b]):
             continue
-        value = 0.0
-        for c in range(6):
-            value += jac[row_a, end_a, c] * scaled[row_b, end_b, c]
-        values[pairs[p, 4]] += value
+        a, b = 2 * row_a + pairs[p, 1], 2 * row_b + pairs[p, 3]
+        values[pairs[p, 4]] += (ends[a, 0] * scaled[b, 0] + ends[a, 1] * scaled[b, 1] + ends[a, 2] * scaled[b, 2]
+                                + ends[a, 3] * scaled[b, 3] + ends[a, 4] * scaled[b, 4] + ends[a, 5] * scaled[b, 5])
     for k in range(len(order)):
         if not active[order[k]]:
             values[column_start[k]] += 1.0
