@@ -141,6 +141,31 @@ def test_cubic_keyframes_pass_through_the_keys_and_start_and_end_at_rest():
     assert path.velocity(t) == pytest.approx((path.position(t + h) - path.position(t - h)) / (2 * h), rel=1e-6)
 
 
+def test_linear_keyframes_move_at_constant_speed_between_keys_and_hold_outside_them():
+    path = KeyframePath(np.array([0.0, 1.0, 3.0]), np.array([[0, 0, 0], [1, 2, 0], [0, 1, 1.0]]))
+    assert path.position(0.25) == pytest.approx([0.25, 0.5, 0]) and path.position(2.0) == pytest.approx([0.5, 1.5, 0.5])
+    assert path.position(-1.0) == pytest.approx([0, 0, 0]) and path.position(9.0) == pytest.approx([0, 1, 1])
+    assert path.velocity(2.0) == pytest.approx([-0.5, -0.5, 0.5]) and np.array_equal(path.velocity(9.0), [0, 0, 0])
+
+
+def test_a_piecewise_cubic_reads_as_scipy_at_keys_between_and_beyond_them():
+    """Paths read SciPy's splines through PiecewiseCubic: the same values and first and second derivatives as the
+    spline's own call, at keys, between them and extended beyond the first and last."""
+    from scipy.interpolate import CubicHermiteSpline, CubicSpline
+    from scipy.spatial.transform import Rotation, RotationSpline
+
+    from animbatch.sim.motion import PiecewiseCubic
+
+    times, rng = np.array([0.0, 0.4, 1.0, 1.7]), np.random.default_rng(1)
+    for spline in (CubicSpline(times, rng.normal(size=(4, 3)), bc_type="clamped"),
+                   CubicHermiteSpline(times, times, np.array([0.0, 1.0, 1.0, 0.0])),
+                   RotationSpline(times, Rotation.random(4, random_state=2)).interpolator):
+        ours = PiecewiseCubic(spline)
+        for t in (-0.3, 0.0, 0.2, 0.4, 0.99, 1.0, 1.7, 2.5):
+            for derivative in (0, 1, 2):
+                assert np.allclose(ours(t, derivative), spline(t, derivative), rtol=1e-12, atol=1e-12), (t, derivative)
+
+
 def test_spring_to_a_moving_anchor_drags_its_body_along():
     """A particle hanging on a nearly critically damped spring from an anchor that rises at 1 m/s ends up rising
     with it, hanging r + m g / ks below it: the damper sees the anchor's true velocity (were it taken as zero, the

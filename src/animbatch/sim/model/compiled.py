@@ -72,7 +72,7 @@ class _Paths:
         rows[:, 3] = values
         if len(times) > 1:
             if path.interpolation == "cubic":
-                coefficients = np.asarray(getattr(path, "_spline").c, float)  # (4, K−1, d), powers 3 … 0
+                coefficients = np.asarray(getattr(path, "_spline").coefficients, float)  # (4, K−1, d), powers 3 … 0
                 rows[:-1, :, : positions.shape[1]] = np.transpose(coefficients, (1, 0, 2))
             else:
                 rows[:-1, 2] = np.diff(values, axis=0) / np.diff(times)[:, None]
