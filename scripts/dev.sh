@@ -156,6 +156,10 @@ case "$command" in
             shift
             tier=(-m "not slow")
         fi
+        # The suite starts a hundred Python processes (test workers, Dask workers, farm steps, CLI runs): with
+        # bytecode caches off (PYTHONDONTWRITEBYTECODE, set on some machines) each one compiles the package again and
+        # each test worker rewrites all 160 test modules' asserts again (some 5 s a worker).
+        unset PYTHONDONTWRITEBYTECODE
         # Spread the tests over the machine's cores (at most 4: each render test holds a software OpenGL context).
         exec "$venv/bin/python" -m pytest -n auto --maxprocesses=4 "${tier[@]}" "$@"
         ;;

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 import types
 
 import numpy as np
@@ -607,8 +608,9 @@ def test_the_accuracy_page_is_rebuilt_from_saved_studies_alone(projectile_study,
     the page holds the guide as the generator has it now."""
     from animbatch.study import document
 
+    saved = write_outputs(projectile_study, tmp_path / "saved")["json"].parent  # drawn once, copied per scene
     for name in document.SCENES:
-        write_outputs(projectile_study, tmp_path / "docs" / "accuracy" / name)
+        shutil.copytree(saved, tmp_path / "docs" / "accuracy" / name)
     (tmp_path / "docs" / "accuracy" / "projectile" / "study.txt").write_text("stale")
     monkeypatch.setattr(document, "run_study", lambda *a, **k: pytest.fail("--page studied a scene"))
     monkeypatch.setattr(document, "ledger_section", lambda root: document.LEDGER + "| a table |\n")
