@@ -195,6 +195,25 @@ def test_the_projection_lands_on_the_joints_from_states_well_off_them(both):
             assert np.max(model.joints.violation(motion)) <= 1e-12, type(system).__name__
 
 
+def test_the_velocity_projection_of_a_contact_solve_is_the_numpy_one(both):
+    """The joints' share of a jointed contact solve (velocities only, at given positions, limits within reach of
+    their stops losing an approaching rate): the same v and ω, from states on and off the joints."""
+    numpy_system, compiled = both
+    if numpy_system.model.joints is None:
+        pytest.skip("no joints")
+    for t, y in zip((0.0, 0.3, 0.8), _states(numpy_system.model)):
+        results = []
+        for system in (numpy_system, compiled):
+            state = numpy_system.kinematics(*numpy_system.split(y), t=t, copy=True)
+            v = state.v + 0.1  # velocities the joints do not allow
+            omega = None if state.omega is None else state.omega - 0.2
+            given = np.concatenate([v.ravel(), [] if omega is None else omega.ravel()])
+            system.project_velocities(state, v, omega)
+            results.append(np.concatenate([v.ravel(), [] if omega is None else omega.ravel()]))
+        assert np.max(np.abs(results[0] - given)) > 1e-3  # the projection did change them
+        _close(*results)
+
+
 def test_engaged_stops_are_the_numpy_ones():
     """The adaptive methods' events choose which limits act: the compiled forces follow the same choice."""
     model = _model("hinge chain with a limit")

@@ -222,9 +222,8 @@ class ContactResolver:
         joints, count, n = self.system.joints, self.system.model.body_count, self.system.model.particle_count
 
         def couple(velocities: BodyVelocities) -> None:  # joints and contacts solved together
-            assert joints is not None
-            joints.project_velocities(state, velocities.v[:count], velocities.omega[n:count]
-                                      if state.omega is not None else None)
+            self.system.project_velocities(state, velocities.v[:count], velocities.omega[n:count]
+                                           if state.omega is not None else None)
 
         jointed = None
         if joints is not None:

@@ -361,6 +361,45 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
 
 
 @njit(cache=True, error_model="numpy")
+def project_velocities(t: float, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, cache: np.ndarray,
+                       x: np.ndarray, rotation: np.ndarray, v: np.ndarray, omega: np.ndarray) -> None:
+    """Take out of velocities ``v`` (P, 3) [m/s] and ``omega`` (B, 3) [rad/s] (world axes, in place) what breaks the
+    joints at positions ``x`` (P, 3) [m] and rotations ``rotation`` (B, 3, 3), by the impulse that does it in the
+    mass metric (``Joints.project_velocities``, the joints' share of a contact solve)."""
+    points = column(integers, layout, T.JOINT_POINTS)
+    slot_rigid = column(integers, layout, T.SLOT_RIGID)
+    inverse_mass = column(floats, layout, T.SLOT_INVERSE_MASS)
+    row_bodies = table(integers, layout, T.ROW_BODIES, 2)
+    slots, rows = len(slot_rigid), len(row_bodies)
+    sx, sv, somega = np.empty((slots, 3)), np.empty((slots, 3)), np.empty((slots, 3))
+    sspin, sacceleration = np.empty((slots, 3)), np.empty((slots, 3))
+    srotation, sinverse_inertia = np.empty((slots, 3, 3)), np.empty((slots, 3, 3))
+    joint_rows.slot_motion(t, floats, integers, layout, x, v, rotation, omega, sx, sv, srotation, somega,
+                           sinverse_inertia, sspin, sacceleration)
+    violation, bias, jac = np.empty(rows), np.empty(rows), np.empty((rows, 2, 6))
+    joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, jac, bias)
+    rate = np.empty(rows)
+    joint_rows.apply(row_bodies, jac, sv, somega, rate)
+    tolerance = PROJECTION_TOLERANCE * max(column(floats, layout, T.JOINT_SCALE)[0], 1.0)
+    reached, right, impulse = np.empty(rows, np.bool_), np.empty(rows), np.empty(rows)
+    for r in range(rows):
+        reached[r] = violation[r] <= tolerance and rate[r] < 0
+        right[r] = -rate[r]
+    _solve_active(integers, layout, cache, sx, srotation, row_bodies, jac, inverse_mass, sinverse_inertia, right,
+                  reached, impulse)
+    joint_force, joint_torque = np.empty((slots, 3)), np.empty((slots, 3))
+    joint_rows.apply_transpose(row_bodies, jac, impulse, joint_force, joint_torque)
+    for s in range(len(points)):
+        for c in range(3):
+            v[points[s], c] += joint_force[s, c] * inverse_mass[s]
+        k = slot_rigid[s]
+        if k >= 0:
+            turn = rigid_motion.rotate(sinverse_inertia[s], rigid_motion.vector(joint_torque, s))
+            for c in range(3):
+                omega[k, c] += turn[c]
+
+
+@njit(cache=True, error_model="numpy")
 def project(y: np.ndarray, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, cache: np.ndarray,
             config_size: int,
             reach: float, t: float) -> None:

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from animbatch.sim.bodies import Kinematics
 from animbatch.sim.forces.gravitation import InverseSquarePairs
 from animbatch.sim.forces.gravity import UniformGravity
 from animbatch.sim.forces.springs import SpringForces
@@ -272,6 +273,8 @@ def build_stepper_kernels() -> str | None:
         system.project(y)
         system.advance(("verlet", rate), y, 0.0, 1e-3, 1)
         system.advance(("runge_kutta", (np.zeros((1, 1)), np.ones(1), np.zeros(1))), y, 0.0, 1e-3, 1)
+        state = system.kinematics(config, motion, copy=True)
+        system.project_velocities(state, state.v, state.omega)
 
     return build_failure(build)
 
@@ -319,6 +322,7 @@ class CompiledDynamics(Dynamics):
         self._compiled_rhs, self._compiled_rate = _Entry(stepper.rhs), _Entry(stepper.motion_rate)
         self._compiled_drift, self._compiled_project = _Entry(rigid_motion.drift), _Entry(stepper.project)
         self._compiled_advance = _Entry(stepper.advance)
+        self._compiled_project_velocities = _Entry(stepper.project_velocities)
 
     def _engaged(self) -> tuple[np.ndarray, bool]:
         if self.engaged_stops is None:
@@ -348,6 +352,18 @@ class CompiledDynamics(Dynamics):
             super().project(y, joints=joints, reach=reach, t=t)
             return
         self._compiled_project(y, *self._packed, self._config_size, float(reach), float(t))
+
+    def project_velocities(self, state: Kinematics, v: np.ndarray, omega: np.ndarray | None) -> None:
+        rotation = state.rotation if state.rotation is not None else np.zeros((0, 3, 3))
+        turning = omega if omega is not None else np.zeros((0, 3))
+        # in place on the caller's arrays: copies (for a layout numba cannot take) are written back
+        moving, spinning = np.ascontiguousarray(v, dtype=float), np.ascontiguousarray(turning, dtype=float)
+        self._compiled_project_velocities(float(state.t), *self._packed, np.ascontiguousarray(state.x, dtype=float),
+                                          np.ascontiguousarray(rotation, dtype=float), moving, spinning)
+        if moving is not v:
+            v[...] = moving
+        if omega is not None and spinning is not omega:
+            omega[...] = spinning
 
     def advance(self, form: tuple[str, Any], y: np.ndarray, t: float, h: float, steps: int) -> int:
         """``steps`` fixed steps of ``h`` [s] from ``t`` [s] of the scheme form ``form`` (see

@@ -252,6 +252,12 @@ class Dynamics:
                         [inverse_mass @ derivatives.matrix("x"), inverse_mass @ derivatives.matrix("v")]],
                        format="csr")
 
+    def project_velocities(self, state: Kinematics, v: np.ndarray, omega: np.ndarray | None) -> None:
+        """Take out of velocities ``v`` (P, 3) [m/s] and ``omega`` (B, 3) [rad/s] (in place) what breaks the joints
+        at ``state``'s positions (:meth:`animbatch.sim.joints.Joints.project_velocities`). Requires joints."""
+        assert self.joints is not None
+        self.joints.project_velocities(state, v, omega)
+
     def project(self, y: np.ndarray, *, joints: bool = True, reach: float = 0.0, t: float = 0.0) -> None:
         """Re-normalise the quaternions of a state (…, n) in place, and with ``joints`` put the bodies on keyframes
         where their paths say and move a state (n,) back onto its joints: the start of every run, fixed-step
