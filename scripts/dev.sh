@@ -160,8 +160,9 @@ case "$command" in
         # bytecode caches off (PYTHONDONTWRITEBYTECODE, set on some machines) each one compiles the package again and
         # each test worker rewrites all 160 test modules' asserts again (some 5 s a worker).
         unset PYTHONDONTWRITEBYTECODE
-        # Spread the tests over the machine's cores (at most 4: each render test holds a software OpenGL context).
-        exec "$venv/bin/python" -m pytest -n auto --maxprocesses=4 "${tier[@]}" "$@"
+        # Spread the tests over the machine's cores (at most 4: each render test holds a software OpenGL context);
+        # tests marked xdist_group("dask") go to one test process, to share its Dask cluster.
+        exec "$venv/bin/python" -m pytest -n auto --maxprocesses=4 --dist loadgroup "${tier[@]}" "$@"
         ;;
     bench)
         setup

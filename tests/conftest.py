@@ -43,6 +43,23 @@ ADAPTIVE = ["RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA"]
 FIXED_STEP = ["euler", "midpoint", "symplectic_euler", "verlet", "backward_euler"]
 
 
+@pytest.fixture(scope="session")
+def dask_scheduler():
+    """The address of one LocalCluster of two single-threaded worker processes, for the Dask batches of a test
+    process to share through ``batch --scheduler``: starting a cluster and warming its workers (their imports, their
+    first OpenGL context) costs more than the small batches under test. Tests that use it are marked
+    ``xdist_group("dask")`` so that one test process runs them all."""
+    import logging
+
+    distributed = pytest.importorskip("distributed")
+    from animbatch.farm.batch import WORKER_ENV
+
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, env=WORKER_ENV,
+                                       dashboard_address=None, silence_logs=logging.CRITICAL)
+    yield cluster.scheduler_address
+    cluster.close()
+
+
 @pytest.fixture
 def tmp_cwd(tmp_path, monkeypatch):
     """Run in an empty temporary folder (so relative outputs like renders/ land there)."""

@@ -104,11 +104,13 @@ def test_a_worker_killed_mid_batch_loses_no_frame_and_redraws_none(tmp_cwd):
 
 
 @pytest.mark.slow
-def test_a_sweep_renders_one_variant_per_value_with_metrics_and_a_contact_sheet(tmp_cwd):
+@pytest.mark.xdist_group("dask")
+def test_a_sweep_renders_one_variant_per_value_with_metrics_and_a_contact_sheet(dask_scheduler, tmp_cwd):
     """--sweep springs[0].stiffness=20,80,320 on a bob on a spring: three variants named by their value, each with
     its video; sweep.csv lists each with its energy drift (a conservative scene: below 1e-4 of its energy scale at the
     default tolerance) and its solver work, which grows with the stiffness (ω ∝ √k, so RK45 needs more steps); the
-    contact sheet has one tile per variant."""
+    contact sheet has one tile per variant. On a cluster given by --scheduler, started before the test moved to its
+    folder: the workers run elsewhere, and the relative scene path still means the client's file."""
     import csv
 
     from PIL import Image
@@ -123,8 +125,8 @@ springs: [{between: [pin, bob], stiffness: 50, rest_length: 0.6}]
 fields: [{type: gravity}]
 render: {resolution: [96, 64]}
 """)
-    result = CliRunner().invoke(cli, ["batch", "bob.yaml", "--workers", "2", "--sweep",
-                                      "springs[0].stiffness=20,80,320"])
+    result = CliRunner().invoke(cli, ["batch", "bob.yaml", "--scheduler", dask_scheduler, "--sweep",
+                                      "springs[0].stiffness=20,80,320"])  # on a running cluster
     assert result.exit_code == 0, result.output
     rows = list(csv.DictReader((tmp_cwd / "renders" / "bob-sweep" / "sweep.csv").open()))
     assert [row["variant"] for row in rows] == ["bob-stiffness-20", "bob-stiffness-80", "bob-stiffness-320"]

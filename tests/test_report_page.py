@@ -49,10 +49,10 @@ def browser():
 
 
 @pytest.fixture(scope="module")
-def sweep_page(tmp_path_factory):
+def sweep_page(tmp_path_factory, dask_scheduler):
     folder = tmp_path_factory.mktemp("page")
     (folder / "crossing.yaml").write_text(SCENE)
-    result = CliRunner().invoke(cli, ["batch", str(folder / "crossing.yaml"), "--workers", "2", "--out",
+    result = CliRunner().invoke(cli, ["batch", str(folder / "crossing.yaml"), "--scheduler", dask_scheduler, "--out",
                                       str(folder / "renders"), "--sweep", f"bodies[ball].mass={','.join(MASSES)}"])
     assert result.exit_code == 0, result.output
     page = folder / "renders" / "crossing-sweep" / "index.html"
@@ -67,6 +67,7 @@ def decoded_frames(video) -> np.ndarray:
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("dask")
 def test_the_page_plays_every_video_at_its_size_and_duration_and_seeks_to_the_frame_of_a_time(browser, sweep_page):
     """Three variants of 12 frames at 12 fps: each video reaches readyState ≥ 2 with duration 1 s and 160×96 pixels;
     its poster and energy plot load. Seeking the first to the middle of frame k's interval [k/fps, (k+1)/fps) shows
@@ -109,6 +110,7 @@ def test_the_page_plays_every_video_at_its_size_and_duration_and_seeks_to_the_fr
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("dask")
 def test_the_sweep_table_sorts_by_a_column_as_numbers(browser, sweep_page):
     """Clicking the mass column's header sorts the rows 5, 20, 100 (numbers, not text); again, 100, 20, 5; the
     variant column sorts with them, and each variant's name links to its section."""

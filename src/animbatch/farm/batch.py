@@ -17,7 +17,7 @@ import shutil
 import time
 import uuid
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -142,6 +142,9 @@ def submit(client: Any, job: Job, out_dir: str, *, chunk_size: int, backend: str
     _, frames = frame_count(job)
     tag = uuid.uuid4().hex[:8]
     name = job.label or Path(job.scene_path).stem
+    # the workers of a cluster given by --scheduler run in folders of their own: paths as the client means them
+    job = replace(job, scene_path=str(Path(job.scene_path).resolve()))
+    out_dir = str(Path(out_dir).resolve())
     options = {"pure": False, "retries": retries}
     baked = client.submit(bake_task, job.scene_path, job.overrides, out_dir, key=f"bake-{name}-{tag}", **options)
     chunks = [client.submit(render_task, job.scene_path, job.overrides, out_dir, baked, chunk.start, chunk.stop,
