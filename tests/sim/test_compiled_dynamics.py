@@ -214,6 +214,20 @@ def test_the_velocity_projection_of_a_contact_solve_is_the_numpy_one(both):
         _close(*results)
 
 
+def test_the_joint_rows_a_contact_solve_reads_are_the_numpy_ones(both):
+    """The rows that hold at a state, as the Jacobian over the flat velocity that the jointed contact solve takes:
+    the same entries, at states on and off the joints."""
+    numpy_system, compiled = both
+    if numpy_system.model.joints is None:
+        pytest.skip("no joints")
+    size = numpy_system.model.body_count + 1
+    for t, y in zip((0.0, 0.3, 0.8), _states(numpy_system.model)):
+        state = numpy_system.kinematics(*numpy_system.split(y), t=t, copy=True)
+        matrices = [system.velocity_rows(state, size).toarray() for system in (numpy_system, compiled)]
+        assert matrices[0].shape == matrices[1].shape and np.count_nonzero(matrices[0])
+        _close(*matrices)
+
+
 def test_engaged_stops_are_the_numpy_ones():
     """The adaptive methods' events choose which limits act: the compiled forces follow the same choice."""
     model = _model("hinge chain with a limit")

@@ -227,7 +227,7 @@ class ContactResolver:
 
         jointed = None
         if joints is not None:
-            jointed = JointedResponse(joints.velocity_rows(state, len(bodies.v)), inverse_mass_matrix(bodies))
+            jointed = JointedResponse(self.system.velocity_rows(state, len(bodies.v)), inverse_mass_matrix(bodies))
         result = solve_impulses(contacts, bodies, x, h, iterations=self.settings.iterations,
                                 rest_speed=self.rest_speed(h), slop=self.settings.slop, bounce=bounce, warm=warm,
                                 kinematic=kinematic, couple=couple if joints is not None else None, jointed=jointed,

@@ -346,8 +346,11 @@ class Joints:
         Jacobian (R, 6 size) over a flat velocity ``V = [v.ravel(), ω.ravel()]`` of ``size`` bodies numbered as in
         the model (anchors and the world do not move in it): ``J V`` is each row's rate. For the contact solver,
         which solves contacts within the joints' constraints with it."""
-        motion = self.motion(state)
-        rows = self._held_rows(motion)
+        return self.held_matrix(self._held_rows(self.motion(state)), size)
+
+    def held_matrix(self, rows: Rows, size: int) -> sp.csr_matrix:
+        """:meth:`velocity_rows` from the rows at the state's positions (their violation and Jacobian: the bias is
+        not read)."""
         holding = ~self._cache["unilateral"] | (rows.violation <= PROJECTION_TOLERANCE * max(self.scale, 1.0))
         bodies = self._cache["bodies"][holding]
         count = len(self.points)

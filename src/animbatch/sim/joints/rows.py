@@ -16,12 +16,13 @@ a sparse LU for many).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg import lu_factor, lu_solve
+from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
 from scipy.sparse.linalg import splu
 
 from animbatch.quaternion import cross
@@ -152,7 +153,9 @@ class FactoredCoupling:
         self._factor: Any = None  # None: singular
         try:
             if self._dense:
-                lu, pivots = lu_factor(system, check_finite=False)
+                with warnings.catch_warnings():  # an exactly singular system is told by its zero pivot, below
+                    warnings.simplefilter("ignore", LinAlgWarning)
+                    lu, pivots = lu_factor(system, check_finite=False)
                 if np.all(np.diag(lu) != 0):  # as numpy's solve, only an exactly zero pivot is singular
                     self._factor = lu, pivots
             else:

@@ -361,6 +361,21 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
 
 
 @njit(cache=True, error_model="numpy")
+def held_rows(t: float, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, x: np.ndarray,
+              rotation: np.ndarray, violation: np.ndarray, jac: np.ndarray) -> None:
+    """The joints' rows at positions ``x`` (P, 3) [m] and rotations ``rotation`` (B, 3, 3): ``violation`` (R,) and
+    Jacobian ``jac`` (R, 2, 6), which the velocities do not enter (``Joints.velocity_rows``' rows)."""
+    slots, rows = rows_of(layout, T.SLOT_RIGID), rows_of(layout, T.ROW_BODIES)
+    v, omega = np.zeros((len(x), 3)), np.zeros((len(rotation), 3))
+    sx, sv, somega = np.empty((slots, 3)), np.empty((slots, 3)), np.empty((slots, 3))
+    sspin, sacceleration = np.empty((slots, 3)), np.empty((slots, 3))
+    srotation, sinverse_inertia = np.empty((slots, 3, 3)), np.empty((slots, 3, 3))
+    joint_rows.slot_motion(t, floats, integers, layout, x, v, rotation, omega, sx, sv, srotation, somega,
+                           sinverse_inertia, sspin, sacceleration)
+    joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, jac, np.empty(rows))
+
+
+@njit(cache=True, error_model="numpy")
 def project_velocities(t: float, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, cache: np.ndarray,
                        x: np.ndarray, rotation: np.ndarray, v: np.ndarray, omega: np.ndarray) -> None:
     """Take out of velocities ``v`` (P, 3) [m/s] and ``omega`` (B, 3) [rad/s] (world axes, in place) what breaks the

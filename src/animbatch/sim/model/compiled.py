@@ -19,6 +19,7 @@ import functools
 from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 
 from animbatch.sim.bodies import Kinematics
 from animbatch.sim.forces.gravitation import InverseSquarePairs
@@ -30,6 +31,7 @@ from animbatch.sim.joints import (
     Joints,
     LockRows,
     PointRows,
+    Rows,
     SegmentRows,
     SlideRows,
 )
@@ -275,6 +277,7 @@ def build_stepper_kernels() -> str | None:
         system.advance(("runge_kutta", (np.zeros((1, 1)), np.ones(1), np.zeros(1))), y, 0.0, 1e-3, 1)
         state = system.kinematics(config, motion, copy=True)
         system.project_velocities(state, state.v, state.omega)
+        system.velocity_rows(state, system.model.body_count)
 
     return build_failure(build)
 
@@ -323,6 +326,7 @@ class CompiledDynamics(Dynamics):
         self._compiled_drift, self._compiled_project = _Entry(rigid_motion.drift), _Entry(stepper.project)
         self._compiled_advance = _Entry(stepper.advance)
         self._compiled_project_velocities = _Entry(stepper.project_velocities)
+        self._compiled_held_rows = _Entry(stepper.held_rows)
 
     def _engaged(self) -> tuple[np.ndarray, bool]:
         if self.engaged_stops is None:
@@ -352,6 +356,15 @@ class CompiledDynamics(Dynamics):
             super().project(y, joints=joints, reach=reach, t=t)
             return
         self._compiled_project(y, *self._packed, self._config_size, float(reach), float(t))
+
+    def velocity_rows(self, state: Kinematics, size: int) -> sp.csr_matrix:
+        assert self.joints is not None
+        count = len(self.joints.row_is_unilateral)
+        violation, jac = np.empty(count), np.empty((count, 2, 6))
+        rotation = state.rotation if state.rotation is not None else np.zeros((0, 3, 3))
+        self._compiled_held_rows(float(state.t), *self._packed[:3], np.ascontiguousarray(state.x, dtype=float),
+                                 np.ascontiguousarray(rotation, dtype=float), violation, jac)
+        return self.joints.held_matrix(Rows(violation, jac[:, :, :3], jac[:, :, 3:], np.full(count, np.nan)), size)
 
     def project_velocities(self, state: Kinematics, v: np.ndarray, omega: np.ndarray | None) -> None:
         rotation = state.rotation if state.rotation is not None else np.zeros((0, 3, 3))

@@ -258,6 +258,12 @@ class Dynamics:
         assert self.joints is not None
         self.joints.project_velocities(state, v, omega)
 
+    def velocity_rows(self, state: Kinematics, size: int) -> sp.csr_matrix:
+        """The joint rows that hold at ``state``, as a Jacobian over a flat velocity of ``size`` bodies
+        (:meth:`animbatch.sim.joints.Joints.velocity_rows`). Requires joints."""
+        assert self.joints is not None
+        return self.joints.velocity_rows(state, size)
+
     def project(self, y: np.ndarray, *, joints: bool = True, reach: float = 0.0, t: float = 0.0) -> None:
         """Re-normalise the quaternions of a state (…, n) in place, and with ``joints`` put the bodies on keyframes
         where their paths say and move a state (n,) back onto its joints: the start of every run, fixed-step
