@@ -315,6 +315,30 @@ def test_the_fitted_camera_keeps_every_body_inside_the_frame_with_a_margin_over_
     assert extent.max() <= 0.97, f"a body reaches {extent.max():.3f} of the half-frame"
 
 
+def test_a_ball_tossed_up_with_nothing_else_in_the_scene_is_drawn_at_every_frame():
+    """A red ball thrown upward, no floor, the fitted camera: every frame shows it, about as large as on the first.
+    (The near and far clipping planes were set once, around the first frame's props: the camera looks down, so the
+    rising ball left that range and vanished for the top of its arc.)"""
+    scene = stages.parse_scene("""
+duration: 1
+fps: 24
+bodies: [{name: ball, radius: 0.1, position: [0, 1, 0], velocity: [1, 3, 0], color: "#ff0000"}]
+fields: [{type: gravity}]
+render: {resolution: [160, 90], show_time: false}
+""")
+    assert scene.spec.render.camera.position is None
+    model = api.compile_model(scene)
+    trajectory = api.simulate(scene, model=model)
+    geometry = stages.frame_geometry(scene, model, trajectory)
+    with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
+        red = []
+        for t, positions in zip(trajectory.times, trajectory.positions):
+            image = renderer.draw(float(t), positions).astype(int)
+            red.append(int(np.count_nonzero((image[..., 0] > 120) & (image[..., 1] < 90) & (image[..., 2] < 90))))
+    assert red[0] >= 6
+    assert min(red) >= 0.4 * red[0], f"red pixels per frame: {red}"
+
+
 def test_bars_in_the_overlay_are_drawn_as_bars():
     """'|v|' is plain text: the overlay '| | | |' shows four separate upright strokes (VTK's default text backend
     sent any '|' to MathText, which drew the label in another font and dropped the bars)."""

@@ -519,6 +519,11 @@ class FrameRenderer:
             self._label.SetInput(self._label_text(t))
         if self.camera_path.moves:
             self._apply_camera(self.camera_path.at(t))
+        else:
+            # near and far around all that is drawn now: bodies that rise toward a camera looking down, or fall
+            # away from it, leave the range the first frame's props spanned (a ball tossed with no floor vanished
+            # for the top of its arc)
+            self.plotter.renderer.ResetCameraClippingRange()
         # The window itself, not plotter.render(): PyVista skips rendering until the plotter was first shown.
         self.plotter.ren_win.Render()
         pixels = self._read_pixels()
