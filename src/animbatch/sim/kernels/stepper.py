@@ -342,15 +342,8 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
         _projection_motion(floats, integers, layout, positions, orientations, linear, angular_momentum,
                            mass_of_linear, t, sx, sv, srotation, somega, sinverse_inertia)
         joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, jac, bias)
-    rate = np.empty(rows)
-    joint_rows.apply(row_bodies, jac, sv, somega, rate)
-    limit = max(tolerance, reach)
-    for r in range(rows):
-        active[r] = violation[r] <= limit and rate[r] < 0  # reached, and approaching
-        right[r] = -rate[r]
-    _solve_active(integers, layout, cache, sx, srotation, row_bodies, jac, inverse_mass, sinverse_inertia, right,
-                  active, step)
-    joint_rows.apply_transpose(row_bodies, jac, step, joint_force, joint_torque)
+    _velocity_impulse(floats, integers, layout, cache, sx, sv, srotation, somega, sinverse_inertia, violation, jac,
+                      max(tolerance, reach), joint_force, joint_torque)
     for s in range(count):
         scale = mass_of_linear[s] * inverse_mass[s]
         for c in range(3):
@@ -361,18 +354,54 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
 
 
 @njit(cache=True, error_model="numpy")
-def held_rows(t: float, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, x: np.ndarray,
-              rotation: np.ndarray, violation: np.ndarray, jac: np.ndarray) -> None:
-    """The joints' rows at positions ``x`` (P, 3) [m] and rotations ``rotation`` (B, 3, 3): ``violation`` (R,) and
-    Jacobian ``jac`` (R, 2, 6), which the velocities do not enter (``Joints.velocity_rows``' rows)."""
+def _velocity_impulse(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, sx: np.ndarray,
+                      sv: np.ndarray, srotation: np.ndarray, somega: np.ndarray, sinverse_inertia: np.ndarray,
+                      violation: np.ndarray, jac: np.ndarray, reach: float, force: np.ndarray,
+                      torque: np.ndarray) -> None:
+    """The impulse (``force`` and ``torque`` (S, 3) per slot) that takes out of the slots' velocities what the rows
+    (``violation`` (R,), ``jac`` (R, 2, 6)) do not allow, in the mass metric: all of a bilateral row's rate, and a
+    unilateral row's only within ``reach`` of its stop and approaching it (``Joints.project``'s velocity part)."""
+    inverse_mass = column(floats, layout, T.SLOT_INVERSE_MASS)
+    row_bodies = table(integers, layout, T.ROW_BODIES, 2)
+    rows = len(row_bodies)
+    rate, right, impulse = np.empty(rows), np.empty(rows), np.empty(rows)
+    joint_rows.apply(row_bodies, jac, sv, somega, rate)
+    reached = np.empty(rows, np.bool_)
+    for r in range(rows):
+        reached[r] = violation[r] <= reach and rate[r] < 0  # reached, and approaching
+        right[r] = -rate[r]
+    _solve_active(integers, layout, cache, sx, srotation, row_bodies, jac, inverse_mass, sinverse_inertia, right,
+                  reached, impulse)
+    joint_rows.apply_transpose(row_bodies, jac, impulse, force, torque)
+
+
+@njit(cache=True, error_model="numpy")
+def _rows_at(t: float, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, x: np.ndarray, v: np.ndarray,
+             rotation: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                               np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The slots' motion at a kinematic state (``x``, ``v`` (P, 3); ``rotation`` (B, 3, 3), ``omega`` (B, 3)) and
+    the rows there: ``sx``, ``sv``, ``srotation``, ``somega``, ``sinverse_inertia``, ``violation`` (R,), ``jac``
+    (R, 2, 6) and ``bias`` (R,)."""
     slots, rows = rows_of(layout, T.SLOT_RIGID), rows_of(layout, T.ROW_BODIES)
-    v, omega = np.zeros((len(x), 3)), np.zeros((len(rotation), 3))
     sx, sv, somega = np.empty((slots, 3)), np.empty((slots, 3)), np.empty((slots, 3))
     sspin, sacceleration = np.empty((slots, 3)), np.empty((slots, 3))
     srotation, sinverse_inertia = np.empty((slots, 3, 3)), np.empty((slots, 3, 3))
     joint_rows.slot_motion(t, floats, integers, layout, x, v, rotation, omega, sx, sv, srotation, somega,
                            sinverse_inertia, sspin, sacceleration)
-    joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, jac, np.empty(rows))
+    violation, bias, jac = np.empty(rows), np.empty(rows), np.empty((rows, 2, 6))
+    joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, jac, bias)
+    return sx, sv, srotation, somega, sinverse_inertia, violation, jac, bias
+
+
+@njit(cache=True, error_model="numpy")
+def held_rows(t: float, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, x: np.ndarray,
+              rotation: np.ndarray, violation: np.ndarray, jac: np.ndarray) -> None:
+    """The joints' rows at positions ``x`` (P, 3) [m] and rotations ``rotation`` (B, 3, 3): ``violation`` (R,) and
+    Jacobian ``jac`` (R, 2, 6), which the velocities do not enter (``Joints.velocity_rows``' rows)."""
+    found = _rows_at(t, floats, integers, layout, x, np.zeros((len(x), 3)), rotation,
+                     np.zeros((len(rotation), 3)))
+    violation[:] = found[5]
+    jac[:] = found[6]
 
 
 @njit(cache=True, error_model="numpy")
@@ -384,26 +413,12 @@ def project_velocities(t: float, floats: np.ndarray, integers: np.ndarray, layou
     points = column(integers, layout, T.JOINT_POINTS)
     slot_rigid = column(integers, layout, T.SLOT_RIGID)
     inverse_mass = column(floats, layout, T.SLOT_INVERSE_MASS)
-    row_bodies = table(integers, layout, T.ROW_BODIES, 2)
-    slots, rows = len(slot_rigid), len(row_bodies)
-    sx, sv, somega = np.empty((slots, 3)), np.empty((slots, 3)), np.empty((slots, 3))
-    sspin, sacceleration = np.empty((slots, 3)), np.empty((slots, 3))
-    srotation, sinverse_inertia = np.empty((slots, 3, 3)), np.empty((slots, 3, 3))
-    joint_rows.slot_motion(t, floats, integers, layout, x, v, rotation, omega, sx, sv, srotation, somega,
-                           sinverse_inertia, sspin, sacceleration)
-    violation, bias, jac = np.empty(rows), np.empty(rows), np.empty((rows, 2, 6))
-    joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, jac, bias)
-    rate = np.empty(rows)
-    joint_rows.apply(row_bodies, jac, sv, somega, rate)
+    sx, sv, srotation, somega, sinverse_inertia, violation, jac, _ = _rows_at(t, floats, integers, layout, x, v,
+                                                                             rotation, omega)
     tolerance = PROJECTION_TOLERANCE * max(column(floats, layout, T.JOINT_SCALE)[0], 1.0)
-    reached, right, impulse = np.empty(rows, np.bool_), np.empty(rows), np.empty(rows)
-    for r in range(rows):
-        reached[r] = violation[r] <= tolerance and rate[r] < 0
-        right[r] = -rate[r]
-    _solve_active(integers, layout, cache, sx, srotation, row_bodies, jac, inverse_mass, sinverse_inertia, right,
-                  reached, impulse)
-    joint_force, joint_torque = np.empty((slots, 3)), np.empty((slots, 3))
-    joint_rows.apply_transpose(row_bodies, jac, impulse, joint_force, joint_torque)
+    joint_force, joint_torque = np.empty((len(sx), 3)), np.empty((len(sx), 3))
+    _velocity_impulse(floats, integers, layout, cache, sx, sv, srotation, somega, sinverse_inertia, violation, jac,
+                      tolerance, joint_force, joint_torque)
     for s in range(len(points)):
         for c in range(3):
             v[points[s], c] += joint_force[s, c] * inverse_mass[s]

@@ -357,22 +357,27 @@ class CompiledDynamics(Dynamics):
             return
         self._compiled_project(y, *self._packed, self._config_size, float(reach), float(t))
 
+    @staticmethod
+    def _placement(state: Kinematics) -> tuple[float, np.ndarray, np.ndarray]:
+        """A state's time, positions (P, 3) and rotations (B, 3, 3, none for particles alone) as the kernels take
+        them."""
+        rotation = state.rotation if state.rotation is not None else np.zeros((0, 3, 3))
+        return float(state.t), np.ascontiguousarray(state.x, dtype=float), np.ascontiguousarray(rotation, dtype=float)
+
     def velocity_rows(self, state: Kinematics, size: int) -> sp.csr_matrix:
         assert self.joints is not None
         count = len(self.joints.row_is_unilateral)
         violation, jac = np.empty(count), np.empty((count, 2, 6))
-        rotation = state.rotation if state.rotation is not None else np.zeros((0, 3, 3))
-        self._compiled_held_rows(float(state.t), *self._packed[:3], np.ascontiguousarray(state.x, dtype=float),
-                                 np.ascontiguousarray(rotation, dtype=float), violation, jac)
+        t, x, rotation = self._placement(state)
+        self._compiled_held_rows(t, *self._packed[:3], x, rotation, violation, jac)
         return self.joints.held_matrix(Rows(violation, jac[:, :, :3], jac[:, :, 3:], np.full(count, np.nan)), size)
 
     def project_velocities(self, state: Kinematics, v: np.ndarray, omega: np.ndarray | None) -> None:
-        rotation = state.rotation if state.rotation is not None else np.zeros((0, 3, 3))
         turning = omega if omega is not None else np.zeros((0, 3))
         # in place on the caller's arrays: copies (for a layout numba cannot take) are written back
         moving, spinning = np.ascontiguousarray(v, dtype=float), np.ascontiguousarray(turning, dtype=float)
-        self._compiled_project_velocities(float(state.t), *self._packed, np.ascontiguousarray(state.x, dtype=float),
-                                          np.ascontiguousarray(rotation, dtype=float), moving, spinning)
+        t, x, rotation = self._placement(state)
+        self._compiled_project_velocities(t, *self._packed, x, rotation, moving, spinning)
         if moving is not v:
             v[...] = moving
         if omega is not None and spinning is not omega:
