@@ -618,3 +618,11 @@ def test_the_accuracy_page_is_rebuilt_from_saved_studies_alone(projectile_study,
     page = (tmp_path / "docs" / "accuracy.md").read_text()
     assert all(f"## {name}" in page for name in document.SCENES) and document.GUIDE in page
     assert (tmp_path / "docs" / "accuracy" / "projectile" / "study.txt").read_text().startswith("study of")
+
+
+def test_the_accuracy_page_refuses_to_rebuild_and_study_at_once(capsys):
+    from animbatch.study import document
+
+    with pytest.raises(SystemExit):
+        document.main(["--page", "--only", "projectile"])
+    assert "--page studies nothing" in capsys.readouterr().err

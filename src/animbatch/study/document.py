@@ -250,8 +250,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="study nothing: rebuild the page (and each scene's table and plot) from the saved "
                              "study.json files, after an edit of the guide")
     args = parser.parse_args(argv)
-    if args.page:
-        args.only = ["--page"]  # no scene is named so: every section comes from its saved study
+    if args.page and args.only:
+        parser.error("--page studies nothing: drop --only, or --page")
+    studied = set() if args.page else set(args.only or SCENES)
 
     started = time.perf_counter()
     docs = args.root / "docs"
@@ -259,7 +260,7 @@ def main(argv: list[str] | None = None) -> int:
     seconds: float | None = 0.0
     for name, what in SCENES.items():
         folder = docs / "accuracy" / name
-        if args.only and name not in args.only:
+        if name not in studied:
             saved = folder / "study.json"
             if not saved.is_file():
                 parser.error(f"{saved} is missing: study {name} too (drop --only, or add --only {name})")
