@@ -593,3 +593,49 @@ def test_a_short_run_resting_on_its_contacts_is_estimated_by_its_solve_and_goes_
     (estimated, system), = chosen
     assert estimated >= 1000 * NUMPY_CONTACT_STEP > COMPILE_AFTER and system.long_run
     assert np.abs(trajectory.positions[:, 0] - trajectory.positions[0, 0]).max() < 1e-12  # μs > tan 25°: it stays
+
+
+def test_an_adaptive_run_solves_its_resting_forces_compiled_once_they_have_cost_enough(monkeypatch):
+    """A box sliding down a 20° slope under RK45 rests on four corners the whole way, a force solve per right-hand
+    side. Counted in numpy cost, a long run's solves go compiled partway (here after 40 of them: the threshold is
+    lowered), and the box ends where a run in numpy all the way puts it; with the threshold out of reach no solve is
+    compiled."""
+    from animbatch.compile.solver import make_integrator
+    from animbatch.sim import kernels
+    from animbatch.sim.contact import events
+    from animbatch.sim.contact.solver import build_contact_kernels
+    from animbatch.sim.kernels import resting_forces
+    from conftest import counting
+
+    monkeypatch.setenv("ANIMBATCH_KERNELS", "auto")
+    loaded = parse_scene("""
+        duration: 0.5
+        fps: 10
+        solver: {method: RK45, rtol: 1.0e-8}
+        bodies:
+          - {name: block, type: rigid, shape: {type: box, size: [0.2, 0.1, 0.2]}, density: 500, material: ice,
+             position: [0.0171010072, 0.0469846310, 0], orientation: {axis: [0, 0, 1], angle: -20}}
+        colliders: [{type: plane, normal: [0.3420201433, 0.9396926208, 0], material: wood}]
+        fields: [{type: gravity}]
+    """, filename="slope.yaml")
+    model = compile_scene(loaded.spec)
+    assert build_contact_kernels() is None  # built before counting (the build calls each kernel once)
+    compiled_calls = counting(monkeypatch, resting_forces, "resting_forces")
+    numpy_calls = counting(monkeypatch, events, "solve_forces")
+
+    def run(threshold: float) -> np.ndarray:
+        monkeypatch.setattr(kernels, "_loaded", set())
+        monkeypatch.setattr(events, "COMPILE_CONTACTS_AFTER", threshold)
+        compiled_calls.clear()
+        numpy_calls.clear()
+        system = Dynamics(model)
+        return make_integrator(loaded.spec.solver, model).integrate(system, model.y0, model.frame_times).states[-1]
+
+    end = run(39.5 * events.NUMPY_FORCE_SOLVE)
+    solves, compiled = len(numpy_calls), len(compiled_calls)
+    assert solves > 60 and compiled == solves - 39  # the 40th solve and every one after it
+    numpy_end = run(np.inf)
+    assert not compiled_calls and len(numpy_calls) == solves
+    np.testing.assert_allclose(model.positions(end)[0], model.positions(numpy_end)[0], rtol=0, atol=1e-12)
+    moved = np.linalg.norm(model.positions(end)[0] - model.positions(model.y0)[0])
+    assert moved > 0.05  # it slid: ice on wood at 20°

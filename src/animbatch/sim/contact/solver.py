@@ -520,6 +520,7 @@ def build_contact_kernels() -> str | None:
         from animbatch.sim.contact.hulls import build_edge_kernels
         from animbatch.sim.contact.sides import build_side_kernels
         from animbatch.sim.kernels import contact_impulses as kernels
+        from animbatch.sim.kernels import resting_forces
 
         impulses: Any = kernels
         velocity = np.zeros(12)
@@ -534,6 +535,10 @@ def build_contact_kernels() -> str | None:
                                   np.zeros((12, 2)), np.ones((3, 1)), np.zeros(1), np.zeros(1), np.zeros((1, 2)),
                                   np.zeros(1), np.zeros(1), np.zeros(1, np.bool_), chosen, block, BLOCK_EVERY,
                                   ACTIVE_SET_PASSES, 1, 0.0)
+        forces: Any = resting_forces.resting_forces  # one resting contact of body 0 on the fixed body
+        forces(*one, np.eye(3)[:, None, :], np.array([[0.0, 1.0, 0.0]]), np.zeros((1, 3)), np.zeros((1, 3)),
+               np.ones(2), np.zeros((2, 3, 3)), np.zeros((2, 3)), np.zeros((2, 3)), np.zeros(3), np.zeros(3),
+               np.ones(1, np.bool_), np.ones(1), 1, 0.0)
         build_edge_kernels()
         build_probe_kernels()
         build_side_kernels()
@@ -773,7 +778,7 @@ def _small_converged(coupling: list[list[float]], constant: list[float], current
 def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarray, *, normal_bias: np.ndarray,
                  tangent_bias: np.ndarray, sticking: np.ndarray, slide_direction: np.ndarray,
                  iterations: int, warm: tuple[np.ndarray, np.ndarray] | None = None,
-                 frame: ContactFrame | None = None) -> SolveResult:
+                 frame: ContactFrame | None = None, compiled: bool = False) -> SolveResult:
     """Forces of resting contacts, changing the accelerations in ``accelerations`` (``v``: linear, ``omega``:
     angular) in place.
 
@@ -781,7 +786,8 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
     products, stabilisation); the normal rows make ``relative acceleration + normal_bias ≥ 0``. ``tangent_bias``
     (K, 2): the same for the contact points' tangential acceleration. ``sticking`` (K,) bool; ``slide_direction``
     (K, 3): unit slip direction of sliding contacts (friction opposes it). ``warm``: normal (K,) and tangential
-    (K, 2) forces to start from. ``frame``: the contacts' frame, when the caller has it already.
+    (K, 2) forces to start from. ``frame``: the contacts' frame, when the caller has it already. ``compiled``: in one
+    compiled call (:mod:`animbatch.sim.kernels.resting_forces`; the same forces to round-off).
 
     Resting contacts are few, so this builds their small contact matrix ``A = J M⁻¹ Fᵀ`` (J: what each row measures,
     F: the force each row applies; a sliding contact's normal row also carries its kinetic friction, ``n - μk d``)
@@ -795,6 +801,16 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
     rows = frame if frame is not None else ContactFrame.of(contacts, x)
     sliding = ~sticking
     normal_force_direction = rows.n - (contacts.kinetic_friction * sliding)[:, None] * slide_direction
+    solution = np.zeros(3 * count)
+    if warm is not None:
+        solution[:count] = warm[0]
+        solution[count:] = np.concatenate([warm[1][:, 0], warm[1][:, 1]]) * np.tile(sticking, 2)
+    if compiled:
+        _compiled_forces(rows, normal_force_direction, accelerations, normal_bias, tangent_bias, solution, sticking,
+                         contacts.static_friction, iterations)
+        result.normal_impulse[:] = solution[:count]
+        result.tangent_impulse[:] = np.stack([solution[count:2 * count], solution[2 * count:]], axis=1)
+        return result
     measure = rows.ends(rows.directions)  # (3K, 2, 6): each row at each of its ends
     force = measure  # the rows push along what they measure, but a sliding contact's normal row (with its friction)
     if sliding.any():
@@ -809,10 +825,6 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
     matrix = np.einsum("iejf,iex,jfx->ij", shared, measure, response)  # (3K, 3K)
     v, w = accelerations.v, accelerations.omega
     free = (rows.along(v, w) + np.stack([normal_bias, tangent_bias[:, 0], tangent_bias[:, 1]])).ravel()
-    solution = np.zeros(3 * count)
-    if warm is not None:
-        solution[:count] = warm[0]
-        solution[count:] = np.concatenate([warm[1][:, 0], warm[1][:, 1]]) * np.tile(sticking, 2)
     diagonal = np.diag(matrix).copy()
     diagonal[diagonal <= 0] = np.inf
     limit = contacts.static_friction
@@ -863,3 +875,24 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
     result.normal_impulse[:] = normal_force
     result.tangent_impulse[:] = tangent_force
     return result
+
+
+def _compiled_forces(rows: ContactFrame, pushes: np.ndarray, accelerations: BodyVelocities, normal_bias: np.ndarray,
+                     tangent_bias: np.ndarray, solution: np.ndarray, sticking: np.ndarray,
+                     static_friction: np.ndarray, iterations: int) -> None:
+    """:func:`solve_forces`' matrix, sweeps and accelerations in one compiled call, ``solution`` (3K,) updated in
+    place (:func:`animbatch.sim.kernels.resting_forces.resting_forces`)."""
+    from animbatch.sim.kernels import resting_forces
+
+    def floats(values: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(values, dtype=np.float64)
+
+    v, w = accelerations.v, accelerations.omega
+    if not (v.flags.c_contiguous and w.flags.c_contiguous and v.dtype == w.dtype == np.float64):
+        raise ValueError("the compiled resting forces change the accelerations in place: they must be C-contiguous "
+                         "float64 arrays")
+    solve: Any = resting_forces.resting_forces
+    solve(np.asarray(rows.a, np.int64), np.asarray(rows.b, np.int64), floats(rows.directions), floats(pushes),
+          floats(rows.r_a), floats(rows.r_b), floats(accelerations.inverse_mass), floats(accelerations.inverse_inertia),
+          v, w, np.concatenate([normal_bias, tangent_bias[:, 0], tangent_bias[:, 1]]), solution,
+          np.asarray(sticking, np.bool_), floats(static_friction), int(iterations), ACCELERATION_TOLERANCE)
