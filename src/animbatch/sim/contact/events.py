@@ -25,6 +25,8 @@ robust choice; this path suits scenes with few contacts where exact impact times
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -107,6 +109,28 @@ class Resting:
     def keep(self, chosen: np.ndarray) -> Resting:
         return Resting(self.probe[chosen], self.kind[chosen], self.index[chosen], self.sticking[chosen],
                        self.slide_direction[chosen])
+
+
+_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0  # 0.618…: the fraction of the bracket a golden-section step keeps
+
+
+def _golden_section(function: Callable[[float], float], low: float, high: float, fraction: float) -> float:
+    """Where ``function`` (unimodal on [low, high]) is least, to ``fraction`` of the interval: golden-section search,
+    one evaluation per step (a ternary search takes two for a smaller cut; the event search calls the gaps
+    hundreds of times per step)."""
+    left, right = high - _GOLDEN * (high - low), low + _GOLDEN * (high - low)
+    at_left, at_right = function(left), function(right)
+    # a count of steps, not a width: near a large t the bracket cannot shrink below its rounding
+    for _ in range(math.ceil(math.log(fraction) / math.log(_GOLDEN))):
+        if at_left > at_right:  # the least value lies right of left
+            low, left, at_left = left, right, at_right
+            right = low + _GOLDEN * (high - low)
+            at_right = function(right)
+        else:
+            high, right, at_right = right, left, at_left
+            left = high - _GOLDEN * (high - low)
+            at_left = function(left)
+    return 0.5 * (low + high)
 
 
 class ContactEvents:
@@ -458,31 +482,19 @@ class ContactEvents:
 
     @staticmethod
     def _apex(gaps: Any, start: float, stop: float, pair: int) -> float:
-        """Where one candidate's gap is largest in [start, stop] (ternary search; a hop's gap is concave)."""
-        low, high = start, stop
-        for _ in range(60):
-            left, right = low + (high - low) / 3, high - (high - low) / 3
-            if gaps(left, [pair])[0] < gaps(right, [pair])[0]:
-                low = left
-            else:
-                high = right
-        return 0.5 * (low + high)
+        """Where one candidate's gap is largest in [start, stop] (a hop's gap is concave), to 1e-11 of the
+        interval."""
+        return _golden_section(lambda t: -gaps(t, [pair])[0], start, stop, 1e-11)
 
     @staticmethod
     def _dips(gaps: Any, start: float, stop: float, candidates: np.ndarray, level: np.ndarray
               ) -> list[tuple[float, float, int]]:
         """For each candidate whose gap dips below its ``level`` inside [start, stop], a sub-interval that brackets
-        its first crossing (ternary search on the gap, which is close to convex over so short a piece of path)."""
+        its first crossing (the gap's least value, found to 1e-7 of the interval: it is close to convex over so
+        short a piece of path)."""
         found = []
         for pair in np.flatnonzero(candidates):
-            low, high = start, stop
-            for _ in range(40):
-                left, right = low + (high - low) / 3, high - (high - low) / 3
-                if gaps(left, [pair])[0] > gaps(right, [pair])[0]:
-                    low = left
-                else:
-                    high = right
-            middle = 0.5 * (low + high)
+            middle = _golden_section(lambda t, p=pair: gaps(t, [p])[0], start, stop, 1e-7)
             if gaps(middle, [pair])[0] <= level[pair]:
                 found.append((start, middle, int(pair)))
         return found
