@@ -493,10 +493,13 @@ class ContactEvents:
         its first crossing (the gap's least value, found to 1e-7 of the interval: it is close to convex over so
         short a piece of path)."""
         found = []
-        for pair in np.flatnonzero(candidates):
-            middle = _golden_section(lambda t, p=pair: gaps(t, [p])[0], start, stop, 1e-7)
-            if gaps(middle, [pair])[0] <= level[pair]:
-                found.append((start, middle, int(pair)))
+        for pair in np.flatnonzero(candidates).tolist():
+            def gap(t: float, chosen: list[int] = [pair]) -> float:  # (this candidate's, bound now)
+                return float(gaps(t, chosen)[0])
+
+            middle = _golden_section(gap, start, stop, 1e-7)
+            if gap(middle) <= level[pair]:
+                found.append((start, middle, pair))
         return found
 
     def _first_mode_change(self, solver: Any, before: np.ndarray, after: np.ndarray) -> float | None:
