@@ -44,3 +44,23 @@ def test_the_rate_is_the_derivative_of_a_turn_at_constant_angular_velocity():
     difference = (turned(h) - turned(-h)) / (2 * h)
     np.testing.assert_allclose(quaternion.rate(start, omega), difference, atol=1e-9)
     np.testing.assert_allclose(quaternion.rate(start[2], omega[2]), difference[2], atol=1e-9)
+
+
+def test_from_matrix_gives_the_quaternion_of_every_rotation_even_half_turns():
+    """Rotation matrices of random turns, half turns about each axis and near them, and the identity: the quaternion
+    found turns vectors as the matrix does, has unit length, and (being Shepperd's method, as SciPy's) has SciPy's
+    sign; arrays of any leading shape keep it."""
+    from scipy.spatial.transform import Rotation
+
+    vectors = np.concatenate([Rotation.random(500, random_state=7).as_rotvec(),
+                              np.pi * np.eye(3), (np.pi - 1e-9) * np.eye(3), -np.pi * np.eye(3),
+                              [[1e-12, 0, 0], [0, 0, 0]]])
+    turns = Rotation.from_rotvec(vectors)
+    matrices = turns.as_matrix()
+    found = quaternion.from_matrix(matrices)
+    np.testing.assert_allclose(np.linalg.norm(found, axis=1), 1.0, atol=1e-15)
+    np.testing.assert_allclose(quaternion.to_matrix(found), matrices, atol=1e-14)
+    xyzw = Rotation.from_matrix(matrices).as_quat()
+    np.testing.assert_allclose(found, np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1), atol=1e-15)
+    assert quaternion.from_matrix(matrices[0]).shape == (4,)
+    np.testing.assert_array_equal(quaternion.from_matrix(matrices[:6].reshape(3, 2, 3, 3)), found[:6].reshape(3, 2, 4))

@@ -104,9 +104,39 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.einsum("...ij,...j->...i", to_matrix(q), v)
 
 
-def from_matrix(m: np.ndarray) -> np.ndarray:
-    """Unit quaternions [w, x, y, z] (..., 4) of rotation matrices (..., 3, 3)."""
-    from scipy.spatial.transform import Rotation
+def _shepperd_table() -> np.ndarray:
+    """(11, 16): the four candidate quaternions [x, y, z, w] of Shepperd's method, each entry a linear combination of
+    a matrix's nine entries (row by row), its trace and 1."""
+    def entry(i: int, j: int) -> int:
+        return 3 * i + j
 
-    xyzw = Rotation.from_matrix(np.reshape(m, (-1, 3, 3))).as_quat()
-    return np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1).reshape(*np.shape(m)[:-2], 4)
+    trace, one = 9, 10
+    table = np.zeros((4, 4, 11))
+    for i in range(3):  # candidate i: from the diagonal entry m_ii
+        j, k = (i + 1) % 3, (i + 2) % 3
+        table[i, i, [entry(i, i), trace, one]] = [2.0, -1.0, 1.0]  # 1 − trace + 2 m_ii
+        table[i, j, [entry(j, i), entry(i, j)]] = 1.0
+        table[i, k, [entry(k, i), entry(i, k)]] = 1.0
+        table[i, 3, [entry(k, j), entry(j, k)]] = [1.0, -1.0]
+        table[3, i, [entry(k, j), entry(j, k)]] = [1.0, -1.0]  # candidate 3 (from the trace): the axis part
+    table[3, 3, [trace, one]] = 1.0  # 1 + trace
+    return table.reshape(16, 11).T.copy()
+
+
+_SHEPPERD = _shepperd_table()
+
+
+def from_matrix(m: np.ndarray) -> np.ndarray:
+    """Unit quaternions [w, x, y, z] (..., 4) of rotation matrices (..., 3, 3), by Shepperd's method: each from
+    the largest of the trace and the diagonal, so that no division is by a small number (SciPy's
+    ``Rotation.from_matrix`` on rotations, same signs, in one product instead of its per-call checks: a keyframed
+    body asks for one every step)."""
+    m = np.asarray(m, float)
+    entries = m.reshape(*m.shape[:-2], 9)
+    trace = entries[..., 0] + entries[..., 4] + entries[..., 8]
+    extended = np.concatenate([entries, trace[..., None], np.ones((*trace.shape, 1))], axis=-1)
+    candidates = (extended @ _SHEPPERD).reshape(*trace.shape, 4, 4)
+    choice = np.argmax(np.stack([entries[..., 0], entries[..., 4], entries[..., 8], trace], axis=-1), axis=-1)
+    xyzw = np.take_along_axis(candidates, choice[..., None, None], axis=-2)[..., 0, :]
+    xyzw = xyzw / np.linalg.norm(xyzw, axis=-1, keepdims=True)
+    return np.concatenate([xyzw[..., 3:], xyzw[..., :3]], axis=-1)
