@@ -115,6 +115,25 @@ SCENES = {
           - {type: gravitation, G: 1.0, bodies: [star, planet], softening: 0.01}
           - {type: coulomb, k: 8.99e9, bodies: [plus, minus]}
         """,
+    "buoyancy of spheres, compounds and particles": """
+        bodies:
+          - {name: ball, type: rigid, shape: {type: sphere, radius: 0.1}, density: 600, position: [0, 0.02, 0],
+             velocity: [0.3, -0.2, 0], angular_velocity: [1, 0, 0.5]}
+          - name: dumbbell
+            type: rigid
+            shape: {type: compound, parts: [{shape: {type: sphere, radius: 0.05}, offset: [-0.1, 0, 0]},
+                                            {shape: {type: sphere, radius: 0.08}, offset: [0.12, 0, 0]}]}
+            density: 700
+            position: [1, -0.03, 0]
+            orientation: {axis: [0, 0, 1], angle: 30}
+            angular_velocity: [0, 0.4, 0.2]
+          - {name: drop, mass: 0.002, radius: 0.02, position: [0.5, 0.01, 0.2], velocity: [0, -1, 0]}
+          - {name: dry, mass: 0.1, radius: 0.03, position: [0.5, 2, 0]}
+        fields:
+          - {type: gravity}
+          - {type: buoyancy, density: 1000, level: 0, linear_damping: 3, angular_damping: 0.05}
+          - {type: buoyancy, density: 1.2, level: 5, bodies: [drop, dry]}
+        """,
 }
 
 
@@ -276,9 +295,12 @@ def test_a_wrong_table_is_caught():
 
 
 def test_models_the_kernels_do_not_cover_say_why():
-    """Clocks and terms without a compiled form keep the numpy equations, and the reason is given."""
+    """Clocks and terms without a compiled form keep the numpy equations, and the reason is given (buoyancy is
+    compiled for bodies of spheres, not for the surface pieces of a box)."""
     cases = {
         "its drag term has no compiled form": "fields: [{type: drag, model: linear, coefficient: 1}]",
+        "its buoyancy term has no compiled form": "  - {name: b, type: rigid, shape: {type: box, size: [1, 1, 1]}, "
+                                                  "density: 500}\nfields: [{type: buoyancy, density: 1000}]",
         "it has proper-time clocks": "clocks: {bodies: [p], c: 100}",
     }
     for reason, extra in cases.items():

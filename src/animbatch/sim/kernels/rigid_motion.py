@@ -280,6 +280,77 @@ def add_forces(t: float, floats: np.ndarray, integers: np.ndarray, layout: np.nd
             if j >= n:
                 store(torque, j - n, minus(vector(torque, j - n), cross(lever2, f1)))
     add_pair_forces(floats, integers, layout, x, force)
+    add_buoyancy(floats, integers, layout, x, v, rotation, omega, force, torque)
+
+
+@njit(cache=True, error_model="numpy")
+def add_buoyancy(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, x: np.ndarray, v: np.ndarray,
+                 rotation: np.ndarray, omega: np.ndarray, force: np.ndarray, torque: np.ndarray) -> None:
+    """Add each buoyancy term's lift ``ρ g V_sub up`` (at the centre of buoyancy, a torque on a rigid body) and
+    fluid damping (``−c f v`` and ``−c_ω f ω``, f the submerged fraction) to ``force`` (P, 3) [N] and ``torque``
+    (B, 3) [N·m], the submerged volume of each sphere piece a spherical cap
+    (:func:`animbatch.sim.forces.buoyancy.spherical_caps`, :class:`~animbatch.sim.forces.buoyancy.Buoyancy`)."""
+    terms = table(floats, layout, T.BUOYANCY_TERMS, 7)
+    spheres = table(integers, layout, T.BUOYANCY_SPHERES, 3)
+    shapes = table(floats, layout, T.BUOYANCY_SHAPES, 4)
+    bodies = table(integers, layout, T.BUOYANCY_BODIES, 2)
+    volumes = column(floats, layout, T.BUOYANCY_VOLUMES)
+    n = rows_of(layout, T.PARTICLE_INVERSE_MASS)
+    if not len(terms):
+        return
+    volume, moment = np.empty(len(x)), np.empty((len(x), 3))
+    for term in range(len(terms)):
+        weight, level = terms[term, 0], terms[term, 1]
+        up = (terms[term, 2], terms[term, 3], terms[term, 4])
+        volume[:] = 0.0
+        moment[:] = 0.0
+        for k in range(len(spheres)):
+            if spheres[k, 2] != term:
+                continue
+            owner, rigid, radius = spheres[k, 0], spheres[k, 1], shapes[k, 3]
+            centre = vector(x, owner)
+            offset = (shapes[k, 0], shapes[k, 1], shapes[k, 2])
+            if rigid >= 0 and (offset[0] != 0.0 or offset[1] != 0.0 or offset[2] != 0.0):
+                centre = plus(centre, _turned(rotation, rigid, offset))
+            depth = min(max(level - (dot(centre, up) - radius), 0.0), 2 * radius)
+            rest = 3 * radius - depth
+            cap = math.pi * depth**2 * rest / 3
+            below = 3 * (2 * radius - depth) ** 2 / (4 * max(rest, _TINY)) if depth > 0 else 0.0
+            volume[owner] += cap
+            for c in range(3):
+                moment[owner, c] += cap * (centre[c] - below * up[c])
+        for s in range(len(bodies)):
+            if bodies[s, 1] != term:
+                continue
+            i = bodies[s, 0]
+            lift = times(weight * volume[i], up)
+            fraction = volume[i] / volumes[s] if volumes[s] > 0 else 0.0
+            pushed = lift
+            if terms[term, 5] != 0.0:
+                pushed = minus(lift, times(terms[term, 5] * fraction, vector(v, i)))
+            store(force, i, plus(vector(force, i), pushed))
+            if i >= n:
+                k = i - n
+                centre = vector(x, i)
+                if volume[i] > 0:
+                    centre = (moment[i, 0] / volume[i], moment[i, 1] / volume[i], moment[i, 2] / volume[i])
+                spin = cross(minus(centre, vector(x, i)), lift)
+                if terms[term, 6] != 0.0:
+                    spin = minus(spin, times(terms[term, 6] * fraction, vector(omega, k)))
+                store(torque, k, plus(vector(torque, k), spin))
+
+
+#: The smallest positive float (a dry sphere of no size divides by it, as numpy's code does).
+_TINY = 2.2250738585072014e-308
+
+
+@njit(cache=True, error_model="numpy")
+def _turned(rotation: np.ndarray, rigid: int, offset: tuple[float, float, float]) -> tuple[float, float, float]:
+    """``R offset`` for rigid body ``rigid``."""
+    r = rotation[rigid]
+    return (r[0, 0] * offset[0] + r[0, 1] * offset[1] + r[0, 2] * offset[2],
+            r[1, 0] * offset[0] + r[1, 1] * offset[1] + r[1, 2] * offset[2],
+            r[2, 0] * offset[0] + r[2, 1] * offset[1] + r[2, 2] * offset[2])
 
 
 @njit(cache=True, error_model="numpy")

@@ -84,8 +84,14 @@ PAIR_TERMS = 52  # (T, 2): coupling κ (G, or −k), softening ε [m]
 PAIR_START = 53  # int (T + 1,)
 PAIR_POINTS = 54  # int (S,): the points of every term, one after the other
 PAIR_SOURCE = 55  # (S,): each point's source strength (mass [kg], or charge [C])
+# buoyancy of bodies made of spheres (a term with surface pieces has no compiled form)
+BUOYANCY_TERMS = 56  # (T, 7): ρ g [N/m³], surface level [m], up (3), linear [N·s/m] and angular [N·m·s] damping
+BUOYANCY_SPHERES = 57  # int (K, 3): each sphere piece's point, its rigid index or −1 (a particle), its term
+BUOYANCY_SHAPES = 58  # (K, 4): its centre in body axes from the centre of mass [m] (3), its radius [m]
+BUOYANCY_BODIES = 59  # int (S, 2): each selected point and its term
+BUOYANCY_VOLUMES = 60  # (S,): their whole volumes [m³]
 #: How many fields there are.
-FIELD_COUNT = 56
+FIELD_COUNT = 61
 
 #: Each field's shape after its first axis.
 TRAILING: dict[int, tuple[int, ...]] = {
@@ -102,7 +108,8 @@ TRAILING: dict[int, tuple[int, ...]] = {
     ANGLE_BOUNDS: (2,), MOTOR_BODIES: (2,), MOTOR_KIND: (2,), MOTOR_AXIS: (3,),
     MOTOR_REFERENCES: (2, 3), MOTOR_OFFSETS: (2, 3), MOTOR_GAINS: (4,), ORDER: (),
     COLUMN_START: (), COLUMN_ROWS: (), PAIRS: (5,), UPDATE_START: (), UPDATES: (3,), PAIR_TERMS: (2,),
-    PAIR_START: (), PAIR_POINTS: (), PAIR_SOURCE: (),
+    PAIR_START: (), PAIR_POINTS: (), PAIR_SOURCE: (), BUOYANCY_TERMS: (7,), BUOYANCY_SPHERES: (3,),
+    BUOYANCY_SHAPES: (4,), BUOYANCY_BODIES: (2,), BUOYANCY_VOLUMES: (),
 }
 
 #: The integer fields (the others are float64).
@@ -110,7 +117,8 @@ INTEGER_FIELDS = frozenset({
     SPRING_ENDS, ANCHOR_PATH, PATH_KEYS, JOINT_POINTS, SLOT_RIGID, SLOT_PATH,
     ROW_BODIES, ROW_UNILATERAL, KIND_ROWS, SEGMENT_ENDS, POINT_BODIES, AXIS_BODIES,
     LOCK_BODIES, SLIDE_BODIES, ANGLE_BODIES, MOTOR_BODIES, MOTOR_KIND, ORDER,
-    COLUMN_START, COLUMN_ROWS, PAIRS, UPDATE_START, UPDATES, PAIR_START, PAIR_POINTS,
+    COLUMN_START, COLUMN_ROWS, PAIRS, UPDATE_START, UPDATES, PAIR_START, PAIR_POINTS, BUOYANCY_SPHERES,
+    BUOYANCY_BODIES,
 })
 
 #: The six row kinds in KIND_ROWS' order.

@@ -22,6 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from animbatch.sim.bodies import Kinematics
+from animbatch.sim.forces.buoyancy import Buoyancy
 from animbatch.sim.forces.gravitation import InverseSquarePairs
 from animbatch.sim.forces.gravity import UniformGravity
 from animbatch.sim.forces.springs import SpringForces
@@ -101,6 +102,7 @@ def _force_fields(model: Model, paths: _Paths) -> Fields | str:
     constant_force = np.zeros((model.body_count, 3))
     springs: SpringForces | None = None
     pairs: list[InverseSquarePairs] = []
+    buoyancies: list[Buoyancy] = []
     for term in model.force_terms:
         if isinstance(term, UniformGravity):
             if term.index is None:
@@ -111,6 +113,8 @@ def _force_fields(model: Model, paths: _Paths) -> Fields | str:
             springs = term
         elif isinstance(term, InverseSquarePairs):
             pairs.append(term)
+        elif isinstance(term, Buoyancy) and not len(term.triangles):  # bodies of spheres (a mesh's: numpy)
+            buoyancies.append(term)
         else:
             return f"its {term.label} term has no compiled form"
     fields = {T.CONSTANT_FORCE: constant_force, T.CONSTANT_TORQUE: np.zeros((model.rigid_count, 3))}
@@ -120,6 +124,8 @@ def _force_fields(model: Model, paths: _Paths) -> Fields | str:
                        T.PAIR_START: np.concatenate([[0], np.cumsum([len(p) for p in points])]),
                        T.PAIR_POINTS: np.concatenate(points),
                        T.PAIR_SOURCE: np.concatenate([term.source for term in pairs])})
+    if buoyancies:
+        fields.update(_buoyancy_fields(buoyancies))
     if springs is not None:
         s = springs.springs
         fields.update({
@@ -129,6 +135,23 @@ def _force_fields(model: Model, paths: _Paths) -> Fields | str:
             T.ANCHOR_REST: np.asarray(springs.anchors.rest, float).reshape(-1, 3),
             T.ANCHOR_PATH: _anchor_paths(springs.anchors, paths)})
     return fields
+
+
+def _buoyancy_fields(terms: list[Buoyancy]) -> Fields:
+    """The BUOYANCY_* fields of buoyancy terms on bodies made of spheres."""
+    def each(values: list[np.ndarray]) -> np.ndarray:
+        return np.concatenate([np.full(len(v), k) for k, v in enumerate(values)])
+
+    owners, bodies = [term.sphere_owner for term in terms], [term.bodies for term in terms]
+    return {
+        T.BUOYANCY_TERMS: np.array([[term.density * term.g, term.level, *term.up, term.linear_damping,
+                                     term.angular_damping] for term in terms], float),
+        T.BUOYANCY_SPHERES: np.stack([np.concatenate(owners), np.concatenate([t.sphere_rigid for t in terms]),
+                                      each(owners)], axis=1),
+        T.BUOYANCY_SHAPES: np.concatenate([np.column_stack([t.sphere_offset, t.sphere_radius]) for t in terms]),
+        T.BUOYANCY_BODIES: np.stack([np.concatenate(bodies), each(bodies)], axis=1),
+        T.BUOYANCY_VOLUMES: np.concatenate([term.full_volume for term in terms]),
+    }
 
 
 def _kind_rows(joints: Joints) -> tuple[dict[type, Any], np.ndarray]:
