@@ -14,7 +14,7 @@ from animbatch.sim.integrators import DEFAULT_DT
 from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.ledger import conservation_laws, step_note
 from animbatch.sim.model import Model
-from animbatch.sim.model.compiled import stepper_tables
+from animbatch.sim.model.compiled import COMPILE_AFTER, COMPILE_AFTER_LOADED, stepper_tables
 from animbatch.summary import describe_solver, plural
 
 
@@ -97,11 +97,12 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
         lines.append(f"           not compiled (not declared): {', '.join(absent)}")
     if model.layout.size:
         tables = stepper_tables(model)
-        lines.append("kernels    " + ("the equations of motion have a compiled form, taken when the numpy run would "
-                                      "take a second or more (ANIMBATCH_KERNELS=numba|numpy chooses)"
-                                      + ("; the contact search and solve stay numpy" if model.contact_world is not None
-                                         else "")
-                                      if not isinstance(tables, str) else f"numpy equations of motion: {tables}"))
+        lines.append("kernels    " + (f"the equations of motion have a compiled form, taken when the numpy run would "
+                                      f"take {COMPILE_AFTER:g} s or more ({COMPILE_AFTER_LOADED:g} s where this "
+                                      "process has loaded the kernels; ANIMBATCH_KERNELS=numba|numpy chooses)"
+                                      if not isinstance(tables, str) else f"numpy equations of motion: {tables}")
+                     + ("; contacts are searched and solved compiled in long runs" if model.contact_world is not None
+                        else ""))
     bodies = model.bodies
     counts = [plural(model.particle_count, "particle")] if model.particle_count else []
     counts += [plural(model.rigid_count, "rigid body", "rigid bodies")] if model.rigid_count else []
