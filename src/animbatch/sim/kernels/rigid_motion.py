@@ -281,6 +281,34 @@ def add_forces(t: float, floats: np.ndarray, integers: np.ndarray, layout: np.nd
                 store(torque, j - n, minus(vector(torque, j - n), cross(lever2, f1)))
     add_pair_forces(floats, integers, layout, x, force)
     add_buoyancy(floats, integers, layout, x, v, rotation, omega, force, torque)
+    add_drag(floats, integers, layout, v, rotation, omega, force, torque)
+
+
+@njit(cache=True, error_model="numpy")
+def add_drag(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, v: np.ndarray, rotation: np.ndarray,
+             omega: np.ndarray, force: np.ndarray, torque: np.ndarray) -> None:
+    """Add each drag term's force ``−C u`` (linear) or ``−C |u| u`` (quadratic), ``u`` the velocity relative to the
+    wind, at centres of mass, and at body points with the torque ``r × f`` (:class:`animbatch.sim.forces.drag.Drag`)
+    to ``force`` (P, 3) [N] and ``torque`` (B, 3) [N·m]."""
+    terms = table(floats, layout, T.DRAG_TERMS, 4)
+    points = table(integers, layout, T.DRAG_POINTS, 3)
+    shapes = table(floats, layout, T.DRAG_SHAPES, 4)
+    for d in range(len(points)):
+        i, rigid, term = points[d, 0], points[d, 1], points[d, 2]
+        coefficient = shapes[d, 3]
+        relative = vector(v, i)
+        lever = (0.0, 0.0, 0.0)
+        if rigid >= 0:
+            lever = _turned(rotation, rigid, (shapes[d, 0], shapes[d, 1], shapes[d, 2]))
+            relative = plus(relative, cross(vector(omega, rigid), lever))
+        relative = minus(relative, (terms[term, 1], terms[term, 2], terms[term, 3]))
+        if terms[term, 0] != 0.0:
+            pulled = times(math.sqrt(dot(relative, relative)) * coefficient, times(-1.0, relative))
+        else:
+            pulled = times(-1.0, times(coefficient, relative))
+        store(force, i, plus(vector(force, i), pulled))
+        if rigid >= 0:
+            store(torque, rigid, plus(vector(torque, rigid), cross(lever, pulled)))
 
 
 @njit(cache=True, error_model="numpy")

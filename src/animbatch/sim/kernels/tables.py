@@ -90,8 +90,12 @@ BUOYANCY_SPHERES = 57  # int (K, 3): each sphere piece's point, its rigid index 
 BUOYANCY_SHAPES = 58  # (K, 4): its centre in body axes from the centre of mass [m] (3), its radius [m]
 BUOYANCY_BODIES = 59  # int (S, 2): each selected point and its term
 BUOYANCY_VOLUMES = 60  # (S,): their whole volumes [m³]
+# drag (and wind): each term's points dragged at their centre of mass, then the rigid bodies dragged at a point
+DRAG_TERMS = 61  # (T, 4): quadratic (1) or linear (0, Stokes' law included), the wind's velocity (3) [m/s]
+DRAG_POINTS = 62  # int (D, 3): a dragged point, its rigid index where dragged at a body point (else −1), its term
+DRAG_SHAPES = 63  # (D, 4): the body point in body axes from the centre of mass [m] (3), the coefficient C
 #: How many fields there are.
-FIELD_COUNT = 61
+FIELD_COUNT = 64
 
 #: Each field's shape after its first axis.
 TRAILING: dict[int, tuple[int, ...]] = {
@@ -109,7 +113,8 @@ TRAILING: dict[int, tuple[int, ...]] = {
     MOTOR_REFERENCES: (2, 3), MOTOR_OFFSETS: (2, 3), MOTOR_GAINS: (4,), ORDER: (),
     COLUMN_START: (), COLUMN_ROWS: (), PAIRS: (5,), UPDATE_START: (), UPDATES: (3,), PAIR_TERMS: (2,),
     PAIR_START: (), PAIR_POINTS: (), PAIR_SOURCE: (), BUOYANCY_TERMS: (7,), BUOYANCY_SPHERES: (3,),
-    BUOYANCY_SHAPES: (4,), BUOYANCY_BODIES: (2,), BUOYANCY_VOLUMES: (),
+    BUOYANCY_SHAPES: (4,), BUOYANCY_BODIES: (2,), BUOYANCY_VOLUMES: (), DRAG_TERMS: (4,), DRAG_POINTS: (3,),
+    DRAG_SHAPES: (4,),
 }
 
 #: The integer fields (the others are float64).
@@ -118,7 +123,7 @@ INTEGER_FIELDS = frozenset({
     ROW_BODIES, ROW_UNILATERAL, KIND_ROWS, SEGMENT_ENDS, POINT_BODIES, AXIS_BODIES,
     LOCK_BODIES, SLIDE_BODIES, ANGLE_BODIES, MOTOR_BODIES, MOTOR_KIND, ORDER,
     COLUMN_START, COLUMN_ROWS, PAIRS, UPDATE_START, UPDATES, PAIR_START, PAIR_POINTS, BUOYANCY_SPHERES,
-    BUOYANCY_BODIES,
+    BUOYANCY_BODIES, DRAG_POINTS,
 })
 
 #: The six row kinds in KIND_ROWS' order.

@@ -23,6 +23,7 @@ import scipy.sparse as sp
 
 from animbatch.sim.bodies import Kinematics
 from animbatch.sim.forces.buoyancy import Buoyancy
+from animbatch.sim.forces.drag import Drag
 from animbatch.sim.forces.gravitation import InverseSquarePairs
 from animbatch.sim.forces.gravity import UniformGravity
 from animbatch.sim.forces.springs import SpringForces
@@ -103,6 +104,7 @@ def _force_fields(model: Model, paths: _Paths) -> Fields | str:
     springs: SpringForces | None = None
     pairs: list[InverseSquarePairs] = []
     buoyancies: list[Buoyancy] = []
+    drags: list[Drag] = []
     for term in model.force_terms:
         if isinstance(term, UniformGravity):
             if term.index is None:
@@ -115,6 +117,8 @@ def _force_fields(model: Model, paths: _Paths) -> Fields | str:
             pairs.append(term)
         elif isinstance(term, Buoyancy) and not len(term.triangles):  # bodies of spheres (a mesh's: numpy)
             buoyancies.append(term)
+        elif isinstance(term, Drag):
+            drags.append(term)
         else:
             return f"its {term.label} term has no compiled form"
     fields = {T.CONSTANT_FORCE: constant_force, T.CONSTANT_TORQUE: np.zeros((model.rigid_count, 3))}
@@ -126,6 +130,8 @@ def _force_fields(model: Model, paths: _Paths) -> Fields | str:
                        T.PAIR_SOURCE: np.concatenate([term.source for term in pairs])})
     if buoyancies:
         fields.update(_buoyancy_fields(buoyancies))
+    if drags:
+        fields.update(_drag_fields(drags, model.body_count))
     if springs is not None:
         s = springs.springs
         fields.update({
@@ -152,6 +158,26 @@ def _buoyancy_fields(terms: list[Buoyancy]) -> Fields:
         T.BUOYANCY_BODIES: np.stack([np.concatenate(bodies), each(bodies)], axis=1),
         T.BUOYANCY_VOLUMES: np.concatenate([term.full_volume for term in terms]),
     }
+
+
+def _drag_fields(terms: list[Drag], count: int) -> Fields:
+    """The DRAG_* fields: each term's points dragged at their centre of mass, then its rigid bodies dragged at a
+    body point (the order the numpy term adds them in)."""
+    points, shapes = [], []
+    for number, term in enumerate(terms):
+        centres = np.arange(count) if term.index is None else np.asarray(term.index)
+        coefficient = np.broadcast_to(np.ravel(term.coefficient), (len(centres),))
+        points += [[point, -1, number] for point in centres]
+        shapes += [[0.0, 0.0, 0.0, c] for c in coefficient]
+        if term.at_points is not None and len(term.at_points):
+            assert term.at_rigid is not None and term.at_offset is not None  # set with at_points
+            at_coefficient = np.broadcast_to(np.ravel(term.at_coefficient), (len(term.at_points),))
+            points += [[point, rigid, number] for point, rigid in zip(term.at_points, term.at_rigid)]
+            shapes += [[*offset, c] for offset, c in zip(term.at_offset, at_coefficient)]
+    return {T.DRAG_TERMS: np.array([[term.law == "quadratic", *(term.wind if term.wind is not None else np.zeros(3))]
+                                    for term in terms], float),
+            T.DRAG_POINTS: np.array(points, np.int64).reshape(-1, 3),
+            T.DRAG_SHAPES: np.array(shapes, float).reshape(-1, 4)}
 
 
 def _kind_rows(joints: Joints) -> tuple[dict[type, Any], np.ndarray]:
