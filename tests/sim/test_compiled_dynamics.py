@@ -129,6 +129,21 @@ SCENES = {
           - {type: drag, model: stokes, bodies: [grain]}
           - {type: wind, model: linear, coefficient: 0.3, velocity: [4, 0, -1], bodies: [kite, ball], at: [0.3, 0, 0]}
         """,
+    "forces at body points, torques and angular drag": """
+        bodies:
+          - {name: puck, mass: 0.3, radius: 0.04, velocity: [1, 0, 0]}
+          - {name: rocket, type: rigid, shape: {type: cylinder, radius: 0.05, length: 0.6}, density: 800,
+             position: [0, 1, 0], orientation: {axis: [1, 0, 1], angle: 40}, angular_velocity: [0.5, 0, 1]}
+          - {name: top, type: rigid, shape: {type: box, size: [0.2, 0.1, 0.3]}, density: 500, position: [1, 1, 0],
+             angular_velocity: [0, 4, 1]}
+        fields:
+          - {type: gravity}
+          - {type: force, force: [0, 12, 1], frame: body, at: [0, -0.3, 0.02], bodies: [rocket, puck]}
+          - {type: force, force: [0.5, 0, 0], bodies: [top]}
+          - {type: torque, torque: [0, 0, 0.2], frame: body, bodies: [rocket]}
+          - {type: torque, torque: [0.1, 0, 0], bodies: [top]}
+          - {type: angular_drag, coefficient: 0.05}
+        """,
     "buoyancy of spheres, compounds and particles": """
         bodies:
           - {name: ball, type: rigid, shape: {type: sphere, radius: 0.1}, density: 600, position: [0, 0.02, 0],
@@ -312,14 +327,14 @@ def test_models_the_kernels_do_not_cover_say_why():
     """Clocks and terms without a compiled form keep the numpy equations, and the reason is given (buoyancy is
     compiled for bodies of spheres, not for the surface pieces of a box)."""
     cases = {
-        "its angular_drag term has no compiled form": "fields: [{type: angular_drag, coefficient: 1}]",
+        "its electromagnetic term has no compiled form": "fields: [{type: electromagnetic, E: [0, 1, 0]}]",
         "its buoyancy term has no compiled form": "  - {name: b, type: rigid, shape: {type: box, size: [1, 1, 1]}, "
                                                   "density: 500}\nfields: [{type: buoyancy, density: 1000}]",
         "it has proper-time clocks": "clocks: {bodies: [p], c: 100}",
     }
     for reason, extra in cases.items():
         text = ("duration: 1\nfps: 10\nbodies:\n  - {name: p, type: rigid, shape: {type: sphere, radius: 0.1}, "
-                "density: 500, position: [0, 1, 0]}\n" + extra + "\n")
+                "density: 500, charge: 1.0e-6, position: [0, 1, 0]}\n" + extra + "\n")
         model = compile_scene(scene(text).spec)
         assert stepper_tables(model) == reason
         assert type(dynamics_for(model, 100.0)) is Dynamics
@@ -327,13 +342,13 @@ def test_models_the_kernels_do_not_cover_say_why():
 
 def test_a_long_run_with_nothing_to_compile_is_not_marked_long(monkeypatch):
     """A long run marks its contacts for the compiled search and solve (loading numba, most of a second). A model
-    with no compiled form and no contacts (a body under angular drag) has nothing that would use them: it stays an
+    with no compiled form and no contacts (a body in an electric field) has nothing that would use them: it stays an
     ordinary numpy run, and numba is not asked for. The same body over a floor is marked."""
     asked = []
     monkeypatch.setattr(kernels, "compiled_kernels", lambda work=float("inf"): asked.append(work) or work > 0)
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "auto")
     text = ("duration: 1\nfps: 10\nbodies:\n  - {name: p, type: rigid, shape: {type: sphere, radius: 0.1}, "
-            "density: 500, position: [0, 1, 0]}\nfields: [{type: angular_drag, coefficient: 1}]\n")
+            "density: 500, charge: 1.0e-6, position: [0, 1, 0]}\nfields: [{type: electromagnetic, E: [0, 1, 0]}]\n")
     free = dynamics_for(compile_scene(scene(text).spec), 100.0)
     assert type(free) is Dynamics and not free.long_run and asked == [0.0]
     floored = dynamics_for(compile_scene(scene(text + "colliders: [{type: plane}]\n").spec), 100.0)
@@ -409,6 +424,6 @@ def test_info_says_whether_a_scene_has_compiled_equations_of_motion_and_why_not(
     assert "kernels    the equations of motion have a compiled form" in describe_model(
         jointed, compile_scene(jointed.spec))
     dragged = scene("duration: 1\nfps: 10\nbodies: [{name: p, type: rigid, shape: {type: sphere, radius: 0.1}, "
-                    "density: 500}]\nfields: [{type: angular_drag, coefficient: 1}]\n")
-    assert ("kernels    numpy equations of motion: its angular_drag term has no compiled form"
+                    "density: 500, charge: 1.0e-6}]\nfields: [{type: electromagnetic, E: [0, 1, 0]}]\n")
+    assert ("kernels    numpy equations of motion: its electromagnetic term has no compiled form"
             in describe_model(dragged, compile_scene(dragged.spec)))

@@ -282,6 +282,32 @@ def add_forces(t: float, floats: np.ndarray, integers: np.ndarray, layout: np.nd
     add_pair_forces(floats, integers, layout, x, force)
     add_buoyancy(floats, integers, layout, x, v, rotation, omega, force, torque)
     add_drag(floats, integers, layout, v, rotation, omega, force, torque)
+    add_loads(floats, integers, layout, rotation, omega, force, torque)
+
+
+@njit(cache=True, error_model="numpy")
+def add_loads(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, rotation: np.ndarray, omega: np.ndarray,
+              force: np.ndarray, torque: np.ndarray) -> None:
+    """Add the applied loads (:mod:`animbatch.sim.forces.applied`) to ``force`` (P, 3) [N] and ``torque`` (B, 3)
+    [N·m]: a constant force (turned with the body in body axes; at a body point r also the torque ``r × f``), a
+    constant torque, angular drag ``τ = −c ω``."""
+    points = table(integers, layout, T.LOAD_POINTS, 3)
+    values = table(floats, layout, T.LOAD_VALUES, 7)
+    for k in range(len(points)):
+        i, rigid, kind = points[k, 0], points[k, 1], points[k, 2]
+        load = (values[k, 0], values[k, 1], values[k, 2])
+        if kind == T.ANGULAR_DRAG_LOAD:
+            store(torque, rigid, minus(vector(torque, rigid), times(load[0], vector(omega, rigid))))
+            continue
+        if rigid >= 0 and values[k, 3] != 0.0:
+            load = _turned(rotation, rigid, load)
+        if kind == T.TORQUE_LOAD:
+            store(torque, rigid, plus(vector(torque, rigid), load))
+            continue
+        store(force, i, plus(vector(force, i), load))
+        offset = (values[k, 4], values[k, 5], values[k, 6])
+        if rigid >= 0 and (offset[0] != 0.0 or offset[1] != 0.0 or offset[2] != 0.0):
+            store(torque, rigid, plus(vector(torque, rigid), cross(_turned(rotation, rigid, offset), load)))
 
 
 @njit(cache=True, error_model="numpy")

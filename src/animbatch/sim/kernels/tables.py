@@ -94,8 +94,14 @@ BUOYANCY_VOLUMES = 60  # (S,): their whole volumes [m³]
 DRAG_TERMS = 61  # (T, 4): quadratic (1) or linear (0, Stokes' law included), the wind's velocity (3) [m/s]
 DRAG_POINTS = 62  # int (D, 3): a dragged point, its rigid index where dragged at a body point (else −1), its term
 DRAG_SHAPES = 63  # (D, 4): the body point in body axes from the centre of mass [m] (3), the coefficient C
+# applied loads, in the order of their terms: a force (at a body point), a torque, angular drag
+LOAD_POINTS = 64  # int (L, 3): the point, its rigid index (−1: a particle), the kind (FORCE_LOAD, TORQUE_LOAD, …)
+LOAD_VALUES = 65  # (L, 7): the vector [N or N·m] (angular drag: c [N·m·s], 0, 0), body axes (1) or world (0),
+#                   the point in body axes from the centre of mass [m] (3)
 #: How many fields there are.
-FIELD_COUNT = 64
+FIELD_COUNT = 66
+#: The kinds of applied load (LOAD_POINTS' third column).
+FORCE_LOAD, TORQUE_LOAD, ANGULAR_DRAG_LOAD = 0, 1, 2
 
 #: Each field's shape after its first axis.
 TRAILING: dict[int, tuple[int, ...]] = {
@@ -114,7 +120,7 @@ TRAILING: dict[int, tuple[int, ...]] = {
     COLUMN_START: (), COLUMN_ROWS: (), PAIRS: (5,), UPDATE_START: (), UPDATES: (3,), PAIR_TERMS: (2,),
     PAIR_START: (), PAIR_POINTS: (), PAIR_SOURCE: (), BUOYANCY_TERMS: (7,), BUOYANCY_SPHERES: (3,),
     BUOYANCY_SHAPES: (4,), BUOYANCY_BODIES: (2,), BUOYANCY_VOLUMES: (), DRAG_TERMS: (4,), DRAG_POINTS: (3,),
-    DRAG_SHAPES: (4,),
+    DRAG_SHAPES: (4,), LOAD_POINTS: (3,), LOAD_VALUES: (7,),
 }
 
 #: The integer fields (the others are float64).
@@ -123,7 +129,7 @@ INTEGER_FIELDS = frozenset({
     ROW_BODIES, ROW_UNILATERAL, KIND_ROWS, SEGMENT_ENDS, POINT_BODIES, AXIS_BODIES,
     LOCK_BODIES, SLIDE_BODIES, ANGLE_BODIES, MOTOR_BODIES, MOTOR_KIND, ORDER,
     COLUMN_START, COLUMN_ROWS, PAIRS, UPDATE_START, UPDATES, PAIR_START, PAIR_POINTS, BUOYANCY_SPHERES,
-    BUOYANCY_BODIES, DRAG_POINTS,
+    BUOYANCY_BODIES, DRAG_POINTS, LOAD_POINTS,
 })
 
 #: The six row kinds in KIND_ROWS' order.

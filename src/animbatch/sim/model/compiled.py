@@ -22,6 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from animbatch.sim.bodies import Kinematics
+from animbatch.sim.forces.applied import AngularDrag, AppliedForce, AppliedTorque
 from animbatch.sim.forces.buoyancy import Buoyancy
 from animbatch.sim.forces.drag import Drag
 from animbatch.sim.forces.gravitation import InverseSquarePairs
@@ -105,6 +106,7 @@ def _force_fields(model: Model, paths: _Paths) -> Fields | str:
     pairs: list[InverseSquarePairs] = []
     buoyancies: list[Buoyancy] = []
     drags: list[Drag] = []
+    loads: list[AppliedForce | AppliedTorque | AngularDrag] = []
     for term in model.force_terms:
         if isinstance(term, UniformGravity):
             if term.index is None:
@@ -119,6 +121,8 @@ def _force_fields(model: Model, paths: _Paths) -> Fields | str:
             buoyancies.append(term)
         elif isinstance(term, Drag):
             drags.append(term)
+        elif isinstance(term, (AppliedForce, AppliedTorque, AngularDrag)):
+            loads.append(term)
         else:
             return f"its {term.label} term has no compiled form"
     fields = {T.CONSTANT_FORCE: constant_force, T.CONSTANT_TORQUE: np.zeros((model.rigid_count, 3))}
@@ -132,6 +136,8 @@ def _force_fields(model: Model, paths: _Paths) -> Fields | str:
         fields.update(_buoyancy_fields(buoyancies))
     if drags:
         fields.update(_drag_fields(drags, model.body_count))
+    if loads:
+        fields.update(_load_fields(loads))
     if springs is not None:
         s = springs.springs
         fields.update({
@@ -178,6 +184,33 @@ def _drag_fields(terms: list[Drag], count: int) -> Fields:
                                     for term in terms], float),
             T.DRAG_POINTS: np.array(points, np.int64).reshape(-1, 3),
             T.DRAG_SHAPES: np.array(shapes, float).reshape(-1, 4)}
+
+
+def _load_fields(terms: list[AppliedForce | AppliedTorque | AngularDrag]) -> Fields:
+    """The LOAD_* fields: each applied load on each of its bodies, in the order the numpy terms add them (a force's
+    particles, then its rigid bodies)."""
+    points, values = [], []
+    for term in terms:
+        first, body_axes = term.first_rigid, 0.0
+        if isinstance(term, AppliedForce):
+            body_axes = float(term.frame == "body")
+            for point in term.particles:  # a particle has no body axes: its force is in world axes
+                points.append([point, -1, T.FORCE_LOAD])
+                values.append([*term.force, 0.0, 0.0, 0.0, 0.0])
+            offsets = term.offset
+        else:
+            offsets = np.zeros((len(term.rigid), 3))
+        for rigid, offset in zip(term.rigid, offsets):
+            if isinstance(term, AppliedForce):
+                kind, vector = T.FORCE_LOAD, term.force
+            elif isinstance(term, AppliedTorque):
+                kind, vector, body_axes = T.TORQUE_LOAD, term.torque, float(term.frame == "body")
+            else:
+                kind, vector = T.ANGULAR_DRAG_LOAD, np.array([term.coefficient, 0.0, 0.0])
+            points.append([first + rigid, rigid, kind])
+            values.append([*vector, body_axes, *offset])
+    return {T.LOAD_POINTS: np.array(points, np.int64).reshape(-1, 3),
+            T.LOAD_VALUES: np.array(values, float).reshape(-1, 7)}
 
 
 def _kind_rows(joints: Joints) -> tuple[dict[type, Any], np.ndarray]:
