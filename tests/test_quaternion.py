@@ -64,3 +64,19 @@ def test_from_matrix_gives_the_quaternion_of_every_rotation_even_half_turns():
     np.testing.assert_allclose(found, np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1), atol=1e-15)
     assert quaternion.from_matrix(matrices[0]).shape == (4,)
     np.testing.assert_array_equal(quaternion.from_matrix(matrices[:6].reshape(3, 2, 3, 3)), found[:6].reshape(3, 2, 4))
+
+
+@pytest.mark.parametrize("shape_a, shape_b", [((3,), (3,)), ((4, 3), (4, 3)), ((3,), (5, 3)), ((5, 7, 3), (7, 3)),
+                                              ((64, 3), (64, 3)), ((65, 3), (65, 3)), ((1000, 3), (3,))])
+def test_cross_is_the_cross_product_for_a_few_vectors_and_for_many(shape_a, shape_b):
+    """Gathered components for a few vectors, strided ones for many: the same products either way (numpy's cross
+    to round-off, and the right-handed basis exactly), broadcast like numpy, float64 even from integers."""
+    rng = np.random.default_rng(len(shape_a) + shape_a[0])
+    a, b = rng.normal(size=shape_a), rng.normal(size=shape_b)
+    found = quaternion.cross(a, b)
+    assert found.shape == np.broadcast_shapes(shape_a, shape_b)
+    np.testing.assert_allclose(found, np.cross(a, b), rtol=0, atol=1e-15)
+    x, y, z = np.eye(3)
+    np.testing.assert_array_equal(quaternion.cross(np.stack([x, y, z]), np.stack([y, z, x])), np.stack([z, x, y]))
+    whole = quaternion.cross(np.array([1, 0, 0]), np.array([0, 1, 0]))
+    assert whole.dtype == np.float64 and whole.tolist() == [0.0, 0.0, 1.0]

@@ -25,8 +25,18 @@ def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     return out
 
 
+#: Components 1, 2, 0 and 2, 0, 1 of a vector: ``a × b = a[NEXT] b[AFTER] − a[AFTER] b[NEXT]``.
+_NEXT, _AFTER = np.array([1, 2, 0]), np.array([2, 0, 1])
+#: Up to this many numbers in each operand, the cross product gathers the components (four gathers, three
+#: operations: half the time of the nine strided ones below on a few vectors, the resting-contact right-hand side's
+#: case); beyond, the gathers' copies cost more (6.5 ms against 1 ms at 1e5 vectors).
+_GATHERED = 192
+
+
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a × b`` over the last axis; for small arrays several times cheaper than ``np.cross``."""
+    if a.size <= _GATHERED and b.size <= _GATHERED and a.dtype == b.dtype == np.float64:
+        return a.take(_NEXT, axis=-1) * b.take(_AFTER, axis=-1) - a.take(_AFTER, axis=-1) * b.take(_NEXT, axis=-1)
     # (np.broadcast_shapes costs more than the products on a few vectors: only when the shapes differ)
     out = np.empty(a.shape if a.shape == b.shape else np.broadcast_shapes(a.shape, b.shape))
     out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
