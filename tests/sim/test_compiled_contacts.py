@@ -602,7 +602,7 @@ def test_an_adaptive_run_solves_its_resting_forces_compiled_once_they_have_cost_
     compiled."""
     from animbatch.compile.solver import make_integrator
     from animbatch.sim import kernels
-    from animbatch.sim.contact import events
+    from animbatch.sim.contact import events, stepping
     from animbatch.sim.contact.solver import build_contact_kernels
     from animbatch.sim.kernels import resting_forces
     from conftest import counting
@@ -625,7 +625,7 @@ def test_an_adaptive_run_solves_its_resting_forces_compiled_once_they_have_cost_
 
     def run(threshold: float) -> np.ndarray:
         monkeypatch.setattr(kernels, "_loaded", set())
-        monkeypatch.setattr(events, "COMPILE_CONTACTS_AFTER", threshold)
+        monkeypatch.setattr(stepping, "COMPILE_CONTACTS_AFTER", threshold)
         compiled_calls.clear()
         numpy_calls.clear()
         system = Dynamics(model)

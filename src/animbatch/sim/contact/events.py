@@ -54,9 +54,8 @@ from animbatch.sim.contact.solver import (
     solve_forces,
     solve_impulses,
 )
-from animbatch.sim.contact.stepping import COMPILE_CONTACTS_AFTER, COMPILE_CONTACTS_AFTER_LOADED, DEFAULT_REST_SPEED
+from animbatch.sim.contact.stepping import DEFAULT_REST_SPEED, NumpyContactCost
 from animbatch.sim.forces import Kinematics
-from animbatch.sim.kernels import CONTACT_KERNELS, MIN_WORK, compiled_kernels, kernels_loaded
 from animbatch.sim.model.dynamics import Dynamics
 
 SAMPLES = 24  # points per step at which impact candidates are evaluated
@@ -78,7 +77,7 @@ MAX_STALLED_EVENTS = 100
 SLIP_ONSET = 1e-6  # m/s²: tangential acceleration of a sticking contact point at which it starts to slide
 #: What one resting-force solve costs in numpy [s] (a few contacts; measured 0.4-0.5 ms): counted as the stepping
 #: path counts its steps, so that a long adaptive run solves its resting forces compiled from the
-#: :data:`~animbatch.sim.contact.stepping.COMPILE_CONTACTS_AFTER` seconds on, at the same evaluation on every machine.
+#: :class:`~animbatch.sim.contact.stepping.NumpyContactCost` threshold on, at the same evaluation on every machine.
 NUMPY_FORCE_SOLVE = 0.5e-3
 
 
@@ -160,7 +159,7 @@ class ContactEvents:
         # explicit pairs end a step with the right-hand side at its end (first same as last), where the mode
         # functions are asked for next: the same forces, not solved again
         self._last_forces: tuple[float, np.ndarray, Resting, Any] | None = None
-        self._numpy_seconds = 0.0  # what the numpy resting-force solves have cost so far, by NUMPY_FORCE_SOLVE
+        self._numpy_cost = NumpyContactCost()  # what the numpy resting-force solves have cost, by NUMPY_FORCE_SOLVE
 
     # ------------------------------------------------------------------------------------- as StepEvents
 
@@ -288,17 +287,10 @@ class ContactEvents:
         return contacts, result, bodies, tangent_bias
 
     def _compiled_forces(self) -> bool:
-        """Whether this resting-force solve runs compiled: in a long run (as the stepping path decides it), or once
-        this run's numpy solves have cost :data:`~animbatch.sim.contact.stepping.COMPILE_CONTACTS_AFTER` by
-        :data:`NUMPY_FORCE_SOLVE` each (less where this process has loaded the contact kernels already)."""
-        system = self.system
-        if not system.long_run and self._numpy_seconds >= 0:
-            self._numpy_seconds += NUMPY_FORCE_SOLVE
-            if self._numpy_seconds >= (COMPILE_CONTACTS_AFTER_LOADED if kernels_loaded(CONTACT_KERNELS)
-                                       else COMPILE_CONTACTS_AFTER):
-                system.long_run = compiled_kernels(MIN_WORK)
-                self._numpy_seconds = -np.inf  # asked once: numba may be unavailable or refused
-        return compiled_contacts(0, long_run=system.long_run)
+        """Whether this resting-force solve runs compiled: in a long run, or once this run's numpy solves have cost
+        :class:`~animbatch.sim.contact.stepping.NumpyContactCost`'s threshold at :data:`NUMPY_FORCE_SOLVE` each."""
+        self._numpy_cost.add(self.system, NUMPY_FORCE_SOLVE)
+        return compiled_contacts(0, long_run=self.system.long_run)
 
     def _velocities(self, state: Kinematics, *, masses: BodyVelocities | None = None) -> BodyVelocities:
         """The bodies' velocities at ``state``, with their inverse masses and inertias (those of ``masses`` where

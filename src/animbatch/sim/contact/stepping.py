@@ -58,6 +58,26 @@ COMPILE_CONTACTS_AFTER = 0.5  # as COMPILE_AFTER: numpy runs take 2-4x their est
 COMPILE_CONTACTS_AFTER_LOADED = 0.05
 
 
+class NumpyContactCost:
+    """What a run's contact work in numpy has cost so far [s], counted by fixed costs per piece of work (not timed),
+    and the run's switch to the compiled contact kernels once that passes :data:`COMPILE_CONTACTS_AFTER`
+    (:data:`COMPILE_CONTACTS_AFTER_LOADED` once the contact kernels are loaded in this process): shared by the
+    fixed-step contact step and the adaptive methods' resting forces."""
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+
+    def add(self, system: Dynamics, seconds: float) -> None:
+        """Count ``seconds`` of numpy work; past the threshold, mark ``system`` a long run (once)."""
+        if system.long_run or self.seconds < 0:
+            return
+        self.seconds += seconds
+        if self.seconds >= (COMPILE_CONTACTS_AFTER_LOADED if kernels_loaded(CONTACT_KERNELS)
+                            else COMPILE_CONTACTS_AFTER):
+            system.long_run = compiled_kernels(MIN_WORK)
+            self.seconds = -np.inf  # asked once: numba may be unavailable or refused
+
+
 def measure_contact_search(system: Dynamics, repeats: int = 2) -> tuple[float, int]:
     """Wall time [s] of one step's contact search at the model's start (the fastest of a few), and the contacts it
     found, for the cost estimate; (0, 0) without contacts."""
@@ -98,20 +118,13 @@ class ContactResolver:
         self._warm_codes = np.zeros(0, np.int64)
         self._warm_normal = np.zeros(0)
         self._warm_tangent = np.zeros((0, 3))
-        self._numpy_seconds = 0.0  # what numpy's contact steps have cost so far, by the counts above
+        self._numpy_cost = NumpyContactCost()  # what numpy's contact steps have cost so far, by the counts above
         self.clearance = Clearance(self.reach, self.world.moving)  # the search is skipped while nothing can be near
 
     def _count_numpy_work(self, sweeps: int) -> None:
-        """Count a contact step's numpy work (``sweeps`` of the impulse solver); past
-        :data:`COMPILE_CONTACTS_AFTER` (:data:`COMPILE_CONTACTS_AFTER_LOADED` once the contact kernels are loaded in
-        this process), the run is a long one and its contacts go compiled from the next step."""
-        if self.system.long_run:
-            return
-        self._numpy_seconds += NUMPY_CONTACT_STEP + NUMPY_SWEEP * sweeps
-        if self._numpy_seconds >= (COMPILE_CONTACTS_AFTER_LOADED if kernels_loaded(CONTACT_KERNELS)
-                                   else COMPILE_CONTACTS_AFTER):
-            self.system.long_run = compiled_kernels(MIN_WORK)
-            self._numpy_seconds = -np.inf  # asked once: numba may be unavailable or refused
+        """Count a contact step's numpy work (``sweeps`` of the impulse solver): past :class:`NumpyContactCost`'s
+        threshold the run is a long one and its contacts go compiled from the next step."""
+        self._numpy_cost.add(self.system, NUMPY_CONTACT_STEP + NUMPY_SWEEP * sweeps)
 
     def _search(self, state: Kinematics, travel: np.ndarray) -> Contacts:
         """The contacts within the step's reach (``travel`` (P,) [m] per body): none without a search while the

@@ -300,14 +300,14 @@ def add_loads(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, rota
             store(torque, rigid, minus(vector(torque, rigid), times(load[0], vector(omega, rigid))))
             continue
         if rigid >= 0 and values[k, 3] != 0.0:
-            load = _turned(rotation, rigid, load)
+            load = rotate(rotation[rigid], load)
         if kind == T.TORQUE_LOAD:
             store(torque, rigid, plus(vector(torque, rigid), load))
             continue
         store(force, i, plus(vector(force, i), load))
         offset = (values[k, 4], values[k, 5], values[k, 6])
         if rigid >= 0 and (offset[0] != 0.0 or offset[1] != 0.0 or offset[2] != 0.0):
-            store(torque, rigid, plus(vector(torque, rigid), cross(_turned(rotation, rigid, offset), load)))
+            store(torque, rigid, plus(vector(torque, rigid), cross(rotate(rotation[rigid], offset), load)))
 
 
 @njit(cache=True, error_model="numpy")
@@ -325,7 +325,7 @@ def add_drag(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, v: np
         relative = vector(v, i)
         lever = (0.0, 0.0, 0.0)
         if rigid >= 0:
-            lever = _turned(rotation, rigid, (shapes[d, 0], shapes[d, 1], shapes[d, 2]))
+            lever = rotate(rotation[rigid], (shapes[d, 0], shapes[d, 1], shapes[d, 2]))
             relative = plus(relative, cross(vector(omega, rigid), lever))
         relative = minus(relative, (terms[term, 1], terms[term, 2], terms[term, 3]))
         if terms[term, 0] != 0.0:
@@ -365,7 +365,7 @@ def add_buoyancy(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, x
             centre = vector(x, owner)
             offset = (shapes[k, 0], shapes[k, 1], shapes[k, 2])
             if rigid >= 0 and (offset[0] != 0.0 or offset[1] != 0.0 or offset[2] != 0.0):
-                centre = plus(centre, _turned(rotation, rigid, offset))
+                centre = plus(centre, rotate(rotation[rigid], offset))
             depth = min(max(level - (dot(centre, up) - radius), 0.0), 2 * radius)
             rest = 3 * radius - depth
             cap = math.pi * depth**2 * rest / 3
@@ -396,15 +396,6 @@ def add_buoyancy(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, x
 
 #: The smallest positive float (a dry sphere of no size divides by it, as numpy's code does).
 _TINY = 2.2250738585072014e-308
-
-
-@njit(cache=True, error_model="numpy")
-def _turned(rotation: np.ndarray, rigid: int, offset: tuple[float, float, float]) -> tuple[float, float, float]:
-    """``R offset`` for rigid body ``rigid``."""
-    r = rotation[rigid]
-    return (r[0, 0] * offset[0] + r[0, 1] * offset[1] + r[0, 2] * offset[2],
-            r[1, 0] * offset[0] + r[1, 1] * offset[1] + r[1, 2] * offset[2],
-            r[2, 0] * offset[0] + r[2, 1] * offset[1] + r[2, 2] * offset[2])
 
 
 @njit(cache=True, error_model="numpy")
