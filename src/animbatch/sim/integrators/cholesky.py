@@ -27,26 +27,17 @@ is analysed again.
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
-from threadpoolctl import ThreadpoolController
+
+from animbatch.sim.blas import blas_threads
 
 #: A child supernode joins its parent when the merged supernode has at most this many particles (three columns
 #: each)…
 AMALGAMATE_PARTICLES = 16
 #: …or when the explicit zeros it adds are at most this fraction of the merged supernode's entries.
 AMALGAMATE_ZEROS = 0.1
-
-
-_THREADPOOLS = ThreadpoolController()
-
-
-def _blas_threads(count: int) -> Any:
-    """A context in which BLAS (scipy's and numpy's) runs on ``count`` threads."""
-    return _THREADPOOLS.limit(limits=count, user_api="blas")
 
 
 class NotPositiveDefinite(ValueError):
@@ -144,7 +135,7 @@ class SparseCholesky:
                       self.child_index, self.factor_ptr, self.factor_data)
             # BLAS on one thread: beside the subtrees' threads two levels of threads only fight, and on the top
             # part its own threads made the whole factorisation twice as slow (58 ms against 26 on a 64×64 cloth)
-            with _blas_threads(1):
+            with blas_threads(1):
                 status = factor_subtrees(*arrays, self.bin_ptr, self.task_first, self.task_last, self.external_ptr,
                                          self._external)
                 if status == FACTORED:
@@ -161,7 +152,7 @@ class SparseCholesky:
         """``x`` with ``A x = b`` for the last factored A; ``b`` (3N,)."""
         from animbatch.sim.kernels.supernodal import solve_factored
 
-        with _blas_threads(1):  # many small BLAS calls: waking threads costs more than they save
+        with blas_threads(1):  # many small BLAS calls: waking threads costs more than they save
             return solve_factored(self.perm, self.start, self.width, self.front_ptr, self.front_index,
                                   self.factor_ptr, self.factor_data,
                                   np.ascontiguousarray(right_hand_side, dtype=np.float64))

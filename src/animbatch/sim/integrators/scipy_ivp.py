@@ -23,6 +23,7 @@ import numpy as np
 from scipy.integrate import OdeSolver
 
 from animbatch.errors import SimulationError
+from animbatch.sim.blas import threads_for_state
 from animbatch.sim.integrators.advice import failure_advice
 from animbatch.sim.integrators.base import (
     CountingRhs,
@@ -109,7 +110,8 @@ class ScipyIntegrator(Integrator):
         start = np.array(y0, dtype=float)
         # a start that breaks its joints (see EquationsOfMotion.project) is put on them first
         system.project(start, t=float(times[0]))
-        with np.errstate(all="ignore"):  # overflow is detected and reported by the checks below, not as warnings
+        # overflow is detected and reported by the checks below, not as warnings; small systems keep BLAS on one thread
+        with np.errstate(all="ignore"), threads_for_state(len(start)):
             self._run(system, events, fun, start, times, states, stats, on_frame)
         stats.rhs_evaluations = fun.count
         if events is not None:

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from animbatch.errors import SimulationError
+from animbatch.sim.blas import threads_for_state
 from animbatch.sim.integrators.base import (
     ConstraintFactory,
     EquationsOfMotion,
@@ -68,7 +69,8 @@ class FixedStepIntegrator(Integrator):
         states[0] = y
         if on_frame is not None:
             on_frame(0, float(times[0]))
-        with np.errstate(all="ignore"):  # overflow is detected once per frame and reported, not warned about
+        # overflow is detected once per frame and reported, not warned about; small systems keep BLAS on one thread
+        with np.errstate(all="ignore"), threads_for_state(len(y)):
             largest_step = self._run(scheme, y, states, times, stats, layout, on_frame)
         stats.rhs_evaluations = scheme.evaluations
         stats.jacobian_evaluations = stats.lu_decompositions = scheme.factorisations
