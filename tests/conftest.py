@@ -10,6 +10,7 @@ import pytest
 from animbatch import api
 from animbatch.compile.model import compile_scene
 from animbatch.scene import LoadedScene
+from animbatch.sim.contact.contacts import PLANE, STATIC, Contacts
 from animbatch.sim.model import Model
 from animbatch.stages import parse_scene
 from animbatch.trajectory import Trajectory
@@ -100,3 +101,24 @@ def assert_velocity_is_the_paths_derivative(path, times, step: float = 1e-5, ato
         np.testing.assert_allclose(velocity, (ahead - behind) / (2 * step), atol=atol)
         spin = (turn_ahead - turn_behind) / (2 * step) @ path.pose(t)[1].T  # Ṙ Rᵀ = [ω]×
         np.testing.assert_allclose(omega, [spin[2, 1], spin[0, 2], spin[1, 0]], atol=atol)
+
+
+# Contacts of a box on a surface (the resting-force and impulse solvers' tests)
+
+
+def box_inverse_inertia(mass: float, size: tuple[float, float, float]) -> np.ndarray:
+    x, y, z = size
+    return np.diag(12.0 / (mass * np.array([y * y + z * z, x * x + z * z, x * x + y * y])))
+
+
+def corners_on_floor(body: int, centre: np.ndarray, size: tuple[float, float, float], mu: float,
+                     solid_body: int = STATIC, normal: np.ndarray | None = None) -> Contacts:
+    """The four bottom corners of a box (``size`` [m], centre ``centre``) touching a surface below them."""
+    half = np.array(size) / 2
+    signs = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]])
+    points = np.stack([centre[0] + signs[:, 0] * half[0], np.full(4, centre[1] - half[1]),
+                       centre[2] + signs[:, 1] * half[2]], axis=1)
+    k = len(points)
+    return Contacts(np.full(k, body), np.full(k, solid_body), points,
+                    np.tile([0.0, 1.0, 0.0] if normal is None else normal, (k, 1)), np.zeros(k), np.zeros(k),
+                    np.full(k, mu), np.full(k, mu), np.arange(k), np.full(k, PLANE), np.zeros(k, np.intp))

@@ -423,6 +423,9 @@ def test_the_compiled_impulse_solve_is_the_numpy_one(h, bounce, monkeypatch):
             np.testing.assert_allclose(getattr(result, name), getattr(expected, name), rtol=0, atol=1e-9 * scale,
                                        err_msg=name)
         assert np.array_equal(result.impact, expected.impact) and (expected.impact.any() or not bounce or not h)
+        # and both say alike whether the sweeps met every target, and how far off they left them
+        assert result.unconverged == expected.unconverged
+        np.testing.assert_allclose(result.residual, expected.residual, rtol=1e-6, atol=1e-9)
         np.testing.assert_allclose(compiled_bodies.v, bodies.v, rtol=0, atol=1e-9)
         np.testing.assert_allclose(compiled_bodies.omega, bodies.omega, rtol=0, atol=1e-9)
         assert (result.pseudo_v is None) == (expected.pseudo_v is None) == (h == 0)
@@ -470,6 +473,8 @@ def test_the_compiled_jointed_sweeps_are_the_numpy_ones(monkeypatch):
             np.testing.assert_allclose(compiled[0], found[0], rtol=0, atol=1e-9 * scale)
             np.testing.assert_allclose(compiled[1], found[1], rtol=0, atol=1e-9 * scale)
             np.testing.assert_allclose(compiled_velocity, velocity, rtol=0, atol=1e-9)
+            assert compiled[2] == found[2]  # the same sweeps, leaving the same violation
+            np.testing.assert_allclose(compiled[3], found[3], rtol=1e-6, atol=1e-9)
             compared.append(rest[-3] is not None)  # whether the jointed normals' block took part
         return found
 

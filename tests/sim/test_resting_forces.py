@@ -13,6 +13,7 @@ import pytest
 
 from animbatch.sim.contact.contacts import PLANE, STATIC, Contacts
 from animbatch.sim.contact.solver import BodyVelocities, solve_forces
+from conftest import box_inverse_inertia, corners_on_floor
 
 G = 9.81
 
@@ -23,24 +24,6 @@ def solve(request):
     if request.param:
         pytest.importorskip("numba", reason="numba is not installed: numpy solves the resting forces")
     return functools.partial(solve_forces, compiled=request.param)
-
-
-def box_inverse_inertia(mass: float, size: tuple[float, float, float]) -> np.ndarray:
-    x, y, z = size
-    return np.diag(12.0 / (mass * np.array([y * y + z * z, x * x + z * z, x * x + y * y])))
-
-
-def corners_on_floor(body: int, centre: np.ndarray, size: tuple[float, float, float], mu: float,
-                     solid_body: int = STATIC, normal: np.ndarray | None = None) -> Contacts:
-    """The four bottom corners of a box (``size`` [m], centre ``centre``) touching a surface below them."""
-    half = np.array(size) / 2
-    signs = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]])
-    points = np.stack([centre[0] + signs[:, 0] * half[0], np.full(4, centre[1] - half[1]),
-                       centre[2] + signs[:, 1] * half[2]], axis=1)
-    k = len(points)
-    return Contacts(np.full(k, body), np.full(k, solid_body), points,
-                    np.tile([0.0, 1.0, 0.0] if normal is None else normal, (k, 1)), np.zeros(k), np.zeros(k),
-                    np.full(k, mu), np.full(k, mu), np.arange(k), np.full(k, PLANE), np.zeros(k, np.intp))
 
 
 def bodies_under_gravity(masses: list[float], size: tuple[float, float, float]) -> BodyVelocities:

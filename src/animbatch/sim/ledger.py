@@ -365,6 +365,10 @@ def build_ledger(model: Model, states: np.ndarray, stats: dict[str, Any], partic
                           "wall_time": stats.get("wall_time", 0.0)}
         if stats.get("lu_decompositions"):  # implicit methods: the sparse factorisations, usually most of the cost
             work["bodies"]["factorisations"] = stats["lu_decompositions"]
+        solves = stats.get("contact_solves")
+        if solves and solves.get("solves") and model.contact_settings is not None:
+            # how the contact impulse solves ended: those that ran out of sweeps left contacts off their targets
+            work["bodies"]["contact_solves"] = {**solves, "iterations": model.contact_settings.iterations}
     if particle_stats:
         work["particles"] = {"steps": particle_stats.get("steps", 0),
                              "rhs_evaluations": particle_stats.get("rhs_evaluations", 0),
@@ -441,6 +445,11 @@ def summary(ledger: dict[str, Any]) -> str:
         bodies = work["bodies"]
         factored = f", {bodies['factorisations']} factorisations" if bodies.get("factorisations") else ""
         parts.append(f"{method}{how}: {bodies['steps']} steps, {bodies['rhs_evaluations']} RHS{factored}")
+    solves = work.get("bodies", {}).get("contact_solves")
+    if solves and solves["unconverged"]:
+        parts.append(f"contacts: {solves['unconverged']} of {solves['solves']} solves used all "
+                     f"{solves['iterations']} iterations, leaving contacts off their targets by up to "
+                     f"{_number(solves['residual'])} m/s")
     if "particles" in work:
         particles = work["particles"]
         parts.append(f"particles ({method}{'' if 'bodies' in work else how}): {particles['steps']} steps, "

@@ -134,6 +134,7 @@ class ContactSpec(SceneModel):
                                          "ends (default: 1 cm/s, or 3 g dt for fixed-step methods if that is more).",
                                    "m/s", gt=0)
     iterations: int = key(300, "Most iterations of the contact solver per step; it stops as soon as every contact "
-                               "holds (to 1e-10 m/s), usually after a few thanks to warm starting.", "1",
+                               "holds (to 1e-10 m/s): after one for a body resting on its own (warm starting), "
+                               "often all of them in stacks and piles (the ledger counts those steps).", "1",
                           ge=1, le=10000)
     slop: float = key(1e-4, "Penetration tolerated before positions are corrected (avoids jitter).", "m", ge=0)

@@ -490,6 +490,10 @@ class SolveResult:
     tangent_vector: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     # how many sweeps numpy made (0 when they ran compiled): what the caller counts to know when compiling pays
     numpy_sweeps: int = 0
+    # impulse solves: the largest violation of a contact's target the sweeps left [m/s], and whether that is more
+    # than the tolerance (the sweeps ran out: ``iterations`` was not enough)
+    residual: float = 0.0
+    unconverged: bool = False
 
 
 #: Impulse solves of at least this many contacts run their sweeps compiled
@@ -606,12 +610,12 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         rows.push_tangent(velocity, tangent_impulse)
     tolerance = VELOCITY_TOLERANCE * (1.0 + float(np.abs(approach).max(initial=0.0)))
     if compiled_contacts(count, long_run=long_run) and rows.dense:  # small jointed scenes: array rows, compiled
-        normal_impulse, tangent_impulse = _compiled_dense_sweeps(rows, contacts, velocity, target, normal_impulse,
-                                                                 tangent_impulse, sticking, block, iterations,
-                                                                 tolerance)
-    else:
-        normal_impulse, tangent_impulse, result.numpy_sweeps = _sweeps(
+        normal_impulse, tangent_impulse, _, result.residual = _compiled_dense_sweeps(
             rows, contacts, velocity, target, normal_impulse, tangent_impulse, sticking, block, iterations, tolerance)
+    else:
+        normal_impulse, tangent_impulse, result.numpy_sweeps, result.residual = _sweeps(
+            rows, contacts, velocity, target, normal_impulse, tangent_impulse, sticking, block, iterations, tolerance)
+    result.unconverged = result.residual > tolerance
     if couple is not None:  # end on the joints
         rows.unflat(velocity)
         couple(bodies)
@@ -653,7 +657,7 @@ def _solve_compiled(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h
     def floats(values: np.ndarray) -> np.ndarray:
         return np.ascontiguousarray(values, np.float64)
 
-    normal_impulse, tangent_impulse, tangent_vector, impact, arrival, pseudo = solve(
+    normal_impulse, tangent_impulse, tangent_vector, impact, arrival, pseudo, residual, tolerance = solve(
         a, b, floats(contacts.normal), floats(contacts.point), floats(contacts.gap), floats(contacts.restitution),
         floats(contacts.static_friction), floats(contacts.kinetic_friction), floats(x), floats(bodies.inverse_mass),
         floats(bodies.inverse_inertia), velocity, floats(warm_normal), floats(warm_tangent), float(h), bool(bounce),
@@ -662,7 +666,7 @@ def _solve_compiled(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h
     bodies.v[:] = velocity[:half].reshape(-1, 3)
     bodies.omega[:] = velocity[half:].reshape(-1, 3)
     result = SolveResult(normal_impulse, tangent_impulse, impact=impact, arrival=arrival,
-                         tangent_vector=tangent_vector)
+                         tangent_vector=tangent_vector, residual=float(residual), unconverged=residual > tolerance)
     if len(pseudo):
         result.pseudo_v, result.pseudo_omega = pseudo[:half].reshape(-1, 3), pseudo[half:].reshape(-1, 3)
     return result
@@ -675,10 +679,11 @@ _COMPILED_SETTINGS = np.array([VELOCITY_TOLERANCE, BAUMGARTE, OVERLAP_TOLERANCE,
 
 def _sweeps(rows: ContactRows, contacts: Contacts, velocity: np.ndarray, target: np.ndarray,
             normal_impulse: np.ndarray, tangent_impulse: np.ndarray, sticking: np.ndarray,
-            block: JointedNormals | None, iterations: int, tolerance: float) -> tuple[np.ndarray, np.ndarray, int]:
+            block: JointedNormals | None, iterations: int, tolerance: float
+            ) -> tuple[np.ndarray, np.ndarray, int, float]:
     """The impulse solver's sweeps in numpy (changing ``velocity`` in place), normal then friction, until every
     contact does what it must or after ``iterations``: the accumulated normal (K,) and tangential (K, 2) impulses,
-    and how many sweeps that took.
+    how many sweeps that took, and the largest violation they left [m/s] (above ``tolerance``: they ran out).
 
     A sweep of a small scene is some twenty numpy calls of a microsecond or two each, so the tangential parts are
     kept as two (K,) arrays (no stacking, reshaping or norms along an axis): the same arithmetic as the compiled
@@ -702,7 +707,7 @@ def _sweeps(rows: ContactRows, contacts: Contacts, velocity: np.ndarray, target:
                 slip = tangent_rows @ velocity
                 worst = max(worst, float((np.sqrt(slip[:count] ** 2 + slip[count:] ** 2) * gripping).max()))
             if worst <= tolerance or iteration == iterations:
-                return normal_impulse, np.stack([first, second], axis=1), iteration
+                return normal_impulse, np.stack([first, second], axis=1), iteration, worst
         updated = np.maximum(normal_impulse - normal_now * rows.w_n, 0.0)
         if block is not None and iteration % BLOCK_EVERY == 0:  # the jointed contacts' normals at once
             updated = block.solve(normal_impulse, normal_now)
@@ -721,13 +726,13 @@ def _sweeps(rows: ContactRows, contacts: Contacts, velocity: np.ndarray, target:
         wanted_2 *= scale
         velocity += tangent_response @ np.concatenate([wanted_1 - first, wanted_2 - second])
         first, second = wanted_1, wanted_2
-    return normal_impulse, np.stack([first, second], axis=1), 1  # only with iterations = 0 (the loop returns)
+    return normal_impulse, np.stack([first, second], axis=1), 1, np.inf  # only with iterations = 0 (the loop returns)
 
 
 def _compiled_dense_sweeps(rows: ContactRows, contacts: Contacts, velocity: np.ndarray, target: np.ndarray,
                            normal_impulse: np.ndarray, tangent_impulse: np.ndarray, sticking: np.ndarray,
                            block: JointedNormals | None, iterations: int, tolerance: float
-                           ) -> tuple[np.ndarray, np.ndarray]:
+                           ) -> tuple[np.ndarray, np.ndarray, int, float]:
     """:func:`_sweeps` in one compiled call (:func:`animbatch.sim.kernels.contact_impulses.dense_sweeps`), for rows
     kept as arrays."""
     from animbatch.sim.kernels import contact_impulses

@@ -37,6 +37,7 @@ from animbatch.sim.contact.solver import (
 )
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.forces.gravity import gravity_magnitude
+from animbatch.sim.integrators.base import ContactSolves
 from animbatch.sim.kernels import CONTACT_KERNELS, MIN_WORK, compiled_kernels, kernels_loaded
 from animbatch.sim.model.dynamics import Dynamics
 
@@ -113,6 +114,7 @@ class ContactResolver:
         self.reach = body_reach(self.world, model.body_count)
         self.contacts_last_step = 0
         self.impacts = ImpactLog()
+        self.solves = ContactSolves()  # how the impulse solves ended (the run's ledger reports it)
         # warm starting: last step's impulses per unit time, normal (K,) and tangential vectors (K, 3), for the
         # contacts identified by sorted codes (K,) (see contact_codes)
         self._warm_codes = np.zeros(0, np.int64)
@@ -246,6 +248,7 @@ class ContactResolver:
                                 kinematic=kinematic, couple=couple if joints is not None else None, jointed=jointed,
                                 long_run=self.system.long_run)
         self._count_numpy_work(result.numpy_sweeps)
+        self.solves.record(result.residual, result.unconverged)
         if bounce:  # remember the impulses of the main solve (not of end-of-step re-projections)
             self.impacts.record(t + result.arrival * h, contacts.probe_body, result.impact)
 

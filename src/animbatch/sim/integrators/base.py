@@ -62,6 +62,30 @@ class ImpactRecord(Protocol):
     def as_list(self) -> list[tuple[float, int]]: ...
 
 
+@dataclass
+class ContactSolves:
+    """How a run's contact impulse solves ended: how many there were (``solves``), how many ran out of sweeps
+    (``contacts.iterations``) before every contact met its target to the solver's tolerance (``unconverged``), and
+    the largest violation of a target such a solve left (``residual`` [m/s]; 0 when every solve converged)."""
+
+    solves: int = 0
+    unconverged: int = 0
+    residual: float = 0.0
+
+    def record(self, residual: float, unconverged: bool) -> None:
+        """Count one solve that left ``residual`` [m/s]."""
+        self.solves += 1
+        if unconverged:
+            self.unconverged += 1
+            self.residual = max(self.residual, residual)
+
+    def add(self, other: ContactSolves) -> None:
+        """Count the solves of a later part of the same run."""
+        self.solves += other.solves
+        self.unconverged += other.unconverged
+        self.residual = max(self.residual, other.residual)
+
+
 class VelocityConstraint(Protocol):
     """Velocity-level constraints a fixed-step scheme applies between its kick and its drift (contacts; next,
     joints): they change the motion so that the constraints hold over the step. Schemes that can take one say so
@@ -69,6 +93,9 @@ class VelocityConstraint(Protocol):
 
     @property
     def impacts(self) -> ImpactRecord: ...  # what it logged
+
+    @property
+    def solves(self) -> ContactSolves: ...  # how its solves ended
 
     def resolve(self, config: np.ndarray, motion: np.ndarray, h: float, *, t: float,
                 bounce: bool = True) -> np.ndarray | None:
@@ -141,9 +168,16 @@ class SolverStats:
     largest_step: float | None = None
     wall_time: float = 0.0  # [s]
     impacts: list[tuple[float, int]] = field(default_factory=list)  # (time [s], body index) of bounces, in order
+    contact_solves: ContactSolves | None = None  # fixed-step methods with contacts: how their impulse solves ended
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    @classmethod
+    def from_dict(cls, saved: dict[str, Any]) -> SolverStats:
+        """The statistics :meth:`as_dict` gave (a checkpoint's)."""
+        solves = saved.get("contact_solves")
+        return cls(**{**saved, "contact_solves": ContactSolves(**solves) if solves is not None else None})
 
     def add(self, part: SolverStats) -> None:
         """Add the work of a later part of the same run (a checkpointed segment)."""
@@ -155,6 +189,10 @@ class SolverStats:
             values = [v for v in (getattr(self, name), getattr(part, name)) if v is not None]
             setattr(self, name, pick(values) if values else None)
         self.impacts = list(self.impacts) + list(part.impacts)
+        if part.contact_solves is not None:
+            if self.contact_solves is None:
+                self.contact_solves = ContactSolves()
+            self.contact_solves.add(part.contact_solves)
 
     def count_step(self, h: float) -> None:
         """Count an accepted step of ``h`` [s] (adaptive methods)."""

@@ -26,7 +26,7 @@ from animbatch.sim.integrators.base import EquationsOfMotion, FrameCallback
 def _load(path: Path, size: int) -> tuple[np.ndarray, SolverStats] | None:
     try:
         with np.load(path, allow_pickle=False) as data:
-            states, stats = data["states"], SolverStats(**json.loads(str(data["stats"])))
+            states, stats = data["states"], SolverStats.from_dict(json.loads(str(data["stats"])))
     except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile):  # missing or cut short
         return None
     return (states, stats) if states.ndim == 2 and states.shape[1] == size and len(states) >= 1 else None

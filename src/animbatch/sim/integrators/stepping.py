@@ -74,8 +74,9 @@ class FixedStepIntegrator(Integrator):
             largest_step = self._run(scheme, y, states, times, stats, layout, on_frame)
         stats.rhs_evaluations = scheme.evaluations
         stats.jacobian_evaluations = stats.lu_decompositions = scheme.factorisations
-        if scheme.constraint is not None:  # contacts log their impacts
+        if scheme.constraint is not None:  # contacts log their impacts, and how their solves ended
             stats.impacts = scheme.constraint.impacts.as_list()
+            stats.contact_solves = scheme.constraint.solves
         stats.dt = largest_step or None
         if len(times) > 1:
             stats.substeps_per_frame = substeps(float(times[1] - times[0]), self.dt)

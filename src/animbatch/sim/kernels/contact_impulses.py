@@ -68,10 +68,10 @@ def impulse_iterations(velocity: np.ndarray, a: np.ndarray, b: np.ndarray, direc
                        arm_b: np.ndarray, lin_a: np.ndarray, lin_b: np.ndarray, turn_a: np.ndarray,
                        turn_b: np.ndarray, weight: np.ndarray, target: np.ndarray, normal_impulse: np.ndarray,
                        tangent_impulse: np.ndarray, static: np.ndarray, kinetic: np.ndarray, sticking: np.ndarray,
-                       iterations: int, tolerance: float) -> int:
+                       iterations: int, tolerance: float) -> tuple[int, float]:
     """The solver's sweeps, normal then friction, until every contact does what it must (to ``tolerance``) or after
     ``iterations``; ``normal_impulse`` (K,) and ``tangent_impulse`` (K, 2) are updated in place. Returns the sweeps
-    made."""
+    made and the largest violation left [m/s] (above ``tolerance``: the sweeps ran out)."""
     count = len(a)
     bodies = len(velocity) // 6
     normal_now = np.empty(count)
@@ -91,7 +91,7 @@ def impulse_iterations(velocity: np.ndarray, a: np.ndarray, b: np.ndarray, direc
                     second = _rate(velocity, bodies, 2, k, a, b, direction, arm_a, arm_b)
                     worst = max(worst, math.sqrt(first * first + second * second))
             if worst <= tolerance or iteration == iterations:
-                return iteration
+                return iteration, worst
         for k in range(count):
             new = max(normal_impulse[k] - normal_now[k] * weight[0, k], 0.0)
             change[k] = new - normal_impulse[k]
@@ -114,7 +114,7 @@ def impulse_iterations(velocity: np.ndarray, a: np.ndarray, b: np.ndarray, direc
             _apply(velocity, bodies, 1, k, updated[k, 0] - tangent_impulse[k, 0], a, b, lin_a, lin_b, turn_a, turn_b)
             _apply(velocity, bodies, 2, k, updated[k, 1] - tangent_impulse[k, 1], a, b, lin_a, lin_b, turn_a, turn_b)
             tangent_impulse[k, 0], tangent_impulse[k, 1] = updated[k, 0], updated[k, 1]
-    return iterations
+    return iterations, np.inf  # only with iterations = 0 (the loop returns)
 
 
 @njit(cache=True)
@@ -235,14 +235,16 @@ def dense_sweeps(velocity: np.ndarray, jacobian_normal: np.ndarray, jacobian_tan
                  target: np.ndarray, normal_impulse: np.ndarray, tangent_impulse: np.ndarray,
                  static_friction: np.ndarray, kinetic_friction: np.ndarray, sticking: np.ndarray,
                  block_chosen: np.ndarray, block_matrix: np.ndarray, block_every: int, block_passes: int,
-                 iterations: int, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+                 iterations: int, tolerance: float) -> tuple[np.ndarray, np.ndarray, int, float]:
     """The numpy sweeps of :func:`animbatch.sim.contact.solver._sweeps` on the row matrices as arrays (what small
     jointed scenes use: the responses are the joints' ``K Jᵀ``): ``jacobian_normal`` (K, V), ``jacobian_tangent``
     (2K, V), ``response_normal`` (V, K), ``response_tangent`` (V, 2K), ``weight`` (3, K); the jointed contacts'
     normals (``block_chosen``, none: empty) solved at once every ``block_every`` sweeps. ``velocity`` (V,) changes
-    in place; returns the normal (K,) and tangential (K, 2) impulses."""
+    in place; returns the normal (K,) and tangential (K, 2) impulses, the sweeps made and the largest violation
+    left [m/s]."""
     count = len(target)
     gripping = np.zeros(count, np.bool_)
+    worst, sweeps = np.inf, iterations
     for iteration in range(iterations + 1):
         normal_now = jacobian_normal @ velocity - target
         if iteration > 0:
@@ -254,6 +256,7 @@ def dense_sweeps(velocity: np.ndarray, jacobian_normal: np.ndarray, jacobian_tan
                 if gripping[k]:
                     worst = max(worst, math.sqrt(tangential[k] ** 2 + tangential[count + k] ** 2))
             if worst <= tolerance or iteration == iterations:
+                sweeps = iteration
                 break
         updated = np.maximum(normal_impulse - normal_now * weight[0], 0.0)
         if len(block_chosen) and iteration % block_every == 0:
@@ -276,7 +279,7 @@ def dense_sweeps(velocity: np.ndarray, jacobian_normal: np.ndarray, jacobian_tan
             gripping[k] = holds
         velocity += response_tangent @ change
         tangent_impulse = fresh
-    return normal_impulse, tangent_impulse
+    return normal_impulse, tangent_impulse, sweeps, worst
 
 
 @njit(cache=True, error_model="numpy")
@@ -285,7 +288,7 @@ def solve_contacts(a: np.ndarray, b: np.ndarray, normal: np.ndarray, point: np.n
                    inverse_mass: np.ndarray, inverse_inertia: np.ndarray, velocity: np.ndarray,
                    warm_normal: np.ndarray, warm_tangent: np.ndarray, h: float, bounce: bool, rest_speed: float,
                    slop: float, iterations: int, settings: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, float]:
     """A whole impulse solve of :func:`animbatch.sim.contact.solver.solve_impulses` (without joints) in one call:
     the rows (:func:`contact_rows`), each contact's approach and whether it sticks, its velocity target (bounce,
     speculative gap, rest), the warm start, the sweeps (:func:`impulse_iterations`) and the split impulse's push
@@ -298,8 +301,9 @@ def solve_contacts(a: np.ndarray, b: np.ndarray, normal: np.ndarray, point: np.n
     OVERLAP_TOLERANCE, PUSH_TOLERANCE, PUSH_ITERATIONS]``.
 
     Returns the normal (K,) and tangential (K, 2) impulses, the tangential ones as world vectors (K, 3), which
-    contacts are impacts (K,) and where in the step their gaps close (K,), and the push's pseudo-velocities (6 B,)
-    (empty when nothing overlaps beyond the slop)."""
+    contacts are impacts (K,) and where in the step their gaps close (K,), the push's pseudo-velocities (6 B,)
+    (empty when nothing overlaps beyond the slop), and the largest violation the sweeps left [m/s]
+    (:func:`impulse_iterations`) with the tolerance it is held to (above it, the sweeps ran out)."""
     count = len(a)
     bodies = len(velocity) // 6
     direction, arm_a, arm_b, lin_a, lin_b, turn_a, turn_b, weight = contact_rows(a, b, normal, point, x,
@@ -342,8 +346,9 @@ def solve_contacts(a: np.ndarray, b: np.ndarray, normal: np.ndarray, point: np.n
             tangent_impulse[k, row] = 0.0 if fast else along
     apply_impulses(velocity, normal_impulse, tangent_impulse, a, b, lin_a, lin_b, turn_a, turn_b)
     tolerance = settings[0] * (1.0 + largest)
-    impulse_iterations(velocity, a, b, direction, arm_a, arm_b, lin_a, lin_b, turn_a, turn_b, weight, target,
-                       normal_impulse, tangent_impulse, static, kinetic, sticking, iterations, tolerance)
+    _, residual = impulse_iterations(velocity, a, b, direction, arm_a, arm_b, lin_a, lin_b, turn_a, turn_b,
+                                          weight, target, normal_impulse, tangent_impulse, static, kinetic, sticking,
+                                          iterations, tolerance)
     tangent_vector = np.empty((count, 3))
     for k in range(count):
         for c in range(3):
@@ -359,8 +364,8 @@ def solve_contacts(a: np.ndarray, b: np.ndarray, normal: np.ndarray, point: np.n
         push_target[k] = settings[1] * overlap / h if h > 0 else 0.0
         strongest = max(strongest, push_target[k])
     if strongest <= 0:
-        return normal_impulse, tangent_impulse, tangent_vector, impact, arrival, np.zeros(0)
+        return normal_impulse, tangent_impulse, tangent_vector, impact, arrival, np.zeros(0), residual, tolerance
     pseudo = np.zeros(len(velocity))
     push_iterations(pseudo, a, b, direction, arm_a, arm_b, lin_a, lin_b, turn_a, turn_b, weight, push_target,
                     settings[3] * strongest, min(iterations, int(settings[4])))
-    return normal_impulse, tangent_impulse, tangent_vector, impact, arrival, pseudo
+    return normal_impulse, tangent_impulse, tangent_vector, impact, arrival, pseudo, residual, tolerance
