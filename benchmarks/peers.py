@@ -368,8 +368,10 @@ def case_pile(quick: bool) -> tuple[str, Outcome, Outcome, list[tuple[str, Outco
     duration = 1.5 if quick else 3.0
     seconds, result, model, _ = _run(pile_scene(duration=duration), repeats=1)
     kinetic, deepest = _rest_and_depth(model, result.states, PILE_SIDE / 2)
+    solves = result.stats.contact_solves
     ours = Outcome(seconds, f"deepest corner {deepest * 1e3:.2g} mm into the ground, kinetic energy at the end "
-                            f"{kinetic:.2g} J")
+                            f"{kinetic:.2g} J; {solves.unconverged} of {solves.solves} contact solves used all "
+                            f"{model.contact_settings.iterations} iterations (off by ≤ {solves.residual:.2g} m/s)")
     steps = int(round(duration / 1e-3))
     mj_seconds, _, depths = _mujoco_run(pile_mjcf(), steps, record=lambda m, d: (
         -min([float(d.contact[k].dist) for k in range(d.ncon)] + [0.0]), float(d.energy[1])))
