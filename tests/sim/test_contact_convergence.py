@@ -37,6 +37,7 @@ def test_a_solve_reports_the_violation_its_sweeps_left(compiled, iterations, mon
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba" if compiled else "numpy")
     bodies, x, centre = _landing_box()
     contacts = corners_on_floor(0, centre, SIZE, mu=0.0)
+    falling = bodies.v[0, 1]
     result = solve_impulses(contacts, bodies, x, 1e-3, iterations=iterations, rest_speed=0.01, slop=1e-4,
                             long_run=compiled)
     speed = (bodies.v[0] + np.cross(bodies.omega[0], contacts.point - centre)) @ np.array([0.0, 1.0, 0.0])
@@ -48,8 +49,9 @@ def test_a_solve_reports_the_violation_its_sweeps_left(compiled, iterations, mon
     else:
         assert not result.unconverged and result.residual <= tolerance
         assert violation.max() <= 10 * tolerance
-        # and the box has landed: it no longer moves into the floor, nor spins about a level axis
-        assert result.normal_impulse.sum() == pytest.approx(MASS * 1.0, rel=0.3)
+    # whatever the sweeps reached, the vertical momentum changed by the normal impulses the solve reports (no
+    # friction, the floor fixed): the reported impulses are the ones applied
+    assert result.normal_impulse.sum() == pytest.approx(MASS * (bodies.v[0, 1] - falling), rel=1e-9)
 
 
 BOXES = """\
