@@ -14,7 +14,8 @@ that installs it.
 Cases (issue 36's targets: the chain ≤ 5× MuJoCo's time, the bar ≤ 0.5 s, the double pendulum ≤ 1 s, the pile
 ≤ 20× MuJoCo's time per step, the ragdoll ≤ 10 s for 4 s):
 
-* a chain of 20 bars (10 cm, 0.1 kg) on hinges, released from the horizontal, 5 s at dt 1 ms;
+* a chain of 20 bars (10 cm, 0.1 kg) on hinges, released from the horizontal, 5 s at dt 1 ms, by velocity Verlet
+  and by semi-implicit Euler (MuJoCo's anchor's own method);
 * one bar (1 m) on a hinge, released 60° from the vertical, 12 000 steps of 1 ms: its period against
   ``T = 4 √(I / (m g d)) K(sin²(θ₀/2))``;
 * a double pendulum of point masses (1 kg and 0.5 kg on rods of 1 m and 0.8 m), 10 s: DOP853 at rtol 1e-8 here, RK4
@@ -166,17 +167,26 @@ def _mujoco_run(xml: str, steps: int, record: Callable[[Any, Any], Any] | None =
     return seconds, largest, records
 
 
-def case_chain(quick: bool) -> tuple[str, Outcome, Outcome, list[tuple[str, Outcome]]]:
+def _chain_case(quick: bool, method: str) -> tuple[str, Outcome, Outcome, list[tuple[str, Outcome]]]:
     duration = 1.0 if quick else 5.0
     steps = int(round(duration / 1e-3))
-    seconds, result, model, _ = _run(chain_scene(duration=duration))
+    seconds, result, model, _ = _run(chain_scene(duration=duration, method=method))
     ours = Outcome(seconds, f"joints {_joint_gap(model, result.states):.1g} m, energy ±"
                             f"{_energy_drift(model, result.states):.2g} J")
     theirs = []
     for integrator in ("Euler", "RK4"):
         mj_seconds, drift, _ = _mujoco_run(chain_mjcf(integrator=integrator), steps)
         theirs.append((integrator, Outcome(mj_seconds, f"joints exact, energy ±{drift:.2g} J")))
-    return f"20-bar hinge chain, {duration:g} s at 1 ms (verlet)", ours, theirs[0][1], theirs
+    return f"20-bar hinge chain, {duration:g} s at 1 ms ({method})", ours, theirs[0][1], theirs
+
+
+def case_chain(quick: bool) -> tuple[str, Outcome, Outcome, list[tuple[str, Outcome]]]:
+    return _chain_case(quick, "verlet")
+
+
+def case_chain_euler(quick: bool) -> tuple[str, Outcome, Outcome, list[tuple[str, Outcome]]]:
+    """The chain by the method MuJoCo's anchor uses: semi-implicit (symplectic) Euler on both sides."""
+    return _chain_case(quick, "symplectic_euler")
 
 
 # ------------------------------------------------------------------------------------------ the hinged bar
@@ -450,7 +460,7 @@ def ragdoll_mjcf(dt: float = 1e-3) -> str:
             f"{stairs}{body}</worldbody><keyframe><key qvel=\"1.4 0 0 0 1.2 0{' 0' * 22}\"/></keyframe></mujoco>")
 
 
-CASES = (case_chain, case_bar, case_double_pendulum, case_pile, case_ragdoll)
+CASES = (case_chain, case_chain_euler, case_bar, case_double_pendulum, case_pile, case_ragdoll)
 
 
 def bench_peers(quick: bool) -> list[Row]:

@@ -32,7 +32,8 @@ class EquationsOfMotion(Protocol):
 
     def drift(self, config: np.ndarray, motion: np.ndarray, h: float) -> None: ...
 
-    def project(self, y: np.ndarray, *, joints: bool = True, t: float = 0.0) -> None: ...
+    def project(self, y: np.ndarray, *, joints: bool = True, t: float = 0.0, start: np.ndarray | None = None,
+                step: float = 0.0) -> None: ...
 
 
 class StepSettings(Protocol):

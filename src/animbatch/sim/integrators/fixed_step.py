@@ -176,10 +176,11 @@ def kick_constrain_drift(scheme: SymplecticEuler | Any, t: float, y: np.ndarray,
     """One step of a one-kick scheme (symplectic or backward Euler): kick, constraints (contacts), drift."""
     system = scheme.system
     config, motion = system.split(y)
+    start = config.copy()  # the joints' SHAKE projection moves along their rows here
     scheme.kick(t, config, motion, h)
     drifting = scheme.constraint.resolve(config, motion, h, t=t) if scheme.constraint is not None else None
     system.drift(config, motion if drifting is None else drifting, h)
-    system.project(y, t=t + h)
+    system.project(y, t=t + h, start=start, step=h)
 
 
 class VelocityVerlet(PartitionedScheme):

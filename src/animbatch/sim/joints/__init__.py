@@ -12,10 +12,14 @@ exact by construction, but cannot close a loop and would need a second state lay
   ``C̈ + 2 ω Ċ + ω² C = 0``: the drift that integration error feeds into C decays in ~1/ω instead of growing.
   ``a_free`` includes the torque-free ``−I⁻¹ (ω × L)`` of spinning bodies.
 * **Fixed-step methods** take the same forces in their kicks, and after every step the state is projected back
-  onto the constraints (as SHAKE and RATTLE do): positions and orientations by Gauss–Newton steps
-  ``Δ = −M⁻¹ Jᵀ (J M⁻¹ Jᵀ)⁻¹ C`` until |C| is below a nanometre-scale tolerance, then velocities by the impulse
-  ``Δu = −M⁻¹ Jᵀ (J M⁻¹ Jᵀ)⁻¹ J u``. The projection is orthogonal in the mass metric, so it never adds kinetic
-  energy.
+  onto the constraints: positions and orientations by Gauss–Newton steps ``Δ = −M⁻¹ Jᵀ (J M⁻¹ Jᵀ)⁻¹ C`` until |C|
+  is below a nanometre-scale tolerance, then velocities by the impulse ``Δu = −M⁻¹ Jᵀ (J M⁻¹ Jᵀ)⁻¹ J u``
+  (orthogonal in the mass metric). After a one-kick step (symplectic and backward Euler) the position steps are
+  SHAKE's instead: along the rows at the step's start, ``Δ = −M⁻¹ J₀ᵀ (J₀ M⁻¹ J₀ᵀ)⁻¹ C`` (chord steps on the
+  coupling the kick was solved with), and the momenta change by the same impulse over the step, ``Δp = J₀ᵀ λ / h``:
+  the state the step would have reached with that impulse in its kick. Moving the positions alone, the drift's
+  centripetal error (about ½ h² ω² r outwards) was taken out of the positions but not of the velocities, which
+  kept the speed the kick had given: (h ω)² of the kinetic energy gained at every step, without bound.
 * **Unilateral rows** (limits, ropes) take part only while they are reached (C ≤ 0) and only while they push
   (λ ≥ 0): the rows that would pull are dropped and the rest solved again (an active set). Reaching a limit is an
   inelastic stop: fixed-step methods remove the approaching velocity in the projection; adaptive ones stop it
@@ -61,6 +65,9 @@ PROJECTION_ITERATIONS = 8
 #: barely turn over a step's correction) while the steps cut the violation to at most this fraction; else it
 #: factors again at the current positions. Bilateral rows only (a unilateral row's activity may change).
 CHORD_CONTRACTION = 0.01
+#: A SHAKE step's chord steps (on the coupling at the step's start, whose rows have turned by the step's rotation
+#: h ω since: each cuts the violation by about that fraction) go on while each at least halves the violation.
+SHAKE_CONTRACTION = 0.5
 #: At most this many passes of dropping unilateral rows that would pull.
 ACTIVE_SET_PASSES = 4
 
@@ -368,12 +375,21 @@ class Joints:
         return sp.csr_matrix((data, (where, indices)), shape=(len(bodies), 6 * size))
 
     def project(self, positions: np.ndarray, orientations: np.ndarray | None, linear: np.ndarray,
-                angular_momentum: np.ndarray | None, *, reach: float = 0.0, t: float = 0.0) -> None:
+                angular_momentum: np.ndarray | None, *, reach: float = 0.0, t: float = 0.0,
+                start: tuple[np.ndarray, np.ndarray | None] | None = None, step: float = 0.0) -> None:
         """Move a state back onto the joints, in place (see the module notes): ``positions`` (P, 3) [m] of all
         bodies, rigid ``orientations`` (B, 4), ``linear`` (P, 3): particles' velocities [m/s] then rigid momenta
         [kg·m/s], rigid ``angular_momentum`` (B, 3) [kg·m²/s], world axes. Unilateral rows within ``reach`` [m or
         rad] of their stops count as reached (their approaching velocity is removed). ``t`` [s]: the state's time
-        (where moving anchors are)."""
+        (where moving anchors are).
+
+        ``start`` (the positions (P, 3) and orientations (B, 4) at the start of a one-kick step of ``step`` [s]:
+        symplectic or backward Euler) makes the position correction a SHAKE step: it moves the bodies along the
+        rows' directions at the step's start, and the same impulse (divided by ``step``) changes the momenta, so
+        the state is the one the step's drift would have reached with that impulse in its kick. Without it the
+        positions move and the velocities stay, which gains kinetic energy at every step on a turning joint (about
+        (h ω)² of it), so that a pendulum's energy grew without bound. Unilateral rows (limits, ropes) at their
+        stops are then taken by the plain projection, whose stop is inelastic anyway."""
         count = len(self.points)
         rigid = self._cache["rigid"]
         index = self.points[rigid] - self.first_rigid
@@ -385,26 +401,67 @@ class Joints:
 
         slots = self.world + 1
 
-        def current() -> JoinedMotion:
+        def joined(places: np.ndarray, turns: np.ndarray | None, at: float) -> JoinedMotion:
             x = np.zeros((slots, 3))
             v = np.zeros((slots, 3))
-            x[:count] = positions[self.points]
+            x[:count] = places[self.points]
             v[:count] = linear[self.points] / mass_of_linear[:, None]
-            self._anchors_at(x, v, t)
+            self._anchors_at(x, v, at)
             rotation = np.broadcast_to(np.eye(3), (slots, 3, 3)).copy()
             omega = np.zeros((slots, 3))
             if len(rigid):
-                assert orientations is not None and angular_momentum is not None
-                rotation[rigid] = quaternion.to_matrix(orientations[index])
+                assert turns is not None and angular_momentum is not None
+                rotation[rigid] = quaternion.to_matrix(turns[index])
                 turn = rotation[rigid]
                 inverse = turn @ self.inverse_inertia[rigid] @ np.transpose(turn, (0, 2, 1))
                 omega[rigid] = np.einsum("kij,kj->ki", inverse, angular_momentum[index])
             return self._motion(x, v, rotation, omega)
 
+        def current() -> JoinedMotion:
+            return joined(positions, orientations, t)
+
+        def move(rows: Rows, motion: JoinedMotion, multipliers: np.ndarray, impulse_time: float) -> None:
+            """Move the bodies by ``M⁻¹ Jᵀ λ`` (the rows' Jacobian and the masses of ``motion``), and with an
+            ``impulse_time`` > 0 change the momenta by ``Jᵀ λ / impulse_time``."""
+            force, torque = apply_transpose(rows, bodies, multipliers, slots)
+            positions[self.points] += force[:count] * motion.inverse_mass[:count, None]
+            if impulse_time > 0:
+                linear[self.points] += force[:count] * (mass_of_linear * motion.inverse_mass[:count])[:, None] \
+                    / impulse_time
+            if len(rigid):
+                assert orientations is not None
+                turn = np.einsum("kij,kj->ki", motion.inverse_inertia[rigid], torque[rigid])
+                orientations[index] = quaternion.normalized(
+                    quaternion.multiply(quaternion.from_rotation_vector(turn), orientations[index]))
+                if impulse_time > 0:
+                    assert angular_momentum is not None
+                    angular_momentum[index] += torque[rigid] / impulse_time
+
         tolerance = PROJECTION_TOLERANCE * max(self.scale, 1.0)
         settled = None  # the motion and rows at the final positions, once they hold (the velocities are unchanged)
+        if start is not None and step > 0:
+            # SHAKE: chord steps on the coupling at the step's start (the matrix its kick's forces were solved
+            # with), each moving positions and momenta together, over the bilateral rows; the plain steps below
+            # take limits and ropes at their stops, and finish if these stall
+            bilateral = ~unilateral
+            begun = joined(start[0], start[1], t - step)
+            begun_rows = self.rows(begun)
+            begun_factored = coupling.factored(begun_rows, begun, bilateral if unilateral.any() else None)
+            previous = np.inf
+            for _ in range(PROJECTION_ITERATIONS):
+                motion = current()
+                rows = self.rows(motion)
+                largest = np.max(np.abs(np.where(bilateral, rows.violation, 0.0)), initial=0.0)
+                if largest <= tolerance:
+                    if not unilateral.any():
+                        settled = motion, rows
+                    break
+                if largest > SHAKE_CONTRACTION * previous:
+                    break  # not contracting: the plain projection takes over from here
+                previous = largest
+                move(begun_rows, begun, begun_factored.solve(-rows.violation), step)
         factored, previous = None, np.inf  # the last factorisation, and the violation it was last used at
-        for _ in range(PROJECTION_ITERATIONS):
+        for _ in range(PROJECTION_ITERATIONS if settled is None else 0):
             motion = current()
             rows = self.rows(motion)
             violated = ~unilateral | (rows.violation < 0)
@@ -415,14 +472,7 @@ class Joints:
             if factored is None or unilateral.any() or largest > CHORD_CONTRACTION * previous:
                 factored = coupling.factored(rows, motion, violated if unilateral.any() else None)
             previous = largest
-            step = factored.solve(-rows.violation)
-            force, torque = apply_transpose(rows, bodies, step, slots)
-            positions[self.points] += force[:count] * motion.inverse_mass[:count, None]
-            if len(rigid):
-                assert orientations is not None
-                turn = np.einsum("kij,kj->ki", motion.inverse_inertia[rigid], torque[rigid])
-                orientations[index] = quaternion.normalized(
-                    quaternion.multiply(quaternion.from_rotation_vector(turn), orientations[index]))
+            move(rows, motion, factored.solve(-rows.violation), 0.0)
         if settled is not None:
             motion, rows = settled
         else:

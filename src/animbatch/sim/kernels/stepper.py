@@ -31,6 +31,7 @@ PROJECTION_ITERATIONS = 8
 PROJECTION_TOLERANCE = 1e-13
 ACTIVE_SET_PASSES = 4
 CHORD_CONTRACTION = 0.01
+SHAKE_CONTRACTION = 0.5
 
 
 @njit(cache=True, error_model="numpy")
@@ -275,14 +276,45 @@ def _projection_motion(floats: np.ndarray, integers: np.ndarray, layout: np.ndar
 
 
 @njit(cache=True, error_model="numpy")
+def _move(integers: np.ndarray, layout: np.ndarray, inverse_mass: np.ndarray, row_bodies: np.ndarray,
+          jac: np.ndarray, sinverse_inertia: np.ndarray, multipliers: np.ndarray, mass_of_linear: np.ndarray,
+          impulse_time: float, positions: np.ndarray, orientations: np.ndarray, linear: np.ndarray,
+          angular_momentum: np.ndarray, joint_force: np.ndarray, joint_torque: np.ndarray) -> None:
+    """Move the bodies by ``M⁻¹ Jᵀ λ`` (rows ``jac``, slots' world ``sinverse_inertia``), and with an
+    ``impulse_time`` [s] > 0 change the momenta by ``Jᵀ λ / impulse_time`` (``move`` of ``Joints.project``)."""
+    points = column(integers, layout, T.JOINT_POINTS)
+    slot_rigid = column(integers, layout, T.SLOT_RIGID)
+    joint_rows.apply_transpose(row_bodies, jac, multipliers, joint_force, joint_torque)
+    for s in range(len(points)):
+        for c in range(3):
+            positions[points[s], c] += joint_force[s, c] * inverse_mass[s]
+        if impulse_time > 0:
+            scale = mass_of_linear[s] * inverse_mass[s]
+            for c in range(3):
+                linear[points[s], c] += joint_force[s, c] * scale / impulse_time
+        k = slot_rigid[s]
+        if k >= 0:
+            q = orientations[k]
+            rigid_motion.turn_quaternion(q, rigid_motion.rotate(sinverse_inertia[s],
+                                                                rigid_motion.vector(joint_torque, s)))
+            rigid_motion.normalise(q)
+            if impulse_time > 0:
+                for c in range(3):
+                    angular_momentum[k, c] += joint_torque[s, c] / impulse_time
+
+
+@njit(cache=True, error_model="numpy")
 def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, cache: np.ndarray,
                    positions: np.ndarray,
                    orientations: np.ndarray, linear: np.ndarray, angular_momentum: np.ndarray, reach: float,
-                   t: float) -> None:
+                   t: float, start_positions: np.ndarray, start_orientations: np.ndarray, step: float) -> None:
     """Move a state back onto the joints, in place (``Joints.project``): ``positions`` (P, 3) [m], ``orientations``
     (B, 4), ``linear`` (P, 3) (particles' velocities, then rigid momenta), ``angular_momentum`` (B, 3); first the
     positions by Gauss–Newton steps ``Δ = −M⁻¹ Jᵀ (J M⁻¹ Jᵀ)⁻¹ C``, then the velocities by the impulse that takes
-    out ``J u`` (unilateral rows within ``reach`` [m or rad] of their stops lose only an approaching rate)."""
+    out ``J u`` (unilateral rows within ``reach`` [m or rad] of their stops lose only an approaching rate). With a
+    ``step`` [s] > 0, the positions (P, 3) and orientations (B, 4) at the start of that one-kick step make the
+    position correction a SHAKE step first: chord steps along the rows at the start, the momenta changed by the
+    same impulse over the step."""
     points = column(integers, layout, T.JOINT_POINTS)
     slot_rigid = column(integers, layout, T.SLOT_RIGID)
     inverse_mass = column(floats, layout, T.SLOT_INVERSE_MASS)
@@ -303,10 +335,39 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
     jac = np.empty((rows, 2, 6))
     joint_force, joint_torque = np.empty((slots, 3)), np.empty((slots, 3))
     active = np.ones(rows, np.bool_)
-    right, step = np.empty(rows), np.empty(rows)
+    right, multipliers = np.empty(rows), np.empty(rows)
     settled = False
+    if step > 0:  # SHAKE over the bilateral rows; the plain steps below take limits and ropes at their stops
+        for r in range(rows):
+            active[r] = unilateral[r] == 0
+        bsx, bsv, bsomega = np.empty((slots, 3)), np.empty((slots, 3)), np.empty((slots, 3))
+        bsrotation, bsinverse_inertia = np.empty((slots, 3, 3)), np.empty((slots, 3, 3))
+        bviolation, bbias, bjac = np.empty(rows), np.empty(rows), np.empty((rows, 2, 6))
+        _projection_motion(floats, integers, layout, start_positions, start_orientations, linear, angular_momentum,
+                           mass_of_linear, t - step, bsx, bsv, bsrotation, bsomega, bsinverse_inertia)
+        joint_rows.rows(floats, integers, layout, bsx, bsv, bsrotation, bsomega, bviolation, bjac, bbias)
+        previous = np.inf
+        for _ in range(PROJECTION_ITERATIONS):
+            _projection_motion(floats, integers, layout, positions, orientations, linear, angular_momentum,
+                               mass_of_linear, t, sx, sv, srotation, somega, sinverse_inertia)
+            joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, jac, bias)
+            largest = 0.0
+            for r in range(rows):
+                if active[r]:
+                    largest = max(largest, abs(violation[r]))
+                right[r] = -violation[r]
+            if largest <= tolerance:
+                settled = not any_unilateral
+                break
+            if largest > SHAKE_CONTRACTION * previous:
+                break
+            previous = largest
+            _solve(integers, layout, cache, bsx, bsrotation, row_bodies, bjac, inverse_mass, bsinverse_inertia,
+                   active, right, multipliers)
+            _move(integers, layout, inverse_mass, row_bodies, bjac, bsinverse_inertia, multipliers, mass_of_linear,
+                  step, positions, orientations, linear, angular_momentum, joint_force, joint_torque)
     factored, previous = False, np.inf  # a factorisation made here, and the violation it was last used at
-    for _ in range(PROJECTION_ITERATIONS):
+    for _ in range(0 if settled else PROJECTION_ITERATIONS):
         _projection_motion(floats, integers, layout, positions, orientations, linear, angular_momentum,
                            mass_of_linear, t, sx, sv, srotation, somega, sinverse_inertia)
         joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, jac, bias)
@@ -323,21 +384,13 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
             active[:] = True
         if not factored or any_unilateral or largest > CHORD_CONTRACTION * previous:
             _solve(integers, layout, cache, sx, srotation, row_bodies, jac, inverse_mass, sinverse_inertia, active,
-                   right, step)
+                   right, multipliers)
             factored = True
         else:
-            _solve_factored(integers, layout, cache, slots, right, step)
+            _solve_factored(integers, layout, cache, slots, right, multipliers)
         previous = largest
-        joint_rows.apply_transpose(row_bodies, jac, step, joint_force, joint_torque)
-        for s in range(count):
-            for c in range(3):
-                positions[points[s], c] += joint_force[s, c] * inverse_mass[s]
-            k = slot_rigid[s]
-            if k >= 0:
-                q = orientations[k]
-                rigid_motion.turn_quaternion(q, rigid_motion.rotate(sinverse_inertia[s],
-                                                                    rigid_motion.vector(joint_torque, s)))
-                rigid_motion.normalise(q)
+        _move(integers, layout, inverse_mass, row_bodies, jac, sinverse_inertia, multipliers, mass_of_linear, 0.0,
+              positions, orientations, linear, angular_momentum, joint_force, joint_torque)
     if not settled:
         _projection_motion(floats, integers, layout, positions, orientations, linear, angular_momentum,
                            mass_of_linear, t, sx, sv, srotation, somega, sinverse_inertia)
@@ -431,9 +484,10 @@ def project_velocities(t: float, floats: np.ndarray, integers: np.ndarray, layou
 
 @njit(cache=True, error_model="numpy")
 def project(y: np.ndarray, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray, cache: np.ndarray,
-            config_size: int,
-            reach: float, t: float) -> None:
-    """``Dynamics.project`` of a state (n,) in place: back onto the joints, then the quaternions re-normalised."""
+            config_size: int, reach: float, t: float, start: np.ndarray, step: float) -> None:
+    """``Dynamics.project`` of a state (n,) in place: back onto the joints, then the quaternions re-normalised;
+    ``start``: the configuration at the start of a one-kick step of ``step`` [s] > 0 (a SHAKE projection), or
+    empty."""
     n, b = rows_of(layout, T.PARTICLE_INVERSE_MASS), rows_of(layout, T.RIGID_INVERSE_MASS)
     if rows_of(layout, T.ROW_BODIES):
         points = n + b
@@ -441,7 +495,10 @@ def project(y: np.ndarray, floats: np.ndarray, integers: np.ndarray, layout: np.
         orientations = y[3 * points: 3 * points + 4 * b].reshape((b, 4))
         linear = y[config_size: config_size + 3 * points].reshape((points, 3))
         angular_momentum = y[config_size + 3 * points:].reshape((b, 3))
-        project_joints(floats, integers, layout, cache, positions, orientations, linear, angular_momentum, reach, t)
+        begun = start if len(start) else y[:config_size]
+        project_joints(floats, integers, layout, cache, positions, orientations, linear, angular_momentum, reach, t,
+                       begun[: 3 * points].reshape((points, 3)),
+                       begun[3 * points: 3 * points + 4 * b].reshape((b, 4)), step if len(start) else 0.0 * step)
     rigid_motion.normalise_quaternions(y, layout)
 
 
@@ -460,6 +517,7 @@ def advance(y: np.ndarray, t: float, h: float, steps: int, form: int, a: np.ndar
     # computed, not written as constants: numba compiles a function once more for each constant argument it is
     # called with (a literal False or 0.0), and these functions are the largest
     unused, no_stabilisation = steps < 0, 0.0 * h
+    no_start = np.empty(0)  # the projection after a step of Runge–Kutta or Verlet is not SHAKE's
     evaluations = 0
     config, motion = y[:config_size], y[config_size:]
     if form == FORM_RUNGE_KUTTA:
@@ -482,17 +540,20 @@ def advance(y: np.ndarray, t: float, h: float, steps: int, form: int, a: np.ndar
                 if weights[i] != 0.0:
                     for m in range(size):
                         y[m] += (h * weights[i]) * k[i, m]
-            project(y, floats, integers, layout, cache, config_size, no_stabilisation, now + h)
+            project(y, floats, integers, layout, cache, config_size, no_stabilisation, now + h, no_start,
+                    no_stabilisation)
     elif form == FORM_SYMPLECTIC_EULER:
         kick = np.empty(len(motion))
+        start = np.empty(config_size)
         for step in range(steps):
             now = t + step * h
+            start[:] = config
             motion_rate(now, config, motion, floats, integers, layout, cache, engaged, unused, no_stabilisation, kick)
             evaluations += 1
             for m in range(len(motion)):
                 motion[m] += kick[m] * h
             rigid_motion.drift(config, motion, h, floats, layout)
-            project(y, floats, integers, layout, cache, config_size, no_stabilisation, now + h)
+            project(y, floats, integers, layout, cache, config_size, no_stabilisation, now + h, start, h)
     else:
         predicted = np.empty(len(motion))
         following = np.empty(len(motion))
@@ -507,7 +568,8 @@ def advance(y: np.ndarray, t: float, h: float, steps: int, form: int, a: np.ndar
             evaluations += 1
             for m in range(len(motion)):
                 motion[m] += following[m] * (0.5 * h)
-            project(y, floats, integers, layout, cache, config_size, no_stabilisation, now + h)
+            project(y, floats, integers, layout, cache, config_size, no_stabilisation, now + h, no_start,
+                    no_stabilisation)
             for m in range(len(motion)):
                 rate[m] = following[m]
     return evaluations

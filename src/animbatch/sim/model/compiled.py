@@ -403,6 +403,7 @@ class CompiledDynamics(Dynamics):
         self._forms = {"runge_kutta": stepper.FORM_RUNGE_KUTTA, "symplectic_euler": stepper.FORM_SYMPLECTIC_EULER,
                        "verlet": stepper.FORM_VERLET}
         self._no_rows = np.zeros(0, bool)
+        self._no_start = np.zeros(0)  # no step's start: a plain projection (see Dynamics.project)
         # the kernels, by their entry points once called (named apart from Dynamics' own helpers)
         self._compiled_rhs, self._compiled_rate = _Entry(stepper.rhs), _Entry(stepper.motion_rate)
         self._compiled_drift, self._compiled_project = _Entry(rigid_motion.drift), _Entry(stepper.project)
@@ -433,11 +434,13 @@ class CompiledDynamics(Dynamics):
     def drift(self, config: np.ndarray, motion: np.ndarray, h: float) -> None:
         self._compiled_drift(config, np.ascontiguousarray(motion), float(h), self.tables.floats, self.tables.layout)
 
-    def project(self, y: np.ndarray, *, joints: bool = True, reach: float = 0.0, t: float = 0.0) -> None:
+    def project(self, y: np.ndarray, *, joints: bool = True, reach: float = 0.0, t: float = 0.0,
+                start: np.ndarray | None = None, step: float = 0.0) -> None:
         if not joints or y.ndim != 1:  # quaternions only (or many states at once): the numpy form is as quick
             super().project(y, joints=joints, reach=reach, t=t)
             return
-        self._compiled_project(y, *self._packed, self._config_size, float(reach), float(t))
+        begun = np.ascontiguousarray(start, dtype=float) if start is not None else self._no_start
+        self._compiled_project(y, *self._packed, self._config_size, float(reach), float(t), begun, float(step))
 
     @staticmethod
     def _placement(state: Kinematics) -> tuple[float, np.ndarray, np.ndarray]:

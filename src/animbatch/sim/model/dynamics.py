@@ -264,12 +264,15 @@ class Dynamics:
         assert self.joints is not None
         return self.joints.velocity_rows(state, size)
 
-    def project(self, y: np.ndarray, *, joints: bool = True, reach: float = 0.0, t: float = 0.0) -> None:
+    def project(self, y: np.ndarray, *, joints: bool = True, reach: float = 0.0, t: float = 0.0,
+                start: np.ndarray | None = None, step: float = 0.0) -> None:
         """Re-normalise the quaternions of a state (…, n) in place, and with ``joints`` put the bodies on keyframes
         where their paths say and move a state (n,) back onto its joints: the start of every run, fixed-step
         methods after every step, adaptive ones only where a limit or rope reaches its stop (within ``reach`` [m or
         rad]); between those, adaptive methods keep to the joints by Baumgarte stabilisation, so that their outputs
-        show their true drift. ``t`` [s]: the state's time (where anchors and bodies on keyframes are)."""
+        show their true drift. ``t`` [s]: the state's time (where anchors and bodies on keyframes are). ``start``:
+        the configuration (the state's first part) at the start of a one-kick step of ``step`` [s] that led here,
+        for a SHAKE projection (:meth:`animbatch.sim.joints.Joints.project`)."""
         if joints and self.model.kinematic is not None and y.ndim == 1:
             self.model.prescribe(y, t)  # a step integrated them as free bodies: their paths overrule it
         if joints and self.joints is not None and y.ndim == 1:
@@ -277,8 +280,13 @@ class Dynamics:
             points = self.particles + self.rigid  # positions, and velocities then momenta, are contiguous
             rigid = (config[3 * points: 3 * points + 4 * self.rigid].reshape(-1, 4),
                      motion[3 * points:].reshape(-1, 3)) if self.rigid else (None, None)
+            begun = None
+            if start is not None:
+                begun = (start[: 3 * points].reshape(points, 3),
+                         start[3 * points: 3 * points + 4 * self.rigid].reshape(-1, 4) if self.rigid else None)
             self.joints.project(config[: 3 * points].reshape(points, 3), rigid[0],
-                                motion[: 3 * points].reshape(points, 3), rigid[1], reach=reach, t=t)
+                                motion[: 3 * points].reshape(points, 3), rigid[1], reach=reach, t=t, start=begun,
+                                step=step)
         if self.rigid:
             block = self.model.layout.block("rigid_orientation")
             q = y[..., block.span].reshape(*y.shape[:-1], self.rigid, 4)
