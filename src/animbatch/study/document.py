@@ -94,14 +94,15 @@ What the studies above show, as a rule of thumb (the tables give the numbers):
   reference; no fixed-step method reaches 1e-3 on the chain at dt ≥ frame/32. The motion of a loose run is still
   plausible, just not the same motion: choose by what the animation must show.
 - **Jointed scenes** (the double pendulum on two rods): every method holds the rods (they are projected), so the
-  error is in the motion, and chaos multiplies it. A high-order adaptive method is the tool: **DOP853** reaches 1e-3
-  first and **LSODA** 1e-6. Of the fixed steps only **verlet** converges at its order (1e-3 at about frame/16);
-  symplectic Euler with projected rods gains energy at steps of a quarter frame or more (the guard stops it) and
-  stays at the motion's scale below that, and **backward_euler** takes the very same steps here: with no springs its
-  linear system holds the masses alone, and the rods act explicitly and are projected, as for symplectic Euler. On
-  the compiled equations of motion a fixed step and its projection cost little: verlet reaches 1e-3 in tens of
-  milliseconds, within a factor two of DOP853; backward Euler, which has no compiled form, takes its same steps
-  some forty times slower.
+  error is in the motion, and chaos multiplies it. For tight errors a high-order adaptive method is the tool:
+  **LSODA** reaches 1e-6 first. Of the fixed steps **verlet** converges at its order (1e-3 at about frame/16), and
+  on the compiled equations of motion a fixed step and its projection cost so little that it reaches 1e-3 in tens
+  of milliseconds, as soon as DOP853. **symplectic_euler**, whose rods are projected by SHAKE after each step
+  (positions and momenta together), converges at first order and reaches 1e-3 at about frame/32; projecting the
+  positions alone, as it did before, gained energy at every step, and none of its runs got there.
+  **backward_euler** takes the very same steps here (with no springs its linear system holds the masses alone, and
+  the rods act explicitly and are projected as for symplectic Euler), tens of times slower: it has no compiled
+  form.
 - **Contact piles** (twelve bodies dropped into a bin): the motion is chaotic from the first impacts. Halving the
   reference's own step moves the pile by a tenth of its size within a second, so no run can be measured closer than
   that, and none differs from the reference by much more: every fixed step, from one per frame to 1 ms, is 9-15 %
