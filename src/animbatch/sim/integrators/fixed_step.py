@@ -180,7 +180,9 @@ def kick_constrain_drift(scheme: SymplecticEuler | Any, t: float, y: np.ndarray,
     scheme.kick(t, config, motion, h)
     drifting = scheme.constraint.resolve(config, motion, h, t=t) if scheme.constraint is not None else None
     system.drift(config, motion if drifting is None else drifting, h)
-    system.project(y, t=t + h, start=start, step=h)
+    # SHAKE turns the joints' correction into momentum, as the drift's own doing; a push out of an overlap (the
+    # contacts' pseudo-velocities) moved the positions beyond it and must not become motion: a plain projection
+    system.project(y, t=t + h, start=start if drifting is None else None, step=h)
 
 
 class VelocityVerlet(PartitionedScheme):
