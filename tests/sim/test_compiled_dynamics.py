@@ -357,6 +357,17 @@ def test_a_frame_of_symplectic_euler_steps_with_shake_is_the_numpy_schemes(name)
     _close(*results)
 
 
+def test_the_projection_settings_are_the_numpy_ones():
+    """The kernels keep their own copies of the projection's settings (a constant imported from the numpy side
+    would be frozen into numba's cache, which only the kernels' own sources key): each must equal the numpy one."""
+    from animbatch.sim import joints
+    from animbatch.sim.kernels import stepper
+
+    for name in ("PROJECTION_ITERATIONS", "PROJECTION_TOLERANCE", "ACTIVE_SET_PASSES", "CHORD_CONTRACTION",
+                 "SHAKE_CONTRACTION"):
+        assert getattr(stepper, name) == getattr(joints, name), name
+
+
 def test_a_wrong_table_is_caught():
     """The comparison is sharp: a joint offset moved by a tenth of a millimetre in the tables shows."""
     model = _model("ball joints and a weld")
