@@ -109,3 +109,127 @@ def test_bodies_joined_directly_or_through_others_share_a_group():
     assert labels[0] == labels[1] == labels[2] and labels[3] == labels[4]
     assert len({labels[0], labels[3], labels[5], labels[6]}) == 4
     assert np.array_equal(response.groups(size), labels)  # kept: the same labels from the cache
+
+
+def test_the_block_inverse_is_the_inverse_mass_matrix():
+    """``BlockInverse @ columns`` (a small jointed system's M⁻¹) is the sparse inverse mass matrix's product, body
+    by body: particles (no inertia), rigid bodies, a massless moving collider and the fixed body."""
+    from animbatch.sim.contact.jointed import BlockInverse
+    from animbatch.sim.contact.solver import BodyVelocities, inverse_mass_matrix
+
+    rng = np.random.default_rng(8)
+    count = 6
+    inverse_inertia = np.zeros((count, 3, 3))
+    for body in (1, 2, 3):
+        a = rng.normal(size=(3, 3))
+        inverse_inertia[body] = np.linalg.inv(a @ a.T + np.eye(3))
+    inverse_mass = np.array([2.0, 0.5, 1.5, 3.0, 0.0, 0.0])
+    columns = rng.normal(size=(6 * count, 5))
+    expected = inverse_mass_matrix(BodyVelocities(np.zeros((count, 3)), np.zeros((count, 3)), inverse_mass,
+                                                  inverse_inertia)) @ columns
+    np.testing.assert_allclose(BlockInverse(inverse_mass, inverse_inertia) @ columns, expected, rtol=1e-14,
+                               atol=1e-15)
+
+
+@pytest.mark.slow
+def test_a_small_jointed_systems_rows_are_the_piecewise_ones(monkeypatch):
+    """Every contact step of a jointed scene small enough for arrays (a plank under a weight on a hinge, a
+    ball-jointed pair tumbling onto it, a particle on a rod to the plank, and a platform on keyframes under them):
+    the rows built at once (``ContactRows._small_jointed``) are the ones built piece by piece as for large systems:
+    the Jacobians, the responses within the joints and the effective masses."""
+    from animbatch import api
+    from animbatch.sim.contact import solver
+    from conftest import scene
+
+    text = """
+        duration: 0.5
+        fps: 10
+        solver: {method: symplectic_euler, dt: 0.001}
+        bodies:
+          - {name: plank, type: rigid, shape: {type: box, size: [0.6, 0.04, 0.2]}, density: 300, position: [0, 0.1, 0]}
+          - {name: weight, type: rigid, shape: {type: sphere, radius: 0.08}, density: 8000, position: [0.25, 0.38, 0]}
+          - {name: upper, type: rigid, shape: {type: capsule, radius: 0.03, length: 0.2}, density: 900,
+             position: [-0.1, 0.38, 0.05], angular_velocity: [1, 0, 2]}
+          - {name: lower, type: rigid, shape: {type: capsule, radius: 0.03, length: 0.2}, density: 900,
+             position: [-0.1, 0.18, 0.05]}
+          - {name: bead, mass: 0.05, radius: 0.02, position: [-0.25, 0.3, -0.05], velocity: [0, 0, 0.5]}
+        joints:
+          - {type: hinge, between: [weight, plank], anchor: [0.25, 0.12, 0], axis: [0, 0, 1]}
+          - {type: ball, between: [upper, lower], anchor: [-0.1, 0.28, 0.05]}
+          - {type: distance, between: [bead, plank], attach: [null, [-0.25, 0.0, -0.05]]}
+        colliders:
+          - {type: plane}
+          - type: box
+            position: [0, 0.04, 0]
+            size: [1.2, 0.08, 0.8]
+            keyframes: [{time: 0, offset: [0, 0, 0]}, {time: 0.5, offset: [0.1, 0, 0]}]
+        fields: [{type: gravity}]
+    """
+    original, checked = solver.ContactRows._small_jointed, []
+
+    def compared(rows, jointed):
+        original(rows, jointed)
+        directions = (rows.normal_row, rows.first_row, rows.second_row)
+        expected = {"_jacobian_normal": rows._sparse(directions[:1], response=False),
+                    "_jacobian_tangent": rows._sparse(directions[1:], response=False),
+                    "_response_normal": jointed.correct(rows._sparse(directions[:1], response=True)),
+                    "_response_tangent": jointed.correct(rows._sparse(directions[1:], response=True))}
+        for name, matrix in expected.items():
+            scale = max(1.0, float(np.abs(matrix).max()))
+            np.testing.assert_allclose(rows.__dict__[name], matrix, rtol=0, atol=1e-12 * scale, err_msg=name)
+        losses = rows._jointed_losses(directions, jointed)
+        for found, row, lost in zip((rows.w_n, rows.w_1, rows.w_2), directions, losses):
+            np.testing.assert_allclose(found, rows._jointed_weight(row, jointed, *lost), rtol=1e-9)
+        checked.append((rows.count, bool(np.any(rows.bodies.driven[rows.b])) if rows.bodies.driven is not None
+                        else False))
+
+    monkeypatch.setattr(solver.ContactRows, "_small_jointed", compared)
+    api.simulate(scene(text))
+    assert len(checked) > 100
+    assert any(count > 1 for count, _ in checked) and any(on_platform for _, on_platform in checked)
+
+
+def test_rows_between_two_bodies_of_one_jointed_group_are_the_piecewise_ones():
+    """Contacts whose two ends the joints tie together (a forearm on the torso: bodies 0 and 2, joined through 1),
+    beside contacts of a body of the group on a free body and on the fixed one: the rows built at once take the pair's
+    joint response together (``J K Jᵀ`` of both ends at once), as the piecewise build does."""
+    from animbatch.sim.contact.contacts import Contacts
+    from animbatch.sim.contact.jointed import BlockInverse
+    from animbatch.sim.contact.solver import BodyVelocities, ContactRows
+
+    rng = np.random.default_rng(11)
+    size = 5  # bodies 0, 1, 2 joined in a chain, body 3 free, the fixed body last
+    inverse_inertia = np.zeros((size, 3, 3))
+    for body in range(4):
+        a = rng.normal(size=(3, 3))
+        inverse_inertia[body] = np.linalg.inv(a @ a.T + np.eye(3))
+    inverse_mass = np.array([1.0, 0.4, 2.0, 0.7, 0.0])
+    bodies = BodyVelocities(rng.normal(size=(size, 3)), rng.normal(size=(size, 3)), inverse_mass, inverse_inertia)
+    x = rng.normal(size=(size, 3))
+    rows = np.zeros((6, 6 * size))  # three rows for each joint, on the linear and angular columns of its two bodies
+    for joint, (first, second) in enumerate(((0, 1), (1, 2))):
+        for body in (first, second):
+            for columns in (slice(3 * body, 3 * body + 3), slice(3 * (size + body), 3 * (size + body) + 3)):
+                rows[3 * joint:3 * joint + 3, columns] = rng.normal(size=(3, 3))
+    normal = rng.normal(size=(4, 3))
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    contacts = Contacts(np.array([0, 2, 1, 3]), np.array([2, 0, -1, 1]), rng.normal(size=(4, 3)), normal,
+                        np.zeros(4), np.full(4, 0.5), np.full(4, 0.6), np.full(4, 0.4), np.arange(4),
+                        np.zeros(4, np.intp), np.zeros(4, np.intp))
+    jointed = JointedResponse(rows, BlockInverse(inverse_mass, inverse_inertia))
+    built = ContactRows(contacts, bodies, x, jointed=jointed)
+    directions = (built.normal_row, built.first_row, built.second_row)
+    assert built.dense
+    np.testing.assert_allclose(built._response_normal, jointed.correct(built._sparse(directions[:1], response=True)),
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(built._response_tangent, jointed.correct(built._sparse(directions[1:], response=True)),
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(built._jacobian_normal, built._sparse(directions[:1], response=False), rtol=0,
+                               atol=1e-15)
+    losses = built._jointed_losses(directions, jointed)
+    for found, row, lost in zip((built.w_n, built.w_1, built.w_2), directions, losses):
+        np.testing.assert_allclose(found, built._jointed_weight(row, jointed, *lost), rtol=1e-10)
+    # and the pair's weight is the pair's own, 1 / (J K Jᵀ) of the normal row through both ends at once, split
+    # among the six contact ends on the group
+    jacobian = built._jacobian_normal[0]
+    assert built.w_n[0] == pytest.approx(1.0 / (6 * (jacobian @ built._response_normal[:, 0])), rel=1e-9)

@@ -69,22 +69,42 @@ GROUPS_KEPT = 16
 _GROUPS: dict[tuple[int, bytes], np.ndarray] = {}
 
 
-class JointedResponse:
-    """The joints' rows ``rows`` (R, 6N) and the inverse mass matrix ``inverse`` (6N, 6N), both over the flat
-    velocity of N bodies, and the factorised ``G M⁻¹ Gᵀ``."""
+class BlockInverse:
+    """The inverse mass matrix ``M⁻¹`` (6N, 6N) over the flat velocity ``V = [v.ravel(), ω.ravel()]`` of N bodies,
+    as its product with columns: ``inverse_mass`` (N,) [1/kg] on the linear part, ``inverse_inertia`` (N, 3, 3)
+    [1/(kg·m²)], world axes, on the angular part. (A small jointed system's products, without building the matrix.)"""
 
-    def __init__(self, rows: sp.csr_matrix, inverse: sp.spmatrix) -> None:
-        self.rows = rows.tocsr()
+    def __init__(self, inverse_mass: np.ndarray, inverse_inertia: np.ndarray) -> None:
+        self.inverse_mass = inverse_mass
+        self.inverse_inertia = inverse_inertia
+
+    def __matmul__(self, columns: np.ndarray) -> np.ndarray:
+        """``M⁻¹ columns`` for columns (6N, m)."""
+        count, width = len(self.inverse_mass), columns.shape[1]
+        linear = columns[:3 * count].reshape(count, 3, width) * self.inverse_mass[:, None, None]
+        angular = np.einsum("nij,njm->nim", self.inverse_inertia, columns[3 * count:].reshape(count, 3, width))
+        return np.concatenate([linear.reshape(3 * count, width), angular.reshape(3 * count, width)])
+
+
+class JointedResponse:
+    """The joints' rows ``rows`` (R, 6N; sparse, or an array for a small system) and the inverse mass matrix
+    ``inverse`` (6N, 6N; sparse, or a :class:`BlockInverse`), both over the flat velocity of N bodies, and the
+    factorised ``G M⁻¹ Gᵀ``."""
+
+    def __init__(self, rows: sp.csr_matrix | np.ndarray, inverse: sp.spmatrix | BlockInverse) -> None:
         self._groups: np.ndarray | None = None
+        self.count, self.columns = rows.shape
         # small systems: the same products on arrays, with no sparse form of M⁻¹ Gᵀ at all (see DENSE_COLUMNS)
-        self._dense = self.rows.shape[1] <= DENSE_COLUMNS
+        self._dense = self.columns <= DENSE_COLUMNS
         self._rows_array = self._push_array = None
+        self.rows: Any = None  # G as a sparse matrix, for large systems only
         self.push: Any = None  # M⁻¹ Gᵀ (6N, R) as a sparse matrix, for large systems only
         if self._dense:
-            self._rows_array = self.rows.toarray()
-            self._push_array = np.asarray(inverse @ self._rows_array.T)  # M⁻¹ Gᵀ (6N, R)
+            self._rows_array = _array(rows)
+            self._push_array = np.asarray(inverse @ np.ascontiguousarray(self._rows_array.T))  # M⁻¹ Gᵀ (6N, R)
             system: Any = self._rows_array @ self._push_array
         else:
+            self.rows = sp.csr_matrix(rows)
             self.push = (inverse @ self.rows.T).tocsc()
             system = self.rows @ self.push
         if system.shape[0] <= DENSE_ROWS:
@@ -101,11 +121,11 @@ class JointedResponse:
             touched = np.flatnonzero(np.any(rates != 0, axis=0))
             rates = rates[:, touched]
             return touched, rates, (np.asarray(self._solve(rates)) if len(touched)
-                                    else np.zeros((self.rows.shape[0], 0)))
+                                    else np.zeros((self.count, 0)))
         moved = sp.csc_matrix(self.rows @ response)
         touched = np.flatnonzero(np.diff(moved.indptr) > 0)
         if not len(touched):
-            return touched, np.zeros((self.rows.shape[0], 0)), np.zeros((self.rows.shape[0], 0))
+            return touched, np.zeros((self.count, 0)), np.zeros((self.count, 0))
         rates = moved[:, touched].toarray()
         return touched, rates, np.asarray(self._solve(rates))
 
@@ -125,6 +145,12 @@ class JointedResponse:
         return sp.csc_matrix(response - correction @ place)
 
     @property
+    def push_array(self) -> np.ndarray:
+        """``M⁻¹ Gᵀ`` (6N, R) of a small system (:attr:`dense`)."""
+        assert self._push_array is not None, "only small systems keep M⁻¹ Gᵀ as an array"
+        return self._push_array
+
+    @property
     def dense(self) -> bool:
         """Whether :meth:`lost` takes responses as arrays (small systems)."""
         return self._dense
@@ -142,10 +168,14 @@ class JointedResponse:
         has its own. (Asked for by every row direction and the normal block: found once, and kept across steps for
         the same joints, which a new response each step would otherwise find again.)"""
         if self._groups is None or len(self._groups) != size:
-            rows = self.rows
-            stored = rows.data != 0  # an entry stored as zero joins nothing
-            entries = np.repeat(np.arange(rows.shape[0]), np.diff(rows.indptr))[stored]  # each entry's row, sorted
-            body = (rows.indices[stored] % (3 * size)) // 3
+            if self._rows_array is not None:
+                entries, columns = np.nonzero(self._rows_array)  # each entry's row, sorted
+            else:
+                rows = self.rows
+                stored = rows.data != 0  # an entry stored as zero joins nothing
+                entries = np.repeat(np.arange(rows.shape[0]), np.diff(rows.indptr))[stored]
+                columns = rows.indices[stored]
+            body = (columns % (3 * size)) // 3
             # each body a row touches, linked to the first body that row touches
             _, first_entry, per_row = np.unique(entries, return_index=True, return_counts=True)
             links = np.stack([np.repeat(body[first_entry], per_row), body])

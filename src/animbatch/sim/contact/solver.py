@@ -226,9 +226,12 @@ class ContactRows(FlatVelocities):
         shares[-1] = 1.0
         self._shares = shares
         self.normal_row, self.first_row, self.second_row = (self._direction(d) for d in (self.n, self.t1, self.t2))
+        self._jointed = jointed
+        if jointed is not None and jointed.dense and 3 * self.count * 6 * self.size <= DENSE_ENTRIES:
+            self._small_jointed(jointed)
+            return
         self.w_n, self.w_1, self.w_2 = (self._weight(row) for row in (self.normal_row, self.first_row,
                                                                      self.second_row))
-        self._jointed = jointed
         if jointed is not None:  # contacts on jointed bodies move them within the joints (sim/contact/jointed.py)
             rows = (self.normal_row, self.first_row, self.second_row)
             lost = self._jointed_losses(rows, jointed)
@@ -289,6 +292,57 @@ class ContactRows(FlatVelocities):
             return dense.T if response else dense
         matrix = sp.csr_matrix((data, indices, indptr), shape=(len(rows) * k, 6 * size))
         return matrix.T if response else matrix
+
+    def _small_jointed(self, jointed: JointedResponse) -> None:
+        """The rows of a small jointed system, all at once as arrays: the Jacobian ``J`` (3K, 6 (P + 1)) of the
+        normals and both tangents, each end's response ``M⁻¹ Jᵀ`` (6 (P + 1), 3K), one solve for what the joints do
+        to both ends' columns, and from it the response within the joints and the effective masses — the same
+        matrices as the piecewise build (:meth:`_sparse`, :meth:`JointedResponse.correct`, :meth:`_jointed_losses`)
+        to round-off, without its three solves and dozen assemblies a step (a ragdoll's contact step)."""
+        k, size, a, b = self.count, self.size, self.a, self.b
+        rows = (self.normal_row, self.first_row, self.second_row)
+        moving = self.bodies.inverse_mass > 0
+        turning = np.any(self.bodies.inverse_inertia != 0, axis=(1, 2))
+        read_moving, read_turning = moving, turning
+        if self.bodies.driven is not None:  # moving colliders: their velocity is read, not changed
+            read_moving, read_turning = moving | self.bodies.driven, turning | self.bodies.driven
+        line = np.arange(3 * k)[:, None]
+        step = np.arange(3)
+        linear_a, angular_a = 3 * np.tile(a, 3)[:, None] + step, 3 * (size + np.tile(a, 3))[:, None] + step
+        linear_b, angular_b = 3 * np.tile(b, 3)[:, None] + step, 3 * (size + np.tile(b, 3))[:, None] + step
+
+        def each(name: str) -> np.ndarray:  # a row field for the three directions (3K, 3)
+            return np.concatenate([getattr(row, name) for row in rows])
+
+        def kept(values: np.ndarray, keep: np.ndarray) -> np.ndarray:  # entries of bodies that cannot take them: 0
+            return values * np.tile(keep, 3)[:, None]
+
+        jacobian = np.zeros((3 * k, 6 * size))
+        jacobian[line, linear_a] = kept(each("d"), read_moving[a])
+        jacobian[line, angular_a] = kept(each("ang_a"), read_turning[a])
+        jacobian[line, linear_b] = kept(-each("d"), read_moving[b])
+        jacobian[line, angular_b] = kept(-each("ang_b"), read_turning[b])
+        ends = np.zeros((6 * size, 6 * k))  # M⁻¹ Jᵀ of end a's rows, then of end b's
+        ends[linear_a, line] = kept(each("lin_a"), moving[a])
+        ends[angular_a, line] = kept(each("turn_a"), turning[a])
+        ends[linear_b, line + 3 * k] = kept(-each("lin_b"), moving[b])
+        ends[angular_b, line + 3 * k] = kept(-each("turn_b"), turning[b])
+        touched, rates, multipliers = jointed._touched(ends)
+        both = np.zeros((jointed.count, 6 * k))  # what the joints' impulses answer each column with
+        both[:, touched] = multipliers
+        end_rates = np.zeros((jointed.count, 6 * k))
+        end_rates[:, touched] = rates
+        lost_ends = np.einsum("rk,rk->k", end_rates, both)
+        lost_pairs = np.einsum("rk,rk->k", end_rates[:, :3 * k] + end_rates[:, 3 * k:],
+                               both[:, :3 * k] + both[:, 3 * k:])
+        response = ends[:, :3 * k] + ends[:, 3 * k:] - jointed.push_array @ (both[:, :3 * k] + both[:, 3 * k:])
+        self.__dict__["_jacobian_normal"] = jacobian[:k]
+        self.__dict__["_jacobian_tangent"] = jacobian[k:]
+        self.__dict__["_response_normal"] = np.ascontiguousarray(response[:, :k])
+        self.__dict__["_response_tangent"] = np.ascontiguousarray(response[:, k:])
+        self.w_n, self.w_1, self.w_2 = (
+            self._jointed_weight(row, jointed, lost_ends[r * k:(r + 1) * k], lost_ends[(3 + r) * k:(4 + r) * k],
+                                 lost_pairs[r * k:(r + 1) * k]) for r, row in enumerate(rows))
 
     def _direction(self, d: np.ndarray) -> _Direction:
         a, b, inverse_mass, inverse_inertia = self.a, self.b, self.bodies.inverse_mass, self.bodies.inverse_inertia

@@ -28,7 +28,7 @@ from animbatch.sim.contact.clearance import Clearance
 from animbatch.sim.contact.contacts import Contacts, contact_codes
 from animbatch.sim.contact.detection import body_reach, detect
 from animbatch.sim.contact.impacts import ImpactLog
-from animbatch.sim.contact.jointed import JointedResponse
+from animbatch.sim.contact.jointed import DENSE_COLUMNS, BlockInverse, JointedResponse
 from animbatch.sim.contact.solver import (
     BodyVelocities,
     compiled_contacts,
@@ -242,7 +242,12 @@ class ContactResolver:
 
         jointed = None
         if joints is not None:
-            jointed = JointedResponse(self.system.velocity_rows(state, len(bodies.v)), inverse_mass_matrix(bodies))
+            size = len(bodies.v)
+            if 6 * size <= DENSE_COLUMNS:  # a ragdoll's few dozen columns: arrays, no sparse construction a step
+                jointed = JointedResponse(self.system.velocity_rows(state, size, dense=True),
+                                          BlockInverse(bodies.inverse_mass, bodies.inverse_inertia))
+            else:
+                jointed = JointedResponse(self.system.velocity_rows(state, size), inverse_mass_matrix(bodies))
         result = solve_impulses(contacts, bodies, x, h, iterations=self.settings.iterations,
                                 rest_speed=self.rest_speed(h), slop=self.settings.slop, bounce=bounce, warm=warm,
                                 kinematic=kinematic, couple=couple if joints is not None else None, jointed=jointed,

@@ -348,14 +348,15 @@ class Joints:
             omega[self.points[rigid] - self.first_rigid] += np.einsum("kij,kj->ki", motion.inverse_inertia[rigid],
                                                                       torque[rigid])
 
-    def velocity_rows(self, state: Kinematics, size: int) -> sp.csr_matrix:
+    def velocity_rows(self, state: Kinematics, size: int, *, dense: bool = False) -> sp.csr_matrix | np.ndarray:
         """The rows that hold at ``state`` (the bilateral ones, and unilateral ones at their stops) as a sparse
         Jacobian (R, 6 size) over a flat velocity ``V = [v.ravel(), ω.ravel()]`` of ``size`` bodies numbered as in
         the model (anchors and the world do not move in it): ``J V`` is each row's rate. For the contact solver,
-        which solves contacts within the joints' constraints with it."""
-        return self.held_matrix(self._held_rows(self.motion(state)), size)
+        which solves contacts within the joints' constraints with it. ``dense``: as an array (a ragdoll's few
+        dozen columns: a scipy.sparse construction costs more than the whole array)."""
+        return self.held_matrix(self._held_rows(self.motion(state)), size, dense=dense)
 
-    def held_matrix(self, rows: Rows, size: int) -> sp.csr_matrix:
+    def held_matrix(self, rows: Rows, size: int, *, dense: bool = False) -> sp.csr_matrix | np.ndarray:
         """:meth:`velocity_rows` from the rows at the state's positions (their violation and Jacobian: the bias is
         not read)."""
         holding = ~self._cache["unilateral"] | (rows.violation <= PROJECTION_TOLERANCE * max(self.scale, 1.0))
@@ -372,6 +373,9 @@ class Joints:
         data = np.concatenate([rows.linear[holding][keep_linear], rows.angular[holding][keep_angular]])
         indices = np.concatenate([linear_columns[keep_linear], angular_columns[keep_angular]])
         where = np.concatenate([row[keep_linear], row[keep_angular]])
+        if dense:  # summing repeated entries, as the sparse form does
+            flat = np.bincount(where * (6 * size) + indices, weights=data, minlength=len(bodies) * 6 * size)
+            return flat.reshape(len(bodies), 6 * size)
         return sp.csr_matrix((data, (where, indices)), shape=(len(bodies), 6 * size))
 
     def project(self, positions: np.ndarray, orientations: np.ndarray | None, linear: np.ndarray,

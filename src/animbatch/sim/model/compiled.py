@@ -449,13 +449,14 @@ class CompiledDynamics(Dynamics):
         rotation = state.rotation if state.rotation is not None else np.zeros((0, 3, 3))
         return float(state.t), np.ascontiguousarray(state.x, dtype=float), np.ascontiguousarray(rotation, dtype=float)
 
-    def velocity_rows(self, state: Kinematics, size: int) -> sp.csr_matrix:
+    def velocity_rows(self, state: Kinematics, size: int, *, dense: bool = False) -> sp.csr_matrix | np.ndarray:
         assert self.joints is not None
         count = len(self.joints.row_is_unilateral)
         violation, jac = np.empty(count), np.empty((count, 2, 6))
         t, x, rotation = self._placement(state)
         self._compiled_held_rows(t, *self._packed[:3], x, rotation, violation, jac)
-        return self.joints.held_matrix(Rows(violation, jac[:, :, :3], jac[:, :, 3:], np.full(count, np.nan)), size)
+        return self.joints.held_matrix(Rows(violation, jac[:, :, :3], jac[:, :, 3:], np.full(count, np.nan)), size,
+                                       dense=dense)
 
     def project_velocities(self, state: Kinematics, v: np.ndarray, omega: np.ndarray | None) -> None:
         turning = omega if omega is not None else np.zeros((0, 3))

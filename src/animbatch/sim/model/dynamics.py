@@ -258,11 +258,11 @@ class Dynamics:
         assert self.joints is not None
         self.joints.project_velocities(state, v, omega)
 
-    def velocity_rows(self, state: Kinematics, size: int) -> sp.csr_matrix:
+    def velocity_rows(self, state: Kinematics, size: int, *, dense: bool = False) -> sp.csr_matrix | np.ndarray:
         """The joint rows that hold at ``state``, as a Jacobian over a flat velocity of ``size`` bodies
-        (:meth:`animbatch.sim.joints.Joints.velocity_rows`). Requires joints."""
+        (:meth:`animbatch.sim.joints.Joints.velocity_rows`; ``dense``: as an array). Requires joints."""
         assert self.joints is not None
-        return self.joints.velocity_rows(state, size)
+        return self.joints.velocity_rows(state, size, dense=dense)
 
     def project(self, y: np.ndarray, *, joints: bool = True, reach: float = 0.0, t: float = 0.0,
                 start: np.ndarray | None = None, step: float = 0.0) -> None:
