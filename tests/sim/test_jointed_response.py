@@ -179,7 +179,7 @@ def test_a_small_jointed_systems_rows_are_the_piecewise_ones(monkeypatch):
             np.testing.assert_allclose(rows.__dict__[name], matrix, rtol=0, atol=1e-12 * scale, err_msg=name)
         losses = rows._jointed_losses(directions, jointed)
         for found, row, lost in zip((rows.w_n, rows.w_1, rows.w_2), directions, losses):
-            np.testing.assert_allclose(found, rows._jointed_weight(row, jointed, *lost), rtol=1e-9)
+            np.testing.assert_allclose(found, rows._jointed_weight(row, *lost), rtol=1e-9)
         checked.append((rows.count, bool(np.any(rows.bodies.driven[rows.b])) if rows.bodies.driven is not None
                         else False))
 
@@ -228,7 +228,7 @@ def test_rows_between_two_bodies_of_one_jointed_group_are_the_piecewise_ones():
                                atol=1e-15)
     losses = built._jointed_losses(directions, jointed)
     for found, row, lost in zip((built.w_n, built.w_1, built.w_2), directions, losses):
-        np.testing.assert_allclose(found, built._jointed_weight(row, jointed, *lost), rtol=1e-10)
+        np.testing.assert_allclose(found, built._jointed_weight(row, *lost), rtol=1e-10)
     # and the pair's weight is the pair's own, 1 / (J K Jᵀ) of the normal row through both ends at once, split
     # among the six contact ends on the group
     jacobian = built._jacobian_normal[0]

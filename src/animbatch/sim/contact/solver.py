@@ -235,7 +235,7 @@ class ContactRows(FlatVelocities):
         if jointed is not None:  # contacts on jointed bodies move them within the joints (sim/contact/jointed.py)
             rows = (self.normal_row, self.first_row, self.second_row)
             lost = self._jointed_losses(rows, jointed)
-            self.w_n, self.w_1, self.w_2 = (self._jointed_weight(row, jointed, *losses)
+            self.w_n, self.w_1, self.w_2 = (self._jointed_weight(row, *losses)
                                             for row, losses in zip(rows, lost))
 
     @property
@@ -311,22 +311,24 @@ class ContactRows(FlatVelocities):
         linear_a, angular_a = 3 * np.tile(a, 3)[:, None] + step, 3 * (size + np.tile(a, 3))[:, None] + step
         linear_b, angular_b = 3 * np.tile(b, 3)[:, None] + step, 3 * (size + np.tile(b, 3))[:, None] + step
 
-        def each(name: str) -> np.ndarray:  # a row field for the three directions (3K, 3)
-            return np.concatenate([getattr(row, name) for row in rows])
+        # which blocks of 3 entries a row keeps (3K, 8): the Jacobian's at a and b, then the response's (entries of
+        # bodies that cannot take them are left 0, as the piecewise build leaves them out)
+        keep = np.tile(np.stack([read_moving[a], read_turning[a], read_moving[b], read_turning[b],
+                                 moving[a], turning[a], moving[b], turning[b]], axis=1), (3, 1)).astype(float)
 
-        def kept(values: np.ndarray, keep: np.ndarray) -> np.ndarray:  # entries of bodies that cannot take them: 0
-            return values * np.tile(keep, 3)[:, None]
+        def kept(name: str, block: int, sign: float = 1.0) -> np.ndarray:  # a row field (3K, 3), three directions
+            return np.concatenate([getattr(row, name) for row in rows]) * (sign * keep[:, block:block + 1])
 
         jacobian = np.zeros((3 * k, 6 * size))
-        jacobian[line, linear_a] = kept(each("d"), read_moving[a])
-        jacobian[line, angular_a] = kept(each("ang_a"), read_turning[a])
-        jacobian[line, linear_b] = kept(-each("d"), read_moving[b])
-        jacobian[line, angular_b] = kept(-each("ang_b"), read_turning[b])
+        jacobian[line, linear_a] = kept("d", 0)
+        jacobian[line, angular_a] = kept("ang_a", 1)
+        jacobian[line, linear_b] = kept("d", 2, -1.0)
+        jacobian[line, angular_b] = kept("ang_b", 3, -1.0)
         ends = np.zeros((6 * size, 6 * k))  # M⁻¹ Jᵀ of end a's rows, then of end b's
-        ends[linear_a, line] = kept(each("lin_a"), moving[a])
-        ends[angular_a, line] = kept(each("turn_a"), turning[a])
-        ends[linear_b, line + 3 * k] = kept(-each("lin_b"), moving[b])
-        ends[angular_b, line + 3 * k] = kept(-each("turn_b"), turning[b])
+        ends[linear_a, line] = kept("lin_a", 4)
+        ends[angular_a, line] = kept("turn_a", 5)
+        ends[linear_b, line + 3 * k] = kept("lin_b", 6, -1.0)
+        ends[angular_b, line + 3 * k] = kept("turn_b", 7, -1.0)
         touched, rates, multipliers = jointed._touched(ends)
         both = np.zeros((jointed.count, 6 * k))  # what the joints' impulses answer each column with
         both[:, touched] = multipliers
@@ -341,7 +343,7 @@ class ContactRows(FlatVelocities):
         self.__dict__["_response_normal"] = np.ascontiguousarray(response[:, :k])
         self.__dict__["_response_tangent"] = np.ascontiguousarray(response[:, k:])
         self.w_n, self.w_1, self.w_2 = (
-            self._jointed_weight(row, jointed, lost_ends[r * k:(r + 1) * k], lost_ends[(3 + r) * k:(4 + r) * k],
+            self._jointed_weight(row, lost_ends[r * k:(r + 1) * k], lost_ends[(3 + r) * k:(4 + r) * k],
                                  lost_pairs[r * k:(r + 1) * k]) for r, row in enumerate(rows))
 
     def _direction(self, d: np.ndarray) -> _Direction:
@@ -386,19 +388,25 @@ class ContactRows(FlatVelocities):
                  jointed.lost(self._sparse((row,), response=True, ends=(False, True))),
                  jointed.lost(self._sparse((row,), response=True))) for row in rows]
 
-    def _jointed_weight(self, row: _Direction, jointed: JointedResponse, lost_a: np.ndarray, lost_b: np.ndarray,
-                        lost_both: np.ndarray) -> np.ndarray:
-        """Effective mass along a row with the joints: each end's inverse effective mass less what the joints take
-        away (``lost_*`` (K,), :meth:`_jointed_losses`), split among the contacts of its whole jointed group (the
-        group moves as one under any of them), or for two ends in one group, the pair's together."""
+    @functools.cached_property
+    def _group_shares(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """With the joints: how many contact ends each contact's end a and end b shares its jointed group with (K,)
+        each (a group moves as one under any of them), and which contacts have both ends in one group (K,)."""
+        assert self._jointed is not None
         a, b = self.a, self.b
-        own_a = np.einsum("ki,ki->k", row.lin_a, row.d) + np.einsum("ki,ki->k", row.turn_a, row.ang_a)
-        own_b = np.einsum("ki,ki->k", row.lin_b, row.d) + np.einsum("ki,ki->k", row.turn_b, row.ang_b)
-        group = jointed.groups(self.size)
+        group = self._jointed.groups(self.size)
         group[-1] = -1  # the fixed body: no share
         shares = np.bincount(np.concatenate([group[a], group[b]]) + 1, minlength=group.max() + 2).astype(float)
-        share_a, share_b = shares[group[a] + 1], shares[group[b] + 1]
-        together = (group[a] == group[b]) & (group[a] >= 0)
+        return shares[group[a] + 1], shares[group[b] + 1], (group[a] == group[b]) & (group[a] >= 0)
+
+    def _jointed_weight(self, row: _Direction, lost_a: np.ndarray, lost_b: np.ndarray,
+                        lost_both: np.ndarray) -> np.ndarray:
+        """Effective mass along a row with the joints: each end's inverse effective mass less what the joints take
+        away (``lost_*`` (K,), :meth:`_jointed_losses`), split among the contacts of its whole jointed group
+        (:attr:`_group_shares`), or for two ends in one group, the pair's together."""
+        own_a = np.einsum("ki,ki->k", row.lin_a, row.d) + np.einsum("ki,ki->k", row.turn_a, row.ang_a)
+        own_b = np.einsum("ki,ki->k", row.lin_b, row.d) + np.einsum("ki,ki->k", row.turn_b, row.ang_b)
+        share_a, share_b, together = self._group_shares
         inverse = np.where(together, share_a * (own_a + own_b - lost_both),
                            share_a * (own_a - lost_a) + share_b * (own_b - lost_b))
         return 1.0 / np.maximum(inverse, 1e-300)
