@@ -151,7 +151,8 @@ def test_the_solver_takes_the_cholesky_for_large_symmetric_matrices_only(monkeyp
 
 def test_kernels_that_fail_to_build_leave_the_cloth_to_superlu_and_say_so(monkeypatch):
     """numba loads but cannot compile the cloth solver's kernels: backward Euler warns once, before the first step,
-    and gives the same cloth with SuperLU and the numpy assembly."""
+    and gives the same cloth with the numpy assembly and factorisation (an array's Cholesky, for a cloth this
+    small; SuperLU for larger ones)."""
     from numba.core.errors import TypingError
 
     from animbatch.sim.integrators import linear_algebra
@@ -171,4 +172,6 @@ def test_kernels_that_fail_to_build_leave_the_cloth_to_superlu_and_say_so(monkey
             fallen = run(text)[1]
     finally:
         linear_algebra.build_step_kernels.cache_clear()
-    np.testing.assert_array_equal(fallen.positions, reference.positions)
+    # the same cloth to rounding: the spring forces still run compiled (their kernel built), which agree with
+    # numpy's to the last bit or two, and a position's last bit may round either way
+    np.testing.assert_allclose(fallen.positions, reference.positions, rtol=0, atol=1e-12)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from animbatch.compile.model import compile_scene
 from animbatch.sim.forces.jacobian import ForceJacobian
@@ -130,8 +131,13 @@ def test_compiled_assembly_gives_the_numpy_step_matrix_and_products(definite):
     results = {}
     for compiled in (False, True):
         jacobian, _ = dynamics.force_jacobian(0.7, config, motion, definite=definite, compiled=compiled)
-        results[compiled] = (jacobian.step_matrix(mass, 0.02).toarray(), jacobian.product("x", vector),
+        step = jacobian.step_matrix(mass, 0.02)
+        results[compiled] = (step if isinstance(step, np.ndarray) else step.toarray(), jacobian.product("x", vector),
                              jacobian.product("v", vector))
+        if not compiled:  # a few particles: an array, the sum of the sparse matrices to rounding
+            assert isinstance(step, np.ndarray)
+            summed = (sp.diags(mass) - 0.02 * jacobian.matrix("v") - 0.02**2 * jacobian.matrix("x")).toarray()
+            assert np.abs(step - summed).max() <= 1e-12 * np.abs(summed).max()
     for plain, fast in zip(results[False], results[True]):
         assert np.abs(plain - fast).max() <= 1e-12 * np.abs(plain).max()
     assert np.abs(results[True][0] - results[True][0].T).max() > 1e-6  # the magnetic field's ∂f/∂v is in it
@@ -245,3 +251,23 @@ def test_compiled_spring_forces_are_the_numpy_ones(monkeypatch):
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
     attached = compile_scene(scene(SCENE).spec)  # a spring ends at a point of the crate: numpy
     assert not next(term for term in attached.force_terms if term.kind == "spring").compiled
+
+
+def test_small_step_matrices_are_factored_densely_and_a_singular_one_is_refused():
+    """A step matrix held as an array (a few particles) is solved by Cholesky when symmetric positive definite and
+    by LU otherwise (a magnetic field's antisymmetric part), both to rounding; a singular one raises as SuperLU's
+    does, so that backward Euler names the springs and masses involved."""
+    from animbatch.sim.integrators.linear_algebra import StepMatrixSolver
+
+    rng = np.random.default_rng(2)
+    a = rng.normal(size=(9, 9))
+    right = rng.normal(size=9)
+    for matrix, method in ((a @ a.T + 9 * np.eye(9), "dense Cholesky"), (a @ a.T + 9 * np.eye(9) + (a - a.T), "dense LU")):
+        solver = StepMatrixSolver()
+        solved = solver.factor(matrix).solve(right)
+        assert solver.method == method
+        np.testing.assert_allclose(matrix @ solved, right, rtol=0, atol=1e-12 * np.abs(right).max())
+    singular = np.ones((3, 3)) - np.eye(3)  # indefinite, and with a zero pivot once its last row is the first's
+    singular[2] = singular[0]
+    with pytest.raises(RuntimeError, match="singular"):
+        StepMatrixSolver().factor(singular)

@@ -87,6 +87,12 @@ class StepPattern:
 
 
 
+#: Backward Euler's step matrices of at most this many unknowns (3 per particle) are assembled and factored as
+#: arrays (:meth:`ForceJacobian.step_matrix`): a dense factorisation of 150 unknowns costs some 100 µs, less than
+#: scipy.sparse's assembly of a matrix of a few particles.
+DENSE_STEP_UNKNOWNS = 150
+
+
 class ForceJacobian:
     """The derivatives of the forces on the N particles: ``∂f/∂x`` and ``∂f/∂v``, (3N, 3N) each, gathered from the
     terms as 3×3 blocks ``(i, j)`` = the derivative of the force on particle i with respect to particle j.
@@ -158,10 +164,13 @@ class ForceJacobian:
                 for kind, table in (("plain", self._blocks), ("pairs", self._pairs))
                 for i, j, blocks in table[which]]
 
-    def step_matrix(self, mass: np.ndarray, h: float) -> sp.csr_matrix:
+    def step_matrix(self, mass: np.ndarray, h: float) -> sp.csr_matrix | np.ndarray:
         """Backward Euler's ``M − h ∂f/∂v − h² ∂f/∂x`` (3N, 3N), for masses ``mass`` (3N,) [kg] per velocity
         component and a step ``h`` [s]: with :attr:`compiled`, scattered straight from the blocks into a pattern
-        worked out once (:class:`StepPattern`); otherwise as a sum of sparse matrices."""
+        worked out once (:class:`StepPattern`); for a few particles (:data:`DENSE_STEP_UNKNOWNS`), as an array;
+        otherwise as a sum of sparse matrices."""
+        if not self.compiled and 3 * self.particles <= DENSE_STEP_UNKNOWNS:
+            return self._dense_step_matrix(mass, h)
         if not self.compiled:
             return sp.csr_matrix(sp.diags(mass) - h * self.matrix("v") - (h * h) * self.matrix("x"))
         from animbatch.sim.kernels.assembly import scatter_pairs, scatter_plain
@@ -177,6 +186,24 @@ class ForceJacobian:
             scatter = scatter_plain if kind == "plain" else scatter_pairs
             scatter(data, slots, np.ascontiguousarray(blocks, dtype=np.float64), -(h * h) if which == "x" else -h)
         return sp.csr_matrix((data, pattern.indices, pattern.indptr), shape=(pattern.size, pattern.size))
+
+    def _dense_step_matrix(self, mass: np.ndarray, h: float) -> np.ndarray:
+        """:meth:`step_matrix` as an array, the blocks summed straight into it (a pendulum's or a few springs'
+        step: scipy.sparse's sums and checks cost a hundred times the arithmetic)."""
+        size = 3 * self.particles
+        flat = np.zeros(size * size)
+        flat[:: size + 1] = mass
+        for kind, i, j, blocks, which in self._parts():
+            scale = -(h * h) if which == "x" else -h
+            if kind == "plain":
+                keys, values = _block_keys(i, j, size), blocks.reshape(len(i), 9)
+            else:  # B at (i, i) and (j, j), −B at (i, j) and (j, i)
+                keys = np.concatenate([_block_keys(i, i, size), _block_keys(j, j, size), _block_keys(i, j, size),
+                                       _block_keys(j, i, size)], axis=1)
+                plain = blocks.reshape(len(i), 9)
+                values = np.concatenate([plain, plain, -plain, -plain], axis=1)
+            flat += np.bincount(keys.ravel(), weights=scale * values.ravel(), minlength=size * size)
+        return flat.reshape(size, size)
 
     def product(self, which: str, vector: np.ndarray) -> np.ndarray:
         """``∂f/∂x · vector`` (``which='x'``) or ``∂f/∂v · vector`` (3N,), from the blocks when :attr:`compiled`."""

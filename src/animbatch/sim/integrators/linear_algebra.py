@@ -32,6 +32,7 @@ solve *is* the step, so its matrix is never thinned.
 from __future__ import annotations
 
 import functools
+import warnings
 from typing import Any
 
 import numpy as np
@@ -93,8 +94,13 @@ class StepMatrixSolver:
         self._probe: np.ndarray | None = None
         self.method = "SuperLU"  # of the last factorisation
 
-    def factor(self, matrix: sp.spmatrix) -> Any:
-        """Factors of ``matrix`` with a ``solve(b)`` method. Raises RuntimeError (SuperLU's) if it is singular."""
+    def factor(self, matrix: sp.spmatrix | np.ndarray) -> Any:
+        """Factors of ``matrix`` with a ``solve(b)`` method. Raises RuntimeError (SuperLU's) if it is singular. An
+        array (a small system) is factored densely (:class:`DenseFactors`)."""
+        if isinstance(matrix, np.ndarray):
+            factors = DenseFactors(matrix)
+            self.method = factors.method
+            return factors
         matrix = sp.csr_matrix(matrix)
         size = matrix.shape[0]
         compiled = self._compiled if self._compiled is not None else compiled_solves(size)
@@ -119,6 +125,40 @@ class StepMatrixSolver:
         product = matrix @ self._probe
         transposed = matrix.T @ self._probe
         return bool(np.abs(product - transposed).max() <= 1e-12 * np.abs(product).max())
+
+
+class DenseFactors:
+    """Factors of a small step matrix (n, n) held as an array: Cholesky when it is symmetric positive definite (the
+    definite Jacobians make it so), LU with partial pivoting otherwise (a magnetic field's antisymmetric ∂f/∂v).
+    Raises RuntimeError when it is singular, as SuperLU does."""
+
+    def __init__(self, matrix: np.ndarray) -> None:
+        from scipy.linalg import LinAlgError, LinAlgWarning, cho_factor, lu_factor
+
+        self._cholesky: Any = None
+        self._lu: Any = None
+        # symmetric to rounding (the blocks' sums may meet in another order on either side of the diagonal)
+        if np.abs(matrix - matrix.T).max(initial=0.0) <= 1e-12 * np.abs(matrix).max(initial=0.0):
+            try:
+                self._cholesky = cho_factor(matrix, lower=True, check_finite=False)
+                self.method = "dense Cholesky"
+                return
+            except LinAlgError:
+                pass
+        with warnings.catch_warnings():  # a singular matrix is said below, as SuperLU says it
+            warnings.simplefilter("ignore", LinAlgWarning)
+            self._lu = lu_factor(matrix, check_finite=False)
+        if not np.all(np.diag(self._lu[0])):
+            raise RuntimeError("Factor is exactly singular")
+        self.method = "dense LU"
+
+    def solve(self, right: np.ndarray) -> np.ndarray:
+        """``matrix⁻¹ right``."""
+        from scipy.linalg import cho_solve, lu_solve
+
+        if self._cholesky is not None:
+            return cho_solve(self._cholesky, right, check_finite=False)
+        return lu_solve(self._lu, right, check_finite=False)
 
 
 def factor_symmetric(matrix: sp.spmatrix, *, pivot_threshold: float = 0.0) -> SuperLU:
