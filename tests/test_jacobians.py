@@ -225,9 +225,14 @@ def test_newton_matrices_drop_only_the_weak_couplings_and_keep_the_solution():
         original = linear_algebra.drop_weak_couplings
         with pytest.MonkeyPatch.context() as patch:
             patch.setattr(linear_algebra, "drop_weak_couplings", lambda m, f=fraction: original(m, f))
+            patch.setattr(linear_algebra, "DENSE_NEWTON_UNKNOWNS", 0)  # sparse factors, as a large cloth's
             solver[fraction] = ScipyIntegrator("BDF", rtol=1e-8, atol=1e-10).integrate(
                 Dynamics(model), model.y0, model.frame_times).states
     assert np.abs(solver[0.0] - solver[linear_algebra.WEAK_COUPLING]).max() < 1e-6
+    # this cloth's 34 free vertices are few enough for dense factors of the whole matrix: the same cloth again
+    assert 3 * n <= linear_algebra.DENSE_NEWTON_UNKNOWNS
+    dense = ScipyIntegrator("BDF", rtol=1e-8, atol=1e-10).integrate(Dynamics(model), model.y0, model.frame_times)
+    assert np.abs(dense.states - solver[0.0]).max() < 1e-6
 
 
 @pytest.mark.slow
@@ -271,3 +276,28 @@ def test_small_step_matrices_are_factored_densely_and_a_singular_one_is_refused(
     singular[2] = singular[0]
     with pytest.raises(RuntimeError, match="singular"):
         StepMatrixSolver().factor(singular)
+
+
+@pytest.mark.parametrize("dense", [True, False])
+def test_the_newton_matrix_solved_at_half_size_is_the_full_solve(dense, monkeypatch):
+    """Radau's and BDF's Newton matrix ``P = p I − q J`` of a particle model's ``J = [[0, I], [A, B]]`` solved
+    through the velocity system (dense for a few particles, sparse with the weak couplings kept otherwise) gives the
+    full system's solution."""
+    import scipy.sparse as sp
+
+    import animbatch.sim.integrators.linear_algebra as linear_algebra
+
+    rng = np.random.default_rng(6)
+    size = 9
+    stiffness = rng.normal(size=(size, size))
+    a, b = -(stiffness @ stiffness.T) - size * np.eye(size), -0.1 * np.eye(size)
+    jacobian = np.block([[np.zeros((size, size)), np.eye(size)], [a, b]])
+    p, q = 1.0, 0.05
+    newton = p * np.eye(2 * size) - q * jacobian
+    if not dense:
+        monkeypatch.setattr(linear_algebra, "DENSE_NEWTON_UNKNOWNS", 0)
+        monkeypatch.setattr(linear_algebra, "drop_weak_couplings", sp.csr_matrix)  # every coupling kept
+    factors = linear_algebra.SecondOrderFactor(sp.csr_matrix(newton), np.ones(size))
+    assert isinstance(factors.factors, linear_algebra.DenseFactors) == dense
+    right = rng.normal(size=2 * size)
+    np.testing.assert_allclose(factors.solve(right), np.linalg.solve(newton, right), rtol=1e-10, atol=1e-12)

@@ -196,19 +196,31 @@ def drop_weak_couplings(matrix: sp.spmatrix, fraction: float = WEAK_COUPLING) ->
     return kept
 
 
+#: Newton matrices of Radau and BDF whose velocity system has at most this many unknowns (3 per particle) are
+#: reduced and factored as arrays (see :data:`animbatch.sim.forces.jacobian.DENSE_STEP_UNKNOWNS`).
+DENSE_NEWTON_UNKNOWNS = 150
+
+
 class SecondOrderFactor:
     """Solves ``P z = r`` for the 6N × 6N matrix ``P`` that Radau or BDF builds from a particle model's Jacobian,
     through the 3N × 3N velocity system (see the module docstring). ``mass`` (3N,) [kg] per velocity component."""
 
     def __init__(self, matrix: sp.spmatrix, mass: np.ndarray) -> None:
-        matrix = sp.csr_matrix(matrix)
         size = matrix.shape[0] // 2
         self.size = size
+        self.mass = mass
+        if size <= DENSE_NEWTON_UNKNOWNS:  # a few particles: arrays, the whole matrix (nothing to gain by dropping)
+            dense = matrix.toarray() if isinstance(matrix, sp.spmatrix | sp.sparray) else np.asarray(matrix)
+            self.p, self.q = dense[0, 0], -dense[0, size]
+            self.lower_left: Any = dense[size:, :size]
+            self.factors: Any = DenseFactors(mass[:, None] * (self.p * dense[size:, size:]
+                                                              + self.q * self.lower_left))
+            return
+        matrix = sp.csr_matrix(matrix)
         self.p = matrix[0, 0]  # P₁₁ = p I and P₁₂ = -q I, as J = [[0, I], [A, B]]
         self.q = -matrix[0, size]
         self.lower_left = matrix[size:, :size]  # P₂₁ = -q A
         reduced = self.p * matrix[size:, size:] + self.q * self.lower_left  # p P₂₂ + q P₂₁
-        self.mass = mass
         # diagonal pivots: measured, a threshold of 0.01 already pivots off it and fills half as much again
         self.factors = factor_symmetric(drop_weak_couplings(sp.diags(mass) @ reduced))
 
