@@ -83,8 +83,20 @@ class SpringSet:
         return len(self.first)
 
 
-def _incidence(rows: np.ndarray, signs: np.ndarray, columns: np.ndarray, shape: tuple[int, int]) -> sp.csr_matrix:
-    return sp.csr_matrix((signs, (rows, columns)), shape=shape)
+#: Incidence matrices of at most this many entries are arrays: a few springs' ``p1 − p2`` is then a microsecond's
+#: product, where a scipy.sparse product costs some twenty (three of them were most of a small chain's right-hand
+#: side under Radau). Their entries are ±1 and 0, so the products are the same to the last bit or two.
+DENSE_INCIDENCE = 4096
+
+
+def _incidence(rows: np.ndarray, signs: np.ndarray, columns: np.ndarray, shape: tuple[int, int]
+               ) -> sp.csr_matrix | np.ndarray:
+    matrix = sp.csr_matrix((signs, (rows, columns)), shape=shape)
+    return matrix.toarray() if shape[0] * shape[1] <= DENSE_INCIDENCE else matrix
+
+
+def _transposed(matrix: sp.csr_matrix | np.ndarray) -> sp.csr_matrix | np.ndarray:
+    return np.ascontiguousarray(matrix.T) if isinstance(matrix, np.ndarray) else matrix.T.tocsr()
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,7 +106,7 @@ class _Attachment:
     springs: np.ndarray  # (K,) spring indices
     rigid: np.ndarray  # (K,) rigid body indices
     offset: np.ndarray  # (K, 3) body axes, from the centre of mass
-    torque_scatter: sp.csr_matrix  # (B, K): +1 at (rigid, k)
+    torque_scatter: sp.csr_matrix | np.ndarray  # (B, K): +1 at (rigid, k)
 
 
 def _attachment(ends: np.ndarray, offsets: np.ndarray, on_body: np.ndarray, first_rigid: int,
@@ -118,12 +130,13 @@ class SpringForces(ForceTerm):
     anchors: AnchorMotion
     #: (S, P): +1 at (s, first), -1 at (s, second) for the second ends on points, so that one sparse product gives
     #: every spring's ``p1 - p2`` (a pinned 64×64 cloth: 0.2 ms, against 0.9 ms for gathering ends)
-    difference: sp.csr_matrix
+    difference: sp.csr_matrix | np.ndarray
     #: (S, A): -1 at (s, anchor) for the springs whose second end is an anchor
-    anchor_difference: sp.csr_matrix
+    anchor_difference: sp.csr_matrix | np.ndarray
     #: the anchors' share of ``p1 - p2`` (S, 3) [m] when they never move (computed once), else None
     fixed_anchor_difference: np.ndarray | None
-    scatter: sp.csr_matrix  # (P, S) = differenceᵀ: +1 at (first, s), -1 at (second, s), spring forces onto points
+    #: (P, S) = differenceᵀ: +1 at (first, s), -1 at (second, s), spring forces onto points
+    scatter: sp.csr_matrix | np.ndarray
     first_attachment: _Attachment | None
     second_attachment: _Attachment | None
 
@@ -140,7 +153,7 @@ class SpringForces(ForceTerm):
         anchor_difference = _incidence(anchored, -np.ones(len(anchored)), springs.second[anchored],
                                        (springs.count, anchors.count))
         fixed = (anchor_difference @ anchors.positions(0.0) if anchors.count and not anchors.moving else None)
-        return cls(springs, anchors, difference, anchor_difference, fixed, difference.T.tocsr(),
+        return cls(springs, anchors, difference, anchor_difference, fixed, _transposed(difference),
                    _attachment(springs.first, springs.first_offset, np.ones(springs.count, bool), first_rigid,
                                rigid_count),
                    _attachment(springs.second, springs.second_offset, to_body, first_rigid, rigid_count))
