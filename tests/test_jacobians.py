@@ -278,11 +278,13 @@ def test_small_step_matrices_are_factored_densely_and_a_singular_one_is_refused(
         StepMatrixSolver().factor(singular)
 
 
+@pytest.mark.parametrize("coefficients", [(1.0, 0.05), (1.0 + 0.5j, 0.05)], ids=["BDF", "Radau complex"])
 @pytest.mark.parametrize("dense", [True, False])
-def test_the_newton_matrix_solved_at_half_size_is_the_full_solve(dense, monkeypatch):
+def test_the_newton_matrix_solved_at_half_size_is_the_full_solve(dense, coefficients, monkeypatch):
     """Radau's and BDF's Newton matrix ``P = p I − q J`` of a particle model's ``J = [[0, I], [A, B]]`` solved
     through the velocity system (dense for a few particles, sparse with the weak couplings kept otherwise) gives the
-    full system's solution."""
+    full system's solution, for BDF's real coefficients and Radau's complex ones (a complex symmetric matrix, which
+    no Cholesky may take)."""
     import scipy.sparse as sp
 
     import animbatch.sim.integrators.linear_algebra as linear_algebra
@@ -292,12 +294,12 @@ def test_the_newton_matrix_solved_at_half_size_is_the_full_solve(dense, monkeypa
     stiffness = rng.normal(size=(size, size))
     a, b = -(stiffness @ stiffness.T) - size * np.eye(size), -0.1 * np.eye(size)
     jacobian = np.block([[np.zeros((size, size)), np.eye(size)], [a, b]])
-    p, q = 1.0, 0.05
+    p, q = coefficients
     newton = p * np.eye(2 * size) - q * jacobian
     if not dense:
         monkeypatch.setattr(linear_algebra, "DENSE_NEWTON_UNKNOWNS", 0)
         monkeypatch.setattr(linear_algebra, "drop_weak_couplings", sp.csr_matrix)  # every coupling kept
     factors = linear_algebra.SecondOrderFactor(sp.csr_matrix(newton), np.ones(size))
     assert isinstance(factors.factors, linear_algebra.DenseFactors) == dense
-    right = rng.normal(size=2 * size)
+    right = rng.normal(size=2 * size) + (1j * rng.normal(size=2 * size) if np.iscomplexobj(newton) else 0.0)
     np.testing.assert_allclose(factors.solve(right), np.linalg.solve(newton, right), rtol=1e-10, atol=1e-12)

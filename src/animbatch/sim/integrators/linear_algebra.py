@@ -128,8 +128,9 @@ class StepMatrixSolver:
 
 
 class DenseFactors:
-    """Factors of a small step matrix (n, n) held as an array: Cholesky when it is symmetric positive definite (the
-    definite Jacobians make it so), LU with partial pivoting otherwise (a magnetic field's antisymmetric ∂f/∂v).
+    """Factors of a small step matrix (n, n) held as an array: Cholesky when it is real, symmetric and positive
+    definite (the definite Jacobians make it so), LU with partial pivoting otherwise (a magnetic field's
+    antisymmetric ∂f/∂v, Radau's complex Newton matrix).
     Raises RuntimeError when it is singular, as SuperLU does."""
 
     def __init__(self, matrix: np.ndarray) -> None:
@@ -137,8 +138,10 @@ class DenseFactors:
 
         self._cholesky: Any = None
         self._lu: Any = None
-        # symmetric to rounding (the blocks' sums may meet in another order on either side of the diagonal)
-        if np.abs(matrix - matrix.T).max(initial=0.0) <= 1e-12 * np.abs(matrix).max(initial=0.0):
+        # real and symmetric to rounding (the blocks' sums may meet in another order on either side of the diagonal);
+        # Radau's complex matrices are symmetric, not Hermitian, which is what a complex Cholesky would take them for
+        if np.isrealobj(matrix) and (np.abs(matrix - matrix.T).max(initial=0.0)
+                                     <= 1e-12 * np.abs(matrix).max(initial=0.0)):
             try:
                 self._cholesky = cho_factor(matrix, lower=True, check_finite=False)
                 self.method = "dense Cholesky"
