@@ -402,7 +402,10 @@ def case_ragdoll(quick: bool) -> tuple[str, Outcome, Outcome, list[tuple[str, Ou
     text = (Path(__file__).parent.parent / "scenes" / "ragdoll_stairs.yaml").read_text()
     text = re.sub(r"^duration: .*$", f"duration: {duration}", text, flags=re.M)
     seconds, result, model, _ = _run(text, repeats=1)
-    ours = Outcome(seconds, f"joints {_joint_gap(model, result.states):.1g} m")
+    solves = result.stats.contact_solves
+    ours = Outcome(seconds, f"joints {_joint_gap(model, result.states):.1g} m; {solves.unconverged} of {solves.solves} "
+                            f"contact solves used all {model.contact_settings.iterations} iterations (off by ≤ "
+                            f"{solves.residual:.2g} m/s)")
     steps = int(round(duration / 1e-3))
     mj_seconds, _, _ = _mujoco_run(ragdoll_mjcf(), steps)
     theirs = Outcome(mj_seconds, "joints exact (generalized coordinates)")
