@@ -65,11 +65,16 @@ def test_a_tree_of_joints_is_solved_by_cholesky_and_redundant_rows_by_the_pseudo
     for redundant, by_cholesky in ((False, True), (True, False)):
         rows, inverse, _ = _system(redundant)
         matrix = (rows @ inverse @ rows.T).toarray()
-        solve = jointed._dense_solver(matrix)
+        solve, factor, cholesky = jointed._dense_solver(matrix)
         right = np.arange(len(matrix), dtype=float)
         np.testing.assert_allclose(solve(right), np.linalg.pinv(matrix, hermitian=True) @ right, rtol=1e-8,
                                    atol=1e-10)
-        assert ("cho_solve" in solve.__code__.co_names) == by_cholesky
+        assert ("cho_solve" in solve.__code__.co_names) == by_cholesky == cholesky
+        # the factor the compiled rows read: L Lᵀ from the lower triangle, or the pseudo-inverse itself
+        lower = np.tril(factor)
+        np.testing.assert_allclose(lower @ lower.T if cholesky else factor,
+                                   matrix if cholesky else np.linalg.pinv(matrix, hermitian=True), rtol=1e-10,
+                                   atol=1e-10)
 
 
 def test_the_inverse_mass_matrix_moves_each_body_by_its_mass_and_world_inertia():
@@ -131,17 +136,9 @@ def test_the_block_inverse_is_the_inverse_mass_matrix():
                                atol=1e-15)
 
 
-@pytest.mark.slow
-def test_a_small_jointed_systems_rows_are_the_piecewise_ones(monkeypatch):
-    """Every contact step of a jointed scene small enough for arrays (a plank under a weight on a hinge, a
-    ball-jointed pair tumbling onto it, a particle on a rod to the plank, and a platform on keyframes under them):
-    the rows built at once (``ContactRows._small_jointed``) are the ones built piece by piece as for large systems:
-    the Jacobians, the responses within the joints and the effective masses."""
-    from animbatch import api
-    from animbatch.sim.contact import solver
-    from conftest import scene
-
-    text = """
+#: A jointed scene small enough for arrays: a plank under a weight on a hinge, a ball-jointed pair tumbling onto it, a
+#: particle on a rod to the plank, and a platform on keyframes under them.
+JOINTED_SCENE = """
         duration: 0.5
         fps: 10
         solver: {method: symplectic_euler, dt: 0.001}
@@ -164,7 +161,19 @@ def test_a_small_jointed_systems_rows_are_the_piecewise_ones(monkeypatch):
             size: [1.2, 0.08, 0.8]
             keyframes: [{time: 0, offset: [0, 0, 0]}, {time: 0.5, offset: [0.1, 0, 0]}]
         fields: [{type: gravity}]
-    """
+"""
+
+
+@pytest.mark.slow
+def test_a_small_jointed_systems_rows_are_the_piecewise_ones(monkeypatch):
+    """Every contact step of a jointed scene small enough for arrays (a plank under a weight on a hinge, a
+    ball-jointed pair tumbling onto it, a particle on a rod to the plank, and a platform on keyframes under them):
+    the rows built at once (``ContactRows._small_jointed``) are the ones built piece by piece as for large systems:
+    the Jacobians, the responses within the joints and the effective masses."""
+    from animbatch import api
+    from animbatch.sim.contact import solver
+    from conftest import scene
+
     original, checked = solver.ContactRows._small_jointed, []
 
     def compared(rows, jointed):
@@ -184,7 +193,8 @@ def test_a_small_jointed_systems_rows_are_the_piecewise_ones(monkeypatch):
                         else False))
 
     monkeypatch.setattr(solver.ContactRows, "_small_jointed", compared)
-    api.simulate(scene(text))
+    monkeypatch.setenv("ANIMBATCH_KERNELS", "numpy")  # the numpy build at every step (a long run goes compiled)
+    api.simulate(scene(JOINTED_SCENE))
     assert len(checked) > 100
     assert any(count > 1 for count, _ in checked) and any(on_platform for _, on_platform in checked)
 
@@ -233,3 +243,56 @@ def test_rows_between_two_bodies_of_one_jointed_group_are_the_piecewise_ones():
     # among the six contact ends on the group
     jacobian = built._jacobian_normal[0]
     assert built.w_n[0] == pytest.approx(1.0 / (6 * (jacobian @ built._response_normal[:, 0])), rel=1e-9)
+    # the compiled build, the same
+    pytest.importorskip("numba")
+    compiled = ContactRows(contacts, bodies, x, jointed=jointed, compiled=True)
+    for name in ("_jacobian_normal", "_jacobian_tangent", "_response_normal", "_response_tangent", "w_n", "w_1",
+                 "w_2"):
+        np.testing.assert_allclose(getattr(compiled, name), getattr(built, name), rtol=1e-10, atol=1e-13,
+                                   err_msg=name)
+
+
+@pytest.mark.slow
+def test_the_compiled_small_jointed_rows_are_the_numpy_ones(monkeypatch):
+    """Every contact step of the jointed scene above (a plank under a hinged weight, a ball-jointed pair, a particle
+    on a rod, a platform on keyframes) and of two bars joined in a closed loop (redundant rows: the pseudo-inverse
+    instead of the Cholesky factor): the compiled build of the rows gives numpy's Jacobians, responses within the
+    joints and effective masses to round-off."""
+    pytest.importorskip("numba")
+    from animbatch import api
+    from animbatch.sim.contact import solver
+    from conftest import scene
+
+    original, checked = solver.ContactRows._compiled_small_jointed, []
+
+    def compared(rows, jointed, directions):
+        original(rows, jointed, directions)
+        names = ("_jacobian_normal", "_jacobian_tangent", "_response_normal", "_response_tangent")
+        compiled = [rows.__dict__[name].copy() for name in names] + [rows.w_n, rows.w_1, rows.w_2]
+        solver.ContactRows._small_jointed(rows, jointed)
+        expected = [rows.__dict__[name] for name in names] + [rows.w_n, rows.w_1, rows.w_2]
+        for name, got, want in zip(names + ("w_n", "w_1", "w_2"), compiled, expected):
+            scale = max(1.0, float(np.abs(want).max()))
+            np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12 * scale, err_msg=name)
+        checked.append(jointed.cholesky)
+
+    monkeypatch.setattr(solver.ContactRows, "_compiled_small_jointed", compared)
+    monkeypatch.setenv("ANIMBATCH_KERNELS", "numba")
+    api.simulate(scene(JOINTED_SCENE))
+    loop = """
+        duration: 0.3
+        fps: 10
+        solver: {method: symplectic_euler, dt: 0.001}
+        bodies:
+          - {name: left, type: rigid, shape: {type: box, size: [0.3, 0.04, 0.04]}, density: 500,
+             position: [-0.15, 0.1, 0]}
+          - {name: right, type: rigid, shape: {type: box, size: [0.3, 0.04, 0.04]}, density: 500,
+             position: [0.15, 0.1, 0]}
+        joints:
+          - {type: hinge, between: [left, right], anchor: [0, 0.1, 0], axis: [0, 0, 1]}
+          - {type: ball, between: [left, right], anchor: [0, 0.1, 0]}
+        colliders: [{type: plane}]
+        fields: [{type: gravity}]
+    """
+    api.simulate(scene(loop))
+    assert len(checked) > 100 and any(checked) and not all(checked)

@@ -43,20 +43,21 @@ DENSE_COLUMNS = 1200
 RANK_TOLERANCE = 1e-10
 
 
-def _dense_solver(system: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+def _dense_solver(system: np.ndarray) -> tuple[Callable[[np.ndarray], np.ndarray], np.ndarray, bool]:
     """``right ↦ system⁺ right`` for the symmetric positive semi-definite ``G M⁻¹ Gᵀ``: by Cholesky when it is
     well inside full rank (a tree of joints: a ragdoll, a chain; about fifty times cheaper than an eigen-solve),
-    else by the pseudo-inverse (redundant rows, as closed loops have)."""
+    else by the pseudo-inverse (redundant rows, as closed loops have). Also the factor itself, for the compiled
+    rows: the Cholesky factor (lower triangle; True), or the pseudo-inverse (False)."""
     if len(system):
         try:
             factor = cho_factor(system, lower=True, check_finite=False)
             pivots = np.diag(factor[0])
             if np.min(pivots) ** 2 > RANK_TOLERANCE * np.max(np.diag(system)):
-                return lambda right: cho_solve(factor, right, check_finite=False)
+                return (lambda right: cho_solve(factor, right, check_finite=False)), factor[0], True
         except np.linalg.LinAlgError:
             pass
     pseudo = np.linalg.pinv(system, hermitian=True)
-    return lambda right: pseudo @ right
+    return (lambda right: pseudo @ right), pseudo, False
 
 
 def _array(matrix: sp.spmatrix | np.ndarray) -> np.ndarray:
@@ -107,8 +108,11 @@ class JointedResponse:
             self.rows = sp.csr_matrix(rows)
             self.push = (inverse @ self.rows.T).tocsc()
             system = self.rows @ self.push
+        #: a dense system's factor (``_dense_solver``): the lower Cholesky factor (``cholesky``) or the pseudo-inverse
+        self.factor: np.ndarray | None = None
+        self.cholesky = False
         if system.shape[0] <= DENSE_ROWS:
-            self._solve = _dense_solver(_array(system))
+            self._solve, self.factor, self.cholesky = _dense_solver(_array(system))
         else:
             factor = splu(sp.csc_matrix(system))
             self._solve = factor.solve
@@ -143,6 +147,12 @@ class JointedResponse:
         place = sp.csr_matrix((np.ones(len(touched)), (np.arange(len(touched)), touched)),
                               shape=(len(touched), response.shape[1]))
         return sp.csc_matrix(response - correction @ place)
+
+    @property
+    def rows_array(self) -> np.ndarray:
+        """The joint rows ``G`` (R, 6N) of a small system (:attr:`dense`)."""
+        assert self._rows_array is not None, "only small systems keep G as an array"
+        return self._rows_array
 
     @property
     def push_array(self) -> np.ndarray:

@@ -214,7 +214,10 @@ class ContactRows(FlatVelocities):
     """
 
     def __init__(self, contacts: Contacts, bodies: BodyVelocities, x: np.ndarray,
-                 kinematic: np.ndarray | None = None, jointed: JointedResponse | None = None) -> None:
+                 kinematic: np.ndarray | None = None, jointed: JointedResponse | None = None,
+                 compiled: bool = False) -> None:
+        """``compiled``: a small jointed system's rows are built by one compiled call
+        (:func:`animbatch.sim.kernels.contact_impulses.small_jointed_rows`; the same to round-off)."""
         self.bodies = bodies
         self.count = contacts.count
         self.size = len(x)
@@ -225,10 +228,12 @@ class ContactRows(FlatVelocities):
         shares = np.bincount(np.concatenate([self.a, self.b]), minlength=len(x)).astype(float)
         shares[-1] = 1.0
         self._shares = shares
-        self.normal_row, self.first_row, self.second_row = (self._direction(d) for d in (self.n, self.t1, self.t2))
         self._jointed = jointed
         if jointed is not None and jointed.dense and 3 * self.count * 6 * self.size <= DENSE_ENTRIES:
-            self._small_jointed(jointed)
+            if compiled and jointed.factor is not None:
+                self._compiled_small_jointed(jointed, frame.directions)
+            else:
+                self._small_jointed(jointed)
             return
         self.w_n, self.w_1, self.w_2 = (self._weight(row) for row in (self.normal_row, self.first_row,
                                                                      self.second_row))
@@ -237,6 +242,20 @@ class ContactRows(FlatVelocities):
             lost = self._jointed_losses(rows, jointed)
             self.w_n, self.w_1, self.w_2 = (self._jointed_weight(row, *losses)
                                             for row, losses in zip(rows, lost))
+
+    # each row direction with its Jacobian and response (_Direction), found on first use: the compiled build of a
+    # small jointed system's rows does without them
+    @functools.cached_property
+    def normal_row(self) -> _Direction:
+        return self._direction(self.n)
+
+    @functools.cached_property
+    def first_row(self) -> _Direction:
+        return self._direction(self.t1)
+
+    @functools.cached_property
+    def second_row(self) -> _Direction:
+        return self._direction(self.t2)
 
     @property
     def dense(self) -> bool:
@@ -345,6 +364,36 @@ class ContactRows(FlatVelocities):
         self.w_n, self.w_1, self.w_2 = (
             self._jointed_weight(row, lost_ends[r * k:(r + 1) * k], lost_ends[(3 + r) * k:(4 + r) * k],
                                  lost_pairs[r * k:(r + 1) * k]) for r, row in enumerate(rows))
+
+    def _compiled_small_jointed(self, jointed: JointedResponse, directions: np.ndarray) -> None:
+        """:meth:`_small_jointed` in one compiled call (:func:`animbatch.sim.kernels.contact_impulses.
+        small_jointed_rows`) from the row directions (3, K, 3): the same matrices and effective masses to round-off."""
+        from animbatch.sim.kernels import contact_impulses
+
+        build: Any = contact_impulses.small_jointed_rows
+        bodies, k = self.bodies, self.count
+        moving = bodies.inverse_mass > 0
+        turning = np.any(bodies.inverse_inertia != 0, axis=(1, 2))
+        read_moving, read_turning = moving, turning
+        if bodies.driven is not None:  # moving colliders: their velocity is read, not changed
+            read_moving, read_turning = moving | bodies.driven, turning | bodies.driven
+        group = jointed.groups(self.size)
+        group[-1] = -1  # the fixed body: no share
+        assert jointed.factor is not None
+
+        def floats(values: np.ndarray) -> np.ndarray:
+            return np.ascontiguousarray(values, np.float64)
+
+        jacobian, response, weight = build(
+            np.asarray(self.a, np.int64), np.asarray(self.b, np.int64), floats(directions), floats(self.r_a),
+            floats(self.r_b), floats(bodies.inverse_mass), floats(bodies.inverse_inertia), read_moving, read_turning,
+            moving, turning, group.astype(np.int64), floats(jointed.rows_array), floats(jointed.push_array),
+            floats(jointed.factor), bool(jointed.cholesky))
+        self.__dict__["_jacobian_normal"] = jacobian[:k]
+        self.__dict__["_jacobian_tangent"] = jacobian[k:]
+        self.__dict__["_response_normal"] = np.ascontiguousarray(response[:, :k])
+        self.__dict__["_response_tangent"] = np.ascontiguousarray(response[:, k:])
+        self.w_n, self.w_1, self.w_2 = weight
 
     def _direction(self, d: np.ndarray) -> _Direction:
         a, b, inverse_mass, inverse_inertia = self.a, self.b, self.bodies.inverse_mass, self.bodies.inverse_inertia
@@ -601,6 +650,13 @@ def build_contact_kernels() -> str | None:
                                   np.zeros((12, 2)), np.ones((3, 1)), np.zeros(1), np.zeros(1), np.zeros((1, 2)),
                                   np.zeros(1), np.zeros(1), np.zeros(1, np.bool_), chosen, block, BLOCK_EVERY,
                                   ACTIVE_SET_PASSES, 1, 0.0)
+        # a small jointed system's rows: one contact of body 0 on the fixed body, one joint row, by the Cholesky
+        # factor and by the pseudo-inverse
+        flags, one_row = np.array([True, False]), np.zeros((1, 12))
+        for cholesky in (True, False):
+            impulses.small_jointed_rows(*one, np.zeros((3, 1, 3)), np.zeros((1, 3)), np.zeros((1, 3)), np.ones(2),
+                                        np.zeros((2, 3, 3)), flags, flags, flags, flags, np.array([0, -1]), one_row,
+                                        one_row.T.copy(), np.ones((1, 1)), cholesky)
         forces: Any = resting_forces.resting_forces  # one resting contact of body 0 on the fixed body
         forces(*one, np.eye(3)[:, None, :], np.array([[0.0, 1.0, 0.0]]), np.zeros((1, 3)), np.zeros((1, 3)),
                np.ones(2), np.zeros((2, 3, 3)), np.zeros((2, 3)), np.zeros((2, 3)), np.zeros(3), np.zeros(3),
@@ -640,7 +696,8 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
     if jointed is None and couple is None and compiled_contacts(count, long_run=long_run):
         return _solve_compiled(contacts, bodies, x, h, iterations=iterations, rest_speed=rest_speed, slop=slop,
                                bounce=bounce, warm=warm, kinematic=kinematic)
-    rows = ContactRows(contacts, bodies, x, kinematic, jointed)
+    compiled = compiled_contacts(count, long_run=long_run)
+    rows = ContactRows(contacts, bodies, x, kinematic, jointed, compiled=compiled)
     block = JointedNormals.of(rows, jointed) if jointed is not None else None
     n = rows.n
     approach = rows.relative(n)
@@ -671,7 +728,7 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         rows.push_normal(velocity, normal_impulse)
         rows.push_tangent(velocity, tangent_impulse)
     tolerance = VELOCITY_TOLERANCE * (1.0 + float(np.abs(approach).max(initial=0.0)))
-    if compiled_contacts(count, long_run=long_run) and rows.dense:  # small jointed scenes: array rows, compiled
+    if compiled and rows.dense:  # small jointed scenes: array rows, compiled
         normal_impulse, tangent_impulse, _, result.residual = _compiled_dense_sweeps(
             rows, contacts, velocity, target, normal_impulse, tangent_impulse, sticking, block, iterations, tolerance)
     else:

@@ -3,10 +3,12 @@
 products and a dozen temporary arrays.
 
 On a pile of 10 000 balls the iterations were 93 % of a step and contact detection 5 %, so the iterations are what is
-compiled. Every operation is the numpy code's, in the same order per contact, so the two agree to round-off (the
-tests compare them): a row's rate ``(v_a − v_b)·d + ω_a·(r_a × d) − ω_b·(r_b × d)`` is
-:meth:`ContactRows.relative`, and an impulse λ along a row adds ``λ lin_a`` and ``λ turn_a`` to body a's linear and
-angular velocity and takes ``λ lin_b``, ``λ turn_b`` from body b's, as the response matrices do.
+compiled. For small jointed systems (a ragdoll) the rows themselves are built here too (:func:`small_jointed_rows`):
+their response within the joints took some twenty numpy calls a step. Every operation is the numpy code's, in the
+same order per contact, so the two agree to round-off (the tests compare them): a row's rate
+``(v_a − v_b)·d + ω_a·(r_a × d) − ω_b·(r_b × d)`` is :meth:`ContactRows.relative`, and an impulse λ along a row
+adds ``λ lin_a`` and ``λ turn_a`` to body a's linear and angular velocity and takes ``λ lin_b``, ``λ turn_b`` from
+body b's, as the response matrices do.
 
 Arrays (K contacts, B bodies with the fixed one last): ``velocity`` (6 B,) flat, ``[v.ravel(), ω.ravel()]``, changed in
 place; ``a``, ``b`` (K,) body indices; per row r (0: normal, 1 and 2: tangents) ``direction``, ``arm_a``, ``arm_b``
@@ -369,3 +371,122 @@ def solve_contacts(a: np.ndarray, b: np.ndarray, normal: np.ndarray, point: np.n
     push_iterations(pseudo, a, b, direction, arm_a, arm_b, lin_a, lin_b, turn_a, turn_b, weight, push_target,
                     settings[3] * strongest, min(iterations, int(settings[4])))
     return normal_impulse, tangent_impulse, tangent_vector, impact, arrival, pseudo, residual, tolerance
+
+
+@njit(cache=True, error_model="numpy")
+def _solve_rows(factor: np.ndarray, cholesky: bool, right: np.ndarray) -> np.ndarray:
+    """``(G M⁻¹ Gᵀ)⁺ right`` for right (R, m): by the lower Cholesky factor ``factor`` (R, R) (forward and back
+    substitution, row by row over all columns; a tree of joints leaves most of the factor zero, skipped), or with
+    ``cholesky`` False, ``factor`` is the pseudo-inverse."""
+    rows, width = right.shape
+    if not cholesky:
+        return factor @ right
+    out = right.copy()
+    for i in range(rows):  # L y = right
+        for j in range(i):
+            f = factor[i, j]
+            if f != 0.0:
+                for c in range(width):
+                    out[i, c] -= f * out[j, c]
+        pivot = factor[i, i]
+        for c in range(width):
+            out[i, c] /= pivot
+    for i in range(rows - 1, -1, -1):  # Lᵀ x = y
+        for j in range(i + 1, rows):
+            f = factor[j, i]
+            if f != 0.0:
+                for c in range(width):
+                    out[i, c] -= f * out[j, c]
+        pivot = factor[i, i]
+        for c in range(width):
+            out[i, c] /= pivot
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def small_jointed_rows(a: np.ndarray, b: np.ndarray, directions: np.ndarray, r_a: np.ndarray, r_b: np.ndarray,
+                       inverse_mass: np.ndarray, inverse_inertia: np.ndarray, read_moving: np.ndarray,
+                       read_turning: np.ndarray, moving: np.ndarray, turning: np.ndarray, group: np.ndarray,
+                       rows: np.ndarray, push: np.ndarray, factor: np.ndarray, cholesky: bool
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:meth:`animbatch.sim.contact.solver.ContactRows._small_jointed` in one call: the Jacobian ``J`` (3K, 6S) of K
+    contacts' rows along ``directions`` (3, K, 3) (normals, first and second tangents) at lever arms ``r_a``, ``r_b``
+    (K, 3) on bodies ``a``, ``b`` (K,) of S (the fixed one last; ``inverse_mass`` (S,), world ``inverse_inertia``
+    (S, 3, 3)); each end's response ``M⁻¹ Jᵀ``, corrected within the joints (rows ``rows`` G (R, 6S), ``push``
+    M⁻¹ Gᵀ (6S, R), ``factor`` of G M⁻¹ Gᵀ: its lower Cholesky factor, or with ``cholesky`` False its
+    pseudo-inverse), summed into the response (6S, 3K); and the effective masses (3, K), each end's inverse
+    effective mass less what the joints take, split among the contact ends of its jointed ``group`` (S,; −1: none),
+    or a pair's together when both ends are in one group. Entries of bodies that cannot take them are left 0:
+    ``read_moving``, ``read_turning`` (S,) for the Jacobian (moving colliders are read), ``moving``, ``turning`` for
+    the responses. The same arithmetic as numpy's, to round-off (the tests compare them)."""
+    count, size = len(a), len(inverse_mass)
+    columns = 6 * size
+    jacobian = np.zeros((3 * count, columns))
+    ends = np.zeros((columns, 6 * count))
+    own = np.zeros((2, 3 * count))  # each end's own inverse effective mass per row
+    for r in range(3):
+        for k in range(count):
+            line = r * count + k
+            for end in range(2):
+                body = a[k] if end == 0 else b[k]
+                sign = 1.0 if end == 0 else -1.0
+                lever = r_a if end == 0 else r_b
+                d0, d1, d2 = directions[r, k, 0], directions[r, k, 1], directions[r, k, 2]
+                l0, l1, l2 = lever[k, 0], lever[k, 1], lever[k, 2]
+                arm = np.empty(3)
+                arm[0] = l1 * d2 - l2 * d1
+                arm[1] = l2 * d0 - l0 * d2
+                arm[2] = l0 * d1 - l1 * d0
+                linear_column, angular_column = 3 * body, 3 * (size + body)
+                turn = np.empty(3)
+                for i in range(3):
+                    turn[i] = (inverse_inertia[body, i, 0] * arm[0] + inverse_inertia[body, i, 1] * arm[1]
+                               + inverse_inertia[body, i, 2] * arm[2])
+                mass = inverse_mass[body]
+                total = 0.0
+                for i in range(3):
+                    if read_moving[body]:
+                        jacobian[line, linear_column + i] = sign * directions[r, k, i]
+                    if read_turning[body]:
+                        jacobian[line, angular_column + i] = sign * arm[i]
+                    if moving[body]:
+                        ends[linear_column + i, end * 3 * count + line] = sign * mass * directions[r, k, i]
+                    if turning[body]:
+                        ends[angular_column + i, end * 3 * count + line] = sign * turn[i]
+                for i in range(3):
+                    total += mass * directions[r, k, i] * directions[r, k, i]
+                turned = 0.0
+                for i in range(3):
+                    turned += turn[i] * arm[i]
+                own[end, line] = total + turned
+    rates = rows @ ends  # (R, 6K): what each end's unit impulse does to the joints
+    answers = _solve_rows(factor, cholesky, rates)
+    response = np.empty((columns, 3 * count))
+    both = answers[:, :3 * count] + answers[:, 3 * count:]
+    correction = push @ both
+    for i in range(columns):
+        for line in range(3 * count):
+            response[i, line] = ends[i, line] + ends[i, 3 * count + line] - correction[i, line]
+    shares = np.zeros(size + 1)
+    for k in range(count):
+        shares[group[a[k]] + 1] += 1.0
+        shares[group[b[k]] + 1] += 1.0
+    weight = np.empty((3, count))
+    for r in range(3):
+        for k in range(count):
+            line = r * count + k
+            lost_a = lost_b = lost_both = 0.0
+            for j in range(rates.shape[0]):
+                ra, rb = rates[j, line], rates[j, 3 * count + line]
+                za, zb = answers[j, line], answers[j, 3 * count + line]
+                lost_a += ra * za
+                lost_b += rb * zb
+                lost_both += (ra + rb) * (za + zb)
+            ga, gb = group[a[k]], group[b[k]]
+            share_a, share_b = shares[ga + 1], shares[gb + 1]
+            if ga == gb and ga >= 0:
+                inverse = share_a * (own[0, line] + own[1, line] - lost_both)
+            else:
+                inverse = share_a * (own[0, line] - lost_a) + share_b * (own[1, line] - lost_b)
+            weight[r, k] = 1.0 / max(inverse, 1e-300)
+    return jacobian, response, weight
