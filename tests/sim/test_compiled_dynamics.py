@@ -299,6 +299,8 @@ def test_the_joint_rows_a_contact_solve_reads_are_the_numpy_ones(both):
         matrices = [system.velocity_rows(state, size).toarray() for system in (numpy_system, compiled)]
         assert matrices[0].shape == matrices[1].shape and np.count_nonzero(matrices[0])
         _close(*matrices)
+        for system, sparse in zip((numpy_system, compiled), matrices):  # the array form (small systems): the same
+            np.testing.assert_array_equal(system.velocity_rows(state, size, dense=True), sparse)
 
 
 def test_engaged_stops_are_the_numpy_ones():
