@@ -182,21 +182,18 @@ class JointedResponse:
                 # which bodies each row touches (R, size), the key itself: a ragdoll's few hundred booleans
                 touches = np.any(self._rows_array.reshape(self.count, 2, size, 3) != 0, axis=(1, 3))
                 key = (size, touches.tobytes())
-                if key not in _GROUPS:
-                    entries, body = np.nonzero(touches)
-                    _, first_entry, per_row = np.unique(entries, return_index=True, return_counts=True)
-                    links = np.stack([np.repeat(body[first_entry], per_row), body])
+                entries, body = np.nonzero(touches)  # each entry's row (sorted) and body
             else:
                 rows = sp.csr_matrix(self._rows_array) if self.rows is None else self.rows
                 stored = rows.data != 0  # an entry stored as zero joins nothing
                 entries = np.repeat(np.arange(rows.shape[0]), np.diff(rows.indptr))[stored]
                 body = (rows.indices[stored] % (3 * size)) // 3
+                key = (size, np.stack([entries, body]).tobytes())
+            found = _GROUPS.get(key)
+            if found is None:
                 # each body a row touches, linked to the first body that row touches
                 _, first_entry, per_row = np.unique(entries, return_index=True, return_counts=True)
                 links = np.stack([np.repeat(body[first_entry], per_row), body])
-                key = (size, links.tobytes())
-            found = _GROUPS.get(key)
-            if found is None:
                 graph = sp.csr_matrix((np.ones(links.shape[1]), (links[0], links[1])), shape=(size, size))
                 found = _GROUPS[key] = connected_components(graph, directed=False)[1]
                 if len(_GROUPS) > GROUPS_KEPT:

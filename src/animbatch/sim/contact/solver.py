@@ -257,6 +257,34 @@ class ContactRows(FlatVelocities):
     def second_row(self) -> _Direction:
         return self._direction(self.t2)
 
+    @functools.cached_property
+    def _entries_kept(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Which bodies (P + 1,) have linear and angular entries in the responses (they move, they turn), then in the
+        Jacobians (also the moving colliders: their velocity is read, not changed). The others' entries can only
+        meet zeros: they are left out (sparse) or left 0 (arrays)."""
+        moving = self.bodies.inverse_mass > 0
+        turning = np.any(self.bodies.inverse_inertia != 0, axis=(1, 2))
+        driven = self.bodies.driven
+        if driven is None:
+            return moving, turning, moving, turning
+        return moving, turning, moving | driven, turning | driven
+
+    @functools.cached_property
+    def _contact_groups(self) -> np.ndarray:
+        """With the joints: each body's jointed group (P + 1,), the fixed body in none (−1: it takes no share)."""
+        assert self._jointed is not None
+        group = self._jointed.groups(self.size)
+        group[-1] = -1
+        return group
+
+    def _keep_arrays(self, jacobian: np.ndarray, response: np.ndarray) -> None:
+        """Take a small system's Jacobian (3K, 6 (P + 1)) and response (6 (P + 1), 3K) as the row matrices."""
+        k = self.count
+        self.__dict__["_jacobian_normal"] = jacobian[:k]
+        self.__dict__["_jacobian_tangent"] = jacobian[k:]
+        self.__dict__["_response_normal"] = np.ascontiguousarray(response[:, :k])
+        self.__dict__["_response_tangent"] = np.ascontiguousarray(response[:, k:])
+
     @property
     def dense(self) -> bool:
         """Whether the row matrices are arrays (small systems, :data:`DENSE_ENTRIES`)."""
@@ -292,10 +320,8 @@ class ContactRows(FlatVelocities):
         linear and angular entries, then body b's.
         """
         k, size, a, b = self.count, self.size, self.a, self.b
-        moving = self.bodies.inverse_mass > 0
-        turning = np.any(self.bodies.inverse_inertia != 0, axis=(1, 2))
-        if not response and self.bodies.driven is not None:  # moving colliders: their velocity is read, not changed
-            moving, turning = moving | self.bodies.driven, turning | self.bodies.driven
+        kept = self._entries_kept
+        moving, turning = kept[:2] if response else kept[2:]
         keep = np.stack([moving[a], turning[a], moving[b], turning[b]], axis=1)  # (K, 4) blocks of 3 entries
         keep &= np.repeat(ends, 2)  # only the ends asked for
         columns = (np.stack([3 * a, 3 * (size + a), 3 * b, 3 * (size + b)], axis=1)[:, :, None] + np.arange(3))
@@ -320,11 +346,7 @@ class ContactRows(FlatVelocities):
         to round-off, without its three solves and dozen assemblies a step (a ragdoll's contact step)."""
         k, size, a, b = self.count, self.size, self.a, self.b
         rows = (self.normal_row, self.first_row, self.second_row)
-        moving = self.bodies.inverse_mass > 0
-        turning = np.any(self.bodies.inverse_inertia != 0, axis=(1, 2))
-        read_moving, read_turning = moving, turning
-        if self.bodies.driven is not None:  # moving colliders: their velocity is read, not changed
-            read_moving, read_turning = moving | self.bodies.driven, turning | self.bodies.driven
+        moving, turning, read_moving, read_turning = self._entries_kept
         line = np.arange(3 * k)[:, None]
         step = np.arange(3)
         linear_a, angular_a = 3 * np.tile(a, 3)[:, None] + step, 3 * (size + np.tile(a, 3))[:, None] + step
@@ -356,11 +378,8 @@ class ContactRows(FlatVelocities):
         lost_ends = np.einsum("rk,rk->k", end_rates, both)
         lost_pairs = np.einsum("rk,rk->k", end_rates[:, :3 * k] + end_rates[:, 3 * k:],
                                both[:, :3 * k] + both[:, 3 * k:])
-        response = ends[:, :3 * k] + ends[:, 3 * k:] - jointed.push_array @ (both[:, :3 * k] + both[:, 3 * k:])
-        self.__dict__["_jacobian_normal"] = jacobian[:k]
-        self.__dict__["_jacobian_tangent"] = jacobian[k:]
-        self.__dict__["_response_normal"] = np.ascontiguousarray(response[:, :k])
-        self.__dict__["_response_tangent"] = np.ascontiguousarray(response[:, k:])
+        self._keep_arrays(jacobian, ends[:, :3 * k] + ends[:, 3 * k:]
+                          - jointed.push_array @ (both[:, :3 * k] + both[:, 3 * k:]))
         self.w_n, self.w_1, self.w_2 = (
             self._jointed_weight(row, lost_ends[r * k:(r + 1) * k], lost_ends[(3 + r) * k:(4 + r) * k],
                                  lost_pairs[r * k:(r + 1) * k]) for r, row in enumerate(rows))
@@ -371,14 +390,8 @@ class ContactRows(FlatVelocities):
         from animbatch.sim.kernels import contact_impulses
 
         build: Any = contact_impulses.small_jointed_rows
-        bodies, k = self.bodies, self.count
-        moving = bodies.inverse_mass > 0
-        turning = np.any(bodies.inverse_inertia != 0, axis=(1, 2))
-        read_moving, read_turning = moving, turning
-        if bodies.driven is not None:  # moving colliders: their velocity is read, not changed
-            read_moving, read_turning = moving | bodies.driven, turning | bodies.driven
-        group = jointed.groups(self.size)
-        group[-1] = -1  # the fixed body: no share
+        bodies = self.bodies
+        moving, turning, read_moving, read_turning = self._entries_kept
         assert jointed.factor is not None
 
         def floats(values: np.ndarray) -> np.ndarray:
@@ -387,12 +400,9 @@ class ContactRows(FlatVelocities):
         jacobian, response, weight = build(
             np.asarray(self.a, np.int64), np.asarray(self.b, np.int64), floats(directions), floats(self.r_a),
             floats(self.r_b), floats(bodies.inverse_mass), floats(bodies.inverse_inertia), read_moving, read_turning,
-            moving, turning, group.astype(np.int64), floats(jointed.rows_array), floats(jointed.push_array),
-            floats(jointed.factor), bool(jointed.cholesky))
-        self.__dict__["_jacobian_normal"] = jacobian[:k]
-        self.__dict__["_jacobian_tangent"] = jacobian[k:]
-        self.__dict__["_response_normal"] = np.ascontiguousarray(response[:, :k])
-        self.__dict__["_response_tangent"] = np.ascontiguousarray(response[:, k:])
+            moving, turning, self._contact_groups.astype(np.int64), floats(jointed.rows_array),
+            floats(jointed.push_array), floats(jointed.factor), bool(jointed.cholesky))
+        self._keep_arrays(jacobian, response)
         self.w_n, self.w_1, self.w_2 = weight
 
     def _direction(self, d: np.ndarray) -> _Direction:
@@ -441,10 +451,7 @@ class ContactRows(FlatVelocities):
     def _group_shares(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """With the joints: how many contact ends each contact's end a and end b shares its jointed group with (K,)
         each (a group moves as one under any of them), and which contacts have both ends in one group (K,)."""
-        assert self._jointed is not None
-        a, b = self.a, self.b
-        group = self._jointed.groups(self.size)
-        group[-1] = -1  # the fixed body: no share
+        a, b, group = self.a, self.b, self._contact_groups
         shares = np.bincount(np.concatenate([group[a], group[b]]) + 1, minlength=group.max() + 2).astype(float)
         return shares[group[a] + 1], shares[group[b] + 1], (group[a] == group[b]) & (group[a] >= 0)
 

@@ -39,6 +39,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import SuperLU, splu
 
+from animbatch.sim.forces.jacobian import DENSE_STEP_UNKNOWNS
+
 #: Backward Euler's step matrices of at least this many unknowns are factored by the compiled supernodal Cholesky
 #: (:mod:`animbatch.sim.integrators.cholesky`) unless ``ANIMBATCH_KERNELS=numpy``; smaller ones by SuperLU, which
 #: finishes them before numba has loaded (``ANIMBATCH_KERNELS=numba`` takes the Cholesky at any size). Measured on a
@@ -200,8 +202,8 @@ def drop_weak_couplings(matrix: sp.spmatrix, fraction: float = WEAK_COUPLING) ->
 
 
 #: Newton matrices of Radau and BDF whose velocity system has at most this many unknowns (3 per particle) are
-#: reduced and factored as arrays (see :data:`animbatch.sim.forces.jacobian.DENSE_STEP_UNKNOWNS`).
-DENSE_NEWTON_UNKNOWNS = 150
+#: reduced and factored as arrays: the size up to which backward Euler's step matrices are.
+DENSE_NEWTON_UNKNOWNS = DENSE_STEP_UNKNOWNS
 
 
 class SecondOrderFactor:
