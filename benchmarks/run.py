@@ -485,8 +485,9 @@ def cloth_end_to_end(resolution: int, duration: float) -> list[Row]:
     return rows
 
 
-def render_case(count: int, quality: str, sprites: bool = False) -> tuple[object, object, np.ndarray]:
-    """The render settings, frame geometry and positions (count, 3) of ``count`` particles at 1280×720 at a quality
+def render_case(count: int, quality: str, sprites: bool = False, size: tuple[int, int] = (1280, 720)
+                ) -> tuple[object, object, np.ndarray]:
+    """The render settings, frame geometry and positions (count, 3) of ``count`` particles at ``size`` at a quality
     preset, over a ground: built by the code renders use (a one-particle scene widened to ``count`` particles), so
     the benchmark follows it, without validating a scene file of 100 000 bodies."""
     import dataclasses
@@ -501,21 +502,22 @@ def render_case(count: int, quality: str, sprites: bool = False) -> tuple[object
     bounds = np.array([positions.min(axis=0) - 1, positions.max(axis=0) + 1])
     particles = "sprite" if sprites else "mesh"
     loaded = parse_scene(f"duration: 1\nbodies: [{{name: p, radius: 0.5}}]\nrender: {{quality: {quality}, "
-                         f"resolution: [1280, 720], particles: {particles}, ground: {{}}, show_time: false}}\n")
+                         f"resolution: [{size[0]}, {size[1]}], particles: {particles}, ground: {{}}, "
+                         "show_time: false}\n")
     geometry = dataclasses.replace(frame_geometry(loaded.spec, api.compile_model(loaded), bounds),
                                    particle_radius=radius, colors=["#e15759"] * count, finishes=(None,) * count,
                                    drawn_particles=np.ones(count, bool))
     return loaded.spec.render, geometry, positions
 
 
-def render_frames(count: int, quality: str, frames: int, sprites: bool = False
+def render_frames(count: int, quality: str, frames: int, sprites: bool = False, size: tuple[int, int] = (1280, 720)
                   ) -> tuple[float, list[np.ndarray], str]:
-    """Frames per second of the renderer drawing ``count`` particles at 1280×720 (moving them every frame and
+    """Frames per second of the renderer drawing ``count`` particles at ``size`` (moving them every frame and
     reading the pixels back), a few of the images, and the backend's name."""
     from animbatch.render.backend import select_backend
     from animbatch.render.frames import FrameRenderer
 
-    spec, geometry, positions = render_case(count, quality, sprites)
+    spec, geometry, positions = render_case(count, quality, sprites, size)
     images = []
     with FrameRenderer(spec, geometry, select_backend("auto")) as renderer:
         renderer.draw(0.0, positions)  # warm-up: shader compilation
@@ -529,7 +531,8 @@ def render_frames(count: int, quality: str, frames: int, sprites: bool = False
     return frames / seconds, images, backend
 
 
-def bare_frames(count: int, quality: str, frames: int, sprites: bool = False) -> float:
+def bare_frames(count: int, quality: str, frames: int, sprites: bool = False, size: tuple[int, int] = (1280, 720)
+                ) -> float:
     """Frames per second of a bare PyVista loop drawing the same geometry at the same settings: one plotter, the
     particles (sphere actors moved by SetPosition, or one point-sprite cloud) over a plane, the same anti-aliasing,
     pixels read back the same way. The anchor the renderer is measured against."""
@@ -539,9 +542,9 @@ def bare_frames(count: int, quality: str, frames: int, sprites: bool = False) ->
     from animbatch.render.backend import activate, select_backend
     from animbatch.render.camera import CameraPath
 
-    spec, geometry, positions = render_case(count, quality, sprites)
+    spec, geometry, positions = render_case(count, quality, sprites, size)
     activate(select_backend("auto"))
-    plotter = pv.Plotter(off_screen=True, window_size=[1280, 720])
+    plotter = pv.Plotter(off_screen=True, window_size=list(size))
     plotter.ren_win.SetMultiSamples(spec.msaa_samples if spec.anti_aliasing == "msaa" else 0)
     if spec.anti_aliasing == "fxaa":
         plotter.renderer.SetUseFXAA(True)
@@ -561,7 +564,7 @@ def bare_frames(count: int, quality: str, frames: int, sprites: bool = False) ->
                                phi_resolution=spec.sphere_resolution)
             actors.append(plotter.add_mesh(sphere, color="#e15759", smooth_shading=True))
     # the renderer's own fitted camera: what is on screen, and how large, decides the cost of a frame
-    camera = CameraPath(spec.active_camera, geometry.bounds, 1280 / 720, geometry.followed).at(0.0)
+    camera = CameraPath(spec.active_camera, geometry.bounds, size[0] / size[1], geometry.followed).at(0.0)
     plotter.camera.position, plotter.camera.focal_point = tuple(camera.position), tuple(camera.focal_point)
     plotter.camera.up, plotter.camera.view_angle = tuple(camera.up), camera.view_angle
     plotter.renderer.ResetCameraClippingRange()
@@ -575,7 +578,7 @@ def bare_frames(count: int, quality: str, frames: int, sprites: bool = False) ->
         for actor, position in zip(actors, moved):
             actor.SetPosition(*position)
         plotter.ren_win.Render()
-        plotter.ren_win.GetPixelData(0, 0, 1279, 719, 0, pixels, 0)
+        plotter.ren_win.GetPixelData(0, 0, size[0] - 1, size[1] - 1, 0, pixels, 0)
 
     draw(0)
     started = time.perf_counter()
@@ -607,21 +610,21 @@ def bench_render(quick: bool) -> list[Row]:
     # --quick: one case of each kind (spheres at draft and final, sprites) on few particles and frames, for the test
     # that keeps this script working; the two other one-sphere qualities add a plotter each and nothing new
     cases = [case for case in RENDER_CASES if case[0] not in QUICK_SKIPS] if quick else RENDER_CASES
+    size = (320, 180) if quick else (1280, 720)  # --quick checks that both loops run, not their speed
     for label, count, quality, sprites, target, least_ratio, frames in cases:
         if quick:
-            count, frames = min(count, 200), 2
-        fps, _, backend = render_frames(count, quality, frames, sprites)
-        bare = bare_frames(count, quality, frames, sprites)
+            count, frames = min(count, 20), 2
+        fps, _, backend = render_frames(count, quality, frames, sprites, size)
+        bare = bare_frames(count, quality, frames, sprites, size)
         goal = []
         if target is not None:
             goal.append(f"target ≥ {target:g} fps: {'met' if fps >= target else 'MISSED'}")
         if least_ratio is not None:
             goal.append(f"target ≥ {least_ratio:g}× bare: {'met' if fps >= least_ratio * bare else 'MISSED'}")
-        rows.append({"benchmark": "render 1280×720", "case": f"{label}, {backend}", "value": fps,
-                     "unit": "frames/s"})
-        rows.append({"benchmark": "render 1280×720", "case": f"{label}: bare PyVista loop", "value": bare,
-                     "unit": "frames/s"})
-        rows.append({"benchmark": "render 1280×720", "case": f"{label}: renderer / bare", "value": fps / bare,
+        title = f"render {size[0]}×{size[1]}"
+        rows.append({"benchmark": title, "case": f"{label}, {backend}", "value": fps, "unit": "frames/s"})
+        rows.append({"benchmark": title, "case": f"{label}: bare PyVista loop", "value": bare, "unit": "frames/s"})
+        rows.append({"benchmark": title, "case": f"{label}: renderer / bare", "value": fps / bare,
                      "unit": "; ".join(goal) or "×"})
     return rows
 
@@ -629,26 +632,28 @@ def bench_render(quick: bool) -> list[Row]:
 def bench_encode(quick: bool) -> list[Row]:
     from animbatch.encode import Mp4Writer, PngSequenceWriter
 
-    _, images, _ = render_frames(1_000 if quick else 10_000, "draft", 4 if quick else 16, sprites=True)
+    size = (320, 180) if quick else (1280, 720)  # --quick checks that each writer runs, not its speed
+    _, images, _ = render_frames(1_000 if quick else 10_000, "draft", 4 if quick else 16, sprites=True, size=size)
     frames = 4 if quick else 240
+    title = f"encode {size[0]}×{size[1]}"
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         for preset in ("ultrafast", "veryfast", "medium"):
             target = Path(folder) / f"{preset}.mp4"
 
             def encode() -> None:
-                with Mp4Writer(target, (1280, 720), 30, preset=preset, crf=20) as writer:
+                with Mp4Writer(target, size, 30, preset=preset, crf=20) as writer:
                     for k in range(frames):
                         writer.write(np.roll(images[k % len(images)], 3 * k, axis=1))
                     writer.commit()
 
             seconds = best_of(1, encode)
-            rows.append({"benchmark": "encode 1280×720", "case": f"H.264 preset {preset} (crf 20)",
+            rows.append({"benchmark": title, "case": f"H.264 preset {preset} (crf 20)",
                          "value": frames / seconds, "unit": "frames/s"})
         writer = PngSequenceWriter(Path(folder) / "frames")
         count = frames // 4
         seconds = best_of(1, lambda: [writer.write(k, images[k % len(images)]) for k in range(count)])
-        rows.append({"benchmark": "encode 1280×720", "case": "PNG (compress level 1)", "value": count / seconds,
+        rows.append({"benchmark": title, "case": "PNG (compress level 1)", "value": count / seconds,
                      "unit": "frames/s"})
     return rows
 
@@ -760,7 +765,7 @@ def bench_startup(quick: bool) -> list[Row]:
         def work(arguments: list[str] = arguments) -> None:
             subprocess.run([sys.executable, "-m", "animbatch", *arguments], check=True, capture_output=True)
 
-        rows.append({"benchmark": "start-up", "case": label, "value": best_of(2 if quick else 5, work),
+        rows.append({"benchmark": "start-up", "case": label, "value": best_of(1 if quick else 5, work),
                      "unit": "s"})
     return rows
 
@@ -768,18 +773,18 @@ def bench_startup(quick: bool) -> list[Row]:
 def bench_grade(quick: bool) -> list[Row]:
     """``animbatch grade`` of each teaching template against itself, as a course grades a solved one against the
     reference: wall time of the whole grade (both runs simulated, every check judged), best of two (issue 36's
-    target: at most 1 s). With --quick, the first two templates only."""
+    target: at most 1 s). With --quick, the first template only, once."""
     from animbatch.teaching.grade import grade
     from animbatch.teaching.templates import start, templates
 
     target = 1.0
     rows = []
     with tempfile.TemporaryDirectory() as folder:
-        for template in templates()[:2] if quick else templates():
+        for template in templates()[:1] if quick else templates():
             scene = start(template.name, Path(folder) / f"{template.name}.yaml")
             with warnings.catch_warnings():  # a template as given may be inaccurate on purpose (the task)
                 warnings.simplefilter("ignore")
-                seconds = best_of(2, lambda scene=scene: grade(scene, scene))  # type: ignore[misc]
+                seconds = best_of(1 if quick else 2, lambda scene=scene: grade(scene, scene))  # type: ignore[misc]
             rows.append({"benchmark": "grade", "case": f"{template.name} as given, against itself", "value": seconds,
                          "unit": f"s (target ≤ {target:g} s: {'met' if seconds <= target else 'MISSED'})"})
     return rows

@@ -304,16 +304,15 @@ def test_a_closed_four_bar_linkage_keeps_its_loop_closed_and_its_energy(solver):
     assert np.ptp(trajectory.positions[:, 0, 0]) > 0.1, "it moves"
 
 
-@pytest.mark.slow
 def test_info_lists_the_rods_and_how_they_are_held(tmp_path):
-    import subprocess
-    import sys
+    from click.testing import CliRunner
+
+    from animbatch.cli import cli
 
     path = tmp_path / "rods.yaml"
     path.write_text("duration: 1\nanchors: [{name: pivot, position: [0, 0, 0]}]\nbodies: [{name: bob, position: [0, -0.5, 0]}]\n"
                     "joints: [{type: distance, between: [pivot, bob]}]\n")
-    out = subprocess.run([sys.executable, "-m", "animbatch", "info", str(path)], capture_output=True, text=True,
-                         check=True).stdout
+    out = CliRunner().invoke(cli, ["info", str(path)]).output
     assert "joints     1 joint: pivot--bob (rod 0.5 m)" in out
 
 

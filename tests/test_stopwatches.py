@@ -3,9 +3,6 @@ bounce, an oscillator's period), shown on the overlay and reported with the run.
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 
@@ -129,9 +126,13 @@ def test_the_overlay_shows_stopwatches_and_wall_times_and_the_run_reports_them(t
     assert label.at(0.0)["wall_simulate"] > 0
     path = tmp_path / "drop.yaml"
     path.write_text(__import__("textwrap").dedent(text))
-    result = subprocess.run([sys.executable, "-m", "animbatch", "simulate", str(path), "-o", str(tmp_path / "d.npz")],
-                            capture_output=True, text=True, check=True)
-    assert "stopwatch 'fall' 0.63855" in result.stdout and "expected 0.63855 s" in result.stdout
+    from click.testing import CliRunner
+
+    from animbatch.cli import cli
+
+    result = CliRunner().invoke(cli, ["simulate", str(path), "-o", str(tmp_path / "d.npz")])
+    assert result.exit_code == 0, result.output
+    assert "stopwatch 'fall' 0.63855" in result.output and "expected 0.63855 s" in result.output
 
 
 def test_stopwatches_do_not_change_the_physics_hash():

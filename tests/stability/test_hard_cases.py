@@ -423,7 +423,8 @@ def test_bdf_at_a_loose_tolerance_stays_below_the_steps_where_newton_failed():
             loose[capped] = ScipyIntegrator("BDF", rtol=1e-2, atol=1e-2).integrate(Dynamics(model), model.y0,
                                                                                    model.frame_times)
     assert 2 * loose[True].stats.lu_decompositions <= loose[False].stats.lu_decompositions
-    tight = ScipyIntegrator("BDF", rtol=1e-6, atol=1e-8).integrate(Dynamics(model), model.y0, model.frame_times)
+    # the reference: within 2e-4 m of an rtol 1e-6 run, which is far below the errors compared (around 1e-2 m)
+    tight = ScipyIntegrator("BDF", rtol=1e-4, atol=1e-6).integrate(Dynamics(model), model.y0, model.frame_times)
     n = model.particle_count
     error = {capped: np.abs(run.states[:, :3 * n] - tight.states[:, :3 * n]).max() for capped, run in loose.items()}
     assert error[True] < 4 * 1e-2 and error[True] < 1.5 * error[False]  # a few atol at worst, as without the cap
