@@ -15,12 +15,16 @@ platform carries a box by friction.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import TypeVar
 
 import numpy as np
 
 from animbatch.sim.contact.geometry import StaticColliders
 from animbatch.sim.motion import SolidPath
+
+_T = TypeVar("_T")
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,8 +44,24 @@ class MovingColliders:
     def count(self) -> int:
         return len(self.paths)
 
+    def _remembered(self, key: tuple, compute: Callable[[], _T]) -> _T:
+        """``compute()``, or what it gave for the same ``key`` (a name and a time) last time: a contact step asks for
+        the colliders' poses and motion at one time several times (reach, search, solve), and each asks every
+        path. Arrays handed out are read-only, so no caller can change what the next one is given."""
+        memo = self.__dict__.setdefault("_memo", {})
+        if memo.get(key[0], (None,))[0] != key:
+            value = compute()
+            for array in (value if isinstance(value, tuple) else vars(value).values()):
+                if isinstance(array, np.ndarray):
+                    array.flags.writeable = False
+            memo[key[0]] = (key, value)
+        return memo[key[0]][1]
+
     def place(self, rest: StaticColliders, t: float) -> StaticColliders:
         """The solids at time t [s]: ``rest`` with the moving ones where their paths put them."""
+        return self._remembered(("place", id(rest), t), lambda: self._place(rest, t))
+
+    def _place(self, rest: StaticColliders, t: float) -> StaticColliders:
         plane_point, plane_normal = rest.plane_point.copy(), rest.plane_normal.copy()
         sphere_centre, box_centre = rest.sphere_centre.copy(), rest.box_centre.copy()
         box_rotation, triangles = rest.box_rotation.copy(), rest.triangles
@@ -70,6 +90,9 @@ class MovingColliders:
 
     def motion(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Centres (M, 3) [m], velocities (M, 3) [m/s] and angular velocities (M, 3) [rad/s] at time t."""
+        return self._remembered(("motion", t), lambda: self._motion(t))
+
+    def _motion(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         centres = np.array([path.pose(t)[0] for path in self.paths]).reshape(-1, 3)
         moves = [path.velocity(t) for path in self.paths]
         return (centres, np.array([v for v, _ in moves]).reshape(-1, 3),
