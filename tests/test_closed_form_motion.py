@@ -26,9 +26,9 @@ def test_a_shaker_plate_throws_a_resting_ball_only_when_a_omega_squared_exceeds_
     frequency = 10.0
     amplitude = ratio * G / (2 * np.pi * frequency) ** 2
     loaded = scene(f"""
-        duration: 0.5
+        duration: 0.3
         fps: 100
-        solver: {{method: symplectic_euler, dt: 1.0e-4}}
+        solver: {{method: symplectic_euler, dt: 2.0e-4}}
         materials: {{dead: {{restitution: 0, static_friction: 0.5, kinetic_friction: 0.5}}}}
         bodies:
           - {{name: ball, type: rigid, shape: {{type: sphere, radius: 0.02}}, density: 1000, position: [0, 0.02, 0],
@@ -54,9 +54,9 @@ def test_a_turntable_carries_a_crate_round_at_omega_r():
     (ω² r = 1.1 m/s² < μ g) is brought up to speed by friction, then rides round at ω r on its circle."""
     omega, radius = 1.5, 0.5
     loaded = scene(f"""
-        duration: 2
+        duration: 1
         fps: 50
-        solver: {{method: symplectic_euler, dt: 1.0e-3}}
+        solver: {{method: symplectic_euler, dt: 2.0e-3}}
         materials: {{pad: {{restitution: 0, static_friction: 0.8, kinetic_friction: 0.8}}}}
         bodies:
           - {{name: crate, type: rigid, shape: {{type: box, size: [0.1, 0.1, 0.1]}}, density: 500,
@@ -80,7 +80,7 @@ def test_a_turntable_carries_a_crate_round_at_omega_r():
 @pytest.mark.parametrize("restitution", [1.0, 0.5])
 def test_a_body_moving_at_constant_velocity_bats_a_ball_at_1_plus_e_times_v(restitution):
     loaded = scene(f"""
-        duration: 1
+        duration: 0.5
         fps: 50
         solver: {{method: symplectic_euler, dt: 5.0e-4}}
         materials: {{bat: {{restitution: {restitution}, static_friction: 0, kinetic_friction: 0}}}}

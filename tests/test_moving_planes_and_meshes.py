@@ -94,7 +94,7 @@ def test_on_a_floor_tilted_to_30_degrees_a_block_slides_at_g_sin_minus_mu_g_cos(
     μ = 0.8 > tan 30° it stays where it was on the floor, turned with it."""
     text = """duration: 1.8
 fps: 50
-solver: {{method: symplectic_euler, dt: 2.0e-3}}
+solver: {{method: symplectic_euler, dt: 4.0e-3}}
 materials: {{pad: {{restitution: 0, static_friction: {mu}, kinetic_friction: {mu}}}}}
 bodies:
   - {{name: block, type: rigid, shape: {{type: box, size: [0.1, 0.1, 0.1]}}, density: 500, position: [0.5, 0.05, 0],

@@ -30,7 +30,7 @@ def test_a_particle_bounces_off_a_mesh_slab_as_off_a_plane(tmp_path):
     import trimesh
 
     trimesh.creation.box((1.0, 0.1, 1.0)).export(tmp_path / "slab.stl")  # top at y = 0.05 + 0.2
-    trajectory = run(tmp_path, """duration: 1.6
+    trajectory = run(tmp_path, """duration: 0.9
 fps: 200
 solver: {method: verlet, dt: 0.0005}
 materials: {bouncy: {restitution: 0.7, static_friction: 0.5, kinetic_friction: 0.3}}
@@ -49,7 +49,7 @@ colliders: [{type: mesh, file: slab.stl, position: [0, 0.2, 0], material: bouncy
 
 @pytest.mark.slow
 def test_snow_settles_on_a_crate_a_log_and_a_ball_and_never_inside_them(tmp_path):
-    trajectory = run(tmp_path, """duration: 1.2
+    trajectory = run(tmp_path, """duration: 0.8
 fps: 30
 solver: {method: verlet, dt: 0.002}
 bodies:
@@ -57,7 +57,7 @@ bodies:
   - {name: log, type: rigid, shape: {type: cylinder, radius: 0.15, length: 0.6}, density: 300, position: [0, 0.15, 0]}
   - {name: ball, type: rigid, shape: {type: sphere, radius: 0.2}, density: 300, position: [0.6, 0.2, 0]}
 emitters:
-  - {name: snow, rate: 3000, source: {type: box, position: [0, 1.0, 0], size: [1.6, 0.05, 0.5]}, speed: 0,
+  - {name: snow, rate: 1500, source: {type: box, position: [0, 0.7, 0], size: [1.6, 0.05, 0.5]}, speed: 0,
      lifetime: 10, radius: 0.005, collision: stick}
 fields: [{type: gravity}]
 colliders: [{type: plane}]
@@ -86,12 +86,12 @@ colliders: [{type: plane}]
 def test_a_moving_paddle_sends_resting_particles_off_at_one_plus_e_times_its_speed(tmp_path, e):
     """A box body moving at V = 2 m/s (no gravity) sweeps through particles hanging at rest: each leaves at
     (1 + e) V, the restitution applied to the velocity relative to the paddle's face."""
-    trajectory = run(tmp_path, f"""duration: 1.0
+    trajectory = run(tmp_path, f"""duration: 0.5
 fps: 50
 solver: {{method: verlet, dt: 0.001}}
 materials: {{m: {{restitution: {e}, static_friction: 0.0, kinetic_friction: 0.0}}}}
 bodies:
-  - {{name: paddle, type: rigid, shape: {{type: box, size: [0.05, 1.0, 1.0]}}, density: 500, position: [-1, 0, 0],
+  - {{name: paddle, type: rigid, shape: {{type: box, size: [0.05, 1.0, 1.0]}}, density: 500, position: [-0.5, 0, 0],
      velocity: [2, 0, 0], material: m}}
 emitters:
   - {{name: dust, bursts: [{{time: 0, count: 50}}], source: {{type: box, position: [0, 0, 0], size: [0.2, 0.6, 0.6]}},
@@ -100,7 +100,7 @@ emitters:
     frames = trajectory.particles[0]
     last = len(trajectory.times) - 1
     x = frames.positions[last][alive(frames, last)].astype(float)
-    # hit around t ≈ 0.5 s, then each flies at (1 + e) V: its x at the end fixes its speed with its hit time
+    # hit around t ≈ 0.25 s, then each flies at (1 + e) V: its x at the end fixes its speed with its hit time
     paddle = trajectory.positions[last, 0, 0] + 0.025  # the paddle's face
     assert np.all(x[:, 0] >= paddle + 0.002 - 1e-6)  # all ahead of it
     speed = np.diff(frames.positions[-2:, :, 0].astype(float), axis=0)[0] / np.diff(trajectory.times[-2:])[0]
@@ -112,14 +112,14 @@ emitters:
 def test_particles_stuck_to_a_moving_body_ride_along_with_it(tmp_path):
     """Dust fired at a crate gliding at constant velocity (no gravity) sticks to its face and then moves with it:
     between the last two frames every stuck particle moved exactly as far as the crate."""
-    trajectory = run(tmp_path, """duration: 1.0
+    trajectory = run(tmp_path, """duration: 0.8
 fps: 50
 solver: {method: verlet, dt: 0.001}
 bodies:
   - {name: crate, type: rigid, shape: {type: box, size: [0.4, 0.4, 0.4]}, density: 300, position: [0, 0, 0],
      velocity: [0, 0, 1.0], angular_velocity: [0, 1.0, 0]}
 emitters:
-  - {name: dust, rate: 200, source: {type: point, position: [-1.5, 0, 0.3]}, speed: 5, direction: {axis: [1, 0, 0], cone: 5},
+  - {name: dust, rate: 200, source: {type: point, position: [-0.9, 0, 0.3]}, speed: 5, direction: {axis: [1, 0, 0], cone: 5},
      lifetime: 10, radius: 0.002, collision: stick}
 """)
     frames = trajectory.particles[0]
