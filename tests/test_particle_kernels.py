@@ -18,7 +18,7 @@ G = 9.81
 #: frames fused into one call), with drag of every law, wind, a floor, a tilted wall, a sphere and a turned box, and
 #: lives that end mid-run.
 SCENE = """
-duration: 1.2
+duration: 0.8
 fps: 25
 seed: 3
 solver: {{method: {method}, dt: 0.004}}
