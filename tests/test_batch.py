@@ -26,10 +26,12 @@ render: {{resolution: [96, 64]}}
 
 
 @pytest.mark.slow
-def test_a_batch_of_three_scenes_on_two_workers_gives_complete_videos_and_reports_a_failure(tmp_cwd):
-    """Three scenes (45, 60 and 30 frames, in chunks of 20 frames) and one that diverges. The three MP4s have every
-    frame at the scene's size and rate, each job wrote its report, the summary lists all four, and the batch exits
-    with 1 because one failed, after finishing the others."""
+@pytest.mark.xdist_group("dask")
+def test_a_batch_of_three_scenes_on_two_workers_gives_complete_videos_and_reports_a_failure(dask_scheduler, tmp_cwd):
+    """Three scenes (45, 60 and 30 frames, in chunks of 20 frames) and one that diverges, on the tests' cluster of two
+    workers. The three MP4s have every frame at the scene's size and rate, each job wrote its report, the summary
+    lists all four, and the batch exits with 1 because one failed, after finishing the others. (The cluster that
+    ``--workers`` starts is the one the killed-worker test runs on.)"""
     for name, duration, speed in (("one", 1.5, 1.0), ("two", 2.0, -1.0), ("three", 1.0, 0.5)):
         (tmp_cwd / f"{name}.yaml").write_text(ball(name, duration, speed))
     (tmp_cwd / "bad.yaml").write_text(ball("bad", 1.0, 1.0) + """
@@ -37,8 +39,8 @@ anchors: [{name: pin, position: [0, 2, 0]}]
 springs: [{between: [pin, ball], stiffness: 1.0e6, rest_length: 0.5}]
 solver: {method: euler, dt: 0.01}
 """)
-    result = CliRunner().invoke(cli, ["batch", "one.yaml", "two.yaml", "bad.yaml", "three.yaml", "--workers", "2",
-                                      "--chunk-size", "20"])
+    result = CliRunner().invoke(cli, ["batch", "one.yaml", "two.yaml", "bad.yaml", "three.yaml", "--scheduler",
+                                      dask_scheduler, "--chunk-size", "20"])
     assert result.exit_code == 1, result.output
     lines = result.output.splitlines()
     table = lines[lines.index(next(line for line in lines if line.startswith("scene"))):]
@@ -64,25 +66,25 @@ solver: {method: euler, dt: 0.01}
 
 @pytest.mark.slow
 def test_a_worker_killed_mid_batch_loses_no_frame_and_redraws_none(tmp_cwd):
-    """Two workers render a 180-frame scene in 6 chunks; once frames are appearing, one worker process is killed
-    (SIGKILL). Dask reruns its tasks elsewhere: the batch completes, the MP4 has all 180 frames, every PNG is complete,
-    and every frame that existed at the kill is the same file afterwards (same inode: not drawn again)."""
+    """Two workers (the local cluster ``batch --workers 2`` starts) render a 180-frame scene in 6 chunks; once frames
+    are appearing, one worker process is killed (SIGKILL). Dask reruns its tasks elsewhere: the batch completes, the
+    MP4 has all 180 frames, every PNG is complete, and every frame that existed at the kill is the same file afterwards
+    (same inode: not drawn again)."""
     import os
     import signal
     import threading
     import time
 
-    from distributed import Client, LocalCluster
-
-    from animbatch.farm.batch import WORKER_ENV, Job, run_batch
+    from animbatch.farm.batch import Job, connect, run_batch
     from animbatch.farm.frames import frame_is_complete
 
     (tmp_cwd / "long.yaml").write_text(ball("long", 6.0, 0.3).replace("render: {resolution: [96, 64]}",
                                                                       "render: {resolution: [96, 64], "
                                                                       "formats: [mp4, png]}"))
     frames = tmp_cwd / "renders" / "long" / "frames"
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, env=WORKER_ENV, dashboard_address=None) \
-            as cluster, Client(cluster) as client:
+    client, cluster = connect(2, None)
+    with cluster, client:
+        assert len(client.scheduler_info()["workers"]) == 2
         results = []
         runner = threading.Thread(target=lambda: results.extend(
             run_batch([Job("long.yaml")], client=client, chunk_size=30)))
