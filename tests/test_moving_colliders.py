@@ -123,6 +123,34 @@ def test_a_collider_path_holds_its_keys_and_its_velocity_is_the_paths_derivative
     np.testing.assert_allclose(path.velocity(5.0)[0], 0)  # held after the last key
 
 
+def test_the_colliders_poses_asked_twice_at_a_time_are_the_paths_and_cannot_be_changed():
+    """The poses and motion a contact step reads several times are remembered for the last time asked: at each time
+    they are what the paths give, a new time gives its own, and no caller can write into what the next one reads."""
+    from animbatch.compile.model import compile_scene
+
+    loaded = parse_scene("""
+        duration: 1
+        solver: {method: verlet, dt: 1.0e-3}
+        bodies: [{name: ball, position: [0, 1, 0]}]
+        colliders:
+          - {type: box, position: [1, 0, 0], size: [1, 1, 1],
+             keyframes: [{time: 0}, {time: 1, offset: [1, 2, 0], rotation: {axis: [0, 0, 1], angle: 90}}]}
+    """, filename="test.yaml")
+    world = compile_scene(loaded.spec).contact_world
+    moving = world.moving
+    for t in (0.25, 0.25, 0.5, 0.25):
+        for found, fresh in zip(moving.motion(t), moving._motion(t)):
+            np.testing.assert_array_equal(found, fresh)
+        placed, fresh_place = world.statics_at(t), moving._place(world.statics, t)
+        np.testing.assert_array_equal(placed.box_centre, fresh_place.box_centre)
+        np.testing.assert_array_equal(placed.box_rotation, fresh_place.box_rotation)
+    centres, _, _ = moving.motion(0.25)
+    with pytest.raises(ValueError, match="read-only"):
+        centres[0, 0] = 1.0
+    with pytest.raises(ValueError, match="read-only"):
+        world.statics_at(0.25).box_centre[0, 0] = 1.0
+
+
 def test_moving_colliders_are_refused_with_adaptive_methods():
     with pytest.raises(SceneError) as error:
         parse_scene("""

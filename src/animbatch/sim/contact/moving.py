@@ -44,22 +44,25 @@ class MovingColliders:
     def count(self) -> int:
         return len(self.paths)
 
-    def _remembered(self, key: tuple, compute: Callable[[], _T]) -> _T:
-        """``compute()``, or what it gave for the same ``key`` (a name and a time) last time: a contact step asks for
-        the colliders' poses and motion at one time several times (reach, search, solve), and each asks every
-        path. Arrays handed out are read-only, so no caller can change what the next one is given."""
+    def _remembered(self, key: tuple, compute: Callable[[], _T], keep: object = None) -> _T:
+        """``compute()``, or what it gave for the same ``key`` (a name, then what it depends on: a time, the identity
+        of ``keep``, which the memo holds on to so that the identity stays its own) last time. A contact step asks
+        for the colliders' poses and motion at one time several times (reach, search, solve), and each asks every
+        path. Arrays handed out are read-only, so no caller can change what the next one is given. One entry per
+        name, read and replaced whole (runs in threads may share a model)."""
         memo = self.__dict__.setdefault("_memo", {})
-        if memo.get(key[0], (None,))[0] != key:
+        entry = memo.get(key[0])
+        if entry is None or entry[0] != key:
             value = compute()
             for array in (value if isinstance(value, tuple) else vars(value).values()):
                 if isinstance(array, np.ndarray):
                     array.flags.writeable = False
-            memo[key[0]] = (key, value)
-        return memo[key[0]][1]
+            entry = memo[key[0]] = (key, value, keep)
+        return entry[1]
 
     def place(self, rest: StaticColliders, t: float) -> StaticColliders:
         """The solids at time t [s]: ``rest`` with the moving ones where their paths put them."""
-        return self._remembered(("place", id(rest), t), lambda: self._place(rest, t))
+        return self._remembered(("place", id(rest), t), lambda: self._place(rest, t), keep=rest)
 
     def _place(self, rest: StaticColliders, t: float) -> StaticColliders:
         plane_point, plane_normal = rest.plane_point.copy(), rest.plane_normal.copy()
