@@ -125,13 +125,13 @@ ONE_KICK_PENDULUMS = {
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("method, form, duration", [("symplectic_euler", "compiled", 10.0),
+@pytest.mark.parametrize("method, form, duration", [("symplectic_euler", "compiled", 3.0),
                                                     ("symplectic_euler", "numpy", 1.0),
                                                     ("backward_euler", "compiled", 2.0)])
 @pytest.mark.parametrize("name", list(ONE_KICK_PENDULUMS))
 def test_one_kick_methods_keep_a_pendulums_energy_bounded_swing_after_swing(name, method, form, duration):
     """A 5 cm pendulum released from the horizontal (ω up to 17 rad/s) at dt 1 ms under the one-kick methods, for
-    30 swings (10 s) where a step is one compiled call, 3 where it is numpy: symplectic Euler's energy error is
+    9 swings (3 s) where a step is one compiled call, 3 where it is numpy: symplectic Euler's energy error is
     O(h ω) and bounded, so it stays within 2 % of m g L all run. The projection that put the bob back on its rod
     without changing its momentum gained about (h ω)² of the kinetic energy a step: the energy doubled every 5 s
     (7-20 % of m g L in the first second; the pendulum swung ever higher) and a 20-bar chain blew up in 1.1 s. Both
