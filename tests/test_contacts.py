@@ -334,7 +334,7 @@ def test_box_dropped_on_its_edge_tumbles_and_lands_flat(method):
     """A cube dropped resting on an edge (turned 30°) gets spin from the impact at the edge, topples and ends flat
     on a face, its centre half a side above the ground."""
     _, trajectory = run(f"""
-        duration: 3
+        duration: 1.5
         fps: 30
         {solver(method)}
         bodies: [{{name: cube, type: rigid, shape: {{type: box, size: [0.2, 0.2, 0.2]}}, density: 500,
