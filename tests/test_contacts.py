@@ -427,7 +427,7 @@ def test_static_sphere_box_and_mesh_colliders_hold_a_resting_ball(tmp_path):
     trimesh.creation.box((1.0, 0.2, 1.0)).export(tmp_path / "slab.stl")
     path = tmp_path / "s.yaml"
     path.write_text(f"""
-duration: 3
+duration: 1
 fps: 10
 {solver("symplectic_euler")}
 {materials(0.0, 0.9, 0.9)}

@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, given, settings
 
 from fuzzing import check, mutants
 
-EXAMPLES = int(os.environ.get("ANIMBATCH_FUZZ_EXAMPLES", "200"))
+EXAMPLES = int(os.environ.get("ANIMBATCH_FUZZ_EXAMPLES", "120"))
 
 
 @pytest.mark.slow

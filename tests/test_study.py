@@ -7,6 +7,7 @@ import csv
 import json
 import shutil
 import types
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -605,8 +606,9 @@ def test_a_study_times_the_equations_of_motion_a_render_would_run(monkeypatch):
 @pytest.mark.slow
 def test_the_accuracy_page_is_rebuilt_from_saved_studies_alone(projectile_study, tmp_path, monkeypatch):
     """``--page`` studies nothing: every section comes from its saved study.json (each scene's table rewritten), and
-    the page holds the guide as the generator has it now."""
-    from animbatch.study import document
+    the page holds the guide as the generator has it now, and each scene's plot is drawn anew (by a stand-in here:
+    drawing is tested on its own, and a real one costs most of a second a scene)."""
+    from animbatch.study import document, report
 
     saved = write_outputs(projectile_study, tmp_path / "saved")["json"].parent  # drawn once, copied per scene
     for name in document.SCENES:
@@ -614,7 +616,10 @@ def test_the_accuracy_page_is_rebuilt_from_saved_studies_alone(projectile_study,
     (tmp_path / "docs" / "accuracy" / "projectile" / "study.txt").write_text("stale")
     monkeypatch.setattr(document, "run_study", lambda *a, **k: pytest.fail("--page studied a scene"))
     monkeypatch.setattr(document, "ledger_section", lambda root: document.LEDGER + "| a table |\n")
+    drawn = []
+    monkeypatch.setattr(report, "plot", lambda result, target: drawn.append(Path(target).parent.name))
     assert document.main(["--root", str(tmp_path), "--page"]) == 0
+    assert drawn == list(document.SCENES)
     page = (tmp_path / "docs" / "accuracy.md").read_text()
     assert all(f"## {name}" in page for name in document.SCENES) and document.GUIDE in page
     assert (tmp_path / "docs" / "accuracy" / "projectile" / "study.txt").read_text().startswith("study of")
