@@ -81,6 +81,37 @@ def test_the_schedule_counts_births_at_many_times_at_once_and_bounds_the_pool_by
     assert burst.most_alive(0.3, 1.0) == 50 + 1 and burst.most_alive(0.5, 1.0) == 100 + 1
 
 
+def test_a_steps_births_one_time_at_a_time_are_the_array_formulas_numbers_exactly():
+    """A step's births are counted and timed in Python floats (numpy on single numbers cost most of a small
+    emitter's step): the same operations as the array formulas, so the same numbers to the last bit, on a ramp, a
+    held rate and a fall (slopes of both signs), before, inside and after emission, for a few births a step and
+    for many."""
+    from animbatch.sim.particles.schedule import EmissionSchedule
+
+    schedule = EmissionSchedule(np.array([0.25, 0.9, 1.7, 2.6]), np.array([3.0, 417.0, 417.0, 11.0]),
+                                np.array([1.2]), np.array([9]))
+    times = np.concatenate([np.linspace(-0.5, 3.0, 2011), schedule.knot_times, [1.2]])
+    np.testing.assert_array_equal([schedule._accumulated_at(float(t)) for t in times], schedule.accumulated(times))
+    counts = [schedule.born_by(float(t)) for t in times]
+    np.testing.assert_array_equal(counts, schedule.born_by_each(times))
+    rate_counts = np.floor(schedule.accumulated(times) + 1e-9).astype(np.int64)
+    assert [schedule._rate_born_by(float(t)) for t in times] == rate_counts.tolist()
+    last = int(rate_counts.max())
+    for first, stop in ((0, last), (5, 7), (last - 3, last)):  # the array formula, and a few one by one
+        one_by_one = np.array([schedule._rate_birth_time(k) for k in range(first, stop)])
+        target = np.arange(first, stop) + 1.0
+        vectorised = schedule.rate_birth_times(first, stop) if stop - first > 8 else None
+        if vectorised is not None:
+            np.testing.assert_array_equal(one_by_one, vectorised)
+        np.testing.assert_allclose(schedule.accumulated(one_by_one), target, rtol=1e-12)
+    # a step's births are its share of the serials, in time order, whichever path timed them
+    edges = np.linspace(0.0, 3.0, 301)
+    steps = [schedule.births(a, b) for a, b in zip(edges[:-1], edges[1:])]
+    whole = schedule.births(0.0, 3.0)
+    np.testing.assert_array_equal(np.concatenate([b.serials for b in steps]), whole.serials)
+    np.testing.assert_array_equal(np.concatenate([b.times for b in steps]), whole.times)
+
+
 @pytest.mark.slow
 def test_a_particle_dies_at_its_lifetime_and_its_slot_is_reused():
     """With lifetime 0.5 s and 10/s, at most 5–6 are alive, the pool never grows past its automatic capacity, and

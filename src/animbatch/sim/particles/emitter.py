@@ -45,6 +45,11 @@ class Newborns:
     mass: np.ndarray
     radius: np.ndarray
 
+    def part(self, first: int, stop: int) -> Newborns:
+        """Particles ``first … stop - 1`` of these (views)."""
+        return Newborns(self.position[first:stop], self.velocity[first:stop], self.lifetime[first:stop],
+                        self.mass[first:stop], self.radius[first:stop])
+
 
 @dataclass(frozen=True, eq=False)
 class Emitter:

@@ -13,12 +13,16 @@ its random numbers (:mod:`animbatch.sim.particles.streams`).
 
 from __future__ import annotations
 
+import bisect
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 #: Counts within this of a whole number are that number (C(t) is computed in floating point).
 COUNT_TOLERANCE = 1e-9
+#: Up to this many rate births are timed one by one in Python floats (numpy's per-call cost outweighs a few).
+FEW = 8
 
 
 @dataclass(frozen=True)
@@ -51,6 +55,10 @@ class EmissionSchedule:
         widths = np.diff(self.knot_times)
         pieces = 0.5 * (self.knot_rates[1:] + self.knot_rates[:-1]) * widths  # trapezoids
         self._cumulative = np.concatenate([[0.0], np.cumsum(pieces)])  # C at each knot
+        # the same numbers as Python floats: a step asks for its births one time at a time, and numpy's per-call
+        # cost on a single number (some 40 µs for C(t)) was most of a small emitter's step
+        self._knots, self._rates = self.knot_times.tolist(), self.knot_rates.tolist()
+        self._sums, self._bursts = self._cumulative.tolist(), self.burst_times.tolist()
 
     # ---------------------------------------------------------------- the rate
 
@@ -70,9 +78,26 @@ class EmissionSchedule:
         slope = np.divide(rb - ra, b - a, out=np.zeros_like(s), where=b > a)
         return self._cumulative[piece] + ra * s + 0.5 * slope * s * s
 
+    def _accumulated_at(self, t: float) -> float:
+        """:meth:`accumulated` at one time, in Python floats: the same operations in the same order, so the same
+        number."""
+        knots = self._knots
+        t = min(max(t, knots[0]), knots[-1])
+        piece = min(max(bisect.bisect_right(knots, t) - 1, 0), len(knots) - 2)
+        a, b = knots[piece], knots[piece + 1]
+        ra, rb = self._rates[piece], self._rates[piece + 1]
+        s = t - a
+        slope = (rb - ra) / (b - a) if b > a else 0.0
+        return self._sums[piece] + ra * s + 0.5 * slope * s * s
+
+    def _rate_born_by(self, t: float) -> int:
+        """How many rate particles are born at or before ``t`` [s]: ⌊C(t)⌋."""
+        return math.floor(self._accumulated_at(t) + COUNT_TOLERANCE)
+
     def born_by(self, t: float) -> int:
         """How many particles are born at or before ``t`` (rate and bursts)."""
-        return int(self.born_by_each(np.asarray(float(t))))
+        t = float(t)
+        return self._rate_born_by(t) + int(self._burst_before[bisect.bisect_right(self._bursts, t)])
 
     def born_by_each(self, t: np.ndarray) -> np.ndarray:
         """:meth:`born_by` at each of the times ``t`` (N,) [s], in one pass: (N,) int64."""
@@ -81,6 +106,8 @@ class EmissionSchedule:
 
     def rate_birth_times(self, first: int, stop: int) -> np.ndarray:
         """τ_k for rate particles k = first … stop - 1: where C(τ_k) = k + 1 (inverting the quadratic pieces)."""
+        if stop - first <= FEW:
+            return np.array([self._rate_birth_time(k) for k in range(first, stop)], float)
         target = np.arange(first, stop, dtype=float) + 1.0
         piece = np.clip(np.searchsorted(self._cumulative, target - COUNT_TOLERANCE, side="left") - 1, 0,
                         len(self.knot_times) - 2)
@@ -95,22 +122,40 @@ class EmissionSchedule:
         s = np.divide(2.0 * remaining, ra + root, out=np.zeros_like(a), where=(ra + root) > 0)
         return np.minimum(a + np.minimum(s, width), self.knot_times[-1])
 
+    def _rate_birth_time(self, k: int) -> float:
+        """:meth:`rate_birth_times` of the one particle ``k``, in Python floats (the same operations, the same
+        number)."""
+        knots, rates, sums = self._knots, self._rates, self._sums
+        target = float(k) + 1.0
+        piece = min(max(bisect.bisect_left(sums, target - COUNT_TOLERANCE) - 1, 0), len(knots) - 2)
+        a = knots[piece]
+        ra, rb = rates[piece], rates[piece + 1]
+        width = knots[piece + 1] - a
+        slope = (rb - ra) / width if width > 0 else 0.0
+        remaining = max(target - sums[piece], 0.0)
+        root = math.sqrt(max(ra * ra + 2.0 * slope * remaining, 0.0))
+        s = 2.0 * remaining / (ra + root) if (ra + root) > 0 else 0.0
+        return min(a + min(s, width), knots[-1])
+
     # ---------------------------------------------------------------- births
 
     def births(self, t0: float, t1: float) -> Births:
         """The particles born in ``(t0, t1]``, numbered from ``born_by(t0)``."""
-        rate_first = int(np.floor(float(self.accumulated(t0)) + COUNT_TOLERANCE))
-        rate_stop = int(np.floor(float(self.accumulated(t1)) + COUNT_TOLERANCE))
+        t0, t1 = float(t0), float(t1)
+        rate_first, rate_stop = self._rate_born_by(t0), self._rate_born_by(t1)
+        first = rate_first + int(self._burst_before[bisect.bisect_right(self._bursts, t0)])  # born_by(t0)
+        lo, hi = bisect.bisect_right(self._bursts, t0), bisect.bisect_right(self._bursts, t1)
+        if lo == hi:  # rate particles only (most steps): already in time order
+            return Births(first + np.arange(rate_stop - rate_first, dtype=np.int64),
+                          self.rate_birth_times(rate_first, rate_stop))
         times = [self.rate_birth_times(rate_first, rate_stop)]
         kinds = [np.zeros(rate_stop - rate_first, np.int8)]
-        lo, hi = np.searchsorted(self.burst_times, [t0, t1], side="right")
         for index in range(lo, hi):
             count = int(self.burst_counts[index])
             times.append(np.full(count, self.burst_times[index]))
             kinds.append(np.ones(count, np.int8))
         all_times = np.concatenate(times)
         order = np.lexsort((np.concatenate(kinds), all_times))  # by time, rate before bursts
-        first = self.born_by(t0)
         return Births(first + np.arange(len(all_times), dtype=np.int64), all_times[order])
 
     def most_alive(self, longest_life: float, end: float, samples: int = 4096) -> int:

@@ -31,9 +31,10 @@ from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.particles.body_motion import BodyMotion, BodyPose
 from animbatch.sim.particles.collisions import MAX_BOUNCES, ParticleColliders, bounce
 from animbatch.sim.particles.compiled import CompiledPool, colliders_met, kernel_work, numpy_pool_seconds
-from animbatch.sim.particles.emitter import Emitter
+from animbatch.sim.particles.emitter import Emitter, Newborns
 from animbatch.sim.particles.obstacles import SURFACE_GAP
 from animbatch.sim.particles.pool import ParticlePool
+from animbatch.sim.particles.schedule import Births
 from animbatch.sim.particles.stepping import FIXED_METHODS, Accelerations, adaptive_segment, fixed_step
 from animbatch.trajectory import ParticleFrames
 
@@ -82,6 +83,8 @@ class EmitterRun:
         self._gravity = float(np.linalg.norm(gravity))
         self.collisions = 0
         self.steps = 0
+        # the start states of the particles born in the frame being stepped, drawn at once (None: draw per step)
+        self._frame_newborns: tuple[Births, Newborns] | None = None
         # the compiled kernel, where it covers this emitter's fields, colliders and method (None: numpy)
         if run_seconds is None:
             run_seconds = numpy_pool_seconds(emitter.capacity, steps)
@@ -91,6 +94,7 @@ class EmitterRun:
     def advance_frame(self, t0: float, t1: float, count: int, stats: ParticleStats) -> None:
         """Advance the pool over the frame interval ``[t0, t1]`` [s] in ``count`` equal steps."""
         kernel = self.kernel
+        self._frame_newborns = self._draw_newborns(t0, t1) if count > 1 else None
         if kernel is None:
             for k in range(count):
                 self.step(t0 + (t1 - t0) * k / count, t0 + (t1 - t0) * (k + 1) / count)
@@ -155,7 +159,7 @@ class EmitterRun:
                                   "lower its rate or shorten the animation", time=t1)
         slots = pool.allocate(births.count)
         kept = len(slots)
-        newborn = emitter.newborns(births, self.motion)
+        newborn = self._newborns(births)
         take = slice(0, kept)  # a full pool drops the latest births
         pool.alive[slots] = True
         pool.stuck[slots] = False
@@ -181,6 +185,27 @@ class EmitterRun:
             pool.acceleration[slots] = self.acceleration(x, v, mass, radius)
             self.steps += steps
         return slots, newborn.position[take]
+
+    def _draw_newborns(self, t0: float, t1: float) -> tuple[Births, Newborns] | None:
+        """The births in ``(t0, t1]`` (a frame) and their start states, drawn at once: a particle's are its own
+        (its serial picks its random numbers, its birth time its place on a moving emitter), so a step's share is
+        the same whichever way it is drawn, and numpy's per-call cost is paid once a frame, not once a step. None
+        when fewer than two are born."""
+        births = self.emitter.schedule.births(t0, t1)
+        if births.count < 2 or births.serials[-1] > LARGEST_SERIAL:  # (give_birth says when there are too many)
+            return None
+        return births, self.emitter.newborns(births, self.motion)
+
+    def _newborns(self, births: Births) -> Newborns:
+        """The start states of a step's ``births``: their share of the frame's drawn ones where those hold them."""
+        drawn = self._frame_newborns
+        if drawn is not None and births.count:
+            frame, newborn = drawn
+            first = int(births.serials[0] - frame.serials[0])
+            last = first + births.count
+            if 0 <= first and last <= frame.count and np.array_equal(frame.times[first:last], births.times):
+                return newborn.part(first, last)
+        return self.emitter.newborns(births, self.motion)
 
     def poses(self, t0: float, t1: float) -> tuple[dict[int, BodyPose], dict[int, BodyPose]] | None:
         """The poses at ``t0`` and ``t1`` [s] of the bodies and moving colliders the particles meet (None: they meet
