@@ -90,7 +90,8 @@ def test_a_platform_carries_a_crate_by_friction_when_its_acceleration_is_below_m
 
 @pytest.mark.slow
 def test_on_ice_the_platform_slides_out_from_under_the_crate_which_lags_at_mu_g():
-    trajectory, platform = crate_on_platform(0.05)  # 1.5 m/s² > 0.05 g = 0.49 m/s²: it slips at once
+    # 0.5 m in 1 s: at first 6 d / T² = 3 m/s² > 0.05 g = 0.49 m/s²: it slips at once
+    trajectory, platform = crate_on_platform(0.05, distance=0.5, span=1.0)
     early = trajectory.times <= 0.4  # slipping forwards relative to it: friction accelerates it at μ g
     np.testing.assert_allclose(trajectory.positions[early, 0, 0], 0.5 * 0.05 * G * trajectory.times[early] ** 2,
                                atol=2e-3)
