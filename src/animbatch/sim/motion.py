@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from animbatch import quaternion
+from animbatch.sim.memo import remembered
 
 if TYPE_CHECKING:  # SciPy's interpolation and rotations load when a path is built, not with the package
     from scipy.spatial.transform import Rotation
@@ -191,47 +192,26 @@ class PosePath:
         """The turn (3, 3) at time t [s], held before the first key and after the last."""
         if len(self.times) == 1:
             return self.turns[0].as_matrix()
-        cache: dict[float, np.ndarray] = self.__dict__.setdefault("_turns_at", {})
-        found = cache.get(t)
-        if found is None:  # a step asks for the same few instants many times (poses, velocities, contacts)
-            if len(cache) > 16:
-                cache.clear()
-            if self.interpolation != "cubic":
-                k, along = self._segment(t)
-                turned = along * self._steps[k]
-            else:
-                eased = float(self._ease(float(np.clip(t, self.times[0], self.times[-1]))))
-                k, _ = self._segment(eased)
-                turned = self._rotation_vector(eased)
-            found = self._keys[k] @ quaternion.to_matrix(quaternion.from_rotation_vector(turned))
-            found.setflags(write=False)  # shared by every caller at this instant
-            cache[t] = found
-        return found
+        return remembered(self, "turn", t, lambda: self._turn(t))
+
+    def _turn(self, t: float) -> np.ndarray:
+        """:meth:`turn`, computed (for a path of two keys or more)."""
+        if self.interpolation != "cubic":
+            k, along = self._segment(t)
+            turned = along * self._steps[k]
+        else:
+            eased = float(self._ease(float(np.clip(t, self.times[0], self.times[-1]))))
+            k, _ = self._segment(eased)
+            turned = self._rotation_vector(eased)
+        return self._keys[k] @ quaternion.to_matrix(quaternion.from_rotation_vector(turned))
 
     def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Centre (3,) [m] and turn (3, 3) at time t: a rest point p goes to ``turn (p − c₀) + c₀ + offset``."""
-        cache: dict[float, np.ndarray] = self.__dict__.setdefault("_centres_at", {})
-        centre = cache.get(t)
-        if centre is None:
-            if len(cache) > 16:
-                cache.clear()
-            centre = self.centre + self.offsets.position(t)
-            centre.setflags(write=False)  # shared by every caller at this instant
-            cache[t] = centre
-        return centre, self.turn(t)
+        return remembered(self, "centre", t, lambda: self.centre + self.offsets.position(t)), self.turn(t)
 
     def velocity(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Velocity of the centre (3,) [m/s] and angular velocity (3,) [rad/s], world axes, at time t."""
-        cache: dict[float, tuple[np.ndarray, np.ndarray]] = self.__dict__.setdefault("_velocities_at", {})
-        found = cache.get(t)
-        if found is None:
-            if len(cache) > 16:
-                cache.clear()
-            found = (self.offsets.velocity(t), self._angular_velocity(t))
-            for vector in found:
-                vector.setflags(write=False)  # shared by every caller at this instant
-            cache[t] = found
-        return found
+        return remembered(self, "velocity", t, lambda: (self.offsets.velocity(t), self._angular_velocity(t)))
 
     def _angular_velocity(self, t: float) -> np.ndarray:
         """The turn's rate (3,) [rad/s], world axes, at time t [s]: the exact derivative of the interpolant."""

@@ -15,16 +15,13 @@ platform carries a box by friction.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import TypeVar
 
 import numpy as np
 
 from animbatch.sim.contact.geometry import StaticColliders
+from animbatch.sim.memo import remembered
 from animbatch.sim.motion import SolidPath
-
-_T = TypeVar("_T")
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,25 +41,10 @@ class MovingColliders:
     def count(self) -> int:
         return len(self.paths)
 
-    def _remembered(self, key: tuple, compute: Callable[[], _T], keep: object = None) -> _T:
-        """``compute()``, or what it gave for the same ``key`` (a name, then what it depends on: a time, the identity
-        of ``keep``, which the memo holds on to so that the identity stays its own) last time. A contact step asks
-        for the colliders' poses and motion at one time several times (reach, search, solve), and each asks every
-        path. Arrays handed out are read-only, so no caller can change what the next one is given. One entry per
-        name, read and replaced whole (runs in threads may share a model)."""
-        memo = self.__dict__.setdefault("_memo", {})
-        entry = memo.get(key[0])
-        if entry is None or entry[0] != key:
-            value = compute()
-            for array in (value if isinstance(value, tuple) else vars(value).values()):
-                if isinstance(array, np.ndarray):
-                    array.flags.writeable = False
-            entry = memo[key[0]] = (key, value, keep)
-        return entry[1]
-
     def place(self, rest: StaticColliders, t: float) -> StaticColliders:
         """The solids at time t [s]: ``rest`` with the moving ones where their paths put them."""
-        return self._remembered(("place", id(rest), t), lambda: self._place(rest, t), keep=rest)
+        # one instant remembered: a moving mesh's placed triangles are a copy of all of them
+        return remembered(self, "place", (id(rest), t), lambda: self._place(rest, t), keep=1, hold=rest)
 
     def _place(self, rest: StaticColliders, t: float) -> StaticColliders:
         plane_point, plane_normal = rest.plane_point.copy(), rest.plane_normal.copy()
@@ -93,7 +75,7 @@ class MovingColliders:
 
     def motion(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Centres (M, 3) [m], velocities (M, 3) [m/s] and angular velocities (M, 3) [rad/s] at time t."""
-        return self._remembered(("motion", t), lambda: self._motion(t))
+        return remembered(self, "motion", t, lambda: self._motion(t))
 
     def _motion(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         centres = np.array([path.pose(t)[0] for path in self.paths]).reshape(-1, 3)
