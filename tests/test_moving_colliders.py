@@ -54,8 +54,7 @@ def test_a_turning_paddle_hits_with_the_speed_of_its_surface_there():
     assert speed == pytest.approx(2 * omega * lever, rel=0.03)
 
 
-def crate_on_platform(friction: float, distance: float = 1.0, method: str = "symplectic_euler",
-                      span: float = 2.0) -> tuple:
+def crate_on_platform(friction: float, *, distance: float, span: float, method: str = "symplectic_euler") -> tuple:
     """A crate on a platform moved by ``distance`` [m] along x over ``span`` [s] (a clamped cubic), run for half a
     second more; the trajectory and the platform's offset at its frames."""
     loaded = scene(f"""

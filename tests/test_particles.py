@@ -86,7 +86,7 @@ def test_a_steps_births_one_time_at_a_time_are_the_array_formulas_numbers_exactl
     emitter's step): the same operations as the array formulas, so the same numbers to the last bit, on a ramp, a
     held rate and a fall (slopes of both signs), before, inside and after emission, for a few births a step and
     for many."""
-    from animbatch.sim.particles.schedule import EmissionSchedule
+    from animbatch.sim.particles.schedule import FEW, EmissionSchedule
 
     schedule = EmissionSchedule(np.array([0.25, 0.9, 1.7, 2.6]), np.array([3.0, 417.0, 417.0, 11.0]),
                                 np.array([1.2]), np.array([9]))
@@ -97,13 +97,12 @@ def test_a_steps_births_one_time_at_a_time_are_the_array_formulas_numbers_exactl
     rate_counts = np.floor(schedule.accumulated(times) + 1e-9).astype(np.int64)
     assert [schedule._rate_born_by(float(t)) for t in times] == rate_counts.tolist()
     last = int(rate_counts.max())
-    for first, stop in ((0, last), (5, 7), (last - 3, last)):  # the array formula, and a few one by one
-        one_by_one = np.array([schedule._rate_birth_time(k) for k in range(first, stop)])
-        target = np.arange(first, stop) + 1.0
-        vectorised = schedule.rate_birth_times(first, stop) if stop - first > 8 else None
-        if vectorised is not None:
-            np.testing.assert_array_equal(one_by_one, vectorised)
-        np.testing.assert_allclose(schedule.accumulated(one_by_one), target, rtol=1e-12)
+    assert last > FEW  # so that the whole range takes the array formula
+    one_by_one = np.array([schedule._rate_birth_time(k) for k in range(last)])
+    np.testing.assert_array_equal(one_by_one, schedule.rate_birth_times(0, last))
+    np.testing.assert_allclose(schedule.accumulated(one_by_one), np.arange(last) + 1.0, rtol=1e-12)  # C(τ_k) = k + 1
+    for first, stop in ((5, 7), (last - 3, last)):  # a few: timed one by one
+        np.testing.assert_array_equal(schedule.rate_birth_times(first, stop), one_by_one[first:stop])
     # a step's births are its share of the serials, in time order, whichever path timed them
     edges = np.linspace(0.0, 3.0, 301)
     steps = [schedule.births(a, b) for a, b in zip(edges[:-1], edges[1:])]
