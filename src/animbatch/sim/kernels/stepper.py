@@ -54,26 +54,8 @@ def _solve(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, sx: np.n
     projection's first Gauss–Newton step; a projection's velocity solve, then the next kick), and an equal matrix is
     not factored again. The comparison is exact, so results are the same bit for bit."""
     count, slots = len(right), len(inverse_inertia)
-    key = cache[1: 1 + 12 * slots + count]
     values, diagonal = _factors(layout, cache, count, slots)
-    same = cache[0] == 1.0
-    k = 0
-    for s in range(slots):
-        for c in range(3):
-            same = same and key[k] == sx[s, c]
-            key[k] = sx[s, c]
-            k += 1
-        for i in range(3):
-            for j in range(3):
-                same = same and key[k] == srotation[s, i, j]
-                key[k] = srotation[s, i, j]
-                k += 1
-    for r in range(count):
-        flag = 1.0 if active[r] else 0.0
-        same = same and key[k] == flag
-        key[k] = flag
-        k += 1
-    if not same:
+    if not _same_key(cache, sx, srotation, active):
         sparse_ldl.assemble(integers, layout, jac, row_bodies, inverse_mass, inverse_inertia, active, values,
                             diagonal)
         sparse_ldl.factor(integers, layout, values, diagonal)
@@ -82,6 +64,38 @@ def _solve(integers: np.ndarray, layout: np.ndarray, cache: np.ndarray, sx: np.n
     for r in range(count):
         masked[r] = right[r] if active[r] else 0.0
     sparse_ldl.solve(integers, layout, values, diagonal, masked, out)
+
+
+@njit(cache=True, error_model="numpy")
+def _same_key(cache: np.ndarray, sx: np.ndarray, srotation: np.ndarray, active: np.ndarray) -> bool:
+    """Whether the factorisation ``cache`` (:func:`_solve`) holds was made from these slot positions (S, 3),
+    rotations (S, 3, 3) and active rows (R,); if not, they become its key. Compared until the first difference (a
+    step's new positions differ in the first number), written only when they differ."""
+    slots, count = len(sx), len(active)
+    key = cache[1: 1 + 12 * slots + count]
+    positions, rotations = sx.reshape(-1), srotation.reshape(-1)
+    same = cache[0] == 1.0
+    if same:
+        for k in range(3 * slots):
+            if key[k] != positions[k]:
+                same = False
+                break
+    if same:
+        for k in range(9 * slots):
+            if key[3 * slots + k] != rotations[k]:
+                same = False
+                break
+    if same:
+        for r in range(count):
+            if key[12 * slots + r] != (1.0 if active[r] else 0.0):
+                same = False
+                break
+    if not same:
+        key[: 3 * slots] = positions
+        key[3 * slots: 12 * slots] = rotations
+        for r in range(count):
+            key[12 * slots + r] = 1.0 if active[r] else 0.0
+    return same
 
 
 @njit(cache=True, error_model="numpy")
