@@ -517,3 +517,66 @@ def test_a_jointed_body_pushed_out_of_an_overlap_leaves_at_rest(method):
     bottom = trajectory.positions[-1, 0, 1] - 0.02
     assert -1.02e-4 <= bottom <= 1e-6  # out, down to the slop (1e-4 m; pushes stop within 1 % of it)
     assert trajectory.ledger["joints"]["max_violation"] < 1e-10
+
+
+@pytest.mark.parametrize("compiled", [False, True], ids=["numpy", "compiled"])
+def test_a_limit_pushed_past_its_stop_is_projected_onto_it_and_stops_there(compiled):
+    """An elbow (a hinge with limits between two bars, the upper one hinged to the world) bent 0.3 rad past its
+    lower stop, twisted 0.2 rad off its axis and still bending on at 2 rad/s: the projection puts the limit back
+    on its stop to the joints' tolerance (not merely inside it, where neither the velocity part of the projection
+    nor the next contact solve counts it as reached, and a limb pressed by a contact at its limit went past it
+    and was pulled back into the collider every step) and takes out the bending rate: an inelastic stop."""
+    from animbatch import quaternion
+    from animbatch.sim.kernels import stepper
+    from animbatch.sim.model.compiled import CompiledDynamics
+    from animbatch.sim.model.dynamics import Dynamics
+
+    loaded = scene(f"""
+        duration: 0.1
+        fps: 10
+        solver: {{method: verlet, dt: 0.001}}
+        bodies:
+          - {{name: upper, type: rigid, shape: {{type: box, size: [{BAR_WIDTH}, 0.3, {BAR_WIDTH}]}},
+              density: {BAR_DENSITY}, position: [0, -0.15, 0]}}
+          - {{name: lower, type: rigid, shape: {{type: box, size: [{BAR_WIDTH}, 0.3, {BAR_WIDTH}]}},
+              density: {BAR_DENSITY}, position: [0, -0.45, 0]}}
+        joints:
+          - {{type: hinge, between: [upper], anchor: [0, 0, 0], axis: [0, 0, 1]}}
+          - {{type: hinge, between: [lower, upper], anchor: [0, -0.3, 0], axis: [0, 0, 1], limits: [-0.05, 2.4]}}
+    """)
+    model = api.compile_model(loaded)
+    system = CompiledDynamics(model) if compiled else Dynamics(model)
+    measure = CompiledDynamics(model)  # the rows at a state, whichever system projected it
+    y = model.y0.copy()
+    config, motion = system.split(y)
+    positions, orientations = config[:6].reshape(2, 3), config[6:].reshape(2, 4)
+    momenta, angular_momenta = motion[:6].reshape(2, 3), motion[6:].reshape(2, 3)
+    elbow = np.array([0.0, -0.3, 0.0])
+    turn = quaternion.from_rotation_vector(np.array([0.2, 0.0, -0.35]))  # past the stop at −0.05 rad, and twisted
+    orientations[1] = quaternion.normalized(quaternion.multiply(turn, orientations[1]))
+    positions[1] = elbow + to_matrix(turn) @ (positions[1] - elbow)
+    omega = np.array([0.0, 0.0, -2.0])  # bending on, past the stop
+    rotation = to_matrix(orientations[1])
+    angular_momenta[1] = rotation @ model.rigid.inertia[1] @ rotation.T @ omega
+    momenta[1] = model.rigid.mass[1] * np.cross(omega, positions[1] - elbow)
+
+    def rows(state: np.ndarray) -> np.ndarray:
+        kinematics = measure.kinematics(*measure.split(state))
+        count = len(measure.joints.row_is_unilateral)
+        violation, jac = np.empty(count), np.empty((count, 2, 6))
+        stepper.held_rows(0.0, *measure._packed[:3], np.ascontiguousarray(kinematics.x),
+                          np.ascontiguousarray(kinematics.rotation), violation, jac)
+        return violation
+
+    unilateral = measure.joints.row_is_unilateral
+    before = rows(y)
+    stop = int(np.argmin(np.where(unilateral, before, np.inf)))
+    assert before[stop] < -0.25  # the lower stop, 0.3 rad past
+    system.project(y, t=0.0)
+    after = rows(y)
+    assert np.abs(after[~unilateral]).max() < 1e-12  # the joints hold
+    assert abs(after[stop]) < 1e-12  # on the stop, to the joints' tolerance
+    kinematics = measure.kinematics(*measure.split(y))
+    axis = kinematics.rotation[0] @ np.array([0.0, 0.0, 1.0])
+    bending = (kinematics.omega[1] - kinematics.omega[0]) @ axis
+    assert bending > -1e-9  # no longer bending past it (it was −2 rad/s)

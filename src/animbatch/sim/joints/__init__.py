@@ -465,14 +465,20 @@ class Joints:
                 previous = largest
                 move(begun_rows, begun, begun_factored.solve(-rows.violation), step)
         factored, previous = None, np.inf  # the last factorisation, and the violation it was last used at
+        # unilateral rows moved back to their stops stay held there until the projection ends: released as soon as
+        # a step overshoots into the free side (by the step's second-order error, up to microradians), they would
+        # end off their stops by more than the tolerance, so neither the velocity part below nor the next step's
+        # contact solve would count them as reached, and a limb at its limit would be pushed past it every step
+        held = np.zeros(len(unilateral), bool)
         for _ in range(PROJECTION_ITERATIONS if settled is None else 0):
             motion = current()
             rows = self.rows(motion)
-            violated = ~unilateral | (rows.violation < 0)
+            violated = ~unilateral | (rows.violation < 0) | held
             largest = np.max(np.abs(np.where(violated, rows.violation, 0.0)), initial=0.0)
             if largest <= tolerance:
                 settled = motion, rows
                 break
+            held |= violated & unilateral
             if factored is None or unilateral.any() or largest > CHORD_CONTRACTION * previous:
                 factored = coupling.factored(rows, motion, violated if unilateral.any() else None)
             previous = largest

@@ -381,19 +381,22 @@ def project_joints(floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
             _move(integers, layout, inverse_mass, row_bodies, bjac, bsinverse_inertia, multipliers, mass_of_linear,
                   step, positions, orientations, linear, angular_momentum, joint_force, joint_torque)
     factored, previous = False, np.inf  # a factorisation made here, and the violation it was last used at
+    held = np.zeros(rows, np.bool_)  # unilateral rows moved to their stops: held there (``Joints.project``)
     for _ in range(0 if settled else PROJECTION_ITERATIONS):
         _projection_motion(floats, integers, layout, positions, orientations, linear, angular_momentum,
                            mass_of_linear, t, sx, sv, srotation, somega, sinverse_inertia)
         joint_rows.rows(floats, integers, layout, sx, sv, srotation, somega, violation, jac, bias)
         largest = 0.0
         for r in range(rows):
-            active[r] = unilateral[r] == 0 or violation[r] < 0
+            active[r] = unilateral[r] == 0 or violation[r] < 0 or held[r]
             if active[r]:
                 largest = max(largest, abs(violation[r]))
             right[r] = -violation[r]
         if largest <= tolerance:
             settled = True
             break
+        for r in range(rows):
+            held[r] = held[r] or (unilateral[r] != 0 and active[r])
         if not any_unilateral:
             active[:] = True
         if not factored or any_unilateral or largest > CHORD_CONTRACTION * previous:
