@@ -441,6 +441,7 @@ def test_the_compiled_jointed_sweeps_are_the_numpy_ones(monkeypatch):
     normals solved at once every few sweeps, give the numpy sweeps' impulses and velocities."""
     from animbatch import api
     from animbatch.sim.contact import solver
+    from animbatch.sim.kernels import contact_impulses
     from conftest import scene
 
     text = """
@@ -461,7 +462,7 @@ def test_the_compiled_jointed_sweeps_are_the_numpy_ones(monkeypatch):
         fields: [{type: gravity}]
         contacts: {iterations: 60}  # seven of the block's solves a step at most, compared sweep for sweep
     """
-    original, compared = solver._sweeps, []
+    original, compared, in_contact_space = solver._sweeps, [], []
 
     def both(rows, contacts, velocity, *rest):
         start = velocity.copy()
@@ -477,12 +478,16 @@ def test_the_compiled_jointed_sweeps_are_the_numpy_ones(monkeypatch):
             assert compiled[2] == found[2]  # the same sweeps, leaving the same violation
             np.testing.assert_allclose(compiled[3], found[3], rtol=1e-6, atol=1e-9)
             compared.append(rest[-3] is not None)  # whether the jointed normals' block took part
+            # whether the compiled sweeps went on in contact space (the Delassus matrix) for part of the solve
+            in_contact_space.append(compiled[2] > contact_impulses._contact_space_after(contacts.count,
+                                                                                       len(velocity)))
         return found
 
     monkeypatch.setattr(solver, "_sweeps", both)
     monkeypatch.setenv("ANIMBATCH_KERNELS", "numpy")
     api.simulate(scene(text))
     assert len(compared) > 100 and any(compared)
+    assert sum(in_contact_space) >= 10
 
 
 @pytest.mark.slow
