@@ -143,8 +143,8 @@ class EmissionSchedule:
         """The particles born in ``(t0, t1]``, numbered from ``born_by(t0)``."""
         t0, t1 = float(t0), float(t1)
         rate_first, rate_stop = self._rate_born_by(t0), self._rate_born_by(t1)
-        first = rate_first + int(self._burst_before[bisect.bisect_right(self._bursts, t0)])  # born_by(t0)
         lo, hi = bisect.bisect_right(self._bursts, t0), bisect.bisect_right(self._bursts, t1)
+        first = rate_first + int(self._burst_before[lo])  # born_by(t0)
         if lo == hi:  # rate particles only (most steps): already in time order
             return Births(first + np.arange(rate_stop - rate_first, dtype=np.int64),
                           self.rate_birth_times(rate_first, rate_stop))
