@@ -490,6 +490,48 @@ def test_the_compiled_jointed_sweeps_are_the_numpy_ones(monkeypatch):
     assert sum(in_contact_space) >= 10
 
 
+def test_the_compiled_jointed_pushes_out_of_overlaps_are_the_numpy_ones(monkeypatch):
+    """A ball-jointed pair of capsules and a hinged plank started 15 mm into the floor: the split impulse's sweeps
+    that push them out, compiled on the row arrays, give the numpy sweeps' pseudo-velocities, and the push does lift
+    them (a push that changed nothing would compare equal too)."""
+    from animbatch import api
+    from animbatch.sim.contact import solver
+    from conftest import scene
+
+    text = """
+        duration: 0.1
+        fps: 20
+        solver: {method: symplectic_euler, dt: 0.001}
+        bodies:
+          - {name: plank, type: rigid, shape: {type: box, size: [0.6, 0.04, 0.2]}, density: 300, position: [0, 0.005, 0]}
+          - {name: weight, type: rigid, shape: {type: sphere, radius: 0.08}, density: 800, position: [0.25, 0.289, 0]}
+          - {name: upper, type: rigid, shape: {type: capsule, radius: 0.03, length: 0.2}, density: 900,
+             position: [-0.1, 0.375, 0.3]}
+          - {name: lower, type: rigid, shape: {type: capsule, radius: 0.03, length: 0.2}, density: 900,
+             position: [-0.1, 0.115, 0.3]}
+        joints:
+          - {type: hinge, between: [weight, plank], anchor: [0.25, 0.029, 0], axis: [0, 0, 1]}
+          - {type: ball, between: [upper, lower], anchor: [-0.1, 0.245, 0.3]}
+        colliders: [{type: plane}]
+        fields: [{type: gravity}]
+    """
+    original, lifted = solver._pushes, []
+
+    def both(rows, pseudo, push_target, enough, iterations):
+        start = pseudo.copy()
+        original(rows, pseudo, push_target, enough, iterations)
+        if rows.dense:
+            compiled = start.copy()
+            solver._compiled_dense_pushes(rows, compiled, push_target.copy(), enough, iterations)
+            np.testing.assert_allclose(compiled, pseudo, rtol=0, atol=1e-12 * max(1.0, float(np.abs(pseudo).max())))
+            lifted.append(float(np.abs(pseudo).max()))
+
+    monkeypatch.setattr(solver, "_pushes", both)
+    monkeypatch.setenv("ANIMBATCH_KERNELS", "numpy")
+    api.simulate(scene(text))
+    assert len(lifted) >= 3 and max(lifted) > 1e-3
+
+
 @pytest.mark.slow
 def test_a_run_whose_contacts_cost_more_than_estimated_goes_compiled_partway_and_the_same_way_every_time(
         monkeypatch):

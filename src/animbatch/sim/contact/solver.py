@@ -657,6 +657,7 @@ def build_contact_kernels() -> str | None:
                                   np.zeros((12, 2)), np.ones((3, 1)), np.zeros(1), np.zeros(1), np.zeros((1, 2)),
                                   np.zeros(1), np.zeros(1), np.zeros(1, np.bool_), chosen, block, BLOCK_EVERY,
                                   ACTIVE_SET_PASSES, 1, 0.0)
+        impulses.dense_pushes(velocity, np.zeros((1, 12)), np.zeros((12, 1)), np.ones(1), np.ones(1), 0.0, 1)
         # a small jointed system's rows: one contact of body 0 on the fixed body, one joint row, by the Cholesky
         # factor and by the pseudo-inverse
         flags, one_row = np.array([True, False]), np.zeros((1, 12))
@@ -758,7 +759,10 @@ def solve_impulses(contacts: Contacts, bodies: BodyVelocities, x: np.ndarray, h:
         pseudo = np.zeros_like(velocity)
         push_target = BAUMGARTE * overlap / h
         enough = PUSH_TOLERANCE * float(push_target.max())
-        _pushes(rows, pseudo, push_target, enough, min(iterations, PUSH_ITERATIONS))
+        if compiled and rows.dense:  # small jointed scenes: array rows, compiled (as their sweeps)
+            _compiled_dense_pushes(rows, pseudo, push_target, enough, min(iterations, PUSH_ITERATIONS))
+        else:
+            _pushes(rows, pseudo, push_target, enough, min(iterations, PUSH_ITERATIONS))
         pseudo_v, pseudo_w = np.zeros_like(bodies.v), np.zeros_like(bodies.omega)
         rows.unflat(pseudo, pseudo_v, pseudo_w)
         result.pseudo_v, result.pseudo_omega = pseudo_v, pseudo_w
@@ -888,6 +892,18 @@ def _pushes(rows: ContactRows, pseudo: np.ndarray, push_target: np.ndarray, enou
         updated = np.maximum(push - pushed * rows.w_n, 0.0)
         rows.push_normal(pseudo, updated - push)
         push = updated
+
+
+def _compiled_dense_pushes(rows: ContactRows, pseudo: np.ndarray, push_target: np.ndarray, enough: float,
+                           iterations: int) -> None:
+    """:func:`_pushes` in one compiled call (:func:`animbatch.sim.kernels.contact_impulses.dense_pushes`), for rows
+    kept as arrays."""
+    from animbatch.sim.kernels import contact_impulses
+
+    pushes: Any = contact_impulses.dense_pushes
+    pushes(pseudo, np.ascontiguousarray(rows._jacobian_normal, np.float64),
+           np.ascontiguousarray(rows._response_normal, np.float64), np.ascontiguousarray(rows.w_n, np.float64),
+           np.ascontiguousarray(push_target, np.float64), float(enough), int(iterations))
 
 
 def _small_converged(coupling: list[list[float]], constant: list[float], current: list[float], holds: list[bool],

@@ -143,6 +143,31 @@ def push_iterations(pseudo: np.ndarray, a: np.ndarray, b: np.ndarray, direction:
 
 
 @njit(cache=True, error_model="numpy")
+def dense_pushes(pseudo: np.ndarray, jacobian_normal: np.ndarray, response_normal: np.ndarray, weight: np.ndarray,
+                 push_target: np.ndarray, enough: float, iterations: int) -> None:
+    """The numpy split impulse's sweeps (:func:`animbatch.sim.contact.solver._pushes`) on the normal rows as arrays
+    (small jointed scenes): ``jacobian_normal`` (K, V), ``response_normal`` (V, K), ``weight`` (K,) the normals'
+    effective masses; ``pseudo`` (V,) changes in place until every push meets its target ``push_target`` (K,)
+    [m/s] to ``enough`` or after ``iterations``. The same operations in the same order (Jacobi: every push from the
+    same rates), so the same pseudo-velocities to round-off."""
+    count = len(push_target)
+    push = np.zeros(count)
+    change = np.empty(count)
+    for _ in range(iterations):
+        pushed = jacobian_normal @ pseudo - push_target
+        worst = 0.0
+        for k in range(count):
+            worst = max(worst, abs(pushed[k]) if push[k] > 0 else max(-pushed[k], 0.0))
+        if worst <= enough:
+            return
+        for k in range(count):
+            updated = max(push[k] - pushed[k] * weight[k], 0.0)
+            change[k] = updated - push[k]
+            push[k] = updated
+        pseudo += response_normal @ change
+
+
+@njit(cache=True, error_model="numpy")
 def contact_rows(a: np.ndarray, b: np.ndarray, normal: np.ndarray, point: np.ndarray, x: np.ndarray,
                  inverse_mass: np.ndarray, inverse_inertia: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
