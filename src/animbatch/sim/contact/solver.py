@@ -541,6 +541,9 @@ class JointedNormals:
     def __init__(self, chosen: np.ndarray, matrix: np.ndarray) -> None:
         self.chosen = chosen
         self.matrix = matrix
+        # per pass of the active-set search: the active rows (J,) and the pseudo-inverse (J, J) of their block of
+        # the matrix, zero elsewhere; a pass that meets the same rows again (solve after solve) uses it again
+        self._inverses: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     @classmethod
     def of(cls, rows: ContactRows, jointed: JointedResponse) -> JointedNormals | None:
@@ -562,13 +565,15 @@ class JointedNormals:
         active = (start > 0) | (normal_now[chosen] < 0)
         result = normal_impulse.copy()
         found = start.copy()
-        for _ in range(ACTIVE_SET_PASSES):
+        for step in range(ACTIVE_SET_PASSES):
             found = start.copy()
             if active.any():
-                system = matrix[np.ix_(active, active)]
-                right = -(normal_now[chosen][active])
-                change = np.linalg.lstsq(system, right, rcond=1e-12)[0]
-                found[active] += change
+                known = self._inverses.get(step)
+                if known is None or not np.array_equal(known[0], active):
+                    inverse = np.zeros_like(matrix)
+                    inverse[np.ix_(active, active)] = np.linalg.pinv(matrix[np.ix_(active, active)], rcond=1e-12)
+                    known = self._inverses[step] = (active.copy(), inverse)
+                found += known[1] @ np.where(active, -normal_now[chosen], 0.0)
             negative = active & (found < 0)
             if not negative.any():
                 break

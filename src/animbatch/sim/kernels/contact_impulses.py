@@ -227,31 +227,41 @@ def contact_rows(a: np.ndarray, b: np.ndarray, normal: np.ndarray, point: np.nda
 
 @njit(cache=True, error_model="numpy")
 def _block_solve(normal_impulse: np.ndarray, normal_now: np.ndarray, chosen: np.ndarray, matrix: np.ndarray,
-                 passes: int) -> np.ndarray:
+                 passes: int, patterns: np.ndarray, inverses: np.ndarray, stored: np.ndarray) -> np.ndarray:
     """:meth:`animbatch.sim.contact.solver.JointedNormals.solve`: the chosen rows' normal impulses by active sets,
-    the others as they were."""
+    the others as they were. Each pass's pseudo-inverse is kept (``patterns`` (P, J): the active rows it was made
+    for, ``inverses`` (P, J, J): it, on those rows and zero elsewhere, ``stored`` (P,): whether there is one) and
+    used again while that pass meets the same active rows, as it does solve after solve of one sweep loop."""
     start = normal_impulse[chosen]
     active = (start > 0) | (normal_now[chosen] < 0)
     result = normal_impulse.copy()
     found = start.copy()
-    for _ in range(passes):
+    size = len(chosen)
+    right = np.empty(size)
+    for p in range(passes):
         found = start.copy()
         if active.any():
-            where = np.flatnonzero(active)
-            system = np.empty((len(where), len(where)))
-            right = np.empty(len(where))
-            for i in range(len(where)):
-                right[i] = -normal_now[chosen[where[i]]]
-                for j in range(len(where)):
-                    system[i, j] = matrix[where[i], where[j]]
-            change = np.linalg.lstsq(system, right, rcond=1e-12)[0]
-            for i in range(len(where)):
-                found[where[i]] += change[i]
+            if not (stored[p] and np.array_equal(patterns[p], active)):
+                where = np.flatnonzero(active)
+                system = np.empty((len(where), len(where)))
+                for i in range(len(where)):
+                    for j in range(len(where)):
+                        system[i, j] = matrix[where[i], where[j]]
+                inverse = np.linalg.pinv(system, rcond=1e-12)
+                inverses[p] = 0.0
+                for i in range(len(where)):
+                    for j in range(len(where)):
+                        inverses[p, where[i], where[j]] = inverse[i, j]
+                patterns[p] = active
+                stored[p] = True
+            for i in range(size):
+                right[i] = -normal_now[chosen[i]] if active[i] else 0.0
+            found += inverses[p] @ right
         negative = active & (found < 0)
         if not negative.any():
             break
         active &= ~negative
-    for i in range(len(chosen)):
+    for i in range(size):
         result[chosen[i]] = max(found[i], 0.0)
     return result
 
@@ -280,6 +290,10 @@ def dense_sweeps(velocity: np.ndarray, jacobian_normal: np.ndarray, jacobian_tan
     gripping = np.zeros(count, np.bool_)
     worst, sweeps = np.inf, iterations
     switch = _contact_space_after(count, len(velocity))
+    chosen_count = len(block_chosen)  # the block's pseudo-inverses, pass by pass (_block_solve)
+    patterns = np.zeros((block_passes, chosen_count), np.bool_)
+    inverses = np.zeros((block_passes, chosen_count, chosen_count))
+    stored = np.zeros(block_passes, np.bool_)
     delassus = np.zeros((0, 0))
     rates = np.zeros(0)  # J v (3K,) while in contact space: normals, first tangents, second tangents
     from_normal, from_tangent = normal_impulse.copy(), tangent_impulse.copy()  # the impulses at the switch
@@ -313,7 +327,8 @@ def dense_sweeps(velocity: np.ndarray, jacobian_normal: np.ndarray, jacobian_tan
             in_rates = True
         updated = np.maximum(normal_impulse - normal_now * weight[0], 0.0)
         if len(block_chosen) and iteration % block_every == 0:
-            updated = _block_solve(normal_impulse, normal_now, block_chosen, block_matrix, block_passes)
+            updated = _block_solve(normal_impulse, normal_now, block_chosen, block_matrix, block_passes, patterns,
+                                   inverses, stored)
         if in_rates:
             _delassus_push(rates, delassus, updated - normal_impulse, 0)
             current = rates[count:]
