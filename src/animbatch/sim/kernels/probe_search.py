@@ -63,6 +63,15 @@ def _near(point: np.ndarray, centre: np.ndarray, reach: float) -> bool:
     return math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) <= reach
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _far(q: int, centres: np.ndarray, c0: float, c1: float, c2: float, reach: float) -> bool:
+    """Whether probe q lies beyond ``reach`` of the point (c0, c1, c2): :func:`_near`'s test on numbers, inlined into
+    the loops over probes, which it lets skip most probes without a call (a call that passes arrays costs more than
+    the test: numba counts references to each array it passes)."""
+    d0, d1, d2 = centres[q, 0] - c0, centres[q, 1] - c1, centres[q, 2] - c2
+    return not math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) <= reach
+
+
 @njit(cache=True, error_model="numpy")
 def _allowed(first: int, second: int, excluded: np.ndarray, body_count: int) -> bool:
     """Whether two bodies may touch: their key is not among the sorted ``excluded``."""
@@ -92,58 +101,63 @@ def _local(point: np.ndarray, centre: np.ndarray, rotation: np.ndarray) -> tuple
 @njit(cache=True, error_model="numpy")
 def _to_box(point: np.ndarray, centre: np.ndarray, rotation: np.ndarray, half: np.ndarray
             ) -> tuple[float, float, float, float]:
-    """Signed distance of a point to a box and the outward normal (world axes); inside, the nearest face's."""
-    local = _local(point, centre, rotation)
-    outside = np.empty(3)
-    for i in range(3):
-        outside[i] = local[i] - min(max(local[i], -half[i]), half[i])
-    distance = math.sqrt(outside[0] * outside[0] + outside[1] * outside[1] + outside[2] * outside[2])
-    normal_local = np.zeros(3)
+    """Signed distance of a point to a box and the outward normal (world axes); inside, the nearest face's. (On
+    numbers, not small arrays: a box test is made for every probe near every box, and an array each costs more.)"""
+    x0, x1, x2 = _local(point, centre, rotation)
+    o0 = x0 - min(max(x0, -half[0]), half[0])
+    o1 = x1 - min(max(x1, -half[1]), half[1])
+    o2 = x2 - min(max(x2, -half[2]), half[2])
+    distance = math.sqrt(o0 * o0 + o1 * o1 + o2 * o2)
     if distance > 1e-12:
-        for i in range(3):
-            normal_local[i] = outside[i] / distance
+        l0, l1, l2 = o0 / distance, o1 / distance, o2 / distance
         signed = distance
-    else:  # inside: leave through the nearest face
-        axis, least = 0, half[0] - abs(local[0])
-        for i in range(1, 3):
-            if half[i] - abs(local[i]) < least:
-                axis, least = i, half[i] - abs(local[i])
-        normal_local[axis] = 1.0 if local[axis] >= 0 else -1.0
+    else:  # inside: leave through the nearest face (the first of equals)
+        l0 = l1 = l2 = 0.0
+        least = half[0] - abs(x0)
+        axis = 0
+        if half[1] - abs(x1) < least:
+            axis, least = 1, half[1] - abs(x1)
+        if half[2] - abs(x2) < least:
+            axis, least = 2, half[2] - abs(x2)
+        if axis == 0:
+            l0 = 1.0 if x0 >= 0 else -1.0
+        elif axis == 1:
+            l1 = 1.0 if x1 >= 0 else -1.0
+        else:
+            l2 = 1.0 if x2 >= 0 else -1.0
         signed = -least
-    n = np.empty(3)
-    for i in range(3):
-        n[i] = rotation[i, 0] * normal_local[0] + rotation[i, 1] * normal_local[1] + rotation[i, 2] * normal_local[2]
-    return signed, n[0], n[1], n[2]
+    return (signed, rotation[0, 0] * l0 + rotation[0, 1] * l1 + rotation[0, 2] * l2,
+            rotation[1, 0] * l0 + rotation[1, 1] * l1 + rotation[1, 2] * l2,
+            rotation[2, 0] * l0 + rotation[2, 1] * l1 + rotation[2, 2] * l2)
 
 
 @njit(cache=True, error_model="numpy")
-def _extent(axis: np.ndarray, rotation: np.ndarray, half: np.ndarray) -> float:
-    """How far a box (rotation box-to-world, half sides) reaches from its centre along a unit axis."""
+def _extent(a0: float, a1: float, a2: float, rotation: np.ndarray, half: np.ndarray) -> float:
+    """How far a box (rotation box-to-world, half sides) reaches from its centre along a unit axis (a0, a1, a2)."""
     reach = 0.0
     for j in range(3):
-        reach += abs(axis[0] * rotation[0, j] + axis[1] * rotation[1, j] + axis[2] * rotation[2, j]) * half[j]
+        reach += abs(a0 * rotation[0, j] + a1 * rotation[1, j] + a2 * rotation[2, j]) * half[j]
     return reach
 
 
 @njit(cache=True, error_model="numpy")
 def _separating_direction(centre_a: np.ndarray, rotation_a: np.ndarray, half_a: np.ndarray, centre_b: np.ndarray,
-                          rotation_b: np.ndarray, half_b: np.ndarray) -> np.ndarray:
+                          rotation_b: np.ndarray, half_b: np.ndarray) -> tuple[float, float, float]:
     """The unit direction from box b towards box a along the face axis (of either) on which they overlap least."""
     best, best_value, best_along = 0, np.inf, 0.0
-    axis = np.empty(3)
     for m in range(6):
-        for i in range(3):
-            axis[i] = rotation_a[i, m] if m < 3 else rotation_b[i, m - 3]
-        reach = _extent(axis, rotation_a, half_a) + _extent(axis, rotation_b, half_b)
-        along = (axis[0] * (centre_a[0] - centre_b[0]) + axis[1] * (centre_a[1] - centre_b[1])
-                 + axis[2] * (centre_a[2] - centre_b[2]))
+        if m < 3:
+            a0, a1, a2 = rotation_a[0, m], rotation_a[1, m], rotation_a[2, m]
+        else:
+            a0, a1, a2 = rotation_b[0, m - 3], rotation_b[1, m - 3], rotation_b[2, m - 3]
+        reach = _extent(a0, a1, a2, rotation_a, half_a) + _extent(a0, a1, a2, rotation_b, half_b)
+        along = a0 * (centre_a[0] - centre_b[0]) + a1 * (centre_a[1] - centre_b[1]) + a2 * (centre_a[2] - centre_b[2])
         if reach - abs(along) < best_value:
             best, best_value, best_along = m, reach - abs(along), along
-    direction = np.empty(3)
     sign = 1.0 if best_along >= 0 else -1.0
-    for i in range(3):
-        direction[i] = sign * (rotation_a[i, best] if best < 3 else rotation_b[i, best - 3])
-    return direction
+    rotation = rotation_a if best < 3 else rotation_b
+    column = best if best < 3 else best - 3
+    return sign * rotation[0, column], sign * rotation[1, column], sign * rotation[2, column]
 
 
 @njit(cache=True, error_model="numpy")
@@ -159,8 +173,10 @@ def _box_candidates(ints: np.ndarray, floats: np.ndarray, count: int, probe: int
     kind, solid = kinds[0], index
     own = box[probe]
     if own >= 0:
-        direction = _separating_direction(box_centre[own], box_rotation[own], box_half[own], centre, rotation, half)
-        local_direction = _local(direction, np.zeros(3), rotation)
+        d0, d1, d2 = _separating_direction(box_centre[own], box_rotation[own], box_half[own], centre, rotation, half)
+        local_direction = (rotation[0, 0] * d0 + rotation[1, 0] * d1 + rotation[2, 0] * d2,  # Rᵀ d
+                           rotation[0, 1] * d0 + rotation[1, 1] * d1 + rotation[2, 1] * d2,
+                           rotation[0, 2] * d0 + rotation[1, 2] * d1 + rotation[2, 2] * d2)
         axis = 0
         for i in range(1, 3):
             if abs(local_direction[i]) > abs(local_direction[axis]):
@@ -235,8 +251,11 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
     if not bodies_collide or not len(owner):
         return ints[:count], floats[:count]
     closing = margin + 2 * largest_travel  # both sides move
+    rounded = np.flatnonzero(radius > 0)  # only a probe with a radius can be met by another (box corners have none)
     for i in range(len(owner)):
-        for j in range(i + 1, len(owner)):
+        for j in rounded:
+            if j <= i:
+                continue
             a, b = owner[i], owner[j]
             if (a == b or not active[i] or not active[j] or radius[j] <= 0
                     or not _near(centres[i], centres[j], 2 * widest + closing)
@@ -251,6 +270,8 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
             continue
         size = math.sqrt(box_half[k, 0] ** 2 + box_half[k, 1] ** 2 + box_half[k, 2] ** 2)
         for q in range(len(owner)):
+            if _far(q, centres, box_centre[k, 0], box_centre[k, 1], box_centre[k, 2], size + closing + widest):
+                continue
             if _touchable(q, body, owner, active, centres, box_centre[k], size + closing + widest, excluded,
                           body_count):
                 ints, floats, count = _box_candidates(
@@ -261,6 +282,9 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
         if not collides[body]:
             continue
         for q in range(len(owner)):
+            if _far(q, centres, round_centre[k, 0], round_centre[k, 1], round_centre[k, 2],
+                    round_half_length[k] + round_radius[k] + closing + widest):
+                continue
             if _touchable(q, body, owner, active, centres, round_centre[k],
                           round_half_length[k] + round_radius[k] + closing + widest, excluded, body_count):
                 distance, n0, n1, n2 = _to_round(centres[q], round_centre[k], round_axis[k], round_half_length[k],
@@ -273,6 +297,9 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
         if not collides[body]:
             continue
         for q in range(len(owner)):
+            if _far(q, centres, hull_centre[k, 0], hull_centre[k, 1], hull_centre[k, 2],
+                    hull_reach[k] + closing + widest):
+                continue
             if _touchable(q, body, owner, active, centres, hull_centre[k], hull_reach[k] + closing + widest,
                           excluded, body_count):
                 distance, n0, n1, n2 = _to_hull(
