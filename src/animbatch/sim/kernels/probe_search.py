@@ -253,7 +253,8 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
     closing = margin + 2 * largest_travel  # both sides move
     rounded = np.flatnonzero(radius > 0)  # only a probe with a radius can be met by another (box corners have none)
     for i in range(len(owner)):
-        for j in rounded:
+        for slot in range(len(rounded)):
+            j = int(rounded[slot])
             if j <= i:
                 continue
             a, b = owner[i], owner[j]
