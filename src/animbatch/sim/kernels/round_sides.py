@@ -29,7 +29,7 @@ NEAREST_PASSES, END_PASSES = 5, 4
 SHORT_STRETCH = 1e-3
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _round_distance(p0: float, p1: float, p2: float, centre: np.ndarray, axis: np.ndarray, half_length: float,
                     radius: float, rounded: bool) -> float:
     """The signed distance of a point to a cylinder or capsule, as ``geometry.round_distance``."""
@@ -44,15 +44,17 @@ def _round_distance(p0: float, p1: float, p2: float, centre: np.ndarray, axis: n
     return max(d_rho, d_along)
 
 
-@njit(cache=True, error_model="numpy")
-def _segment_distance(start_a: np.ndarray, along_a: np.ndarray, start_b: np.ndarray, along_b: np.ndarray) -> float:
-    """The distance between two segments ``start + s along`` (s in [0, 1]), as ``geometry.segment_distance``."""
-    b0, b1, b2 = start_a[0] - start_b[0], start_a[1] - start_b[1], start_a[2] - start_b[2]
-    aa = along_a[0] * along_a[0] + along_a[1] * along_a[1] + along_a[2] * along_a[2]
-    ee = along_b[0] * along_b[0] + along_b[1] * along_b[1] + along_b[2] * along_b[2]
-    bb = along_a[0] * along_b[0] + along_a[1] * along_b[1] + along_a[2] * along_b[2]
-    cc = along_a[0] * b0 + along_a[1] * b1 + along_a[2] * b2
-    ff = along_b[0] * b0 + along_b[1] * b1 + along_b[2] * b2
+@njit(cache=True, error_model="numpy", inline="always")
+def _segment_gap(a0: float, a1: float, a2: float, u0: float, u1: float, u2: float, c0: float, c1: float, c2: float,
+                 w0: float, w1: float, w2: float) -> float:
+    """The distance between the segments ``a + s u`` and ``c + t w`` (s, t in [0, 1]), as
+    ``geometry.segment_distance``, on numbers (inlined: the loops test every round against every edge with it)."""
+    b0, b1, b2 = a0 - c0, a1 - c1, a2 - c2
+    aa = u0 * u0 + u1 * u1 + u2 * u2
+    ee = w0 * w0 + w1 * w1 + w2 * w2
+    bb = u0 * w0 + u1 * w1 + u2 * w2
+    cc = u0 * b0 + u1 * b1 + u2 * b2
+    ff = w0 * b0 + w1 * b1 + w2 * b2
     denominator = aa * ee - bb * bb
     s = min(max((bb * ff - cc * ee) / denominator, 0.0), 1.0) if denominator > 1e-12 * aa * ee else 0.0
     t = (bb * s + ff) / ee
@@ -61,13 +63,23 @@ def _segment_distance(start_a: np.ndarray, along_a: np.ndarray, start_b: np.ndar
     elif t > 1:
         s = min(max((bb - cc) / aa, 0.0), 1.0)
     t = min(max(t, 0.0), 1.0)
-    d0 = start_a[0] + s * along_a[0] - start_b[0] - t * along_b[0]
-    d1 = start_a[1] + s * along_a[1] - start_b[1] - t * along_b[1]
-    d2 = start_a[2] + s * along_a[2] - start_b[2] - t * along_b[2]
+    d0 = a0 + s * u0 - c0 - t * w0
+    d1 = a1 + s * u1 - c1 - t * w1
+    d2 = a2 + s * u2 - c2 - t * w2
     return math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
+def _round_segment_gap(k: int, centre: np.ndarray, axis: np.ndarray, half_length: np.ndarray, c0: float, c1: float,
+                       c2: float, w0: float, w1: float, w2: float) -> float:
+    """The distance between round k's segment (its axis between its ends) and the segment ``c + t w``."""
+    length = 2 * half_length[k]
+    return _segment_gap(centre[k, 0] - half_length[k] * axis[k, 0], centre[k, 1] - half_length[k] * axis[k, 1],
+                        centre[k, 2] - half_length[k] * axis[k, 2], length * axis[k, 0], length * axis[k, 1],
+                        length * axis[k, 2], c0, c1, c2, w0, w1, w2)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _gap(u: float, start: np.ndarray, along: np.ndarray, thickness: float, centre: np.ndarray, axis: np.ndarray,
          half_length: float, radius: float, rounded: bool) -> float:
     """The gap between the round and the segment's point at ``u``, thickened by ``thickness``."""
@@ -125,11 +137,8 @@ def _touching(ints: np.ndarray, floats: np.ndarray, count: int, k: int, centre: 
               other_material: int, kind: int, index: int, probe: int, reach: float, spacing: np.ndarray,
               ends: bool) -> tuple[np.ndarray, np.ndarray, int]:
     """The contacts of round k's solid with one thickened segment (see ``sides._touching``)."""
-    bound = np.empty(3)
-    for i in range(3):
-        bound[i] = centre[k, i] - half_length[k] * axis[k, i]
-    axis_along = 2 * half_length[k] * axis[k]
-    if _segment_distance(bound, axis_along, other_start, other_along) - radius[k] - other_radius >= reach:
+    if _round_segment_gap(k, centre, axis, half_length, other_start[0], other_start[1], other_start[2],
+                          other_along[0], other_along[1], other_along[2]) - radius[k] - other_radius >= reach:
         return ints, floats, count
     first, second = _stretch(other_start, other_along, other_radius, centre[k], axis[k], half_length[k], radius[k],
                              rounded[k], reach, spacing)
@@ -152,7 +161,7 @@ def _touching(ints: np.ndarray, floats: np.ndarray, count: int, k: int, centre: 
     return ints, floats, count
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _may_touch(body: int, other: int, collides: np.ndarray, excluded: np.ndarray) -> bool:
     """A round's body and a segment's (−1: fixed) may touch: not one body, both collide, no joint joins them."""
     if body == other or not collides[body]:
@@ -194,6 +203,9 @@ def side_contacts(centre: np.ndarray, axis: np.ndarray, half_length: np.ndarray,
             if not _may_touch(owner[k], other, collides, excluded):
                 continue
             reach = margin + travel[owner[k]] + (travel[other] if other >= 0 else 0.0)
+            if _round_segment_gap(k, centre, axis, half_length, edge_start[e, 0], edge_start[e, 1],
+                                  edge_start[e, 2], along[0], along[1], along[2]) - radius[k] >= reach:
+                continue  # _touching's first test, made here without its call (most edges are not near)
             ints, floats, count = _touching(ints, floats, count, k, centre, axis, half_length, radius, rounded, owner,
                                             edge_start[e], along.copy(), 0.0, other, edge_material[e], SIDE_EDGE,
                                             edge_number[e], first + k, reach, spacing, True)
