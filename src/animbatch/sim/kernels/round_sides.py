@@ -136,10 +136,8 @@ def _touching(ints: np.ndarray, floats: np.ndarray, count: int, k: int, centre: 
               other_start: np.ndarray, other_along: np.ndarray, other_radius: float, other_body: int,
               other_material: int, kind: int, index: int, probe: int, reach: float, spacing: np.ndarray,
               ends: bool) -> tuple[np.ndarray, np.ndarray, int]:
-    """The contacts of round k's solid with one thickened segment (see ``sides._touching``)."""
-    if _round_segment_gap(k, centre, axis, half_length, other_start[0], other_start[1], other_start[2],
-                          other_along[0], other_along[1], other_along[2]) - radius[k] - other_radius >= reach:
-        return ints, floats, count
+    """The contacts of round k's solid with one thickened segment (see ``sides._touching``), which the caller found
+    within ``reach`` of it (:func:`_round_segment_gap`: the test made first, inline, since most segments are far)."""
     first, second = _stretch(other_start, other_along, other_radius, centre[k], axis[k], half_length[k], radius[k],
                              rounded[k], reach, spacing)
     for end in range(2):
@@ -205,9 +203,9 @@ def side_contacts(centre: np.ndarray, axis: np.ndarray, half_length: np.ndarray,
             reach = margin + travel[owner[k]] + (travel[other] if other >= 0 else 0.0)
             if _round_segment_gap(k, centre, axis, half_length, edge_start[e, 0], edge_start[e, 1],
                                   edge_start[e, 2], along[0], along[1], along[2]) - radius[k] >= reach:
-                continue  # _touching's first test, made here without its call (most edges are not near)
+                continue
             ints, floats, count = _touching(ints, floats, count, k, centre, axis, half_length, radius, rounded, owner,
-                                            edge_start[e], along.copy(), 0.0, other, edge_material[e], SIDE_EDGE,
+                                            edge_start[e], along, 0.0, other, edge_material[e], SIDE_EDGE,
                                             edge_number[e], first + k, reach, spacing, True)
     if not bodies_collide:
         return ints[:count], floats[:count]
@@ -234,6 +232,9 @@ def side_contacts(centre: np.ndarray, axis: np.ndarray, half_length: np.ndarray,
                 if not _may_touch(owner[a], owner[b], collides, excluded):
                     continue
                 reach = margin + travel[owner[a]] + travel[owner[b]]
+                if _round_segment_gap(a, centre, axis, half_length, start[b, 0], start[b, 1], start[b, 2],
+                                      segment[b, 0], segment[b, 1], segment[b, 2]) - radius[a] - radius[b] >= reach:
+                    continue
                 ints, floats, count = _touching(ints, floats, count, a, centre, axis, half_length, radius, rounded,
                                                 owner, start[b], segment[b], radius[b], owner[b], material[owner[b]],
                                                 SIDE_ROUND, b, first + a, reach, spacing, False)
