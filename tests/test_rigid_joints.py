@@ -69,16 +69,18 @@ def test_a_bar_on_a_hinge_swings_with_the_physical_pendulums_period(amplitude):
 @pytest.mark.slow
 @pytest.mark.parametrize("method, dt, order", [("verlet", 2e-3, 2), ("symplectic_euler", 1e-3, 1),
                                               ("backward_euler", 1e-3, 1)])
-def test_fixed_step_methods_hold_the_hinge_exactly_and_any_energy_gain_is_their_error(method, dt, order):
-    """Projected after every step, the hinge holds to rounding; the energy wanders by the method's error, which
-    shrinks as dt^order (backward Euler steps rigid bodies by semi-implicit Euler, so it shares its order)."""
+def test_fixed_step_methods_hold_the_hinge_exactly_and_any_energy_change_is_their_error(method, dt, order):
+    """Projected after every step (or, under Verlet, stepped in its angle), the hinge holds to rounding; the energy
+    wanders by the method's error, which shrinks as dt^order (backward Euler steps rigid bodies by semi-implicit
+    Euler, so it shares its order). Verlet on the angle loses energy rather than gaining it: the wander, not the
+    gain, is what is measured."""
     rises = []
     for step in (dt, dt / 2):
         trajectory, period, loaded = hinged_bar(60.0, f"{{method: {method}, dt: {step}}}", duration=4.0)
         assert trajectory.ledger["joints"]["max_violation"] < 1e-12
         assert period == pytest.approx(physical_pendulum_period(60.0), rel=30 * step**order)
         total = quantity_series(api.compile_scene(loaded.spec), trajectory).total
-        rises.append(max(float(np.max(total - total[0])), 1e-12))
+        rises.append(max(float(np.max(np.abs(total - total[0]))), 1e-12))
     assert rises[1] < 1.2 * rises[0] / 2**order
     omega = 2 * np.pi / physical_pendulum_period(60.0)
     assert rises[0] < 10 * (omega * dt) ** order * BAR_MASS * G * BAR_LENGTH / 2  # of the energy's scale

@@ -4,8 +4,10 @@ Formulation (the choice issue 22 asks to justify). animbatch integrates maximal 
 position, orientation and momenta), and a joint is a few scalar constraints on them, ``C_i = 0`` or, for limits and
 slack ropes, ``C_i ≥ 0`` (see :mod:`animbatch.sim.joints.kinds` for each kind's rows). Maximal coordinates with
 constraint forces take loops (a four-bar linkage, a chain closed on itself) exactly as trees, and leave every
-integrator, contact and force term as it is; reduced coordinates (Featherstone) would be cheaper for trees and
-exact by construction, but cannot close a loop and would need a second state layout.
+integrator, contact and force term as it is; reduced coordinates (Featherstone) are cheaper for trees and exact
+by construction, but cannot close a loop and need a second state layout. So the state stays maximal, and a tree of
+hinges alone is stepped in its angles inside a compiled call of some fixed-step methods
+(:mod:`animbatch.sim.joints.tree`).
 
 * **Adaptive methods** integrate the index-1 form: at every right-hand side the multipliers λ solve
   ``J M⁻¹ Jᵀ λ = −(J a_free + J̇u + 2 ω Ċ + ω² C)`` (Baumgarte stabilisation, critically damped at ω), so that

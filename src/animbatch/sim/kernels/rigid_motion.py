@@ -151,12 +151,18 @@ def turn_quaternion(q: np.ndarray, turn: tuple[float, float, float]) -> None:
     half = 0.5 * angle
     # sin(half)/angle -> 1/2 as angle -> 0; the series keeps tiny rotations accurate
     scale = math.sin(half) / angle if angle > 1e-8 else 0.5 - angle**2 / 48
-    pw, px, py, pz = math.cos(half), scale * turn[0], scale * turn[1], scale * turn[2]
-    qw, qx, qy, qz = q[0], q[1], q[2], q[3]
-    q[0] = pw * qw - px * qx - py * qy - pz * qz
-    q[1] = pw * qx + px * qw + py * qz - pz * qy
-    q[2] = pw * qy - px * qz + py * qw + pz * qx
-    q[3] = pw * qz + px * qy - py * qx + pz * qw
+    q[0], q[1], q[2], q[3] = hamilton((math.cos(half), scale * turn[0], scale * turn[1], scale * turn[2]),
+                                      (q[0], q[1], q[2], q[3]))
+
+
+@njit(cache=True, error_model="numpy")
+def hamilton(p: tuple[float, float, float, float],
+             q: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+    """The Hamilton product ``p ⊗ q`` of quaternions held as tuples [w, x, y, z]."""
+    pw, px, py, pz = p
+    qw, qx, qy, qz = q
+    return (pw * qw - px * qx - py * qy - pz * qz, pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx, pw * qz + px * qy - py * qx + pz * qw)
 
 
 @njit(cache=True, error_model="numpy")

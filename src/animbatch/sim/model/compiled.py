@@ -39,6 +39,7 @@ from animbatch.sim.joints import (
     SlideRows,
 )
 from animbatch.sim.joints.pattern import coupling_pattern
+from animbatch.sim.joints.tree import HingeTree, hinge_tree
 from animbatch.sim.kernels import tables as T
 from animbatch.sim.kernels.tables import PackedTables, pack
 from animbatch.sim.model.dynamics import Dynamics
@@ -56,6 +57,9 @@ COMPILE_AFTER = 0.5
 COMPILE_AFTER_LOADED = 0.05
 
 Fields = dict[int, np.ndarray]
+#: The fixed-step forms that step a hinge tree in joint angles (semi-implicit Euler keeps maximal coordinates: see
+#: :mod:`animbatch.sim.joints.tree`).
+TREE_FORMS = ("runge_kutta", "verlet")
 
 
 class _Paths:
@@ -360,6 +364,20 @@ def build_stepper_kernels() -> str | None:
         state = system.kinematics(config, motion, copy=True)
         system.project_velocities(state, state.v, state.omega)
         system.velocity_rows(state, system.model.body_count)
+        # and a bar on a hinge, which steps in its angle (animbatch.sim.joints.tree)
+        from animbatch.sim.rigid import mass_properties
+        from animbatch.sim.rigid.shapes import BodyGeometry
+
+        builder = ModelBuilder()
+        bar = builder.add_rigid_body("bar", BodyGeometry(mass_properties.cuboid(1.0, np.array([0.1, 0.02, 0.02])),
+                                                         np.zeros((0, 4)), np.zeros((0, 3, 3))))
+        builder.add_joint("hinge", bar, anchor=(-0.05, 0.0, 0.0), axis=(0.0, 0.0, 1.0))
+        builder.add_field(functools.partial(build_gravity, g=np.array([0.0, -9.81, 0.0])))
+        hinged = CompiledDynamics(builder.finalize(duration=0.1, fps=10))
+        y = hinged.model.y0.copy()
+        rate = hinged.motion_rate(0.0, *hinged.split(y))
+        hinged.advance(("verlet", rate), y, 0.0, 1e-3, 1)
+        hinged.advance(("runge_kutta", (np.zeros((1, 1)), np.ones(1), np.zeros(1))), y, 0.0, 1e-3, 1)
 
     return build_failure(build)
 
@@ -410,6 +428,17 @@ class CompiledDynamics(Dynamics):
         self._compiled_advance = _Entry(stepper.advance)
         self._compiled_project_velocities = _Entry(stepper.project_velocities)
         self._compiled_held_rows = _Entry(stepper.held_rows)
+        #: The joints as a hinge tree, stepped in joint angles by Runge–Kutta and Verlet (see
+        #: :mod:`animbatch.sim.joints.tree`), or why they are not one.
+        self.tree: HingeTree | str = tree_of(model)
+        if isinstance(self.tree, HingeTree):
+            from animbatch.sim.kernels import joint_tree
+
+            tree = self.tree
+            self._tree_tables = (np.stack([tree.body, tree.parent], axis=1),
+                                 np.stack([tree.child_offset, tree.parent_offset, tree.axis], axis=1),
+                                 tree.mass, tree.inertia, np.linalg.inv(tree.inertia), *self._packed[:3])
+            self._compiled_tree_advance = _Entry(joint_tree.advance)
 
     def _engaged(self) -> tuple[np.ndarray, bool]:
         if self.engaged_stops is None:
@@ -479,8 +508,21 @@ class CompiledDynamics(Dynamics):
         else:
             a, weights, nodes = np.zeros((0, 0)), np.zeros(0), np.zeros(0)
             rate = data if name == "verlet" else np.zeros(0)
+        if name in TREE_FORMS and isinstance(self.tree, HingeTree):
+            return int(self._compiled_tree_advance(y, float(t), float(h), int(steps), self._forms[name], a, weights,
+                                                   nodes, rate, *self._tree_tables))
         return int(self._compiled_advance(y, float(t), float(h), int(steps), self._forms[name], a, weights, nodes,
                                           rate, *self._packed, self._config_size))
+
+
+def tree_of(model: Model) -> HingeTree | str:
+    """The model's joints as a hinge tree (:mod:`animbatch.sim.joints.tree`), or why they are not one."""
+    rigid = model.rigid
+    if model.joints is None or rigid is None:
+        return "it has no joints between rigid bodies"
+    if model.contact_world is not None:
+        return "it has contacts"
+    return hinge_tree(model.joints, rigid.mass, rigid.inertia, model.rigid_count, model.particle_count)
 
 
 def dynamics_for(model: Model, numpy_seconds: float) -> Dynamics:
