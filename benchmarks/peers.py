@@ -380,8 +380,9 @@ def case_pile(quick: bool) -> tuple[str, Outcome, Outcome, list[tuple[str, Outco
     kinetic, deepest = _rest_and_depth(model, result.states, PILE_SIDE / 2)
     solves = result.stats.contact_solves
     ours = Outcome(seconds, f"deepest corner {deepest * 1e3:.2g} mm into the ground, kinetic energy at the end "
-                            f"{kinetic:.2g} J; {solves.unconverged} of {solves.solves} contact solves used all "
-                            f"{model.contact_settings.iterations} iterations (off by ≤ {solves.residual:.2g} m/s)")
+                            f"{kinetic:.2g} J; {solves.unconverged} of {solves.solves} contact solves stopped short "
+                            f"(stalled, or at {model.contact_settings.iterations} iterations; off by ≤ "
+                            f"{solves.residual:.2g} m/s)")
     steps = int(round(duration / 1e-3))
     mj_seconds, _, depths = _mujoco_run(pile_mjcf(), steps, record=lambda m, d: (
         -min([float(d.contact[k].dist) for k in range(d.ncon)] + [0.0]), float(d.energy[1])))
@@ -404,8 +405,8 @@ def case_ragdoll(quick: bool) -> tuple[str, Outcome, Outcome, list[tuple[str, Ou
     seconds, result, model, _ = _run(text, repeats=1)
     solves = result.stats.contact_solves
     ours = Outcome(seconds, f"joints {_joint_gap(model, result.states):.1g} m; {solves.unconverged} of {solves.solves} "
-                            f"contact solves used all {model.contact_settings.iterations} iterations (off by ≤ "
-                            f"{solves.residual:.2g} m/s)")
+                            f"contact solves stopped short (stalled, or at {model.contact_settings.iterations} "
+                            f"iterations; off by ≤ {solves.residual:.2g} m/s)")
     steps = int(round(duration / 1e-3))
     mj_seconds, _, _ = _mujoco_run(ragdoll_mjcf(), steps)
     theirs = Outcome(mj_seconds, "joints exact (generalized coordinates)")

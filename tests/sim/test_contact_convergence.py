@@ -87,5 +87,38 @@ def test_the_ledger_counts_the_contact_solves_that_ran_out_of_iterations():
     solves = stack.ledger["work"]["bodies"]["contact_solves"]
     assert 0 < solves["unconverged"] <= solves["solves"] <= stack.solver_stats["steps"]
     assert solves["residual"] > 0 and solves["iterations"] == 2
-    assert f"contacts: {solves['unconverged']} of {solves['solves']} solves used all 2 iterations, leaving" \
+    assert (f"contacts: {solves['unconverged']} of {solves['solves']} solves stopped short (stalled, or at all 2 "
+            "iterations), leaving") \
         in summary(stack.ledger)
+
+
+def test_sweeps_stop_when_their_violation_stops_falling_and_only_then():
+    """The stall rule: a violation halving every sweep never stalls; one stuck at a level stalls at the end of the
+    second window; one falling 2 % a window (too slowly to be worth the sweeps) stalls; one falling 20 % a window
+    goes on."""
+    from animbatch.sim.contact.solver import STALL_WINDOW, stalled
+
+    def first_stall(violations) -> int | None:
+        watch = [np.inf, np.inf]
+        for iteration, worst in enumerate(violations, start=1):
+            if stalled(iteration, worst, watch):
+                return iteration
+        return None
+
+    sweeps = np.arange(1, 10 * STALL_WINDOW + 1)
+    assert first_stall(0.5 ** sweeps) is None
+    assert first_stall(np.full(len(sweeps), 3e-3)) == 2 * STALL_WINDOW
+    assert first_stall(0.98 ** (sweeps / STALL_WINDOW)) == 2 * STALL_WINDOW
+    assert first_stall(0.8 ** (sweeps / STALL_WINDOW)) is None
+    # a violation that wanders (Jacobi sweeps over contacts sharing bodies) is judged by its smallest in a window
+    wandering = 3e-3 * (1 + 0.5 * np.sin(sweeps)) * 0.7 ** (sweeps / STALL_WINDOW)
+    assert first_stall(wandering) is None
+
+
+def test_the_stall_settings_are_the_numpy_ones():
+    """The compiled sweeps stop at a stall by the numpy rule's numbers."""
+    pytest.importorskip("numba")
+    from animbatch.sim.contact import solver
+    from animbatch.sim.kernels import contact_impulses
+
+    assert (contact_impulses.STALL_WINDOW, contact_impulses.STALL_RATIO) == (solver.STALL_WINDOW, solver.STALL_RATIO)

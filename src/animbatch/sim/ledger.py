@@ -447,8 +447,8 @@ def summary(ledger: dict[str, Any]) -> str:
         parts.append(f"{method}{how}: {bodies['steps']} steps, {bodies['rhs_evaluations']} RHS{factored}")
     solves = work.get("bodies", {}).get("contact_solves")
     if solves and solves["unconverged"]:
-        parts.append(f"contacts: {solves['unconverged']} of {solves['solves']} solves used all "
-                     f"{solves['iterations']} iterations, leaving contacts off their targets by up to "
+        parts.append(f"contacts: {solves['unconverged']} of {solves['solves']} solves stopped short (stalled, or "
+                     f"at all {solves['iterations']} iterations), leaving contacts off their targets by up to "
                      f"{_number(solves['residual'])} m/s")
     if "particles" in work:
         particles = work["particles"]

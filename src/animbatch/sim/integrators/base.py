@@ -65,8 +65,9 @@ class ImpactRecord(Protocol):
 
 @dataclass
 class ContactSolves:
-    """How a run's contact impulse solves ended: how many there were (``solves``), how many ran out of sweeps
-    (``contacts.iterations``) before every contact met its target to the solver's tolerance (``unconverged``), and
+    """How a run's contact impulse solves ended: how many there were (``solves``), how many stopped (out of sweeps,
+    ``contacts.iterations``, or stalled) before every contact met its target to the solver's tolerance
+    (``unconverged``), and
     the largest violation of a target such a solve left (``residual`` [m/s]; 0 when every solve converged)."""
 
     solves: int = 0

@@ -22,6 +22,24 @@ import math
 import numpy as np
 from numba import njit
 
+#: As :mod:`animbatch.sim.contact.solver`: the sweeps stop when the smallest violation of the last STALL_WINDOW
+#: sweeps is not below STALL_RATIO times the smallest before them.
+STALL_WINDOW = 20
+STALL_RATIO = 0.97
+
+
+@njit(cache=True, inline="always")
+def _stalled(iteration: int, worst: float, watch: np.ndarray) -> bool:
+    """:func:`animbatch.sim.contact.solver.stalled`: ``watch`` (2,) the smallest violation before this window and
+    in it."""
+    watch[1] = min(watch[1], worst)
+    if iteration % STALL_WINDOW:
+        return False
+    if iteration >= 2 * STALL_WINDOW and watch[1] > STALL_RATIO * watch[0]:
+        return True
+    watch[0], watch[1] = min(watch[0], watch[1]), np.inf
+    return False
+
 
 @njit(cache=True, inline="always")
 def _rate(velocity: np.ndarray, bodies: int, row: int, k: int, a: np.ndarray, b: np.ndarray, direction: np.ndarray,
@@ -80,6 +98,7 @@ def impulse_iterations(velocity: np.ndarray, a: np.ndarray, b: np.ndarray, direc
     change = np.empty(count)
     updated = np.empty((count, 2))
     gripping = np.zeros(count, np.bool_)
+    watch = np.full(2, np.inf)
     for iteration in range(iterations + 1):
         for k in range(count):
             normal_now[k] = _rate(velocity, bodies, 0, k, a, b, direction, arm_a, arm_b) - target[k]
@@ -92,7 +111,7 @@ def impulse_iterations(velocity: np.ndarray, a: np.ndarray, b: np.ndarray, direc
                     first = _rate(velocity, bodies, 1, k, a, b, direction, arm_a, arm_b)
                     second = _rate(velocity, bodies, 2, k, a, b, direction, arm_a, arm_b)
                     worst = max(worst, math.sqrt(first * first + second * second))
-            if worst <= tolerance or iteration == iterations:
+            if worst <= tolerance or iteration == iterations or _stalled(iteration, worst, watch):
                 return iteration, worst
         for k in range(count):
             new = max(normal_impulse[k] - normal_now[k] * weight[0, k], 0.0)
@@ -297,6 +316,7 @@ def dense_sweeps(velocity: np.ndarray, jacobian_normal: np.ndarray, jacobian_tan
     delassus = np.zeros((0, 0))
     rates = np.zeros(0)  # J v (3K,) while in contact space: normals, first tangents, second tangents
     from_normal, from_tangent = normal_impulse.copy(), tangent_impulse.copy()  # the impulses at the switch
+    watch = np.full(2, np.inf)
     for iteration in range(iterations + 1):
         in_rates = len(rates) > 0
         if in_rates:
@@ -314,7 +334,7 @@ def dense_sweeps(velocity: np.ndarray, jacobian_normal: np.ndarray, jacobian_tan
             for k in range(count):
                 if gripping[k]:
                     worst = max(worst, math.sqrt(tangential[k] ** 2 + tangential[count + k] ** 2))
-            if worst <= tolerance or iteration == iterations:
+            if worst <= tolerance or iteration == iterations or _stalled(iteration, worst, watch):
                 sweeps = iteration
                 break
         if not in_rates and iteration == switch:
