@@ -15,7 +15,8 @@ from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.joints.tree import HingeTree
 from animbatch.sim.ledger import conservation_laws, step_note
 from animbatch.sim.model import Model
-from animbatch.sim.model.compiled import COMPILE_AFTER, COMPILE_AFTER_LOADED, stepper_tables, tree_of
+from animbatch.sim.model.compiled import COMPILE_AFTER, COMPILE_AFTER_LOADED, stepper_tables
+from animbatch.sim.model.dynamics import tree_of
 from animbatch.summary import describe_solver, plural
 
 
@@ -87,8 +88,8 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
                      + (" …" if joints.count > 6 else "") + "; held by Baumgarte-stabilised constraint forces "
                      "(adaptive methods) or projection after every step (fixed-step)")
         tree = tree_of(model)
-        lines.append("           " + (f"a tree of {plural(tree.count, 'hinge')} from the world: compiled verlet, "
-                                      "euler and midpoint steps advance the hinge angles (joints exact)"
+        lines.append("           " + (f"a tree of {plural(tree.count, 'hinge')} from the world: verlet, euler and "
+                                      "midpoint steps advance the hinge angles (joints exact)"
                                       if isinstance(tree, HingeTree) else f"not stepped in hinge angles: {tree}"))
     if model.clocks is not None:
         lines.append(f"clocks     proper time dτ/dt = √(1 − v²/c²), c = {model.clocks.c:g} m/s, carried by "

@@ -87,9 +87,11 @@ class FixedStepIntegrator(Integrator):
              layout: Any, on_frame: FrameCallback | None) -> float:
         """Step through every frame interval; return the largest step used [s]."""
         scheme.start(float(times[0]), y)
-        # a system with compiled equations of motion steps a scheme that has a compiled form in one call per frame
-        advance = getattr(scheme.system, "advance", None)
+        # a system that takes a scheme's form (compiled equations of motion: every form; a hinge tree: Runge–Kutta
+        # and Verlet, in its angles) steps it in one call per frame
         form = scheme.compiled_form()
+        advances = getattr(scheme.system, "advances", None)
+        advance = getattr(scheme.system, "advance") if advances is not None and advances(form) else None
         largest_step = 0.0
         for frame in range(1, len(times)):
             t0, t1 = float(times[frame - 1]), float(times[frame])
@@ -97,7 +99,7 @@ class FixedStepIntegrator(Integrator):
             h = (t1 - t0) / count
             largest_step = max(largest_step, h)
             saved_state, saved_scheme = y.copy(), scheme.snapshot()
-            if advance is not None and form is not None:  # compiled: a call per frame (or per chunk of steps)
+            if advance is not None and form is not None:  # a call per frame (or per chunk of steps)
                 for first in range(0, count, COMPILED_CHUNK):
                     steps = min(COMPILED_CHUNK, count - first)
                     scheme.evaluations += advance(form, y, t0 + first * h, h, steps)

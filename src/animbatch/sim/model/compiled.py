@@ -39,10 +39,10 @@ from animbatch.sim.joints import (
     SlideRows,
 )
 from animbatch.sim.joints.pattern import coupling_pattern
-from animbatch.sim.joints.tree import HingeTree, hinge_tree
+from animbatch.sim.joints.tree import HingeTree
 from animbatch.sim.kernels import tables as T
 from animbatch.sim.kernels.tables import PackedTables, pack
-from animbatch.sim.model.dynamics import Dynamics
+from animbatch.sim.model.dynamics import TREE_FORMS, Dynamics
 from animbatch.sim.model.model import Model
 from animbatch.sim.motion import AnchorMotion, KeyframePath
 
@@ -57,9 +57,6 @@ COMPILE_AFTER = 0.5
 COMPILE_AFTER_LOADED = 0.05
 
 Fields = dict[int, np.ndarray]
-#: The fixed-step forms that step a hinge tree in joint angles (semi-implicit Euler keeps maximal coordinates: see
-#: :mod:`animbatch.sim.joints.tree`).
-TREE_FORMS = ("runge_kutta", "verlet")
 
 
 class _Paths:
@@ -428,9 +425,6 @@ class CompiledDynamics(Dynamics):
         self._compiled_advance = _Entry(stepper.advance)
         self._compiled_project_velocities = _Entry(stepper.project_velocities)
         self._compiled_held_rows = _Entry(stepper.held_rows)
-        #: The joints as a hinge tree, stepped in joint angles by Runge–Kutta and Verlet (see
-        #: :mod:`animbatch.sim.joints.tree`), or why they are not one.
-        self.tree: HingeTree | str = tree_of(model)
         if isinstance(self.tree, HingeTree):
             from animbatch.sim.kernels import joint_tree
 
@@ -498,6 +492,10 @@ class CompiledDynamics(Dynamics):
         if omega is not None and spinning is not omega:
             omega[...] = spinning
 
+    def advances(self, form: tuple[str, object] | None) -> bool:
+        """Every scheme form is stepped here, in one compiled call."""
+        return form is not None
+
     def advance(self, form: tuple[str, Any], y: np.ndarray, t: float, h: float, steps: int) -> int:
         """``steps`` fixed steps of ``h`` [s] from ``t`` [s] of the scheme form ``form`` (see
         :meth:`~animbatch.sim.integrators.fixed_step.Scheme.compiled_form`), in place; returns the right-hand sides
@@ -513,16 +511,6 @@ class CompiledDynamics(Dynamics):
                                                    nodes, rate, *self._tree_tables))
         return int(self._compiled_advance(y, float(t), float(h), int(steps), self._forms[name], a, weights, nodes,
                                           rate, *self._packed, self._config_size))
-
-
-def tree_of(model: Model) -> HingeTree | str:
-    """The model's joints as a hinge tree (:mod:`animbatch.sim.joints.tree`), or why they are not one."""
-    rigid = model.rigid
-    if model.joints is None or rigid is None:
-        return "it has no joints between rigid bodies"
-    if model.contact_world is not None:
-        return "it has contacts"
-    return hinge_tree(model.joints, rigid.mass, rigid.inertia, model.rigid_count, model.particle_count)
 
 
 def dynamics_for(model: Model, numpy_seconds: float) -> Dynamics:

@@ -25,7 +25,24 @@ from animbatch import quaternion
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.forces.jacobian import ForceJacobian
 from animbatch.sim.joints import STABILISATION_RATE
+from animbatch.sim.joints.tree import HingeTree, hinge_tree
 from animbatch.sim.model.model import Model, world_inverse_inertia_times
+
+#: The fixed-step forms that step a hinge tree in its angles (semi-implicit Euler keeps maximal coordinates: see
+#: :mod:`animbatch.sim.joints.tree`).
+TREE_FORMS = ("runge_kutta", "verlet")
+
+
+def tree_of(model: Model) -> HingeTree | str:
+    """The model's joints as a hinge tree (:mod:`animbatch.sim.joints.tree`), or why they are not one."""
+    rigid = model.rigid
+    if model.joints is None or rigid is None:
+        return "it has no joints between rigid bodies"
+    if model.contact_world is not None:
+        return "it has contacts"
+    if model.clocks is not None or model.kinematic is not None:
+        return "it has clocks or bodies on keyframes"
+    return hinge_tree(model.joints, rigid.mass, rigid.inertia, model.rigid_count, model.particle_count)
 
 
 class Dynamics:
@@ -53,6 +70,9 @@ class Dynamics:
         self._force = np.zeros((n + b, 3))
         self._torque = np.zeros((b, 3)) if b else None
         self._patterns: dict[bool, dict] = {}  # sparsity patterns of the force Jacobians, reused between steps
+        #: The joints as a hinge tree, stepped in their angles by Runge–Kutta and Verlet (:meth:`advance`), or why
+        #: they are not one.
+        self.tree: HingeTree | str = tree_of(model)
         if b:
             rigid = model.rigid
             assert rigid is not None
@@ -198,6 +218,27 @@ class Dynamics:
             omega = world_inverse_inertia_times(quaternion.to_matrix(halfway), self._inverse_inertia,
                                                 angular_momentum)
             orientation[...] = quaternion.multiply(quaternion.from_rotation_vector(h * omega), orientation)
+
+    def advances(self, form: tuple[str, object] | None) -> bool:
+        """Whether :meth:`advance` takes the steps of a scheme's form (``Scheme.compiled_form``): here, those of a
+        hinge tree in its angles."""
+        return form is not None and form[0] in TREE_FORMS and isinstance(self.tree, HingeTree)
+
+    def advance(self, form: tuple[str, object], y: np.ndarray, t: float, h: float, steps: int) -> int:
+        """``steps`` fixed steps of ``h`` [s] from ``t`` [s] of a hinge tree in its angles, in place (the numpy
+        reference, :func:`animbatch.sim.joints.tree.advance`; the compiled form steps every form); returns the
+        right-hand sides evaluated. Only where :meth:`advances` says so."""
+        from animbatch.sim.joints import tree
+
+        assert isinstance(self.tree, HingeTree)
+
+        def forces(now: float, x: np.ndarray, v: np.ndarray, rotation: np.ndarray,
+                   omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            force, torque = self.loads(now, Kinematics(x, v, rotation, omega, 0, now))
+            assert torque is not None
+            return force.copy(), torque.copy()
+
+        return tree.advance(self.tree, form, y, t, h, steps, forces)
 
     def energy(self, t: float, config: np.ndarray, motion: np.ndarray) -> tuple[float, float]:
         """Total mechanical energy [J] (kinetic, plus the potentials of the terms that have one) at time ``t``, and
