@@ -12,7 +12,7 @@ from animbatch.sim.contact.stepping import DEFAULT_REST_SPEED
 from animbatch.sim.deformable.vertices import ANCHOR, BODY_POINT, PARTICLE
 from animbatch.sim.integrators import DEFAULT_DT
 from animbatch.sim.integrators.fixed_step import substeps
-from animbatch.sim.joints.tree import HingeTree
+from animbatch.sim.joints.tree import JointTree
 from animbatch.sim.ledger import conservation_laws, step_note
 from animbatch.sim.model import Model
 from animbatch.sim.model.compiled import COMPILE_AFTER, COMPILE_AFTER_LOADED, stepper_tables
@@ -88,9 +88,9 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
                      + (" …" if joints.count > 6 else "") + "; held by Baumgarte-stabilised constraint forces "
                      "(adaptive methods) or projection after every step (fixed-step)")
         tree = tree_of(model)
-        lines.append("           " + (f"a tree of {plural(tree.count, 'hinge')} from the world: verlet, euler and "
-                                      "midpoint steps advance the hinge angles (joints exact)"
-                                      if isinstance(tree, HingeTree) else f"not stepped in hinge angles: {tree}"))
+        lines.append("           " + (f"a tree of {plural(tree.count, 'joint')} from the world: verlet, euler and "
+                                      "midpoint steps advance its joint coordinates (joints exact)"
+                                      if isinstance(tree, JointTree) else f"not stepped in joint coordinates: {tree}"))
     if model.clocks is not None:
         lines.append(f"clocks     proper time dτ/dt = √(1 − v²/c²), c = {model.clocks.c:g} m/s, carried by "
                      + ", ".join(model.clocks.names))

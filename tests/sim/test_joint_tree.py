@@ -1,6 +1,7 @@
-"""Hinge trees stepped in joint angles (animbatch.sim.joints.tree and its compiled form): which joints make one, the
-articulated-body accelerations against the maximal-coordinates equations, closed forms (the compound pendulum's
-period at a finite amplitude), energy, joints held exactly, and the compiled steps against the numpy reference."""
+"""Trees of hinges and sliders stepped in joint coordinates (animbatch.sim.joints.tree and its compiled form): which
+joints make one, the articulated-body accelerations against the maximal-coordinates equations, closed forms (the
+compound pendulum's period at a finite amplitude, a block on a spring), energy, joints held exactly, and the
+compiled steps against the numpy reference."""
 
 from __future__ import annotations
 
@@ -16,13 +17,13 @@ from animbatch.compile.solver import make_integrator
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.integrators.methods import FIXED_STEP_SCHEMES
 from animbatch.sim.joints import tree as reference
-from animbatch.sim.joints.tree import HingeTree, hinge_tree
+from animbatch.sim.joints.tree import JointTree, joint_tree
 from animbatch.sim.model.dynamics import Dynamics
 from conftest import scene
 
 pytest.importorskip("numba", reason="numba is not installed: maximal coordinates step every joint")
 
-from animbatch.sim.kernels import joint_tree  # noqa: E402
+from animbatch.sim.kernels import joint_tree as tree_kernel  # noqa: E402
 from animbatch.sim.model.compiled import CompiledDynamics  # noqa: E402
 
 BAR = "type: rigid, shape: {type: box, size: [0.3, 0.04, 0.04]}, density: 700"
@@ -50,9 +51,9 @@ def _model(text: str, solver: str = "{method: verlet, dt: 0.001}", duration: flo
     return compile_scene(scene(f"duration: {duration}\nfps: 50\nsolver: {solver}\n" + textwrap.dedent(text)).spec)
 
 
-def _tree(model) -> HingeTree | str:
+def _tree(model) -> JointTree | str:
     rigid = model.rigid
-    return hinge_tree(model.joints, rigid.mass, rigid.inertia, model.rigid_count, model.particle_count)
+    return joint_tree(model.joints, rigid.mass, rigid.inertia, model.rigid_count, model.particle_count)
 
 
 def _start(model) -> np.ndarray:
@@ -82,7 +83,7 @@ def test_hinges_from_the_world_out_make_a_tree_parents_first():
     in the body's own axes, whichever end of the joint the body is."""
     model = _model(TREE)
     tree = _tree(model)
-    assert isinstance(tree, HingeTree)
+    assert isinstance(tree, JointTree)
     names = [model.rigid.names[b] for b in tree.body]
     assert names == ["a", "b", "c"]
     np.testing.assert_array_equal(tree.parent, [-1, 0, 0])
@@ -95,7 +96,7 @@ def test_hinges_from_the_world_out_make_a_tree_parents_first():
 
 
 @pytest.mark.parametrize("change, reason", [
-    ("limits: [-0.5, 0.5]", "not all hinges without limits"),
+    ("limits: [-0.5, 0.5]", "not all hinges and sliders without limits"),
     ("motor: {speed: 1.0, damping: 0.5, max_torque: 1.0}", "motors"),
 ])
 def test_a_hinge_with_limits_or_a_motor_keeps_maximal_coordinates(change, reason):
@@ -106,7 +107,7 @@ def test_a_hinge_with_limits_or_a_motor_keeps_maximal_coordinates(change, reason
 
 @pytest.mark.parametrize("change, reason", [
     ("      - {type: hinge, between: [c], anchor: [0.3, -0.3, 0], axis: [1, 0, 0]}\n", "close a loop"),
-    ("      - {type: ball, between: [b, c], anchor: [0.6, 0, 0]}\n", "not all hinges"),
+    ("      - {type: ball, between: [b, c], anchor: [0.6, 0, 0]}\n", "not all hinges and sliders"),
 ])
 def test_a_loop_or_a_ball_joint_keeps_maximal_coordinates(change, reason):
     """A closed loop has no tree; a ball joint is not a hinge."""
@@ -126,12 +127,11 @@ def test_a_particle_or_a_free_body_or_contacts_keep_maximal_coordinates():
     assert system.tree == "it has contacts"
 
 
-def test_the_articulated_body_accelerations_are_the_maximal_coordinates_ones():
-    """RK4 on the hinge angles (4th order, 1 ms) against RK4 on the maximal state with its constraint forces and
-    projection (0.1 ms), over 0.4 s of a branching 3-D tree: the same motion to the methods' error."""
-    model = _model(TREE)
+def _in_both_coordinates(model) -> tuple[np.ndarray, np.ndarray]:
+    """The bodies' positions (B, 3) after 0.4 s of RK4 on the joint coordinates (numpy reference, 1 ms) and of RK4
+    on the maximal state with its constraint forces and projection (the compiled maximal stepper, 0.1 ms)."""
     tree = _tree(model)
-    assert isinstance(tree, HingeTree)
+    assert isinstance(tree, JointTree)
     y_tree, y_maximal = _start(model), _start(model)
     reference.advance(tree, ("runge_kutta", RK4), y_tree, 0.0, 1e-3, 400, _forces(model))
     system = CompiledDynamics(model)
@@ -142,8 +142,16 @@ def test_the_articulated_body_accelerations_are_the_maximal_coordinates_ones():
     stepper.advance(y_maximal, 0.0, 1e-4, 4000, stepper.FORM_RUNGE_KUTTA, *RK4, np.zeros(0), system.tables.floats,
                     system.tables.integers, system.tables.layout, cache, system._config_size)
     positions = slice(0, 3 * model.rigid_count)
-    assert np.abs(y_tree[positions] - y_maximal[positions]).max() < 1e-8
-    assert np.abs(y_tree[positions] - _start(model)[positions]).max() > 0.05  # it moved
+    return y_tree[positions].reshape(-1, 3), y_maximal[positions].reshape(-1, 3)
+
+
+def test_the_articulated_body_accelerations_are_the_maximal_coordinates_ones():
+    """RK4 on the hinge angles (4th order, 1 ms) against RK4 on the maximal state with its constraint forces and
+    projection (0.1 ms), over 0.4 s of a branching 3-D tree: the same motion to the methods' error."""
+    model = _model(TREE)
+    tree_positions, maximal_positions = _in_both_coordinates(model)
+    assert np.abs(tree_positions - maximal_positions).max() < 1e-8
+    assert np.abs(tree_positions.ravel() - _start(model)[: 3 * model.rigid_count]).max() > 0.05  # it moved
 
 
 def _period(text: str, method: str, dt: float, swings: float) -> float:
@@ -153,7 +161,7 @@ def _period(text: str, method: str, dt: float, swings: float) -> float:
                    + textwrap.dedent(text))
     model = compile_scene(loaded.spec)
     system = CompiledDynamics(model)
-    assert isinstance(system.tree, HingeTree)
+    assert isinstance(system.tree, JointTree)
     times = np.arange(0.0, swings, 5e-3)
     states = make_integrator(loaded.spec.solver, model).integrate(system, model.y0, times).states
     angle = np.arctan2(states[:, 0], -states[:, 1])  # the centre of mass from the pivot, measured from straight down
@@ -232,12 +240,14 @@ def test_semi_implicit_euler_keeps_maximal_coordinates_on_a_tree():
 
 
 @pytest.mark.parametrize("form", ["runge_kutta", "symplectic_euler", "verlet"])
-def test_the_compiled_tree_steps_are_the_numpy_reference(form):
-    """Thirty steps of each form on the branching tree, from a moving state: the compiled call against
-    animbatch.sim.joints.tree.advance, states, evaluations and Verlet's rate to round-off."""
-    model = _model(TREE)
+@pytest.mark.parametrize("text", ["TREE", "CART_AND_ARM"])
+def test_the_compiled_tree_steps_are_the_numpy_reference(form, text):
+    """Thirty steps of each form on the branching tree of hinges and on the cart and arm (sliders), from a moving
+    state: the compiled call against animbatch.sim.joints.tree.advance, states, evaluations and Verlet's rate to
+    round-off."""
+    model = _model(globals()[text])
     tree = _tree(model)
-    assert isinstance(tree, HingeTree)
+    assert isinstance(tree, JointTree)
     system = CompiledDynamics(model)
     start = _start(model)
     reference.advance(tree, ("runge_kutta", RK4), start, 0.0, 1e-3, 100, _forces(model))
@@ -247,7 +257,7 @@ def test_the_compiled_tree_steps_are_the_numpy_reference(form):
     a, weights, nodes = RK4 if form == "runge_kutta" else (np.zeros((0, 0)), np.zeros(0), np.zeros(0))
     rate = np.zeros(6 * model.rigid_count)
     codes = {"runge_kutta": 0, "symplectic_euler": 1, "verlet": 2}
-    compiled_count = joint_tree.advance(y_compiled, 0.1, 1e-3, 30, codes[form], a, weights, nodes, rate,
+    compiled_count = tree_kernel.advance(y_compiled, 0.1, 1e-3, 30, codes[form], a, weights, nodes, rate,
                                         *system._tree_tables)
     assert compiled_count == numpy_count
     np.testing.assert_allclose(y_compiled, y_numpy, rtol=0, atol=1e-12)
@@ -304,3 +314,84 @@ def test_numpy_and_compiled_runs_step_a_tree_alike(method):
         state = system.kinematics(*system.split(y), copy=True)
         assert np.abs(joints.violation(joints.motion(state))).max() < 1e-12
     assert np.abs(numpy_run.states[-1] - numpy_run.states[0]).max() > 0.01  # it moved
+
+
+#: A cart on a slider along x with a pendulum on a hinge, and a block on a slider along a spinning arm (the arm on
+#: a vertical hinge): sliders at the root and under a turning parent (Coriolis and centrifugal terms).
+CART_AND_ARM = f"""
+    bodies:
+      - {{name: cart, type: rigid, shape: {{type: box, size: [0.3, 0.1, 0.2]}}, density: 500, position: [0, 0, 0],
+         velocity: [0.4, 0, 0]}}
+      - {{name: pole, {BAR}, position: [0.1299, -0.075, 0], orientation: {{axis: [0, 0, 1], angle: -30}}}}
+      - {{name: arm, type: rigid, shape: {{type: box, size: [0.6, 0.04, 0.04]}}, density: 700, position: [0.3, 1, 0],
+         angular_velocity: [0, 3, 0]}}
+      - {{name: block, type: rigid, shape: {{type: box, size: [0.06, 0.06, 0.06]}}, density: 2000,
+         position: [0.2, 1.05, 0]}}
+    joints:
+      - {{type: slider, between: [cart], axis: [1, 0, 0]}}
+      - {{type: hinge, between: [pole, cart], anchor: [0, 0, 0], axis: [0, 0, 1]}}
+      - {{type: hinge, between: [arm], anchor: [0, 1, 0], axis: [0, 1, 0]}}
+      - {{type: slider, between: [arm, block], axis: [1, 0, 0]}}
+    fields: [{{type: gravity}}]
+"""
+
+
+def test_sliders_join_the_tree_with_their_axis_in_the_body():
+    """A slider at the root and one whose moving body is its second end: both are tree joints, each axis in its
+    body's axes."""
+    model = _model(CART_AND_ARM)
+    tree = _tree(model)
+    assert isinstance(tree, JointTree)
+    names = [model.rigid.names[b] for b in tree.body]
+    assert names == ["cart", "arm", "pole", "block"]
+    np.testing.assert_array_equal(tree.slider, [True, False, False, True])
+    np.testing.assert_allclose(np.abs(tree.axis[[0, 3]]), [[1, 0, 0], [1, 0, 0]], atol=1e-12)
+
+
+def test_sliders_in_joint_coordinates_move_as_in_maximal_coordinates():
+    """RK4 on the joint positions (1 ms) against RK4 in maximal coordinates with constraint forces (0.1 ms), over
+    0.4 s: the cart and pole trade momentum, the block is flung out along the spinning arm; the same motion to the
+    methods' error."""
+    model = _model(CART_AND_ARM)
+    tree_positions, maximal_positions = _in_both_coordinates(model)
+    assert np.abs(tree_positions - maximal_positions).max() < 1e-8
+    block = list(model.rigid.names).index("block")
+    assert np.linalg.norm(tree_positions[block] - _start(model)[3 * block: 3 * block + 3]) > 0.02  # flung out
+
+
+def test_a_block_on_a_slider_and_a_spring_oscillates_at_its_closed_form_period():
+    """A 1 kg block on a horizontal slider, tied to an anchor by a 40 N/m spring, pulled 10 cm: x(t) = 0.1 cos(ω t),
+    ω = √(k/m), to Verlet's error on the slider's travel at 1 ms."""
+    text = """
+        anchors: [{name: wall, position: [-1, 0, 0]}]
+        bodies:
+          - {name: block, type: rigid, shape: {type: box, size: [0.1, 0.1, 0.1]}, mass: 1.0, position: [0.1, 0, 0]}
+        joints: [{type: slider, between: [block], axis: [1, 0, 0]}]
+        springs: [{between: [wall, block], stiffness: 40, rest_length: 1.0}]
+    """
+    loaded = scene("duration: 2\nfps: 50\nsolver: {method: verlet, dt: 0.001}\n" + textwrap.dedent(text))
+    model = compile_scene(loaded.spec)
+    for system in (Dynamics(model), CompiledDynamics(model)):
+        assert isinstance(system.tree, JointTree)
+        states = make_integrator(loaded.spec.solver, model).integrate(system, model.y0, model.frame_times).states
+        expected = 0.1 * np.cos(np.sqrt(40.0) * model.frame_times)
+        np.testing.assert_allclose(states[:, 0], expected, atol=2e-6)
+        np.testing.assert_allclose(states[:, 1:3], 0.0, atol=1e-14)  # held on its axis exactly
+
+
+def test_a_cart_pole_keeps_its_centre_of_mass_where_it_was_along_the_rail():
+    """scenes/cart_pole.yaml: nothing pushes along the rail, so the cart and pole's common centre of mass keeps its
+    x while the cart runs several centimetres each way (to Verlet's error, 1e-7 m at 1 ms), and the energy holds."""
+    from pathlib import Path
+
+    from animbatch import api
+
+    loaded = api.load_scene(Path(__file__).parents[2] / "scenes" / "cart_pole.yaml")
+    trajectory = api.simulate(loaded)
+    masses = np.array([2.0, 0.5])
+    x = trajectory.positions[:, :, 0]
+    centre = (x * masses).sum(axis=1) / masses.sum()
+    assert np.ptp(centre) < 1e-6
+    assert np.ptp(x[:, 0]) > 0.05
+    assert trajectory.ledger["joints"]["max_violation"] < 1e-12
+    assert trajectory.ledger["conservation"]["energy"]["drift"] < 1e-5

@@ -1,24 +1,28 @@
-"""Hinge trees in joint coordinates: chains and branching linkages of rigid bodies on hinges, stepped by their angles.
+"""Joint trees in joint coordinates: chains and branching linkages of rigid bodies on hinges and sliders, stepped
+by their joint positions (angles and travels).
 
 A chain of bars on hinges has one degree of freedom per hinge. Maximal coordinates (:mod:`animbatch.sim.joints`)
 carry six per bar and hold the other five with constraint forces, a projection after every fixed step and two
-factorisations of the coupling per step. When the joints form a tree of hinges hanging from the world (no loop, no
-limit, no motor, nothing else touching the bodies), a fixed step can instead advance the hinge angles q and rates q̇
-directly, as MuJoCo and Featherstone's articulated-body algorithm do: the joints then hold exactly by construction,
-and a step costs O(bodies) arithmetic.
+factorisations of the coupling per step. When the joints form a tree of hinges and sliders hanging from the world
+(no loop, no limit, no motor, nothing else touching the bodies), a fixed step can instead advance the joint
+positions q and rates q̇ directly, as MuJoCo and Featherstone's articulated-body algorithm do: the joints then hold
+exactly by construction, and a step costs O(bodies) arithmetic.
 
 The state stays the maximal one outside a call. A call of :func:`advance` takes the poses it is given as q = 0
-(each body's orientation relative to its parent as it stands, :class:`TreeStart`), reads q̇ from the bodies'
-angular velocities, takes its steps in (q, q̇), and writes the bodies' positions, orientations and momenta back from
-q and q̇ (forward kinematics: every body hangs from its parent's pivot).
+(each body's orientation relative to its parent as it stands, and its centre from its parent's:
+:func:`start_of`), reads q̇ from the bodies' velocities, takes its steps in (q, q̇), and writes the bodies'
+positions, orientations and momenta back from q and q̇ (forward kinematics: a body on a hinge hangs from its
+parent's pivot, turned about the axis; a body on a slider keeps its start's orientation and offset from its parent,
+moved along the axis).
 
 **The articulated-body algorithm** (Featherstone, *Rigid Body Dynamics Algorithms*, ch. 7), in frames at each
 body's centre of mass with world axes, spatial vectors ``(angular; linear)``. Body k's accelerations ``A = (α, a)``
 (angular, centre of mass) follow its parent's:
 
     A_k = X_k A_p + S_k q̈_k + c_k,    X_k = [[1, 0], [−[r]×, 1]],  r = x_k − x_p
-    S_k = (n; n × d),  d = x_k − pivot,  n the hinge's world axis
-    c_k = (ω_p × n q̇;  ω_p × (ω_p × (pivot − x_p)) + (ω_p × n q̇) × d + ω_k × (ω_k × d))
+    hinge:   S_k = (n; n × d),  d = x_k − pivot,  n the hinge's world axis
+             c_k = (ω_p × n q̇;  ω_p × (ω_p × (pivot − x_p)) + (ω_p × n q̇) × d + ω_k × (ω_k × d))
+    slider:  S_k = (0; n),  c_k = (0;  ω_p × (ω_p × r) + 2 q̇ ω_p × n)
 
 and its Newton–Euler equations are ``f = M A + (ω × I ω − τ; −F)`` with ``M = diag(I_world, m 1)``, F and τ the
 applied force and torque. The three passes: velocities and biases from the root out; articulated inertias
@@ -54,17 +58,20 @@ Forces = Callable[[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray], tuple
 
 
 @dataclass(frozen=True, eq=False)
-class HingeTree:
-    """K rigid bodies on K hinges, each hanging from its parent (or the world), parents listed before children.
+class JointTree:
+    """K rigid bodies on K joints (hinges and sliders), each hanging from its parent (or the world), parents listed
+    before children.
 
     ``body`` (K,): each body's rigid index; ``parent`` (K,): its parent's position in this order, −1 for the world;
-    ``child_offset`` (K, 3) [m]: the hinge's point in the body's axes, from its centre of mass; ``parent_offset``
-    (K, 3) [m]: the same point in the parent's axes (from its centre of mass), or in the world for the world;
-    ``axis`` (K, 3): the hinge's unit axis in the body's axes; ``mass`` (K,) [kg] and ``inertia`` (K, 3, 3)
-    [kg·m²] in body axes."""
+    ``slider`` (K,): whether its joint is a slider (else a hinge); ``child_offset`` (K, 3) [m]: a hinge's point in
+    the body's axes, from its centre of mass; ``parent_offset`` (K, 3) [m]: the same point in the parent's axes
+    (from its centre of mass), or in the world for the world (both unused for sliders, which keep the offset they
+    start a call at); ``axis`` (K, 3): the joint's unit axis in the body's axes; ``mass`` (K,) [kg] and ``inertia``
+    (K, 3, 3) [kg·m²] in body axes."""
 
     body: np.ndarray
     parent: np.ndarray
+    slider: np.ndarray
     child_offset: np.ndarray
     parent_offset: np.ndarray
     axis: np.ndarray
@@ -76,30 +83,49 @@ class HingeTree:
         return len(self.body)
 
 
-def hinge_tree(joints: Any, mass: np.ndarray, inertia: np.ndarray, rigid_count: int,
-               particle_count: int) -> HingeTree | str:
-    """The hinge tree of a model's ``joints`` (:class:`~animbatch.sim.joints.Joints`), its rigid bodies' ``mass``
+def _unit(vector: np.ndarray) -> np.ndarray:
+    return vector / np.linalg.norm(vector)
+
+
+def joint_tree(joints: Any, mass: np.ndarray, inertia: np.ndarray, rigid_count: int,
+               particle_count: int) -> JointTree | str:
+    """The joint tree of a model's ``joints`` (:class:`~animbatch.sim.joints.Joints`), its rigid bodies' ``mass``
     (B,) and body-axes ``inertia`` (B, 3, 3); or why its joints are not one (then they stay in maximal
     coordinates)."""
-    from animbatch.sim.joints.kinds import AxisRows, PointRows
+    from animbatch.sim.joints.kinds import AxisRows, LockRows, PointRows, SlideRows
 
     if particle_count:
         return "it has particles"
     if joints.motors is not None or joints.anchor_paths:
         return "its joints have motors or moving anchors"
     kinds = {type(kind): kind for kind in joints.kinds}
-    if set(kinds) != {PointRows, AxisRows} or len(joints.kinds) != 2:
-        return "its joints are not all hinges without limits"
-    points, axes = kinds[PointRows], kinds[AxisRows]
-    if not np.array_equal(points.joint[::3], axes.joint[::2]) or len(points.joint) // 3 != joints.count:
-        return "its joints are not all hinges without limits"
+    plain = "its joints are not all hinges and sliders without limits"
+    if not set(kinds) <= {PointRows, AxisRows, LockRows, SlideRows} or len(kinds) != len(joints.kinds):
+        return plain
+    # each joint's rows, by kind: a hinge is 3 point rows and 2 axis rows; a slider 3 lock rows and 2 slide rows
+    # across its axis (a limit adds unilateral slide rows, a weld is point and lock rows)
+    rows = np.zeros((joints.count, 4), np.int64)
+    for column, kind in enumerate((PointRows, AxisRows, LockRows, SlideRows)):
+        if kind in kinds:
+            np.add.at(rows[:, column], kinds[kind].joint, 1)
+    hinge = np.all(rows == (3, 2, 0, 0), axis=1)
+    slider = np.all(rows == (0, 0, 3, 2), axis=1)
+    if not np.all(hinge | slider):
+        return plain
     if np.any(joints.points < joints.first_rigid) or len(joints.points) != rigid_count:
-        return "not every body hangs on a hinge"
+        return "not every body hangs on a joint"
+    # each joint's two ends and where its data is: its first row of its kind
+    pairs = np.empty((joints.count, 2), np.int64)
+    first_row = np.empty(joints.count, np.int64)
+    for kind, step, chosen in ((PointRows, 3, hinge), (LockRows, 3, slider)):
+        if kind in kinds:
+            number = kinds[kind].joint[::step]
+            pairs[number] = kinds[kind].bodies[::step]
+            first_row[number] = np.arange(len(number))
     world = joints.world
-    pairs = points.bodies[::3]
-    # the tree from the world out: every body reached once, by one hinge (K hinges, K bodies, no loop)
+    # the tree from the world out: every body reached once, by one joint (K joints, K bodies, no loop)
     order: list[int] = []
-    parent_of: dict[int, tuple[int, int]] = {}  # body → (parent body or world, its hinge)
+    parent_of: dict[int, tuple[int, int]] = {}  # body → (parent body or world, its joint)
     frontier = [world]
     used = np.zeros(len(pairs), bool)
     while frontier:
@@ -108,30 +134,34 @@ def hinge_tree(joints: Any, mass: np.ndarray, inertia: np.ndarray, rigid_count: 
             other = int(pairs[link, 1] if pairs[link, 0] == here else pairs[link, 0])
             used[link] = True
             if other == world or other in parent_of:
-                return "its hinges close a loop"
+                return "its joints close a loop"
             parent_of[other] = (here, int(link))
             order.append(other)
             frontier.append(other)
     if len(order) != len(joints.points) or not used.all():
-        return "not every body hangs from the world by hinges"
+        return "not every body hangs from the world by its joints"
     position = {body: k for k, body in enumerate(order)}
     count = len(order)
-    child_offset, parent_offset, axis = np.empty((count, 3)), np.empty((count, 3)), np.empty((count, 3))
+    child_offset, parent_offset, axis = np.zeros((count, 3)), np.zeros((count, 3)), np.empty((count, 3))
     parent = np.empty(count, np.int64)
     for k, body in enumerate(order):
-        above, hinge = parent_of[body]
+        above, joint = parent_of[body]
         parent[k] = position.get(above, -1)
-        first = pairs[hinge, 0] == body  # the body is the hinge's first end (its axis is kept in the second's)
-        ends = (points.first_offset[hinge], points.second_offset[hinge])
-        child_offset[k], parent_offset[k] = ends if first else ends[::-1]
-        if first:  # the two directions across the axis that the first body carries span the plane normal to it
-            across = axes.across[hinge]
-            normal = np.cross(across[0], across[1])
-            axis[k] = normal / np.linalg.norm(normal)
-        else:
-            axis[k] = axes.axis[hinge] / np.linalg.norm(axes.axis[hinge])
+        first = pairs[joint, 0] == body  # the body is the joint's first end (its axis is kept in the second's)
+        row = first_row[joint]
+        if hinge[joint]:
+            points, axes = kinds[PointRows], kinds[AxisRows]
+            ends = (points.first_offset[row], points.second_offset[row])
+            child_offset[k], parent_offset[k] = ends if first else ends[::-1]
+            # the first body carries two directions across the axis, which span the plane normal to it
+            axis[k] = _unit(np.cross(*axes.across[row])) if first else _unit(axes.axis[row])
+        else:  # a slider's two directions across its axis are kept in the second body, R_second = R_first Q
+            across = kinds[SlideRows].direction[kinds[SlideRows].joint == joint]
+            along = _unit(np.cross(across[0], across[1]))
+            axis[k] = kinds[LockRows].relative[row] @ along if first else along
     rigid = joints.points[np.array(order)] - joints.first_rigid
-    return HingeTree(rigid, parent, child_offset, parent_offset, axis, mass[rigid], inertia[rigid])
+    return JointTree(rigid, parent, slider[np.array([parent_of[b][1] for b in order])], child_offset, parent_offset,
+                     axis, mass[rigid], inertia[rigid])
 
 
 @dataclass
@@ -149,25 +179,43 @@ class TreePose:
     axis: np.ndarray
 
 
-def relative_orientations(tree: HingeTree, quat: np.ndarray) -> np.ndarray:
-    """Each body's orientation relative to its parent's (K, 4), ``q̄_parent ⊗ q_body``, from orientations (K, 4)
-    in the tree's order: the pose that :func:`pose` takes as q = 0."""
+def start_of(tree: JointTree, quat: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The pose that :func:`pose` takes as q = 0, from orientations (K, 4) and centres of mass (K, 3) in the tree's
+    order: each body's orientation relative to its parent's (K, 4), ``q̄_parent ⊗ q_body``, and its centre of mass
+    in its parent's axes from the parent's (K, 3) (in the world for the world; sliders keep it, moved along their
+    axis)."""
     parents = np.where(tree.parent[:, None] >= 0, quat[tree.parent], quaternion.IDENTITY)
     conjugate = parents * np.array([1.0, -1.0, -1.0, -1.0])
-    return quaternion.multiply(conjugate, quat)
+    offset = x - np.where(tree.parent[:, None] >= 0, x[tree.parent], 0.0)
+    offset = np.einsum("kji,kj->ki", quaternion.to_matrix(parents), offset)
+    return quaternion.multiply(conjugate, quat), offset
 
 
-def pose(tree: HingeTree, relative: np.ndarray, q: np.ndarray, qd: np.ndarray) -> TreePose:
-    """The bodies' poses and velocities at hinge angles q (K,) [rad] from the ``relative`` orientations and rates
-    q̇ (K,) [rad/s]: each body turned by q about its axis, hung from its parent's pivot."""
+def pose(tree: JointTree, start: tuple[np.ndarray, np.ndarray], q: np.ndarray, qd: np.ndarray) -> TreePose:
+    """The bodies' poses and velocities at joint positions q (K,) [rad or m] and rates q̇ (K,) from the ``start``
+    of :func:`start_of`: each body on a hinge turned by q about its axis and hung from its parent's pivot, each on a
+    slider moved by q along its axis."""
+    relative, offset = start
     count = tree.count
     result = TreePose(x=np.zeros((count, 3)), v=np.zeros((count, 3)), omega=np.zeros((count, 3)),
                       quat=np.zeros((count, 4)), rotation=np.zeros((count, 3, 3)), pivot=np.zeros((count, 3)),
                       axis=np.zeros((count, 3)))
     for k in range(count):
         p = tree.parent[k]
-        turn = np.concatenate([[np.cos(q[k] / 2)], np.sin(q[k] / 2) * tree.axis[k]])
         base = result.quat[p] if p >= 0 else quaternion.IDENTITY
+        if tree.slider[k]:  # the orientation as it started, the centre moved along the axis
+            result.quat[k] = quaternion.multiply(base, relative[k])
+            result.rotation[k] = quaternion.to_matrix(result.quat[k])
+            n = result.axis[k] = result.rotation[k] @ tree.axis[k]
+            if p >= 0:
+                result.pivot[k] = result.x[p]
+                result.x[k] = result.x[p] + result.rotation[p] @ offset[k] + q[k] * n
+                result.omega[k] = result.omega[p]
+                result.v[k] = result.v[p] + cross(result.omega[p], result.x[k] - result.x[p]) + qd[k] * n
+            else:
+                result.x[k], result.v[k] = offset[k] + q[k] * n, qd[k] * n
+            continue
+        turn = np.concatenate([[np.cos(q[k] / 2)], np.sin(q[k] / 2) * tree.axis[k]])
         result.quat[k] = quaternion.multiply(quaternion.multiply(base, relative[k]), turn)
         result.rotation[k] = quaternion.to_matrix(result.quat[k])
         if p >= 0:
@@ -191,7 +239,7 @@ def _transform(r: np.ndarray) -> np.ndarray:
     return x
 
 
-def accelerations(tree: HingeTree, at: TreePose, qd: np.ndarray, force: np.ndarray,
+def accelerations(tree: JointTree, at: TreePose, qd: np.ndarray, force: np.ndarray,
                   torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """q̈ (K,) [rad/s²] under applied ``force`` and ``torque`` (K, 3) (world axes, at the centres of mass, in the
     tree's order), and each body's acceleration (K, 6): (α [rad/s²]; centre of mass [m/s²]). See the module notes."""
@@ -201,15 +249,21 @@ def accelerations(tree: HingeTree, at: TreePose, qd: np.ndarray, force: np.ndarr
     for k in range(count):
         p, n, w = tree.parent[k], at.axis[k], at.omega[k]
         d = at.x[k] - at.pivot[k]
-        motion_axis[k] = np.concatenate([n, cross(n, d)])
-        centripetal = cross(w, cross(w, d))
-        if p >= 0:
-            wp = at.omega[p]
-            turning = cross(wp, n) * qd[k]
-            bias[k] = np.concatenate([turning, cross(wp, cross(wp, at.pivot[k] - at.x[p])) + cross(turning, d)
-                                      + centripetal])
+        if tree.slider[k]:  # S = (0; n); c = (0; ω_p × (ω_p × r) + 2 q̇ ω_p × n), r from the parent's centre
+            motion_axis[k, 3:] = n
+            if p >= 0:
+                wp = at.omega[p]
+                bias[k, 3:] = cross(wp, cross(wp, at.x[k] - at.x[p])) + 2 * qd[k] * cross(wp, n)
         else:
-            bias[k, 3:] = centripetal
+            motion_axis[k] = np.concatenate([n, cross(n, d)])
+            centripetal = cross(w, cross(w, d))
+            if p >= 0:
+                wp = at.omega[p]
+                turning = cross(wp, n) * qd[k]
+                bias[k] = np.concatenate([turning, cross(wp, cross(wp, at.pivot[k] - at.x[p])) + cross(turning, d)
+                                          + centripetal])
+            else:
+                bias[k, 3:] = centripetal
         rotational = at.rotation[k] @ tree.inertia[k] @ at.rotation[k].T
         inertia[k, :3, :3], inertia[k, 3:, 3:] = rotational, tree.mass[k] * np.eye(3)
         bias_force[k] = np.concatenate([cross(w, rotational @ w) - torque[k], -force[k]])
@@ -234,7 +288,7 @@ def accelerations(tree: HingeTree, at: TreePose, qd: np.ndarray, force: np.ndarr
     return qdd, acceleration
 
 
-def _loads(tree: HingeTree, forces: Forces, t: float, at: TreePose,
+def _loads(tree: JointTree, forces: Forces, t: float, at: TreePose,
            bodies: int) -> tuple[np.ndarray, np.ndarray]:
     """The applied forces and torques (K, 3) at a pose, in the tree's order."""
     x, v, omega = np.zeros((bodies, 3)), np.zeros((bodies, 3)), np.zeros((bodies, 3))
@@ -244,7 +298,7 @@ def _loads(tree: HingeTree, forces: Forces, t: float, at: TreePose,
     return force[tree.body], torque[tree.body]
 
 
-def advance(tree: HingeTree, form: tuple[str, Any], y: np.ndarray, t: float, h: float, steps: int,
+def advance(tree: JointTree, form: tuple[str, Any], y: np.ndarray, t: float, h: float, steps: int,
             forces: Forces) -> int:
     """``steps`` fixed steps of ``h`` [s] from time ``t`` [s] of a state ``y`` (n,) of rigid bodies only, in
     joint coordinates, in place; returns the right-hand sides evaluated. ``form`` as
@@ -259,13 +313,18 @@ def advance(tree: HingeTree, form: tuple[str, Any], y: np.ndarray, t: float, h: 
     rotation = quaternion.to_matrix(orientation[tree.body])
     world_inverse = rotation @ np.linalg.inv(tree.inertia) @ np.transpose(rotation, (0, 2, 1))
     omega = np.einsum("kij,kj->ki", world_inverse, angular[tree.body])
-    relative = relative_orientations(tree, quaternion.normalized(orientation[tree.body]))
-    parent_omega = np.where(tree.parent[:, None] >= 0, omega[tree.parent], 0.0)
+    x, v = position[tree.body], momentum[tree.body] / tree.mass[:, None]
+    start = start_of(tree, quaternion.normalized(orientation[tree.body]), x)
+    # q̇: a hinge's from the angular velocities, a slider's from the velocity relative to its parent's frame
+    above = tree.parent[:, None] >= 0
+    parent_omega = np.where(above, omega[tree.parent], 0.0)
+    carried = np.where(above, v[tree.parent] + cross(parent_omega, x - x[tree.parent]), 0.0)
+    axis = np.einsum("kij,kj->ki", rotation, tree.axis)
     q = np.zeros(count)
-    qd = np.einsum("ki,ki->k", np.einsum("kij,kj->ki", rotation, tree.axis), omega - parent_omega)
+    qd = np.einsum("ki,ki->k", axis, np.where(tree.slider[:, None], v - carried, omega - parent_omega))
 
     def rate(now: float, angles: np.ndarray, rates: np.ndarray) -> tuple[np.ndarray, TreePose, np.ndarray]:
-        at = pose(tree, relative, angles, rates)
+        at = pose(tree, start, angles, rates)
         qdd, acceleration = accelerations(tree, at, rates, *_loads(tree, forces, now, at, bodies))
         return qdd, at, acceleration
 
@@ -302,7 +361,7 @@ def advance(tree: HingeTree, form: tuple[str, Any], y: np.ndarray, t: float, h: 
             qdd, *last = rate(t + (step + 1) * h, q, qd + 0.5 * h * qdd)  # type: ignore[assignment]
             evaluations += 2
             qd = qd + 0.5 * h * qdd
-    final = pose(tree, relative, q, qd)
+    final = pose(tree, start, q, qd)
     position[tree.body], orientation[tree.body] = final.x, quaternion.normalized(final.quat)
     momentum[tree.body] = tree.mass[:, None] * final.v
     inertia_world = final.rotation @ tree.inertia @ np.transpose(final.rotation, (0, 2, 1))
@@ -312,7 +371,7 @@ def advance(tree: HingeTree, form: tuple[str, Any], y: np.ndarray, t: float, h: 
     return evaluations
 
 
-def _motion_rate(tree: HingeTree, at: TreePose, acceleration: np.ndarray, out: np.ndarray, bodies: int) -> None:
+def _motion_rate(tree: JointTree, at: TreePose, acceleration: np.ndarray, out: np.ndarray, bodies: int) -> None:
     """dm/dt (the motion's size) of bodies with accelerations (K, 6) at a pose: dP/dt = m a and
     dL/dt = I α + ω × I ω."""
     inertia_world = at.rotation @ tree.inertia @ np.transpose(at.rotation, (0, 2, 1))

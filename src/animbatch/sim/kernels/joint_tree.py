@@ -1,15 +1,15 @@
-"""Compiled steps of a hinge tree in joint coordinates: the articulated-body algorithm on scalars.
+"""Compiled steps of a joint tree (hinges, sliders) in joint coordinates: the articulated-body algorithm on scalars.
 
 The compiled form of :func:`animbatch.sim.joints.tree.advance` (read the formulas there): forward kinematics from
-the hinge angles, the applied forces of the tables (:func:`animbatch.sim.kernels.rigid_motion.add_forces`) and the
+the joint positions, the applied forces of the tables (:func:`animbatch.sim.kernels.rigid_motion.add_forces`) and the
 three passes of the articulated-body algorithm, for every stage of every step of a call, in work arrays allocated
 once per call (a small array allocated per body and per step costs more than a step's arithmetic). Spatial vectors
 are (6,) rows ``(angular; linear)`` at each body's centre of mass in world axes; spatial inertias (6, 6).
 
-Tree tables: ``links`` (K, 2) each body's rigid index and its parent's position in the tree (−1: the world);
-``offsets`` (K, 3, 3) the hinge's point in the body's axes, the same point in the parent's axes (or the world), and
-the hinge's unit axis in the body's axes; ``mass`` (K,) [kg]; ``inertia`` and ``inverse_inertia`` (K, 3, 3) body
-axes.
+Tree tables: ``links`` (K, 3) each body's rigid index, its parent's position in the tree (−1: the world) and
+whether its joint is a slider (1; else a hinge); ``offsets`` (K, 3, 3) a hinge's point in the body's axes, the same
+point in the parent's axes (or the world), and the joint's unit axis in the body's axes; ``mass`` (K,) [kg];
+``inertia`` and ``inverse_inertia`` (K, 3, 3) body axes.
 """
 
 from __future__ import annotations
@@ -31,30 +31,60 @@ def _multiply(p: np.ndarray, q: np.ndarray, out: np.ndarray) -> None:
 
 
 @njit(cache=True, error_model="numpy")
-def relative_orientations(links: np.ndarray, orientation: np.ndarray, relative: np.ndarray) -> None:
-    """Each body's orientation relative to its parent's, ``q̄_parent ⊗ q_body`` (K, 4), from the bodies'
-    orientations ``orientation`` (B, 4) (unit), into ``relative``."""
+def start_of(links: np.ndarray, orientation: np.ndarray, position: np.ndarray, relative: np.ndarray,
+             offset: np.ndarray, work: np.ndarray) -> None:
+    """The pose taken as q = 0 (:func:`animbatch.sim.joints.tree.start_of`): each body's orientation relative to
+    its parent's, ``q̄_parent ⊗ q_body`` (K, 4), into ``relative``, and its centre of mass from its parent's in the
+    parent's axes (K, 3), into ``offset``; from the bodies' orientations (B, 4) (unit) and positions (B, 3).
+    ``work`` (3, 3) scratch."""
     conjugate = np.empty(4)
     for k in range(len(links)):
         body, p = links[k, 0], links[k, 1]
         if p < 0:
             relative[k] = orientation[body]
+            store(offset, k, vector(position, body))
             continue
         above = orientation[links[p, 0]]
         conjugate[0], conjugate[1], conjugate[2], conjugate[3] = above[0], -above[1], -above[2], -above[3]
         _multiply(conjugate, orientation[body], relative[k])
+        rigid_motion.quaternion_matrix(above, work)
+        store(offset, k, rigid_motion.rotate_back(work, minus(vector(position, body),
+                                                              vector(position, links[p, 0]))))
 
 
 @njit(cache=True, error_model="numpy")
-def pose(links: np.ndarray, offsets: np.ndarray, relative: np.ndarray, q: np.ndarray, qd: np.ndarray,
-         quat: np.ndarray, rotation: np.ndarray, x: np.ndarray, v: np.ndarray, omega: np.ndarray, pivot: np.ndarray,
-         axis: np.ndarray, work: np.ndarray) -> None:
-    """Forward kinematics at angles q (K,) [rad] and rates q̇ (K,) [rad/s]: orientations ``quat`` (K, 4),
-    ``rotation`` (K, 3, 3), centres of mass ``x``, velocities ``v``, angular velocities ``omega``, the hinges'
-    ``pivot`` points and world ``axis`` (K, 3); ``work`` (2, 4) scratch."""
+def pose(links: np.ndarray, offsets: np.ndarray, relative: np.ndarray, offset: np.ndarray, q: np.ndarray,
+         qd: np.ndarray, quat: np.ndarray, rotation: np.ndarray, x: np.ndarray, v: np.ndarray, omega: np.ndarray,
+         pivot: np.ndarray, axis: np.ndarray, work: np.ndarray) -> None:
+    """Forward kinematics at joint positions q (K,) [rad or m] and rates q̇ (K,) from the start ``relative`` and
+    ``offset`` (:func:`start_of`): orientations ``quat`` (K, 4), ``rotation`` (K, 3, 3), centres of mass ``x``,
+    velocities ``v``, angular velocities ``omega``, the hinges' ``pivot`` points (a slider's: its parent's centre)
+    and the joints' world ``axis`` (K, 3); ``work`` (2, 4) scratch."""
     turn, base = work[0], work[1]
     for k in range(len(links)):
         p = links[k, 1]
+        if links[k, 2]:  # a slider: the orientation as it started, the centre moved along the axis
+            if p >= 0:
+                _multiply(quat[p], relative[k], quat[k])
+            else:
+                quat[k] = relative[k]
+            rigid_motion.quaternion_matrix(quat[k], rotation[k])
+            n = rotate(rotation[k], vector(offsets[k], 2))
+            store(axis, k, n)
+            if p >= 0:
+                origin = vector(x, p)
+                store(pivot, k, origin)
+                centre = plus(plus(origin, rotate(rotation[p], vector(offset, k))), times(q[k], n))
+                wp = vector(omega, p)
+                moving = plus(vector(v, p), cross(wp, minus(centre, origin)))
+            else:
+                store(pivot, k, (0.0, 0.0, 0.0))
+                centre = plus(vector(offset, k), times(q[k], n))
+                wp, moving = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+            store(x, k, centre)
+            store(omega, k, wp)
+            store(v, k, plus(moving, times(qd[k], n)))
+            continue
         half = 0.5 * q[k]
         s = math.sin(half)
         turn[0], turn[1], turn[2], turn[3] = math.cos(half), s * offsets[k, 2, 0], s * offsets[k, 2, 1], \
@@ -142,17 +172,27 @@ def accelerations(links: np.ndarray, mass: np.ndarray, inertia: np.ndarray, x: n
         body, p = links[k, 0], links[k, 1]
         n, w, centre = vector(axis, k), vector(omega, k), vector(x, k)
         d = minus(centre, vector(pivot, k))
-        nd = cross(n, d)
-        for c in range(3):
-            motion_axis[k, c], motion_axis[k, 3 + c] = n[c], nd[c]
-        centripetal = cross(w, cross(w, d))
-        if p >= 0:
-            wp = vector(omega, p)
-            turning = times(qd[k], cross(wp, n))
-            linear = plus(plus(cross(wp, cross(wp, minus(vector(pivot, k), vector(x, p)))), cross(turning, d)),
-                          centripetal)
+        if links[k, 2]:  # a slider: S = (0; n); c = (0; ω_p × (ω_p × r) + 2 q̇ ω_p × n), r from the parent's centre
+            for c in range(3):
+                motion_axis[k, c], motion_axis[k, 3 + c] = 0.0, n[c]
+            turning = (0.0, 0.0, 0.0)
+            if p >= 0:
+                wp = vector(omega, p)
+                linear = plus(cross(wp, cross(wp, d)), times(2.0 * qd[k], cross(wp, n)))
+            else:
+                linear = (0.0, 0.0, 0.0)
         else:
-            turning, linear = (0.0, 0.0, 0.0), centripetal
+            nd = cross(n, d)
+            for c in range(3):
+                motion_axis[k, c], motion_axis[k, 3 + c] = n[c], nd[c]
+            centripetal = cross(w, cross(w, d))
+            if p >= 0:
+                wp = vector(omega, p)
+                turning = times(qd[k], cross(wp, n))
+                linear = plus(plus(cross(wp, cross(wp, minus(vector(pivot, k), vector(x, p)))), cross(turning, d)),
+                              centripetal)
+            else:
+                turning, linear = (0.0, 0.0, 0.0), centripetal
         for c in range(3):
             bias[k, c], bias[k, 3 + c] = turning[c], linear[c]
         rigid_motion.world_tensor(rotation[k], inertia[k], block)
@@ -212,14 +252,14 @@ def accelerations(links: np.ndarray, mass: np.ndarray, inertia: np.ndarray, x: n
 
 @njit(cache=True, error_model="numpy")
 def _rate(now: float, q: np.ndarray, qd: np.ndarray, links: np.ndarray, offsets: np.ndarray, mass: np.ndarray,
-          inertia: np.ndarray, relative: np.ndarray, floats: np.ndarray, integers: np.ndarray, layout: np.ndarray,
-          quat: np.ndarray, rotation: np.ndarray, x: np.ndarray, v: np.ndarray, omega: np.ndarray,
+          inertia: np.ndarray, relative: np.ndarray, offset: np.ndarray, floats: np.ndarray, integers: np.ndarray,
+          layout: np.ndarray, quat: np.ndarray, rotation: np.ndarray, x: np.ndarray, v: np.ndarray, omega: np.ndarray,
           pivot: np.ndarray, axis: np.ndarray, all_x: np.ndarray, all_v: np.ndarray, all_rotation: np.ndarray,
           all_omega: np.ndarray, force: np.ndarray, torque: np.ndarray, qdd: np.ndarray, acceleration: np.ndarray,
           spatial: np.ndarray, articulated: np.ndarray, pivot_work: np.ndarray, block: np.ndarray,
           block_work: np.ndarray) -> None:
     """q̈ (K,) at (q, q̇) and time ``now``: the pose, the applied forces on it, the articulated-body passes."""
-    pose(links, offsets, relative, q, qd, quat, rotation, x, v, omega, pivot, axis, block_work[:2, :4])
+    pose(links, offsets, relative, offset, q, qd, quat, rotation, x, v, omega, pivot, axis, block_work[:2, :4])
     for k in range(len(links)):
         body = links[k, 0]
         for c in range(3):
@@ -236,7 +276,7 @@ def advance(y: np.ndarray, t: float, h: float, steps: int, form: int, a: np.ndar
             nodes: np.ndarray, rate: np.ndarray, links: np.ndarray, offsets: np.ndarray, mass: np.ndarray,
             inertia: np.ndarray, inverse_inertia: np.ndarray, floats: np.ndarray, integers: np.ndarray,
             layout: np.ndarray) -> int:
-    """``steps`` fixed steps of ``h`` [s] from ``t`` [s] of a state ``y`` of B rigid bodies on a hinge tree, in
+    """``steps`` fixed steps of ``h`` [s] from ``t`` [s] of a state ``y`` of B rigid bodies on a joint tree, in
     joint coordinates, in place; returns the right-hand sides evaluated (:func:`animbatch.sim.joints.tree.advance`,
     with ``form`` and the tableau ``a``, ``weights``, ``nodes`` as :func:`animbatch.sim.kernels.stepper.advance`
     takes them; Verlet's ``rate`` (6B,) is left at the last evaluation's dm/dt)."""
@@ -255,22 +295,30 @@ def advance(y: np.ndarray, t: float, h: float, steps: int, form: int, a: np.ndar
     acceleration, spatial = np.zeros((count, 6)), np.empty((4, count, 6))
     articulated, pivot_work = np.empty((count, 6, 6)), np.empty((count, 2))
     block, block_work = np.empty((6, 6)), np.empty((6, 6))
-    relative = np.empty((count, 4))
-    # the start: q = 0 at the poses as they stand, q̇ from the angular velocities
+    relative, offset = np.empty((count, 4)), np.empty((count, 3))
+    # the start: q = 0 at the poses as they stand; a hinge's q̇ from the angular velocities, a slider's from the
+    # velocity relative to its parent's frame
     unit = orientation.copy()
     for body in range(bodies):
         rigid_motion.normalise(unit[body])
-    relative_orientations(links, unit, relative)
+    start_of(links, unit, position, relative, offset, block)
     q, qd, qdd = np.zeros(count), np.empty(count), np.empty(count)
     for k in range(count):
         body, p = links[k, 0], links[k, 1]
         rigid_motion.quaternion_matrix(unit[body], rotation[k])
         store(omega, k, rigid_motion.turned(rotation[k], inverse_inertia[k], vector(angular, body)))
+        store(v, k, times(1.0 / mass[k], vector(momentum, body)))
         n = rotate(rotation[k], vector(offsets[k], 2))
-        qd[k] = dot(n, minus(vector(omega, k), vector(omega, p)) if p >= 0 else vector(omega, k))
-    args = (links, offsets, mass, inertia, relative, floats, integers, layout, quat, rotation, x, v, omega, pivot,
-            axis, all_x, all_v, all_rotation, all_omega, force, torque, qdd, acceleration, spatial, articulated,
-            pivot_work, block, block_work)
+        if links[k, 2] and p >= 0:
+            lever = minus(vector(position, body), vector(position, links[p, 0]))
+            qd[k] = dot(n, minus(minus(vector(v, k), vector(v, p)), cross(vector(omega, p), lever)))
+        elif links[k, 2]:
+            qd[k] = dot(n, vector(v, k))
+        else:
+            qd[k] = dot(n, minus(vector(omega, k), vector(omega, p)) if p >= 0 else vector(omega, k))
+    args = (links, offsets, mass, inertia, relative, offset, floats, integers, layout, quat, rotation, x, v, omega,
+            pivot, axis, all_x, all_v, all_rotation, all_omega, force, torque, qdd, acceleration, spatial,
+            articulated, pivot_work, block, block_work)
     evaluations = 0
     if form == FORM_RUNGE_KUTTA:
         stages = len(weights)
@@ -330,7 +378,7 @@ def advance(y: np.ndarray, t: float, h: float, steps: int, form: int, a: np.ndar
                 for c in range(3):
                     rate[3 * body + c] = mass[k] * acceleration[k, 3 + c]
                     rate[3 * bodies + 3 * body + c] = change[c]
-    pose(links, offsets, relative, q, qd, quat, rotation, x, v, omega, pivot, axis, block_work[:2, :4])
+    pose(links, offsets, relative, offset, q, qd, quat, rotation, x, v, omega, pivot, axis, block_work[:2, :4])
     for k in range(count):
         body = links[k, 0]
         rigid_motion.normalise(quat[k])

@@ -39,7 +39,7 @@ from animbatch.sim.joints import (
     SlideRows,
 )
 from animbatch.sim.joints.pattern import coupling_pattern
-from animbatch.sim.joints.tree import HingeTree
+from animbatch.sim.joints.tree import JointTree
 from animbatch.sim.kernels import tables as T
 from animbatch.sim.kernels.tables import PackedTables, pack
 from animbatch.sim.model.dynamics import TREE_FORMS, Dynamics
@@ -425,11 +425,11 @@ class CompiledDynamics(Dynamics):
         self._compiled_advance = _Entry(stepper.advance)
         self._compiled_project_velocities = _Entry(stepper.project_velocities)
         self._compiled_held_rows = _Entry(stepper.held_rows)
-        if isinstance(self.tree, HingeTree):
+        if isinstance(self.tree, JointTree):
             from animbatch.sim.kernels import joint_tree
 
             tree = self.tree
-            self._tree_tables = (np.stack([tree.body, tree.parent], axis=1),
+            self._tree_tables = (np.stack([tree.body, tree.parent, tree.slider.astype(np.int64)], axis=1),
                                  np.stack([tree.child_offset, tree.parent_offset, tree.axis], axis=1),
                                  tree.mass, tree.inertia, np.linalg.inv(tree.inertia), *self._packed[:3])
             self._compiled_tree_advance = _Entry(joint_tree.advance)
@@ -506,7 +506,7 @@ class CompiledDynamics(Dynamics):
         else:
             a, weights, nodes = np.zeros((0, 0)), np.zeros(0), np.zeros(0)
             rate = data if name == "verlet" else np.zeros(0)
-        if name in TREE_FORMS and isinstance(self.tree, HingeTree):
+        if name in TREE_FORMS and isinstance(self.tree, JointTree):
             return int(self._compiled_tree_advance(y, float(t), float(h), int(steps), self._forms[name], a, weights,
                                                    nodes, rate, *self._tree_tables))
         return int(self._compiled_advance(y, float(t), float(h), int(steps), self._forms[name], a, weights, nodes,

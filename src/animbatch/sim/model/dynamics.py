@@ -25,7 +25,7 @@ from animbatch import quaternion
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.forces.jacobian import ForceJacobian
 from animbatch.sim.joints import STABILISATION_RATE
-from animbatch.sim.joints.tree import HingeTree, hinge_tree
+from animbatch.sim.joints.tree import JointTree, joint_tree
 from animbatch.sim.model.model import Model, world_inverse_inertia_times
 
 #: The fixed-step forms that step a hinge tree in its angles (semi-implicit Euler keeps maximal coordinates: see
@@ -33,7 +33,7 @@ from animbatch.sim.model.model import Model, world_inverse_inertia_times
 TREE_FORMS = ("runge_kutta", "verlet")
 
 
-def tree_of(model: Model) -> HingeTree | str:
+def tree_of(model: Model) -> JointTree | str:
     """The model's joints as a hinge tree (:mod:`animbatch.sim.joints.tree`), or why they are not one."""
     rigid = model.rigid
     if model.joints is None or rigid is None:
@@ -42,7 +42,7 @@ def tree_of(model: Model) -> HingeTree | str:
         return "it has contacts"
     if model.clocks is not None or model.kinematic is not None:
         return "it has clocks or bodies on keyframes"
-    return hinge_tree(model.joints, rigid.mass, rigid.inertia, model.rigid_count, model.particle_count)
+    return joint_tree(model.joints, rigid.mass, rigid.inertia, model.rigid_count, model.particle_count)
 
 
 class Dynamics:
@@ -72,7 +72,7 @@ class Dynamics:
         self._patterns: dict[bool, dict] = {}  # sparsity patterns of the force Jacobians, reused between steps
         #: The joints as a hinge tree, stepped in their angles by Runge–Kutta and Verlet (:meth:`advance`), or why
         #: they are not one.
-        self.tree: HingeTree | str = tree_of(model)
+        self.tree: JointTree | str = tree_of(model)
         if b:
             rigid = model.rigid
             assert rigid is not None
@@ -222,7 +222,7 @@ class Dynamics:
     def advances(self, form: tuple[str, object] | None) -> bool:
         """Whether :meth:`advance` takes the steps of a scheme's form (``Scheme.compiled_form``): here, those of a
         hinge tree in its angles."""
-        return form is not None and form[0] in TREE_FORMS and isinstance(self.tree, HingeTree)
+        return form is not None and form[0] in TREE_FORMS and isinstance(self.tree, JointTree)
 
     def advance(self, form: tuple[str, object], y: np.ndarray, t: float, h: float, steps: int) -> int:
         """``steps`` fixed steps of ``h`` [s] from ``t`` [s] of a hinge tree in its angles, in place (the numpy
@@ -230,7 +230,7 @@ class Dynamics:
         right-hand sides evaluated. Only where :meth:`advances` says so."""
         from animbatch.sim.joints import tree
 
-        assert isinstance(self.tree, HingeTree)
+        assert isinstance(self.tree, JointTree)
 
         def forces(now: float, x: np.ndarray, v: np.ndarray, rotation: np.ndarray,
                    omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
