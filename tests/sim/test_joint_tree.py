@@ -266,24 +266,17 @@ def test_the_compiled_tree_steps_are_the_numpy_reference(form, text):
         np.testing.assert_allclose(rate, data, rtol=0, atol=1e-11 * np.abs(data).max())
 
 
-def _chain(count: int = 20) -> str:
-    lines = ["bodies:"]
-    for i in range(count):
-        lines.append(f"  - {{name: bar{i}, type: rigid, shape: {{type: box, size: [0.1, 0.02, 0.02]}}, mass: 0.1, "
-                     f"position: [{0.1 * (i + 0.5):.6f}, 0, 0]}}")
-    lines.append("joints:")
-    lines.append("  - {type: hinge, between: [bar0], anchor: [0, 0, 0], axis: [0, 0, 1]}")
-    for i in range(1, count):
-        lines.append(f"  - {{type: hinge, between: [bar{i}, bar{i - 1}], anchor: [{0.1 * i:.6f}, 0, 0], "
-                     "axis: [0, 0, 1]}")
-    return "\n".join(lines) + "\nfields: [{type: gravity}]\n"
-
-
 def test_a_whipping_chain_stays_stable_under_verlet_on_the_angles():
     """20 bars falling from the horizontal, 4 s at 1 ms: the tip whips at tens of rad/s. With the closing half
     kick only predicted, Verlet on the angles goes unstable within 3.2 s; corrected, the energy (scale ~20 J)
     stays within a few joules, as maximal Verlet's does."""
-    model = _model(_chain(), duration=4.0)
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parents[2] / "benchmarks"))
+    import peers  # the benchmarks' chain, which MuJoCo's is compared with
+
+    model = compile_scene(scene(peers.chain_scene(duration=4.0)).spec)
     system = CompiledDynamics(model)
     y = _start(model)
     rate = system.motion_rate(0.0, *system.split(y))
