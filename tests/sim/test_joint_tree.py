@@ -53,7 +53,8 @@ def _model(text: str, solver: str = "{method: verlet, dt: 0.001}", duration: flo
 
 def _tree(model) -> JointTree | str:
     rigid = model.rigid
-    return joint_tree(model.joints, rigid.mass, rigid.inertia, model.rigid_count, model.particle_count)
+    return joint_tree(model.joints, rigid.mass, rigid.inertia, rigid.inverse_inertia, model.rigid_count,
+                      model.particle_count)
 
 
 def _start(model) -> np.ndarray:

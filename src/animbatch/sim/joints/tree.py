@@ -67,7 +67,7 @@ class JointTree:
     the body's axes, from its centre of mass; ``parent_offset`` (K, 3) [m]: the same point in the parent's axes
     (from its centre of mass), or in the world for the world (both unused for sliders, which keep the offset they
     start a call at); ``axis`` (K, 3): the joint's unit axis in the body's axes; ``mass`` (K,) [kg] and ``inertia``
-    (K, 3, 3) [kg·m²] in body axes."""
+    (K, 3, 3) [kg·m²] in body axes, and its inverse ``inverse_inertia``."""
 
     body: np.ndarray
     parent: np.ndarray
@@ -77,6 +77,7 @@ class JointTree:
     axis: np.ndarray
     mass: np.ndarray
     inertia: np.ndarray
+    inverse_inertia: np.ndarray
 
     @property
     def count(self) -> int:
@@ -87,10 +88,10 @@ def _unit(vector: np.ndarray) -> np.ndarray:
     return vector / np.linalg.norm(vector)
 
 
-def joint_tree(joints: Any, mass: np.ndarray, inertia: np.ndarray, rigid_count: int,
+def joint_tree(joints: Any, mass: np.ndarray, inertia: np.ndarray, inverse_inertia: np.ndarray, rigid_count: int,
                particle_count: int) -> JointTree | str:
     """The joint tree of a model's ``joints`` (:class:`~animbatch.sim.joints.Joints`), its rigid bodies' ``mass``
-    (B,) and body-axes ``inertia`` (B, 3, 3); or why its joints are not one (then they stay in maximal
+    (B,), body-axes ``inertia`` (B, 3, 3) and its inverse; or why its joints are not one (then they stay in maximal
     coordinates)."""
     from animbatch.sim.joints.kinds import AxisRows, LockRows, PointRows, SlideRows
 
@@ -161,7 +162,7 @@ def joint_tree(joints: Any, mass: np.ndarray, inertia: np.ndarray, rigid_count: 
             axis[k] = kinds[LockRows].relative[row] @ along if first else along
     rigid = joints.points[np.array(order)] - joints.first_rigid
     return JointTree(rigid, parent, slider[np.array([parent_of[b][1] for b in order])], child_offset, parent_offset,
-                     axis, mass[rigid], inertia[rigid])
+                     axis, mass[rigid], inertia[rigid], inverse_inertia[rigid])
 
 
 @dataclass
@@ -311,7 +312,7 @@ def advance(tree: JointTree, form: tuple[str, Any], y: np.ndarray, t: float, h: 
     momentum, angular = y[7 * bodies: 10 * bodies].reshape(bodies, 3), y[10 * bodies:].reshape(bodies, 3)
     count = tree.count
     rotation = quaternion.to_matrix(orientation[tree.body])
-    world_inverse = rotation @ np.linalg.inv(tree.inertia) @ np.transpose(rotation, (0, 2, 1))
+    world_inverse = rotation @ tree.inverse_inertia @ np.transpose(rotation, (0, 2, 1))
     omega = np.einsum("kij,kj->ki", world_inverse, angular[tree.body])
     x, v = position[tree.body], momentum[tree.body] / tree.mass[:, None]
     start = start_of(tree, quaternion.normalized(orientation[tree.body]), x)

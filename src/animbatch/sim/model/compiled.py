@@ -431,7 +431,7 @@ class CompiledDynamics(Dynamics):
             tree = self.tree
             self._tree_tables = (np.stack([tree.body, tree.parent, tree.slider.astype(np.int64)], axis=1),
                                  np.stack([tree.child_offset, tree.parent_offset, tree.axis], axis=1),
-                                 tree.mass, tree.inertia, np.linalg.inv(tree.inertia), *self._packed[:3])
+                                 tree.mass, tree.inertia, tree.inverse_inertia, *self._packed[:3])
             self._compiled_tree_advance = _Entry(joint_tree.advance)
 
     def _engaged(self) -> tuple[np.ndarray, bool]:

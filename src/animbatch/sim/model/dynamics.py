@@ -42,7 +42,8 @@ def tree_of(model: Model) -> JointTree | str:
         return "it has contacts"
     if model.clocks is not None or model.kinematic is not None:
         return "it has clocks or bodies on keyframes"
-    return joint_tree(model.joints, rigid.mass, rigid.inertia, model.rigid_count, model.particle_count)
+    return joint_tree(model.joints, rigid.mass, rigid.inertia, rigid.inverse_inertia, model.rigid_count,
+                      model.particle_count)
 
 
 class Dynamics:
