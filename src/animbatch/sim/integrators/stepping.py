@@ -87,8 +87,8 @@ class FixedStepIntegrator(Integrator):
              layout: Any, on_frame: FrameCallback | None) -> float:
         """Step through every frame interval; return the largest step used [s]."""
         scheme.start(float(times[0]), y)
-        # a system that takes a scheme's form (compiled equations of motion: every form; a hinge tree: Runge–Kutta
-        # and Verlet, in its angles) steps it in one call per frame
+        # a system that takes a scheme's form (compiled equations of motion: every form; a tree of hinges and
+        # sliders: Runge–Kutta and Verlet, in its joint coordinates) steps it in one call per frame
         form = scheme.compiled_form()
         advances = getattr(scheme.system, "advances", None)
         advance = getattr(scheme.system, "advance") if advances is not None and advances(form) else None

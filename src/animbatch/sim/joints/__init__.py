@@ -6,7 +6,8 @@ slack ropes, ``C_i ≥ 0`` (see :mod:`animbatch.sim.joints.kinds` for each kind'
 constraint forces take loops (a four-bar linkage, a chain closed on itself) exactly as trees, and leave every
 integrator, contact and force term as it is; reduced coordinates (Featherstone) are cheaper for trees and exact
 by construction, but cannot close a loop and need a second state layout. So the state stays maximal, and a tree of
-hinges alone is stepped in its angles by some fixed-step methods (:mod:`animbatch.sim.joints.tree`).
+hinges and sliders alone is stepped in its joint coordinates by some fixed-step methods
+(:mod:`animbatch.sim.joints.tree`).
 
 * **Adaptive methods** integrate the index-1 form: at every right-hand side the multipliers λ solve
   ``J M⁻¹ Jᵀ λ = −(J a_free + J̇u + 2 ω Ċ + ω² C)`` (Baumgarte stabilisation, critically damped at ω), so that

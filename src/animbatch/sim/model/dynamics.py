@@ -26,15 +26,16 @@ from animbatch.sim.forces import Kinematics
 from animbatch.sim.forces.jacobian import ForceJacobian
 from animbatch.sim.joints import STABILISATION_RATE
 from animbatch.sim.joints.tree import JointTree, joint_tree
+from animbatch.sim.joints.tree import advance as advance_tree
 from animbatch.sim.model.model import Model, world_inverse_inertia_times
 
-#: The fixed-step forms that step a hinge tree in its angles (semi-implicit Euler keeps maximal coordinates: see
-#: :mod:`animbatch.sim.joints.tree`).
+#: The fixed-step forms that step a tree of hinges and sliders in its joint coordinates (semi-implicit Euler keeps
+#: maximal coordinates: see :mod:`animbatch.sim.joints.tree`).
 TREE_FORMS = ("runge_kutta", "verlet")
 
 
 def tree_of(model: Model) -> JointTree | str:
-    """The model's joints as a hinge tree (:mod:`animbatch.sim.joints.tree`), or why they are not one."""
+    """The model's joints as a joint tree (:mod:`animbatch.sim.joints.tree`), or why they are not one."""
     rigid = model.rigid
     if model.joints is None or rigid is None:
         return "it has no joints between rigid bodies"
@@ -71,8 +72,8 @@ class Dynamics:
         self._force = np.zeros((n + b, 3))
         self._torque = np.zeros((b, 3)) if b else None
         self._patterns: dict[bool, dict] = {}  # sparsity patterns of the force Jacobians, reused between steps
-        #: The joints as a hinge tree, stepped in their angles by Runge–Kutta and Verlet (:meth:`advance`), or why
-        #: they are not one.
+        #: The joints as a tree of hinges and sliders, stepped in its joint coordinates by Runge–Kutta and Verlet
+        #: (:meth:`advance`), or why they are not one.
         self.tree: JointTree | str = tree_of(model)
         if b:
             rigid = model.rigid
@@ -222,15 +223,13 @@ class Dynamics:
 
     def advances(self, form: tuple[str, object] | None) -> bool:
         """Whether :meth:`advance` takes the steps of a scheme's form (``Scheme.compiled_form``): here, those of a
-        hinge tree in its angles."""
+        joint tree in its joint coordinates."""
         return form is not None and form[0] in TREE_FORMS and isinstance(self.tree, JointTree)
 
     def advance(self, form: tuple[str, object], y: np.ndarray, t: float, h: float, steps: int) -> int:
-        """``steps`` fixed steps of ``h`` [s] from ``t`` [s] of a hinge tree in its angles, in place (the numpy
-        reference, :func:`animbatch.sim.joints.tree.advance`; the compiled form steps every form); returns the
+        """``steps`` fixed steps of ``h`` [s] from ``t`` [s] of a joint tree in its joint coordinates, in place (the
+        numpy reference, :func:`animbatch.sim.joints.tree.advance`; the compiled form steps every form); returns the
         right-hand sides evaluated. Only where :meth:`advances` says so."""
-        from animbatch.sim.joints import tree
-
         assert isinstance(self.tree, JointTree)
 
         def forces(now: float, x: np.ndarray, v: np.ndarray, rotation: np.ndarray,
@@ -239,7 +238,7 @@ class Dynamics:
             assert torque is not None
             return force.copy(), torque.copy()
 
-        return tree.advance(self.tree, form, y, t, h, steps, forces)
+        return advance_tree(self.tree, form, y, t, h, steps, forces)
 
     def energy(self, t: float, config: np.ndarray, motion: np.ndarray) -> tuple[float, float]:
         """Total mechanical energy [J] (kinetic, plus the potentials of the terms that have one) at time ``t``, and
