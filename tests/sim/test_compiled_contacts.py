@@ -3,6 +3,7 @@ contacts, in the same order, to round-off, over many states near touching; and a
 
 from __future__ import annotations
 
+import dataclasses
 import textwrap
 
 import numpy as np
@@ -692,3 +693,30 @@ def test_an_adaptive_run_solves_its_resting_forces_compiled_once_they_have_cost_
     np.testing.assert_allclose(model.positions(end)[0], model.positions(numpy_end)[0], rtol=0, atol=1e-12)
     moved = np.linalg.norm(model.positions(end)[0] - model.positions(model.y0)[0])
     assert moved > 0.05  # it slid: ice on wood at 20°
+
+
+@pytest.mark.parametrize("scene", ["polyhedra", "sides", "sides apart"])
+def test_the_edges_placed_each_step_are_edge_sets(scene, polyhedra):
+    """The edge set laid out once and placed each step (body boxes, fixed boxes, hulls) is edge_set's, row for
+    row, at states near touching; with bodies apart, only the fixed boxes' edges."""
+    from animbatch.sim.contact import sides
+
+    model = polyhedra if scene == "polyhedra" else compile_scene(
+        parse_scene(textwrap.dedent(SIDES), filename="sides.yaml").spec)
+    world, system = model.contact_world, Dynamics(model)
+    if scene == "sides apart":
+        world = dataclasses.replace(world, bodies_collide=False)
+    assert world.boxes.count and (world.hulls or scene != "polyhedra")
+    for y in _states(model, 5, 0.01):
+        state = system.kinematics(*system.split(np.array(y, float)), t=0.0, copy=True)
+        centres, rotations = body_box_poses(world, state)
+        expected = sides.edge_set(world, state, world.statics_at(0.0), centres, rotations)
+        if not world.bodies_collide:
+            keep = expected.body == sides.STATIC
+            expected = sides.EdgeSet(*(getattr(expected, name)[keep] for name in sides.EdgeSet.__dataclass_fields__))
+        found = sides.moving_edge_set(world, state, world.statics_at(0.0), centres, rotations)
+        for name in ("start", "end", "body", "material", "number"):
+            np.testing.assert_allclose(getattr(found, name), getattr(expected, name), rtol=0, atol=1e-14,
+                                       err_msg=name)
+        moving = 12 * world.boxes.count + sum(len(h.edges) for h in world.hulls) if world.bodies_collide else 0
+        assert len(found.start) == len(found.body) == moving + 12 * len(world.statics.box_centre) > 0

@@ -139,8 +139,7 @@ def side_contacts(world: ContactWorld, state: Kinematics, statics: StaticCollide
 class _SideTables:
     """What the compiled side search takes that does not change in a run, typed as it takes it: the rounds'
     ``half_length``, ``radius``, ``rounded`` and ``owner`` (C,), every body's ``collides`` and ``material`` (P,),
-    the ``excluded`` pair keys (sorted), the search ``grid``, the first contact number, and the fixed boxes' edges
-    (None where colliders move, which places them anew each step)."""
+    the ``excluded`` pair keys (sorted), the search ``grid`` and the first contact number."""
 
     half_length: np.ndarray
     radius: np.ndarray
@@ -151,44 +150,99 @@ class _SideTables:
     excluded: np.ndarray
     grid: np.ndarray
     first: int
-    fixed_edges: EdgeSet | None
 
     @classmethod
     def of_world(cls, world: ContactWorld) -> _SideTables:
         rounds = world.cylinders
         assert rounds is not None
         excluded = np.zeros(0, np.int64) if world.excluded is None else np.sort(np.asarray(world.excluded, np.int64))
-        fixed = None
-        if world.moving is None:
-            statics = world.statics
-            starts, ends = box_edges(statics.box_centre.reshape(-1, 3), statics.box_rotation.reshape(-1, 3, 3),
-                                     statics.box_half.reshape(-1, 3))
-            # numbered after all the body boxes' edges, as edge_set numbers them
-            fixed = EdgeSet(starts, ends, np.full(len(starts), STATIC, np.intp),
-                            np.repeat(statics.box_material, 12).astype(np.intp),
-                            12 * world.boxes.count + np.arange(len(starts), dtype=np.intp))
         return cls(np.asarray(rounds.half_length, float), np.asarray(rounds.radius, float),
                    np.asarray(rounds.rounded, np.bool_), np.asarray(rounds.owner, np.int64),
                    np.asarray(world.collides, np.bool_), np.asarray(world.body_material, np.int64), excluded,
-                   np.linspace(0.0, 1.0, GRID), world.probes.count + 12 * world.boxes.count + rounds.count, fixed)
+                   np.linspace(0.0, 1.0, GRID), world.probes.count + 12 * world.boxes.count + rounds.count)
 
 
 _SIDE_TABLES: weakref.WeakKeyDictionary[ContactWorld, _SideTables] = weakref.WeakKeyDictionary()
 
 
-def _edges_for_sides(world: ContactWorld, state: Kinematics, statics: StaticColliders, box_centres: np.ndarray,
-                     box_rotations: np.ndarray, tables: _SideTables) -> EdgeSet:
-    """The edges a round's side can meet (:func:`edge_set`); only the fixed boxes' where bodies do not collide,
-    and those built once where the colliders do not move."""
-    if world.bodies_collide or tables.fixed_edges is None:
-        edges = edge_set(world, state, statics, box_centres, box_rotations)
-        if len(edges.start) and not world.bodies_collide:
-            keep = edges.body == STATIC
-            edges = EdgeSet(*(getattr(edges, name)[keep] for name in ("start", "end", "body", "material", "number")))
-        return edges
-    return tables.fixed_edges
+@dataclass(frozen=True, eq=False)
+class _EdgeLayout:
+    """What :func:`edge_set` builds anew each step but that does not change in a run, in its order: the edges'
+    ``body``, ``material`` and ``number`` (E,) (only the fixed boxes' where bodies do not collide); the fixed
+    boxes' edges ``fixed_start``, ``fixed_end`` (12 S, 3) [m] (None where colliders move); and the hulls' vertices
+    packed, each with its body, its rigid body and its offset ``hull_vertex`` (V, 3) [m] in the body frame, with
+    ``hull_edge`` (H E, 2) indexing them."""
+
+    body: np.ndarray
+    material: np.ndarray
+    number: np.ndarray
+    fixed_start: np.ndarray | None
+    fixed_end: np.ndarray | None
+    hull_owner: np.ndarray
+    hull_rigid: np.ndarray
+    hull_vertex: np.ndarray
+    hull_edge: np.ndarray
+    first_rigid: int
+
+    @classmethod
+    def of_world(cls, world: ContactWorld, first_rigid: int) -> _EdgeLayout:
+        statics, fixed_start, fixed_end = world.statics, None, None
+        if world.moving is None:
+            fixed_start, fixed_end = box_edges(statics.box_centre.reshape(-1, 3),
+                                               statics.box_rotation.reshape(-1, 3, 3), statics.box_half.reshape(-1, 3))
+        boxes, collide = world.boxes, world.bodies_collide
+        hulls = world.hulls if collide else ()
+        owners = np.concatenate([np.full(len(h.vertices), h.owner, np.intp) for h in hulls] or [np.zeros(0, np.intp)])
+        first_vertex = np.cumsum([0] + [len(h.vertices) for h in hulls])
+        edges = np.concatenate([h.edges + first_vertex[k] for k, h in enumerate(hulls)] or [np.zeros((0, 2), np.intp)])
+        # edge_set's order: the body boxes' edges, the fixed boxes', the hulls'
+        box_owner = np.repeat(boxes.owner, 12) if collide else np.zeros(0, np.intp)
+        hull_owner = np.concatenate([np.full(len(h.edges), h.owner, np.intp) for h in hulls] or [np.zeros(0, np.intp)])
+        body = np.concatenate([box_owner, np.full(12 * len(statics.box_centre), STATIC), hull_owner]).astype(np.intp)
+        material = np.concatenate([world.body_material[box_owner], np.repeat(statics.box_material, 12),
+                                   world.body_material[hull_owner]]).astype(np.intp)
+        number = np.arange(len(body), dtype=np.intp) + (0 if collide else 12 * boxes.count)
+        return cls(body, material, number, fixed_start, fixed_end, owners, owners - first_rigid,
+                   np.concatenate([h.vertices for h in hulls] or [np.zeros((0, 3))]),
+                   np.asarray(edges, np.intp).reshape(-1, 2), first_rigid)
+
+    def edges(self, world: ContactWorld, state: Kinematics, statics: StaticColliders, box_centres: np.ndarray,
+              box_rotations: np.ndarray) -> EdgeSet:
+        """:func:`edge_set` in ``state``, placing only what moves."""
+        starts, ends = [], []
+        if world.bodies_collide and world.boxes.count:
+            s, e = box_edges(box_centres, box_rotations, world.boxes.half)
+            starts.append(s)
+            ends.append(e)
+        if self.fixed_start is not None and self.fixed_end is not None:
+            starts.append(self.fixed_start)
+            ends.append(self.fixed_end)
+        elif len(statics.box_centre):
+            s, e = box_edges(statics.box_centre, statics.box_rotation, statics.box_half)
+            starts.append(s)
+            ends.append(e)
+        if len(self.hull_edge):
+            assert state.rotation is not None
+            corners = state.x[self.hull_owner] + np.einsum("vij,vj->vi", state.rotation[self.hull_rigid],
+                                                           self.hull_vertex)
+            starts.append(corners[self.hull_edge[:, 0]])
+            ends.append(corners[self.hull_edge[:, 1]])
+        if not starts:
+            return EdgeSet(np.zeros((0, 3)), np.zeros((0, 3)), self.body, self.material, self.number)
+        return EdgeSet(np.concatenate(starts), np.concatenate(ends), self.body, self.material, self.number)
 
 
+_EDGE_LAYOUTS: weakref.WeakKeyDictionary[ContactWorld, _EdgeLayout] = weakref.WeakKeyDictionary()
+
+
+def moving_edge_set(world: ContactWorld, state: Kinematics, statics: StaticColliders, box_centres: np.ndarray,
+                    box_rotations: np.ndarray) -> EdgeSet:
+    """The edges a round's side can meet in ``state``: :func:`edge_set`'s, only the fixed boxes' where bodies do
+    not collide; what does not move is laid out once per world (for its first rigid body's index)."""
+    layout = _EDGE_LAYOUTS.get(world)
+    if layout is None or layout.first_rigid != state.first_rigid:
+        layout = _EDGE_LAYOUTS[world] = _EdgeLayout.of_world(world, state.first_rigid)
+    return layout.edges(world, state, statics, box_centres, box_rotations)
 def compiled_side_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders,
                            box_centres: np.ndarray, box_rotations: np.ndarray, margin: float,
                            travel: np.ndarray | None) -> Contacts:
@@ -205,7 +259,7 @@ def compiled_side_contacts(world: ContactWorld, state: Kinematics, statics: Stat
     centre = state.x[rounds.owner] + state.lever(rigid, rounds.offset)
     axis = np.einsum("kij,kj->ki", state.rotation[rigid], rounds.axis)
     steps = travel if travel is not None else np.zeros(len(world.body_material))
-    edges = _edges_for_sides(world, state, statics, box_centres, box_rotations, tables)
+    edges = moving_edge_set(world, state, statics, box_centres, box_rotations)
     search: Any = round_sides.side_contacts
     ints, floats = search(
         np.ascontiguousarray(centre, float), np.ascontiguousarray(axis, float), tables.half_length, tables.radius,
