@@ -396,6 +396,7 @@ def _compiled_probe_contacts(world: ContactWorld, state: Kinematics, statics: St
     hull_poses = ((np.zeros((0, 3)), np.zeros((0, 3, 3))) if not len(owners) or state.rotation is None else
                   (np.ascontiguousarray(state.x[owners], float),
                    np.ascontiguousarray(state.rotation[owners - state.first_rigid], float)))
+    steps = travel if travel is not None else np.zeros(len(world.body_material))
     search: Any = probe_search.probe_candidates
     found, measured = search(
         floats3(centres), tables.owner, tables.box, tables.radius, np.asarray(active, np.bool_), tables.group,
@@ -404,7 +405,7 @@ def _compiled_probe_contacts(world: ContactWorld, state: Kinematics, statics: St
         floats3(box_centres),
         np.ascontiguousarray(box_rotations, float).reshape(-1, 3, 3), tables.box_half, tables.rounds[0],
         *rounds_at, *tables.rounds[1:], *tables.hulls[:2], *hull_poses, *tables.hulls[2:],
-        bool(world.bodies_collide), float(margin), float(largest_travel))
+        bool(world.bodies_collide), float(margin), float(largest_travel), np.asarray(steps, float))
     probe = found[:, 0].astype(np.intp)
     return _contacts(world, probe, centres[probe], measured[:, 0], measured[:, 1:], found[:, 1].astype(np.intp),
                      found[:, 2].astype(np.intp), margin, found[:, 3].astype(np.intp), found[:, 4].astype(np.intp),
@@ -419,7 +420,7 @@ def build_probe_kernels() -> None:
     search: Any = probe_search.probe_candidates
     search(f3, i, i, f, b, i, i, b, i, f3, f3, i, f3, f, i, f3, f33, f3, i, i, f3, f33, f3, i, f3, f3, f, f, b, i, f,
            f3, f33, f3, np.zeros(1, np.int64), np.zeros((0, 3), np.int64), np.zeros(1, np.int64), np.zeros((0, 4)),
-           np.zeros(1, np.int64), True, 0.0, 0.0)
+           np.zeros(1, np.int64), True, 0.0, 0.0, f)
 
 
 #: For each world, its colliding cylinders and rods (indices into its round solids), for the rim search.

@@ -6,15 +6,16 @@ all, with the k-d tree's own reach, so the candidates are the numpy search's.
 
 Each candidate is measured as the numpy code measures it (:func:`~animbatch.sim.contact.geometry.to_sphere`,
 ``to_box``, ``separating_direction``, ``to_box_face``), in the same order of operations, so the distances and
-normals agree to round-off; which candidates become contacts (the gap against the pair's closing margin) is then
-decided by the numpy side for every candidate at once.
+normals agree to round-off; a candidate is kept as the numpy side keeps it
+(:func:`~animbatch.sim.contact.detection.closing_margin`: its gap below the margin plus how far both bodies can
+travel, ``travel`` (P,) [m]), with the same arithmetic, so only contacts come back.
 
 Arrays: probes ``centres`` (Q, 3) [m], ``owner``, ``box`` (Q,) (the body box whose corner a probe is, or −1),
 ``radius`` (Q,) [m], ``active`` (Q,) bool; per body ``group`` (P,) (−1: none), ``material`` (P,), ``collides`` (P,)
 bool; ``excluded`` sorted int64 keys ``low · P + high`` of body pairs that never touch. Solids: planes (point,
 normal, material), fixed spheres (centre, radius, material), fixed boxes and body boxes (centre (X, 3), rotation
 (X, 3, 3) box-to-world, half sides (X, 3), material or owner).
-Found: integer rows (K, 5) ``probe, solid body, solid material, kind, solid index`` and float rows (K, 4)
+Found (the contacts): integer rows (K, 5) ``probe, solid body, solid material, kind, solid index`` and float rows (K, 4)
 ``distance`` [m] of the probe's centre to the solid, outward ``normal`` (3).
 """
 
@@ -46,11 +47,12 @@ def grown(ints: np.ndarray, floats: np.ndarray, count: int) -> tuple[np.ndarray,
     return more_ints, more_floats
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _add(ints: np.ndarray, floats: np.ndarray, count: int, probe: int, body: int, material: int, kind: int,
          index: int, distance: float, n0: float, n1: float, n2: float) -> tuple[np.ndarray, np.ndarray]:
-    """Row ``count`` of the candidates."""
-    ints, floats = grown(ints, floats, count)
+    """Row ``count`` of the contacts."""
+    if count >= len(ints):
+        ints, floats = grown(ints, floats, count)
     ints[count, 0], ints[count, 1], ints[count, 2], ints[count, 3], ints[count, 4] = probe, body, material, kind, index
     floats[count, 0], floats[count, 1], floats[count, 2], floats[count, 3] = distance, n0, n1, n2
     return ints, floats
@@ -160,14 +162,14 @@ def _separating_direction(centre_a: np.ndarray, rotation_a: np.ndarray, half_a: 
     return sign * rotation[0, column], sign * rotation[1, column], sign * rotation[2, column]
 
 
-@njit(cache=True, error_model="numpy")
-def _box_candidates(ints: np.ndarray, floats: np.ndarray, count: int, probe: int, centres: np.ndarray,
-                    box: np.ndarray, centre: np.ndarray, rotation: np.ndarray, half: np.ndarray, body: int,
-                    material: int, kinds: tuple[int, int], index: int, box_centre: np.ndarray,
-                    box_rotation: np.ndarray, box_half: np.ndarray, tolerance: float
-                    ) -> tuple[np.ndarray, np.ndarray, int]:
+@njit(cache=True, error_model="numpy", inline="always")
+def _box_measure(probe: int, centres: np.ndarray, box: np.ndarray, centre: np.ndarray, rotation: np.ndarray,
+                 half: np.ndarray, kinds: tuple[int, int], index: int, box_centre: np.ndarray,
+                 box_rotation: np.ndarray, box_half: np.ndarray, tolerance: float
+                 ) -> tuple[float, float, float, float, int, int]:
     """Probe against one box: a corner of another box against the face the two boxes' separating axis picks (when
-    it lies within that face's extent, to ``tolerance``), anything else against the box as a whole."""
+    it lies within that face's extent, to ``tolerance``), anything else against the box as a whole. The distance,
+    the outward normal, the contact kind and the solid index."""
     point = centres[probe]
     distance, n0, n1, n2 = _to_box(point, centre, rotation, half)
     kind, solid = kinds[0], index
@@ -192,8 +194,35 @@ def _box_candidates(ints: np.ndarray, floats: np.ndarray, count: int, probe: int
             distance = sign * local[axis] - half[axis]
             n0, n1, n2 = rotation[0, axis] * sign, rotation[1, axis] * sign, rotation[2, axis] * sign
             kind, solid = kinds[1], 6 * index + 2 * axis + (1 if positive else 0)
-    ints, floats = _add(ints, floats, count, probe, body, material, kind, solid, distance, n0, n1, n2)
-    return ints, floats, count + 1
+    return distance, n0, n1, n2, kind, solid
+
+
+@njit(cache=True, error_model="numpy")
+def _near_bodies(centres: np.ndarray, owner: np.ndarray, body_count: int, reach: float) -> np.ndarray:
+    """Which pairs of bodies (P, P) (first index the lower) may have probes within ``reach`` [m] of each other: the
+    ball around each body's first probe that holds all its probes, against the other's, with a little to spare for
+    rounding. It lets the all-pairs probe loop skip the probes of bodies that are apart, without changing what it
+    finds."""
+    anchor = np.zeros((body_count, 3))
+    extent = np.full(body_count, -1.0)  # −1: no probe
+    for q in range(len(owner)):
+        body = owner[q]
+        if extent[body] < 0:
+            anchor[body, 0], anchor[body, 1], anchor[body, 2], extent[body] = centres[q, 0], centres[q, 1], \
+                centres[q, 2], 0.0
+        d0, d1, d2 = centres[q, 0] - anchor[body, 0], centres[q, 1] - anchor[body, 1], centres[q, 2] - anchor[body, 2]
+        extent[body] = max(extent[body], math.sqrt(d0 * d0 + d1 * d1 + d2 * d2))
+    near = np.zeros((body_count, body_count), np.bool_)
+    for a in range(body_count):
+        if extent[a] < 0:
+            continue
+        for b in range(a, body_count):
+            if extent[b] < 0:
+                continue
+            d0, d1, d2 = anchor[a, 0] - anchor[b, 0], anchor[a, 1] - anchor[b, 1], anchor[a, 2] - anchor[b, 2]
+            gap = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) - extent[a] - extent[b]
+            near[a, b] = gap <= reach + 1e-9 * (1.0 + reach + extent[a] + extent[b])
+    return near
 
 
 @njit(cache=True, error_model="numpy")
@@ -209,7 +238,8 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
                      hull_reach: np.ndarray, hull_centre: np.ndarray, hull_rotation: np.ndarray,
                      hull_vertices: np.ndarray, hull_vertex_start: np.ndarray, hull_triangles: np.ndarray,
                      hull_triangle_start: np.ndarray, hull_planes: np.ndarray, hull_plane_start: np.ndarray,
-                     bodies_collide: bool, margin: float, largest_travel: float) -> tuple[np.ndarray, np.ndarray]:
+                     bodies_collide: bool, margin: float, largest_travel: float, travel: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """Every probe–solid pair the numpy search measures (see the module notes), measured, in its order: planes,
     fixed spheres, fixed boxes, then (``bodies_collide``) probe spheres, body boxes and round solids (cylinders and
     capsules: ``round_*`` (C,) owner, centre and unit axis (C, 3) [m], half length of the straight part [m], radius
@@ -225,46 +255,60 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
     ints = np.empty((64, 5), np.int64)
     floats = np.empty((64, 4))
     count = 0
+    # a pair is kept as the numpy side keeps it (closing_margin): its gap below the margin plus what both sides travel
     for k in range(len(plane_point)):
         for q in range(len(owner)):
             if active[q]:
-                point = centres[q]
-                distance = ((point[0] - plane_point[k, 0]) * plane_normal[k, 0]
-                            + (point[1] - plane_point[k, 1]) * plane_normal[k, 1]
-                            + (point[2] - plane_point[k, 2]) * plane_normal[k, 2])
-                ints, floats = _add(ints, floats, count, q, STATIC, plane_material[k], PLANE, k, distance,
-                                    plane_normal[k, 0], plane_normal[k, 1], plane_normal[k, 2])
-                count += 1
+                distance = ((centres[q, 0] - plane_point[k, 0]) * plane_normal[k, 0]
+                            + (centres[q, 1] - plane_point[k, 1]) * plane_normal[k, 1]
+                            + (centres[q, 2] - plane_point[k, 2]) * plane_normal[k, 2])
+                if distance - radius[q] < margin + travel[owner[q]] + 0.0:
+                    ints, floats = _add(ints, floats, count, q, STATIC, plane_material[k], PLANE, k, distance,
+                                        plane_normal[k, 0], plane_normal[k, 1], plane_normal[k, 2])
+                    count += 1
     for k in range(len(sphere_centre)):
+        c0, c1, c2 = sphere_centre[k, 0], sphere_centre[k, 1], sphere_centre[k, 2]
         for q in range(len(owner)):
-            if active[q] and _near(centres[q], sphere_centre[k], sphere_radius[k] + reach):
-                ints, floats, count = _sphere(ints, floats, count, q, centres[q], sphere_centre[k], sphere_radius[k],
-                                              STATIC, sphere_material[k], STATIC_SPHERE, k)
+            if active[q] and not _far(q, centres, c0, c1, c2, sphere_radius[k] + reach):
+                distance, n0, n1, n2 = _sphere_measure(q, centres, c0, c1, c2, sphere_radius[k])
+                if distance - radius[q] < margin + travel[owner[q]] + 0.0:
+                    ints, floats = _add(ints, floats, count, q, STATIC, sphere_material[k], STATIC_SPHERE, k,
+                                        distance, n0, n1, n2)
+                    count += 1
     for k in range(len(static_centre)):
         size = math.sqrt(static_half[k, 0] ** 2 + static_half[k, 1] ** 2 + static_half[k, 2] ** 2)
+        c0, c1, c2 = static_centre[k, 0], static_centre[k, 1], static_centre[k, 2]
         for q in range(len(owner)):
-            if active[q] and _near(centres[q], static_centre[k], size + reach):
-                ints, floats, count = _box_candidates(
-                    ints, floats, count, q, centres, box, static_centre[k], static_rotation[k], static_half[k],
-                    STATIC, static_material[k], (STATIC_BOX, STATIC_BOX_FACE), k, box_centre, box_rotation, box_half,
-                    tolerance)
+            if active[q] and not _far(q, centres, c0, c1, c2, size + reach):
+                distance, n0, n1, n2, kind, solid = _box_measure(
+                    q, centres, box, static_centre[k], static_rotation[k], static_half[k],
+                    (STATIC_BOX, STATIC_BOX_FACE), k, box_centre, box_rotation, box_half, tolerance)
+                if distance - radius[q] < margin + travel[owner[q]] + 0.0:
+                    ints, floats = _add(ints, floats, count, q, STATIC, static_material[k], kind, solid, distance,
+                                        n0, n1, n2)
+                    count += 1
     if not bodies_collide or not len(owner):
         return ints[:count], floats[:count]
     closing = margin + 2 * largest_travel  # both sides move
     rounded = np.flatnonzero(radius > 0)  # only a probe with a radius can be met by another (box corners have none)
+    near = _near_bodies(centres, owner, body_count, 2 * widest + closing)
     for i in range(len(owner)):
-        for slot in range(len(rounded)):
+        a = owner[i]
+        for slot in range(np.searchsorted(rounded, i, side="right"), len(rounded)):
             j = int(rounded[slot])
-            if j <= i:
+            b = owner[j]
+            if not near[min(a, b), max(a, b)]:
                 continue
-            a, b = owner[i], owner[j]
             if (a == b or not active[i] or not active[j] or radius[j] <= 0
-                    or not _near(centres[i], centres[j], 2 * widest + closing)
+                    or _far(i, centres, centres[j, 0], centres[j, 1], centres[j, 2], 2 * widest + closing)
                     or not _allowed(a, b, excluded, body_count)
                     or (group[a] >= 0 and group[a] == group[b])):
                 continue
-            ints, floats, count = _sphere(ints, floats, count, i, centres[i], centres[j], radius[j], b, material[b],
-                                          BODY_SPHERE, j)
+            distance, n0, n1, n2 = _sphere_measure(i, centres, centres[j, 0], centres[j, 1], centres[j, 2],
+                                                   radius[j])
+            if distance - radius[i] < margin + travel[a] + travel[b]:
+                ints, floats = _add(ints, floats, count, i, b, material[b], BODY_SPHERE, j, distance, n0, n1, n2)
+                count += 1
     for k in range(len(box_owner)):
         body = box_owner[k]
         if not collides[body]:
@@ -275,9 +319,13 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
                 continue
             if _touchable(q, body, owner, active, centres, box_centre[k], size + closing + widest, excluded,
                           body_count):
-                ints, floats, count = _box_candidates(
-                    ints, floats, count, q, centres, box, box_centre[k], box_rotation[k], box_half[k], body,
-                    material[body], (BODY_BOX, BODY_BOX_FACE), k, box_centre, box_rotation, box_half, tolerance)
+                distance, n0, n1, n2, kind, solid = _box_measure(
+                    q, centres, box, box_centre[k], box_rotation[k], box_half[k], (BODY_BOX, BODY_BOX_FACE), k,
+                    box_centre, box_rotation, box_half, tolerance)
+                if distance - radius[q] < margin + travel[owner[q]] + travel[body]:
+                    ints, floats = _add(ints, floats, count, q, body, material[body], kind, solid, distance, n0, n1,
+                                        n2)
+                    count += 1
     for k in range(len(round_owner)):
         body = round_owner[k]
         if not collides[body]:
@@ -290,9 +338,10 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
                           round_half_length[k] + round_radius[k] + closing + widest, excluded, body_count):
                 distance, n0, n1, n2 = _to_round(centres[q], round_centre[k], round_axis[k], round_half_length[k],
                                                  round_radius[k], round_rounded[k])
-                ints, floats = _add(ints, floats, count, q, body, material[body], BODY_ROUND, k, distance, n0, n1,
-                                    n2)
-                count += 1
+                if distance - radius[q] < margin + travel[owner[q]] + travel[body]:
+                    ints, floats = _add(ints, floats, count, q, body, material[body], BODY_ROUND, k, distance, n0,
+                                        n1, n2)
+                    count += 1
     for k in range(len(hull_owner)):
         body = hull_owner[k]
         if not collides[body]:
@@ -308,9 +357,10 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
                     hull_vertices[hull_vertex_start[k]:hull_vertex_start[k + 1]],
                     hull_triangles[hull_triangle_start[k]:hull_triangle_start[k + 1]],
                     hull_planes[hull_plane_start[k]:hull_plane_start[k + 1]])
-                ints, floats = _add(ints, floats, count, q, body, material[body], BODY_HULL, k, distance, n0, n1,
-                                    n2)
-                count += 1
+                if distance - radius[q] < margin + travel[owner[q]] + travel[body]:
+                    ints, floats = _add(ints, floats, count, q, body, material[body], BODY_HULL, k, distance, n0,
+                                        n1, n2)
+                    count += 1
     return ints[:count], floats[:count]
 
 
@@ -320,19 +370,17 @@ def _to_hull(point: np.ndarray, centre: np.ndarray, rotation: np.ndarray, vertic
     """Signed distance of a point to a convex hull and the outward normal (world axes), as
     :func:`animbatch.sim.contact.hulls.to_hull`: inside, the nearest face's plane; outside, the nearest
     triangle."""
-    local = np.empty(3)
-    local[0], local[1], local[2] = _local(point, centre, rotation)
+    l0, l1, l2 = _local(point, centre, rotation)
     face, distance = 0, -np.inf
     for f in range(len(planes)):
-        height = planes[f, 0] * local[0] + planes[f, 1] * local[1] + planes[f, 2] * local[2] - planes[f, 3]
+        height = planes[f, 0] * l0 + planes[f, 1] * l1 + planes[f, 2] * l2 - planes[f, 3]
         if height > distance:
             face, distance = f, height
     m0, m1, m2 = planes[face, 0], planes[face, 1], planes[face, 2]
     if distance > 0:  # to the nearest triangle: exact near edges and corners too
         distance = np.inf
         for t in range(len(triangles)):
-            d, t0, t1, t2 = _to_triangle(local, vertices[triangles[t, 0]], vertices[triangles[t, 1]],
-                                         vertices[triangles[t, 2]])
+            d, t0, t1, t2 = _to_triangle(l0, l1, l2, vertices, triangles[t, 0], triangles[t, 1], triangles[t, 2])
             if d < distance:
                 distance, m0, m1, m2 = d, t0, t1, t2
     return (distance, rotation[0, 0] * m0 + rotation[0, 1] * m1 + rotation[0, 2] * m2,
@@ -340,44 +388,53 @@ def _to_hull(point: np.ndarray, centre: np.ndarray, rotation: np.ndarray, vertic
             rotation[2, 0] * m0 + rotation[2, 1] * m1 + rotation[2, 2] * m2)
 
 
-@njit(cache=True, error_model="numpy")
-def _dot(a: np.ndarray, b: np.ndarray) -> float:
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-@njit(cache=True, error_model="numpy")
-def _to_triangle(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[float, float, float, float]:
-    """Unsigned distance of a point to a triangle and the unit direction from its closest point to the point (the
-    face normal, towards the point, on it), as :func:`animbatch.sim.contact.geometry.to_triangles` without sides
-    (Ericson, "Real-Time Collision Detection", 5.1.5)."""
-    ab, ac, ap, bp, cp = b - a, c - a, p - a, p - b, p - c
-    d1, d2 = _dot(ab, ap), _dot(ac, ap)
-    d3, d4 = _dot(ab, bp), _dot(ac, bp)
-    d5, d6 = _dot(ab, cp), _dot(ac, cp)
+@njit(cache=True, error_model="numpy", inline="always")
+def _to_triangle(p0: float, p1: float, p2: float, vertices: np.ndarray, ia: int, ib: int, ic: int
+                 ) -> tuple[float, float, float, float]:
+    """Unsigned distance of a point (p0, p1, p2) to the triangle of ``vertices`` ia, ib, ic and the unit direction
+    from its closest point to the point (the face normal, towards the point, on it), as
+    :func:`animbatch.sim.contact.geometry.to_triangles` without sides (Ericson, "Real-Time Collision Detection",
+    5.1.5). On numbers: it runs for every triangle of a hull near a probe, and small arrays each cost an
+    allocation."""
+    a0, a1, a2 = vertices[ia, 0], vertices[ia, 1], vertices[ia, 2]
+    b0, b1, b2 = vertices[ib, 0], vertices[ib, 1], vertices[ib, 2]
+    c0, c1, c2 = vertices[ic, 0], vertices[ic, 1], vertices[ic, 2]
+    ab0, ab1, ab2 = b0 - a0, b1 - a1, b2 - a2
+    ac0, ac1, ac2 = c0 - a0, c1 - a1, c2 - a2
+    ap0, ap1, ap2 = p0 - a0, p1 - a1, p2 - a2
+    bp0, bp1, bp2 = p0 - b0, p1 - b1, p2 - b2
+    cp0, cp1, cp2 = p0 - c0, p1 - c1, p2 - c2
+    d1, d2 = ab0 * ap0 + ab1 * ap1 + ab2 * ap2, ac0 * ap0 + ac1 * ap1 + ac2 * ap2
+    d3, d4 = ab0 * bp0 + ab1 * bp1 + ab2 * bp2, ac0 * bp0 + ac1 * bp1 + ac2 * bp2
+    d5, d6 = ab0 * cp0 + ab1 * cp1 + ab2 * cp2, ac0 * cp0 + ac1 * cp1 + ac2 * cp2
     va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
     if d1 <= 0 and d2 <= 0:
-        closest = a
+        q0, q1, q2 = a0, a1, a2
     elif d3 >= 0 and d4 <= d3:
-        closest = b
+        q0, q1, q2 = b0, b1, b2
     elif d6 >= 0 and d5 <= d6:
-        closest = c
+        q0, q1, q2 = c0, c1, c2
     elif vc <= 0 and d1 >= 0 and d3 <= 0:
-        closest = a + ab * (d1 / (d1 - d3))
+        w = d1 / (d1 - d3)
+        q0, q1, q2 = a0 + ab0 * w, a1 + ab1 * w, a2 + ab2 * w
     elif vb <= 0 and d2 >= 0 and d6 <= 0:
-        closest = a + ac * (d2 / (d2 - d6))
+        w = d2 / (d2 - d6)
+        q0, q1, q2 = a0 + ac0 * w, a1 + ac1 * w, a2 + ac2 * w
     elif va <= 0 and (d4 - d3) >= 0 and (d5 - d6) >= 0:
-        closest = b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)))
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        q0, q1, q2 = b0 + (c0 - b0) * w, b1 + (c1 - b1) * w, b2 + (c2 - b2) * w
     else:
         denominator = 1.0 / (va + vb + vc)
-        closest = a + ab * (vb * denominator) + ac * (vc * denominator)
-    offset = p - closest
-    distance = math.sqrt(_dot(offset, offset))
-    f0, f1, f2 = ab[1] * ac[2] - ab[2] * ac[1], ab[2] * ac[0] - ab[0] * ac[2], ab[0] * ac[1] - ab[1] * ac[0]
+        v, w = vb * denominator, vc * denominator
+        q0, q1, q2 = a0 + ab0 * v + ac0 * w, a1 + ab1 * v + ac1 * w, a2 + ab2 * v + ac2 * w
+    o0, o1, o2 = p0 - q0, p1 - q1, p2 - q2
+    distance = math.sqrt(o0 * o0 + o1 * o1 + o2 * o2)
+    if distance > 1e-9:
+        return distance, o0 / distance, o1 / distance, o2 / distance
+    f0, f1, f2 = ab1 * ac2 - ab2 * ac1, ab2 * ac0 - ab0 * ac2, ab0 * ac1 - ab1 * ac0
     size = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
     f0, f1, f2 = f0 / size, f1 / size, f2 / size
-    if distance > 1e-9:
-        return distance, offset[0] / distance, offset[1] / distance, offset[2] / distance
-    side = 1.0 if f0 * ap[0] + f1 * ap[1] + f2 * ap[2] >= 0 else -1.0
+    side = 1.0 if f0 * ap0 + f1 * ap1 + f2 * ap2 >= 0 else -1.0
     return distance, side * f0, side * f1, side * f2
 
 
@@ -386,14 +443,10 @@ def _to_round(point: np.ndarray, centre: np.ndarray, axis: np.ndarray, half_leng
               rounded: bool) -> tuple[float, float, float, float]:
     """Signed distance of a point to a cylinder (flat ends) or a capsule (``rounded``) and the outward normal, as
     :func:`animbatch.sim.contact.geometry.to_round`."""
-    offset = np.empty(3)
-    for i in range(3):
-        offset[i] = point[i] - centre[i]
-    along = offset[0] * axis[0] + offset[1] * axis[1] + offset[2] * axis[2]
-    radial = np.empty(3)
-    for i in range(3):
-        radial[i] = offset[i] - along * axis[i]
-    rho = math.sqrt(radial[0] * radial[0] + radial[1] * radial[1] + radial[2] * radial[2])
+    o0, o1, o2 = point[0] - centre[0], point[1] - centre[1], point[2] - centre[2]
+    along = o0 * axis[0] + o1 * axis[1] + o2 * axis[2]
+    r0, r1, r2 = o0 - along * axis[0], o1 - along * axis[1], o2 - along * axis[2]
+    rho = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
     # across the axis from a point on it: any direction across will do
     h0, h1, h2 = (1.0, 0.0, 0.0) if abs(axis[0]) < 0.9 else (0.0, 1.0, 0.0)
     f0, f1, f2 = axis[1] * h2 - axis[2] * h1, axis[2] * h0 - axis[0] * h2, axis[0] * h1 - axis[1] * h0
@@ -411,7 +464,7 @@ def _to_round(point: np.ndarray, centre: np.ndarray, axis: np.ndarray, half_leng
             return length - radius, d0 / length, d1 / length, d2 / length
         return length - radius, 0.0, 1.0, 0.0
     if rho > 1e-12:
-        u0, u1, u2 = radial[0] / rho, radial[1] / rho, radial[2] / rho
+        u0, u1, u2 = r0 / rho, r1 / rho, r2 / rho
     else:
         u0, u1, u2 = f0, f1, f2
     sign = 1.0 if along > 0 else (-1.0 if along < 0 else 0.0)
@@ -430,16 +483,13 @@ def _to_round(point: np.ndarray, centre: np.ndarray, axis: np.ndarray, half_leng
     return max(d_rho, d_along), e0, e1, e2
 
 
-@njit(cache=True, error_model="numpy")
-def _sphere(ints: np.ndarray, floats: np.ndarray, count: int, probe: int, point: np.ndarray, centre: np.ndarray,
-            radius: float, body: int, material: int, kind: int, index: int) -> tuple[np.ndarray, np.ndarray, int]:
-    """Probe against a sphere: the distance of its centre to the sphere and the outward normal ((0, 1, 0) at the
-    centre)."""
-    d0, d1, d2 = point[0] - centre[0], point[1] - centre[1], point[2] - centre[2]
+@njit(cache=True, error_model="numpy", inline="always")
+def _sphere_measure(q: int, centres: np.ndarray, c0: float, c1: float, c2: float, radius: float
+                    ) -> tuple[float, float, float, float]:
+    """Probe q against a sphere (centre (c0, c1, c2), ``radius``): the distance of its centre to the sphere and
+    the outward normal ((0, 1, 0) at the centre)."""
+    d0, d1, d2 = centres[q, 0] - c0, centres[q, 1] - c1, centres[q, 2] - c2
     length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     if length > 1e-12:
-        n0, n1, n2 = d0 / length, d1 / length, d2 / length
-    else:
-        n0, n1, n2 = 0.0, 1.0, 0.0
-    ints, floats = _add(ints, floats, count, probe, body, material, kind, index, length - radius, n0, n1, n2)
-    return ints, floats, count + 1
+        return length - radius, d0 / length, d1 / length, d2 / length
+    return length - radius, 0.0, 1.0, 0.0
