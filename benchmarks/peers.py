@@ -22,6 +22,8 @@ Cases (issue 36's targets: the chain ≤ 5× MuJoCo's time, the bar ≤ 0.5 s, t
   at 1 ms there;
 * a dozen 20 cm boxes dropped in a loose stack on the ground, 3 s at 1 ms: the deepest a corner goes into the ground
   and the kinetic energy left at the end (MuJoCo: its deepest contact, which includes its soft contacts' give);
+* ``scenes/mixed_pile.yaml`` (twelve bodies of five shapes into a bin) and ``scenes/dominoes.yaml`` as they are,
+  3 s at 1 ms, step for step against MuJoCo's pile of boxes (issue 36's target for them: ≤ 20× its time per step);
 * ``scenes/ragdoll_stairs.yaml`` as it is (4 s, timed once) and the same bodies, joints and stairs in MJCF.
 """
 
@@ -63,21 +65,22 @@ def _timed(work: Callable[[], Any], repeats: int = 3) -> tuple[float, Any]:
 # ------------------------------------------------------------------------------------------ animbatch's side
 
 
-def _integrate(text: str) -> tuple[Any, Any, Any, Any]:
-    """Model, system, integrator and initial state of a scene text, with the system the CLI would choose (compiled
-    where it pays, which these scenes do)."""
+def _integrate(text: str, path: Any = None) -> tuple[Any, Any, Any, Any]:
+    """Model, system, integrator and initial state of a scene text (``path``: the scene file it came from, whose
+    folder holds its meshes), with the system the CLI would choose (compiled where it pays, which these scenes
+    do)."""
     from animbatch.compile.model import compile_scene
     from animbatch.compile.solver import make_integrator
     from animbatch.sim.model.compiled import dynamics_for
     from animbatch.stages import parse_scene
 
-    loaded = parse_scene(text, filename="peer.yaml")
-    model = compile_scene(loaded.spec)
+    loaded = parse_scene(text, filename="peer.yaml" if path is None else str(path), path=path)
+    model = compile_scene(loaded.spec, "." if path is None else path.parent)
     return model, dynamics_for(model, np.inf), make_integrator(loaded.spec.solver, model), loaded
 
 
-def _run(text: str, repeats: int = 3) -> tuple[float, Any, Any, Any]:
-    model, system, integrator, loaded = _integrate(text)
+def _run(text: str, repeats: int = 3, path: Any = None) -> tuple[float, Any, Any, Any]:
+    model, system, integrator, loaded = _integrate(text, path)
     seconds, result = _timed(lambda: integrator.integrate(system, model.y0, model.frame_times), repeats)
     return seconds, result, model, loaded
 
@@ -392,6 +395,33 @@ def case_pile(quick: bool) -> tuple[str, Outcome, Outcome, list[tuple[str, Outco
             [("Euler", theirs)])
 
 
+def _bundled_pile(name: str, quick: bool) -> tuple[str, Outcome, Outcome, list[tuple[str, Outcome]]]:
+    """scenes/NAME.yaml as it is (symplectic Euler at 1 ms), step for step against MuJoCo's pile above: the target
+    is per step, ≤ 20× MuJoCo's."""
+    from pathlib import Path
+
+    path = Path(__file__).parent.parent / "scenes" / f"{name}.yaml"
+    duration = 1.0 if quick else 3.0
+    text = re.sub(r"^duration: .*$", f"duration: {duration}", path.read_text(), flags=re.M)
+    seconds, result, model, _ = _run(text, repeats=1, path=path)
+    steps = int(round(duration / 1e-3))
+    solves = result.stats.contact_solves
+    ours = Outcome(seconds, f"{seconds / steps * 1e3:.2f} ms a step; {model.body_count} bodies; "
+                            f"{solves.unconverged} of {solves.solves} contact solves stopped short")
+    mj_seconds, _, _ = _mujoco_run(pile_mjcf(), steps)
+    theirs = Outcome(mj_seconds, f"its {PILE_COUNT}-box pile, {mj_seconds / steps * 1e6:.0f} µs a step")
+    return (f"scenes/{name}.yaml, {duration:g} s at 1 ms, step for step against MuJoCo's {PILE_COUNT}-box pile", ours,
+            theirs, [("Euler", theirs)])
+
+
+def case_mixed_pile(quick: bool) -> tuple[str, Outcome, Outcome, list[tuple[str, Outcome]]]:
+    return _bundled_pile("mixed_pile", quick)
+
+
+def case_dominoes(quick: bool) -> tuple[str, Outcome, Outcome, list[tuple[str, Outcome]]]:
+    return _bundled_pile("dominoes", quick)
+
+
 # ------------------------------------------------------------------------------------------ a ragdoll
 
 
@@ -464,7 +494,8 @@ def ragdoll_mjcf(dt: float = 1e-3) -> str:
             f"{stairs}{body}</worldbody><keyframe><key qvel=\"1.4 0 0 0 1.2 0{' 0' * 22}\"/></keyframe></mujoco>")
 
 
-CASES = (case_chain, case_chain_euler, case_bar, case_double_pendulum, case_pile, case_ragdoll)
+CASES = (case_chain, case_chain_euler, case_bar, case_double_pendulum, case_pile, case_mixed_pile, case_dominoes,
+         case_ragdoll)
 
 
 def bench_peers(quick: bool) -> list[Row]:

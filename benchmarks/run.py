@@ -37,8 +37,9 @@ Prints one table. Measures:
     live drops and of the stiff 64×64 cloth.
 
 13. peers: small rigid and jointed scenes next to MuJoCo in the same process, built from the same numbers (a
-    20-bar hinge chain, one hinged bar, a double pendulum), with both sides' accuracy (benchmarks/peers.py; MuJoCo
-    comes with the ``bench`` extra).
+    20-bar hinge chain, one hinged bar, a double pendulum, a pile of boxes, the ragdoll), and the bundled
+    ``mixed_pile`` and ``dominoes`` step for step against MuJoCo's pile, with both sides' accuracy
+    (benchmarks/peers.py; MuJoCo comes with the ``bench`` extra).
 
 14. grading: ``animbatch grade`` of each teaching template against itself (both runs and every check).
 
