@@ -221,7 +221,7 @@ def _contacts(world: ContactWorld, probes: np.ndarray, centres: np.ndarray, dist
     radius = world.probes.radius[probes]
     gap = distance - radius
     keep = gap < closing_margin(world, probes, solid_body, margin, travel)
-    every = bool(keep.all())  # (the compiled search hands over only pairs within the largest reach: often all)
+    every = bool(keep.all())  # (the compiled search hands over only contacts: all of them)
     if every:  # the contacts' own arrays, contiguous, as the selections below make them
         probes, normal = probes.copy(), np.ascontiguousarray(normal)
     else:

@@ -243,6 +243,8 @@ def moving_edge_set(world: ContactWorld, state: Kinematics, statics: StaticColli
     if layout is None or layout.first_rigid != state.first_rigid:
         layout = _EDGE_LAYOUTS[world] = _EdgeLayout.of_world(world, state.first_rigid)
     return layout.edges(world, state, statics, box_centres, box_rotations)
+
+
 def compiled_side_contacts(world: ContactWorld, state: Kinematics, statics: StaticColliders,
                            box_centres: np.ndarray, box_rotations: np.ndarray, margin: float,
                            travel: np.ndarray | None) -> Contacts:

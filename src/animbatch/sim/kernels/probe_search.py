@@ -240,12 +240,14 @@ def probe_candidates(centres: np.ndarray, owner: np.ndarray, box: np.ndarray, ra
                      hull_triangle_start: np.ndarray, hull_planes: np.ndarray, hull_plane_start: np.ndarray,
                      bodies_collide: bool, margin: float, largest_travel: float, travel: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray]:
-    """Every probe–solid pair the numpy search measures (see the module notes), measured, in its order: planes,
-    fixed spheres, fixed boxes, then (``bodies_collide``) probe spheres, body boxes and round solids (cylinders and
-    capsules: ``round_*`` (C,) owner, centre and unit axis (C, 3) [m], half length of the straight part [m], radius
-    [m], whether capsule) and convex hulls (``hull_*`` (H,) owner, reach [m], centre (H, 3) [m] and rotation
-    (H, 3, 3) of the owner; packed vertices (V, 3) [m] and triangles (T, 3) (vertex numbers within the hull) in body
-    axes, face planes (F, 4) ``n, d`` (inside: ``n · x ≤ d``), each with its start table (H + 1,))."""
+    """Every probe–solid pair the numpy search measures (see the module notes) that it keeps as a contact (within
+    ``margin`` [m] plus what both bodies can travel, ``travel`` (P,) [m]; ``largest_travel`` its largest), measured,
+    in its order: planes, fixed spheres, fixed boxes, then (``bodies_collide``) probe spheres, body boxes and round
+    solids (cylinders and capsules: ``round_*`` (C,) owner, centre and unit axis (C, 3) [m], half length of the
+    straight part [m], radius [m], whether capsule) and convex hulls (``hull_*`` (H,) owner, reach [m], centre
+    (H, 3) [m] and rotation (H, 3, 3) of the owner; packed vertices (V, 3) [m] and triangles (T, 3) (vertex numbers
+    within the hull) in body axes, face planes (F, 4) ``n, d`` (inside: ``n · x ≤ d``), each with its start table
+    (H + 1,))."""
     body_count = len(material)
     widest = 0.0
     for q in range(len(radius)):
