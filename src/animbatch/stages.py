@@ -32,6 +32,7 @@ from animbatch.errors import SimulationError, TrajectoryError
 from animbatch.files import write_text_atomic
 from animbatch.plot import plot_quantities
 from animbatch.progress import Progress
+from animbatch.provenance import simulation_code
 from animbatch.render.camera import motion_bounds
 from animbatch.render.geometry import LabelValues, PanelSeries
 from animbatch.scene import LoadedScene, physics_fingerprint
@@ -111,7 +112,7 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
         velocities=model.velocities(states), orientations=model.orientations(states),
         angular_velocities=model.angular_velocities(states), body_kinds=kinds,
         anchor_names=model.anchor_names, anchor_positions=model.anchor_position.copy(),
-        physics_hash=scene_fingerprint(scene), scene_name=scene.name, package_version=__version__,
+        physics_hash=scene_fingerprint(scene), scene_name=scene.name, package_version=simulation_code(),
         solver={**spec.solver.model_dump(), "description": integrator.describe()},
         solver_stats={**stats, "warnings": warnings}, particles=tuple(particles), particle_stats=particle_stats,
         ledger=ledger.as_dict(), clock_names=model.clocks.names if model.clocks is not None else (),

@@ -18,7 +18,7 @@ key                    shape / type    meaning
 ``anchor_positions``   (A, 3)          anchor positions [m]
 ``physics_hash``       str             SHA-256 of the scene's physics (bodies, fields, springs, timeline)
 ``scene_name``         str             the scene's name
-``package_version``    str             animbatch version that wrote the file
+``package_version``    str             animbatch version and fingerprint of the code that simulated it
 ``solver``             str (JSON)      solver settings used
 ``solver_stats``       str (JSON)      RHS evaluations, steps, Jacobian evaluations, wall time, …
 ``emitter_names``      (E,) str        emitters, in scene order (version 3; absent or empty without emitters)

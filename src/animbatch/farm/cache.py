@@ -21,6 +21,7 @@ from pathlib import Path
 
 from animbatch import __version__
 from animbatch.errors import TrajectoryError
+from animbatch.provenance import simulation_code
 from animbatch.scene import LoadedScene
 from animbatch.sim.ledger import warn_again, with_threshold
 from animbatch.stages import scene_fingerprint, simulate
@@ -58,7 +59,7 @@ class BakeResult:
 
 def load_cached(scene: LoadedScene, path: Path) -> Trajectory | None:
     """The trajectory in ``path`` when it is a readable bake of exactly this scene's physics and solver settings
-    with this package version; None otherwise (missing, truncated, or stale)."""
+    by this code (:func:`~animbatch.provenance.simulation_code`); None otherwise (missing, truncated, or stale)."""
     if not path.is_file():
         return None
     try:
@@ -68,7 +69,7 @@ def load_cached(scene: LoadedScene, path: Path) -> Trajectory | None:
 
     solver = simulation_settings(trajectory.solver)
     wanted = simulation_settings(json.loads(json.dumps(scene.spec.solver.model_dump(), default=str)))  # as stored
-    if (trajectory.physics_hash != scene_fingerprint(scene) or trajectory.package_version != __version__
+    if (trajectory.physics_hash != scene_fingerprint(scene) or trajectory.package_version != simulation_code()
             or solver != wanted):
         return None
     threshold = scene.spec.solver.drift_warning
