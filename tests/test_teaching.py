@@ -122,6 +122,8 @@ def test_a_submission_that_does_not_validate_gets_the_declared_partial_credit_an
     result = grade(broken, reference)
     assert not result.passed and result.score == pytest.approx(0.25 * 3)
     assert "does not validate" in result.message and "did you mean 'stiffness'?" in result.message
+    # each check says why in a whole clause (the error itself is in the message above the table)
+    assert {r.output for r in result.results} == {"not checked: the submission does not validate"}
 
 
 def test_a_submission_whose_run_fails_gets_the_failed_credit(tmp_path):
@@ -129,6 +131,7 @@ def test_a_submission_whose_run_fails_gets_the_failed_credit(tmp_path):
     diverging = write(tmp_path, "spring_damper", {("solver",): {"method": "euler", "dt": 0.5}}, "mine.yaml")
     result = grade(diverging, reference)
     assert result.score == 0 and "simulation failed" in result.message
+    assert {r.output for r in result.results} == {"not checked: the submission's simulation failed"}
 
 
 def test_a_reference_without_checks_is_refused(tmp_path):
@@ -161,6 +164,30 @@ def test_the_command_prints_a_table_writes_json_and_junit_and_exits_by_the_resul
     solved = write(tmp_path, "projectile_drag", SOLUTIONS["projectile_drag"], "solved.yaml")
     command[1] = str(solved)
     assert CliRunner().invoke(cli, command).exit_code == 0
+
+
+def test_json_to_standard_output_is_the_only_thing_there(tmp_path, monkeypatch):
+    """--json - prints the JSON alone on standard output (the table goes to standard error) and writes no file
+    named '-'; two reports cannot both go there."""
+    from click.testing import CliRunner
+
+    from animbatch.cli import cli
+
+    reference = write(tmp_path, "spring_damper", SOLUTIONS["spring_damper"], "solution.yaml")
+    broken = tmp_path / "mine.yaml"
+    broken.write_text(find("spring_damper").text.replace("stiffness: 100", "stifness: 100"))
+    monkeypatch.chdir(tmp_path)
+    import inspect
+
+    # standard error apart from standard output: click ≥ 8.2 always, 8.1 when asked
+    runner = CliRunner(**({"mix_stderr": False} if "mix_stderr" in inspect.signature(CliRunner).parameters else {}))
+    result = runner.invoke(cli, ["grade", str(broken), "--reference", str(reference), "--json", "-"])
+    assert result.exit_code == 1 and not (tmp_path / "-").exists()
+    results = json.loads(result.stdout)
+    assert results["score"] == 0 and results["tests"][0]["output"] == "not checked: the submission does not validate"
+    assert "FAIL" in result.stderr and "did you mean 'stiffness'?" in result.stderr
+    both = runner.invoke(cli, ["grade", str(broken), "--reference", str(reference), "--json", "-", "--junit", "-"])
+    assert both.exit_code == 2 and "only one of --json and --junit" in both.stderr
 
 
 def test_new_lists_copies_and_refuses_to_overwrite(tmp_path):

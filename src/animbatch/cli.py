@@ -188,9 +188,10 @@ def new(template: str | None, destination: Path | None, listing: bool, force: bo
 @click.option("--checks", type=click.Path(dir_okay=False, path_type=Path),
               help="A scene whose 'assignment' lists the checks (needed when the reference is a trajectory).")
 @click.option("--json", "json_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Also write the result as JSON (Gradescope's results.json shape).")
+              help="Also write the result as JSON (Gradescope's results.json shape); '-': to standard output, the "
+                   "table then going to standard error.")
 @click.option("--junit", "junit_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Also write the result as JUnit XML.")
+              help="Also write the result as JUnit XML; '-': to standard output, as --json.")
 @_reports_errors
 def grade(submission: Path, reference: Path, checks: Path | None, json_path: Path | None,
           junit_path: Path | None) -> None:
@@ -201,12 +202,15 @@ def grade(submission: Path, reference: Path, checks: Path | None, json_path: Pat
     from animbatch.teaching.grade import grade as run_grade
     from animbatch.teaching.grade import summary_line
 
+    piped = [path for path in (json_path, junit_path) if str(path) == "-"]
+    if len(piped) > 1:
+        raise click.UsageError("only one of --json and --junit can go to standard output ('-')")
     with _warnings.catch_warnings():  # accuracy warnings of the two runs are not the student's grade
         _warnings.simplefilter("ignore")
         report = run_grade(submission, reference, checks_from=checks)
-    click.echo(report.table())
-    click.echo(summary_line(report))
-    report.write(json_path, junit_path)
+    click.echo(report.table(), err=bool(piped))  # with a report on standard output, the table goes beside it
+    click.echo(summary_line(report), err=bool(piped))
+    click.echo(report.write(json_path, junit_path), nl=False)
     if not report.passed:
         sys.exit(1)
 

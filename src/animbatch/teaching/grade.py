@@ -106,13 +106,20 @@ class Grade:
                 ElementTree.SubElement(case, "system-out").text = result.output
         return ElementTree.tostring(suite, encoding="unicode", xml_declaration=True)
 
-    def write(self, json_path: str | Path | None = None, junit_path: str | Path | None = None) -> None:
+    def write(self, json_path: str | Path | None = None, junit_path: str | Path | None = None) -> str:
+        """Write the JSON and JUnit reports to their files; a path ``-`` is not a file: that report is returned
+        instead (for standard output), else ''."""
         from animbatch.files import write_text_atomic
 
-        if json_path is not None:
-            write_text_atomic(Path(json_path), json.dumps(self.as_json(), indent=2) + "\n")
-        if junit_path is not None:
-            write_text_atomic(Path(junit_path), self.junit() + "\n")
+        to_output = ""
+        for path, text in ((json_path, lambda: json.dumps(self.as_json(), indent=2)), (junit_path, self.junit)):
+            if path is None:
+                continue
+            if str(path) == "-":
+                to_output += text() + "\n"
+            else:
+                write_text_atomic(Path(path), text() + "\n")
+        return to_output
 
 
 @dataclass(frozen=True)
@@ -144,11 +151,11 @@ def grade(submission: str | Path, reference: str | Path, *, checks_from: str | P
     try:
         run = _run(submission)
     except (SceneError, TrajectoryError) as error:
-        return _partial(report, assignment, assignment.partial_credit.invalid,
-                        f"the submission does not validate, so nothing could be checked:\n{error}")
+        return _partial(report, assignment, assignment.partial_credit.invalid, "the submission does not validate",
+                        f"\n{error}")
     except SimulationError as error:
-        return _partial(report, assignment, assignment.partial_credit.failed,
-                        f"the submission's simulation failed, so nothing could be checked: {error}")
+        return _partial(report, assignment, assignment.partial_credit.failed, "the submission's simulation failed",
+                        f" {error}")
     for check in assignment.checks:
         passed, output = _judge(check, run, expected)
         report.results.append(CheckResult(check.name, check.points if passed else 0.0, check.points, passed,
@@ -175,11 +182,13 @@ def _assignment(reference: Run, checks_from: str | Path | None, path: Path) -> A
     return assignment
 
 
-def _partial(report: Grade, assignment: AssignmentSpec, fraction: float, message: str) -> Grade:
-    report.message = message
+def _partial(report: Grade, assignment: AssignmentSpec, fraction: float, reason: str, detail: str) -> Grade:
+    """Every check not checked, for ``reason`` (a clause), with the assignment's partial credit; the report's
+    message adds the ``detail`` (the error)."""
+    report.message = f"{reason}, so nothing could be checked:{detail}"
     for check in assignment.checks:
         report.results.append(CheckResult(check.name, fraction * check.points, check.points, False,
-                                          "not checked: " + message.split("\n")[0]))
+                                          f"not checked: {reason}"))
     return report
 
 
