@@ -134,6 +134,37 @@ def test_a_submission_whose_run_fails_gets_the_failed_credit(tmp_path):
     assert {r.output for r in result.results} == {"not checked: the submission's simulation failed"}
 
 
+def test_a_submission_estimated_over_budget_is_refused_before_it_runs_and_scores_nothing(tmp_path):
+    """duration 3000 s (1500 times the reference's 2 s), and its own solver.max_cost raised: the
+    assignment's budget holds, the pre-flight refuses it, every check scores 0 and says why."""
+    reference = write(tmp_path, "spring_damper", SOLUTIONS["spring_damper"], "solution.yaml")
+    greedy = write(tmp_path, "spring_damper", {**SOLUTIONS["spring_damper"], ("duration",): 3000,
+                                               ("solver", "max_cost"): 1e9}, "mine.yaml")
+    result = grade(greedy, reference)
+    assert result.score == 0 and not result.passed
+    (output,) = {r.output for r in result.results}
+    assert output.startswith("not checked: over budget: about ") and "s estimated against 2 s (4 × the" in output
+    assert "refused before it starts" in result.message
+
+
+def test_a_submission_that_uses_up_its_budget_is_stopped_and_scores_nothing(tmp_path, monkeypatch):
+    """A run the pre-flight lets through (here: the pre-flight is switched off) is stopped by the wall clock once it
+    has used the assignment's budget: 4 × the reference's time, here at least 0.3 s."""
+    from animbatch import stages
+    from animbatch.teaching import grade as grading
+
+    monkeypatch.setattr(grading, "MIN_BUDGET", 0.3)
+    monkeypatch.setattr(stages, "check_cost", lambda *arguments, **keywords: None)
+    reference = write(tmp_path, "spring_damper", SOLUTIONS["spring_damper"], "solution.yaml")
+    slow = write(tmp_path, "spring_damper", {**SOLUTIONS["spring_damper"],
+                                             ("solver",): {"method": "verlet", "dt": 1e-7}}, "mine.yaml")
+    result = grade(slow, reference)
+    assert result.score == 0
+    (output,) = {r.output for r in result.results}
+    assert output.startswith("not checked: over budget: stopped after ") and "used up its wall-time budget" in \
+        result.message
+
+
 def test_a_reference_without_checks_is_refused(tmp_path):
     reference = tmp_path / "plain.yaml"
     reference.write_text("bodies: [{name: a}]\nduration: 0.1\n")

@@ -65,6 +65,16 @@ class SimulationError(AnimbatchError):
         self.details = details or {}
 
 
+class OverBudget(SimulationError):
+    """The simulation was refused before it started, or stopped, for its wall-time budget (``solver.max_cost``).
+    ``estimate``: the pre-flight's estimate of the whole run [s] when it was refused; None when it was stopped."""
+
+    def __init__(self, message: str, *, time: float | None = None, body: str | None = None,
+                 estimate: float | None = None) -> None:
+        super().__init__(message, time=time, body=body)
+        self.estimate = estimate
+
+
 class TrajectoryError(AnimbatchError):
     """A trajectory file that is missing, unreadable or belongs to another scene."""
 

@@ -13,7 +13,9 @@ Reports: a table for people, JSON in the shape autograders read (Gradescope's ``
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,7 +26,7 @@ import numpy as np
 from animbatch import stages
 from animbatch.compile.stopwatches import stopwatch_readings
 from animbatch.curves import compile_expression
-from animbatch.errors import AnimbatchError, SceneError, SimulationError, TrajectoryError
+from animbatch.errors import AnimbatchError, OverBudget, SceneError, SimulationError, TrajectoryError
 from animbatch.scene import LoadedScene
 from animbatch.scene.schema import SAMPLED_QUANTITIES, AssignmentSpec, CheckSpec
 from animbatch.sim.events import hermite_sample
@@ -122,6 +124,11 @@ class Grade:
         return to_output
 
 
+#: The least wall-time budget [s] of a submission's simulation, whatever the reference's: below it, loading the
+#: compiled kernels and the machine's own noise would decide.
+MIN_BUDGET = 2.0
+
+
 @dataclass(frozen=True)
 class Run:
     """A scene (None for a trajectory file) and its trajectory."""
@@ -129,12 +136,22 @@ class Run:
     scene: LoadedScene | None
     trajectory: Trajectory
 
+    @property
+    def seconds(self) -> float:
+        """The wall time its simulation took [s] (bodies and emitted particles), as the trajectory records it."""
+        return float(self.trajectory.solver_stats.get("wall_time", 0.0)
+                     + self.trajectory.particle_stats.get("wall_time", 0.0))
 
-def _run(path: Path) -> Run:
-    """Load (and simulate) a scene or load a trajectory; scene and simulation errors propagate."""
+
+def _run(path: Path, budget: float | None = None) -> Run:
+    """Load (and simulate) a scene or load a trajectory; scene and simulation errors propagate. ``budget`` [s]: the
+    simulation's wall-time budget, in place of the scene's own ``solver.max_cost`` (OverBudget past it)."""
     if path.suffix == ".npz":
         return Run(None, Trajectory.load(path))
     scene = stages.load_scene(path)
+    if budget is not None:
+        solver = scene.spec.solver.model_copy(update={"max_cost": budget})
+        scene = dataclasses.replace(scene, spec=scene.spec.model_copy(update={"solver": solver}))
     return Run(scene, stages.simulate(scene, reactions=False))  # no check reads the joints' reactions
 
 
@@ -148,8 +165,17 @@ def grade(submission: str | Path, reference: str | Path, *, checks_from: str | P
         raise GradeError(f"the reference {reference} cannot be used: {error}") from None
     assignment = _assignment(expected, checks_from, reference)
     report = Grade(str(submission), str(reference), assignment.title)
+    budget = max(assignment.budget * expected.seconds, MIN_BUDGET)
+    started = time.perf_counter()
     try:
-        run = _run(submission)
+        run = _run(submission, budget)
+    except OverBudget as error:
+        spent = (f"about {error.estimate:.3g} s estimated" if error.estimate is not None
+                 else f"stopped after {time.perf_counter() - started:.3g} s")
+        allowed = f"{assignment.budget:g} × the reference's {expected.seconds:.3g} s, at least {MIN_BUDGET:g} s"
+        return _partial(report, assignment, 0.0, f"over budget: {spent} against {budget:.3g} s ({allowed})",
+                        f" {error} (In grading, the budget is the assignment's: the submission's solver.max_cost is "
+                        "ignored.)")
     except (SceneError, TrajectoryError) as error:
         return _partial(report, assignment, assignment.partial_credit.invalid, "the submission does not validate",
                         f"\n{error}")

@@ -76,6 +76,10 @@ class AssignmentSpec(SceneModel):
     task: str = key("", "What the student must do, in a sentence or two.")
     checks: list[CheckSpec] = key([], "What 'animbatch grade' scores.")
     partial_credit: PartialCreditSpec = key(PartialCreditSpec(), "Points for submissions that cannot be checked.")
+    budget: float = key(4.0, "How many times the reference's simulation wall time a submission's may take (and at "
+                             "least 2 s): a submission estimated to need more is refused before it runs, one that "
+                             "uses it up is stopped, and every check then scores 0. Its own solver.max_cost is "
+                             "ignored.", "1", gt=0)
 
     @model_validator(mode="after")
     def _unique(self) -> AssignmentSpec:

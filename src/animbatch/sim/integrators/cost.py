@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.errors import SimulationError
+from animbatch.errors import OverBudget, SimulationError
 from animbatch.sim.forces.gravitation import InverseSquarePairs
 from animbatch.sim.integrators.base import EquationsOfMotion, StepSettings
 from animbatch.sim.integrators.budget import format_seconds
@@ -247,11 +247,11 @@ def check_cost(estimate: CostEstimate, max_cost: float | None, memory: float | N
             "rate or the emitter's capacity")
     if max_cost and estimate.seconds > max_cost:
         term = estimate.dearest("seconds")
-        raise SimulationError(
+        raise OverBudget(
             f"refused before it starts: the run would take about {format_seconds(estimate.seconds)}, more than its "
             f"budget of {format_seconds(max_cost)} (solver.max_cost); most of it in the {term.name}: {term.detail}. "
             f"{_fix(term)}Or raise the budget with --max-cost {_suggest(estimate.seconds)} or solver.max_cost "
-            "(0 = no limit)")
+            "(0 = no limit)", estimate=estimate.seconds)
 
 
 def _fix(term: CostTerm) -> str:

@@ -56,7 +56,7 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.errors import SimulationError
+from animbatch.errors import OverBudget, SimulationError
 from animbatch.sim.forces.base import ForceTerm
 from animbatch.sim.forces.jacobian import ForceJacobian
 from animbatch.sim.integrators.budget import budget_spent
@@ -202,7 +202,7 @@ class BackwardEuler(PartitionedScheme):
             self.halvings += 1
             spent = budget_spent(t)
             if spent is not None:  # halvings can multiply one step into thousands
-                raise SimulationError(f"backward_euler at dt = {h:.3g} s, halving its steps {self.halvings} times so "
-                                      f"far to keep the energy from rising: {spent}", time=t)
+                raise OverBudget(f"backward_euler at dt = {h:.3g} s, halving its steps {self.halvings} times so far "
+                                 f"to keep the energy from rising: {spent}", time=t)
             self._guarded_step(t, y, 0.5 * h, depth + 1)
             self._guarded_step(t + 0.5 * h, y, 0.5 * h, depth + 1)

@@ -22,7 +22,7 @@ import time
 import numpy as np
 from scipy.integrate import OdeSolver
 
-from animbatch.errors import SimulationError
+from animbatch.errors import OverBudget, SimulationError
 from animbatch.sim.blas import threads_for_state
 from animbatch.sim.integrators.advice import failure_advice
 from animbatch.sim.integrators.base import (
@@ -173,8 +173,9 @@ class ScipyIntegrator(Integrator):
                                         "steps so far).")
                 spent = budget_spent(solver.t)
                 if spent is not None:
-                    raise self._failure(solver, fun, system, events, "stopped", f"{spent} ({stats.steps} steps so "
-                                        f"far, the last {solver.t - solver.t_old:.3g} s long).")
+                    failure = self._failure(solver, fun, system, events, "stopped", f"{spent} ({stats.steps} "
+                                            f"steps so far, the last {solver.t - solver.t_old:.3g} s long).")
+                    raise OverBudget(str(failure), time=failure.time, body=failure.body)
                 bad = first_non_finite(solver.y)
                 if bad is not None:
                     raise divergence_error(layout, solver.y, bad, solver.t, method=self.method, step=stats.steps,

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.errors import SimulationError
+from animbatch.errors import OverBudget
 from animbatch.sim.blas import threads_for_state
 from animbatch.sim.integrators.base import (
     ConstraintFactory,
@@ -124,7 +124,7 @@ class FixedStepIntegrator(Integrator):
     def _check_budget(self, t: float, h: float, count: int) -> None:
         spent = budget_spent(t)
         if spent is not None:
-            raise SimulationError(f"{self.method} at dt = {h:.3g} s ({count} steps per frame): {spent}", time=t)
+            raise OverBudget(f"{self.method} at dt = {h:.3g} s ({count} steps per frame): {spent}", time=t)
 
     def _raise_at_first_bad_step(self, scheme: Scheme, layout: Any, y: np.ndarray, t0: float, h: float, count: int,
                                  steps_before: int) -> None:

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from animbatch.errors import SimulationError
+from animbatch.errors import OverBudget, SimulationError
 from animbatch.sim.integrators.base import StepSettings
 from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.fixed_step import substeps
@@ -296,7 +296,7 @@ def steps_per_frame(interval: float, method: str, dt: float) -> int:
 def _check_budget(t: float, stats: ParticleStats) -> None:
     spent = budget_spent(t, "the emitted particles' simulation")
     if spent is not None:
-        raise SimulationError(f"{spent}; up to {stats.peak_live} particles were alive at once", time=t)
+        raise OverBudget(f"{spent}; up to {stats.peak_live} particles were alive at once", time=t)
 
 
 def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, ParticleColliders | None],
