@@ -38,6 +38,11 @@ SOLUTIONS: dict[str, dict[tuple, object]] = {
 }
 
 
+#: An assignment that lists a submission's other differences from the reference instead of failing it for them,
+#: for the tests of what happens after (a failed run, a budget).
+LISTED: dict[tuple, object] = {("assignment", "differences"): "list"}
+
+
 def write(folder: Path, name: str, changes: dict[tuple, object], file: str) -> Path:
     """The template ``name`` with ``changes`` applied, written to ``folder/file``."""
     data = yaml.safe_load(find(name).text)
@@ -127,7 +132,7 @@ def test_a_submission_that_does_not_validate_gets_the_declared_partial_credit_an
 
 
 def test_a_submission_whose_run_fails_gets_the_failed_credit(tmp_path):
-    reference = write(tmp_path, "spring_damper", SOLUTIONS["spring_damper"], "solution.yaml")
+    reference = write(tmp_path, "spring_damper", {**SOLUTIONS["spring_damper"], **LISTED}, "solution.yaml")
     diverging = write(tmp_path, "spring_damper", {("solver",): {"method": "euler", "dt": 0.5}}, "mine.yaml")
     result = grade(diverging, reference)
     assert result.score == 0 and "simulation failed" in result.message
@@ -137,7 +142,7 @@ def test_a_submission_whose_run_fails_gets_the_failed_credit(tmp_path):
 def test_a_submission_estimated_over_budget_is_refused_before_it_runs_and_scores_nothing(tmp_path):
     """duration 3000 s (1500 times the reference's 2 s), and its own solver.max_cost raised: the
     assignment's budget holds, the pre-flight refuses it, every check scores 0 and says why."""
-    reference = write(tmp_path, "spring_damper", SOLUTIONS["spring_damper"], "solution.yaml")
+    reference = write(tmp_path, "spring_damper", {**SOLUTIONS["spring_damper"], **LISTED}, "solution.yaml")
     greedy = write(tmp_path, "spring_damper", {**SOLUTIONS["spring_damper"], ("duration",): 3000,
                                                ("solver", "max_cost"): 1e9}, "mine.yaml")
     result = grade(greedy, reference)
@@ -155,7 +160,7 @@ def test_a_submission_that_uses_up_its_budget_is_stopped_and_scores_nothing(tmp_
 
     monkeypatch.setattr(grading, "MIN_BUDGET", 0.3)
     monkeypatch.setattr(stages, "check_cost", lambda *arguments, **keywords: None)
-    reference = write(tmp_path, "spring_damper", SOLUTIONS["spring_damper"], "solution.yaml")
+    reference = write(tmp_path, "spring_damper", {**SOLUTIONS["spring_damper"], **LISTED}, "solution.yaml")
     slow = write(tmp_path, "spring_damper", {**SOLUTIONS["spring_damper"],
                                              ("solver",): {"method": "verlet", "dt": 1e-7}}, "mine.yaml")
     result = grade(slow, reference)
@@ -163,6 +168,67 @@ def test_a_submission_that_uses_up_its_budget_is_stopped_and_scores_nothing(tmp_
     (output,) = {r.output for r in result.results}
     assert output.startswith("not checked: over budget: stopped after ") and "used up its wall-time budget" in \
         result.message
+
+
+#: The stopwatch trick: the template's wrong length (0.8 m) kept, the stopwatch redefined to read 2 s.
+TWO_SECONDS = {("stopwatches", 0, "start"): {"time": 0.5}, ("stopwatches", 0, "stop"): {"time": 2.5}}
+
+
+def test_a_redefined_stopwatch_fails_the_submission_naming_the_definition(tmp_path):
+    """Only the bob's position may change: the redefined stopwatch is listed, path by path with both values, and
+    every check scores 0."""
+    reference = write(tmp_path, "pendulum", SOLUTIONS["pendulum"], "solution.yaml")
+    trick = write(tmp_path, "pendulum", TWO_SECONDS, "mine.yaml")
+    result = grade(trick, reference)
+    assert result.score == 0 and not result.passed
+    assert all(line.startswith("stopwatches[period].") for line in result.differences)
+    assert {"stopwatches[period].start.time: 0.5 (the reference: null)",
+            "stopwatches[period].stop.time: 2.5 (the reference: null)",
+            'stopwatches[period].start.body: null (the reference: "bob")'} <= set(result.differences)
+    assert "which the assignment does not allow" in result.table()
+    count = len(result.differences)
+    assert {r.output for r in result.results} == {
+        f"not checked: the submission changes what the assignment does not let it change ({count} differences from "
+        "the reference, listed above)"}
+    assert not result.message.endswith(":")
+
+
+def test_a_redefined_stopwatch_is_read_with_the_reference_definition(tmp_path):
+    """With the differences only listed, the period is still read with the reference's stopwatch: the wrong length
+    swings with its own period (2π √(0.8 / g) = 1.79 s), not 2 s, and the check says whose definition it used."""
+    reference = write(tmp_path, "pendulum", {**SOLUTIONS["pendulum"], **LISTED}, "solution.yaml")
+    result = grade(write(tmp_path, "pendulum", TWO_SECONDS, "mine.yaml"), reference)
+    period = {r.name: r for r in result.results}["period"]
+    assert not period.passed and period.score == 0
+    assert "stopwatch 'period': 1.79" in period.output
+    assert "read with the reference's definition (the submission's differs)" in period.output
+    assert result.differences and all(line.startswith("stopwatches[period].") for line in result.differences)
+    assert "listed only" in result.table()  # (the bob's position may change: it is not listed)
+    solved = grade(write(tmp_path, "pendulum", {**SOLUTIONS["pendulum"], **TWO_SECONDS}, "solved.yaml"), reference)
+    assert {r.name: r for r in solved.results}["period"].passed  # the right length passes whatever it redefines
+
+
+def test_what_a_submission_may_change_is_checked_path_by_path(tmp_path):
+    """springs[*].stiffness lets every spring's stiffness change and nothing else of them; a mass is not allowed;
+    a difference inside an item chosen by name, or by its number, is covered."""
+    from animbatch.teaching.differences import allowed, scene_differences
+
+    reference = load_scene(write(tmp_path, "hanging_chain", SOLUTIONS["hanging_chain"], "solution.yaml"))
+    changed = {**SOLUTIONS["hanging_chain"], ("springs", 1, "stiffness"): 60.0, ("springs", 2, "rest_length"): 0.3,
+               ("bodies", 1, "mass"): 0.2}
+    mine = load_scene(write(tmp_path, "hanging_chain", changed, "mine.yaml"))
+    data = reference.spec.model_dump(mode="json")
+    found = scene_differences(data, mine.spec.model_dump(mode="json"))
+    assert [d.where for d in found] == ["bodies[b2].mass", "springs[1].stiffness", "springs[2].rest_length"]
+    assert [allowed(d, ["springs[*].stiffness"], data) for d in found] == [False, True, False]
+    assert [allowed(d, ["bodies[1]"], data) for d in found] == [True, False, False]  # bodies[1] is b2
+    assert [allowed(d, ["bodies[b2].mass", "springs"], data) for d in found] == [True, True, True]
+
+
+def test_an_edit_path_that_cannot_be_read_is_a_scene_error(tmp_path):
+    bad = write(tmp_path, "pendulum", {("assignment", "edit"): ["bodies[bob.position"]}, "solution.yaml")
+    with pytest.raises(AnimbatchError, match=r"assignment\.edit.*write paths as --set does"):
+        load_scene(bad)
 
 
 def test_a_reference_without_checks_is_refused(tmp_path):

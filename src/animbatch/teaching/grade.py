@@ -28,8 +28,9 @@ from animbatch.compile.stopwatches import stopwatch_readings
 from animbatch.curves import compile_expression
 from animbatch.errors import AnimbatchError, OverBudget, SceneError, SimulationError, TrajectoryError
 from animbatch.scene import LoadedScene
-from animbatch.scene.schema import SAMPLED_QUANTITIES, AssignmentSpec, CheckSpec
+from animbatch.scene.schema import SAMPLED_QUANTITIES, AssignmentSpec, CheckSpec, StopwatchSpec
 from animbatch.sim.events import hermite_sample
+from animbatch.teaching.differences import allowed, scene_differences
 from animbatch.trajectory import Trajectory
 
 UNITS = {"position": "m", "velocity": "m/s", "speed": "m/s", "stopwatch": "s"}
@@ -61,6 +62,17 @@ class Grade:
     title: str
     results: list[CheckResult] = field(default_factory=list)
     message: str = ""  # why nothing could be checked (the submission is invalid or its run failed), if so
+    differences: list[str] = field(default_factory=list)  # what the submission changed that it may not (or, without
+    differences_fail: bool = False  # assignment.edit, everything it changed); whether they fail it
+
+    @property
+    def differences_text(self) -> str:
+        """The differences from the reference, one per line under a heading ('' without any)."""
+        if not self.differences:
+            return ""
+        heading = ("changed from the reference, which the assignment does not allow:" if self.differences_fail
+                   else "changed from the reference (listed only):")
+        return "\n".join([heading, *(f"  {line}" for line in self.differences)])
 
     @property
     def score(self) -> float:
@@ -78,6 +90,8 @@ class Grade:
         """The grade for people: one line per check, then the total."""
         width = max([len(r.name) for r in self.results] + [5])
         lines = [f"{self.title or 'assignment'}: {self.submission} against {self.reference}"]
+        if self.differences:
+            lines.append(self.differences_text)
         if self.message:
             lines.append(self.message)
         lines += [f"  {'PASS' if r.passed else 'FAIL'}  {r.name:<{width}}  {r.score:g}/{r.max_score:g}  {r.output}"
@@ -87,7 +101,8 @@ class Grade:
 
     def as_json(self) -> dict[str, Any]:
         """Gradescope's results.json shape (also read by other autograders)."""
-        return {"score": self.score, "max_score": self.max_score, "output": self.message or self.title,
+        output = "\n".join(text for text in (self.differences_text, self.message) if text) or self.title
+        return {"score": self.score, "max_score": self.max_score, "output": output,
                 "tests": [{"name": r.name, "score": r.score, "max_score": r.max_score,
                            "status": "passed" if r.passed else "failed", "output": r.output}
                           for r in self.results]}
@@ -143,12 +158,17 @@ class Run:
                      + self.trajectory.particle_stats.get("wall_time", 0.0))
 
 
-def _run(path: Path, budget: float | None = None) -> Run:
-    """Load (and simulate) a scene or load a trajectory; scene and simulation errors propagate. ``budget`` [s]: the
-    simulation's wall-time budget, in place of the scene's own ``solver.max_cost`` (OverBudget past it)."""
-    if path.suffix == ".npz":
-        return Run(None, Trajectory.load(path))
-    scene = stages.load_scene(path)
+def _load(path: Path) -> LoadedScene | Trajectory:
+    """A scene file, validated, or a trajectory file (.npz); scene and trajectory errors propagate."""
+    return Trajectory.load(path) if path.suffix == ".npz" else stages.load_scene(path)
+
+
+def _simulated(loaded: LoadedScene | Trajectory, budget: float | None = None) -> Run:
+    """The run of a loaded scene (simulation errors propagate) or of a trajectory. ``budget`` [s]: the simulation's
+    wall-time budget, in place of the scene's own ``solver.max_cost`` (OverBudget past it)."""
+    if isinstance(loaded, Trajectory):
+        return Run(None, loaded)
+    scene = loaded
     if budget is not None:
         solver = scene.spec.solver.model_copy(update={"max_cost": budget})
         scene = dataclasses.replace(scene, spec=scene.spec.model_copy(update={"solver": solver}))
@@ -160,58 +180,75 @@ def grade(submission: str | Path, reference: str | Path, *, checks_from: str | P
     file together with ``checks_from``, a scene whose ``assignment`` declares the checks)."""
     submission, reference = Path(submission), Path(reference)
     try:
-        expected = _run(reference)
+        expected = _simulated(_load(reference))
     except (SceneError, SimulationError, TrajectoryError) as error:
         raise GradeError(f"the reference {reference} cannot be used: {error}") from None
-    assignment = _assignment(expected, checks_from, reference)
+    teacher = _teachers_scene(expected, checks_from, reference)
+    assignment = teacher.spec.assignment
+    assert assignment is not None  # (checked by _teachers_scene)
     report = Grade(str(submission), str(reference), assignment.title)
-    budget = max(assignment.budget * expected.seconds, MIN_BUDGET)
-    started = time.perf_counter()
     try:
-        run = _run(submission, budget)
-    except OverBudget as error:
-        spent = (f"about {error.estimate:.3g} s estimated" if error.estimate is not None
-                 else f"stopped after {time.perf_counter() - started:.3g} s")
-        allowed = f"{assignment.budget:g} × the reference's {expected.seconds:.3g} s, at least {MIN_BUDGET:g} s"
-        return _partial(report, assignment, 0.0, f"over budget: {spent} against {budget:.3g} s ({allowed})",
-                        f" {error} (In grading, the budget is the assignment's: the submission's solver.max_cost is "
-                        "ignored.)")
+        loaded = _load(submission)
     except (SceneError, TrajectoryError) as error:
         return _partial(report, assignment, assignment.partial_credit.invalid, "the submission does not validate",
                         f"\n{error}")
+    if isinstance(loaded, LoadedScene):
+        reference_data = teacher.spec.model_dump(mode="json")
+        found = scene_differences(reference_data, loaded.spec.model_dump(mode="json"))
+        if assignment.edit is not None:
+            found = [d for d in found if not allowed(d, assignment.edit, reference_data)]
+        report.differences = [d.describe() for d in found]
+        report.differences_fail = assignment.edit is not None and assignment.differences == "fail"
+        if found and report.differences_fail:
+            return _partial(report, assignment, 0.0, "the submission changes what the assignment does not let it "
+                            f"change ({len(found)} difference{'s' if len(found) > 1 else ''} from the reference, "
+                            "listed above)", "")
+    budget = max(assignment.budget * expected.seconds, MIN_BUDGET)
+    started = time.perf_counter()
+    try:
+        run = _simulated(loaded, budget)
+    except OverBudget as error:
+        spent = (f"about {error.estimate:.3g} s estimated" if error.estimate is not None
+                 else f"stopped after {time.perf_counter() - started:.3g} s")
+        allowed_time = f"{assignment.budget:g} × the reference's {expected.seconds:.3g} s, at least {MIN_BUDGET:g} s"
+        return _partial(report, assignment, 0.0, f"over budget: {spent} against {budget:.3g} s ({allowed_time})",
+                        f" {error} (In grading, the budget is the assignment's: the submission's solver.max_cost is "
+                        "ignored.)")
     except SimulationError as error:
         return _partial(report, assignment, assignment.partial_credit.failed, "the submission's simulation failed",
                         f" {error}")
     for check in assignment.checks:
-        passed, output = _judge(check, run, expected)
+        passed, output = _judge(check, run, expected, teacher.spec.stopwatches)
         report.results.append(CheckResult(check.name, check.points if passed else 0.0, check.points, passed,
                                           output if passed or not check.hint else f"{output}. Hint: {check.hint}"))
     return report
 
 
-def _assignment(reference: Run, checks_from: str | Path | None, path: Path) -> AssignmentSpec:
+def _teachers_scene(reference: Run, checks_from: str | Path | None, path: Path) -> LoadedScene:
+    """The scene that defines the assignment: its checks, what a check measures (stopwatches) and what the
+    submission is compared with: the reference scene, or the ``checks_from`` scene for a trajectory reference."""
     if checks_from is not None:
         try:
             source = stages.load_scene(Path(checks_from))
         except SceneError as error:
             raise GradeError(f"the checks file {checks_from} does not validate: {error}") from None
-        assignment = source.spec.assignment
         where = str(checks_from)
     elif reference.scene is not None:
-        assignment, where = reference.scene.spec.assignment, str(path)
+        source, where = reference.scene, str(path)
     else:
         raise GradeError(f"the reference {path} is a trajectory: give the checks with --checks SCENE (a scene whose "
                          "'assignment' block lists them)")
+    assignment = source.spec.assignment
     if assignment is None or not assignment.checks:
         raise GradeError(f"{where} declares no checks: add 'assignment: {{title: ..., checks: [...]}}' "
                          "(see docs/teaching.md)")
-    return assignment
+    return source
 
 
 def _partial(report: Grade, assignment: AssignmentSpec, fraction: float, reason: str, detail: str) -> Grade:
     """Every check not checked, for ``reason`` (a clause), with the assignment's partial credit; the report's
     message adds the ``detail`` (the error)."""
-    report.message = f"{reason}, so nothing could be checked:{detail}"
+    report.message = f"{reason}, so nothing could be checked" + (f":{detail}" if detail else "")
     for check in assignment.checks:
         report.results.append(CheckResult(check.name, fraction * check.points, check.points, False,
                                           f"not checked: {reason}"))
@@ -221,14 +258,17 @@ def _partial(report: Grade, assignment: AssignmentSpec, fraction: float, reason:
 # ------------------------------------------------------------------------------------------ the checks
 
 
-def _judge(check: CheckSpec, run: Run, reference: Run) -> tuple[bool, str]:
-    """(passed, what to say) for one check of ``run`` against ``reference``."""
+def _judge(check: CheckSpec, run: Run, reference: Run, stopwatches: list[StopwatchSpec]) -> tuple[bool, str]:
+    """(passed, what to say) for one check of ``run`` against ``reference``; ``stopwatches``: the reference's
+    definitions, which the stopwatch checks read both runs with."""
     try:
         if check.quantity in SAMPLED_QUANTITIES:
             return _sampled(check, run.trajectory, reference.trajectory)
         if check.quantity.endswith("_drift"):
             return _drift(check, run)
-        return {"stopwatch": _stopwatch, "method": _method, "field": _field}[check.quantity](check, run, reference)
+        if check.quantity == "stopwatch":
+            return _stopwatch(check, run, reference, stopwatches)
+        return {"method": _method, "field": _field}[check.quantity](check, run, reference)
     except _CannotCheck as reason:
         return False, str(reason)
 
@@ -296,19 +336,25 @@ def _sampled(check: CheckSpec, run: Trajectory, reference: Trajectory) -> tuple[
                     f"at {where} ({shown}; tolerance {check.tolerance:g} {unit})")
 
 
-def _stopwatch(check: CheckSpec, run: Run, reference: Run) -> tuple[bool, str]:
-    def elapsed(side: Run, who: str) -> float:
-        if side.scene is None:
-            raise _CannotCheck(f"{who} is a trajectory file; the stopwatch check needs its scene")
-        readings = {r.name: r for r in stopwatch_readings(side.scene.spec.stopwatches, side.trajectory)}
-        if check.stopwatch not in readings:
-            raise _CannotCheck(f"{who} has no stopwatch {check.stopwatch!r}: keep the template's stopwatches")
-        value = readings[check.stopwatch].elapsed  # type: ignore[index]
-        if value is None:
-            raise _CannotCheck(f"{who}'s stopwatch {check.stopwatch!r} never stopped: "
-                               + readings[check.stopwatch].describe())  # type: ignore[index]
-        return value
+def _stopwatch(check: CheckSpec, run: Run, reference: Run, definitions: list[StopwatchSpec]) -> tuple[bool, str]:
+    """The stopwatch's interval on the submission's run against the expected one, both read with the reference's
+    definition (a submission that redefines its stopwatch changes nothing but is told so)."""
+    watch = next((w for w in definitions if w.name == check.stopwatch), None)
+    if watch is None:
+        raise _CannotCheck(f"the reference has no stopwatch {check.stopwatch!r}")
 
+    def elapsed(side: Run, who: str) -> float:
+        try:
+            (reading,) = stopwatch_readings([watch], side.trajectory)
+        except (KeyError, ValueError) as error:
+            raise _CannotCheck(f"the stopwatch {check.stopwatch!r} cannot be read on {who}'s run: {error}") from None
+        if reading.elapsed is None:
+            raise _CannotCheck(f"{who}'s stopwatch {check.stopwatch!r} never stopped: {reading.describe()}")
+        return reading.elapsed
+
+    own = next((w for w in run.scene.spec.stopwatches if w.name == check.stopwatch), None) if run.scene else None
+    note = ("" if run.scene is None or own == watch else
+            f"; read with the reference's definition (the submission's {'differs' if own else 'is missing'})")
     actual = elapsed(run, "the submission")
     if check.expected is not None and not isinstance(check.expected, list):
         wanted = (float(compile_expression(check.expected, "t")(np.zeros(1))[0]) if isinstance(check.expected, str)
@@ -319,7 +365,7 @@ def _stopwatch(check: CheckSpec, run: Run, reference: Run) -> tuple[bool, str]:
     difference = abs(actual - wanted)
     return difference <= check.tolerance, (f"stopwatch {check.stopwatch!r}: {actual:.6g} s against {source} "
                                            f"({wanted:.6g} s): difference {difference:.3g} s (tolerance "
-                                           f"{check.tolerance:g} s)")
+                                           f"{check.tolerance:g} s){note}")
 
 
 def _drift(check: CheckSpec, run: Run) -> tuple[bool, str]:

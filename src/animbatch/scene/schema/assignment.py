@@ -7,6 +7,7 @@ from typing import Literal
 from pydantic import field_validator, model_validator
 
 from animbatch.curves import ExpressionError, compile_expression
+from animbatch.scene.overrides import parse_key_path
 from animbatch.scene.schema.base import Name, SceneModel, key, rule_error
 from animbatch.scene.schema.solver import Method
 
@@ -76,10 +77,28 @@ class AssignmentSpec(SceneModel):
     task: str = key("", "What the student must do, in a sentence or two.")
     checks: list[CheckSpec] = key([], "What 'animbatch grade' scores.")
     partial_credit: PartialCreditSpec = key(PartialCreditSpec(), "Points for submissions that cannot be checked.")
+    edit: list[str] | None = key(
+        None, "What the student may change, as key paths in --set's syntax (bodies[bob].position, "
+              "springs[*].stiffness, solver): 'animbatch grade' compares the submission with the reference and lists "
+              "every other difference, path by path. Not given: differences are listed only.",
+        example="[bodies[bob].position]")
+    differences: Literal["fail", "list"] = key(
+        "fail", "With 'edit': a submission that changes anything else scores 0 on every check ('fail'), or the "
+                "differences are only listed ('list').")
     budget: float = key(4.0, "How many times the reference's simulation wall time a submission's may take (and at "
                              "least 2 s): a submission estimated to need more is refused before it runs, one that "
                              "uses it up is stopped, and every check then scores 0. Its own solver.max_cost is "
                              "ignored.", "1", gt=0)
+
+    @field_validator("edit")
+    @classmethod
+    def _key_paths(cls, edit: list[str] | None) -> list[str] | None:
+        for text in edit or []:
+            try:
+                parse_key_path(text)
+            except ValueError as error:
+                raise rule_error(f"{error}; write paths as --set does, e.g. bodies[bob].position") from None
+        return edit
 
     @model_validator(mode="after")
     def _unique(self) -> AssignmentSpec:
