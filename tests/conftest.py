@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 import textwrap
 
 import numpy as np
@@ -59,6 +60,26 @@ def dask_scheduler():
                                        dashboard_address=None, silence_logs=logging.CRITICAL)
     yield cluster.scheduler_address
     cluster.close()
+
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+#: As root in a container Chromium needs --no-sandbox; the rest keep it from reaching for the network at start.
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+                 "--disable-sync", "--no-first-run"]
+
+
+@pytest.fixture(scope="module")
+def browser():
+    """Debian's Chromium, headless, driven by Playwright, for the tests of the pages we write."""
+    if CHROMIUM is None:
+        pytest.skip("Chromium is not installed: 'bash scripts/dev.sh test' installs it as root "
+                    "(apt-get install chromium)")
+    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed: bash scripts/dev.sh "
+                                                                 "setup installs it")
+    with sync_api.sync_playwright() as playwright:
+        launched = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield launched
+        launched.close()
 
 
 @pytest.fixture

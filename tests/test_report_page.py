@@ -6,7 +6,6 @@ the sweep's table sorts by a column as numbers, and the page logs no errors."""
 from __future__ import annotations
 
 import io
-import shutil
 
 import imageio_ffmpeg
 import numpy as np
@@ -17,10 +16,6 @@ from animbatch.cli import cli
 
 pytestmark = pytest.mark.render
 
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-#: As root in a container Chromium needs --no-sandbox; the rest keep it from reaching for the network at start.
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--no-first-run"]
 FPS = 12
 WIDTH, HEIGHT = 160, 96
 
@@ -33,19 +28,6 @@ bodies: [{{name: ball, mass: 1, radius: 0.15, position: [-1, 0.5, 0], velocity: 
 render: {{resolution: [{WIDTH}, {HEIGHT}], camera: {{position: [0, 0.5, 3], focal_point: [0, 0.5, 0]}}}}
 """
 MASSES = ("5", "20", "100")  # as text "100" < "20" < "5": only a numeric sort gives 5, 20, 100
-
-
-@pytest.fixture(scope="module")
-def browser():
-    if CHROMIUM is None:
-        pytest.skip("Chromium is not installed: 'bash scripts/dev.sh test' installs it as root "
-                    "(apt-get install chromium)")
-    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed: bash scripts/dev.sh "
-                                                                 "setup installs it")
-    with sync_api.sync_playwright() as playwright:
-        launched = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        yield launched
-        launched.close()
 
 
 @pytest.fixture(scope="module")

@@ -182,7 +182,7 @@ def new(template: str | None, destination: Path | None, listing: bool, force: bo
 
 
 @cli.command()
-@click.argument("submission", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("submission", type=click.Path(path_type=Path))
 @click.option("--reference", "-r", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="The teacher's solved scene (its 'assignment' lists the checks), or a trajectory file (.npz).")
 @click.option("--checks", type=click.Path(dir_okay=False, path_type=Path),
@@ -192,15 +192,36 @@ def new(template: str | None, destination: Path | None, listing: bool, force: bo
                    "table then going to standard error.")
 @click.option("--junit", "junit_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Also write the result as JUnit XML; '-': to standard output, as --json.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
+              help="A class: the folder for class.csv, index.html and each submission's page [default: "
+                   "SUBMISSION-grades beside it].")
+@click.option("--workers", type=click.IntRange(min=1), help="A class: grading processes (default: one per core).")
+@click.option("--scheduler", help="A class: grade on this Dask scheduler instead of a local cluster.")
 @_reports_errors
 def grade(submission: Path, reference: Path, checks: Path | None, json_path: Path | None,
-          junit_path: Path | None) -> None:
+          junit_path: Path | None, out_dir: Path | None, workers: int | None, scheduler: str | None) -> None:
     """Grade SUBMISSION (a scene or trajectory) against the reference: a table of the assignment's checks, each
-    with what was compared; exit 0 when every check passes, 1 otherwise, 2 when the grading cannot run."""
+    with what was compared; exit 0 when every check passes, 1 otherwise, 2 when the grading cannot run.
+
+    SUBMISSION can be a folder: every scene in it (or every folder holding one, as Gradescope exports them) is
+    graded in parallel into a class table (class.csv, index.html); a re-run grades only what changed."""
     import warnings as _warnings
 
     from animbatch.teaching.grade import grade as run_grade
     from animbatch.teaching.grade import summary_line
+
+    if submission.is_dir():
+        if json_path is not None or junit_path is not None:
+            raise click.UsageError("--json and --junit are for one submission: a class gets class.csv and each "
+                                   "submission's results.json in --out")
+        from animbatch.teaching.classroom import class_summary, grade_class
+
+        grades = grade_class(submission, reference, out=out_dir, checks_from=checks, workers=workers,
+                             scheduler=scheduler,
+                             on_row=lambda row: click.echo(f"  {row.name}: {row.score:g} / {row.max_score:g} "
+                                                           f"({row.status})", err=True))
+        click.echo(class_summary(grades))
+        return
 
     piped = [path for path in (json_path, junit_path) if str(path) == "-"]
     if len(piped) > 1:

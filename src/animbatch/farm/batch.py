@@ -10,7 +10,6 @@ A scene that fails does not stop the others; the batch reports every job and the
 from __future__ import annotations
 
 import datetime
-import logging
 import os
 import platform
 import shutil
@@ -22,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from animbatch import __version__, stages
+from animbatch.cluster import WORKER_ENV, connect
 from animbatch.errors import SimulationError
 from animbatch.farm import bake, render_frames
 from animbatch.farm.encode import encode
@@ -33,8 +33,6 @@ from animbatch.trajectory import Trajectory
 
 #: Frames per render task by default: enough to amortise a renderer's start-up, small enough to spread a scene.
 CHUNK_SIZE = 48
-#: Environment for render workers: one software-rasteriser thread per worker process.
-WORKER_ENV = {"LP_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
 
 
 @dataclass(frozen=True)
@@ -152,19 +150,6 @@ def submit(client: Any, job: Job, out_dir: str, *, chunk_size: int, backend: str
               for chunk in FrameRange(0, frames).chunks(chunk_size)]
     return client.submit(encode_task, job.scene_path, job.overrides, out_dir, baked, *chunks, plot=plot,
                          key=f"encode-{name}-{tag}", **options)
-
-
-def connect(workers: int | None, scheduler: str | None) -> tuple[Any, Any]:
-    """A Dask client: to ``scheduler`` when given, else to a new LocalCluster of ``workers`` single-threaded worker
-    processes (default: one per core). Returns (client, cluster or None)."""
-    from distributed import Client, LocalCluster  # optional and heavy: only for Dask batches
-
-    if scheduler:
-        return Client(scheduler), None
-    # silence_logs: workers' own chatter (heartbeats cut off at shutdown) is not the user's business
-    cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                           env=WORKER_ENV, dashboard_address=None, silence_logs=logging.CRITICAL)
-    return Client(cluster), cluster
 
 
 def run_batch(jobs: Sequence[Job], *, out_dir: str | Path = "renders", workers: int | None = None,
