@@ -182,8 +182,8 @@ def new(template: str | None, destination: Path | None, listing: bool, force: bo
 
 
 @cli.command()
-@click.argument("submission", type=click.Path(path_type=Path))
-@click.option("--reference", "-r", required=True, type=click.Path(dir_okay=False, path_type=Path),
+@click.argument("submission", type=click.Path(path_type=Path), required=False)
+@click.option("--reference", "-r", type=click.Path(dir_okay=False, path_type=Path),
               help="The teacher's solved scene (its 'assignment' lists the checks), or a trajectory file (.npz).")
 @click.option("--checks", type=click.Path(dir_okay=False, path_type=Path),
               help="A scene whose 'assignment' lists the checks (needed when the reference is a trajectory).")
@@ -192,14 +192,18 @@ def new(template: str | None, destination: Path | None, listing: bool, force: bo
                    "table then going to standard error.")
 @click.option("--junit", "junit_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Also write the result as JUnit XML; '-': to standard output, as --json.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--out", "-o", "out_dir", type=click.Path(path_type=Path),
               help="A class: the folder for class.csv, index.html and each submission's page [default: "
-                   "SUBMISSION-grades beside it].")
+                   "SUBMISSION-grades beside it]. --bundle: the zip to write [default: autograder.zip].")
+@click.option("--bundle", "bundle_reference", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write a Gradescope autograder (setup.sh, run_autograder) for this reference scene, instead of "
+                   "grading.")
 @click.option("--workers", type=click.IntRange(min=1), help="A class: grading processes (default: one per core).")
 @click.option("--scheduler", help="A class: grade on this Dask scheduler instead of a local cluster.")
 @_reports_errors
-def grade(submission: Path, reference: Path, checks: Path | None, json_path: Path | None,
-          junit_path: Path | None, out_dir: Path | None, workers: int | None, scheduler: str | None) -> None:
+def grade(submission: Path | None, reference: Path | None, checks: Path | None, json_path: Path | None,
+          junit_path: Path | None, out_dir: Path | None, bundle_reference: Path | None, workers: int | None,
+          scheduler: str | None) -> None:
     """Grade SUBMISSION (a scene or trajectory) against the reference: a table of the assignment's checks, each
     with what was compared; exit 0 when every check passes, 1 otherwise, 2 when the grading cannot run.
 
@@ -210,6 +214,14 @@ def grade(submission: Path, reference: Path, checks: Path | None, json_path: Pat
     from animbatch.teaching.grade import grade as run_grade
     from animbatch.teaching.grade import summary_line
 
+    if bundle_reference is not None:
+        from animbatch.teaching.bundle import write_bundle
+
+        written = write_bundle(bundle_reference, out_dir or Path("autograder.zip"))
+        click.echo(f"wrote {written}: upload it as the assignment's autograder on Gradescope (docs/teaching.md)")
+        return
+    if submission is None or reference is None:
+        raise click.UsageError("give a SUBMISSION (a scene, or a folder of them) and --reference REF, or --bundle REF")
     if submission.is_dir():
         if json_path is not None or junit_path is not None:
             raise click.UsageError("--json and --junit are for one submission: a class gets class.csv and each "

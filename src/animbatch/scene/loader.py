@@ -129,6 +129,11 @@ def physics_fingerprint(spec: SceneSpec, base_dir: str | Path = ".") -> str:
     return hashlib.sha256(canonical.encode()).hexdigest()
 
 
+def mesh_files(spec: SceneSpec) -> list[str]:
+    """The mesh files a scene reads (names relative to its folder), each once."""
+    return sorted(set(_mesh_files(spec.model_dump(mode="json"))))
+
+
 def _mesh_files(value: Any) -> list[str]:
     """File names of every mesh shape in dumped scene data."""
     if isinstance(value, dict):
