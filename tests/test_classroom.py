@@ -135,3 +135,25 @@ def test_the_class_page_shows_the_table_the_charts_and_links_each_submission(gra
     assert "PASS  critically damped path" in page.locator("pre").inner_text()
     assert not errors, errors
     page.close()
+
+
+@pytest.mark.render
+def test_with_reports_each_checked_submission_links_its_run(tmp_path):
+    """--reports: a checked submission's row links its run's report page (a video of its motion); one that could not
+    be checked has none."""
+    template = find("spring_damper").text
+    solved = template.replace("damping: 2.0}", "damping: 20.0}")
+    (tmp_path / "solution.yaml").write_text(solved)
+    folder = tmp_path / "class"
+    folder.mkdir()
+    (folder / "alice.yaml").write_text(solved)
+    (folder / "carol.yaml").write_text(template.replace("stiffness:", "stifness:"))
+    result = CliRunner().invoke(cli, ["grade", str(folder), "--reference", str(tmp_path / "solution.yaml"),
+                                      "--workers", "1", "--reports", "--out", str(tmp_path / "grades")])
+    assert result.exit_code == 0, result.output
+    page = (tmp_path / "grades" / "index.html").read_text()
+    links = re.findall(r"<a class=run href='([^']+)'>", page)
+    assert links == ["runs/alice/spring-damper/index.html"]
+    report = (tmp_path / "grades" / links[0]).read_text()
+    assert "<video" in report and (tmp_path / "grades" / "runs" / "alice" / "spring-damper" / "spring-damper.mp4").is_file()
+    assert "the run (video, ledger, energy)" in (tmp_path / "grades" / "submissions" / "alice.html").read_text()

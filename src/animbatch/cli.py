@@ -200,10 +200,12 @@ def new(template: str | None, destination: Path | None, listing: bool, force: bo
                    "grading.")
 @click.option("--workers", type=click.IntRange(min=1), help="A class: grading processes (default: one per core).")
 @click.option("--scheduler", help="A class: grade on this Dask scheduler instead of a local cluster.")
+@click.option("--reports", is_flag=True, help="A class: also render each checked submission's report page (its video "
+                                              "at draft quality, ledger and energy plot), linked from the class page.")
 @_reports_errors
 def grade(submission: Path | None, reference: Path | None, checks: Path | None, json_path: Path | None,
           junit_path: Path | None, out_dir: Path | None, bundle_reference: Path | None, workers: int | None,
-          scheduler: str | None) -> None:
+          scheduler: str | None, reports: bool) -> None:
     """Grade SUBMISSION (a scene or trajectory) against the reference: a table of the assignment's checks, each
     with what was compared; exit 0 when every check passes, 1 otherwise, 2 when the grading cannot run.
 
@@ -229,7 +231,7 @@ def grade(submission: Path | None, reference: Path | None, checks: Path | None, 
         from animbatch.teaching.classroom import class_summary, grade_class
 
         grades = grade_class(submission, reference, out=out_dir, checks_from=checks, workers=workers,
-                             scheduler=scheduler,
+                             scheduler=scheduler, reports=reports,
                              on_row=lambda row: click.echo(f"  {row.name}: {row.score:g} / {row.max_score:g} "
                                                            f"({row.status})", err=True))
         click.echo(class_summary(grades))

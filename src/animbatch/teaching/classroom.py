@@ -68,6 +68,7 @@ class Row:
     max_score: float = 0.0
     result: dict[str, Any] = field(default_factory=dict)
     table: str = ""
+    report: str = ""  # its run's report page, relative to the output folder ('' without one)
 
 
 def find_submissions(folder: Path, skip: Path | None = None) -> list[Submission]:
@@ -97,9 +98,12 @@ def _digest(files: list[Path], folder: Path) -> str:
     return digest.hexdigest()[:16]
 
 
-def grade_one(path: str, reference: str, checks: str, timeout: float) -> dict[str, Any]:
+def grade_one(path: str, reference: str, checks: str, timeout: float, report: str | None = None,
+              budget: float = 0.0) -> dict[str, Any]:
     """Grade one submission in its own ``animbatch grade`` process (killed after ``timeout`` [s], its budget and
-    the grace): the Gradescope JSON and the table, or why there is none. Runs on a Dask worker."""
+    the grace): the Gradescope JSON and the table, or why there is none. With ``report`` (a folder), a submission
+    whose checks ran also gets its run's report page there (the video at draft quality, the ledger, the energy
+    plot), its simulation within ``budget`` [s]. Runs on a Dask worker."""
     command = [sys.executable, "-m", "animbatch", "grade", path, "--reference", reference, "--checks", checks,
                "--json", "-"]
     try:
@@ -108,12 +112,29 @@ def grade_one(path: str, reference: str, checks: str, timeout: float) -> dict[st
         return {"status": "hung", "message": f"stopped after {timeout:.3g} s: its grading did not end within its "
                                              "budget and the grace for starting up"}
     if done.returncode in (0, 1):
-        return {"status": "graded", "result": json.loads(done.stdout), "table": done.stderr}
+        graded = {"status": "graded", "result": json.loads(done.stdout), "table": done.stderr}
+        checked = not any(test["output"].startswith("not checked") for test in graded["result"].get("tests", []))
+        if report is not None and checked:
+            graded["report"] = _report_page(path, report, timeout, budget)
+        return graded
     last = done.stderr.strip().splitlines()[-1] if done.stderr.strip() else ""
     if done.returncode == 2:
         return {"status": "error", "message": f"the grading could not run: {last}"}
     return {"status": "crashed", "message": f"its grading process ended with exit code {done.returncode}"
                                             + (f": {last}" if last else "")}
+
+
+def _report_page(path: str, folder: str, timeout: float, budget: float) -> str:
+    """Render a submission's report page into ``folder`` ('animbatch render --report html', draft quality): the
+    page's path, or '' when it could not be made."""
+    command = [sys.executable, "-m", "animbatch", "render", path, "--report", "html", "--quality", "draft", "--out",
+               folder, "--max-cost", f"{budget:.6g}", "--no-progress"]
+    try:
+        subprocess.run(command, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return ""
+    pages = sorted(Path(folder).glob("*/index.html"))
+    return str(pages[0]) if pages else ""
 
 
 @dataclass
@@ -133,11 +154,13 @@ class ClassGrades:
 
 def grade_class(submissions: str | Path, reference: str | Path, *, out: str | Path | None = None,
                 checks_from: str | Path | None = None, workers: int | None = None, scheduler: str | None = None,
-                on_row: Callable[[Row], None] | None = None, grace: float = GRACE) -> ClassGrades:
+                on_row: Callable[[Row], None] | None = None, grace: float = GRACE,
+                reports: bool = False) -> ClassGrades:
     """Grade every submission in the folder ``submissions`` against ``reference`` (a solved scene, or a trajectory
     with ``checks_from``) into ``out`` (default: ``<submissions>-grades`` beside the folder), on a Dask cluster (a
     LocalCluster of ``workers`` processes, or ``scheduler``); ``on_row`` hears of each row as it is done. A grading
-    process that runs ``grace`` [s] past its submission's budget is killed."""
+    process that runs ``grace`` [s] past its submission's budget is killed. With ``reports``, each submission whose
+    checks ran also gets its run's report page (video, ledger, energy plot) under ``runs/``."""
     folder, reference = Path(submissions), Path(reference)
     out_dir = Path(out) if out is not None else folder.with_name(folder.name + "-grades")
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -152,7 +175,7 @@ def grade_class(submissions: str | Path, reference: str | Path, *, out: str | Pa
                          "(see docs/teaching.md)")
     trajectory_file = reference if reference.suffix == ".npz" else out_dir / "reference.npz"
     key = _digest([path for path in (reference, teacher) if path.is_file()], reference.parent)
-    key = hashlib.sha256(f"{key} {simulation_code()}".encode()).hexdigest()[:16]
+    key = hashlib.sha256(f"{key} {simulation_code()} reports={reports}".encode()).hexdigest()[:16]
     state_file = out_dir / "grades.json"
     state = json.loads(state_file.read_text()) if state_file.is_file() else {}
     known = state.get("rows", {}) if state.get("reference") == key else {}
@@ -162,7 +185,8 @@ def grade_class(submissions: str | Path, reference: str | Path, *, out: str | Pa
         except (SimulationError, TrajectoryError) as error:
             raise GradeError(f"the reference {reference} cannot be used: {error}") from None
     wall = _recorded_seconds(trajectory_file)
-    timeout = max(assignment.budget * wall, MIN_BUDGET) + grace
+    budget = max(assignment.budget * wall, MIN_BUDGET)
+    timeout = budget + grace
 
     rows: dict[str, Row] = {}
     todo = []
@@ -186,7 +210,9 @@ def grade_class(submissions: str | Path, reference: str | Path, *, out: str | Pa
             from distributed import as_completed
 
             futures = {client.submit(grade_one, str(s.path.resolve()), str(trajectory_file.resolve()),
-                                     str(teacher.resolve()), timeout, pure=False, retries=0): s
+                                     str(teacher.resolve()), timeout,
+                                     str((out_dir / "runs" / s.name).resolve()) if reports else None, budget,
+                                     pure=False, retries=0): s
                        for s in todo if s.path is not None}
             for future in as_completed(list(futures)):
                 submission = futures[future]
@@ -194,7 +220,7 @@ def grade_class(submissions: str | Path, reference: str | Path, *, out: str | Pa
                     outcome = future.result()
                 except Exception as error:  # the worker itself died (a crash Dask saw): the row says so
                     outcome = {"status": "crashed", "message": f"{type(error).__name__}: {error}"}
-                rows[submission.name] = row = _row(submission, outcome, assignment.checks)
+                rows[submission.name] = row = _row(submission, outcome, assignment.checks, out_dir)
                 if on_row:
                     on_row(row)
                 _save_state(state_file, key, rows)  # each row kept as it comes: an interrupted run resumes
@@ -216,14 +242,16 @@ def _recorded_seconds(trajectory_file: Path) -> float:
     return float(trajectory.solver_stats.get("wall_time", 0.0) + trajectory.particle_stats.get("wall_time", 0.0))
 
 
-def _row(submission: Submission, outcome: dict[str, Any], checks: list[Any]) -> Row:
+def _row(submission: Submission, outcome: dict[str, Any], checks: list[Any], out_dir: Path) -> Row:
     max_score = float(sum(check.points for check in checks))
     if outcome["status"] != "graded":
         return Row(submission.name, submission.digest, outcome["status"], 0.0, max_score,
                    {"output": outcome["message"]})
     result = outcome["result"]
+    report = outcome.get("report", "")
     return Row(submission.name, submission.digest, "graded", float(result["score"]), float(result["max_score"]),
-               result, outcome.get("table", ""))
+               result, outcome.get("table", ""),
+               Path(report).resolve().relative_to(out_dir.resolve()).as_posix() if report else "")
 
 
 def _save_state(path: Path, key: str, rows: dict[str, Row]) -> None:
@@ -268,7 +296,9 @@ def _submission_page(row: Row, title: str) -> str:
     return (f"<!doctype html><html><head><meta charset=utf-8><title>{html.escape(row.name)}: "
             f"{html.escape(title)}</title><style>{_STYLE}</style></head><body><h1>{html.escape(row.name)}</h1>"
             f"<p>{row.score:g} / {row.max_score:g} points ({html.escape(row.status)}) · <a href='../index.html'>the "
-            f"class</a> · <a href='{html.escape(row.name)}.json'>results.json</a></p><pre>{html.escape(body)}</pre>"
+            f"class</a> · <a href='{html.escape(row.name)}.json'>results.json</a>"
+            + (f" · <a href='../{html.escape(row.report)}'>the run (video, ledger, energy)</a>" if row.report else "")
+            + f"</p><pre>{html.escape(body)}</pre>"
             "</body></html>\n")
 
 
@@ -321,12 +351,13 @@ def class_page(grades: ClassGrades) -> str:
         note = _note(row, grades.title)
         lines.append(f"<tr class='{'graded' if row.status == 'graded' else 'failed'}'><td><a href='submissions/"
                      f"{html.escape(row.name)}.html'>{html.escape(row.name)}</a></td><td class=n>{row.score:g}</td>"
-                     f"<td>{html.escape(row.status)}</td>{cells}<td>{html.escape(note)}</td></tr>")
+                     f"<td>{html.escape(row.status)}</td>{cells}<td>{html.escape(note)}</td><td>"
+                     + (f"<a class=run href='{html.escape(row.report)}'>run</a>" if row.report else "") + "</td></tr>")
     return (f"<!doctype html><html><head><meta charset=utf-8><title>{html.escape(grades.title)}: the class</title>"
             f"<style>{_STYLE}</style></head><body><h1>{html.escape(grades.title)}</h1><p>{summary} · "
             "<a href='class.csv'>class.csv</a></p>"
             f"<div class=charts>{''.join(charts)}</div><table><thead><tr><th>submission</th><th>score</th>"
-            f"<th>status</th>{head}<th>note</th></tr></thead><tbody>{''.join(lines)}</tbody></table></body></html>\n")
+            f"<th>status</th>{head}<th>note</th><th>report</th></tr></thead><tbody>{''.join(lines)}</tbody></table></body></html>\n")
 
 
 def class_summary(grades: ClassGrades) -> str:
