@@ -62,8 +62,10 @@ class Grade:
     title: str
     results: list[CheckResult] = field(default_factory=list)
     message: str = ""  # why nothing could be checked (the submission is invalid or its run failed), if so
-    differences: list[str] = field(default_factory=list)  # what the submission changed that it may not (or, without
-    differences_fail: bool = False  # assignment.edit, everything it changed); whether they fail it
+    # what the submission changed from the reference (with assignment.edit, only what it may not), and whether that
+    # fails it
+    differences: list[str] = field(default_factory=list)
+    differences_fail: bool = False
 
     @property
     def differences_text(self) -> str:
