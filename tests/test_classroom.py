@@ -157,3 +157,14 @@ def test_with_reports_each_checked_submission_links_its_run(tmp_path):
     report = (tmp_path / "grades" / links[0]).read_text()
     assert "<video" in report and (tmp_path / "grades" / "runs" / "alice" / "spring-damper" / "spring-damper.mp4").is_file()
     assert "the run (video, ledger, energy)" in (tmp_path / "grades" / "submissions" / "alice.html").read_text()
+
+
+def test_entries_that_share_a_name_get_rows_of_their_own(tmp_path):
+    """A scene beside a file or a folder of the same name: the scene's row takes its whole file name."""
+    for name, text in {"alice.yaml": "a", "alice.txt": "b", "bob.yaml": "c", "bob/scene.yaml": "d"}.items():
+        (tmp_path / name).parent.mkdir(exist_ok=True)
+        (tmp_path / name).write_text(text)
+    found = {s.name: (s.path.relative_to(tmp_path).as_posix() if s.path else s.problem)
+             for s in classroom.find_submissions(tmp_path)}
+    assert found == {"alice": "alice.txt is not a scene (.yaml) or a trajectory (.npz)", "alice.yaml": "alice.yaml",
+                     "bob": "bob/scene.yaml", "bob.yaml": "bob.yaml"}

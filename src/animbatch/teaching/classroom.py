@@ -28,6 +28,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote
 
 from animbatch import stages
 from animbatch.cluster import connect
@@ -72,8 +73,9 @@ class Row:
 
 
 def find_submissions(folder: Path, skip: Path | None = None) -> list[Submission]:
-    """Every entry of ``folder`` (not hidden, not ``skip``) as a submission, by name."""
-    found = []
+    """Every entry of ``folder`` (not hidden, not ``skip``) as a submission, by name (the file's stem; its whole name
+    where two entries share a stem)."""
+    found: list[Submission] = []
     for entry in sorted(folder.iterdir()):
         if entry.name.startswith(".") or (skip is not None and entry.resolve() == skip.resolve()):
             continue
@@ -87,7 +89,11 @@ def find_submissions(folder: Path, skip: Path | None = None) -> list[Submission]
             problem = ("" if len(scenes) == 1 else "no scene file (.yaml) in it" if not scenes else
                        f"{len(scenes)} scene files in it ({', '.join(p.name for p in scenes[:4])}): keep one")
             found.append(Submission(entry.name, scenes[0] if not problem else None, problem, _digest(files, folder)))
-    return found
+    stems = [submission.name for submission in found]
+    return [submission if stems.count(submission.name) == 1 or submission.path is None
+            or submission.path.parent != folder else
+            Submission(submission.path.name, submission.path, submission.problem, submission.digest)
+            for submission in found]
 
 
 def _digest(files: list[Path], folder: Path) -> str:
@@ -296,8 +302,8 @@ def _submission_page(row: Row, title: str) -> str:
     return (f"<!doctype html><html><head><meta charset=utf-8><title>{html.escape(row.name)}: "
             f"{html.escape(title)}</title><style>{_STYLE}</style></head><body><h1>{html.escape(row.name)}</h1>"
             f"<p>{row.score:g} / {row.max_score:g} points ({html.escape(row.status)}) · <a href='../index.html'>the "
-            f"class</a> · <a href='{html.escape(row.name)}.json'>results.json</a>"
-            + (f" · <a href='../{html.escape(row.report)}'>the run (video, ledger, energy)</a>" if row.report else "")
+            f"class</a> · <a href='{quote(row.name)}.json'>results.json</a>"
+            + (f" · <a href='../{quote(row.report)}'>the run (video, ledger, energy)</a>" if row.report else "")
             + f"</p><pre>{html.escape(body)}</pre>"
             "</body></html>\n")
 
@@ -350,9 +356,9 @@ def class_page(grades: ClassGrades) -> str:
                         for name, _ in grades.checks)
         note = _note(row, grades.title)
         lines.append(f"<tr class='{'graded' if row.status == 'graded' else 'failed'}'><td><a href='submissions/"
-                     f"{html.escape(row.name)}.html'>{html.escape(row.name)}</a></td><td class=n>{row.score:g}</td>"
+                     f"{quote(row.name)}.html'>{html.escape(row.name)}</a></td><td class=n>{row.score:g}</td>"
                      f"<td>{html.escape(row.status)}</td>{cells}<td>{html.escape(note)}</td><td>"
-                     + (f"<a class=run href='{html.escape(row.report)}'>run</a>" if row.report else "") + "</td></tr>")
+                     + (f"<a class=run href='{quote(row.report)}'>run</a>" if row.report else "") + "</td></tr>")
     return (f"<!doctype html><html><head><meta charset=utf-8><title>{html.escape(grades.title)}: the class</title>"
             f"<style>{_STYLE}</style></head><body><h1>{html.escape(grades.title)}</h1><p>{summary} · "
             "<a href='class.csv'>class.csv</a></p>"
