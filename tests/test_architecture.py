@@ -20,7 +20,7 @@ from animbatch.sim.integrators.methods import runge_kutta
 from animbatch.sim.integrators.stability import amplification
 from animbatch.sim.model import Dynamics
 from conftest import scene
-from test_closed_forms import oscillator_exact, oscillator_scene
+from scenarios import oscillator_exact, oscillator_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 

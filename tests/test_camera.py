@@ -20,7 +20,7 @@ from animbatch.render.camera import CameraPath, follower
 from animbatch.render.frames import FrameRenderer
 from animbatch.render.geometry import BodyPath
 from animbatch.scene.schema import CameraSpec
-from test_render_quality import on_screen_extent
+from scenarios import on_screen_extent
 
 pytestmark = pytest.mark.render
 

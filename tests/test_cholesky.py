@@ -14,7 +14,7 @@ from animbatch.sim.integrators import cholesky
 from animbatch.sim.integrators.linear_algebra import StepMatrixSolver
 from animbatch.sim.model import Dynamics
 from conftest import run, scene
-from test_cloth import cloth
+from scenarios import cloth
 
 pytest.importorskip("numba", reason="numba is not installed: SuperLU solves every step")
 

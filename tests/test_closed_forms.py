@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from conftest import ADAPTIVE, FIXED_STEP, body, run
+from scenarios import oscillator_exact, oscillator_scene
 
 G = 9.81
 
@@ -59,37 +60,6 @@ def test_euler_variants_have_their_known_projectile_error(method, sign):
 
 
 # ------------------------------------------------------------------ damped oscillator
-
-
-def oscillator_exact(t: np.ndarray, amplitude: float, omega: float, zeta: float) -> np.ndarray:
-    """Displacement from equilibrium of m x'' + c x' + k x = 0 with x(0) = amplitude, x'(0) = 0."""
-    if zeta < 1:
-        omega_d = omega * np.sqrt(1 - zeta**2)
-        return np.exp(-zeta * omega * t) * amplitude * (np.cos(omega_d * t)
-                                                        + zeta * omega / omega_d * np.sin(omega_d * t))
-    if zeta == 1:
-        return amplitude * (1 + omega * t) * np.exp(-omega * t)
-    root = np.sqrt(zeta**2 - 1)
-    r1, r2 = -omega * (zeta - root), -omega * (zeta + root)
-    c1 = amplitude * r2 / (r2 - r1)
-    c2 = amplitude - c1
-    return c1 * np.exp(r1 * t) + c2 * np.exp(r2 * t)
-
-
-def oscillator_scene(zeta: float, *, method: str = "DOP853", dt: float | None = None, duration: float = 3.0,
-                     fps: int = 20) -> str:
-    """A 2 kg mass on a horizontal spring (k = 50 N/m, rest 1 m) to an anchor, pulled 0.2 m and released."""
-    mass, stiffness = 2.0, 50.0
-    damping = float(2 * zeta * np.sqrt(stiffness * mass))
-    solver = f"{{method: {method}, rtol: 1.0e-11, atol: 1.0e-13}}" if dt is None else f"{{method: {method}, dt: {dt}}}"
-    return f"""
-        duration: {duration}
-        fps: {fps}
-        solver: {solver}
-        anchors: [{{name: wall, position: [0, 0, 0]}}]
-        bodies: [{{name: mass, mass: {mass}, position: [1.2, 0, 0]}}]
-        springs: [{{between: [wall, mass], stiffness: {stiffness}, damping: {damping!r}, rest_length: 1.0}}]
-    """
 
 
 @pytest.mark.parametrize("zeta", [0.1, 1.0, 2.5], ids=["under-damped", "critically-damped", "over-damped"])

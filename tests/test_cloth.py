@@ -12,30 +12,12 @@ from animbatch.sim.forces.dihedral import hinge_angles, hinge_gradients
 from animbatch.sim.invariants import kinetic_energy, linear_momentum, total_energy
 from animbatch.sim.model import Dynamics
 from conftest import run, scene, states
+from scenarios import cloth
 
 G = 9.81
 
 
-def cloth(solver: str, *, stiffness: float = 400.0, damping: float = 0.05, extra: str = "", size: str = "[8, 6]",
-          pin: str = "[{corners: [top-left, top-right]}]", duration: float = 2.0, fps: int = 30) -> str:
-    """A 0.8 × 0.6 m cloth of 0.2 kg/m² hanging from two corners, with all three spring families."""
-    return f"""
-        duration: {duration}
-        fps: {fps}
-        solver: {solver}
-        bodies:
-          - name: sheet
-            type: cloth
-            grid: {{size: [0.8, 0.6], resolution: {size}}}
-            position: [0, 1, 0]
-            density: 0.2
-            structural: {{stiffness: {stiffness}, damping: {damping}}}
-            shear: {{stiffness: {stiffness / 4}, damping: {damping / 4}}}
-            bend: {{stiffness: {stiffness / 40}, damping: {damping / 40}}}
-            pin: {pin}
-        fields: [{{type: gravity}}]
-        {extra}
-    """
+
 
 
 # ------------------------------------------------------------------------------------------------ topology

@@ -7,7 +7,7 @@ import pytest
 
 from animbatch.sim.integrators import FIXED_STEP_SCHEMES
 from conftest import ADAPTIVE, body, run
-from test_closed_forms import oscillator_exact, oscillator_scene
+from scenarios import oscillator_exact, oscillator_scene
 
 EXPECTED_ORDER = {"euler": 1, "midpoint": 2, "symplectic_euler": 1, "verlet": 2, "backward_euler": 1}
 

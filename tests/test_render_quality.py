@@ -13,6 +13,7 @@ from animbatch.cli import cli
 from animbatch.render.backend import select_backend
 from animbatch.render.frames import FrameRenderer
 from animbatch.scene.schema import QUALITY_PRESETS, RenderSpec
+from scenarios import on_screen_extent
 
 pytestmark = pytest.mark.render
 
@@ -272,24 +273,6 @@ def test_a_speed_of_an_unknown_body_in_the_overlay_is_refused_with_a_suggestion(
     result = CliRunner().invoke(cli, ["validate", str(scene), "--set", "render.time_label='{speed[bal]}'"])
     assert result.exit_code == 1
     assert "render.time_label: {speed[bal]}: unknown body 'bal'; did you mean 'ball'? Bodies: ball" in result.output
-
-
-def on_screen_extent(placement, aspect: float, points: np.ndarray, radius: np.ndarray) -> np.ndarray:
-    """Normalised screen coordinates (…, 2) of spheres at ``points`` (…, 3) [m] by a pinhole camera, grown by each
-    sphere's projected radius: |x|, |y| ≤ 1 is inside the frame."""
-    forward = placement.focal_point - placement.position
-    forward = forward / np.linalg.norm(forward)
-    right = np.cross(forward, placement.up)
-    right /= np.linalg.norm(right)
-    up = np.cross(right, forward)
-    tangent = np.tan(np.radians(placement.view_angle) / 2)
-    relative = points - placement.position
-    depth = relative @ forward
-    assert (depth > 0).all(), "a body behind the camera"
-    grow = radius / (depth * tangent)
-    x = np.abs(relative @ right) / (depth * tangent * aspect) + grow / aspect
-    y = np.abs(relative @ up) / (depth * tangent) + grow
-    return np.stack([x, y], axis=-1)
 
 
 FRAMED_SCENES = ["projectile", "bouncing_balls", "two_body_orbit", "tumbling_box", "dumbbell"]
