@@ -17,7 +17,7 @@ from click.testing import CliRunner
 from animbatch.cli import cli
 from animbatch.teaching.templates import find
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("grading")]  # one worker builds the bundle once
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ from animbatch.cli import cli
 from animbatch.teaching import classroom
 from animbatch.teaching.templates import find
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("grading")]  # one worker builds the class once
 
 #: Loaded by every Python process started with the folder on PYTHONPATH: it makes the grading processes of the
 #: submissions named crash and hang do just that (a crash of the interpreter and a hang no budget reaches).
