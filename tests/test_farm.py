@@ -3,6 +3,7 @@ Checked by what is (not) simulated or drawn again, pixels and video metadata."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import imageio_ffmpeg
@@ -118,6 +119,8 @@ def test_a_truncated_frame_is_detected_and_drawn_again(throw, tmp_cwd, monkeypat
     result = runner.invoke(cli, ["render", str(throw), "--frames", "10-19"])
     assert result.exit_code == 0, result.output
     assert drawn == []
+    # the summary counts the range, not the scene (issue 40)
+    assert re.search(r"throw: frames 10-19 of \d+ \(0 drawn, 10 complete already\)", result.output), result.output
     good = pixels(folder / "frame_00013.png")
     data = (folder / "frame_00013.png").read_bytes()
     (folder / "frame_00013.png").write_bytes(data[: len(data) // 2])

@@ -153,7 +153,11 @@ class RunReport:
         width, height = self.resolution
         target = self.outputs[0] if self.outputs else "(no output)"
         watches = "".join(f" | {stopwatch_line(name, reading)}" for name, reading in self.stopwatches.items())
-        return (f"{self.scene}: {self.frame_count} frames {width}×{height} @ {self.fps} fps -> {target} | "
+        count = f"{self.frame_count} frames"
+        if self.frames and self.frames != f"0-{self.frame_count - 1}":  # a range (--frames): what this run did
+            count = (f"frames {self.frames} of {self.frame_count} ({self.frames_drawn} drawn, {self.frames_skipped} "
+                     "complete already)")
+        return (f"{self.scene}: {count} {width}×{height} @ {self.fps} fps -> {target} | "
                 f"{timings} | {solver} | {self.backend}{watches}")
 
 
