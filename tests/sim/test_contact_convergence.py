@@ -96,7 +96,7 @@ def test_sweeps_stop_when_their_violation_stops_falling_and_only_then():
     """The stall rule: a violation halving every sweep never stalls; one stuck at a level stalls at the end of the
     second window; one falling 2 % a window (too slowly to be worth the sweeps) stalls; one falling 20 % a window
     goes on."""
-    from animbatch.sim.contact.solver import STALL_WINDOW, stalled
+    from animbatch.sim.kernels.stall import STALL_WINDOW, stalled
 
     def first_stall(violations) -> int | None:
         watch = [np.inf, np.inf]
@@ -115,10 +115,17 @@ def test_sweeps_stop_when_their_violation_stops_falling_and_only_then():
     assert first_stall(wandering) is None
 
 
-def test_the_stall_settings_are_the_numpy_ones():
-    """The compiled sweeps stop at a stall by the numpy rule's numbers."""
+def test_the_compiled_sweeps_stall_by_the_numpy_rule():
+    """The compiled sweeps' stall test is the numpy sweeps' function compiled, and decides alike on the same
+    violations (a level stalls at the end of the second window, a halving never does)."""
     pytest.importorskip("numba")
     from animbatch.sim.contact import solver
     from animbatch.sim.kernels import contact_impulses
+    from animbatch.sim.kernels.stall import STALL_WINDOW
 
-    assert (contact_impulses.STALL_WINDOW, contact_impulses.STALL_RATIO) == (solver.STALL_WINDOW, solver.STALL_RATIO)
+    assert contact_impulses._stalled.py_func is solver.stalled
+    for violations in (np.full(5 * STALL_WINDOW, 3e-3), 0.5 ** np.arange(1, 5 * STALL_WINDOW + 1)):
+        numpy_watch, compiled_watch = [np.inf, np.inf], np.full(2, np.inf)
+        for iteration, worst in enumerate(violations, start=1):
+            assert contact_impulses._stalled(iteration, worst, compiled_watch) == solver.stalled(iteration, worst,
+                                                                                                  numpy_watch)

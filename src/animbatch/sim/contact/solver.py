@@ -48,6 +48,7 @@ import scipy.sparse as sp
 from animbatch.quaternion import cross
 from animbatch.sim.contact.contacts import Contacts
 from animbatch.sim.contact.jointed import JointedResponse
+from animbatch.sim.kernels.stall import stalled  # (the compiled sweeps' rule too)
 
 #: Fraction of an overlap (beyond the slop) removed per step.
 BAUMGARTE = 0.2
@@ -594,29 +595,6 @@ SMALL_FORCE_ROWS = 48
 ACCELERATION_TOLERANCE = 1e-9
 #: Impulses are converged when every contact's velocity target is met to this, relative to the approach speeds.
 VELOCITY_TOLERANCE = 1e-10
-#: The sweeps also stop when they stall: when the smallest violation of the last STALL_WINDOW sweeps is not below
-#: STALL_RATIO times the smallest before them. Where many contacts share bodies (a pile), the violation falls for a
-#: few dozen sweeps and then wanders: over the solves of scenes/mixed_pile.yaml its median is 3e-3 m/s after 40
-#: sweeps and still 3e-3 after 300. Stopping at the stall takes 87 sweeps on average instead of 290, and leaves the
-#: same largest violation (0.043 m/s); at 0.9 (a stall: less than 10 % better) the largest was 0.059 m/s, and the
-#: 12-box pile of the benchmarks kept 5 times the kinetic energy at its end (:func:`stalled`).
-STALL_WINDOW = 20
-STALL_RATIO = 0.97
-
-
-def stalled(iteration: int, worst: float, watch: list[float]) -> bool:
-    """Whether the sweeps have stalled at sweep ``iteration`` ≥ 1 with violation ``worst`` (see
-    :data:`STALL_WINDOW`); ``watch`` is [smallest before this window, smallest in it], starting at [inf, inf] and
-    kept up to date here."""
-    watch[1] = min(watch[1], worst)
-    if iteration % STALL_WINDOW:
-        return False
-    if iteration >= 2 * STALL_WINDOW and watch[1] > STALL_RATIO * watch[0]:
-        return True
-    watch[0], watch[1] = min(watch[0], watch[1]), np.inf
-    return False
-
-
 @dataclass
 class SolveResult:
     """Accumulated normal impulses (or forces) (K,) and tangential ones (K, 2); for impulse solves, the

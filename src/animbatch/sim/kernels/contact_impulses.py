@@ -22,23 +22,10 @@ import math
 import numpy as np
 from numba import njit
 
-#: As :mod:`animbatch.sim.contact.solver`: the sweeps stop when the smallest violation of the last STALL_WINDOW
-#: sweeps is not below STALL_RATIO times the smallest before them.
-STALL_WINDOW = 20
-STALL_RATIO = 0.97
+from animbatch.sim.kernels.stall import stalled
 
-
-@njit(cache=True, inline="always")
-def _stalled(iteration: int, worst: float, watch: np.ndarray) -> bool:
-    """:func:`animbatch.sim.contact.solver.stalled`: ``watch`` (2,) the smallest violation before this window and
-    in it."""
-    watch[1] = min(watch[1], worst)
-    if iteration % STALL_WINDOW:
-        return False
-    if iteration >= 2 * STALL_WINDOW and watch[1] > STALL_RATIO * watch[0]:
-        return True
-    watch[0], watch[1] = min(watch[0], watch[1]), np.inf
-    return False
+#: The numpy sweeps' rule for a stall (:mod:`animbatch.sim.kernels.stall`), compiled as it is.
+_stalled = njit(cache=True, inline="always")(stalled)
 
 
 @njit(cache=True, inline="always")
