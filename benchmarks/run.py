@@ -712,7 +712,7 @@ def bench_fountain(quick: bool) -> list[Row]:
     for trail in (2, 0):
         scene = load_scene(ROOT / "scenes" / "fountain.yaml", [*overrides, f"emitters[jet].look.trail={trail}"])
         trajectory = api.simulate(scene, model=model)
-        geometry = api.frame_geometry(scene, model, trajectory)
+        geometry = api.frame_geometry(api.plan(scene, model=model), trajectory)
         chosen = select_backend("auto")
         frames = [k for k in steady][-20:]
         with FrameRenderer(scene.spec.render, geometry, chosen) as renderer:
@@ -835,12 +835,12 @@ def bench_stream(quick: bool) -> list[Row]:
     scene = api.load_scene(ROOT / "scenes" / "bouncing_balls.yaml",
                            [f"render.resolution=[{width}, {height}]", f"duration={frames / 30}", "fps=30",
                             "render.formats=[mp4]"])
-    model = api.compile_model(scene)
-    trajectory = api.simulate(scene, model=model)
+    run = api.plan(scene)
+    trajectory = api.simulate(run)
     out = Path(tempfile.mkdtemp(prefix="animbatch-stream-"))
 
     def draw_alone() -> None:
-        geometry = api.frame_geometry(scene, model, trajectory)
+        geometry = api.frame_geometry(run, trajectory)
         with FrameRenderer(scene.spec.render, geometry, select_backend("auto")) as renderer:
             for k in range(trajectory.frame_count):
                 renderer.draw(float(trajectory.times[k]), trajectory.positions[k], trajectory.orientations[k],
@@ -848,11 +848,11 @@ def bench_stream(quick: bool) -> list[Row]:
                               else None)
 
     def streamed() -> None:
-        stream_frames(scene, trajectory, model=model, out_dir=out)
+        stream_frames(run, trajectory, out_dir=out)
 
     def png_then_encode() -> None:
         folder = prepare_frames(scene, trajectory, out)
-        draw_frames(scene, trajectory, FrameRange(0, trajectory.frame_count), folder, model=model)
+        draw_frames(run, trajectory, FrameRange(0, trajectory.frame_count), folder)
         finish_outputs(scene, trajectory.frame_count, out)
 
     repeats = 1 if quick else 2
@@ -904,7 +904,7 @@ def bench_export(quick: bool) -> list[Row]:
                                 for p in trajectory.particles))
             rows.append({"benchmark": label, "case": "live drops per frame (mean of the frames exported)",
                          "value": float(np.mean(trajectory.particles[0].live_counts)), "unit": "particles"})
-        geometry = api.frame_geometry(scene, model, trajectory)
+        geometry = api.frame_geometry(api.plan(scene, model=model), trajectory)
         with tempfile.TemporaryDirectory() as folder:
             for kind in kinds:
                 started = time.perf_counter()
@@ -993,9 +993,8 @@ def bench_ledger(quick: bool) -> list[Row]:
     import warnings
 
     from animbatch import api
-    from animbatch.sim.integrators import DEFAULT_DT
     from animbatch.sim.ledger import build_ledger
-    from animbatch.stages import parse_scene
+    from animbatch.stages import parse_scene, plan
 
     rows = []
     count, side = (100, 8) if quick else (1000, 32)
@@ -1004,16 +1003,16 @@ def bench_ledger(quick: bool) -> list[Row]:
                                                                           "{method: backward_euler, dt: 0.0333334}")}
     for label, text in cases.items():
         scene = parse_scene(text, filename="benchmark.yaml")
-        model = api.compile_model(scene)
+        run = plan(scene)
+        model, steps = run.model, run.steps
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            trajectory = api.simulate(scene, model=model)
+            trajectory = api.simulate(run)
             states = model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
                                        trajectory.angular_velocities)
-            solver = scene.spec.solver
             ledger_seconds = best_of(2, lambda: build_ledger(
-                model, states, trajectory.solver_stats, trajectory.particle_stats, method=solver.method,
-                adaptive=solver.is_adaptive, requested_dt=solver.dt or DEFAULT_DT, rtol=solver.rtol))
+                model, states, trajectory.solver_stats, trajectory.particle_stats, method=steps.method,
+                adaptive=steps.adaptive, requested_dt=steps.dt, dt_given=steps.dt_given, rtol=steps.rtol))
         integration = float(trajectory.solver_stats["wall_time"])
         rows += [{"benchmark": "accuracy ledger", "case": f"{label}: integration", "value": integration, "unit": "s"},
                  {"benchmark": "accuracy ledger", "case": f"{label}: ledger", "value": ledger_seconds, "unit": "s"},

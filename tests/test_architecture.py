@@ -96,6 +96,21 @@ def run_tool(name: str, *arguments: str) -> subprocess.CompletedProcess:
     return subprocess.run([command, *arguments], cwd=ROOT, capture_output=True, text=True, timeout=300)
 
 
+def _sources_matching(pattern: str) -> list[str]:
+    """The files of src/animbatch with a line matching the regular expression ``pattern`` (paths from src/)."""
+    import re
+
+    return sorted(str(path.relative_to(ROOT / "src")) for path in (ROOT / "src" / "animbatch").rglob("*.py")
+                  if re.search(pattern, path.read_text(), re.MULTILINE))
+
+
+def test_the_frame_count_and_the_default_step_are_each_written_once():
+    """One rule for how many frames a run has (the timeline) and one for the step when the scene names none (the
+    step plan): every stage reads them from there, on either side of the wall."""
+    assert _sources_matching(r"math\.ceil\(\s*duration") == ["animbatch/timeline.py"]
+    assert _sources_matching(r"^(?!from |import |__all__).*DEFAULT_DT") == ["animbatch/sim/integrators/step_plan.py"]
+
+
 def test_the_import_contracts_hold():
     """lint-imports finds every contract of .importlinter kept: the simulation never imports the scene format,
     rendering never imports the simulation, drivers sit above stages above the compiler, and no package cycles."""

@@ -30,7 +30,7 @@ def geometry_of(text: str):
     scene = stages.parse_scene(text)
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
-    return scene, model, trajectory, stages.frame_geometry(scene, model, trajectory)
+    return scene, model, trajectory, stages.frame_geometry(stages.plan(scene, model=model), trajectory)
 
 
 def test_force_and_acceleration_arrows_are_the_closed_form_forces_at_each_frame():

@@ -111,7 +111,7 @@ def test_a_following_camera_keeps_the_body_at_the_centre_of_every_frame():
     scene = stages.parse_scene(FOLLOW)
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
-    geometry = stages.frame_geometry(scene, model, trajectory)
+    geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
     with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
         centres = []
         for k in (0, 6, 11):

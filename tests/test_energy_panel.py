@@ -33,7 +33,7 @@ def test_the_panel_sits_under_the_view_and_its_cursor_follows_time():
     scene = stages.parse_scene(SCENE)
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
-    geometry = stages.frame_geometry(scene, model, trajectory)
+    geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
     assert set(geometry.panel.series) == {"kinetic [J]", "potential [J]", "total [J]", "|p| [kg·m/s]"}
     columns = []
     with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
@@ -57,4 +57,4 @@ def test_scenes_without_a_panel_have_none():
     scene = stages.parse_scene(SCENE.replace("  energy_panel: {height: 0.4, quantities: [energy, momentum]}\n", ""))
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
-    assert stages.frame_geometry(scene, model, trajectory).panel is None
+    assert stages.frame_geometry(stages.plan(scene, model=model), trajectory).panel is None

@@ -44,7 +44,7 @@ def draw_frame(name: str, frame: int) -> np.ndarray:
                               ["render.quality=final", "render.resolution=[480, 270]", f"duration={duration!r}"])
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
-    geometry = stages.frame_geometry(scene, model, trajectory)
+    geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
     with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
         return renderer.draw(float(trajectory.times[frame]), trajectory.positions[frame],
                              trajectory.orientations[frame], trajectory.angular_velocities[frame],

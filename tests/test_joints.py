@@ -226,7 +226,7 @@ def test_a_rods_tension_is_a_force_of_its_own_in_the_arrows():
     """)
     model = api.compile_model(loaded)
     trajectory = api.simulate(loaded, model=model)
-    arrows = api.frame_geometry(loaded, model, trajectory).arrows
+    arrows = api.frame_geometry(api.plan(loaded, model=model), trajectory).arrows
     vectors = dict(zip(arrows.names, arrows.vectors))
     np.testing.assert_allclose(vectors["joint"][:, 0], np.broadcast_to([0, 0.4 * G, 0], (5, 3)), atol=1e-6)
     np.testing.assert_allclose(vectors["gravity"][:, 0], np.broadcast_to([0, -0.4 * G, 0], (5, 3)), atol=1e-9)
@@ -340,7 +340,7 @@ def test_an_atwood_machine_accelerates_at_the_closed_form_rate(solver, tolerance
     np.testing.assert_allclose(trajectory.positions[:, 0, 1], 1.0 - 0.5 * a * t**2, atol=tolerance)
     np.testing.assert_allclose(trajectory.positions[:, 1, 1], 0.5 + 0.5 * a * t**2, atol=tolerance)
     np.testing.assert_allclose(trajectory.positions[:, :, 0], np.broadcast_to([-0.2, 0.2], (len(t), 2)), atol=1e-9)
-    drawn = api.frame_geometry(loaded, model, trajectory).arrows
+    drawn = api.frame_geometry(api.plan(loaded, model=model), trajectory).arrows
     arrows = dict(zip(drawn.names, drawn.vectors))
     np.testing.assert_allclose(arrows["joint"][:, :, 1], 1.5 * G, atol=1e-5)
 

@@ -187,16 +187,38 @@ def test_a_fixed_step_that_does_not_divide_the_frame_is_reported_as_used():
 
     loaded = scene(text)
     assert "step       0.00694444 s used, 6 per frame: the largest step ≤ solver.dt = 0.007 s" in describe_model(
-        loaded, api.compile_model(loaded))
+        api.plan(loaded))
     _, aligned = run(text.replace("fps: 24", "fps: 30").replace("dt: 0.007", "dt: 0.0333334"))
     assert "note" not in aligned.ledger["step"]
+
+
+def test_a_default_step_that_does_not_divide_the_frame_is_not_blamed_on_solver_dt():
+    """Without solver.dt the step bound is the 1 ms default; at 24 fps a frame (41.67 ms) takes 42 steps of
+    0.992 ms. The ledger, the summary and 'info' name the default, not a solver.dt the user never wrote."""
+    text = """
+        duration: 0.5
+        fps: 24
+        solver: {method: verlet}
+        bodies: [{name: ball}]
+        fields: [{type: gravity}]
+    """
+    _, trajectory = run(text)
+    step = trajectory.ledger["step"]
+    assert step["steps_per_frame"] == 42 and step["dt"] == pytest.approx(1 / 24 / 42)
+    assert step["dt_given"] is False and step["requested_dt"] == 1e-3
+    assert "the default step 0.001 s" in step["note"] and "solver.dt" not in step["note"]
+    assert "(the default step 0.001 s does not divide 1/fps)" in summary(trajectory.ledger)
+    from animbatch.info import describe_model
+
+    described = describe_model(api.plan(scene(text)))
+    assert "42 per frame: the largest step ≤ the default step 0.001 s" in described
 
 
 def test_a_step_written_to_a_few_digits_still_divides_the_frame():
     """dt = 0.008333333 s is 1/120 s to seven digits: four steps per 30 fps frame, not five (the bundled fountain
     took five, 25 % more work, and was told its dt did not divide 1/fps). A dt smaller by more than 1e-6 relative
     is a real request for smaller steps."""
-    from animbatch.sim.integrators.fixed_step import substeps
+    from animbatch.sim.integrators.step_plan import substeps
 
     assert substeps(1 / 30, 0.008333333) == 4
     assert substeps(1 / 30, 0.0333334) == 1

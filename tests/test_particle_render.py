@@ -58,7 +58,7 @@ def draw(loaded, frames: list[int]) -> list[np.ndarray]:
     """Images of the given frames, drawn by one new renderer in that order."""
     model = api.compile_model(loaded)
     trajectory = api.simulate(loaded, model=model)
-    geometry = api.frame_geometry(loaded, model, trajectory)
+    geometry = api.frame_geometry(api.plan(loaded, model=model), trajectory)
     with FrameRenderer(loaded.spec.render, geometry, select_backend("auto")) as renderer:
         return [renderer.draw(float(trajectory.times[k]), trajectory.positions[k], trajectory.orientations[k],
                               trajectory.angular_velocities[k], (trajectory.particles, k)) for k in frames]

@@ -118,7 +118,7 @@ def test_proper_times_travel_in_trajectory_files_and_quantities_csv(tmp_path):
     csv = quantity_series(model, back).csv().splitlines()
     assert csv[0].endswith(",proper_time_traveller_s")
     assert float(csv[-1].split(",")[-1]) == pytest.approx(0.8 * 0.9)
-    label = api.frame_geometry(loaded, model, trajectory).label
+    label = api.frame_geometry(api.plan(loaded, model=model), trajectory).label
     assert label.at(0.5)["proper_time"]["traveller"] == pytest.approx(0.4)
 
 

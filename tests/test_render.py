@@ -99,13 +99,13 @@ def test_rendering_from_a_trajectory_gives_the_same_frames(slide_scene, tmp_cwd)
 
 
 def test_library_render_of_a_simulated_trajectory_writes_what_the_scene_asks_for(slide_scene, tmp_cwd):
-    """The README's library example (load, compile, simulate, render) gives the same files as the command line: an
+    """The README's library example (load, plan, simulate, render) gives the same files as the command line: an
     MP4 of 12 frames, the PNG frames (identical to the CLI's), and the ball moving right. Rendering again draws
     nothing: every frame is complete on disk."""
     scene = api.load_scene(slide_scene)
-    model = api.compile_scene(scene.spec)
-    trajectory = api.simulate(scene, model=model)
-    result = api.render(scene, trajectory, model=model, out_dir="library")
+    plan = api.plan(scene)
+    trajectory = api.simulate(plan)
+    result = api.render(plan, trajectory, out_dir="library")
     folder = tmp_cwd / "library" / "slide"
     assert [path.resolve() for path in result.outputs] == [folder / "slide.mp4", folder / "frames"]
     assert result.frame_count == 12 and result.resolution == (WIDTH, HEIGHT) and result.fps == 30
@@ -118,7 +118,7 @@ def test_library_render_of_a_simulated_trajectory_writes_what_the_scene_asks_for
         assert np.array_equal(image, np.asarray(Image.open(from_cli)))
         columns.append(red_centroid(image)[0])
     assert np.all(np.diff(columns) > 0)
-    again = api.render(scene, trajectory, model=model, out_dir="library")
+    again = api.render(plan, trajectory, out_dir="library")
     assert again.backend.startswith("(none") and again.render_seconds == 0
 
 

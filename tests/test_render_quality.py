@@ -72,7 +72,7 @@ def hover_frame(x: float, shadows: bool) -> tuple[np.ndarray, tuple[float, float
     scene = stages.parse_scene(HOVER.format(x=x, shadows=str(shadows).lower()))
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
-    geometry = stages.frame_geometry(scene, model, trajectory)
+    geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
     with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
         image = renderer.draw(0.0, trajectory.positions[0], trajectory.orientations[0])
         expected = (np.nan, np.nan)
@@ -135,7 +135,7 @@ def test_a_plane_collider_in_the_ground_is_drawn_once_as_the_ground():
     scene = stages.parse_scene(text)
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
-    geometry = stages.frame_geometry(scene, model, trajectory)
+    geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
     with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
         image = renderer.draw(0.0, trajectory.positions[0], trajectory.orientations[0]).astype(int)
     green = (image[..., 1] > 150) & (image[..., 0] < 100) & (image[..., 2] < 100)
@@ -166,7 +166,7 @@ def test_a_trail_follows_the_closed_form_path_over_its_length_only():
     scene = stages.parse_scene(THROW)
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
-    geometry = stages.frame_geometry(scene, model, trajectory)
+    geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
     frame = 30  # t = 1 s
 
     def path(t: np.ndarray) -> np.ndarray:
@@ -231,7 +231,7 @@ def test_the_text_overlay_shows_the_frame_energies_and_speeds_of_the_closed_form
     scene = stages.parse_scene(THROW.replace("  show_time: false\n", f'  time_label: "{HUD_LABEL}"\n'))
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
-    geometry = stages.frame_geometry(scene, model, trajectory)
+    geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
     with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
         renderer.draw(0.5, trajectory.positions[15], trajectory.orientations[15])
         text = renderer._label.GetInput()
@@ -252,7 +252,7 @@ def test_the_overlay_sits_in_its_corner_and_scales_with_the_frame(corner):
         scene = stages.parse_scene(text.replace("trails: {length: 0.6, width: 2, fade: false}", "ground: null"))
         model = api.compile_model(scene)
         trajectory = api.simulate(scene, model=model)
-        geometry = stages.frame_geometry(scene, model, trajectory)
+        geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
         with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
             image = renderer.draw(0.0, trajectory.positions[0] + 100.0, trajectory.orientations[0])  # ball away
         dark = image.sum(axis=2) < 200
@@ -291,7 +291,7 @@ def test_the_fitted_camera_keeps_every_body_inside_the_frame_with_a_margin_over_
     assert scene.spec.render.camera.position is None, "this test is about the fitted camera"
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
-    geometry = stages.frame_geometry(scene, model, trajectory)
+    geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
     width, height = scene.spec.render.resolution
     placement = place_camera(scene.spec.render.camera, geometry.bounds, width / height)
     extent = on_screen_extent(placement, width / height, trajectory.positions, body_extents(model)[None, :])
@@ -312,7 +312,7 @@ render: {resolution: [160, 90], show_time: false}
     assert scene.spec.render.camera.position is None
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
-    geometry = stages.frame_geometry(scene, model, trajectory)
+    geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
     with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
         red = []
         for t, positions in zip(trajectory.times, trajectory.positions):
@@ -328,7 +328,7 @@ def test_bars_in_the_overlay_are_drawn_as_bars():
     scene = stages.parse_scene(THROW.replace("  show_time: false\n", '  time_label: "| | | |"\n  label_size: 0.1\n'))
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
-    geometry = stages.frame_geometry(scene, model, trajectory)
+    geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
     with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
         image = renderer.draw(0.0, trajectory.positions[0] + 100.0, trajectory.orientations[0]).astype(int)
     dark = image.sum(axis=2) < 300

@@ -99,3 +99,43 @@ def test_progress_bar_only_when_enabled():
     with Progress(enabled=None, stream=quiet).task("simulate", 5) as on_frame:  # not a terminal
         on_frame(0, 0.0)
     assert quiet.getvalue() == ""
+
+
+EMITTER_ON_A_BODY = """
+    duration: 0.5
+    fps: 10
+    solver: {method: verlet, dt: 0.01}
+    bodies: [{name: cart, type: rigid, shape: {type: box, size: [0.2, 0.1, 0.1]}, mass: 1, velocity: [1, 0, 0]}]
+    emitters:
+      - {name: exhaust, body: cart, rate: 40, lifetime: 1, speed: 0.5, radius: 0.01, mass: 1.0e-4}
+    fields: [{type: gravity}]
+    render: {resolution: [64, 48]}
+"""
+
+
+def test_a_render_compiles_its_scene_once(tmp_cwd, monkeypatch):
+    """A run is plan -> simulate -> draw -> encode: the scene's Model is built once and its emitters compiled once,
+    for the cost estimate, the simulation and the drawing alike (a drawing that compiled again would count 2)."""
+    from animbatch.compile.particles import ParticleSystems
+    from animbatch.sim.model.builder import ModelBuilder
+
+    counts = {"models": 0, "particle systems": 0}
+    finalize, systems = ModelBuilder.finalize, ParticleSystems.__init__
+
+    def counted_finalize(self, *args, **kwargs):
+        counts["models"] += 1
+        return finalize(self, *args, **kwargs)
+
+    def counted_systems(self, *args, **kwargs):
+        counts["particle systems"] += 1
+        systems(self, *args, **kwargs)
+
+    monkeypatch.setattr(ModelBuilder, "finalize", counted_finalize)
+    monkeypatch.setattr(ParticleSystems, "__init__", counted_systems)
+    (tmp_cwd / "cart.yaml").write_text(EMITTER_ON_A_BODY)
+    report = api.run(tmp_cwd / "cart.yaml", out_dir="renders")
+    assert report.frame_count == 5 and report.particle_stats["born"] > 0
+    assert counts == {"models": 1, "particle systems": 1}
+    counts.update({"models": 0, "particle systems": 0})
+    api.run(tmp_cwd / "cart.yaml", out_dir="renders")  # from the cache: compiled once still, for the drawing
+    assert counts == {"models": 1, "particle systems": 1}

@@ -120,7 +120,7 @@ def test_the_overlay_shows_stopwatches_and_wall_times_and_the_run_reports_them(t
     loaded = scene(text)
     model = api.compile_model(loaded)
     trajectory = api.simulate(loaded, model=model)
-    label = api.frame_geometry(loaded, model, trajectory).label
+    label = api.frame_geometry(api.plan(loaded, model=model), trajectory).label
     assert label.at(0.3)["stopwatch"]["fall"] == pytest.approx(0.3)
     assert label.at(2.0)["stopwatch"]["fall"] == pytest.approx(np.sqrt(4 / G), abs=1e-6)
     assert label.at(0.0)["wall_simulate"] > 0

@@ -31,7 +31,7 @@ def first_frame(render: str, extra: str = "") -> np.ndarray:
     scene = stages.parse_scene(EMPTY.format(render=render) + extra)
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
-    geometry = stages.frame_geometry(scene, model, trajectory)
+    geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
     with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
         return renderer.draw(0.0, trajectory.positions[0], trajectory.orientations[0]).astype(int)
 
@@ -100,7 +100,7 @@ def test_ambient_occlusion_darkens_the_ground_where_a_body_touches_it_and_nothin
                                                    "").format(render=render + f"  ambient_occlusion: {occlusion}\n"))
         model = api.compile_model(scene)
         trajectory = api.simulate(scene, model=model)
-        geometry = stages.frame_geometry(scene, model, trajectory)
+        geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
         with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
             return renderer.draw(0.0, trajectory.positions[0]).astype(int)
 
@@ -129,7 +129,7 @@ def test_the_overlay_draws_the_notes_symbols():
         scene = stages.parse_scene(text)
         model = api.compile_model(scene)
         trajectory = api.simulate(scene, model=model)
-        geometry = stages.frame_geometry(scene, model, trajectory)
+        geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
         with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
             corner = renderer.draw(0.0, trajectory.positions[0]).astype(int)[:60, :120]
         return int((np.abs(corner - corner[-1:, -1:]).sum(axis=2) > 150).sum())

@@ -73,7 +73,7 @@ def brightest(metallic: float) -> np.ndarray:
     scene = stages.parse_scene(SPHERE.format(metallic=metallic))
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
-    geometry = stages.frame_geometry(scene, model, trajectory)
+    geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
     with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
         image = renderer.draw(0.0, trajectory.positions[0]).astype(float)
     rows, columns = np.nonzero(np.abs(image - 128).sum(axis=2) > 30)

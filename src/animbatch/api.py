@@ -2,9 +2,9 @@
 
     from animbatch import api
     scene = api.load_scene("scenes/projectile.yaml", overrides=["solver.method=DOP853"])
-    model = api.compile_scene(scene.spec)
-    trajectory = api.simulate(scene, model=model)
-    result = api.render(scene, trajectory, model=model, out_dir="renders")
+    plan = api.plan(scene)            # compiled once: model, step settings, timeline, emitters
+    trajectory = api.simulate(plan)
+    result = api.render(plan, trajectory, out_dir="renders")
 
 Simulation and rendering meet only at the :class:`~animbatch.trajectory.Trajectory`: a trajectory saved by
 ``simulate`` can be rendered later (with another camera or resolution) without simulating again.
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from animbatch.compile.builder import ModelBuilder
 from animbatch.compile.model import compile_scene
+from animbatch.compile.plan import RunPlan
 from animbatch.compile.stopwatches import StopwatchReading, stopwatch_readings
 from animbatch.farm.run import RenderResult, RunReport, finish_outputs, render, run
 from animbatch.scene import physics_fingerprint
@@ -24,6 +25,7 @@ from animbatch.stages import (
                               frame_geometry,
                               load_scene,
                               parse_scene,
+                              plan,
                               scene_fingerprint,
                               scene_folder,
                               simulate,
@@ -31,7 +33,7 @@ from animbatch.stages import (
                               write_quantities,
 )
 
-__all__ = ["ModelBuilder", "RenderResult", "RunReport", "StopwatchReading", "check_trajectory", "compile_model",
-           "compile_scene", "failure_report", "finish_outputs", "frame_geometry", "load_scene", "parse_scene",
-           "physics_fingerprint", "render", "run", "scene_fingerprint", "scene_folder", "simulate", "simulate_emitters",
-           "stopwatch_readings", "write_quantities"]
+__all__ = ["ModelBuilder", "RenderResult", "RunPlan", "RunReport", "StopwatchReading", "check_trajectory",
+           "compile_model", "compile_scene", "failure_report", "finish_outputs", "frame_geometry", "load_scene",
+           "parse_scene", "physics_fingerprint", "plan", "render", "run", "scene_fingerprint", "scene_folder",
+           "simulate", "simulate_emitters", "stopwatch_readings", "write_quantities"]

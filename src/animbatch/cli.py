@@ -295,12 +295,11 @@ def schema(output: Path | None) -> None:
 @_reports_errors
 def info(scene: Path, settings: tuple[str, ...], **shortcuts: str | None) -> None:
     """Show the compiled model: force terms, state layout, bodies and their masses."""
-    from animbatch.api import compile_model
     from animbatch.info import describe_model
-    from animbatch.stages import load_scene
+    from animbatch.stages import load_scene, plan
 
     loaded = load_scene(scene, _overrides(settings, **shortcuts))
-    click.echo(describe_model(loaded, compile_model(loaded)))
+    click.echo(describe_model(plan(loaded)))
 
 
 @cli.command()
@@ -436,7 +435,7 @@ def _reads_a_run(verb: str) -> Callable[[F], F]:
     return decorate
 
 
-def _run_of(loaded: Any, model: Any, trajectory: Path | None, out_dir: Path, progress: bool | None) -> Any:
+def _run_of(plan: Any, trajectory: Path | None, out_dir: Path, progress: bool | None) -> Any:
     """The run a command reads: the trajectory file given (checked against the scene), or the scene's bake (reused
     from its cache, or simulated first)."""
     from animbatch import api
@@ -446,9 +445,9 @@ def _run_of(loaded: Any, model: Any, trajectory: Path | None, out_dir: Path, pro
 
     if trajectory is not None:
         run = Trajectory.load(trajectory)
-        api.check_trajectory(loaded, model, run, trajectory)
+        api.check_trajectory(plan.scene, plan.model, run, trajectory)
         return run
-    return bake_scene(loaded, out_dir=out_dir, model=model, progress=Progress(enabled=progress)).trajectory
+    return bake_scene(plan, out_dir=out_dir, progress=Progress(enabled=progress)).trajectory
 
 
 @cli.command()
@@ -463,11 +462,12 @@ def plot(scene: Path, trajectory: Path | None, out_dir: Path, settings: tuple[st
     from animbatch.sim.ledger import summary
 
     loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
-    model = api.compile_model(loaded)
+    plan = api.plan(loaded)
+    model = plan.model
     if not model.body_count:
         raise click.UsageError(f"{scene} has no bodies to plot (emitted particles carry no energy or momentum "
                                "series)")
-    run = _run_of(loaded, model, trajectory, out_dir, progress)
+    run = _run_of(plan, trajectory, out_dir, progress)
     written = api.write_quantities(loaded, model, run, out_dir / loaded.name, plot=True)
     click.echo(f"{loaded.name}: {', '.join(map(str, written))} | {summary(run.ledger)}")
 
@@ -506,10 +506,10 @@ def export(scene: Path, trajectory: Path | None, kinds: tuple[str, ...], out_dir
         name = run.scene_name
     else:
         loaded = api.load_scene(scene, _overrides(settings, **shortcuts))
-        model = api.compile_model(loaded)
-        run = _run_of(loaded, model, trajectory, out_dir, progress)
+        plan = api.plan(loaded)
+        run = _run_of(plan, trajectory, out_dir, progress)
         name, render, fps = loaded.name, loaded.spec.render, loaded.spec.fps
-        geometry = stages.frame_geometry(loaded, model, run) if set(kinds) - {"csv"} else None
+        geometry = stages.frame_geometry(plan, run) if set(kinds) - {"csv"} else None
     for kind in dict.fromkeys(kinds):
         started = time.perf_counter()
         written = export_run(run, out_dir / name, kind, geometry, render, fps)
@@ -573,7 +573,7 @@ def encode(scene: Path, out_dir: Path, formats: str | None, resolution: str | No
     kinds = tuple(kind for kind in loaded.spec.render.formats if kind != "png")
     if not kinds:
         raise click.BadParameter("no video format chosen (png frames are already on disk)", param_hint="--formats")
-    frame_count = len(api.compile_model(loaded).frame_times)
+    frame_count = loaded.spec.frame_count
     # the options that decide the frames, for the render command the error suggests
     options = ([f"--resolution {resolution}"] if resolution else []) + ([f"--quality {quality}"] if quality else []) \
         + [f"--set {setting}" for setting in settings]
@@ -649,10 +649,9 @@ def _farm_job_options(function: Callable[..., Any]) -> Callable[..., Any]:
 def _scene_frames(scene: Path, settings: tuple[str, ...]) -> tuple[Any, int]:
     """The loaded scene and its number of frames."""
     from animbatch import api
-    from animbatch.sim.model.builder import frame_times
 
     loaded = api.load_scene(scene, list(settings))
-    return loaded, len(frame_times(loaded.spec.duration, loaded.spec.fps))
+    return loaded, loaded.spec.frame_count
 
 
 @farm.command("slurm")

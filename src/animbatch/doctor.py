@@ -190,9 +190,9 @@ def probe(backend_name: str, image: Path) -> dict[str, Any]:
     from animbatch.render.frames import FrameRenderer
 
     scene = stages.parse_scene(PROBE_SCENE, filename="<doctor>")
-    model = stages.compile_model(scene)
-    trajectory = stages.simulate(scene, model=model)
-    geometry = stages.frame_geometry(scene, model, trajectory)
+    run = stages.plan(scene)
+    trajectory = stages.simulate(run)
+    geometry = stages.frame_geometry(run, trajectory)
     backend = select_backend(backend_name)
     started = time.perf_counter()
     with FrameRenderer(scene.spec.render, geometry, backend) as renderer:

@@ -5,13 +5,11 @@ from __future__ import annotations
 from typing import Any
 
 from animbatch.compile.forces import FIELD_TERMS
-from animbatch.compile.particles import compile_particles
+from animbatch.compile.plan import RunPlan
 from animbatch.scene import LoadedScene
 from animbatch.scene.schema import BoxCollider, PlaneCollider, SphereCollider, random_bounds
 from animbatch.sim.contact.stepping import DEFAULT_REST_SPEED
 from animbatch.sim.deformable.vertices import ANCHOR, BODY_POINT, PARTICLE
-from animbatch.sim.integrators import DEFAULT_DT
-from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.joints.tree import JointTree
 from animbatch.sim.ledger import conservation_laws, step_note
 from animbatch.sim.model import Model
@@ -50,8 +48,9 @@ def _rigid_lines(model: Model, x0: object, v0: object) -> list[str]:
     return lines
 
 
-def describe_model(scene: LoadedScene, model: Model) -> str:
+def describe_model(run: RunPlan) -> str:
     """What was compiled: timeline, solver, state layout, force terms (in evaluation order), bodies and anchors."""
+    scene, model = run.scene, run.model
     spec = scene.spec
     times = model.frame_times
     lines = [f"scene      {scene.name}" + (f"  ({scene.path})" if scene.path else "")]
@@ -62,12 +61,11 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
         f"k = 0 … {len(times) - 1} (last frame at {times[-1]:.6g} s)",
         f"solver     {describe_solver(spec.solver)}",
     ]
-    if not spec.solver.is_adaptive and spec.solver.method != "analytic" and len(times) > 1:
-        interval = float(times[1] - times[0])
-        requested = spec.solver.dt or DEFAULT_DT
-        count = substeps(interval, requested)
-        note = step_note(requested, interval / count, interval)
-        lines.append(f"step       {interval / count:.6g} s used, {count} per frame" + (f": {note}" if note else ""))
+    steps = run.steps
+    if steps.step is not None and steps.interval is not None:
+        note = step_note(steps.dt, steps.step, steps.interval, steps.dt_given)
+        lines.append(f"step       {steps.step:.6g} s used, {steps.frame_substeps} per frame"
+                     + (f": {note}" if note else ""))
     laws = conservation_laws(model)
     for number, (name, law) in enumerate(laws.items()):
         lines.append(f"{'conserves' if number == 0 else '':<10} {name.replace('_', ' ')}: "
@@ -143,15 +141,14 @@ def describe_model(scene: LoadedScene, model: Model) -> str:
                      f"{_vector(model.anchor_position[indices].min(axis=0))} to "
                      f"{_vector(model.anchor_position[indices].max(axis=0))} m")
     lines += _contact_lines(scene, model)
-    lines += _emitter_lines(scene, model)
+    lines += _emitter_lines(run)
     return "\n".join(lines)
 
 
-def _emitter_lines(scene: LoadedScene, model: Model) -> list[str]:
+def _emitter_lines(run: RunPlan) -> list[str]:
     """Each emitter: its pool, schedule, attribute bounds, the fields its particles feel, what they collide with."""
 
-    spec = scene.spec
-    systems = compile_particles(spec, model, scene.path.parent if scene.path is not None else ".")  # type: ignore[arg-type]
+    spec, systems = run.spec, run.particles
     if systems is None:
         return []
     lines = []

@@ -25,7 +25,8 @@ from animbatch.compile.checks import compile_checks
 from animbatch.compile.frame_geometry import body_extents, collider_points
 from animbatch.compile.frame_geometry import frame_geometry as compile_frame_geometry
 from animbatch.compile.model import compile_scene
-from animbatch.compile.particles import ParticleSystems, compile_particles, particle_costs
+from animbatch.compile.particles import particle_costs
+from animbatch.compile.plan import RunPlan, plan_run, scene_folder
 from animbatch.compile.solver import make_integrator
 from animbatch.compile.stopwatches import stopwatch_readings
 from animbatch.errors import SimulationError, TrajectoryError
@@ -34,13 +35,13 @@ from animbatch.plot import plot_quantities
 from animbatch.progress import Progress
 from animbatch.provenance import simulation_code
 from animbatch.render.camera import motion_bounds
-from animbatch.render.geometry import LabelValues, PanelSeries
+from animbatch.render.geometry import FrameGeometry, LabelValues, PanelSeries
 from animbatch.scene import LoadedScene, physics_fingerprint
 from animbatch.scene import loader as scene_loader
 from animbatch.scene.overrides import Override
 from animbatch.scene.schema import label_names, label_speed_names
 from animbatch.sim.contact.stepping import measure_contact_search, numpy_contact_solve
-from animbatch.sim.integrators import DEFAULT_DT, IntegrationResult, SolverStats
+from animbatch.sim.integrators import IntegrationResult, Integrator, SolverStats
 from animbatch.sim.integrators.base import StepSettings
 from animbatch.sim.integrators.budget import wall_budget
 from animbatch.sim.integrators.checkpoint import integrate_with_checkpoints
@@ -50,7 +51,7 @@ from animbatch.sim.ledger import QuantitySeries, build_ledger
 from animbatch.sim.model import Dynamics, Model
 from animbatch.sim.model.compiled import dynamics_for
 from animbatch.sim.particles.body_motion import BodyMotion
-from animbatch.sim.particles.simulate import simulate_particles, steps_per_frame
+from animbatch.sim.particles.simulate import simulate_particles
 from animbatch.sim.preflight import preflight
 from animbatch.stopwatch import Stopwatch
 from animbatch.trajectory import Trajectory
@@ -69,41 +70,43 @@ def parse_scene(text: str, *, filename: str = "<scene>", overrides: Sequence[Ove
                                     path=path, geometry_checks=compile_checks)
 
 
-def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progress | None = None,
+def plan(scene: LoadedScene | RunPlan, *, model: Model | None = None) -> RunPlan:
+    """The run plan of ``scene`` (compiled here, reusing ``model`` when given), or ``scene`` if it is one already."""
+    return scene if isinstance(scene, RunPlan) else plan_run(scene, model=model)
+
+
+def simulate(scene: LoadedScene | RunPlan, *, model: Model | None = None, progress: Progress | None = None,
              checkpoint: tuple[int, Path] | None = None, reactions: bool = True) -> Trajectory:
     """Integrate the scene and sample it at the frame times. Raises SimulationError on divergence or failure.
 
+    ``scene``: a loaded scene (compiled here, with ``model`` if the caller compiled it) or its run plan.
     ``checkpoint``: (every N frames, file): integrate in segments, saving the states after each and resuming from
     the file when it exists (see :mod:`animbatch.sim.integrators.checkpoint`). ``reactions``: also each joint's
     reaction at every frame (what trajectory files store; a millisecond or so a frame, as much as the whole
     integration of a small jointed scene), for callers that read them; without, they are None."""
-    spec = scene.spec
-    model = model if model is not None else compile_model(scene)
-    integrator = make_integrator(spec.solver, model)
+    run = plan(scene, model=model)
+    spec, model, steps = run.spec, run.model, run.steps
+    integrator = make_integrator(steps, model)
     progress = progress or Progress(enabled=False)
     # risky settings, with numbers (what is certain to fail is refused)
     warnings: list[str] = []
     estimated = 0.0
-    systems: ParticleSystems | None = None  # the emitters, compiled once for the estimate and the run
     system = Dynamics(model)
-    if spec.solver.method != "analytic":  # closed forms cost nothing to speak of, and cannot go unstable
-        warnings = preflight(model, spec.solver.method, spec.solver.dt)
-        frame_steps = steps_per_frame(1.0 / spec.fps, spec.solver.method, spec.solver.dt or DEFAULT_DT)
-        particle_steps = frame_steps * (len(model.frame_times) - 1)
-        systems = compile_particles(spec, model, scene_folder(scene)) if spec.emitters else None
-        pools = particle_costs(spec, systems, particle_steps)
-        system, cost = choose_dynamics(model, spec.solver, pools, particle_steps)
+    if steps.method != "analytic":  # closed forms cost nothing to speak of, and cannot go unstable
+        warnings = preflight(model, steps.method, steps.dt)
+        particle_steps = steps.frame_substeps * (run.timeline.count - 1)
+        pools = particle_costs(spec, run.particles, particle_steps)
+        system, cost = choose_dynamics(model, steps, pools, particle_steps)
         check_cost(cost, spec.solver.max_cost)  # refuse what would run for hours or cannot fit, before it starts
         estimated = cost.seconds
     with wall_budget(spec.solver.max_cost, float(model.frame_times[0]), float(model.frame_times[-1])):
-        result, particles, particle_stats = _integrate(scene, model, system, integrator, progress, checkpoint,
-                                                       systems)
+        result, particles, particle_stats = _integrate(run, system, integrator, progress, checkpoint)
     states = result.states
     kinds = ("particle",) * model.particle_count + ("rigid",) * model.rigid_count
     stats = {**result.stats.as_dict(), "estimated_seconds": estimated}
-    ledger = build_ledger(model, states, stats, particle_stats, method=spec.solver.method,
-                          adaptive=spec.solver.is_adaptive, requested_dt=spec.solver.dt or DEFAULT_DT,
-                          rtol=spec.solver.rtol, drift_warning=spec.solver.drift_warning)
+    ledger = build_ledger(model, states, stats, particle_stats, method=steps.method, adaptive=steps.adaptive,
+                          requested_dt=steps.dt, dt_given=steps.dt_given, rtol=steps.rtol,
+                          drift_warning=spec.solver.drift_warning)
     joint_loads: tuple[np.ndarray | None, ...] = (None, None, None)
     if reactions and model.joints is not None and len(states):
         joint_loads = Dynamics(model).joint_reactions(model.frame_times, states)
@@ -112,7 +115,7 @@ def simulate(scene: LoadedScene, *, model: Model | None = None, progress: Progre
         velocities=model.velocities(states), orientations=model.orientations(states),
         angular_velocities=model.angular_velocities(states), body_kinds=kinds,
         anchor_names=model.anchor_names, anchor_positions=model.anchor_position.copy(),
-        physics_hash=scene_fingerprint(scene), scene_name=scene.name, package_version=simulation_code(),
+        physics_hash=scene_fingerprint(run.scene), scene_name=run.name, package_version=simulation_code(),
         solver={**spec.solver.model_dump(), "description": integrator.describe()},
         solver_stats={**stats, "warnings": warnings}, particles=tuple(particles), particle_stats=particle_stats,
         ledger=ledger.as_dict(), clock_names=model.clocks.names if model.clocks is not None else (),
@@ -137,52 +140,44 @@ def choose_dynamics(model: Model, solver: StepSettings, pools: Sequence[tuple[An
     return system, cost
 
 
-def _integrate(scene: LoadedScene, model: Model, system: Dynamics, integrator: Any, progress: Progress,
-               checkpoint: tuple[int, Path] | None, systems: ParticleSystems | None = None
-               ) -> tuple[IntegrationResult, list, dict[str, Any]]:
+def _integrate(run: RunPlan, system: Dynamics, integrator: Integrator, progress: Progress,
+               checkpoint: tuple[int, Path] | None) -> tuple[IntegrationResult, list, dict[str, Any]]:
     """The bodies' states at the frame times, then the emitted particles (which may ride on bodies)."""
+    model = run.model
     if model.layout.size:
         with progress.task("simulate", len(model.frame_times)) as on_frame:
             if checkpoint is None:
                 result = integrator.integrate(system, model.y0, model.frame_times, on_frame=on_frame)
             else:
-
                 every, path = checkpoint
                 result = integrate_with_checkpoints(integrator, system, model.y0, model.frame_times,
                                                     every=every, path=Path(path), on_frame=on_frame)
-        check_energy_growth(model, result.states, scene.spec.solver.method, result.stats.dt)
+        check_energy_growth(model, result.states, run.steps.method, result.stats.dt)
     else:  # a scene of emitters only: no body to integrate
-        result = IntegrationResult(np.zeros((len(model.frame_times), 0)), SolverStats(scene.spec.solver.method))
-    particles, particle_stats = simulate_emitters(scene, model, result.states, progress, systems)
+        result = IntegrationResult(np.zeros((len(model.frame_times), 0)), SolverStats(run.steps.method))
+    particles, particle_stats = simulate_emitters(run, result.states, progress)
     return result, particles, particle_stats
 
 
-def simulate_emitters(scene: LoadedScene, model: Model, states: np.ndarray, progress: Progress,
-                      systems: ParticleSystems | None = None) -> tuple[list, dict[str, Any]]:
-    """The scene's emitted particles at the frame times (after its bodies, whose motion ``states`` (F, n) moves
-    emitters attached to them), and the statistics of their simulation; nothing when it has no emitters.
-    ``systems``: the scene's compiled particle systems, if the caller has them already."""
-    spec = scene.spec
-    if not spec.emitters:
+def simulate_emitters(run: RunPlan, states: np.ndarray, progress: Progress | None = None
+                      ) -> tuple[list, dict[str, Any]]:
+    """The run's emitted particles at the frame times (after its bodies, whose motion ``states`` (F, n) moves
+    emitters attached to them), and the statistics of their simulation; nothing when it has no emitters."""
+    systems, model = run.particles, run.model
+    if systems is None:
         return [], {}
-
-    systems = systems if systems is not None else compile_particles(spec, model, scene_folder(scene))
-    assert systems is not None
+    progress = progress or Progress(enabled=False)
     motion = BodyMotion(model.frame_times, model.positions(states), model.velocities(states),
                         model.orientations(states), model.angular_velocities(states))
     with progress.task("particles", len(model.frame_times)) as on_frame:
-        records, stats = simulate_particles(systems.emitters, systems.colliders, model.frame_times, spec.solver,
-                                            motion, dt=spec.solver.dt or DEFAULT_DT, on_frame=on_frame)
+        records, stats = simulate_particles(systems.emitters, systems.colliders, model.frame_times, run.steps,
+                                            motion, dt=run.steps.dt, on_frame=on_frame)
     return records, stats.as_dict()
 
 
-def scene_folder(scene: LoadedScene) -> Path:
-    """Where the scene's relative file names (mesh files) are resolved: the scene file's folder."""
-    return scene.path.parent if scene.path is not None else Path(".")
-
-
 def compile_model(scene: LoadedScene) -> Model:
-    """The Model of a loaded scene, with mesh files found beside the scene file."""
+    """The Model of a loaded scene, with mesh files found beside the scene file (a run compiles it once, into its
+    plan: :func:`plan`)."""
     return compile_scene(scene.spec, scene_folder(scene))
 
 
@@ -214,22 +209,18 @@ def largest_vector(model: Model, trajectory: Trajectory, kind: str) -> float:
     return float(np.max(np.linalg.norm(momentum, axis=-1), initial=0.0))
 
 
-def frame_geometry(scene: LoadedScene, model: Model, trajectory: Trajectory) -> Any:
-    """What the renderer draws for this scene and trajectory (a :class:`~animbatch.render.geometry.FrameGeometry`),
-    with the camera fitted to the whole motion: bodies, anchors, colliders and emitted particles."""
-
-    spec = scene.spec
+def frame_geometry(run: RunPlan, trajectory: Trajectory) -> FrameGeometry:
+    """What the renderer draws for this run and trajectory, with the camera fitted to the whole motion: bodies,
+    anchors, colliders and emitted particles."""
+    spec, model, scene = run.spec, run.model, run.scene
     anchors = (np.vstack([model.anchors.positions(float(t)) for t in trajectory.times]) if model.anchors.moving
                else model.anchor_position)
-    fixed = np.vstack([anchors, collider_points(spec, scene_folder(scene)), particle_extent(trajectory)])
+    fixed = np.vstack([anchors, collider_points(spec, run.folder), particle_extent(trajectory)])
     bounds = motion_bounds(trajectory.positions, body_extents(model), fixed)
-    emitters = ()
-    if spec.emitters:
-
-        emitters = compile_particles(spec, model, scene_folder(scene)).emitters  # type: ignore[union-attr]
+    emitters = run.particles.emitters if run.particles is not None else ()
     geometry = compile_frame_geometry(spec, model, bounds,
                                       largest_vector(model, trajectory, spec.render.show_vectors),
-                                      scene_folder(scene), emitters, (trajectory.positions, trajectory.times))
+                                      run.folder, emitters, (trajectory.positions, trajectory.times))
     arrows = None
     if spec.render.arrows is not None:
         arrows = arrow_series(spec, model, trajectory_states(model, trajectory), np.asarray(trajectory.times),

@@ -475,13 +475,14 @@ def test_with_contacts_the_compiled_forms_take_the_steps_around_the_numpy_contac
 
 def test_info_says_whether_a_scene_has_compiled_equations_of_motion_and_why_not():
     """'animbatch info' names the kernels line: compiled where every part has a compiled form, else the reason."""
+    from animbatch.compile.plan import plan_run
     from animbatch.info import describe_model
 
     jointed = scene("duration: 1\nfps: 10\n" + "\n".join(line[8:] for line in SCENES["rods, a rope and a pulley"]
                                                           .splitlines()))
     assert "kernels    the equations of motion have a compiled form" in describe_model(
-        jointed, compile_scene(jointed.spec))
+        plan_run(jointed))
     dragged = scene("duration: 1\nfps: 10\nbodies: [{name: p, type: rigid, shape: {type: sphere, radius: 0.1}, "
                     "density: 500, charge: 1.0e-6}]\nfields: [{type: electromagnetic, E: [0, 1, 0]}]\n")
     assert ("kernels    numpy equations of motion: its electromagnetic term has no compiled form"
-            in describe_model(dragged, compile_scene(dragged.spec)))
+            in describe_model(plan_run(dragged)))

@@ -27,7 +27,6 @@ from animbatch.farm import bake, render_frames
 from animbatch.farm.encode import encode
 from animbatch.farm.frames import FrameRange, frames_folder, prepare_frames
 from animbatch.files import write_json_atomic
-from animbatch.sim.model.builder import frame_times
 from animbatch.stopwatch import Stopwatch
 from animbatch.trajectory import Trajectory
 
@@ -131,7 +130,7 @@ def encode_task(scene_path: str, overrides: Sequence[Any], out_dir: str, baked: 
 def frame_count(job: Job) -> tuple[str, int]:
     """The scene's name and number of frames, read on the client to plan the render chunks (raises SceneError)."""
     scene = stages.load_scene(job.scene_path, list(job.overrides))
-    return scene.name, len(frame_times(scene.spec.duration, scene.spec.fps))
+    return scene.name, scene.spec.frame_count
 
 
 def submit(client: Any, job: Job, out_dir: str, *, chunk_size: int, backend: str, retries: int,

@@ -20,7 +20,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from animbatch import __version__
+from animbatch.compile.plan import RunPlan
 from animbatch.errors import TrajectoryError
+from animbatch.progress import Progress
 from animbatch.provenance import simulation_code
 from animbatch.scene import LoadedScene
 from animbatch.sim.ledger import warn_again, with_threshold
@@ -80,11 +82,13 @@ def load_cached(scene: LoadedScene, path: Path) -> Trajectory | None:
     return trajectory
 
 
-def bake(scene: LoadedScene, *, out_dir: str | Path = "renders", model: object = None, progress: object = None,
+def bake(scene: LoadedScene | RunPlan, *, out_dir: str | Path = "renders", progress: Progress | None = None,
          force: bool = False, checkpoint_every: int | None = None) -> BakeResult:
-    """The scene's trajectory from the cache, or simulated and cached (raises SimulationError as simulate does).
+    """The scene's trajectory from the cache, or simulated and cached (raises SimulationError as simulate does);
+    ``scene``: a loaded scene, or its run plan when the caller compiled it (nothing is compiled for a cache hit).
     With ``checkpoint_every`` N, the states are saved every N frames to ``cache/checkpoint-<key>.npz``, and an
     interrupted bake resumes from there."""
+    run, scene = (scene, scene.scene) if isinstance(scene, RunPlan) else (None, scene)
     path = cache_file(scene, out_dir)
     started = time.perf_counter()
     cached = None if force else load_cached(scene, path)
@@ -93,7 +97,7 @@ def bake(scene: LoadedScene, *, out_dir: str | Path = "renders", model: object =
         warn_again(cached.ledger)  # what the run said when it was baked holds for every use of the bake
         return BakeResult(cached, path, True, time.perf_counter() - started)
     checkpoint = (checkpoint_every, path.with_name(f"checkpoint-{bake_key(scene)}.npz")) if checkpoint_every else None
-    trajectory = simulate(scene, model=model, progress=progress, checkpoint=checkpoint)  # type: ignore[arg-type]
+    trajectory = simulate(run if run is not None else scene, progress=progress, checkpoint=checkpoint)
     trajectory.save(path)
     stale_files = [*path.parent.glob("trajectory-*.npz"), *path.parent.glob("checkpoint-*.npz")]
     for stale in stale_files:  # other keys: older physics, solver or version

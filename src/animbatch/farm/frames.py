@@ -15,13 +15,13 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
-import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from animbatch import __version__
+from animbatch.compile.plan import RunPlan
 from animbatch.encode.images import BackgroundFrameWriter, FrameWriter, PngSequenceWriter
 from animbatch.errors import RenderError
 from animbatch.farm.cache import simulation_settings
@@ -30,46 +30,12 @@ from animbatch.render.backend import select_backend
 from animbatch.render.frames import FrameRenderer
 from animbatch.scene import LoadedScene
 from animbatch.sim.integrators.budget import format_seconds
-from animbatch.sim.model import Model
-from animbatch.stages import check_trajectory, compile_model, frame_geometry
+from animbatch.stages import check_trajectory, frame_geometry, plan
+from animbatch.timeline import FrameRange, parse_frames
 from animbatch.trajectory import Trajectory
 
-
-@dataclass(frozen=True)
-class FrameRange:
-    """Frames ``start`` … ``stop - 1`` (0-based, like ``range``)."""
-    start: int
-    stop: int
-
-    def __iter__(self):  # type: ignore[no-untyped-def]
-        return iter(range(self.start, self.stop))
-
-    def __len__(self) -> int:
-        return max(0, self.stop - self.start)
-
-    def __str__(self) -> str:
-        return f"{self.start}-{self.stop - 1}"
-
-    def chunks(self, size: int) -> list[FrameRange]:
-        """Consecutive ranges of at most ``size`` frames covering this one."""
-        return [FrameRange(start, min(start + size, self.stop)) for start in range(self.start, self.stop, size)]
-
-
-def parse_frames(text: str | None, frame_count: int) -> FrameRange:
-    """``"120-239"`` (inclusive), ``"120-"`` (to the end), ``"7"`` (one frame), or None (all frames)."""
-    if text is None:
-        return FrameRange(0, frame_count)
-    match = re.fullmatch(r"\s*(\d+)\s*(?:-\s*(\d*)\s*)?", text)
-    if match is None:
-        raise ValueError(f"--frames {text!r}: expected FIRST-LAST (e.g. 120-239), FIRST- or one frame number")
-    first = int(match.group(1))
-    last = first if match.group(2) is None and "-" not in text else (
-        int(match.group(2)) if match.group(2) else frame_count - 1)
-    if last < first:
-        raise ValueError(f"--frames {text!r}: the last frame comes before the first")
-    if first >= frame_count:
-        raise ValueError(f"--frames {text!r}: the scene has {frame_count} frames (0-{frame_count - 1})")
-    return FrameRange(first, min(last, frame_count - 1) + 1)
+__all__ = ["FrameRange", "RangeResult", "draw_frames", "frame_is_complete", "frames_folder", "parse_frames",
+           "prepare_frames", "render_frames"]
 
 
 def frame_is_complete(path: Path, size: tuple[int, int]) -> bool:
@@ -140,38 +106,38 @@ def prepare_frames(scene: LoadedScene, trajectory: Trajectory, out_dir: str | Pa
     return folder
 
 
-def render_frames(scene: LoadedScene, trajectory: Trajectory, frames: FrameRange, *, out_dir: str | Path = "renders",
-                  backend: str = "auto", model: Model | None = None,
+def render_frames(scene: LoadedScene | RunPlan, trajectory: Trajectory, frames: FrameRange, *,
+                  out_dir: str | Path = "renders", backend: str = "auto",
                   on_frame: Callable[[int], None] | None = None) -> RangeResult:
     """Draw the frames of ``frames`` that are not complete on disk, on their own: check that the trajectory is this
     scene's and that the frames folder holds only this picture first (a worker, a farm task); ``on_frame(index)``
-    after each frame."""
-    model = model if model is not None else compile_model(scene)
-    check_trajectory(scene, model, trajectory)
-    folder = prepare_frames(scene, trajectory, out_dir)
-    return draw_frames(scene, trajectory, frames, folder, model=model, backend=backend, on_frame=on_frame)
+    after each frame. ``scene``: a loaded scene, or its run plan when the caller compiled it."""
+    run = plan(scene)
+    check_trajectory(run.scene, run.model, trajectory)
+    folder = prepare_frames(run.scene, trajectory, out_dir)
+    return draw_frames(run, trajectory, frames, folder, backend=backend, on_frame=on_frame)
 
 
-def draw_frames(scene: LoadedScene, trajectory: Trajectory, frames: FrameRange, folder: Path, *, model: Model,
-                backend: str = "auto", on_frame: Callable[[int], None] | None = None) -> RangeResult:
+def draw_frames(run: RunPlan, trajectory: Trajectory, frames: FrameRange, folder: Path, *, backend: str = "auto",
+                on_frame: Callable[[int], None] | None = None) -> RangeResult:
     """Draw the frames of ``frames`` that are not complete in ``folder``, for a trajectory already checked against
-    the scene and a folder already prepared (:func:`render_frames` does both)."""
+    the run's scene and a folder already prepared (:func:`render_frames` does both)."""
     if frames.stop > trajectory.frame_count:
         raise ValueError(f"frames {frames} asked for; the trajectory has {trajectory.frame_count} (0-"
                          f"{trajectory.frame_count - 1})")
     writer = PngSequenceWriter(folder)
-    size = tuple(scene.spec.render.resolution)
+    size = tuple(run.spec.render.resolution)
     result = RangeResult()
     todo = []
     for index in frames:
         (result.skipped if frame_is_complete(writer.path_of(index), size) else todo).append(index)
     if todo:
-        draw_into(writer, scene, trajectory, todo, model=model, backend=backend, result=result, on_frame=on_frame)
+        draw_into(writer, run, trajectory, todo, backend=backend, result=result, on_frame=on_frame)
     return result
 
 
-def draw_into(writer: FrameWriter, scene: LoadedScene, trajectory: Trajectory, todo: list[int], *, model: Model,
-              backend: str, result: RangeResult, on_frame: Callable[[int], None] | None = None,
+def draw_into(writer: FrameWriter, run: RunPlan, trajectory: Trajectory, todo: list[int], *, backend: str,
+              result: RangeResult, on_frame: Callable[[int], None] | None = None,
               queued: int = 2) -> None:
     """Draw frames ``todo`` in order with one renderer and hand each to ``writer`` on a background thread (PNG files,
     or the videos' pipes), within ``render.max_cost``; ``result`` gets the frames written and the time spent drawing
@@ -186,10 +152,10 @@ def draw_into(writer: FrameWriter, scene: LoadedScene, trajectory: Trajectory, t
 
     chosen = select_backend(backend)
     result.backend = chosen.name
-    geometry = frame_geometry(scene, model, trajectory)
-    budget = RenderBudget(scene.spec.render.max_cost, len(todo))
+    geometry = frame_geometry(run, trajectory)
+    budget = RenderBudget(run.spec.render.max_cost, len(todo))
     with contextlib.ExitStack() as stack:
-        renderer = stack.enter_context(FrameRenderer(scene.spec.render, geometry, chosen))
+        renderer = stack.enter_context(FrameRenderer(run.spec.render, geometry, chosen))
         # entered last, so closed first: the frames handed over are finished before the renderer goes
         background = stack.enter_context(BackgroundFrameWriter(writer, written, queued))
         for done, index in enumerate(todo, start=1):

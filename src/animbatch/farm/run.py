@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from animbatch import __version__
+from animbatch.compile.plan import RunPlan
 from animbatch.compile.stopwatches import stopwatch_line, stopwatch_readings
 from animbatch.encode import PngSequenceWriter
 from animbatch.errors import SimulationError
@@ -23,7 +24,6 @@ from animbatch.farm.frames import (
     RangeResult,
     draw_frames,
     frames_folder,
-    parse_frames,
     prepare_frames,
 )
 from animbatch.farm.parallel import render_in_parallel, worker_count
@@ -34,8 +34,7 @@ from animbatch.scene import LoadedScene
 from animbatch.scene.overrides import Override
 from animbatch.sim.ledger import summary as ledger_summary
 from animbatch.sim.ledger import warn_again
-from animbatch.sim.model import Model
-from animbatch.stages import check_trajectory, compile_model, failure_report, load_scene, write_quantities
+from animbatch.stages import check_trajectory, failure_report, load_scene, plan, write_quantities
 from animbatch.stopwatch import Stopwatch
 from animbatch.trajectory import Trajectory
 
@@ -53,38 +52,41 @@ class RenderResult:
     fps: int
 
 
-def render(scene: LoadedScene, trajectory: Trajectory, *, model: Model | None = None,
-           out_dir: str | Path = "renders", backend: str = "auto", progress: Progress | None = None) -> RenderResult:
+def render(scene: LoadedScene | RunPlan, trajectory: Trajectory, *, out_dir: str | Path = "renders",
+           backend: str = "auto", progress: Progress | None = None) -> RenderResult:
     """Draw every frame of ``trajectory`` and write the scene's outputs into ``out_dir/<scene name>/``, in this
     process: ``run`` without the bake (the same frames, videos and file rules, see :func:`run`).
 
     The trajectory must come from this scene's physics (TrajectoryError otherwise); frames already complete on disk
-    for this picture are not drawn again; every file is written atomically.
+    for this picture are not drawn again; every file is written atomically. ``scene``: a loaded scene, or its run
+    plan when the caller compiled it.
     """
-    model = model if model is not None else compile_model(scene)
-    check_trajectory(scene, model, trajectory)
+    run = plan(scene)
+    scene = run.scene
+    check_trajectory(scene, run.model, trajectory)
     progress = progress or Progress(enabled=False)
     with progress.task("render", trajectory.frame_count) as on_frame:
         def each(i: int) -> None:
             on_frame(i, float(trajectory.times[i]))
 
-        rendered, outputs, encode_seconds = _render_whole(scene, trajectory, model, out_dir, backend, each)
+        rendered, outputs, encode_seconds = _render_whole(run, trajectory, out_dir, backend, each)
     return RenderResult(outputs, trajectory.frame_count, rendered.backend or "(none: frames were complete)",
                         rendered.render_seconds, encode_seconds, tuple(scene.spec.render.resolution),  # type: ignore[arg-type]
                         scene.spec.fps)
 
 
-def _render_whole(scene: LoadedScene, trajectory: Trajectory, model: Model, out_dir: str | Path, backend: str,
+def _render_whole(run: RunPlan, trajectory: Trajectory, out_dir: str | Path, backend: str,
                   on_frame: Callable[[int], None]) -> tuple[RangeResult, list[Path], float]:
     """Every frame in this process: streamed into the encoders, or, when frames of this picture are on disk (an
     interrupted farm or ``--jobs`` render), the missing ones drawn as PNGs and then encoded. Returns the frames
     drawn, the outputs and the encoding time [s] (after the last frame, when streamed)."""
+    scene = run.scene
     if not resumable_frames(scene, trajectory, out_dir):
-        streamed = stream_frames(scene, trajectory, model=model, out_dir=out_dir, backend=backend, on_frame=on_frame)
+        streamed = stream_frames(run, trajectory, out_dir=out_dir, backend=backend, on_frame=on_frame)
         return streamed.frames, streamed.outputs, streamed.encode_seconds
     folder = prepare_frames(scene, trajectory, out_dir)
-    rendered = draw_frames(scene, trajectory, FrameRange(0, trajectory.frame_count), folder, model=model,
-                           backend=backend, on_frame=on_frame)
+    rendered = draw_frames(run, trajectory, FrameRange(0, trajectory.frame_count), folder, backend=backend,
+                           on_frame=on_frame)
     outputs, encode_seconds = finish_outputs(scene, trajectory.frame_count, out_dir)
     return rendered, outputs, encode_seconds
 
@@ -183,7 +185,8 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
     with watch.stage("load"):
         scene = load_scene(scene_path, overrides)
     with watch.stage("compile"):
-        model = compile_model(scene)
+        compiled = plan(scene)
+    model = compiled.model
     cache = None
     if trajectory_path is not None:
         with watch.stage("load_trajectory"):
@@ -193,13 +196,13 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
         source = Path(trajectory_path)
     else:
         try:
-            baked = bake(scene, out_dir=out_dir, model=model, progress=progress)
+            baked = bake(compiled, out_dir=out_dir, progress=progress)
         except SimulationError as error:  # the reason goes in the report too, where batch tools look for it
             write_json_atomic(Path(out_dir) / scene.name / "report.json", failure_report(scene, error, watch))
             raise
         watch.add("load_cache" if baked.reused else "simulate", baked.seconds)
         trajectory, source, cache = baked.trajectory, baked.path, baked
-    span = parse_frames(frames, trajectory.frame_count)
+    span = compiled.timeline.frames(frames)
     spec = scene.spec
     # one process streams the whole animation into the encoders; --jobs N draws PNG frames in N processes, and
     # --frames draws a range for a farm (both encode from the PNGs)
@@ -211,7 +214,7 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
             on_frame(i, float(trajectory.times[i]))
 
         if frames is None and workers == 1:
-            rendered, outputs, encode_seconds = _render_whole(scene, trajectory, model, out_dir, backend, each)
+            rendered, outputs, encode_seconds = _render_whole(compiled, trajectory, out_dir, backend, each)
         else:
             folder = prepare_frames(scene, trajectory, out_dir)  # before any worker starts: stale frames go
             if workers > 1:
@@ -219,7 +222,7 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
                                               backend=backend, on_chunk=lambda chunk: [each(i) for i in chunk.drawn])
             else:
                 # checked above (a baked trajectory is this scene's by its cache key), and the folder just prepared
-                rendered = draw_frames(scene, trajectory, span, folder, model=model, backend=backend, on_frame=each)
+                rendered = draw_frames(compiled, trajectory, span, folder, backend=backend, on_frame=each)
             outputs = [frames_folder(scene, out_dir)]
             if frames is None:
                 outputs, encode_seconds = finish_outputs(scene, trajectory.frame_count, out_dir)

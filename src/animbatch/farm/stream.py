@@ -14,12 +14,12 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from animbatch.compile.plan import RunPlan
 from animbatch.encode.images import PngSequenceWriter
 from animbatch.encode.stream import FrameStream
 from animbatch.encode.video import VideoWriter
 from animbatch.farm.frames import RangeResult, draw_into, frames_folder, output_stem, prepare_frames
 from animbatch.scene import LoadedScene
-from animbatch.sim.model import Model
 from animbatch.trajectory import Trajectory
 
 
@@ -33,11 +33,11 @@ class StreamResult:
     encode_seconds: float
 
 
-def stream_frames(scene: LoadedScene, trajectory: Trajectory, *, model: Model, out_dir: str | Path,
-                  backend: str = "auto", on_frame: Callable[[int], None] | None = None) -> StreamResult:
-    """Draw every frame of ``trajectory`` (already checked against the scene) into the scene's videos, and into
-    ``out_dir/<scene>/frames/`` when ``png`` is one of its formats; ``on_frame(index)`` once each is written."""
-    spec = scene.spec
+def stream_frames(run: RunPlan, trajectory: Trajectory, *, out_dir: str | Path, backend: str = "auto",
+                  on_frame: Callable[[int], None] | None = None) -> StreamResult:
+    """Draw every frame of ``trajectory`` (already checked against the run's scene) into the scene's videos, and
+    into ``out_dir/<scene>/frames/`` when ``png`` is one of its formats; ``on_frame(index)`` once each is written."""
+    scene, spec = run.scene, run.spec
     folder = Path(out_dir) / scene.name
     size = tuple(spec.render.resolution)
     video = spec.render.video
@@ -47,8 +47,8 @@ def stream_frames(scene: LoadedScene, trajectory: Trajectory, *, model: Model, o
     png = PngSequenceWriter(prepare_frames(scene, trajectory, out_dir)) if "png" in spec.render.formats else None
     result = RangeResult()
     with FrameStream(videos, png) as stream:
-        draw_into(stream, scene, trajectory, list(range(trajectory.frame_count)), model=model, backend=backend,
-                  result=result, on_frame=on_frame, queued=frames_queued(size))
+        draw_into(stream, run, trajectory, list(range(trajectory.frame_count)), backend=backend, result=result,
+                  on_frame=on_frame, queued=frames_queued(size))
         outputs, seconds = stream.commit()
     if png is not None:
         png.remove_beyond(trajectory.frame_count)

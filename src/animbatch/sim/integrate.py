@@ -13,8 +13,9 @@ import numpy as np
 
 from animbatch.sim.contact.events import ContactEvents
 from animbatch.sim.contact.stepping import ContactResolver
-from animbatch.sim.integrators import DEFAULT_DT, SCIPY_METHODS, FixedStepIntegrator, Integrator, ScipyIntegrator
+from animbatch.sim.integrators import SCIPY_METHODS, FixedStepIntegrator, Integrator, ScipyIntegrator
 from animbatch.sim.integrators.base import EquationsOfMotion
+from animbatch.sim.integrators.step_plan import resolve_dt
 from animbatch.sim.joints.stops import JointStops
 from animbatch.sim.model.dynamics import Dynamics
 from animbatch.sim.model.model import Model
@@ -52,5 +53,5 @@ def integrator_for(model: Model | None, method: str, *, dt: float | None = None,
         stops = model is not None and model.joints is not None and model.joints.stopping and not contacts
         return ScipyIntegrator(method, rtol=rtol, atol=atol, max_step=max_step,
                                events=contact_events if contacts else joint_stops if stops else None)
-    return FixedStepIntegrator(method, dt=dt if dt is not None else DEFAULT_DT,
+    return FixedStepIntegrator(method, dt=resolve_dt(dt),
                                constraint=contact_constraint if contacts else None)

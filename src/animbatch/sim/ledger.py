@@ -283,24 +283,27 @@ class Ledger:
         return dict(self.__dict__)
 
 
-def step_note(requested_dt: float | None, used: float | None, interval: float | None) -> str | None:
-    """Why a fixed step ``used`` [s] differs from ``solver.dt`` (None when it does not, to :data:`DT_DIFFERS`)."""
+def step_note(requested_dt: float | None, used: float | None, interval: float | None, dt_given: bool = True
+              ) -> str | None:
+    """Why a fixed step ``used`` [s] differs from the step bound ``requested_dt`` (``solver.dt``, or the default
+    when not ``dt_given``); None when it does not, to :data:`DT_DIFFERS`."""
     if used is None or requested_dt is None or interval is None:
         return None
     if abs(used - requested_dt) <= DT_DIFFERS * requested_dt:
         return None
-    return f"the largest step ≤ solver.dt = {requested_dt:.4g} s that divides the frame interval {interval:.4g} s"
+    bound = f"solver.dt = {requested_dt:.4g} s" if dt_given else f"the default step {requested_dt:.4g} s"
+    return f"the largest step ≤ {bound} that divides the frame interval {interval:.4g} s"
 
 
 def step_record(adaptive: bool, stats: dict[str, Any], requested_dt: float | None, interval: float | None,
-                duration: float) -> dict[str, Any]:
+                duration: float, dt_given: bool = True) -> dict[str, Any]:
     """The step a run used: fixed-step methods the step and how it relates to ``solver.dt`` and the frame interval
     [s]; adaptive ones their smallest, largest and mean accepted steps over the ``duration`` [s]."""
     if not adaptive:
         used = stats.get("dt")
-        record: dict[str, Any] = {"requested_dt": requested_dt, "dt": used,
+        record: dict[str, Any] = {"requested_dt": requested_dt, "dt_given": dt_given, "dt": used,
                                   "steps_per_frame": stats.get("substeps_per_frame")}
-        note = step_note(requested_dt, used, interval)
+        note = step_note(requested_dt, used, interval, dt_given)
         if note:
             record["note"] = f"{stats.get('substeps_per_frame')} steps of {used:.4g} s per frame: {note}"
         return record
@@ -353,7 +356,8 @@ def warn_again(ledger: dict[str, Any]) -> None:
 
 def build_ledger(model: Model, states: np.ndarray, stats: dict[str, Any], particle_stats: dict[str, Any], *,
                  method: str, adaptive: bool, requested_dt: float | None, rtol: float | None,
-                 drift_warning: float = DEFAULT_DRIFT_WARNING, series: QuantitySeries | None = None) -> Ledger:
+                 dt_given: bool = True, drift_warning: float = DEFAULT_DRIFT_WARNING,
+                 series: QuantitySeries | None = None) -> Ledger:
     """The ledger of a run of ``model`` that gave ``states`` (F, n) at the frame times, with the solver's statistics
     ``stats`` and the emitted particles' ``particle_stats`` (empty without emitters). Its warnings are also issued
     as :class:`~animbatch.errors.AccuracyWarning`."""
@@ -392,7 +396,8 @@ def build_ledger(model: Model, states: np.ndarray, stats: dict[str, Any], partic
         contacts = {kind: overlap.as_dict() if overlap is not None else None for kind, overlap in overlaps.items()}
     stepped = stats if model.layout.size or not particle_stats else particle_stats  # emitters only: their steps
     ledger = Ledger(method, "adaptive" if adaptive else "fixed-step", rtol if adaptive else None,
-                    step_record(adaptive, stepped, requested_dt, interval, float(times[-1] - times[0])), work,
+                    step_record(adaptive, stepped, requested_dt, interval, float(times[-1] - times[0]), dt_given),
+                    work,
                     conservation, drift_warning, contacts,
                     encounter=dataclasses.asdict(encounter) if encounter is not None else None)
     if model.joints is not None and len(states):
@@ -435,7 +440,8 @@ def summary(ledger: dict[str, Any]) -> str:
     method, step = ledger.get("method", "?"), ledger.get("step", {})
     work = ledger.get("work", {})
     if ledger.get("kind") == "fixed-step" and step.get("dt"):
-        how = f" dt {step['dt']:.4g} s" + (f" (solver.dt {step['requested_dt']:.4g} s does not divide 1/fps)"
+        bound = "solver.dt" if step.get("dt_given", True) else "the default step"
+        how = f" dt {step['dt']:.4g} s" + (f" ({bound} {step['requested_dt']:.4g} s does not divide 1/fps)"
                                            if step.get("note") else "")
     elif step.get("smallest") is not None:
         how = f" steps {step['smallest']:.2g}–{step['largest']:.2g} s"

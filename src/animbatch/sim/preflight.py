@@ -25,10 +25,9 @@ from animbatch.errors import AnimbatchWarning
 from animbatch.sim.contact.contacts import STATIC_BOX, STATIC_SPHERE
 from animbatch.sim.contact.detection import ContactWorld
 from animbatch.sim.forces.gravity import gravity_magnitude
-from animbatch.sim.integrators.description import DEFAULT_DT
-from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.integrators.methods import EXPLICIT_LIMITS, METHODS
 from animbatch.sim.integrators.stability import GROWTH_LIMIT, amplification, largest_stable_step, stiffest_mode
+from animbatch.sim.integrators.step_plan import resolve_dt, substeps
 from animbatch.sim.model.model import Model
 
 #: Steps an explicit adaptive method may be forced to take by stability before we suggest an implicit one.
@@ -114,7 +113,7 @@ def preflight(model: Model, method: str, dt: float | None = None) -> list[str]:
     h = steps = None
     if METHODS[method].fixed_step and len(times) > 1:
         interval = float(times[1] - times[0])
-        count = substeps(interval, dt if dt is not None else DEFAULT_DT)
+        count = substeps(interval, resolve_dt(dt))
         h, steps = interval / count, count * (len(times) - 1)
     messages = _spring_warnings(model, method, steps or 0, h)
     if h is not None and model.contact_world is not None:

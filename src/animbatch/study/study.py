@@ -15,12 +15,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from typing import Any
 
-from animbatch.compile.particles import ParticleSystems, compile_particles
+from animbatch.compile.particles import ParticleSystems
+from animbatch.compile.plan import plan_run
 from animbatch.errors import SceneError, SceneIssue
 from animbatch.scene import LoadedScene
 from animbatch.sim.closed_forms import NoClosedForm
 from animbatch.sim.model import Model
-from animbatch.stages import compile_model, scene_folder
 from animbatch.study.measure import Motion, conserved, contact_time_error, drifts, final_error, position_error
 from animbatch.study.merit import Point, TimeTo, observed_order, time_to
 from animbatch.study.particles import births_by_end, execute_particles, particle_motion, particle_reference
@@ -170,9 +170,10 @@ def run_study(scene: LoadedScene, *, model: Model | None = None, methods: list[s
     one line per run."""
     started = time.perf_counter()
     settings = scene.spec.study
-    model = model if model is not None else compile_model(scene)  # mesh files beside the scene file
+    run = plan_run(scene, model=model)  # compiled once (mesh files beside the scene file)
+    model = run.model
     # a scene of emitters only is studied on its particles; a scene with bodies on its bodies
-    systems = None if model.layout.size else compile_particles(scene.spec, model, scene_folder(scene))
+    systems = None if model.layout.size else run.particles
     if not model.layout.size and systems is None:
         raise SceneError([SceneIssue(scene.source.source_of(("bodies",)), "bodies",
                                      "the scene has neither bodies nor emitters: nothing to study")])

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from typing import Annotated, Any
 
 from pydantic import Field, model_validator
@@ -19,6 +18,7 @@ from animbatch.scene.schema.joints import JointSpec
 from animbatch.scene.schema.render import RenderSpec
 from animbatch.scene.schema.solver import FixedStepMethod, Method, SolverSpec
 from animbatch.scene.schema.stopwatches import ClocksSpec, StopwatchSpec
+from animbatch.timeline import frame_count
 
 
 class StudyReferenceSpec(SceneModel):
@@ -100,8 +100,8 @@ class SceneSpec(SceneModel):
 
     @property
     def frame_count(self) -> int:
-        """Number of frames: ``ceil(duration · fps)`` (at least 1), so that the video lasts ``duration``."""
-        return max(1, math.ceil(self.duration * self.fps - 1e-9))
+        """Number of frames (:func:`animbatch.timeline.frame_count`)."""
+        return frame_count(self.duration, self.fps)
 
 
 #: Top-level keys that do not change the physics (excluded from the physics hash).

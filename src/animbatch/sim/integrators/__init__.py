@@ -6,7 +6,7 @@ from __future__ import annotations
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
-from animbatch.sim.integrators.description import DEFAULT_DT
+from animbatch.sim.integrators.step_plan import DEFAULT_DT
 
 if TYPE_CHECKING:
     from animbatch.sim.integrators.base import CountingRhs, IntegrationResult, Integrator, SolverStats

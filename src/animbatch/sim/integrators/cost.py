@@ -32,10 +32,9 @@ from animbatch.errors import OverBudget, SimulationError
 from animbatch.sim.forces.gravitation import InverseSquarePairs
 from animbatch.sim.integrators.base import EquationsOfMotion, StepSettings
 from animbatch.sim.integrators.budget import format_seconds
-from animbatch.sim.integrators.description import DEFAULT_DT
-from animbatch.sim.integrators.fixed_step import substeps
 from animbatch.sim.integrators.methods import EXPLICIT_LIMITS, METHODS
 from animbatch.sim.integrators.stability import stiffest_mode
+from animbatch.sim.integrators.step_plan import resolve_dt, substeps
 from animbatch.sim.model import Dynamics, Model
 
 #: Cost of advancing one emitted particle by one step [s], births and records included: the fountain (gravity, drag,
@@ -134,7 +133,7 @@ def _steps(model: Model, solver: StepSettings, times: np.ndarray) -> tuple[float
     interval = duration / (frames - 1)
     method = solver.method
     if method not in METHODS or METHODS[method].fixed_step:
-        per_frame = substeps(interval, solver.dt or DEFAULT_DT)
+        per_frame = substeps(interval, resolve_dt(solver.dt))
         return float(per_frame * (frames - 1)), f"{per_frame} per frame × {frames - 1} frames"
     candidates = [(float(frames - 1), "one per frame at least")]
     if solver.max_step:

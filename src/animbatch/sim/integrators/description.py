@@ -7,8 +7,7 @@ from typing import Any
 
 import numpy as np
 
-#: The step fixed-step methods take when the scene names none [s].
-DEFAULT_DT = 1e-3
+from animbatch.sim.integrators.step_plan import resolve_dt
 
 
 def describe_method(method: str, *, adaptive: bool, dt: float | None = None, rtol: float = 1e-6, atol: Any = 1e-9,
@@ -18,7 +17,7 @@ def describe_method(method: str, *, adaptive: bool, dt: float | None = None, rto
     if method == "analytic":
         return "analytic (closed forms of the motion: no integration)"
     if not adaptive:
-        return f"{method} (fixed step, dt <= {dt if dt is not None else DEFAULT_DT:g} s)"
+        return f"{method} (fixed step, dt <= {resolve_dt(dt):g} s)"
     limit = f", max_step {max_step:g} s" if max_step else ""
     tolerance = f"{float(atol):g}" if np.ndim(atol) == 0 else "per component"
     return f"{method} (adaptive, rtol {rtol:g}, atol {tolerance}{limit})"

@@ -29,7 +29,6 @@ loop that steps them between frames is :class:`~animbatch.sim.integrators.steppi
 
 from __future__ import annotations
 
-import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any
@@ -37,12 +36,6 @@ from typing import Any
 import numpy as np
 
 from animbatch.sim.integrators.base import EquationsOfMotion, VelocityConstraint
-
-
-def substeps(interval: float, dt: float) -> int:
-    """Number of equal steps of at most ``dt`` that cover ``interval``. A relative tolerance of 1e-6 absorbs a dt
-    written to a few digits: ``dt: 0.008333333`` means 1/120 s, four steps per frame at 30 fps, not five."""
-    return max(1, math.ceil(interval / dt * (1 - 1e-6)))
 
 
 class Scheme(ABC):

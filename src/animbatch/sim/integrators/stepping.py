@@ -19,11 +19,12 @@ from animbatch.sim.integrators.base import (
     SolverStats,
 )
 from animbatch.sim.integrators.budget import budget_spent
-from animbatch.sim.integrators.description import DEFAULT_DT, describe_method
-from animbatch.sim.integrators.fixed_step import Scheme, substeps
+from animbatch.sim.integrators.description import describe_method
+from animbatch.sim.integrators.fixed_step import Scheme
 from animbatch.sim.integrators.guard import divergence_error, first_non_finite
 from animbatch.sim.integrators.methods import FIXED_STEP_SCHEMES
 from animbatch.sim.integrators.stability import check_fixed_step
+from animbatch.sim.integrators.step_plan import substeps
 
 #: At most this many steps per compiled call, between reads of the wall-time budget.
 COMPILED_CHUNK = 256
@@ -32,7 +33,7 @@ COMPILED_CHUNK = 256
 class FixedStepIntegrator(Integrator):
     """A fixed-step scheme with step at most ``dt`` [s], aligned to the frame times."""
 
-    def __init__(self, method: str, *, dt: float = DEFAULT_DT, constraint: ConstraintFactory | None = None) -> None:
+    def __init__(self, method: str, *, dt: float, constraint: ConstraintFactory | None = None) -> None:
         """``constraint``: makes the velocity constraints (contacts) for the system integrated, or None."""
         if method not in FIXED_STEP_SCHEMES:
             raise ValueError(f"unknown fixed-step method {method!r}; choose from {', '.join(FIXED_STEP_SCHEMES)}")

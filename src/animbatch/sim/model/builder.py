@@ -17,7 +17,6 @@ ModelBuilder``) is the same builder whose ``add_field`` takes a scene field spec
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -38,12 +37,7 @@ from animbatch.sim.model.model import Model
 from animbatch.sim.model.rigid_set import RigidBodySet
 from animbatch.sim.motion import AnchorMotion, KeyframePath
 from animbatch.sim.rigid.shapes import BodyGeometry
-
-
-def frame_times(duration: float, fps: float) -> np.ndarray:
-    """``k / fps`` for ``k = 0 … ceil(duration · fps) - 1`` [s]: the video then lasts exactly ``duration``."""
-    count = max(1, math.ceil(duration * fps - 1e-9))
-    return np.arange(count) / fps
+from animbatch.timeline import frame_times
 
 
 def _readonly(array: np.ndarray) -> np.ndarray:
@@ -436,7 +430,7 @@ class ModelBuilder:
         y0 = _readonly(np.concatenate(parts + motion))
         owners = tuple(self._particle_owners) + tuple(body.name for body in self._rigid)
         return Model(bodies, tuple(self._anchor_names), anchors.rest, springs, tuple(terms), layout, y0,
-                     _readonly(frame_times(duration, fps)), anchors=anchors,
+                     frame_times(duration, fps), anchors=anchors,
                      anchor_visible=_readonly(np.array(self._anchor_visible, bool)), owners=owners, clocks=clocks,
                      joints=self._joint_set(x0, anchors.rest))
 

@@ -27,7 +27,7 @@ import numpy as np
 from animbatch.errors import OverBudget, SimulationError
 from animbatch.sim.integrators.base import StepSettings
 from animbatch.sim.integrators.budget import budget_spent
-from animbatch.sim.integrators.fixed_step import substeps
+from animbatch.sim.integrators.step_plan import substeps
 from animbatch.sim.particles.body_motion import BodyMotion, BodyPose
 from animbatch.sim.particles.collisions import MAX_BOUNCES, ParticleColliders, bounce
 from animbatch.sim.particles.compiled import CompiledPool, colliders_met, kernel_work, numpy_pool_seconds
