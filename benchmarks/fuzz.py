@@ -1,7 +1,7 @@
 """The long fuzz run: 10 000 mutated scenes through load and a short simulate, with a table of what happened.
 
 Run with ``bash scripts/dev.sh fuzz`` (or ``.venv/bin/python benchmarks/fuzz.py --examples 10000``). Unlike the CI
-test (``tests/test_fuzz.py``), it does not stop at the first broken promise: it counts every outcome, lists each
+test (``tests/scene/test_fuzz.py``), it does not stop at the first broken promise: it counts every outcome, lists each
 traceback and each run over its time budget with the mutant's text, and exits 1 if there was any.
 """
 
@@ -16,7 +16,7 @@ from pathlib import Path
 from hypothesis import HealthCheck, given, settings
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
-from fuzzing import Tally, check, mutants  # noqa: E402
+from support.fuzzing import Tally, check, mutants  # noqa: E402
 
 
 def main() -> int:

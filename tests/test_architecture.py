@@ -19,10 +19,9 @@ from animbatch.sim.integrators.fixed_step import ButcherTableau
 from animbatch.sim.integrators.methods import runge_kutta
 from animbatch.sim.integrators.stability import amplification
 from animbatch.sim.model import Dynamics
-from conftest import scene
-from scenarios import oscillator_exact, oscillator_scene
-
-ROOT = Path(__file__).resolve().parents[1]
+from support.paths import REPO
+from support.scenarios import oscillator_exact, oscillator_scene
+from support.scenes import scene
 
 
 def test_the_scene_format_offers_exactly_the_methods_of_the_table():
@@ -93,14 +92,14 @@ def run_tool(name: str, *arguments: str) -> subprocess.CompletedProcess:
     command = shutil.which(name, path=str(Path(sys.executable).parent))
     if command is None:
         pytest.skip(f"{name} is not installed (bash scripts/dev.sh test installs it)")
-    return subprocess.run([command, *arguments], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    return subprocess.run([command, *arguments], cwd=REPO, capture_output=True, text=True, timeout=300)
 
 
 def _sources_matching(pattern: str) -> list[str]:
     """The files of src/animbatch with a line matching the regular expression ``pattern`` (paths from src/)."""
     import re
 
-    return sorted(str(path.relative_to(ROOT / "src")) for path in (ROOT / "src" / "animbatch").rglob("*.py")
+    return sorted(str(path.relative_to(REPO / "src")) for path in (REPO / "src" / "animbatch").rglob("*.py")
                   if re.search(pattern, path.read_text(), re.MULTILINE))
 
 
@@ -111,10 +110,36 @@ def test_the_frame_count_and_the_default_step_are_each_written_once():
     assert _sources_matching(r"^(?!from |import |__all__).*DEFAULT_DT") == ["animbatch/sim/integrators/step_plan.py"]
 
 
+def test_the_tests_are_laid_out_like_the_code():
+    """Every folder of tests/ mirrors a package or module of src/animbatch (tests/sim/contact tests
+    animbatch.sim.contact, tests/sim/motion animbatch.sim.motion),
+    besides the helpers (support/), the golden frames and the hard cases (stability/); no test module imports
+    another test module or conftest (shared code lives in support/, fixtures in conftest.py)."""
+    import ast
+
+    tests = REPO / "tests"
+    own = {"support", "golden", "stability", "__pycache__"}
+    for folder in (path for path in tests.rglob("*") if path.is_dir()):
+        relative = folder.relative_to(tests)
+        if own & set(relative.parts):
+            continue
+        code = REPO / "src" / "animbatch" / relative
+        assert (code / "__init__.py").is_file() or code.with_suffix(".py").is_file(), \
+            f"tests/{relative} mirrors no package or module of src/animbatch"
+    modules = {path.stem for path in tests.rglob("test_*.py")}
+    for path in tests.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = ([alias.name for alias in node.names] if isinstance(node, ast.Import) else
+                     [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            for name in names:
+                assert name.split(".")[0] not in modules | {"conftest"}, \
+                    f"{path.relative_to(REPO)} imports {name}: put what both need in tests/support/"
+
+
 def test_the_import_contracts_hold():
     """lint-imports finds every contract of .importlinter kept: the simulation never imports the scene format,
     rendering never imports the simulation, drivers sit above stages above the compiler, and no package cycles."""
-    done = run_tool("lint-imports", "--config", str(ROOT / ".importlinter"))
+    done = run_tool("lint-imports", "--config", str(REPO / ".importlinter"))
     assert done.returncode == 0, done.stdout + done.stderr
 
 
@@ -155,8 +180,8 @@ HEAVY = ("scipy.integrate", "scipy.sparse", "scipy.spatial", "scipy.linalg", "sc
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("arguments", [["--help"], ["validate", str(ROOT / "scenes" / "projectile.yaml")],
-                                       ["validate", str(ROOT / "scenes" / "dominoes.yaml")]],
+@pytest.mark.parametrize("arguments", [["--help"], ["validate", str(REPO / "scenes" / "projectile.yaml")],
+                                       ["validate", str(REPO / "scenes" / "dominoes.yaml")]],
                          ids=["help", "validate projectile", "validate dominoes"])
 def test_help_and_validate_load_no_heavy_library(arguments):
     """The start-up promise (under 0.5 s, measured by ``bench --only startup``) rests on what is imported: the

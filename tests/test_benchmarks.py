@@ -7,11 +7,11 @@ import json
 import math
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from support.paths import REPO
+
 #: The cheap benchmarks (a few seconds each with --quick), in two halves that the test workers run side by side, each
 #: with the first words of the rows it must report.
 CHEAP = {"simulation, encoding, start-up": (
@@ -25,7 +25,7 @@ CHEAP = {"simulation, encoding, start-up": (
 def test_the_cheap_benchmarks_run_and_report_every_number(tmp_path, half):
     names, reported = CHEAP[half]
     rows_file = tmp_path / "rows.json"
-    command = [sys.executable, str(ROOT / "benchmarks" / "run.py"), "--quick", "--json", str(rows_file)]
+    command = [sys.executable, str(REPO / "benchmarks" / "run.py"), "--quick", "--json", str(rows_file)]
     for name in names:
         command += ["--only", name]
     finished = subprocess.run(command, capture_output=True, text=True, timeout=600)
@@ -45,7 +45,7 @@ def test_the_peers_benchmark_builds_each_case_twice_from_the_same_numbers():
     alike: the animbatch chain and the MJCF chain have the same bars, masses and hinges, and both parse."""
     from xml.etree import ElementTree
 
-    sys.path.insert(0, str(ROOT / "benchmarks"))
+    sys.path.insert(0, str(REPO / "benchmarks"))
     import peers
     from animbatch.compile.model import compile_scene
     from animbatch.stages import parse_scene

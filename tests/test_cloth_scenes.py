@@ -6,18 +6,16 @@ that the suite stays fast.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from animbatch import api
 from animbatch.sim.invariants import kinetic_energy
 from animbatch.stages import load_scene
-from conftest import states
+from support.paths import REPO
+from support.scenes import states
 
-ROOT = Path(__file__).resolve().parents[1]
-SCENES = ROOT / "scenes"
+SCENES = REPO / "scenes"
 G = 9.81
 
 

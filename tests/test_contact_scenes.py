@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from animbatch import api
 from animbatch.stages import load_scene
+from support.paths import REPO
 
-SCENES = Path(__file__).resolve().parents[1] / "scenes"
+SCENES = REPO / "scenes"
 G = 9.81
 
 

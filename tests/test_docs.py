@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import jsonschema
 import pytest
@@ -13,10 +12,10 @@ from animbatch.cli import cli
 from animbatch.scene.reference import BEGIN, END, generate, key_paths
 from animbatch.scene.schema import SceneSpec
 from animbatch.scene.yaml_source import load_yaml
+from support.paths import REPO
 
-ROOT = Path(__file__).resolve().parents[1]
-DOC = ROOT / "docs" / "scene-format.md"
-SCENES = sorted([*(ROOT / "scenes").glob("*.yaml"), *(ROOT / "templates").glob("*.yaml")])
+DOC = REPO / "docs" / "scene-format.md"
+SCENES = sorted([*(REPO / "scenes").glob("*.yaml"), *(REPO / "templates").glob("*.yaml")])
 
 
 def test_generated_reference_is_up_to_date():

@@ -12,9 +12,9 @@ from animbatch import api
 from animbatch.compile.model import compile_scene
 from animbatch.sim.invariants import angular_momentum, total_energy
 from animbatch.stages import load_scene
+from support.paths import REPO
 
-ROOT = Path(__file__).resolve().parents[1]
-SCENES = sorted((ROOT / "scenes").glob("*.yaml"))  # (the templates are validated and graded in test_teaching)
+SCENES = sorted((REPO / "scenes").glob("*.yaml"))  # (the templates are validated and graded in test_teaching)
 
 
 @pytest.mark.slow
@@ -35,7 +35,7 @@ def test_example_scene_renders(path, tmp_path):
 
 def test_projectile_scene_lands_when_its_comment_says():
     """The projectile's ball returns to its launch height after 2 v_y / g = 1.427 s."""
-    scene = load_scene(ROOT / "scenes" / "projectile.yaml", ["fps=240"])
+    scene = load_scene(REPO / "scenes" / "projectile.yaml", ["fps=240"])
     trajectory = api.simulate(scene)
     height = trajectory.positions[:, 0, 1]
     crossing = trajectory.times[np.argmax((trajectory.times > 0.1) & (height < 0.11))]
@@ -44,7 +44,7 @@ def test_projectile_scene_lands_when_its_comment_says():
 
 def test_orbit_scene_conserves_energy_and_angular_momentum():
     """The bundled orbit keeps energy and angular momentum to 1e-8, as its comment promises."""
-    scene = load_scene(ROOT / "scenes" / "two_body_orbit.yaml")
+    scene = load_scene(REPO / "scenes" / "two_body_orbit.yaml")
     model = compile_scene(scene.spec)
     trajectory = api.simulate(scene, model=model)
     y = model.states_from(trajectory.positions, trajectory.velocities, trajectory.orientations,
@@ -57,6 +57,6 @@ def test_orbit_scene_conserves_energy_and_angular_momentum():
 
 def test_damped_oscillator_scene_dampings_are_the_stated_ratios():
     """The three springs have damping ratios 0.1, 1 and 2 (ζ = kd / (2 sqrt(ks m)))."""
-    spec = load_scene(ROOT / "scenes" / "damped_oscillator.yaml").spec
+    spec = load_scene(REPO / "scenes" / "damped_oscillator.yaml").spec
     ratios = [s.damping / (2 * np.sqrt(s.stiffness * 1.0)) for s in spec.springs]
     assert ratios == pytest.approx([0.1, 1.0, 2.0], rel=1e-4)

@@ -12,7 +12,7 @@ from animbatch import api
 from animbatch.cli import cli
 from animbatch.errors import TrajectoryError
 from animbatch.trajectory import Trajectory
-from conftest import run, scene
+from support.scenes import run, scene
 
 SCENE = """
     name: throw

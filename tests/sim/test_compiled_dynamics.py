@@ -13,7 +13,7 @@ from animbatch.sim.integrators.methods import FIXED_STEP_SCHEMES
 from animbatch.sim.kernels import tables as T
 from animbatch.sim.model.compiled import CompiledDynamics, dynamics_for, stepper_tables
 from animbatch.sim.model.dynamics import Dynamics
-from conftest import scene
+from support.scenes import scene
 
 pytest.importorskip("numba", reason="numba is not installed: numpy integrates every body")
 

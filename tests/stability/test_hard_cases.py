@@ -4,7 +4,6 @@ precise error (naming the culprit and the fix), never just "does not crash"."""
 from __future__ import annotations
 
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,7 +13,8 @@ from animbatch.errors import SimulationError
 from animbatch.sim.integrators.stability import largest_stable_step, step_matrix
 from animbatch.sim.invariants import angular_momentum, kinetic_energy, total_energy
 from animbatch.sim.preflight import StabilityWarning, preflight
-from conftest import run, scene, states
+from support.paths import REPO
+from support.scenes import run, scene, states
 
 G = 9.81
 
@@ -293,7 +293,7 @@ def test_zeno_bouncing_ends_at_rest_without_gaining_energy():
     assert np.abs(trajectory.velocities[rest]).max() < 1e-8
 
 
-BOUNCING_BALLS = Path(__file__).resolve().parents[2] / "scenes" / "bouncing_balls.yaml"
+BOUNCING_BALLS = REPO / "scenes" / "bouncing_balls.yaml"
 
 
 @pytest.mark.slow
@@ -462,11 +462,10 @@ def test_a_stiff_pd_controller_counts_as_a_spring_for_the_pre_flight_check():
     """A controller is a virtual spring to its target: verlet at one step per frame on the bead (ks = 2000 N/m on
     0.1 kg: ω = 141 rad/s, critically damped) is refused before it starts, naming the controller, instead of blowing
     up and being caught only after the whole run; at a fifth of the stable step it runs and stays on the wire."""
-    from pathlib import Path
 
     from animbatch import api
 
-    path = Path(__file__).resolve().parents[2] / "scenes" / "bead_on_wire.yaml"
+    path = REPO / "scenes" / "bead_on_wire.yaml"
     loaded = api.load_scene(path, ["solver.method=verlet", "solver.dt=0.0166667"])
     model = compile_scene(loaded.spec)
     limit = largest_stable_step("verlet", np.sqrt(2000 / 0.1), 28.28 / (2 * 0.1))
