@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 from scipy.linalg import expm
@@ -33,6 +34,9 @@ from animbatch.sim.integrators.base import (
     SolverStats,
 )
 from animbatch.sim.integrators.description import describe_method
+
+if TYPE_CHECKING:  # the model imports nothing from here; the hint only
+    from animbatch.sim.model.model import Model
 
 
 @dataclass(frozen=True)
@@ -57,19 +61,19 @@ def _refuse(body: str, why: str) -> NoClosedForm:
     return NoClosedForm(f"body {body!r} has no closed form: {why}")
 
 
-def exact_motion(model: object) -> ExactMotion:
+def exact_motion(model: Model) -> ExactMotion:
     """The closed-form motion of every body of ``model`` at its frame times (raises NoClosedForm when a body has
     none)."""
-    bodies = model.bodies  # type: ignore[attr-defined]
+    bodies = model.bodies
     names = bodies.names
     if bodies.rigid_count:
         raise _refuse(names[bodies.first_rigid], "closed forms here are for particles (rigid bodies also turn)")
-    if model.contact_world is not None:  # type: ignore[attr-defined]
+    if model.contact_world is not None:
         raise _refuse(names[0], "the scene has collisions")
-    times = model.frame_times  # type: ignore[attr-defined]
+    times = model.frame_times
     count = bodies.count
-    x0 = model.positions(model.y0[None])[0]  # type: ignore[attr-defined]
-    v0 = model.velocities(model.y0[None])[0]  # type: ignore[attr-defined]
+    x0 = model.positions(model.y0[None])[0]
+    v0 = model.velocities(model.y0[None])[0]
     positions = np.empty((len(times), count, 3))
     velocities = np.empty_like(positions)
     forms: dict[str, str] = {}
@@ -77,7 +81,7 @@ def exact_motion(model: object) -> ExactMotion:
     for point in range(count):
         if point in done:
             continue
-        acting = [term for term in model.force_terms if _acts_on(term, point)]  # type: ignore[attr-defined]
+        acting = [term for term in model.force_terms if _acts_on(term, point)]
         springs = [term for term in acting if isinstance(term, SpringForces)]
         spring_rows = np.flatnonzero((springs[0].springs.first == point)
                                      | (~springs[0].springs.second_is_anchor & (springs[0].springs.second == point))
@@ -126,17 +130,17 @@ def _linear_drag(name: str, drags: list[Drag], mass: float, gravity: np.ndarray,
     return position, velocity
 
 
-def _oscillator(model: object, springs: SpringForces, rows: np.ndarray, point: int, gravity: np.ndarray,
+def _oscillator(model: Model, springs: SpringForces, rows: np.ndarray, point: int, gravity: np.ndarray,
                 drags: list[Drag], times: np.ndarray, x0: np.ndarray, v0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    name = model.bodies.names[point]  # type: ignore[attr-defined]
+    name = model.bodies.names[point]
     table = springs.springs
     if drags or len(rows) != 1 or not table.second_is_anchor[rows[0]] or table.first[rows[0]] != point:
         raise _refuse(name, "an oscillator needs exactly one spring, from the body to an anchor, and no drag")
     row = int(rows[0])
     anchor = int(table.second[row])
-    if anchor in model.anchors.paths:  # type: ignore[attr-defined]
+    if model.anchors is not None and anchor in model.anchors.paths:
         raise _refuse(name, "its spring's anchor moves")
-    anchor_at = model.anchor_position[anchor]  # type: ignore[attr-defined]
+    anchor_at = model.anchor_position[anchor]
     if np.any(table.first_offset[row]) or np.any(table.second_offset[row]):
         raise _refuse(name, "its spring is attached off the centre")
     offset = x0 - anchor_at
@@ -145,7 +149,7 @@ def _oscillator(model: object, springs: SpringForces, rows: np.ndarray, point: i
     for what, vector in (("velocity", v0), ("gravity", gravity)):
         if np.linalg.norm(vector - (vector @ axis) * axis) > 1e-12 * max(1.0, float(np.linalg.norm(vector))):
             raise _refuse(name, f"its {what} is not along its spring, so it swings (a pendulum has no closed form)")
-    mass = float(model.bodies.mass[point])  # type: ignore[attr-defined]
+    mass = float(model.bodies.mass[point])
     k, d, rest = float(table.stiffness[row]), float(table.damping[row]), float(table.rest_length[row])
     equilibrium = rest + mass * float(gravity @ axis) / k
     rate = np.array([[0.0, 1.0], [-k / mass, -d / mass]])
@@ -157,19 +161,19 @@ def _oscillator(model: object, springs: SpringForces, rows: np.ndarray, point: i
     return anchor_at + along[:, None] * axis, motion[:, 1:2] * axis
 
 
-def _kepler(model: object, term: Gravitation, point: int, gravity: np.ndarray, times: np.ndarray, x0: np.ndarray,
+def _kepler(model: Model, term: Gravitation, point: int, gravity: np.ndarray, times: np.ndarray, x0: np.ndarray,
             v0: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    names = model.bodies.names  # type: ignore[attr-defined]
-    members = np.arange(model.bodies.count) if term.index is None else np.asarray(term.index)  # type: ignore[attr-defined]
+    names = model.bodies.names
+    members = np.arange(model.bodies.count) if term.index is None else np.asarray(term.index)
     if len(members) != 2 or term.softening > 0:
         raise _refuse(names[point], "gravitation has a closed form between exactly two bodies without softening")
     first, second = (int(m) for m in members)
     partner = second if point == first else first
-    partner_gravity = sum((t.g for t in model.force_terms  # type: ignore[attr-defined]
+    partner_gravity = sum((t.g for t in model.force_terms
                            if isinstance(t, UniformGravity) and _acts_on(t, partner)), np.zeros(3))
     if not np.allclose(partner_gravity, gravity):
         raise _refuse(names[point], "the two bodies of the pair feel different uniform gravity")
-    m1, m2 = (float(model.bodies.mass[i]) for i in (first, second))  # type: ignore[attr-defined]
+    m1, m2 = (float(model.bodies.mass[i]) for i in (first, second))
     total = m1 + m2
     mu = term.G * total
     centre = (m1 * x0[first] + m2 * x0[second]) / total
@@ -220,7 +224,7 @@ class ClosedFormIntegrator(Integrator):
     def integrate(self, system: EquationsOfMotion, y0: np.ndarray, times: np.ndarray, *,
                   on_frame: FrameCallback | None = None) -> IntegrationResult:
         started = time.perf_counter()
-        model = system.model  # type: ignore[attr-defined]
+        model = cast("Model", getattr(system, "model"))  # a Dynamics: the closed forms read its model
         exact = exact_motion(model)
         states = model.states_from(exact.positions, exact.velocities)
         if on_frame is not None:
@@ -231,7 +235,7 @@ class ClosedFormIntegrator(Integrator):
         return describe_method("analytic", adaptive=False)
 
 
-def check_closed_form(model: object) -> None:
+def check_closed_form(model: Model) -> None:
     """Raise NoClosedForm, naming the body or the item, unless every body of ``model`` has a closed form and the
     model has nothing that needs integrating (clocks)."""
     if getattr(model, "clocks", None) is not None:
