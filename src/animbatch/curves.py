@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import ast
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -289,6 +289,8 @@ class ParametricCurve:
     end: float
     closed: bool = False
     samples: int = 4096
+    #: the samples joined into segments (set in __post_init__): the drawn curve and the search's seeds
+    polyline: Polyline = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         trees = [parse_expression(text) for text in self.formulas]

@@ -220,7 +220,8 @@ def frame_geometry(run: RunPlan, trajectory: Trajectory) -> FrameGeometry:
     emitters = run.particles.emitters if run.particles is not None else ()
     geometry = compile_frame_geometry(spec, model, bounds,
                                       largest_vector(model, trajectory, spec.render.show_vectors),
-                                      run.folder, emitters, (trajectory.positions, trajectory.times))
+                                      run.folder, emitters, (trajectory.positions, trajectory.times),
+                                      trajectory.particles)
     arrows = None
     if spec.render.arrows is not None:
         arrows = arrow_series(spec, model, trajectory_states(model, trajectory), np.asarray(trajectory.times),

@@ -11,23 +11,55 @@ from typing import Any
 
 import numpy as np
 
+from animbatch.curves import ParametricCurve, Polyline
 from animbatch.materials import BUILT_IN_LOOKS
-from animbatch.render.colors import COLLIDER_COLOR, MESH_SPRING_COLOR, PALETTE, ROD_COLOR, SPRING_COLOR, darker
-from animbatch.render.geometry import BodyPath, Finish, FrameGeometry, TrailPaths, mesh_key
+from animbatch.render.colors import (
+    COLLIDER_COLOR,
+    MESH_SPRING_COLOR,
+    PALETTE,
+    ROD_COLOR,
+    SPRING_COLOR,
+    darker,
+    hex_to_rgb,
+)
+from animbatch.render.geometry import (
+    BodyPath,
+    DrawnCollider,
+    Finish,
+    FrameGeometry,
+    FrameSeries,
+    ParticleLook,
+    Solid,
+    SurfacePatch,
+    Surfaces,
+    TrailPaths,
+    TriangleMesh,
+)
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import (
     BoxCollider,
+    BoxShape,
+    CapsuleShape,
     CompoundShape,
+    CylinderShape,
+    EmitterSpec,
     MeshCollider,
     MeshShape,
+    PlaneCollider,
     RigidBodySpec,
+    RodShape,
     SceneSpec,
+    ShellShape,
     SphereCollider,
+    SphereShape,
 )
 from animbatch.sim.forces.buoyancy import Buoyancy
 from animbatch.sim.forces.controllers import Controllers, CurveTarget
 from animbatch.sim.model.model import Model
+from animbatch.sim.particles.emitter import Emitter
 from animbatch.sim.rigid.shapes import load_mesh, load_surface
+from animbatch.trajectory import ParticleFrames
+from animbatch.vertex_placement import VertexPlacement
 
 
 def body_extents(model: Model) -> np.ndarray:
@@ -77,11 +109,14 @@ def collider_points(spec: SceneSpec, scene_dir: Path = Path(".")) -> np.ndarray:
 
 
 def frame_geometry(spec: SceneSpec, model: Model, bounds: np.ndarray, largest_vector: float = 0.0,
-                   scene_dir: Path = Path("."), emitters: tuple[Any, ...] = (),
-                   motion: tuple[np.ndarray, np.ndarray] | None = None) -> FrameGeometry:
+                   scene_dir: Path = Path("."), emitters: tuple[Emitter, ...] = (),
+                   motion: tuple[np.ndarray, np.ndarray] | None = None,
+                   particles: tuple[ParticleFrames, ...] = ()) -> FrameGeometry:
     """What the renderer draws for a scene and its model: colours, shapes, springs, fluids, colliders, targets and
     the mesh files read, within ``bounds`` (2, 3) [m]; ``largest_vector`` scales the ω/L arrows; ``motion``: the
-    bodies' positions (F, P, 3) [m] at the frame times (F,) [s], which trails follow."""
+    bodies' positions (F, P, 3) [m] at the frame times (F,) [s] (default: the model's), which trails follow;
+    ``emitters`` and their ``particles``: the compiled emitters and the particles the trajectory holds of each."""
+    times = np.asarray(motion[1]) if motion is not None else np.asarray(model.frame_times)
     # palette colours follow the scene's order of bodies; the model orders them particles first
     by_name = {body.name: (index, body) for index, body in enumerate(spec.bodies)}
     looks = {body.name: surface_look(spec, body) for body in spec.bodies}
@@ -124,25 +159,31 @@ def frame_geometry(spec: SceneSpec, model: Model, bounds: np.ndarray, largest_ve
             front = looks[body.name][0] or PALETTE[index % len(PALETTE)]
             back = getattr(body_spec, "back_color", None) or darker(front)
             surface_colors.append((front, back))
-    segments, points = controller_targets(model)
-    shapes = tuple(by_name[name][1].shape for name in rigid.names) if rigid is not None else ()
-    return FrameGeometry(np.asarray(model.bodies.radius[:n]), colors, shapes,
-                         rigid.centre if rigid is not None else np.zeros((0, 3)),
-                         rigid.inertia if rigid is not None else np.zeros((0, 3, 3)), rigid_extent,
-                         scene_dir, np.asarray(model.anchor_position),
-                         *spring_parts, spring_colors, fluids, bounds, scale,
-                         tuple(c for c in spec.colliders if c.visible), scene_dir, model.anchors,
-                         np.asarray(model.anchor_visible), drawn_particles, deformables, tuple(surface_colors),
-                         segments, points, emitters, _mesh_files(spec, scene_dir),
-                         trail_paths(spec, model, colors, motion) if motion is not None else None,
-                         followed=followed_path(spec, model, motion) if motion is not None else None,
-                         finishes=tuple(looks[name][1] for name in model.owners),
-                         surface_finishes=tuple(looks[body.name][1] for body in deformables.bodies)
-                         if deformables is not None else (),
-                         collider_looks=tuple((look[0] or COLLIDER_COLOR, look[1]) for look in
-                                              (surface_look(spec, c) for c in spec.colliders if c.visible)),
-                         collider_paths=_collider_paths(spec),
-                         rigid_volume_radius=np.asarray(model.bodies.radius[n:]))
+    segments, targets = controller_targets(model, times)
+    rigid_specs = {body.name: body for body in spec.bodies if isinstance(body, RigidBodySpec)}
+    shapes = tuple(solid(rigid_specs[name].shape, scene_dir) for name in rigid.names) if rigid is not None else ()
+    anchor_motion = model.anchors
+    anchor_track = (FrameSeries(times, np.stack([anchor_motion.positions(float(t)) for t in times]))
+                    if anchor_motion.moving else None)
+    first, second, to_anchor, first_offset, second_offset = spring_parts
+    return FrameGeometry(
+        particle_radius=np.asarray(model.bodies.radius[:n]), colors=colors, rigid_shapes=shapes,
+        rigid_centre=rigid.centre if rigid is not None else np.zeros((0, 3)),
+        rigid_inertia=rigid.inertia if rigid is not None else np.zeros((0, 3, 3)), rigid_extent=rigid_extent,
+        anchor_positions=np.asarray(model.anchor_position), spring_first=first, spring_second=second,
+        spring_to_anchor=to_anchor, spring_first_offset=first_offset, spring_second_offset=second_offset,
+        spring_colors=spring_colors, fluids=fluids, bounds=bounds, vector_scale=scale,
+        colliders=drawn_colliders(spec, scene_dir, times), anchor_track=anchor_track,
+        anchor_visible=np.asarray(model.anchor_visible), drawn_particles=drawn_particles, surfaces=surfaces(model),
+        surface_colors=tuple(surface_colors), target_segments=segments, target_track=targets,
+        emitters=particle_looks(spec.emitters, emitters, particles),
+        trails=trail_paths(spec, model, colors, motion) if motion is not None else None,
+        followed=followed_path(spec, model, motion) if motion is not None else None,
+        finishes=tuple(looks[name][1] for name in model.owners),
+        surface_finishes=tuple(looks[body.name][1] for body in deformables.bodies) if deformables is not None else (),
+        collider_looks=tuple((look[0] or COLLIDER_COLOR, look[1]) for look in
+                             (surface_look(spec, c) for c in spec.colliders if c.visible)),
+        rigid_volume_radius=np.asarray(model.bodies.radius[n:]))
 
 
 def surface_look(spec: SceneSpec, item: Any) -> tuple[str | None, Finish | None]:
@@ -161,7 +202,6 @@ def surface_look(spec: SceneSpec, item: Any) -> tuple[str | None, Finish | None]
 
 def _own_bodies(model: Model) -> dict[str, int]:
     """Particles and rigid bodies (not the vertices of cloth and lattices) by name -> index in the model."""
-    assert model.owners is not None  # set by the Model
     return {name: k for k, (name, owner) in enumerate(zip(model.body_names, model.owners)) if name == owner}
 
 
@@ -189,39 +229,114 @@ def trail_paths(spec: SceneSpec, model: Model, colors: list[str],
                       trails.length, trails.width, trails.fade)
 
 
-def controller_targets(model: Model) -> tuple[np.ndarray | None, tuple[Any, ...]]:
-    """The segments (S, 2, 3) of the curves that the model's PD controllers pull towards (or None), and their point
-    and keyframe targets."""
+def controller_targets(model: Model, times: np.ndarray) -> tuple[np.ndarray | None, FrameSeries | None]:
+    """The segments (S, 2, 3) of the curves that the model's PD controllers pull towards (or None), and where their
+    point and keyframe targets are (K, 3) at each of the frame ``times`` (F,) [s] (or None)."""
     term = next((term for term in model.force_terms if isinstance(term, Controllers)), None)
     if term is None:
-        return None, ()
+        return None, None
     segments, points = [], []
     for target in term.targets:
         if isinstance(target, CurveTarget):
-            line = getattr(target.curve, "polyline", target.curve)  # a parametric curve's samples
+            curve = target.curve
+            line: Polyline = curve.polyline if isinstance(curve, ParametricCurve) else curve  # samples of a curve
             segments.append(np.stack([line.start, line.start + line.direction], axis=1))
         else:
             points.append(target)
-    return (np.concatenate(segments) if segments else None), tuple(points)
+    track = (FrameSeries(times, np.array([[target.locate(float(t), np.zeros(3)).position for target in points]
+                                          for t in times], float).reshape(len(times), len(points), 3))
+             if points else None)
+    return (np.concatenate(segments) if segments else None), track
 
 
-def _mesh_files(spec: SceneSpec, scene_dir: Path) -> dict[tuple[str, str], Any]:
-    """Every mesh file the renderer draws (rigid shapes, compound parts, visible mesh colliders), read once."""
-    shapes: list[Any] = [c for c in spec.colliders if isinstance(c, MeshCollider) and c.visible]
-    for body in spec.bodies:
-        if isinstance(body, RigidBodySpec):
-            parts = body.shape.parts if isinstance(body.shape, CompoundShape) else ()
-            shapes += [body.shape] + [part.shape for part in parts]
-    return {mesh_key(shape): (load_surface if isinstance(shape, MeshCollider) else load_mesh)(scene_dir / shape.file,
-                                                                                            shape.scale)
-            for shape in shapes if isinstance(shape, MeshShape | MeshCollider)}
+def surfaces(model: Model) -> Surfaces | None:
+    """The model's cloths and lattices as the renderer draws them (None without any)."""
+    deformables = model.deformables
+    if deformables is None:
+        return None
+    vertices = deformables.vertex_map
+    placement = VertexPlacement(vertices.kind, vertices.index, vertices.offset, vertices.first_rigid)
+    return Surfaces(placement, tuple(SurfacePatch(body.name, body.vertices.start, body.vertices.stop,
+                                                  body.triangles - body.vertices.start)
+                                     for body in deformables.bodies))
 
 
-def _collider_paths(spec: SceneSpec) -> tuple[Any, ...]:
-    """Per drawn collider, its path if it moves along keyframes, else None."""
-    if not any(c.moves for c in spec.colliders):
-        return ()
-    from animbatch.compile.contacts import pose_path  # contact code only for scenes that need it
+def solid(shape: Any, scene_dir: Path) -> Solid:
+    """The solid the renderer draws for a rigid body's shape spec (mesh files read from ``scene_dir``)."""
+    if isinstance(shape, SphereShape | ShellShape):
+        return Solid("sphere", radius=float(shape.radius))
+    if isinstance(shape, BoxShape):
+        return Solid("box", size=(float(shape.size[0]), float(shape.size[1]), float(shape.size[2])))
+    if isinstance(shape, CylinderShape | RodShape):
+        radius = shape.radius if shape.radius is not None else shape.length / 100
+        return Solid("cylinder", radius=float(radius), length=float(shape.length))
+    if isinstance(shape, CapsuleShape):
+        return Solid("capsule", radius=float(shape.radius), length=float(shape.length))
+    if isinstance(shape, MeshShape):
+        return Solid("mesh", mesh=_triangles(load_mesh(scene_dir / shape.file, shape.scale)))
+    if isinstance(shape, CompoundShape):
+        return Solid("compound", parts=tuple((solid(part.shape, scene_dir),
+                                              _pose(orientation_matrix(part.orientation), part.offset))
+                                             for part in shape.parts))
+    raise TypeError(f"cannot draw shape {shape!r}")
 
-    return tuple(pose_path(c) if c.moves else None
-                 for c in spec.colliders if c.visible)
+
+def drawn_colliders(spec: SceneSpec, scene_dir: Path, times: np.ndarray) -> tuple[DrawnCollider, ...]:
+    """The visible colliders as the renderer draws them, with the pose of each moving one at the frame ``times``."""
+    drawn = []
+    for collider in spec.colliders:
+        if not collider.visible:
+            continue
+        track = None
+        if collider.moves:
+            from animbatch.compile.contacts import pose_path  # contact code only for scenes that need it
+
+            path = pose_path(collider)
+            track = FrameSeries(times, np.stack([path.matrix(float(t)) for t in times]))
+        color = collider.color or None
+        if isinstance(collider, PlaneCollider):
+            normal = np.asarray(collider.normal, float) / np.linalg.norm(collider.normal)
+            drawn.append(DrawnCollider(None, np.eye(4), normal, float(np.dot(collider.point, normal)),
+                                       collider.size, color, track))
+            continue
+        if isinstance(collider, SphereCollider):
+            shape = Solid("sphere", radius=float(collider.radius))
+        elif isinstance(collider, BoxCollider):
+            shape = Solid("box", size=(float(collider.size[0]), float(collider.size[1]), float(collider.size[2])))
+        elif isinstance(collider, MeshCollider):
+            shape = Solid("mesh", mesh=_triangles(load_surface(scene_dir / collider.file, collider.scale)))
+        else:
+            raise TypeError(f"cannot draw collider {collider!r}")
+        turn = np.eye(3) if isinstance(collider, SphereCollider) else orientation_matrix(collider.orientation)
+        drawn.append(DrawnCollider(shape, _pose(turn, collider.position), color=color, track=track))
+    return tuple(drawn)
+
+
+def particle_looks(items: list[EmitterSpec], emitters: tuple[Emitter, ...], particles: tuple[ParticleFrames, ...]
+                   ) -> tuple[ParticleLook, ...]:
+    """How each emitter's particles are drawn: its ``look`` and each particle's own lifetime, radius and colour, for
+    every particle ``particles`` (the trajectory's frames of each emitter, if any) shows."""
+    looks = []
+    for index, (item, emitter) in enumerate(zip(items, emitters)):
+        frames = particles[index] if index < len(particles) else None
+        serials = (np.unique(frames.serials[frames.serials >= 0]).astype(np.int64) if frames is not None
+                   else np.zeros(0, np.int64))
+        lifetime, radius, color = emitter.looks(serials)
+        look = item.look
+        ramp = np.array([hex_to_rgb(c) for c in look.color]) if look.color else None
+        looks.append(ParticleLook(emitter.name, emitter.capacity, look.style, int(look.trail),
+                                  np.asarray(look.size, float), np.asarray(look.opacity, float), ramp,
+                                  np.asarray(emitter.color_mean, float), serials, lifetime, radius, color))
+    return tuple(looks)
+
+
+def _pose(turn: np.ndarray, position: Any) -> np.ndarray:
+    """The 4×4 transform that turns by ``turn`` (3, 3) and then moves by ``position`` (3,) [m]."""
+    pose = np.eye(4)
+    pose[:3, :3] = turn
+    pose[:3, 3] = np.asarray(position, float)
+    return pose
+
+
+def _triangles(mesh: Any) -> TriangleMesh:
+    return TriangleMesh(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.intp))

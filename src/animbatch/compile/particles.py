@@ -10,6 +10,7 @@ import numpy as np
 
 from animbatch.compile.bodies import orientation_matrix
 from animbatch.compile.contacts import _statics, build_contact_world, material_table, pose_path
+from animbatch.render.colors import hex_to_rgb
 from animbatch.scene.schema import (
     PARTICLE_FIELD_TYPES,
     BoxCollider,
@@ -95,7 +96,8 @@ def compile_particles(spec: SceneSpec, model: Any, base_dir: Path = Path(".")) -
     fixed = [c for c in spec.colliders if not c.moves]
     statics = _statics(spec.model_copy(update={"colliders": fixed}), table, base_dir)[0] if fixed else None
     obstacles = particle_obstacles(spec, statics, model, base_dir)
-    emitters, colliders = [], {}
+    emitters: list[Emitter] = []
+    colliders: dict[str, ParticleColliders | None] = {}
     for index, item in enumerate(spec.emitters):
         body = body_centre = geometry = None
         if item.body is not None:
@@ -116,7 +118,7 @@ def compile_particles(spec: SceneSpec, model: Any, base_dir: Path = Path(".")) -
             lifetime, _law(item.speed), _law(item.radius), _law(item.mass), mean, spread, distribution, axis,
             float(np.radians(item.direction.cone)), body, item.body,
             body_centre if body_centre is not None else np.zeros(3), item.inherit_velocity, item.collision,
-            table.index(item.material), capacity, _particle_fields(spec.fields, item.name), item.look))
+            table.index(item.material), capacity, _particle_fields(spec.fields, item.name)))
         met = obstacles.without(body) if obstacles is not None else None  # not the body it is born on
         if (statics is not None or met is not None) and item.collision != "pass":
             own = table.index(item.material)
@@ -177,8 +179,8 @@ def particle_obstacles(spec: SceneSpec, statics: StaticColliders | None, model: 
                                              moving[MeshCollider])
     if group is None and not shapes:
         return None
-    material = statics.triangle_material if statics is not None else np.zeros(0, np.intp)
-    return ParticleObstacles(triangles, material, group, shapes, tuple(paths))
+    triangle_material = statics.triangle_material if statics is not None else np.zeros(0, np.intp)
+    return ParticleObstacles(triangles, triangle_material, group, shapes, tuple(paths))
 
 
 def _law(value: float | RandomValue) -> Law:
@@ -188,16 +190,11 @@ def _law(value: float | RandomValue) -> Law:
     return Law(float(value))
 
 
-def _hex_rgb(color: str) -> np.ndarray:
-    value = color.lstrip("#")
-    return np.array([int(value[i:i + 2], 16) / 255 for i in (0, 2, 4)])
-
-
 def _color_law(color: str | RandomColor) -> tuple[np.ndarray, float, str]:
     """(mean RGB (3,), spread, distribution) of an emitter's colour key."""
     if isinstance(color, RandomColor):
-        return _hex_rgb(color.mean), color.spread, color.distribution
-    return _hex_rgb(color), 0.0, "uniform"
+        return np.array(hex_to_rgb(color.mean)), color.spread, color.distribution
+    return np.array(hex_to_rgb(color)), 0.0, "uniform"
 
 
 def _schedule(spec: Any, end: float) -> EmissionSchedule:
@@ -251,7 +248,7 @@ def _particle_fields(fields: list, emitter: str) -> tuple[ParticleField, ...]:
     return tuple(built)
 
 
-def _vector(values: list[float]) -> str:
+def _vector(values: Any) -> str:
     return "(" + ", ".join(f"{c:g}" for c in values) + ")"
 
 
@@ -265,7 +262,7 @@ def _particle_field(field: GravitySpec | DragSpec | WindSpec | BuoyancySpec) -> 
             law = f"stokes 6πηr, η = {viscosity:g} Pa·s"
         else:
             law = f"{field.model}, C = {field.coefficient:g} {'N·s/m' if field.model == 'linear' else 'kg/m'}"
-        label = f"{field.type} {law}" + (f", wind {_vector(field.velocity)} m/s" if wind is not None else "")
+        label = f"{field.type} {law}" + (f", wind {_vector(wind)} m/s" if wind is not None else "")
         return ParticleField(field.type, label, law=field.model, coefficient=float(field.coefficient or 0.0),
                              viscosity=viscosity, wind=wind if wind is not None and np.any(wind) else None)
     up = np.asarray(field.up, float)

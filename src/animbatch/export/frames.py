@@ -6,24 +6,24 @@ The vertex map places them all from the frame's body states, as the renderer doe
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from animbatch import quaternion
+from animbatch.render.geometry import FrameGeometry
 from animbatch.trajectory import Trajectory
 
 
-def deformable_vertices(geometry: Any, trajectory: Trajectory, frame: int) -> np.ndarray:
+def deformable_vertices(geometry: FrameGeometry, trajectory: Trajectory, frame: int) -> np.ndarray:
     """All cloth and lattice vertices (V, 3) [m] at ``frame``: free ones from the trajectory, pinned ones placed
     on their anchors and bodies."""
     particles = len(geometry.particle_radius)
     rotation = quaternion.to_matrix(trajectory.orientations[frame, particles:])
-    return geometry.deformables.vertex_map.place(trajectory.positions[frame], rotation,
-                                                 geometry.anchors_at(float(trajectory.times[frame])))
+    assert geometry.surfaces is not None
+    return geometry.surfaces.placement.place(trajectory.positions[frame], rotation,
+                                             geometry.anchors_at(float(trajectory.times[frame])))
 
 
-def own_particles(geometry: Any) -> np.ndarray:
+def own_particles(geometry: FrameGeometry) -> np.ndarray:
     """Indices (K,) of the trajectory's particles that are bodies of their own, not vertices of cloth or
     lattices."""
     drawn = geometry.drawn_particles

@@ -15,6 +15,7 @@ PLY files are binary little-endian; OBJ files are text.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -46,18 +47,18 @@ def write_point_caches(trajectory: Trajectory, geometry: Any, folder: str | Path
         raise ValueError(f"unknown point cache format {kind!r}; choose from {', '.join(POINT_CACHE_FORMATS)}")
     folder = Path(folder)
     written: list[Path] = []
-    bodies = geometry.deformables.bodies if geometry.deformables is not None else ()
+    bodies = geometry.surfaces.patches if geometry.surfaces is not None else ()
     appearances = [ParticleAppearance(emitter) for emitter in geometry.emitters]
     # a body's triangles are the same in every file: encoded once, as PLY face records or OBJ face lines
-    encode_faces = _ply_faces if kind == "ply" else _obj_faces
-    faces = [encode_faces(body.triangles - body.vertices.start) for body in bodies]
-    write_mesh = _write_mesh_ply if kind == "ply" else _write_mesh_obj
+    encode_faces: Callable[[np.ndarray], Any] = _ply_faces if kind == "ply" else _obj_faces
+    faces = [encode_faces(body.triangles) for body in bodies]
+    write_mesh: Callable[[Path, np.ndarray, Any], Path] = _write_mesh_ply if kind == "ply" else _write_mesh_obj
     for frame in range(trajectory.frame_count):
         if bodies:
             vertices = deformable_vertices(geometry, trajectory, frame)
             for body, encoded in zip(bodies, faces):
                 path = folder / f"{file_stem(body.name)}.{frame:04d}.{kind}"
-                written.append(write_mesh(path, vertices[body.vertices], encoded))
+                written.append(write_mesh(path, vertices[body.start:body.stop], encoded))
         for frames, appearance in zip(trajectory.particles, appearances):
             path = folder / f"{file_stem(frames.name)}.{frame:04d}.{kind}"
             serials, size, opacity, color = appearance.at(frames, frame)
@@ -100,8 +101,8 @@ def _write_ply(path: Path, vertices: np.ndarray, faces: bytes | None, face_count
     ``faces`` (``face_count`` records from :func:`_ply_faces`)."""
     header = ["ply", "format binary_little_endian 1.0", "comment written by animbatch",
               f"element vertex {len(vertices)}"]
-    fields = vertices.dtype.fields or {}
-    header += [f"property {_PLY_TYPES[(kind.kind, kind.itemsize)]} {name}" for name, (kind, _) in fields.items()]
+    fields: dict[str, Any] = dict(vertices.dtype.fields or {})  # name -> (dtype, offset)
+    header += [f"property {_PLY_TYPES[(field[0].kind, field[0].itemsize)]} {name}" for name, field in fields.items()]
     if faces is not None:
         header += [f"element face {face_count}", "property list uchar int vertex_indices"]
     with atomic_path(path) as temporary, temporary.open("wb") as handle:

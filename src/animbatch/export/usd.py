@@ -164,7 +164,7 @@ class _StageWriter:
             path, name = f"/World/Bodies/{prim_name}", trajectory.body_names[index]
             if index >= rigid_first:
                 b = index - rigid_first
-                surface = shape_mesh(geometry.rigid_shapes[b], geometry.meshes, MESH_RESOLUTION)
+                surface = shape_mesh(geometry.rigid_shapes[b], MESH_RESOLUTION)
                 shape = self._solid(path, name, surface.translate(-geometry.rigid_centre[b]), geometry.colors[index])
             else:
                 shape = self._define(UsdGeom.Sphere, path, name)
@@ -187,15 +187,14 @@ class _StageWriter:
             return
         UsdGeom.Scope.Define(self.stage, "/World/Colliders")
         colors = [look[0] for look in geometry.collider_looks] or [c.color or COLLIDER_COLOR for c in colliders]
-        paths = geometry.collider_paths or (None,) * len(colliders)
-        names = [f"{collider.type}_{k}" for k, collider in enumerate(colliders)]
-        for collider, name, color, motion in zip(colliders, names, colors, paths):
-            surface = collider_surface(collider, geometry.bounds, geometry.meshes, MESH_RESOLUTION)
+        names = [f"{collider.kind}_{k}" for k, collider in enumerate(colliders)]
+        for collider, name, color in zip(colliders, names, colors):
+            surface = collider_surface(collider, geometry.bounds, MESH_RESOLUTION)
             mesh = self._solid(f"/World/Colliders/{name}", name, surface, color)
-            if motion is not None:
+            if collider.track is not None:
                 transform = mesh.AddTransformOp()
                 for frame in self.frames:
-                    matrix = np.asarray(motion.matrix(float(self.trajectory.times[frame])), float)
+                    matrix = np.asarray(collider.track.at(float(self.trajectory.times[frame])), float)
                     transform.Set(Gf.Matrix4d(*matrix.T.ravel().tolist()), frame)
 
     def _particle_points(self, particles: np.ndarray) -> None:
@@ -214,22 +213,21 @@ class _StageWriter:
     def deformables(self) -> None:
         """Each cloth and lattice: a Mesh whose triangles stay and whose points move."""
         geometry, Vt = self.geometry, self.pxr.Vt
-        if geometry.deformables is None:
+        if geometry.surfaces is None:
             return
         self.pxr.UsdGeom.Scope.Define(self.stage, "/World/Deformables")
-        bodies = geometry.deformables.bodies
+        bodies = geometry.surfaces.patches
         meshes = []
         for body, prim_name, (front, _back) in zip(bodies, prim_names([b.name for b in bodies]),
                                                    geometry.surface_colors):
-            start = body.vertices.start
-            points = np.zeros((body.vertices.stop - start, 3))
-            mesh = self._mesh(f"/World/Deformables/{prim_name}", body.name, points, body.triangles - start, front)
+            points = np.zeros((body.stop - body.start, 3))
+            mesh = self._mesh(f"/World/Deformables/{prim_name}", body.name, points, body.triangles, front)
             mesh.CreateDoubleSidedAttr(True)
             meshes.append(mesh.GetPointsAttr())
         for frame in self.frames:
             vertices = deformable_vertices(geometry, self.trajectory, frame)
             for body, attribute in zip(bodies, meshes):
-                attribute.Set(Vt.Vec3fArray.FromNumpy(vertices[body.vertices].astype(np.float32)), frame)
+                attribute.Set(Vt.Vec3fArray.FromNumpy(vertices[body.start:body.stop].astype(np.float32)), frame)
 
     def emitters(self) -> None:
         """Each emitter: a Points of its live particles at every frame, with ids that follow each particle."""

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from animbatch.render.geometry import BodyPath
-from animbatch.scene.schema import CameraSpec
+from animbatch.render.settings import CameraSettings
 
 
 @dataclass(frozen=True)
@@ -45,7 +45,7 @@ def motion_bounds(positions: np.ndarray, radius: np.ndarray, extra_points: np.nd
     return np.stack([low, high])
 
 
-def place_camera(spec: CameraSpec, bounds: np.ndarray, aspect: float = 16 / 9,
+def place_camera(spec: CameraSettings, bounds: np.ndarray, aspect: float = 16 / 9,
                  any_azimuth: bool = False) -> CameraPlacement:
     """Where the camera goes for ``bounds`` (2, 3) and frame ``aspect`` (width / height).
 
@@ -122,7 +122,7 @@ class CameraPath:
     """Where the camera is at any time: its own placement (fitted or given), moved by keyframes, then by a followed
     body (focal point on the smoothed body, same offset), then turned about the orbit's axis."""
 
-    def __init__(self, spec: CameraSpec, bounds: np.ndarray, aspect: float = 16 / 9,
+    def __init__(self, spec: CameraSettings, bounds: np.ndarray, aspect: float = 16 / 9,
                  followed: BodyPath | None = None) -> None:
         self.spec = spec
         self.up = _unit(np.asarray(spec.up, float))
@@ -138,7 +138,7 @@ class CameraPath:
         self.track = follower(followed, spec.follow_lag) if followed is not None else None
         self.moves = spec.moves
 
-    def _keyframe_splines(self, spec: CameraSpec) -> dict[str, Any]:
+    def _keyframe_splines(self, spec: CameraSettings) -> dict[str, Any]:
         """One clamped cubic spline (at rest at both ends) per keyframed quantity, over the keyframes giving it."""
         from scipy.interpolate import CubicSpline  # only for keyframed cameras
 

@@ -19,7 +19,7 @@ AXIS_COLORS = ("#d62728", "#2ca02c", "#1f77b4")
 def hex_to_rgb(color: str) -> tuple[float, float, float]:
     """``'#rrggbb'`` -> (r, g, b) in 0…1."""
     value = color.lstrip("#")
-    return tuple(int(value[i:i + 2], 16) / 255 for i in (0, 2, 4))  # type: ignore[return-value]
+    return int(value[0:2], 16) / 255, int(value[2:4], 16) / 255, int(value[4:6], 16) / 255
 
 
 def darker(color: str, factor: float = 0.7) -> str:

@@ -13,23 +13,12 @@ held the same particle), so that a frame looks the same whichever frames were dr
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
+from animbatch.render.geometry import ParticleLook
 from animbatch.trajectory import ParticleFrames
-
-
-class ParticleLooks(Protocol):
-    """What the renderer needs of a compiled emitter (:class:`animbatch.sim.particles.emitter.Emitter` is one):
-    its pool size, its scene ``look``, its mean colour, and each particle's lifetime, radius and colour drawn again
-    from its serial."""
-
-    capacity: int
-    look: Any
-    color_mean: np.ndarray
-
-    def looks(self, serials: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
 
 def ramp(values: np.ndarray, fraction: np.ndarray) -> np.ndarray:
@@ -43,24 +32,14 @@ def ramp(values: np.ndarray, fraction: np.ndarray) -> np.ndarray:
     return np.stack([np.interp(fraction, knots, values[:, k]) for k in range(values.shape[1])], axis=1)
 
 
-def _rgb(color: str) -> np.ndarray:
-    value = color.lstrip("#")
-    return np.array([int(value[i:i + 2], 16) / 255 for i in (0, 2, 4)])
-
-
 class ParticleAppearance:
     """How an emitter's particles look at a frame, slot by slot: radius [m], opacity and colour, from each particle's
     own lifetime, radius and colour (drawn again from its serial when a slot takes a new particle) and the ramps of
     the emitter's ``look`` over age / lifetime. Numbers only; the renderer and the exports share it."""
 
-    def __init__(self, emitter: ParticleLooks) -> None:
-        self.emitter = emitter
-        look = emitter.look
-        self.size_ramp = np.asarray(look.size, float)  # type: ignore[attr-defined]
-        self.opacity_ramp = np.asarray(look.opacity, float)  # type: ignore[attr-defined]
-        colors = look.color  # type: ignore[attr-defined]
-        self.color_ramp = np.array([_rgb(c) for c in colors]) if colors else None
-        capacity = emitter.capacity
+    def __init__(self, look: ParticleLook) -> None:
+        self.look = look
+        capacity = look.capacity
         self._serial = np.full(capacity, -1, np.int64)
         self._lifetime = np.ones(capacity)
         self._radius = np.zeros(capacity)
@@ -71,7 +50,7 @@ class ParticleAppearance:
         changed = np.flatnonzero((serials != self._serial) & (serials >= 0))
         self._serial[:] = serials
         if len(changed):
-            lifetime, radius, color = self.emitter.looks(serials[changed])
+            lifetime, radius, color = self.look.looks(serials[changed])
             self._lifetime[changed], self._radius[changed], self._color[changed] = lifetime, radius, color
 
     def at(self, frames: ParticleFrames, frame: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -81,34 +60,33 @@ class ParticleAppearance:
         self._refresh_slots(serials)
         live = serials >= 0
         life = np.clip(frames.ages[frame] / self._lifetime, 0.0, 1.0)
-        size = np.where(live, self._radius * ramp(self.size_ramp, life), 0.0)
-        opacity = np.where(live, ramp(self.opacity_ramp, life), 0.0)
+        look = self.look
+        size = np.where(live, self._radius * ramp(look.size_ramp, life), 0.0)
+        opacity = np.where(live, ramp(look.opacity_ramp, life), 0.0)
         color = self._color
-        if self.color_ramp is not None:  # each particle keeps its own difference from the mean colour
-            color = np.clip(ramp(self.color_ramp, life) + (self._color - self.emitter.color_mean), 0.0, 1.0)
+        if look.color_ramp is not None:  # each particle keeps its own difference from the mean colour
+            color = np.clip(ramp(look.color_ramp, life) + (self._color - look.color_mean), 0.0, 1.0)
         return serials, size, opacity, color
 
 
 class EmitterLayer:
     """The actors of one emitter: its cloud and, optionally, its trails."""
 
-    def __init__(self, pv: Any, plotter: Any, emitter: ParticleLooks) -> None:
-        self.emitter = emitter
-        look = emitter.look
+    def __init__(self, pv: Any, plotter: Any, look: ParticleLook) -> None:
         self.look = look
-        self.appearance = ParticleAppearance(emitter)
-        capacity = emitter.capacity
+        self.appearance = ParticleAppearance(look)
+        capacity = look.capacity
         self.cloud = pv.PolyData(np.zeros((capacity, 3), np.float32))
         self.cloud.point_data["radius"] = np.zeros(capacity)
         self.cloud.point_data["rgba"] = np.zeros((capacity, 4), np.uint8)
-        sprite = look.style == "sprite"  # type: ignore[attr-defined]
+        sprite = look.style == "sprite"
         actor = plotter.add_mesh(self.cloud, style="points_gaussian", emissive=sprite,
                                  render_points_as_spheres=not sprite, scalars="rgba", rgba=True,
                                  show_scalar_bar=False)
         actor.mapper.SetScaleArray("radius")
         actor.mapper.SetScaleFactor(1.0)
-        self.trail = int(look.trail)  # type: ignore[attr-defined]
-        self.lines = None
+        self.trail = look.trail
+        self.lines: Any = None
         if self.trail:
             points_per = self.trail + 1
             index = np.arange(capacity * points_per).reshape(capacity, points_per)
@@ -148,6 +126,6 @@ class EmitterLayer:
             colors[:, back, :3] = rgba[:, :3]
             colors[:, back, 3] = np.where(same, rgba[:, 3] * (1.0 - back / (self.trail + 1)), 0).astype(np.uint8)
         colors[:, 0] = rgba
-        self.lines.points[:] = points.reshape(-1, 3)  # type: ignore[union-attr]
-        self.lines.point_data["rgba"][:] = colors.reshape(-1, 4)  # type: ignore[union-attr]
-        self.lines.Modified()  # type: ignore[union-attr]
+        self.lines.points[:] = points.reshape(-1, 3)
+        self.lines.point_data["rgba"][:] = colors.reshape(-1, 4)
+        self.lines.Modified()

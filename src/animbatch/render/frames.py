@@ -37,13 +37,13 @@ from animbatch.render.colors import (
     linear_rgb,
 )
 from animbatch.render.emitted import EmitterLayer
-from animbatch.render.geometry import Finish, FrameGeometry
+from animbatch.render.geometry import Finish, FrameGeometry, FrameSeries
 from animbatch.render.occlusion import GroundOcclusion
+from animbatch.render.settings import Ground, GroundSettings, RenderSettings
 from animbatch.render.shadows import GroundShadows
 from animbatch.render.shapes import (
     arrow_basis,
     collider_surface,
-    plane_of,
     plane_square,
     shape_mesh,
     vertex_normals,
@@ -59,11 +59,6 @@ from animbatch.render.studio import (
     use_environment,
 )
 from animbatch.render.trails import TrailLayer
-from animbatch.scene.schema import (
-    GroundSpec,
-    PlaneCollider,
-    RenderSpec,
-)
 
 #: Above this many particles, ``particles: auto`` draws point sprites instead of sphere meshes.
 SPRITE_THRESHOLD = 200
@@ -85,7 +80,7 @@ def overlay_font() -> Path | None:
 class FrameRenderer:
     """Renders frames of one scene. Create once, call :meth:`draw` per frame, then :meth:`close`."""
 
-    def __init__(self, render: RenderSpec, geometry: FrameGeometry, backend: Backend) -> None:
+    def __init__(self, render: RenderSettings, geometry: FrameGeometry, backend: Backend) -> None:
         activate(backend)
         try:
             import pyvista as pv  # heavy (VTK): only when drawing
@@ -105,8 +100,10 @@ class FrameRenderer:
             panel_height = 2 * round(geometry.panel.height * self.height / 2)  # even, as the frame is
             self._panel = EnergyPanel(geometry.panel, self.width, panel_height)
             self.height -= panel_height
-        lighting = "light kit" if render.lights == "light_kit" else "none"
-        self.plotter = pv.Plotter(off_screen=True, window_size=[self.width, self.height], lighting=lighting)
+        # PyVista's objects are taken as they come (Any): its stubs leave the window and arrays optional
+        plotter: Any = pv.Plotter
+        self.plotter: Any = plotter(off_screen=True, window_size=[self.width, self.height],
+                                    lighting="light kit" if render.lights == "light_kit" else "none")
         created = self.plotter.ren_win.GetClassName()
         if created != backend.vtk_window_class:  # e.g. a VTK build without runtime window selection
             self.plotter.close()
@@ -143,7 +140,7 @@ class FrameRenderer:
         self._drawing_seconds = self._last_frame_seconds = 0.0
         self._add_time_label()
         self._apply_camera(self.camera)
-        self._pixels = None
+        self._pixels: Any = None
 
     # ------------------------------------------------------------------ setup
 
@@ -174,21 +171,20 @@ class FrameRenderer:
         return GroundOcclusion(self.pv, self.plotter, origin=origin, up=self.camera.up, side=side,
                                lift=1.5e-3 * side)  # under the shadows, over the grid
 
-    def _find_ground(self) -> GroundSpec | None:
+    def _find_ground(self) -> GroundSettings | None:
         """The ground drawn: ``render.ground``, or else the first plane collider facing up (drawn as a ground in its
         own colour, since it is the floor bodies land on)."""
         if self.render_spec.ground is not None:
             return self.render_spec.ground
         up = self.camera.up / np.linalg.norm(self.camera.up)
         for collider in self.geometry.colliders:
-            if isinstance(collider, PlaneCollider) and not collider.moves:  # a moving plane is no ground
-                normal = np.asarray(collider.normal, float) / np.linalg.norm(collider.normal)
-                if float(np.dot(normal, up)) > 1 - 1e-9:
-                    return GroundSpec(level=float(np.dot(collider.point, normal)), size=collider.size,
-                                      **({"color": collider.color} if collider.color else {}))
+            if collider.normal is not None and collider.track is None:  # a moving plane is no ground
+                if float(np.dot(collider.normal, up)) > 1 - 1e-9:
+                    return Ground(level=collider.level, size=collider.size,
+                                  color=collider.color or Ground.color)
         return None
 
-    def _finish(self, body: int) -> Finish | None:
+    def _finish(self, body: int | np.integer) -> Finish | None:
         finishes = self.geometry.finishes
         return finishes[body] if finishes else None
 
@@ -230,7 +226,7 @@ class FrameRenderer:
                                           emissive=False, scalars="rgb", rgb=True, show_scalar_bar=False)
             actor.mapper.SetScaleArray("radius")
             actor.mapper.SetScaleFactor(1.0)
-            self._cloud = cloud
+            self._cloud: Any = cloud
         elif count:
             radius = geometry.particle_radius[self._drawn]
             distance = float(np.linalg.norm(geometry.bounds.mean(axis=0) - self.camera.position))
@@ -245,19 +241,18 @@ class FrameRenderer:
     def _add_emitted(self) -> None:
         """One point cloud per emitter (see :mod:`animbatch.render.emitted`)."""
 
-        self._emitter_layers = [EmitterLayer(self.pv, self.plotter, emitter) for emitter in self.geometry.emitters]
+        self._emitter_layers = [EmitterLayer(self.pv, self.plotter, look) for look in self.geometry.emitters]
 
     def _add_surfaces(self) -> None:
         """One smooth, two-sided surface per cloth or lattice; a frame rewrites its points and normals in place."""
         geometry = self.geometry
-        self._surfaces = []
-        if geometry.deformables is None:
+        self._surfaces: list[tuple[slice, np.ndarray, Any]] = []  # (vertices, triangles (T, 3), mesh)
+        if geometry.surfaces is None:
             return
         finishes = geometry.surface_finishes or (None,) * len(geometry.surface_colors)
-        for body, (front, back), finish in zip(geometry.deformables.bodies, geometry.surface_colors, finishes):
-            start = body.vertices.start
-            triangles = body.triangles - start
-            points = np.zeros((body.vertices.stop - start, 3))
+        for patch, (front, back), finish in zip(geometry.surfaces.patches, geometry.surface_colors, finishes):
+            triangles = patch.triangles
+            points = np.zeros((patch.stop - patch.start, 3))
             faces = np.hstack([np.full((len(triangles), 1), 3), triangles]).ravel()
             mesh = self.pv.PolyData(points, faces)
             mesh.point_data["Normals"] = np.zeros_like(points)
@@ -270,7 +265,7 @@ class FrameRenderer:
             back_side = actor.prop.copy()
             back_side.color = back
             actor.SetBackfaceProperty(back_side)
-            self._surfaces.append((body, triangles, mesh))
+            self._surfaces.append((slice(patch.start, patch.stop), triangles, mesh))
 
     def _add_rigid_bodies(self) -> None:
         """One mesh per rigid body in its centre-of-mass frame; its actors share one transform matrix."""
@@ -280,7 +275,7 @@ class FrameRenderer:
         self._rigid_shadows = []
         self._vector_actors = []
         for b, shape in enumerate(geometry.rigid_shapes):
-            mesh = shape_mesh(shape, geometry.meshes, spec.sphere_resolution).translate(-geometry.rigid_centre[b])
+            mesh = shape_mesh(shape, spec.sphere_resolution).translate(-geometry.rigid_centre[b])
             # split vertices at sharp edges so boxes stay crisp while spheres and cylinders look smooth
             mesh = mesh.compute_normals(split_vertices=True, feature_angle=40.0)
             matrix = self._matrix_class()
@@ -305,7 +300,7 @@ class FrameRenderer:
 
     def _add_springs(self) -> None:
         geometry = self.geometry
-        self._spring_mesh = None
+        self._spring_mesh: Any = None
         count = len(geometry.spring_first)
         if self.render_spec.springs == "hidden" or count == 0:
             return
@@ -337,7 +332,7 @@ class FrameRenderer:
     def _add_targets(self) -> None:
         """The curves controllers keep bodies on, as thin lines; their point targets as small spheres."""
         geometry = self.geometry
-        self._target_actors: list[tuple[Any, Any]] = []
+        self._target_actors: list[Any] = []
         if not self.render_spec.show_targets:
             return
         segments = geometry.target_segments
@@ -347,11 +342,12 @@ class FrameRenderer:
             self.plotter.add_mesh(self.pv.PolyData(points, lines=cells), color=TARGET_COLOR,
                                   line_width=max(1.0, 0.5 * self.render_spec.spring_width))
         radius = 0.4 * float(np.median(geometry.particle_radius)) if len(geometry.particle_radius) else 0.02
-        for target in geometry.target_points:
+        track = geometry.target_track
+        for position in track.values[0] if track is not None else ():
             marker = self.pv.Sphere(radius=radius, theta_resolution=12, phi_resolution=12)
             actor = self.plotter.add_mesh(marker, color=TARGET_COLOR)
-            actor.SetPosition(*target.locate(0.0, np.zeros(3)).position)
-            self._target_actors.append((target, actor))
+            actor.SetPosition(*position)
+            self._target_actors.append(actor)
 
     def _plane_square(self, level: float, up: np.ndarray, size: float | None) -> tuple[Any, np.ndarray, float]:
         """A square plane at height ``level`` along ``up`` under the motion, its centre and side length."""
@@ -376,19 +372,18 @@ class FrameRenderer:
 
         colliders = self.geometry.colliders
         looks = self.geometry.collider_looks or tuple((c.color or COLLIDER_COLOR, None) for c in colliders)
-        paths = self.geometry.collider_paths or (None,) * len(colliders)
-        self._moving_colliders: list[tuple[Any, Any]] = []  # (actor, path): placed at every frame
-        for collider, (color, finish), path in zip(colliders, looks, paths):
-            if isinstance(collider, PlaneCollider) and path is None and self._is_ground(*plane_of(collider)):
+        self._moving_colliders: list[tuple[Any, FrameSeries]] = []  # (actor, track): placed at every frame
+        for collider, (color, finish) in zip(colliders, looks):
+            if (collider.normal is not None and collider.track is None
+                    and self._is_ground(collider.normal, collider.level)):
                 continue  # the ground draws it: two squares in one plane would fight over every pixel
-            mesh = collider_surface(collider, self.geometry.bounds, self.geometry.meshes,
-                                    self.render_spec.sphere_resolution)
+            mesh = collider_surface(collider, self.geometry.bounds, self.render_spec.sphere_resolution)
             mesh = mesh.compute_normals(split_vertices=True, feature_angle=40.0)
             shading = (self._shading(finish, color) if finish is not None
                        else {"color": color, "smooth_shading": True, "ambient": 0.15})
             actor = self.plotter.add_mesh(mesh, **shading)
-            if path is not None:
-                self._moving_colliders.append((actor, path))
+            if collider.track is not None:
+                self._moving_colliders.append((actor, collider.track))
 
     def _is_ground(self, normal: np.ndarray, level: float) -> bool:
         """Whether the plane ``normal · p = level`` is the drawn ground's."""
@@ -480,18 +475,20 @@ class FrameRenderer:
             for members, group in self._sphere_groups:
                 group.update(drawn[members])
         anchor_positions = geometry.anchors_at(t)
-        if geometry.anchors is not None and geometry.anchors.moving:
+        if geometry.anchor_track is not None:
             for index, actor in self._anchor_actors:
                 actor.SetPosition(*anchor_positions[index])
-        for actor, path in self._moving_colliders:
-            actor.user_matrix = path.matrix(t)
+        for actor, track in self._moving_colliders:
+            actor.user_matrix = track.at(t)
         rotation = None
         if orientations is not None and len(self._rigid_matrices):
             rotation = quaternion.to_matrix(orientations[n:])
             for b, matrix in enumerate(self._rigid_matrices):
                 self._set_matrix(matrix, rotation[b], positions[n + b])
-            for b, matrix in enumerate(self._rigid_shadows):
-                self._shadows.place(matrix, rotation[b], positions[n + b])  # type: ignore[union-attr]
+            shadows = self._shadows
+            for b, matrix in enumerate(self._rigid_shadows):  # (none without shadows)
+                assert shadows is not None
+                shadows.place(matrix, rotation[b], positions[n + b])
             if self._vector_actors and angular_velocities is not None:
                 vectors = angular_velocities[n:]
                 if self.render_spec.show_vectors == "angular_momentum":
@@ -502,15 +499,18 @@ class FrameRenderer:
         if self._surfaces:
             rigid_rotation = (rotation if rotation is not None or orientations is None
                               else quaternion.to_matrix(orientations[n:]))
-            vertices = geometry.deformables.vertex_map.place(positions, rigid_rotation, anchor_positions)
-            for body, triangles, mesh in self._surfaces:
-                points = vertices[body.vertices]
+            assert geometry.surfaces is not None
+            vertices = geometry.surfaces.placement.place(positions, rigid_rotation, anchor_positions)
+            for vertex_range, triangles, mesh in self._surfaces:
+                points = vertices[vertex_range]
                 mesh.points[:] = points
                 mesh.point_data["Normals"][:] = vertex_normals(points, triangles)
                 mesh.GetPoints().Modified()
                 mesh.GetPointData().GetNormals().Modified()
-        for target, actor in self._target_actors:
-            actor.SetPosition(*target.locate(t, np.zeros(3)).position)  # keyframed targets move
+        if self._target_actors:
+            assert geometry.target_track is not None
+            for actor, position in zip(self._target_actors, geometry.target_track.at(t)):
+                actor.SetPosition(*position)  # keyframed targets move
         if self._spring_mesh is not None:
             self._spring_mesh.points[:] = self._spring_ends(positions, rotation, anchor_positions)
             self._spring_mesh.GetPoints().Modified()

@@ -1,14 +1,16 @@
 """What the renderer draws, as data: :class:`FrameGeometry`, compiled from a scene and its model by
-:mod:`animbatch.compile.frame_geometry` (the renderer never reads the model)."""
+:mod:`animbatch.compile.frame_geometry`. Numbers only: arrays, names and small frozen records, never a scene spec or
+a live simulation object, so that the renderer and the exports read neither the scene format nor the model."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
+
+from animbatch.vertex_placement import VertexPlacement
 
 #: A physically based finish: (metallic, roughness), each in 0…1; None draws with plain (Phong) shading.
 Finish = tuple[float, float]
@@ -17,6 +19,109 @@ Finish = tuple[float, float]
 def nearest_frame(times: np.ndarray, t: float) -> int:
     """The index of the frame time (F,) [s] nearest to ``t`` [s] (0 without frames)."""
     return int(np.argmin(np.abs(times - t))) if len(times) else 0
+
+
+@dataclass(frozen=True, eq=False)
+class FrameSeries:
+    """Something that changes over the run, sampled at the frame times: ``values`` (F, ...) at ``times`` (F,) [s]."""
+
+    times: np.ndarray
+    values: np.ndarray
+
+    def at(self, t: float) -> np.ndarray:
+        """The sample of the frame nearest to ``t`` [s] (frames are drawn at their own times)."""
+        return self.values[nearest_frame(self.times, t)]
+
+
+@dataclass(frozen=True, eq=False)
+class TriangleMesh:
+    """A triangle surface read from a mesh file: ``vertices`` (V, 3) [m] and ``faces`` (F, 3) vertex indices."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Solid:
+    """A shape to draw, in its own coordinates [m]: a ``sphere`` (``radius``), a ``box`` (edge lengths ``size``), a
+    ``cylinder`` or a ``capsule`` along z (``radius``, whole ``length``), a ``mesh`` (``mesh``), or a ``compound`` of
+    ``parts``, each a solid and its 4×4 pose in the compound's coordinates."""
+
+    kind: Literal["sphere", "box", "cylinder", "capsule", "mesh", "compound"]
+    radius: float = 0.0
+    size: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    length: float = 0.0
+    mesh: TriangleMesh | None = None
+    parts: tuple[tuple[Solid, np.ndarray], ...] = ()
+
+
+@dataclass(frozen=True, eq=False)
+class DrawnCollider:
+    """A visible collider. A plane has ``normal`` (3,) (unit) and ``level`` [m] (``normal · p = level``) and is drawn
+    ``size`` metres across (None: fitted to the motion); any other collider is a ``solid`` placed by ``pose`` (4×4)
+    where it starts. ``color``: its own (None: the default collider colour); ``track``: its pose (F, 4, 4) at the
+    frame times, relative to where it starts, when it moves (planes included)."""
+
+    solid: Solid | None
+    pose: np.ndarray
+    normal: np.ndarray | None = None
+    level: float = 0.0
+    size: float | None = None
+    color: str | None = None
+    track: FrameSeries | None = None
+
+    @property
+    def kind(self) -> str:
+        """'plane', or the kind of its solid."""
+        return "plane" if self.normal is not None or self.solid is None else self.solid.kind
+
+
+@dataclass(frozen=True, eq=False)
+class SurfacePatch:
+    """One cloth or lattice: its vertices ``start`` … ``stop - 1`` of the vertex placement and its ``triangles``
+    (T, 3), indexing those vertices from 0."""
+
+    name: str
+    start: int
+    stop: int
+    triangles: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Surfaces:
+    """The cloths and lattices: where every vertex is (``placement``, from the points, rigid bodies and anchors) and
+    the ``patches`` drawn from them."""
+
+    placement: VertexPlacement
+    patches: tuple[SurfacePatch, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class ParticleLook:
+    """How an emitter's particles are drawn: a pool of ``capacity`` slots, as ``sprite`` or ``sphere`` points with
+    ``trail`` frames of trail; ramps over life (age / lifetime) of ``size`` (× radius), ``opacity`` and ``color``
+    (R, 3) RGB in 0…1 (None: each particle keeps its own colour), around the emitter's ``color_mean`` (3,). Each
+    particle's lifetime [s], radius [m] and colour (3,), by serial: ``serials`` (K,) sorted, with the values in the
+    same order (every particle the trajectory shows)."""
+
+    name: str
+    capacity: int
+    style: str
+    trail: int
+    size_ramp: np.ndarray
+    opacity_ramp: np.ndarray
+    color_ramp: np.ndarray | None
+    color_mean: np.ndarray
+    serials: np.ndarray
+    lifetime: np.ndarray
+    radius: np.ndarray
+    color: np.ndarray
+
+    def looks(self, serials: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Lifetimes (K,), radii (K,) and colours (K, 3) of the particles ``serials`` (K,) (each one the trajectory
+        shows)."""
+        at = np.searchsorted(self.serials, serials)
+        return self.lifetime[at], self.radius[at], self.color[at]
 
 
 @dataclass(frozen=True)
@@ -147,11 +252,10 @@ class FrameGeometry:
 
     particle_radius: np.ndarray  # (N,) [m]
     colors: list[str]  # (P,) '#rrggbb', bodies in model order
-    rigid_shapes: tuple[Any, ...]  # (B,) scene shape specs
+    rigid_shapes: tuple[Solid, ...]  # (B,) in shape coordinates
     rigid_centre: np.ndarray  # (B, 3) centre of mass in shape coordinates [m]
     rigid_inertia: np.ndarray  # (B, 3, 3) body axes [kg·m²]
     rigid_extent: np.ndarray  # (B,) [m]
-    base_dir: Path
     anchor_positions: np.ndarray  # (A, 3) [m]
     spring_first: np.ndarray  # (S,) body indices
     spring_second: np.ndarray  # (S,) body or anchor indices
@@ -162,17 +266,15 @@ class FrameGeometry:
     fluids: list[tuple[float, np.ndarray]]  # (level, up) of each buoyancy fluid
     bounds: np.ndarray  # (2, 3) [m], whole motion
     vector_scale: float = 0.0  # arrow length per unit of |ω| or |L| [m per unit]
-    colliders: tuple[Any, ...] = ()  # the scene's collider specs
-    scene_dir: Path = Path(".")  # where the scene's mesh files are
-    anchors: Any = None  # AnchorMotion: where anchors are at a frame's time
+    colliders: tuple[DrawnCollider, ...] = ()  # the visible colliders
+    anchor_track: FrameSeries | None = None  # (F, A, 3) [m]: where the anchors are at each frame, when any moves
     anchor_visible: np.ndarray | None = None  # (A,) bool
     drawn_particles: np.ndarray | None = None  # (N,) bool: particles drawn as themselves (not cloth vertices)
-    deformables: Any = None  # DeformableSet, or None
+    surfaces: Surfaces | None = None  # cloths and lattices
     surface_colors: tuple[tuple[str, str], ...] = ()  # (front, back) per deformable body
     target_segments: np.ndarray | None = None  # (S, 2, 3) [m]: the curves PD controllers keep bodies on
-    target_points: tuple[Any, ...] = ()  # point and keyframe targets (forces.controllers.Target), drawn as markers
-    emitters: tuple[Any, ...] = ()  # compiled emitters whose particles are drawn (render.emitted.ParticleLooks)
-    meshes: dict[tuple[str, str], Any] = field(default_factory=dict)  # mesh files read: (file, scale) -> mesh
+    target_track: FrameSeries | None = None  # (F, K, 3) [m]: the PD controllers' point and keyframe targets
+    emitters: tuple[ParticleLook, ...] = ()  # how each emitter's particles are drawn
     trails: TrailPaths | None = None
     label: LabelValues | None = None
     followed: BodyPath | None = None  # the body the camera follows
@@ -182,13 +284,8 @@ class FrameGeometry:
     surface_finishes: tuple[Finish | None, ...] = ()  # per deformable body, like surface_colors
     collider_looks: tuple[tuple[str, Finish | None], ...] = ()  # (colour, finish) per drawn collider
     rigid_volume_radius: np.ndarray | None = None  # (B,) [m] the radius of the sphere of each rigid body's volume
-    collider_paths: tuple[Any, ...] = ()  # per drawn collider: its PosePath (.matrix(t): 4×4), or None if fixed
 
     def anchors_at(self, t: float) -> np.ndarray:
-        """Every anchor's position (A, 3) [m] at time ``t`` [s] (moving anchors follow their keyframes)."""
-        return self.anchors.positions(t) if self.anchors is not None else self.anchor_positions
-
-
-def mesh_key(shape: Any) -> tuple[str, str]:
-    """How :attr:`FrameGeometry.meshes` names the mesh file of a mesh shape or collider."""
-    return shape.file, repr(shape.scale)
+        """Every anchor's position (A, 3) [m] at the frame of time ``t`` [s] (moving anchors follow their
+        keyframes)."""
+        return self.anchor_track.at(t) if self.anchor_track is not None else self.anchor_positions

@@ -7,6 +7,8 @@ column, so the panel costs a copy per frame rather than a plot.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from animbatch.render.geometry import PanelSeries
@@ -28,9 +30,9 @@ class EnergyPanel:
         canvas = FigureCanvasAgg(figure)
         axes = figure.add_axes((0.07, 0.22, 0.86, 0.6))
         font = max(6.0, min(11.0, height / 18))
-        right = None
+        right: Any = None  # the momentum axis, made when a series needs it
         for label, (values, side) in series.series.items():
-            target = axes
+            target: Any = axes
             if side == "right":
                 right = right if right is not None else axes.twinx()
                 target = right

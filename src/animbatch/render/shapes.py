@@ -8,55 +8,36 @@ from typing import Any
 import numpy as np
 
 from animbatch.render.camera import plane_axes
-from animbatch.render.geometry import mesh_key
-from animbatch.scene.orientation import orientation_matrix
-from animbatch.scene.schema import (
-    BoxCollider,
-    BoxShape,
-    CapsuleShape,
-    CompoundShape,
-    CylinderShape,
-    MeshCollider,
-    MeshShape,
-    PlaneCollider,
-    RodShape,
-    ShellShape,
-    SphereCollider,
-    SphereShape,
-)
+from animbatch.render.geometry import DrawnCollider, Solid
 
 
-def shape_mesh(shape: Any, meshes: dict[tuple[str, str], Any], resolution: int) -> Any:
-    """A PyVista surface of a scene shape, in shape coordinates; ``meshes`` holds the mesh files already read
-    (vertices (V, 3) [m], faces (F, 3))."""
+def shape_mesh(solid: Solid, resolution: int) -> Any:
+    """A PyVista surface of a solid, in its own coordinates [m]."""
     import pyvista as pv  # heavy (VTK): only when drawing
 
-    if isinstance(shape, SphereShape | ShellShape):
-        return pv.Sphere(radius=shape.radius, theta_resolution=resolution, phi_resolution=resolution)
-    if isinstance(shape, BoxShape):
-        a, b, c = (s / 2 for s in shape.size)
+    if solid.kind == "sphere":
+        return pv.Sphere(radius=solid.radius, theta_resolution=resolution, phi_resolution=resolution)
+    if solid.kind == "box":
+        a, b, c = (s / 2 for s in solid.size)
         return pv.Box(bounds=(-a, a, -b, b, -c, c)).triangulate()
-    if isinstance(shape, CylinderShape | RodShape):
-        radius = shape.radius if shape.radius is not None else shape.length / 100
-        return pv.Cylinder(center=(0, 0, 0), direction=(0, 0, 1), radius=radius, height=shape.length,
+    if solid.kind == "cylinder":
+        return pv.Cylinder(center=(0, 0, 0), direction=(0, 0, 1), radius=solid.radius, height=solid.length,
                            resolution=resolution).triangulate()
-    if isinstance(shape, CapsuleShape):
-        return pv.Capsule(center=(0, 0, 0), direction=(0, 0, 1), radius=shape.radius,
-                          cylinder_length=shape.length - 2 * shape.radius, resolution=resolution).triangulate()
-    if isinstance(shape, MeshShape | MeshCollider):
-        mesh = meshes[mesh_key(shape)]
+    if solid.kind == "capsule":
+        return pv.Capsule(center=(0, 0, 0), direction=(0, 0, 1), radius=solid.radius,
+                          cylinder_length=solid.length - 2 * solid.radius, resolution=resolution).triangulate()
+    if solid.kind == "mesh":
+        assert solid.mesh is not None
+        mesh = solid.mesh
         faces = np.hstack([np.full((len(mesh.faces), 1), 3), mesh.faces]).ravel()
         return pv.PolyData(mesh.vertices, faces)
-    if isinstance(shape, CompoundShape):
+    if solid.kind == "compound":
         merged = None
-        for part in shape.parts:
-            transform = np.eye(4)
-            transform[:3, :3] = orientation_matrix(part.orientation)
-            transform[:3, 3] = part.offset
-            piece = shape_mesh(part.shape, meshes, resolution).transform(transform, inplace=False)
+        for part, pose in solid.parts:
+            piece = shape_mesh(part, resolution).transform(pose, inplace=False)
             merged = piece if merged is None else merged.merge(piece)
         return merged
-    raise TypeError(f"cannot draw shape {shape!r}")
+    raise TypeError(f"cannot draw a solid of kind {solid.kind!r}")
 
 
 def plane_square(bounds: np.ndarray, level: float, up: np.ndarray, size: float | None) -> tuple[Any, np.ndarray, float]:
@@ -73,32 +54,18 @@ def plane_square(bounds: np.ndarray, level: float, up: np.ndarray, size: float |
     return pv.Plane(center=origin, direction=up, i_size=side, j_size=side), origin, side
 
 
-def plane_of(collider: Any) -> tuple[np.ndarray, float]:
-    """A plane collider's unit normal and level (``normal · p = level``)."""
-    normal = np.asarray(collider.normal, float) / np.linalg.norm(collider.normal)
-    return normal, float(np.dot(collider.point, normal))
-
-
-def collider_surface(collider: Any, bounds: np.ndarray, meshes: dict[tuple[str, str], Any], resolution: int) -> Any:
+def collider_surface(collider: DrawnCollider, bounds: np.ndarray, resolution: int) -> Any:
     """A PyVista surface of a collider where it starts, in world coordinates [m]: planes as squares around the
-    motion's ``bounds``, boxes, spheres and mesh files (a moving collider's path then moves it as a whole)."""
-    import pyvista as pv  # heavy (VTK): only when drawing
+    motion's ``bounds``, other solids placed by their pose (a moving collider's track then moves it as a whole)."""
+    if collider.normal is not None:
+        return plane_square(bounds, collider.level, collider.normal, collider.size)[0]
+    assert collider.solid is not None
+    if collider.solid.kind == "sphere":  # twice the segments around: a collider sphere is usually large on screen
+        import pyvista as pv  # heavy (VTK): only when drawing
 
-    if isinstance(collider, PlaneCollider):
-        normal, level = plane_of(collider)
-        return plane_square(bounds, level, normal, collider.size)[0]
-    if isinstance(collider, SphereCollider):
-        return pv.Sphere(radius=collider.radius, center=collider.position, theta_resolution=2 * resolution,
+        return pv.Sphere(radius=collider.solid.radius, center=collider.pose[:3, 3], theta_resolution=2 * resolution,
                          phi_resolution=resolution)
-    transform = np.eye(4)
-    transform[:3, :3] = orientation_matrix(collider.orientation)
-    transform[:3, 3] = collider.position
-    if isinstance(collider, BoxCollider):
-        a, b, c = (x / 2 for x in collider.size)
-        return pv.Box(bounds=(-a, a, -b, b, -c, c)).triangulate().transform(transform, inplace=False)
-    if isinstance(collider, MeshCollider):
-        return shape_mesh(collider, meshes, resolution).transform(transform, inplace=False)
-    raise TypeError(f"cannot draw collider {collider!r}")
+    return shape_mesh(collider.solid, resolution).transform(collider.pose, inplace=False)
 
 
 def vertex_normals(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:

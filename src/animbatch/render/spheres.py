@@ -87,7 +87,7 @@ def _matrix(values: np.ndarray) -> Any:
     from vtkmodules.vtkCommonMath import vtkMatrix4x4  # heavy (VTK): only when drawing
 
     matrix = vtkMatrix4x4()
-    matrix.DeepCopy(np.asarray(values, float).ravel())
+    matrix.DeepCopy(np.asarray(values, float).ravel().tolist())
     return matrix
 
 

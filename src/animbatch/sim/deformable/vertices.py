@@ -19,59 +19,26 @@ import scipy.sparse as sp
 from animbatch.quaternion import cross
 from animbatch.sim.bodies import Kinematics
 from animbatch.sim.motion import AnchorMotion
+from animbatch.vertex_placement import ANCHOR, BODY_POINT, PARTICLE, VertexPlacement
 
-PARTICLE, ANCHOR, BODY_POINT = 0, 1, 2
+__all__ = ["ANCHOR", "BODY_POINT", "PARTICLE", "DeformableBody", "DeformableSet", "VertexMap"]
 
 
 @dataclass(frozen=True, eq=False)
-class VertexMap:
-    """V vertices: ``kind`` (V,) PARTICLE / ANCHOR / BODY_POINT; ``index`` (V,) the model point, anchor, or rigid body
-    (0 … B-1); ``offset`` (V, 3) body axes from the centre of mass (body points only). ``point_count``: P, the
-    model's points; ``first_rigid``: N."""
+class VertexMap(VertexPlacement):
+    """The vertices' placement (:class:`~animbatch.vertex_placement.VertexPlacement`: kind, index, offset,
+    first_rigid) with what the simulation adds: ``point_count`` P, the model's points, and the (P, V) matrix that
+    scatters vertex forces onto them."""
 
-    kind: np.ndarray
-    index: np.ndarray
-    offset: np.ndarray
-    point_count: int
-    first_rigid: int
-    # derived in __post_init__: the vertices of each kind, and the (P, V) matrix that scatters vertex forces
-    _free: np.ndarray = field(init=False, repr=False)
-    _on_anchor: np.ndarray = field(init=False, repr=False)
-    _on_body: np.ndarray = field(init=False, repr=False)
+    point_count: int = 0
     _scatter: sp.csr_matrix = field(init=False, repr=False)
 
-    @property
-    def count(self) -> int:
-        return len(self.kind)
-
     def __post_init__(self) -> None:
-        free = np.flatnonzero(self.kind == PARTICLE)
+        super().__post_init__()
+        free = self._free
         # one sparse product scatters vertex forces onto particles
         scatter = sp.csr_matrix((np.ones(len(free)), (self.index[free], free)), shape=(self.point_count, self.count))
         object.__setattr__(self, "_scatter", scatter)
-        object.__setattr__(self, "_on_body", np.flatnonzero(self.kind == BODY_POINT))
-        object.__setattr__(self, "_on_anchor", np.flatnonzero(self.kind == ANCHOR))
-        object.__setattr__(self, "_free", free)
-
-    def free_vertices(self) -> np.ndarray:
-        """Indices of the vertices that are particles."""
-        return self._free
-
-    def place(self, points: np.ndarray, rotations: np.ndarray | None, anchor_positions: np.ndarray) -> np.ndarray:
-        """Vertex positions (V, 3) [m] from the points' positions (P, 3), the rigid bodies' rotations (B, 3, 3) and
-        the anchors' positions (A, 3) (for drawing a frame from a trajectory)."""
-        x = np.empty((self.count, 3))
-        free = self._free
-        x[free] = points[self.index[free]]
-        pinned = self._on_anchor
-        x[pinned] = anchor_positions[self.index[pinned]]
-        attached = self._on_body
-        if len(attached):
-            assert rotations is not None
-            rigid = self.index[attached]
-            x[attached] = points[self.first_rigid + rigid] + np.einsum("kij,kj->ki", rotations[rigid],
-                                                                       self.offset[attached])
-        return x
 
     def positions_velocities(self, state: Kinematics, anchors: AnchorMotion) -> tuple[np.ndarray, np.ndarray]:
         """Positions [m] and velocities [m/s] of all vertices, (V, 3) each, at ``state`` (time ``state.t``)."""
@@ -86,7 +53,8 @@ class VertexMap:
         if len(attached):
             rigid = self.index[attached]
             lever = x[attached] - state.x[state.first_rigid + rigid]
-            v[attached] = state.v[state.first_rigid + rigid] + cross(state.omega[rigid], lever)  # type: ignore[index]
+            assert state.omega is not None  # a state with rigid bodies has their ω
+            v[attached] = state.v[state.first_rigid + rigid] + cross(state.omega[rigid], lever)
         return x, v
 
     def scatter(self, vertex_force: np.ndarray, state: Kinematics, force: np.ndarray,

@@ -535,7 +535,7 @@ class ModelBuilder:
                                           body.radius))
             start += count
         vertex_map = VertexMap(np.concatenate(kinds), np.concatenate(indices), np.concatenate(offsets),
-                               point_count, n)
+                               first_rigid=n, point_count=point_count)
         pinned_to = vertex_map.index[vertex_map.kind == ANCHOR]
         return DeformableSet(tuple(records), vertex_map, anchors.only(pinned_to),
                              _readonly(np.concatenate([body.world for body in self._deformables])))

@@ -60,22 +60,14 @@ class Model:
     layout: StateLayout
     y0: np.ndarray
     frame_times: np.ndarray
+    anchors: AnchorMotion
+    anchor_visible: np.ndarray
+    owners: tuple[str, ...]
     contact_world: ContactWorld | None = None  # only when the scene has colliders or contacts
     contact_settings: ContactSettings | None = None  # likewise
-    anchors: AnchorMotion | None = None
-    anchor_visible: np.ndarray | None = None
-    owners: tuple[str, ...] | None = None
     clocks: ProperClocks | None = None
     joints: Joints | None = None
     kinematic: KinematicBodies | None = None
-
-    def __post_init__(self) -> None:
-        if self.anchors is None:
-            object.__setattr__(self, "anchors", AnchorMotion(self.anchor_position, {}))
-        if self.anchor_visible is None:
-            object.__setattr__(self, "anchor_visible", np.ones(len(self.anchor_position), bool))
-        if self.owners is None:
-            object.__setattr__(self, "owners", self.bodies.names)
 
     @property
     def deformables(self) -> DeformableSet | None:

@@ -83,7 +83,6 @@ class Emitter:
     material: int
     capacity: int
     fields: tuple[ParticleField, ...]
-    look: object  # scene ParticleLook
 
     def newborns(self, births: Births, motion: BodyMotion | None) -> Newborns:
         """Start states and attributes of ``births``; ``motion`` places an emitter that moves with a body."""
