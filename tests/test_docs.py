@@ -72,3 +72,19 @@ def test_bundled_scene_validates(path):
     """Every example scene is valid."""
     result = CliRunner().invoke(cli, ["validate", str(path)])
     assert result.exit_code == 0, result.output
+
+
+def test_the_architecture_page_figures_are_what_their_commands_count():
+    """docs/architecture.md gives each of its figures with the command that counts it; run in the checkout, each
+    command prints the figure (a module added or an ignore removed without updating the page fails here)."""
+    import re
+    import subprocess
+
+    page = (REPO / "docs" / "architecture.md").read_text(encoding="utf-8")
+    table = page.split("### The figures, and how to count them", 1)[1].split("\n\n##", 1)[0]
+    rows = re.findall(r"^\| (.+?) \| (\d+) \| `(.+)` \|$", table, flags=re.MULTILINE)
+    assert len(rows) >= 5
+    for figure, value, command in rows:
+        printed = subprocess.run(["bash", "-c", command.replace("\\|", "|")], cwd=REPO, capture_output=True,
+                                 text=True, check=True).stdout.strip()
+        assert printed == value, f"{figure}: the page says {value}, '{command}' prints {printed}"

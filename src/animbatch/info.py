@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
+
+import numpy as np
 
 from animbatch.compile.forces import FIELD_TERMS
 from animbatch.compile.plan import RunPlan
@@ -18,11 +21,11 @@ from animbatch.sim.model.dynamics import tree_of
 from animbatch.summary import describe_solver, plural
 
 
-def _vector(values: object) -> str:
-    return "(" + ", ".join(f"{float(c) + 0.0:.4g}" for c in values) + ")"  # type: ignore[attr-defined]  (+0.0: no "-0")
+def _vector(values: Iterable[float]) -> str:
+    return "(" + ", ".join(f"{float(c) + 0.0:.4g}" for c in values) + ")"  # (+0.0: no "-0")
 
 
-def _rigid_lines(model: Model, x0: object, v0: object) -> list[str]:
+def _rigid_lines(model: Model, x0: np.ndarray, v0: np.ndarray) -> list[str]:
     """Mass properties of each rigid body: mass, centre of mass, inertia tensor and principal moments."""
     rigid = model.rigid
     assert rigid is not None
@@ -38,7 +41,7 @@ def _rigid_lines(model: Model, x0: object, v0: object) -> list[str]:
             "           inertia about the centre of mass, body axes [kg·m²]: "
             + "  ".join(_vector(row) for row in inertia),
             f"           principal moments {_vector(properties.principal_moments)} kg·m²",
-            f"           start: centre at {_vector(x0[point])} m, velocity {_vector(v0[point])} m/s, "  # type: ignore[index]
+            f"           start: centre at {_vector(x0[point])} m, velocity {_vector(v0[point])} m/s, "
             f"ω {_vector(omega[point])} rad/s",
         ]
         if model.kinematic is not None and b in model.kinematic.rigid:

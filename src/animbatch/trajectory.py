@@ -111,6 +111,7 @@ class Trajectory:
         if path.suffix != ".npz":
             path = path.with_name(path.name + ".npz")
         with atomic_path(path) as temporary, open(temporary, "wb") as stream:
+            extra: dict[str, Any] = {**self._particle_arrays(), **self._clock_arrays(), **self._joint_arrays()}
             np.savez(stream, format=np.str_(FORMAT), format_version=np.int64(FORMAT_VERSION), times=self.times,
                      body_names=np.array(self.body_names, dtype=str), body_kinds=np.array(self.body_kinds, dtype=str),
                      positions=self.positions, velocities=self.velocities, orientations=self.orientations,
@@ -120,7 +121,7 @@ class Trajectory:
                      solver=np.str_(json.dumps(self.solver)), solver_stats=np.str_(json.dumps(self.solver_stats)),
                      emitter_names=np.array([p.name for p in self.particles], dtype=str),
                      particle_stats=np.str_(json.dumps(self.particle_stats)), ledger=np.str_(json.dumps(self.ledger)),
-                     **self._particle_arrays(), **self._clock_arrays(), **self._joint_arrays())
+                     **extra)
         return path
 
     def _clock_arrays(self) -> dict[str, np.ndarray]:
@@ -128,11 +129,12 @@ class Trajectory:
             return {}
         return {"clock_names": np.array(self.clock_names, dtype=str), "proper_times": self.proper_times}
 
-    def _joint_arrays(self) -> dict[str, np.ndarray]:
+    def _joint_arrays(self) -> dict[str, np.ndarray | None]:
         if self.joint_forces is None:
             return {}
-        arrays = {"joint_names": np.array(self.joint_names, dtype=str), "joint_forces": self.joint_forces,
-                  "joint_torques": self.joint_torques}
+        arrays: dict[str, np.ndarray | None] = {"joint_names": np.array(self.joint_names, dtype=str),
+                                                "joint_forces": self.joint_forces,
+                                                "joint_torques": self.joint_torques}
         if self.motor_efforts is not None:
             arrays["motor_efforts"] = self.motor_efforts
         return arrays

@@ -31,7 +31,6 @@ def arrow_series(spec: SceneSpec, model: Model, states: np.ndarray, times: np.nd
     arrows = spec.render.arrows
     if arrows is None or not model.body_count:
         return None
-    assert model.owners is not None  # set by the Model
     own = {name: k for k, (name, owner) in enumerate(zip(model.body_names, model.owners)) if name == owner}
     bodies = np.array([own[name] for name in arrows.bodies] if arrows.bodies else list(own.values()), np.intp)
     mass = body_masses(model)[bodies, None]

@@ -34,7 +34,10 @@ def _primitive(shape: object, mass: float | None, density: float | None, base: P
     """Properties of one primitive with a given mass or density, and its buoyancy spheres and triangles."""
 
     def massed(unit: mp.MassProperties) -> mp.MassProperties:  # from unit mass to the given mass or density
-        total = mass if mass is not None else density * unit.volume  # type: ignore[operator]
+        if mass is not None:
+            return unit.with_mass(mass)
+        assert density is not None  # the schema asks for a mass or a density
+        total = density * unit.volume
         return unit.with_mass(total)
 
     if isinstance(shape, SphereShape):
@@ -47,7 +50,7 @@ def _primitive(shape: object, mass: float | None, density: float | None, base: P
         return (massed(mp.spherical_shell(1.0, shape.radius, shape.thickness)), [np.array([0, 0, 0, shape.radius])],
                 [])
     if isinstance(shape, BoxShape):
-        return massed(mp.cuboid(1.0, np.asarray(shape.size))), [], [box_mesh(shape.size).triangles]
+        return massed(mp.cuboid(1.0, np.asarray(shape.size))), [], [box_mesh(np.asarray(shape.size, float)).triangles]
     if isinstance(shape, CylinderShape):
         return (massed(mp.cylinder(1.0, shape.radius, shape.length)), [],
                 [cylinder_mesh(shape.radius, shape.length, BUOYANCY_SEGMENTS).triangles])

@@ -74,15 +74,16 @@ def _shape_features(shape: Any, base: Path) -> tuple[list[tuple[np.ndarray, floa
         ends = [np.array([0.0, 0.0, -shape.length / 2]), np.array([0.0, 0.0, shape.length / 2])]
         return [(p + end, 0.0, -1) for end in ends for p in ring] + [(end, 0.0, -1) for end in ends], []
     if isinstance(shape, CapsuleShape):
-        half = shape.length / 2 - shape.radius
-        return [(np.array([0.0, 0.0, z]), shape.radius, -1) for z in (-half, half)], []
+        reach = shape.length / 2 - shape.radius  # from the centre to each cap's centre
+        return [(np.array([0.0, 0.0, z]), shape.radius, -1) for z in (-reach, reach)], []
     if isinstance(shape, MeshShape):
         vertices = mesh_hull(shape, base).vertices
         if len(vertices) > MESH_PROBES:
             vertices = vertices[np.linspace(0, len(vertices) - 1, MESH_PROBES).astype(int)]
         return [(v, 0.0, -1) for v in vertices], []
     if isinstance(shape, CompoundShape):
-        probes, boxes = [], []
+        probes: list[tuple[np.ndarray, float, int]] = []
+        boxes: list[Any] = []
         for part in shape.parts:
             rotation = orientation_matrix(part.orientation)
             offset = np.asarray(part.offset, float)
@@ -186,7 +187,10 @@ def build_contact_world(spec: SceneSpec, model: Any, centres: dict[str, np.ndarr
     owner_names = model.owners
     deformable_names = [body.name for body in spec.bodies if isinstance(body, DEFORMABLE_SPECS)]
     owners, offsets, radii, corner_of = [], [], [], []
-    box_owner, box_offset, box_rotation, box_half = [], [], [], []
+    box_owner: list[int] = []
+    box_offset: list[np.ndarray] = []
+    box_rotation: list[np.ndarray] = []
+    box_half: list[np.ndarray] = []
     rounds: list[tuple] = []  # (owner, centre, axis, half length, radius, rounded), body axes from the centre of mass
     hulls: list[BodyHull] = []
     for point, name in enumerate(owner_names):

@@ -22,9 +22,11 @@ CORNERS = ("bottom-left", "bottom-right", "top-left", "top-right")
 def body_topology(spec: ClothSpec | LatticeSpec, base_dir: Path) -> topo.Topology:
     """The topology of a cloth (grid or mesh file) or lattice, in its local coordinates."""
     if isinstance(spec, LatticeSpec):
-        return topo.lattice(tuple(spec.size), tuple(spec.resolution))  # type: ignore[arg-type]
+        (a, b, c), (i, j, k) = spec.size, spec.resolution
+        return topo.lattice((a, b, c), (i, j, k))
     if spec.grid is not None:
-        return topo.grid(tuple(spec.grid.size), tuple(spec.grid.resolution))  # type: ignore[arg-type]
+        (width, depth), (columns, rows) = spec.grid.size, spec.grid.resolution
+        return topo.grid((width, depth), (columns, rows))
     assert spec.mesh is not None
     mesh = load_surface(base_dir / spec.mesh.file, spec.mesh.scale)
     return topo.triangle_mesh(mesh.vertices, mesh.faces)

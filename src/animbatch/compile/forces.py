@@ -110,8 +110,9 @@ def _aerodynamics(spec: AerodynamicsSpec, bodies: BodyTable, index: Index) -> Fo
                               friction=spec.friction)
 
 
-#: Field ``type`` (as in the scene file) -> builder of its term from (spec, bodies, selected points or None).
-FIELD_TERMS: dict[str, Callable[[Any, BodyTable, Index], ForceTerm]] = {
+#: Field ``type`` (as in the scene file) -> builder of its term from (spec, bodies, selected points or None); the
+#: fields on charges (CHARGED_FIELD_TYPES) also take ``charges=`` (body name -> charge [C]).
+FIELD_TERMS: dict[str, Callable[..., ForceTerm]] = {
     "aerodynamics": _aerodynamics,
     "force": _force,
     "torque": _torque,

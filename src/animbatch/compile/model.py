@@ -13,7 +13,15 @@ from animbatch.compile import deformables as build
 from animbatch.compile.bodies import body_geometry, orientation_matrix, orientation_quaternion
 from animbatch.compile.forces import field_term
 from animbatch.curves import ParametricCurve, Polyline
-from animbatch.scene.schema import CHARGED_FIELD_TYPES, DEFORMABLE_SPECS, ClothSpec, RigidBodySpec, SceneSpec
+from animbatch.scene.schema import (
+    CHARGED_FIELD_TYPES,
+    DEFORMABLE_SPECS,
+    AnchorSpec,
+    ClothSpec,
+    LatticeSpec,
+    RigidBodySpec,
+    SceneSpec,
+)
 from animbatch.sim.forces.controllers import ControllerSetting, CurveTarget, FixedTarget, PathTarget, Target
 from animbatch.sim.joints import MotorTarget
 from animbatch.sim.joints.assembly import MotorSetting
@@ -31,7 +39,7 @@ def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
         if isinstance(body, RigidBodySpec):
             handles[body.name] = [builder.add_rigid_body(
                 body.name, body_geometry(body, Path(base_dir)), position=body.position,
-                orientation=orientation_quaternion(body.orientation), velocity=body.velocity,
+                orientation=tuple(orientation_quaternion(body.orientation)), velocity=body.velocity,
                 angular_velocity=body.angular_velocity)]
         elif not isinstance(body, DEFORMABLE_SPECS):
             handles[body.name] = [builder.add_particle(body.name, mass=body.mass, radius=body.radius,
@@ -56,7 +64,8 @@ def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
         builder.add_controller(handles[controller.body][0], ControllerSetting(
             controller.stiffness, controller.damping, controller_target(controller.target),
             None if controller.point is None else np.asarray(controller.point, float), controller.name))
-    charges = {body.name: body.charge for body in spec.bodies if getattr(body, "charge", 0.0)}
+    charges = {body.name: float(getattr(body, "charge", 0.0)) for body in spec.bodies
+               if getattr(body, "charge", 0.0)}  # particles and rigid bodies carry charges
     for field in spec.fields if handles else ():  # a scene of emitters only has no body to act on
         if field.type in CHARGED_FIELD_TYPES:  # only the charged bodies feel it
             chosen = [name for name in (field.bodies or handles) if name in charges]
@@ -118,29 +127,30 @@ def controller_target(spec: Any) -> Target:
     return CurveTarget(curve, f"curve ({spec.x}, {spec.y}, {spec.z}), s in [{spec.range[0]:g}, {spec.range[1]:g}]")
 
 
-def _anchor_path(anchor: object) -> KeyframePath | None:
-    keyframes = anchor.keyframes  # type: ignore[attr-defined]
+def _anchor_path(anchor: AnchorSpec) -> KeyframePath | None:
+    keyframes = anchor.keyframes
     if keyframes is None:
         return None
     return KeyframePath(np.array([k.time for k in keyframes], float), np.array([k.position for k in keyframes], float),
-                        anchor.interpolation)  # type: ignore[attr-defined]
+                        anchor.interpolation)
 
 
-def _add_deformable(builder: ModelBuilder, body: object, handles: dict[str, list[int]], base_dir: Path) -> object:
+def _add_deformable(builder: ModelBuilder, body: ClothSpec | LatticeSpec, handles: dict[str, list[int]],
+                    base_dir: Path) -> np.ndarray:
     """Add a cloth or lattice: its topology, vertex masses, pins and spring families."""
-    topology = build.body_topology(body, base_dir)  # type: ignore[arg-type]
-    world = build.world_vertices(body, topology)  # type: ignore[arg-type]
+    topology = build.body_topology(body, base_dir)
+    world = build.world_vertices(body, topology)
     pins = []
-    for pin in body.pin:  # type: ignore[attr-defined]
+    for pin in body.pin:
         vertices, problems = build.pin_vertices(pin, topology, world)
         if problems:  # the loader reports these with file positions; reaching here means a Python caller
-            raise ValueError(f"{body.name}: {'; '.join(problems)}")  # type: ignore[attr-defined]
+            raise ValueError(f"{body.name}: {'; '.join(problems)}")
         pins.append(Pin(vertices, build.pin_path(pin), handles[pin.to][0] if pin.to is not None else None))
     dihedral = body.dihedral if isinstance(body, ClothSpec) else None
     return builder.add_deformable(
-        body.name, body.type, topology, masses=build.vertex_masses(body, topology),  # type: ignore[attr-defined]
-        position=body.position, rotation=orientation_matrix(body.orientation),  # type: ignore[attr-defined]
-        velocity=body.velocity, radius=body.radius, springs=build.spring_families(body),  # type: ignore[attr-defined]
+        body.name, body.type, topology, masses=build.vertex_masses(body, topology),
+        position=body.position, rotation=orientation_matrix(body.orientation),
+        velocity=body.velocity, radius=body.radius, springs=build.spring_families(body),
         pins=pins, dihedral=(dihedral.stiffness, dihedral.damping) if dihedral is not None else None)
 
 

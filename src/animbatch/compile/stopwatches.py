@@ -17,7 +17,7 @@ def _event_time(event: EventSpec, trajectory: Trajectory, after: float) -> float
     if event.time is not None:
         happens = (event.time > after or after == -np.inf) and event.time <= trajectory.times[-1]
         return event.time if happens else None
-    body = trajectory.body_names.index(event.body)  # type: ignore[arg-type]
+    body = trajectory.body_names.index(event.body)
     times = np.asarray(trajectory.times)
     crossings = plane_crossings(times, trajectory.positions[:, body], trajectory.velocities[:, body],
                                 np.asarray(event.point, float), np.asarray(event.normal, float), event.direction,

@@ -88,8 +88,10 @@ class VideoWriter:
         height, width = image.shape[:2]
         if (width, height) != self.size:
             raise RenderError(f"frame size {width}×{height} differs from the video size {self.size[0]}×{self.size[1]}")
+        pipe = self._process.stdin
+        assert pipe is not None  # opened with stdin=PIPE
         try:
-            self._process.stdin.write(np.ascontiguousarray(image, dtype=np.uint8).data)  # type: ignore[union-attr]
+            pipe.write(np.ascontiguousarray(image, dtype=np.uint8).data)
         except (OSError, ValueError):
             raise RenderError(f"ffmpeg stopped while encoding {self.path}: {self._messages()}") from None
         self.frames_written += 1
@@ -109,7 +111,8 @@ class VideoWriter:
         process = self._process
         assert process is not None
         with contextlib.suppress(OSError):
-            process.stdin.close()  # type: ignore[union-attr]
+            if process.stdin is not None:
+                process.stdin.close()
         return process.wait()
 
     def commit(self) -> Path:

@@ -71,8 +71,13 @@ def render(scene: LoadedScene | RunPlan, trajectory: Trajectory, *, out_dir: str
 
         rendered, outputs, encode_seconds = _render_whole(run, trajectory, out_dir, backend, each)
     return RenderResult(outputs, trajectory.frame_count, rendered.backend or "(none: frames were complete)",
-                        rendered.render_seconds, encode_seconds, tuple(scene.spec.render.resolution),  # type: ignore[arg-type]
+                        rendered.render_seconds, encode_seconds, _size(scene.spec.render.resolution),
                         scene.spec.fps)
+
+
+def _size(resolution: list[int]) -> tuple[int, int]:
+    width, height = resolution
+    return width, height
 
 
 def _render_whole(run: RunPlan, trajectory: Trajectory, out_dir: str | Path, backend: str,

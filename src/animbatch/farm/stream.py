@@ -39,9 +39,10 @@ def stream_frames(run: RunPlan, trajectory: Trajectory, *, out_dir: str | Path, 
     into ``out_dir/<scene>/frames/`` when ``png`` is one of its formats; ``on_frame(index)`` once each is written."""
     scene, spec = run.scene, run.spec
     folder = Path(out_dir) / scene.name
-    size = tuple(spec.render.resolution)
+    width, height = spec.render.resolution
+    size = (width, height)
     video = spec.render.video
-    videos = [VideoWriter(folder / f"{output_stem(scene)}.{kind}", size, spec.fps,  # type: ignore[arg-type]
+    videos = [VideoWriter(folder / f"{output_stem(scene)}.{kind}", size, spec.fps,
                           preset=video.preset, crf=video.crf, kind=kind)
               for kind in spec.render.formats if kind != "png"]
     png = PngSequenceWriter(prepare_frames(scene, trajectory, out_dir)) if "png" in spec.render.formats else None

@@ -346,7 +346,7 @@ def _trails(data: dict[str, Any], bodies: dict[str, KeyPath], deformable: set[st
     render = data.get("render")
     if not isinstance(render, dict):
         return
-    wanted = []
+    wanted: list[tuple[tuple[str | int, ...], str]] = []  # (key path, body name)
     for section in ("trails", "arrows"):
         block = render.get(section)
         names = block.get("bodies") if isinstance(block, dict) else None

@@ -194,7 +194,7 @@ def issues_from_validation(error: ValidationError, root: type[BaseModel], source
     found: dict[KeyPath, list[tuple[str, bool, bool]]] = {}  # path -> (message, at key, a type mismatch)
     for item in error.errors(include_url=False):
         located = locate(root, tuple(item["loc"]))
-        path, message, at_key = describe(item, located)
+        path, message, at_key = describe(dict(item), located)
         mismatch = located.branch is not None and str(item["type"]).endswith("_type")
         found.setdefault(path, []).append((message, at_key, mismatch))
     issues = []

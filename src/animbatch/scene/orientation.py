@@ -25,4 +25,5 @@ def orientation_quaternion(spec: OrientationSpec | None) -> np.ndarray:
         x, y, z, w = Rotation.from_euler("xyz", spec.euler, degrees=True).as_quat()  # scipy: scalar last
         return np.array([w, x, y, z])
     axis = np.asarray(spec.axis, float)
+    assert spec.angle is not None  # the schema asks for an angle with an axis
     return quaternion.from_rotation_vector(axis / np.linalg.norm(axis) * np.radians(spec.angle))

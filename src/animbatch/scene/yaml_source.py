@@ -91,7 +91,7 @@ def format_path(path: KeyPath) -> str:
     return text
 
 
-class SceneYamlLoader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
+class SceneYamlLoader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]  # C loader if built
     """``SafeLoader`` with YAML 1.2 core-schema booleans, integers and floats; libyaml's parser where PyYAML was
     built with it (a list of 300 000 numbers loads in 3 s instead of 12 s)."""
 
@@ -157,6 +157,7 @@ class _Builder:
                 raise SceneError([SceneIssue(f"{self.source.filename}:{at.line}:{at.column}", format_path(where),
                                              f"YAML tag not allowed: {node.tag!r}; scene files hold plain data only "
                                              "(mappings, lists, numbers, text)")])
+            children: list[tuple[Any, tuple[str | int, ...], Any, str | int]]  # (node, path, parent, key)
             if isinstance(node, yaml.MappingNode):
                 value: Any = {}
                 children = [(child, (*where, key), value, key) for key, child in self._mapping(node, where)]

@@ -138,7 +138,7 @@ def _oscillator(model: Model, springs: SpringForces, rows: np.ndarray, point: in
         raise _refuse(name, "an oscillator needs exactly one spring, from the body to an anchor, and no drag")
     row = int(rows[0])
     anchor = int(table.second[row])
-    if model.anchors is not None and anchor in model.anchors.paths:
+    if anchor in model.anchors.paths:
         raise _refuse(name, "its spring's anchor moves")
     anchor_at = model.anchor_position[anchor]
     if np.any(table.first_offset[row]) or np.any(table.second_offset[row]):

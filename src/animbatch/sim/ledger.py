@@ -100,7 +100,7 @@ def conservation_laws(model: Model) -> dict[str, Law]:
             energy_culprits.append(f"{term.label} does work that no potential accounts for")
         elif term.dissipative:
             energy_culprits.append(f"{DAMPED.get(term.label, term.label)} dissipates it")
-    if model.anchors is not None and model.anchors.moving:
+    if model.anchors.moving:
         energy_culprits.append("moving anchors do work")
     if model.joints is not None and model.joints.driven:
         energy_culprits.append("joint motors do work")
@@ -131,7 +131,7 @@ def conservation_laws(model: Model) -> dict[str, Law]:
         external.append("joints to the world or anchors hold the bodies")
     if _has_fixed_colliders(model):
         external.append("fixed colliders push the bodies")
-    if model.anchors is not None and model.anchors.moving:
+    if model.anchors.moving:
         external.append("moving anchors pull the bodies")
     if model.kinematic is not None:
         external.append("kinematic bodies (keyframes or motion) move as their paths say, whatever acts on them")
@@ -180,7 +180,7 @@ class QuantitySeries:
         order = np.argsort(first)  # scene order: as each body is first seen
         mass = model.bodies.mass
         weighted = np.zeros((count, len(names), 3))
-        np.add.at(weighted, (slice(None), owner), model.velocities(states) * mass[:, None])  # type: ignore[arg-type]
+        np.add.at(weighted, (slice(None), owner), model.velocities(states) * mass[:, None])  # type: ignore[arg-type]  # numpy stubs: slice in index
         totals = np.bincount(owner, weights=mass, minlength=len(names))
         speeds = np.linalg.norm(weighted / totals[None, :, None], axis=2)[:, order]
         clocks = model.clocks.names if model.clocks is not None else ()

@@ -59,6 +59,9 @@ class KeyframePath:
     times: np.ndarray
     positions: np.ndarray
     interpolation: str = "linear"
+    # derived in __post_init__: the key times as floats, and the cubic spline through the keys (cubic only)
+    _breaks: list[float] = field(init=False, repr=False)
+    _spline: PiecewiseCubic = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "_breaks", [float(x) for x in self.times])
@@ -76,9 +79,9 @@ class KeyframePath:
         if len(self.times) == 1:
             return self.positions[0]
         if self.interpolation == "cubic":
-            return self._spline(self._clamped(t))  # type: ignore[attr-defined]
+            return self._spline(self._clamped(t))
         t = self._clamped(t)
-        breaks: list[float] = self._breaks  # type: ignore[attr-defined]
+        breaks = self._breaks
         k = min(max(bisect_right(breaks, t) - 1, 0), len(breaks) - 2)
         along = (t - breaks[k]) / (breaks[k + 1] - breaks[k])
         return self.positions[k] + along * (self.positions[k + 1] - self.positions[k])
@@ -88,14 +91,14 @@ class KeyframePath:
         linear segments (their kinks are impulses no step can take) and outside the keys."""
         if self.interpolation != "cubic" or len(self.times) == 1 or t < self.times[0] or t > self.times[-1]:
             return np.zeros(3)
-        return self._spline(t, 2)  # type: ignore[attr-defined]
+        return self._spline(t, 2)
 
     def velocity(self, t: float) -> np.ndarray:
         """Velocity (3,) [m/s] at time ``t`` [s] (zero outside the keys)."""
         if len(self.times) == 1 or t < self.times[0] or t > self.times[-1]:
             return np.zeros(3)
         if self.interpolation == "cubic":
-            return self._spline(t, 1)  # type: ignore[attr-defined]
+            return self._spline(t, 1)
         segment = int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 2))
         span = self.times[segment + 1] - self.times[segment]
         return (self.positions[segment + 1] - self.positions[segment]) / span

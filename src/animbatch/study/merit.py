@@ -80,7 +80,7 @@ def observed_order(points: list[Point]) -> float | None:
         return None
     error = np.log([p.error for p in usable])
     if usable[0].dt is not None:
-        work = np.log([p.dt for p in usable])  # type: ignore[misc]
+        work = np.log(np.array([p.dt for p in usable], float))
         sign = 1.0
     else:
         work = np.log([p.steps or p.rhs_evaluations for p in usable])

@@ -64,7 +64,7 @@ def _first_scales(model: Model) -> np.ndarray:
     return guess.tolerance_scale(model)
 
 
-def find_reference(model: Model, *, closed_form: bool, timeout: float, progress=print,  # type: ignore[no-untyped-def]
+def find_reference(model: Model, *, closed_form: bool, timeout: float, progress: Callable[[str], None] = print,
                    fixed: tuple[str, float] | None = None) -> Reference:
     """The study's reference for ``model``; ``timeout`` [s] per reference run (raises StudyError, naming every run
     tried and why it failed, when no tight run succeeds in time). ``fixed``: (method, dt [s]) of a fixed-step

@@ -17,7 +17,7 @@ import numpy as np
 
 from animbatch.errors import SimulationError
 from animbatch.sim.integrate import integrator_for
-from animbatch.sim.integrators import FIXED_STEP_SCHEMES, SCIPY_METHODS, Integrator
+from animbatch.sim.integrators import FIXED_STEP_SCHEMES, SCIPY_METHODS, IntegrationResult, Integrator
 from animbatch.sim.integrators.guard import check_energy_growth
 from animbatch.sim.model import Dynamics, Model
 from animbatch.stages import choose_dynamics
@@ -113,7 +113,7 @@ def plan_settings(methods: list[str], rtols: list[float], frame_interval: float,
     return settings
 
 
-def _integrate(model: Model, setting: RunSetting, integrator: Integrator, timeout: float):  # type: ignore[no-untyped-def]
+def _integrate(model: Model, setting: RunSetting, integrator: Integrator, timeout: float) -> IntegrationResult:
     """One run of ``setting``, on the equations of motion a render with it would choose (compiled where they repay
     loading: :func:`animbatch.stages.choose_dynamics`), so that its time is what the setting costs a render."""
     deadline = time.perf_counter() + timeout
@@ -133,7 +133,7 @@ def _with_deadline(system: Dynamics, deadline: float) -> Dynamics:
     for name in ("rhs", "motion_rate"):
         evaluate = getattr(system, name)
 
-        def checked(*args, _evaluate=evaluate, **kwargs):  # type: ignore[no-untyped-def]
+        def checked(*args: Any, _evaluate: Any = evaluate, **kwargs: Any) -> Any:
             if time.perf_counter() > deadline:
                 raise RunTimeout
             return _evaluate(*args, **kwargs)

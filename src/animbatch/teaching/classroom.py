@@ -351,8 +351,8 @@ def class_page(grades: ClassGrades) -> str:
     head = "".join(f"<th>{html.escape(name)}</th>" for name, _ in grades.checks)
     lines = []
     for row in grades.rows:
-        points = check_points(row)
-        cells = "".join(f"<td class=n>{points[name]:g}</td>" if name in points else "<td></td>"
+        earned = check_points(row)
+        cells = "".join(f"<td class=n>{earned[name]:g}</td>" if name in earned else "<td></td>"
                         for name, _ in grades.checks)
         note = _note(row, grades.title)
         lines.append(f"<tr class='{'graded' if row.status == 'graded' else 'failed'}'><td><a href='submissions/"

@@ -294,7 +294,7 @@ def _values(check: CheckSpec, trajectory: Trajectory, times: np.ndarray, who: st
     end = float(trajectory.times[-1])
     if times.max() > end + 1e-9:
         raise _CannotCheck(f"{who} ends at t = {end:.4g} s, before t = {times.max():.4g} s: check its duration")
-    body = trajectory.body_names.index(check.body)  # type: ignore[arg-type]
+    body = trajectory.body_names.index(check.body)
     x, v = hermite_sample(trajectory.times, trajectory.positions[:, body], trajectory.velocities[:, body], times)
     if check.quantity == "position":
         return x
@@ -314,7 +314,7 @@ def _expected(check: CheckSpec, times: np.ndarray, reference: Trajectory) -> tup
         source = "the closed form " + (", ".join(map(str, values)))
     else:
         result = np.broadcast_to(np.asarray(values, float), (len(times), len(values)))
-        source = "the value " + ", ".join(f"{value:g}" for value in values)  # type: ignore[arg-type]
+        source = "the value " + ", ".join(f"{value:g}" for value in values)
     width = 3 if vector else 1
     if result.shape[-1] != width:
         raise _CannotCheck(f"the check expects {len(values)} value(s) but {check.quantity} has {width}")

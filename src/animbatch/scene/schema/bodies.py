@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, TypeVar
 
 import annotated_types as at
 from pydantic import AfterValidator, model_validator
@@ -59,9 +59,9 @@ def _increasing_times(keys: list[Any]) -> list[Any]:
     return keys
 
 
-def _keyframe_list(item: type) -> Any:
-    """A list of 1 … 100000 keyframes of type ``item`` whose times increase."""
-    return Annotated[list[item], at.Len(1, 100000), AfterValidator(_increasing_times)]  # type: ignore[valid-type]
+Key = TypeVar("Key")
+#: A list of 1 … 100000 keyframes of type ``Key`` whose times increase: ``KeyframeList[KeyframeSpec]``.
+KeyframeList = Annotated[list[Key], at.Len(1, 100000), AfterValidator(_increasing_times)]
 
 
 class AnchorSpec(SceneModel):
@@ -73,7 +73,7 @@ class AnchorSpec(SceneModel):
 
     name: Name = key(description="Unique name (shared namespace with bodies).", example="ceiling")
     position: Vec3 | None = key(None, "Position [x, y, z] (required unless keyframes are given).", "m")
-    keyframes: _keyframe_list(KeyframeSpec) | None = key(  # type: ignore[valid-type]
+    keyframes: KeyframeList[KeyframeSpec] | None = key(
         None, "Positions over time, instead of a fixed position.", example=[{"time": 0, "position": [0, 1, 0]},
                                                                             {"time": 2, "position": [1, 1, 0]}])
     interpolation: Interpolation = key("linear", "Between keyframes: linear or cubic.")
@@ -90,4 +90,7 @@ class AnchorSpec(SceneModel):
     @property
     def start(self) -> list[float]:
         """Where the anchor is at t = 0 [m]."""
-        return self.position if self.position is not None else self.keyframes[0].position  # type: ignore[index]
+        if self.position is not None:
+            return self.position
+        assert self.keyframes  # the schema asks for a position or keyframes
+        return self.keyframes[0].position

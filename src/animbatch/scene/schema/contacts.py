@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal, get_args
 
 import annotated_types as at
 from pydantic import Field, model_validator
@@ -19,7 +19,7 @@ from animbatch.scene.schema.base import (
     roughness_key,
     rule_error,
 )
-from animbatch.scene.schema.bodies import Interpolation, _keyframe_list
+from animbatch.scene.schema.bodies import Interpolation, KeyframeList
 from animbatch.scene.schema.rigid import (
     KinematicSolid,
     MotionSpec,
@@ -75,7 +75,7 @@ class _ColliderBase(SceneModel):
 class _MovingCollider(_ColliderBase, KinematicSolid):
     """A collider that stays put, or moves along keyframes (every collider type can)."""
 
-    keyframes: _keyframe_list(PoseKeyframeSpec) | None = key(  # type: ignore[valid-type]
+    keyframes: KeyframeList[PoseKeyframeSpec] | None = key(
         None, "Move it along keyframes: a kinematic collider (a paddle, a moving platform, a tilting floor, a "
               "scoop), pushing bodies, cloth and emitted particles with its own velocity at the contact; it holds its "
               "first and last poses before and after them. Fixed-step methods only.",
@@ -122,8 +122,9 @@ class MeshCollider(_MovingCollider):
     orientation: OrientationSpec | None = key(None, "Rotation of the mesh.")
 
 
-COLLIDER_SPECS: tuple[type[SceneModel], ...] = (PlaneCollider, BoxCollider, SphereCollider, MeshCollider)
-ColliderSpec = Annotated[Union[*COLLIDER_SPECS], Field(discriminator="type")]  # type: ignore[valid-type]
+ColliderSpec = Annotated[PlaneCollider | BoxCollider | SphereCollider | MeshCollider, Field(discriminator="type")]
+#: The members of ColliderSpec, in order.
+COLLIDER_SPECS: tuple[type[SceneModel], ...] = get_args(get_args(ColliderSpec)[0])
 
 
 class ContactSpec(SceneModel):

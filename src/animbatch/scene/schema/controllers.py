@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal, get_args
 
 import annotated_types as at
 from pydantic import Field, field_validator
 
 from animbatch.curves import ExpressionError, compile_expression
 from animbatch.scene.schema.base import Name, SceneModel, Vec3, key, rule_error
-from animbatch.scene.schema.bodies import Interpolation, KeyframeSpec, _keyframe_list
+from animbatch.scene.schema.bodies import Interpolation, KeyframeList, KeyframeSpec
 
 
 class PointTarget(SceneModel):
@@ -23,7 +23,7 @@ class KeyframeTarget(SceneModel):
     """A point moving along keyframes."""
 
     type: Literal["keyframes"] = key(description="Target type.")
-    keyframes: _keyframe_list(KeyframeSpec) = key(description="Positions over time.")  # type: ignore[valid-type]
+    keyframes: KeyframeList[KeyframeSpec] = key(description="Positions over time.")
     interpolation: Interpolation = key("linear", "Between keyframes: linear or cubic.")
 
 
@@ -68,8 +68,9 @@ class ParametricTarget(SceneModel):
         return bounds
 
 
-TARGET_SPECS: tuple[type[SceneModel], ...] = (PointTarget, KeyframeTarget, PolylineTarget, ParametricTarget)
-TargetSpec = Annotated[Union[*TARGET_SPECS], Field(discriminator="type")]  # type: ignore[valid-type]
+TargetSpec = Annotated[PointTarget | KeyframeTarget | PolylineTarget | ParametricTarget, Field(discriminator="type")]
+#: The members of TargetSpec, in order.
+TARGET_SPECS: tuple[type[SceneModel], ...] = get_args(get_args(TargetSpec)[0])
 
 
 class ControllerSpec(SceneModel):
@@ -83,7 +84,7 @@ class ControllerSpec(SceneModel):
     body: Name = key(description="The particle or rigid body it pulls.", example="bead")
     point: Vec3 | None = key(None, "For rigid bodies: the body point (shape coordinates) pulled towards the target "
                                    "(default: the centre of mass).", "m")
-    target: TargetSpec = key(description="Where it pulls: a point, keyframes, a polyline or a parametric "  # type: ignore[valid-type]
+    target: TargetSpec = key(description="Where it pulls: a point, keyframes, a polyline or a parametric "
                                          "curve.")
     stiffness: float = key(description="Proportional gain ks.", unit="N/m", ge=0)
     damping: float = key(0.0, "Derivative gain kd.", "N·s/m", ge=0)

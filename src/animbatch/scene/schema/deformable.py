@@ -18,7 +18,7 @@ from animbatch.scene.schema.base import (
     roughness_key,
     rule_error,
 )
-from animbatch.scene.schema.bodies import Interpolation, ParticleSpec, _keyframe_list
+from animbatch.scene.schema.bodies import Interpolation, KeyframeList, ParticleSpec
 from animbatch.scene.schema.rigid import OrientationSpec, RigidBodySpec
 
 
@@ -75,7 +75,7 @@ class PinSpec(SceneModel):
                                     example=["top-left", "top-right"])
     region: RegionSpec | None = key(None, "Every vertex inside this box at the start.")
     to: Name | None = key(None, "A rigid body the vertices are attached to (they move with it and pull on it).")
-    keyframes: _keyframe_list(OffsetKeyframeSpec) | None = key(  # type: ignore[valid-type]
+    keyframes: KeyframeList[OffsetKeyframeSpec] | None = key(
         None, "Move the pinned vertices by these offsets over time.")
     interpolation: Interpolation = key("linear", "Between keyframes: linear or cubic.")
 

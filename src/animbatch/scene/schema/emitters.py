@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal, get_args
 
 import annotated_types as at
 from pydantic import AfterValidator, Field, model_validator
@@ -99,8 +99,9 @@ class SurfaceSource(SceneModel):
     type: Literal["surface"] = key(description="Source shape.")
 
 
-SOURCE_SPECS: tuple[type[SceneModel], ...] = (PointSource, SphereSource, DiscSource, BoxSource, SurfaceSource)
-SourceSpec = Annotated[Union[*SOURCE_SPECS], Field(discriminator="type")]  # type: ignore[valid-type]
+SourceSpec = Annotated[PointSource | SphereSource | DiscSource | BoxSource | SurfaceSource, Field(discriminator="type")]
+#: The members of SourceSpec, in order.
+SOURCE_SPECS: tuple[type[SceneModel], ...] = get_args(get_args(SourceSpec)[0])
 
 
 class DirectionSpec(SceneModel):
@@ -141,7 +142,7 @@ class EmitterSpec(SceneModel):
 
     name: Name = key(description="Unique name (shared namespace with bodies); fields name it in 'bodies'.",
                      example="fountain")
-    source: SourceSpec = key(PointSource(type="point"), "Where particles start: point, sphere, disc, box, or the "  # type: ignore[valid-type]
+    source: SourceSpec = key(PointSource(type="point"), "Where particles start: point, sphere, disc, box, or the "
                                                         "surface of 'body'.")
     body: Name | None = key(None, "A rigid body the emitter moves with: the source is then in the body's shape "
                                   "coordinates, and turns with it.")

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal, get_args
 
 from pydantic import Field, model_validator
 
 from animbatch.scene.annotations import tag_of
 from animbatch.scene.schema.base import Name, NonZeroVec3, SceneModel, Vec3, key, rule_error
-from animbatch.scene.schema.bodies import _keyframe_list
+from animbatch.scene.schema.bodies import KeyframeList
 
 BodySelection = list[Name] | None
 _BODIES_DESCRIPTION = "Names of the bodies this field acts on (default: all bodies)."
@@ -71,7 +71,7 @@ class ElectromagneticSpec(SceneModel):
     type: Literal["electromagnetic"] = key(description="Field type.")
     E: Vec3 = key([0.0, 0.0, 0.0], "Electric field (unless keyframes give it).", "V/m")
     B: Vec3 = key([0.0, 0.0, 0.0], "Magnetic field (unless keyframes give it).", "T")
-    keyframes: _keyframe_list(FieldKeyframeSpec) | None = key(  # type: ignore[valid-type]
+    keyframes: KeyframeList[FieldKeyframeSpec] | None = key(
         None, "E and B over time (times increasing).")
     bodies: BodySelection = key(None, "Names of the bodies this field acts on (default: every body with a charge).")
 
@@ -93,7 +93,7 @@ class _DragLaw(SceneModel):
 
     @model_validator(mode="after")
     def _parameters_match_law(self) -> "_DragLaw":
-        model = self.model  # type: ignore[attr-defined]
+        model = self.model  # type: ignore[attr-defined]  # each law's class declares its own Literal model
         if model in ("linear", "quadratic") and self.coefficient is None:
             unit = "N·s/m" if model == "linear" else "kg/m"
             raise rule_error(f"required key missing: the {model} drag law needs 'coefficient' (C in {unit})",
@@ -202,14 +202,14 @@ class AerodynamicsSpec(SceneModel):
     bodies: BodySelection = key(None, "Names of the cloths it acts on (default: all cloths).")
 
 
-FIELD_SPECS: tuple[type[SceneModel], ...] = (GravitySpec, GravitationSpec, DragSpec, WindSpec, ForceSpec, TorqueSpec,
-                                             AngularDragSpec, BuoyancySpec, AerodynamicsSpec, ElectromagneticSpec,
-                                             CoulombSpec)
 #: Field types that act on charged bodies only.
 CHARGED_FIELD_TYPES = ("electromagnetic", "coulomb")
 #: Field types that act on emitted particles too (the others act on bodies only).
 PARTICLE_FIELD_TYPES = ("gravity", "drag", "wind", "buoyancy")
-FieldSpec = Annotated[Union[*FIELD_SPECS], Field(discriminator="type")]  # type: ignore[valid-type]
+FieldSpec = Annotated[GravitySpec | GravitationSpec | DragSpec | WindSpec | ForceSpec | TorqueSpec |
+    AngularDragSpec | BuoyancySpec | AerodynamicsSpec | ElectromagneticSpec | CoulombSpec, Field(discriminator="type")]
+#: The members of FieldSpec, in order.
+FIELD_SPECS: tuple[type[SceneModel], ...] = get_args(get_args(FieldSpec)[0])
 
 
 def field_type_names() -> tuple[str, ...]:

@@ -12,13 +12,13 @@
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal, get_args
 
 import annotated_types as at
 from pydantic import Field, model_validator
 
 from animbatch.scene.schema.base import Name, NonZeroVec3, SceneModel, Vec3, key, rule_error
-from animbatch.scene.schema.bodies import Interpolation, _keyframe_list
+from animbatch.scene.schema.bodies import Interpolation, KeyframeList
 
 
 class MotorKeyframe(SceneModel):
@@ -34,7 +34,7 @@ class MotorSpec(SceneModel):
     angle [rad] or slider travel [m] from the start. Drive to a target (``target`` with ``stiffness``), at a speed
     (``speed`` with ``damping``), or along keyframes (their rate is the target speed)."""
 
-    target: float | _keyframe_list(MotorKeyframe) | None = key(  # type: ignore[valid-type]
+    target: float | KeyframeList[MotorKeyframe] | None = key(
         None, "Target angle [rad] or travel [m] from the start: a number, or keyframes "
               "[{time, value}, …] (needs stiffness).", example=0.5)
     interpolation: Interpolation = key("cubic", "Between target keyframes: linear or cubic.")
@@ -100,7 +100,7 @@ class RopeJointSpec(DistanceJointSpec):
     """A light, inextensible rope between two points: it pulls when taut, at its ``length``, and goes slack when
     the ends come closer (a max-distance constraint). Becoming taut is an inelastic jerk."""
 
-    type: Literal["rope"] = key(description="Joint type.")  # type: ignore[assignment]
+    type: Literal["rope"] = key(description="Joint type.")  # type: ignore[assignment]  # a rope narrows the type
     length: float | None = key(None, "The rope's length, the longest the ends can be apart (default: their "
                                      "distance at the start).", "m", gt=0)
 
@@ -180,6 +180,7 @@ def _check_limits(limits: list[float] | None, largest: float | None) -> None:
         raise rule_error(f"hinge limits must lie within (−π, π); got [{lower:g}, {upper:g}]", "limits")
 
 
-JOINT_SPECS: tuple[type[SceneModel], ...] = (DistanceJointSpec, RopeJointSpec, PulleyJointSpec, BallJointSpec,
-                                             HingeJointSpec, SliderJointSpec, FixedJointSpec)
-JointSpec = Annotated[Union[*JOINT_SPECS], Field(discriminator="type")]  # type: ignore[valid-type]
+JointSpec = Annotated[DistanceJointSpec | RopeJointSpec | PulleyJointSpec | BallJointSpec | HingeJointSpec |
+    SliderJointSpec | FixedJointSpec, Field(discriminator="type")]
+#: The members of JointSpec, in order.
+JOINT_SPECS: tuple[type[SceneModel], ...] = get_args(get_args(JointSpec)[0])

@@ -105,7 +105,7 @@ LABEL_FIELDS = ("t", "frame", "frames", "fps", "E", "KE", "PE", "wall_simulate",
 LABEL_NAMED_FIELDS = ("speed", "stopwatch", "proper_time")
 
 
-class _AnyBody(dict):  # type: ignore[type-arg]
+class _AnyBody(dict):
     """Stands for the speeds of bodies while a label is checked: any name gives a number."""
 
     def __missing__(self, name: str) -> float:

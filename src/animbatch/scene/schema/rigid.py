@@ -3,7 +3,7 @@ compounds, meshes) and orientations."""
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal, get_args
 
 import annotated_types as at
 from pydantic import Field, field_validator, model_validator
@@ -20,7 +20,7 @@ from animbatch.scene.schema.base import (
     roughness_key,
     rule_error,
 )
-from animbatch.scene.schema.bodies import Interpolation, _keyframe_list
+from animbatch.scene.schema.bodies import Interpolation, KeyframeList
 
 
 class SphereShape(SceneModel):
@@ -189,15 +189,16 @@ class KinematicSolid(SceneModel):
         return self
 
 
-PRIMITIVE_SHAPES: tuple[type[SceneModel], ...] = (SphereShape, ShellShape, BoxShape, CylinderShape, RodShape,
-                                                  CapsuleShape, MeshShape)
-PrimitiveShape = Annotated[Union[*PRIMITIVE_SHAPES], Field(discriminator="type")]  # type: ignore[valid-type]
+PrimitiveShape = Annotated[SphereShape | ShellShape | BoxShape | CylinderShape | RodShape | CapsuleShape | MeshShape,
+                           Field(discriminator="type")]
+#: The members of PrimitiveShape, in order.
+PRIMITIVE_SHAPES: tuple[type[SceneModel], ...] = get_args(get_args(PrimitiveShape)[0])
 
 
 class CompoundPart(SceneModel):
     """One primitive of a compound body, placed in the body's frame, with its own density or mass."""
 
-    shape: PrimitiveShape = key(description="The part's shape (any shape except compound).")  # type: ignore[valid-type]
+    shape: PrimitiveShape = key(description="The part's shape (any shape except compound).")
     offset: Vec3 = key([0.0, 0.0, 0.0], "Position of the part's origin in the body frame.", "m")
     orientation: OrientationSpec | None = key(None, "Rotation of the part in the body frame (default none).")
     density: float | None = key(None, "Density of this part (default: the body's density).", "kg/m³", gt=0)
@@ -217,8 +218,10 @@ class CompoundShape(SceneModel):
     parts: Annotated[list[CompoundPart], at.Len(1, 1000)] = key(description="The parts.")
 
 
-SHAPES: tuple[type[SceneModel], ...] = (*PRIMITIVE_SHAPES, CompoundShape)
-ShapeSpec = Annotated[Union[*SHAPES], Field(discriminator="type")]  # type: ignore[valid-type]
+ShapeSpec = Annotated[SphereShape | ShellShape | BoxShape | CylinderShape | RodShape | CapsuleShape | MeshShape
+                      | CompoundShape, Field(discriminator="type")]
+#: The members of ShapeSpec, in order: the primitives, then the compound.
+SHAPES: tuple[type[SceneModel], ...] = get_args(get_args(ShapeSpec)[0])
 
 
 class RigidBodySpec(KinematicSolid):
@@ -229,7 +232,7 @@ class RigidBodySpec(KinematicSolid):
 
     type: Literal["rigid"] = key(description="Body type.")
     name: Name = key(description="Unique name.", example="crate")
-    shape: ShapeSpec = key(description="Shape; gives volume, centre of mass and inertia.")  # type: ignore[valid-type]
+    shape: ShapeSpec = key(description="Shape; gives volume, centre of mass and inertia.")
     density: float | None = key(None, "Density: mass = density × volume.", "kg/m³", gt=0)
     mass: float | None = key(None, "Mass, instead of a density (for a compound: the total, distributed as the "
                                     "parts' densities say, or uniformly where they give none).", "kg", gt=0)
@@ -240,7 +243,7 @@ class RigidBodySpec(KinematicSolid):
     angular_velocity: Vec3 = key([0.0, 0.0, 0.0], "Initial angular velocity ω, world axes.", "rad/s")
     material: Name = key("default", "Material, for collisions (see the particle's 'material').")
     collide: bool = key(True, "Take part in collisions (when the scene has colliders or a 'contacts' section).")
-    keyframes: _keyframe_list(PoseKeyframeSpec) | None = key(  # type: ignore[valid-type]
+    keyframes: KeyframeList[PoseKeyframeSpec] | None = key(
         None, "Move it along keyframes instead of simulating it: a kinematic body (a paddle, a moving platform, a "
               "hand). Nothing pushes it back; it pushes bodies and emitted particles with its own velocity at the "
               "contact, and holds its first and last poses before and after the keys. Its velocity and angular "

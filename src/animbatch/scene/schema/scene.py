@@ -70,16 +70,16 @@ class SceneSpec(SceneModel):
     bodies: list[BodySpec] = key([], "Simulated bodies: particles (the default type) and rigid bodies.")
     anchors: list[AnchorSpec] = key([], "Fixed points for springs.")
     springs: list[SpringSpec] = key([], "Springs and dampers.")
-    joints: list[JointSpec] = key([], "Joints between bodies and to the world: rods, ropes, pulleys, ball "  # type: ignore[valid-type]
+    joints: list[JointSpec] = key([], "Joints between bodies and to the world: rods, ropes, pulleys, ball "
                                       "joints, hinges, sliders and welds (see Joints).")
     controllers: list[ControllerSpec] = key([], "PD controllers (virtual springs) pulling bodies towards targets.")
     emitters: list[EmitterSpec] = key([], "Particle emitters (particle systems).")
     seed: int = key(0, "Seed of every random draw (the attributes of emitted particles): the same seed gives the "
                        "same particles, bit for bit.", "1", ge=0, lt=2**63)
-    fields: list[FieldSpec] = key([], "Force fields; only the declared ones are compiled.")  # type: ignore[valid-type]
+    fields: list[FieldSpec] = key([], "Force fields; only the declared ones are compiled.")
     materials: dict[Name, MaterialSpec] = key({}, "Materials of your own, by name (added to the built-in ones).")
     material_pairs: list[MaterialPairSpec] = key([], "Coefficients for particular pairs of materials.")
-    colliders: list[ColliderSpec] = key([], "Fixed obstacles: planes, boxes, spheres, meshes.")  # type: ignore[valid-type]
+    colliders: list[ColliderSpec] = key([], "Fixed obstacles: planes, boxes, spheres, meshes.")
     contacts: ContactSpec | None = key(None, "Contact settings; collisions are on when this or colliders exist.")
     assignment: AssignmentSpec | None = key(None, "For teaching: the task and the checks 'animbatch grade' scores "
                                                   "(see docs/teaching.md).")

@@ -2,19 +2,22 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
 from pydantic import BeforeValidator
 
 from animbatch.scene.schema.base import SceneModel, key
 
-ADAPTIVE_METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
-FIXED_STEP_METHODS = ("euler", "midpoint", "symplectic_euler", "verlet", "backward_euler")
+AdaptiveMethodName = Literal["RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA"]
+FixedStepMethodName = Literal["euler", "midpoint", "symplectic_euler", "verlet", "backward_euler"]
+KinematicMethodName = Literal["analytic"]
+ADAPTIVE_METHODS: tuple[str, ...] = get_args(AdaptiveMethodName)
+FIXED_STEP_METHODS: tuple[str, ...] = get_args(FixedStepMethodName)
 #: The fixed-step methods that apply contact impulses between their kick and their drift (the schemes whose
 #: ``takes_constraints`` is true; a test checks the two agree), so that validate need not load the schemes.
 CONTACT_METHODS = ("symplectic_euler", "verlet", "backward_euler")
 #: Methods that do not integrate: the bodies move by closed forms (the lecture notes' kinematic simulation).
-KINEMATIC_METHODS = ("analytic",)
+KINEMATIC_METHODS: tuple[str, ...] = get_args(KinematicMethodName)
 METHOD_ALIASES = {
     "explicit_euler": "euler",
     "forward_euler": "euler",
@@ -36,9 +39,9 @@ def _canonical_method(value: Any) -> Any:
     return METHOD_ALIASES.get(folded, value)
 
 
-Method = Annotated[Literal[*ADAPTIVE_METHODS, *FIXED_STEP_METHODS, *KINEMATIC_METHODS],
-                   BeforeValidator(_canonical_method)]  # type: ignore[valid-type]
-FixedStepMethod = Annotated[Literal[*FIXED_STEP_METHODS], BeforeValidator(_canonical_method)]  # type: ignore[valid-type]
+Method = Annotated[Literal[AdaptiveMethodName, FixedStepMethodName, KinematicMethodName],
+                   BeforeValidator(_canonical_method)]
+FixedStepMethod = Annotated[FixedStepMethodName, BeforeValidator(_canonical_method)]
 
 
 class SolverSpec(SceneModel):

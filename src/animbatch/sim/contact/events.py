@@ -467,7 +467,8 @@ class ContactEvents:
             first = sampled[0].first_rigid
             rigid = solid >= first
             if rigid.any():
-                rotations = np.array([state.rotation[solid[rigid] - first] for state in sampled])  # type: ignore[index]
+                rotations = np.array([state.rotation[solid[rigid] - first] for state in sampled
+                                      if state.rotation is not None])  # (every state: it has rigid bodies)
                 solid_travel[:, rigid] += self.reach[solid[rigid]] * turn_angle(rotations[:-1], rotations[1:])
             travel[:, moving] += solid_travel
         return ARC_ALLOWANCE * travel

@@ -169,17 +169,15 @@ class ContactResolver:
             omega[n:count] = state.omega
             rotation = state.rotation
             inverse_inertia[n:count] = rotation @ model.rigid.inverse_inertia @ np.transpose(rotation, (0, 2, 1))
-        driven = None
-        if moving is not None or model.kinematic is not None:
-            driven = np.zeros(count + extra + 1, bool)
+        driven = np.zeros(count + extra + 1, bool)  # bodies whose motion is prescribed
         if moving is not None:  # prescribed motion, no inverse mass: nothing pushes a moving collider back
             x[count:count + extra], v[count:count + extra], omega[count:count + extra] = moving.motion(state.t)
-            driven[count:count + extra] = True  # type: ignore[index]
+            driven[count:count + extra] = True
         if model.kinematic is not None:  # rigid bodies on keyframes, likewise
             bodies = n + model.kinematic.rigid
             inverse_mass[bodies], inverse_inertia[bodies] = 0.0, 0.0
-            driven[bodies] = True  # type: ignore[index]
-        return BodyVelocities(v, omega, inverse_mass, inverse_inertia, driven), x
+            driven[bodies] = True
+        return BodyVelocities(v, omega, inverse_mass, inverse_inertia, driven if driven.any() else None), x
 
     def _write_back(self, motion: np.ndarray, state: Kinematics, bodies: BodyVelocities) -> None:
         model = self.system.model

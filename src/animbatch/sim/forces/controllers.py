@@ -45,8 +45,10 @@ class Goal:
 class Target:
     """Where a controller pulls, at a time, for a body point at ``position`` (3,)."""
 
-    #: A human-readable description for ``animbatch info``.
-    text: str = ""
+    @property
+    def text(self) -> str:
+        """A human-readable description for ``animbatch info``."""
+        return ""
 
     def locate(self, t: float, position: np.ndarray) -> Goal:
         raise NotImplementedError
@@ -60,7 +62,7 @@ class FixedTarget(Target):
         return Goal(self.position, np.zeros(3))
 
     @property
-    def text(self) -> str:  # type: ignore[override]
+    def text(self) -> str:
         return f"point ({', '.join(f'{c:g}' for c in self.position)})"
 
 
@@ -72,7 +74,7 @@ class PathTarget(Target):
         return Goal(self.path.position(t), self.path.velocity(t))
 
     @property
-    def text(self) -> str:  # type: ignore[override]
+    def text(self) -> str:
         return f"{len(self.path.times)} keyframes ({self.path.interpolation})"
 
 
@@ -89,7 +91,7 @@ class CurveTarget(Target):
                     found.tangent_gradient[0])
 
     @property
-    def text(self) -> str:  # type: ignore[override]
+    def text(self) -> str:
         return f"{self.label} ({self.curve.length:.4g} m long)"
 
 
@@ -129,7 +131,8 @@ class Controllers(ForceTerm):
             return state.x[point], state.v[point], None
         rigid = np.array([point - self.first_rigid])
         lever = state.lever(rigid, self.offset[k][None])[0]
-        return state.x[point] + lever, state.v[point] + np.cross(state.omega[rigid[0]], lever), lever  # type: ignore[index]
+        assert state.omega is not None  # a state with rigid bodies has their ω
+        return state.x[point] + lever, state.v[point] + np.cross(state.omega[rigid[0]], lever), lever
 
     def pulls(self, t: float, state: Kinematics) -> list[tuple[np.ndarray, np.ndarray | None]]:
         """Per controller: the force [N] and its lever (or None)."""

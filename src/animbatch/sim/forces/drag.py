@@ -75,9 +75,11 @@ class Drag(ForceTerm):
         elif coefficient is None:
             raise ValueError(f"the {law} drag law needs a coefficient")
 
+        given = float(coefficient) if coefficient is not None else 0.0  # linear and quadratic laws have one
+
         def law_coefficient(points: np.ndarray | None) -> float | np.ndarray:
             if law != "stokes":
-                return float(coefficient)  # type: ignore[arg-type]
+                return given
             assert viscosity is not None  # set above for stokes
             radius = bodies.radius if points is None else bodies.radius[points]
             return (6.0 * np.pi * viscosity * radius)[:, None]  # Stokes' law for a sphere

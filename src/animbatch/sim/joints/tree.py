@@ -359,7 +359,7 @@ def advance(tree: JointTree, form: tuple[str, Any], y: np.ndarray, t: float, h: 
             # the closing half kick at the end's rates: predicted from the last q̈, then corrected once (with the
             # prediction alone, a whipping chain's centripetal terms go unstable)
             qdd, *_ = rate(t + (step + 1) * h, q, predicted)
-            qdd, *last = rate(t + (step + 1) * h, q, qd + 0.5 * h * qdd)  # type: ignore[assignment]
+            qdd, *last = rate(t + (step + 1) * h, q, qd + 0.5 * h * qdd)  # type: ignore[assignment]  # (q̈, rest)
             evaluations += 2
             qd = qd + 0.5 * h * qdd
     final = pose(tree, start, q, qd)

@@ -175,8 +175,9 @@ class Dynamics:
             self.joints.add_loads(state, force, torque, self.engaged_stops, self.joint_stabilisation)
         np.multiply(force[:n], self._inverse_mass, out=out[: 3 * n].reshape(n, 3))
         if self.rigid:
+            assert torque is not None  # loads gives torques whenever there are rigid bodies
             out[3 * n: 3 * n + 3 * self.rigid] = force[n:].ravel()
-            out[3 * n + 3 * self.rigid:] = torque.ravel()  # type: ignore[union-attr]
+            out[3 * n + 3 * self.rigid:] = torque.ravel()
         return out
 
     def _config_rate(self, config: np.ndarray, motion: np.ndarray, state: Kinematics, out: np.ndarray) -> None:

@@ -23,6 +23,9 @@ from typing import Literal
 
 import numpy as np
 
+#: Whether a block holds configuration (positions, orientations, clocks) or motion (velocities, momenta).
+Role = Literal["config", "motion"]
+
 
 @dataclass(frozen=True)
 class StateBlock:
@@ -32,7 +35,7 @@ class StateBlock:
     offset: int
     shape: tuple[int, ...]
     unit: str
-    role: Literal["config", "motion"]
+    role: Role
     owners: tuple[str, ...]  # name of the body owning each row of the block
 
     @property
@@ -54,7 +57,8 @@ class StateLayout:
     def for_bodies(cls, particles: tuple[str, ...], rigid: tuple[str, ...] = (),
                    clocks: tuple[str, ...] = ()) -> StateLayout:
         """The layout for N particles and B rigid bodies (names in state order), and K clocks they carry."""
-        specs = [("particle_position", particles, 3, "m", "config"),
+        specs: list[tuple[str, tuple[str, ...], int, str, Role]] = [
+                 ("particle_position", particles, 3, "m", "config"),
                  ("rigid_position", rigid, 3, "m", "config"),
                  ("rigid_orientation", rigid, 4, "1", "config"),
                  ("proper_time", clocks, 1, "s", "config"),
@@ -64,7 +68,7 @@ class StateLayout:
         blocks, offset = [], 0
         for name, owners, width, unit, role in specs:
             if owners:
-                blocks.append(StateBlock(name, offset, (len(owners), width), unit, role, owners))  # type: ignore[arg-type]
+                blocks.append(StateBlock(name, offset, (len(owners), width), unit, role, owners))
                 offset += len(owners) * width
         return cls(tuple(blocks))
 

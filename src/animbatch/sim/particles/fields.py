@@ -62,9 +62,9 @@ class ParticleField:
             out += self.g
         elif self.kind in ("drag", "wind"):
             relative = slots.v - self.wind if self.wind is not None else slots.v
-            out += drag_force(self.law, self.drag_coefficient(slots), relative) / slots.mass[:, None]  # type: ignore[arg-type]
+            out += drag_force(self.law, self.drag_coefficient(slots), relative) / slots.mass[:, None]  # type: ignore[arg-type]  # drag has a law
         elif self.kind == "buoyancy":
-            volume, _ = spherical_caps(slots.x, slots.radius, self.level, self.up)  # type: ignore[arg-type]
+            volume, _ = spherical_caps(slots.x, slots.radius, self.level, self.up)  # type: ignore[arg-type]  # buoyancy has both
             out += (self.density * self.buoyancy_g * volume / slots.mass)[:, None] * self.up
             if self.damping:
                 fraction = volume / (4.0 / 3.0 * np.pi * slots.radius ** 3)
@@ -88,7 +88,7 @@ class ParticleField:
             else:
                 rates[:, 0] = coefficient / slots.mass
         elif self.kind == "buoyancy" and self.damping:
-            volume, _ = spherical_caps(slots.x, slots.radius, self.level, self.up)  # type: ignore[arg-type]
+            volume, _ = spherical_caps(slots.x, slots.radius, self.level, self.up)  # type: ignore[arg-type]  # buoyancy has both
             rates[:, 0] = self.damping * volume / (4.0 / 3.0 * np.pi * slots.radius ** 3) / slots.mass
         return rates
 
