@@ -69,8 +69,8 @@ def _integrate(text: str, path: Any = None) -> tuple[Any, Any, Any, Any]:
     """Model, system, integrator and initial state of a scene text (``path``: the scene file it came from, whose
     folder holds its meshes), with the system the CLI would choose (compiled where it pays, which these scenes
     do)."""
+    from animbatch.compile.integrator import make_integrator
     from animbatch.compile.model import compile_scene
-    from animbatch.compile.solver import make_integrator
     from animbatch.sim.model.compiled import dynamics_for
     from animbatch.stages import parse_scene
 

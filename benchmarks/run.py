@@ -69,7 +69,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
 
-from animbatch.compile.builder import ModelBuilder  # noqa: E402
+from animbatch.compile.scene_builder import SceneModelBuilder  # noqa: E402
 from animbatch.sim.integrators import ScipyIntegrator  # noqa: E402
 from animbatch.sim.integrators.fixed_step import SymplecticEuler, VelocityVerlet  # noqa: E402
 from animbatch.sim.model import Dynamics  # noqa: E402
@@ -99,7 +99,7 @@ def best_of(repeats: int, work: Callable[[], None]) -> float:
 
 def particle_model(count: int) -> Dynamics:
     rng = np.random.default_rng(0)
-    builder = ModelBuilder()
+    builder = SceneModelBuilder()
     builder.add_particles(rng.normal(size=(count, 3)), velocities=rng.normal(size=(count, 3)), mass=0.1,
                           radius=0.01, names=[""] * count)
     builder.add_field({"type": "gravity"})
@@ -255,7 +255,7 @@ def bench_pool(quick: bool, sizes: list[int] | None = None) -> list[Row]:
 
 def bench_ivp(quick: bool) -> list[Row]:
     """Per-step cost with a tiny RHS (a damped spring), where solver overhead dominates."""
-    builder = ModelBuilder()
+    builder = SceneModelBuilder()
     mass = builder.add_particle("m", position=(1.3, 0, 0))
     anchor = builder.add_anchor("a", (0, 0, 0))
     builder.add_spring(mass, anchor, stiffness=50, damping=0.1, rest_length=1.0, second_is_anchor=True)
@@ -347,8 +347,8 @@ def bench_contacts(quick: bool) -> list[Row]:
     default iteration limit (300) and with 30, which shows what exactness costs while the pile forms."""
     from scipy.spatial import cKDTree
 
+    from animbatch.compile.integrator import make_integrator
     from animbatch.compile.model import compile_scene
-    from animbatch.compile.solver import make_integrator
     from animbatch.stages import parse_scene
 
     rows = []
@@ -410,8 +410,8 @@ class OutOfBudget(Exception):
 def bench_cloth(quick: bool, budget: float | None = None, only: list[str] | None = None) -> list[Row]:
     """The stiff cloth with each method (or those whose label starts with one of ``only``), each within a wall-time
     budget."""
+    from animbatch.compile.integrator import make_integrator
     from animbatch.compile.model import compile_scene
-    from animbatch.compile.solver import make_integrator
     from animbatch.sim.integrators.stability import largest_stable_step, stiffest_mode
     from animbatch.stages import parse_scene
 
@@ -531,7 +531,7 @@ def render_frames(count: int, quality: str, frames: int, sprites: bool = False, 
     """Frames per second of the renderer drawing ``count`` particles at ``size`` (moving them every frame and
     reading the pixels back), a few of the images, and the backend's name."""
     from animbatch.render.backend import select_backend
-    from animbatch.render.frames import FrameRenderer
+    from animbatch.render.renderer import FrameRenderer
 
     spec, geometry, positions = render_case(count, quality, sprites, size)
     images = []
@@ -685,7 +685,7 @@ def bench_fountain(quick: bool) -> list[Row]:
     from animbatch import api
     from animbatch.compile.particles import compile_particles
     from animbatch.render.backend import select_backend
-    from animbatch.render.frames import FrameRenderer
+    from animbatch.render.renderer import FrameRenderer
     from animbatch.sim.particles.simulate import simulate_particles
     from animbatch.stages import load_scene
 
@@ -823,11 +823,11 @@ def bench_stream(quick: bool) -> list[Row]:
     import shutil
 
     from animbatch import api
-    from animbatch.farm.frames import FrameRange, draw_frames, prepare_frames
+    from animbatch.farm.frame_files import FrameRange, draw_frames, prepare_frames
     from animbatch.farm.run import finish_outputs
-    from animbatch.farm.stream import stream_frames
+    from animbatch.farm.streamed_render import stream_frames
     from animbatch.render.backend import select_backend
-    from animbatch.render.frames import FrameRenderer
+    from animbatch.render.renderer import FrameRenderer
 
     frames = 8 if quick else 150
     width, height = (320, 180) if quick else (1280, 720)  # --quick checks the three paths run, not their speed
@@ -1024,7 +1024,7 @@ def bench_ledger(quick: bool) -> list[Row]:
 def chain_model(count: int, jointed: bool) -> Dynamics:
     """A chain of ``count`` beads 5 cm apart hanging from an anchor, joined by rods (or free, for comparison),
     under gravity, started swinging."""
-    builder = ModelBuilder()
+    builder = SceneModelBuilder()
     anchor = builder.add_anchor("hook", (0.0, 0.0, 0.0))
     positions = np.stack([0.05 * np.arange(1, count + 1), np.zeros(count), np.zeros(count)], axis=1)
     beads = builder.add_particles(positions, mass=0.01, radius=0.01, names=[f"b{i}" for i in range(count)])

@@ -20,7 +20,7 @@ from PIL import Image
 from animbatch import api, stages
 from animbatch.files import write_text_atomic
 from animbatch.render.backend import select_backend
-from animbatch.render.frames import FrameRenderer
+from animbatch.render.renderer import FrameRenderer
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT / "scenes"

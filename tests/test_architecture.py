@@ -136,6 +136,29 @@ def test_the_tests_are_laid_out_like_the_code():
                     f"{path.relative_to(REPO)} imports {name}: put what both need in tests/support/"
 
 
+#: File names several packages share because each file is the same concept on its own floor: the scene format's
+#: declaration, the compiler's translation, the simulation's numbers, the drawing (bodies.py in scene/schema,
+#: compile and sim). Any other shared name means two different things, and fails the test below.
+SAME_CONCEPT_ON_EACH_FLOOR = {"arrows", "bodies", "checks", "compiled", "contacts", "controllers", "fields",
+                              "frame_geometry", "materials", "model", "stopwatches", "vertices"}
+
+
+def test_a_file_name_means_one_thing():
+    """No two modules share a file name unless they are the same concept on different floors (listed above); one
+    class is called ModelBuilder (the simulation's; the compiler's subclass that also takes scene specs is
+    SceneModelBuilder)."""
+    import ast
+    from collections import Counter
+
+    names = Counter(path.stem for path in (REPO / "src" / "animbatch").rglob("*.py") if path.stem != "__init__")
+    shared = {name for name, count in names.items() if count > 1}
+    assert shared <= SAME_CONCEPT_ON_EACH_FLOOR, f"file names meaning different things: {shared - SAME_CONCEPT_ON_EACH_FLOOR}"
+    builders = [path.relative_to(REPO) for path in (REPO / "src").rglob("*.py")
+                for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+                if isinstance(node, ast.ClassDef) and node.name == "ModelBuilder"]
+    assert len(builders) == 1, builders
+
+
 def test_the_import_contracts_hold():
     """lint-imports finds every contract of .importlinter kept: the simulation never imports the scene format,
     rendering never imports the simulation, drivers sit above stages above the compiler, and no package cycles."""
@@ -181,7 +204,7 @@ def test_the_type_checks_cover_the_wall_and_few_checks_are_waived():
 @pytest.mark.parametrize("method", [*METHODS, "analytic"])
 def test_validate_describes_the_solver_as_the_integrator_built_from_it_does(method):
     """validate prints the method's line without building the integrator; it must be the line the run prints."""
-    from animbatch.compile.solver import make_integrator
+    from animbatch.compile.integrator import make_integrator
     from animbatch.summary import describe_solver
 
     settings = {"method": method, "max_step": 0.01} if method in METHODS and not METHODS[method].fixed_step else \

@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from animbatch.cli import cli
-from animbatch.scene.reference import BEGIN, END, generate, key_paths
+from animbatch.scene.key_reference import BEGIN, END, generate, key_paths
 from animbatch.scene.schema import SceneSpec
 from animbatch.scene.yaml_source import load_yaml
 from support.paths import REPO
@@ -29,7 +29,7 @@ def test_generated_reference_is_up_to_date():
 def test_every_model_of_the_schema_has_a_reference_section():
     """Every kind of mapping a scene can contain (found by walking the schema from the top) has its own section in
     the key reference, so no key can be left out by forgetting a section."""
-    from animbatch.scene.reference import SECTIONS, reachable_models
+    from animbatch.scene.key_reference import SECTIONS, reachable_models
 
     documented = {model for _, _, model in SECTIONS}
     missing = sorted(model.__name__ for model in reachable_models() - documented)

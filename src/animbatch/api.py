@@ -12,9 +12,9 @@ Simulation and rendering meet only at the :class:`~animbatch.trajectory.Trajecto
 
 from __future__ import annotations
 
-from animbatch.compile.builder import ModelBuilder
 from animbatch.compile.model import compile_scene
 from animbatch.compile.plan import RunPlan
+from animbatch.compile.scene_builder import SceneModelBuilder
 from animbatch.compile.stopwatches import StopwatchReading, stopwatch_readings
 from animbatch.farm.run import RenderResult, RunReport, finish_outputs, render, run
 from animbatch.scene import physics_fingerprint
@@ -33,7 +33,7 @@ from animbatch.stages import (
                               write_quantities,
 )
 
-__all__ = ["ModelBuilder", "RenderResult", "RunPlan", "RunReport", "StopwatchReading", "check_trajectory",
+__all__ = ["RenderResult", "RunPlan", "RunReport", "SceneModelBuilder", "StopwatchReading", "check_trajectory",
            "compile_model", "compile_scene", "failure_report", "finish_outputs", "frame_geometry", "load_scene",
            "parse_scene", "physics_fingerprint", "plan", "render", "run", "scene_fingerprint", "scene_folder",
            "simulate", "simulate_emitters", "stopwatch_readings", "write_quantities"]

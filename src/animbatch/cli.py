@@ -537,7 +537,7 @@ def bake(scene: Path, out_dir: Path, force: bool, checkpoint_every: int | None, 
     say that the cache is already up to date."""
     from animbatch import api
     from animbatch.farm import bake as bake_scene
-    from animbatch.farm.frames import prepare_frames
+    from animbatch.farm.frame_files import prepare_frames
     from animbatch.progress import Progress
 
     loaded = api.load_scene(scene, _overrides(settings, **shortcuts))

@@ -187,7 +187,7 @@ def probe(backend_name: str, image: Path) -> dict[str, Any]:
     """Draw the test scene with one backend (in this process), save its last frame to ``image``, and time it."""
     from animbatch import stages
     from animbatch.render.backend import select_backend
-    from animbatch.render.frames import FrameRenderer
+    from animbatch.render.renderer import FrameRenderer
 
     scene = stages.parse_scene(PROBE_SCENE, filename="<doctor>")
     run = stages.plan(scene)
@@ -256,7 +256,7 @@ def _test_encode(kind: str, encoder: str) -> Check:
 def check_kernels() -> list[Check]:
     """Each family of compiled kernels built (compiled, or loaded from numba's disk cache), timed; none where numba
     does not load or ``ANIMBATCH_KERNELS=numpy`` (numpy then runs everything, with the same results)."""
-    from animbatch.sim.contact.solver import build_contact_kernels
+    from animbatch.sim.contact.impulses import build_contact_kernels
     from animbatch.sim.forces.springs import build_spring_kernel
     from animbatch.sim.integrators.linear_algebra import build_step_kernels
     from animbatch.sim.kernels import compiled_kernels, kernel_cache_folder

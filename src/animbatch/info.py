@@ -11,7 +11,7 @@ from animbatch.compile.forces import FIELD_TERMS
 from animbatch.compile.plan import RunPlan
 from animbatch.scene import LoadedScene
 from animbatch.scene.schema import BoxCollider, PlaneCollider, SphereCollider, random_bounds
-from animbatch.sim.contact.stepping import DEFAULT_REST_SPEED
+from animbatch.sim.contact.time_stepping import DEFAULT_REST_SPEED
 from animbatch.sim.deformable.vertices import ANCHOR, BODY_POINT, PARTICLE
 from animbatch.sim.joints.tree import JointTree
 from animbatch.sim.ledger import conservation_laws, step_note

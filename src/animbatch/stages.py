@@ -24,10 +24,10 @@ from animbatch.compile.arrows import arrow_series
 from animbatch.compile.checks import compile_checks
 from animbatch.compile.frame_geometry import body_extents, collider_points
 from animbatch.compile.frame_geometry import frame_geometry as compile_frame_geometry
+from animbatch.compile.integrator import make_integrator
 from animbatch.compile.model import compile_scene
 from animbatch.compile.particles import particle_costs
 from animbatch.compile.plan import RunPlan, plan_run, scene_folder
-from animbatch.compile.solver import make_integrator
 from animbatch.compile.stopwatches import stopwatch_readings
 from animbatch.errors import SimulationError, TrajectoryError
 from animbatch.files import write_text_atomic
@@ -35,18 +35,18 @@ from animbatch.plot import plot_quantities
 from animbatch.progress import Progress
 from animbatch.provenance import simulation_code
 from animbatch.render.camera import motion_bounds
-from animbatch.render.geometry import FrameGeometry, LabelValues, PanelSeries
+from animbatch.render.frame_geometry import FrameGeometry, LabelValues, PanelSeries
 from animbatch.scene import LoadedScene, physics_fingerprint
 from animbatch.scene import loader as scene_loader
 from animbatch.scene.overrides import Override
 from animbatch.scene.schema import label_names, label_speed_names
-from animbatch.sim.contact.stepping import measure_contact_search, numpy_contact_solve
+from animbatch.sim.contact.time_stepping import measure_contact_search, numpy_contact_solve
 from animbatch.sim.integrators import IntegrationResult, Integrator, SolverStats
-from animbatch.sim.integrators.base import StepSettings
 from animbatch.sim.integrators.budget import wall_budget
 from animbatch.sim.integrators.checkpoint import integrate_with_checkpoints
 from animbatch.sim.integrators.cost import CostEstimate, check_cost, estimate_cost, measure_rhs
 from animbatch.sim.integrators.guard import check_energy_growth
+from animbatch.sim.integrators.interface import StepSettings
 from animbatch.sim.ledger import QuantitySeries, build_ledger
 from animbatch.sim.model import Dynamics, Model
 from animbatch.sim.model.compiled import dynamics_for

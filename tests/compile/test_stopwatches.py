@@ -8,7 +8,7 @@ import pytest
 
 from animbatch import api
 from animbatch.errors import SceneError
-from animbatch.render.geometry import StopwatchReading
+from animbatch.render.frame_geometry import StopwatchReading
 from animbatch.sim.events import plane_crossings
 from support.scenes import scene
 

@@ -76,7 +76,7 @@ def test_a_worker_killed_mid_batch_loses_no_frame_and_redraws_none(tmp_cwd):
     import time
 
     from animbatch.farm.batch import Job, connect, run_batch
-    from animbatch.farm.frames import frame_is_complete
+    from animbatch.farm.frame_files import frame_is_complete
 
     (tmp_cwd / "long.yaml").write_text(ball("long", 6.0, 0.3).replace("render: {resolution: [96, 64]}",
                                                                       "render: {resolution: [96, 64], "

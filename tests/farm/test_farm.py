@@ -72,9 +72,9 @@ def test_cache_is_reused_for_a_new_camera_and_redone_for_new_physics_or_solver(t
 def test_a_render_checks_its_trajectory_and_prepares_its_frames_folder_once(throw, tmp_cwd, monkeypatch):
     """run (bake then draw) and render (a given trajectory) check the trajectory against the scene at most once and
     prepare the frames folder once, whatever path the frames take to the renderer."""
-    from animbatch.farm import frames as farm_frames
+    from animbatch.farm import frame_files as farm_frames
     from animbatch.farm import run as farm_run
-    from animbatch.farm import stream as farm_stream
+    from animbatch.farm import streamed_render as farm_stream
 
     checked = counting(monkeypatch, farm_run, "check_trajectory")
     checked_in_frames = counting(monkeypatch, farm_frames, "check_trajectory")
@@ -109,7 +109,7 @@ def test_chunked_rendering_gives_the_pixels_of_a_single_pass(throw, tmp_cwd):
 def test_a_truncated_frame_is_detected_and_drawn_again(throw, tmp_cwd, monkeypatch):
     """Rendering a range twice draws nothing the second time; a frame cut short (a copy interrupted, a full disk) or
     replaced by garbage is found and drawn again, and only it."""
-    from animbatch.render.frames import FrameRenderer
+    from animbatch.render.renderer import FrameRenderer
 
     runner = CliRunner()
     assert runner.invoke(cli, ["render", str(throw), "--frames", "10-19"]).exit_code == 0
@@ -134,7 +134,7 @@ def test_a_truncated_frame_is_detected_and_drawn_again(throw, tmp_cwd, monkeypat
 def test_an_interrupted_render_resumes_without_redrawing_finished_frames(throw, tmp_cwd, monkeypatch):
     """Ctrl-C while frame 6 of 0-19 is drawn: the command exits 130 with frames 0-5 complete and nothing partial
     on disk; the next run draws exactly frames 6-19 and leaves the finished ones as they were."""
-    from animbatch.render.frames import FrameRenderer
+    from animbatch.render.renderer import FrameRenderer
 
     original = FrameRenderer.draw
     calls = []
@@ -170,7 +170,7 @@ def test_a_render_over_its_budget_exits_4_keeps_its_frames_and_a_larger_budget_f
     warning threshold draw nothing, so with a larger budget the next run keeps them and draws the other 18."""
     import time
 
-    from animbatch.render.frames import FrameRenderer
+    from animbatch.render.renderer import FrameRenderer
 
     original = FrameRenderer.draw
 
@@ -198,7 +198,7 @@ def test_a_render_over_its_budget_exits_4_keeps_its_frames_and_a_larger_budget_f
 
 def test_frames_of_another_picture_are_never_reused(throw, tmp_cwd, monkeypatch):
     """After a camera change, frames on disk from the old camera (same size, complete) are deleted and drawn again."""
-    from animbatch.render.frames import FrameRenderer
+    from animbatch.render.renderer import FrameRenderer
 
     runner = CliRunner()
     assert runner.invoke(cli, ["render", str(throw), "--frames", "0-4"]).exit_code == 0

@@ -10,7 +10,7 @@ from click.testing import CliRunner
 from animbatch import api, stages
 from animbatch.cli import cli
 from animbatch.render.backend import select_backend
-from animbatch.render.frames import FrameRenderer
+from animbatch.render.renderer import FrameRenderer
 
 THROW = """
 name: throw

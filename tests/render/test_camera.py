@@ -17,8 +17,8 @@ from animbatch import api, stages
 from animbatch.cli import cli
 from animbatch.render.backend import select_backend
 from animbatch.render.camera import CameraPath, follower
-from animbatch.render.frames import FrameRenderer
-from animbatch.render.geometry import BodyPath
+from animbatch.render.frame_geometry import BodyPath
+from animbatch.render.renderer import FrameRenderer
 from animbatch.scene.schema import CameraSpec
 from support.scenarios import on_screen_extent
 

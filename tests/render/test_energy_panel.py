@@ -8,8 +8,8 @@ import pytest
 
 from animbatch import api, stages
 from animbatch.render.backend import select_backend
-from animbatch.render.frames import FrameRenderer
 from animbatch.render.panel import CURSOR
+from animbatch.render.renderer import FrameRenderer
 
 pytestmark = pytest.mark.render
 

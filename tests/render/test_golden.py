@@ -17,7 +17,7 @@ from PIL import Image
 
 from animbatch import api, stages
 from animbatch.render.backend import select_backend
-from animbatch.render.frames import FrameRenderer
+from animbatch.render.renderer import FrameRenderer
 from support.paths import REPO
 
 pytestmark = pytest.mark.render

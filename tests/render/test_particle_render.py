@@ -8,7 +8,7 @@ import pytest
 
 from animbatch import api
 from animbatch.render.backend import select_backend
-from animbatch.render.frames import FrameRenderer
+from animbatch.render.renderer import FrameRenderer
 from support.scenes import scene
 
 pytestmark = pytest.mark.render

@@ -136,7 +136,7 @@ def test_camera_change_renders_from_trajectory_without_simulating(slide_scene, t
 def interrupt_at_frame_7(monkeypatch) -> tuple[list[int], object]:
     """Make the renderer raise Ctrl-C when asked for frame 7 (t > 0.2 s at 30 fps); returns the frames drawn and the
     renderer's own draw."""
-    from animbatch.render.frames import FrameRenderer
+    from animbatch.render.renderer import FrameRenderer
 
     original = FrameRenderer.draw
     drawn: list[int] = []
@@ -152,7 +152,7 @@ def interrupt_at_frame_7(monkeypatch) -> tuple[list[int], object]:
 
 
 def count_draws(monkeypatch, original) -> list[int]:
-    from animbatch.render.frames import FrameRenderer
+    from animbatch.render.renderer import FrameRenderer
 
     drawn: list[int] = []
     monkeypatch.setattr(FrameRenderer, "draw", lambda self, t, *state: drawn.append(round(t * 30)) or original(
@@ -186,7 +186,7 @@ def test_interrupted_render_with_png_frames_resumes_from_them(slide_scene, tmp_c
     """With png among the formats the streamed frames also go to disk: an interrupt at frame 7 leaves the frames
     drawn before as complete PNGs and no video; the next run (mp4 only) draws only frames 7 … 11 and encodes all
     12 (the farm path's rule: a complete frame of the same picture is never drawn twice)."""
-    from animbatch.farm.frames import frame_is_complete
+    from animbatch.farm.frame_files import frame_is_complete
 
     drawn, original = interrupt_at_frame_7(monkeypatch)
     result = CliRunner().invoke(cli, ["render", str(slide_scene), "--formats", "png,mp4"])
@@ -223,7 +223,7 @@ def test_each_backend_renders_when_installed(slide_scene, tmp_cwd, monkeypatch, 
     """A forced backend is used (and reported) when its library is present."""
     if not backend_module.is_available(backend_module.BACKENDS[name]):
         pytest.skip(f"{name} libraries not installed")
-    from animbatch.render.frames import FrameRenderer
+    from animbatch.render.renderer import FrameRenderer
 
     created = []
     original = FrameRenderer.draw

@@ -11,7 +11,7 @@ from PIL import Image
 from animbatch import api, stages
 from animbatch.cli import cli
 from animbatch.render.backend import select_backend
-from animbatch.render.frames import FrameRenderer
+from animbatch.render.renderer import FrameRenderer
 from animbatch.scene.schema import QUALITY_PRESETS, RenderSpec
 from support.scenarios import on_screen_extent
 

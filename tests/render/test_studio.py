@@ -8,7 +8,7 @@ import pytest
 
 from animbatch import api, stages
 from animbatch.render.backend import select_backend
-from animbatch.render.frames import FrameRenderer
+from animbatch.render.renderer import FrameRenderer
 from animbatch.render.shadows import key_light_direction
 from animbatch.render.studio import three_point_rig
 

@@ -10,7 +10,7 @@ from animbatch import api, stages
 from animbatch.compile.frame_geometry import surface_look
 from animbatch.materials import BUILT_IN_LOOKS
 from animbatch.render.backend import select_backend
-from animbatch.render.frames import FrameRenderer
+from animbatch.render.renderer import FrameRenderer
 from animbatch.scene.loader import physics_fingerprint
 from support.paths import REPO
 

@@ -408,10 +408,10 @@ def test_a_render_projected_over_its_budget_stops_after_the_second_frame(monkeyp
     """100 frames, the first at 2 s (it also builds the actors), the second 0.5 s later: the rest project to
     2.5 + 0.5 × 98 = 51.5 s. A budget of 10 s stops after frame 2, one of 60 s lets it go on, 0 never stops."""
     from animbatch.errors import RenderError
-    from animbatch.farm import frames
+    from animbatch.farm import frame_files
 
-    monkeypatch.setattr(frames.time, "perf_counter", FakeClock(0.0, 2.0, 2.5))
-    budget = frames.RenderBudget(10.0, 100)
+    monkeypatch.setattr(frame_files.time, "perf_counter", FakeClock(0.0, 2.0, 2.5))
+    budget = frame_files.RenderBudget(10.0, 100)
     budget.after_frame(1)
     with pytest.raises(RenderError) as caught:
         budget.after_frame(2)
@@ -419,8 +419,8 @@ def test_a_render_projected_over_its_budget_stops_after_the_second_frame(monkeyp
     assert "after 2 of 100 frames" in message and "about 51.5 s at 0.5 s per frame" in message
     assert "render.max_cost" in message and "frames drawn are kept" in message
     for seconds in (60.0, 0.0):
-        monkeypatch.setattr(frames.time, "perf_counter", FakeClock(0.0, 2.0, 2.5, 3.0))
-        budget = frames.RenderBudget(seconds, 100)
+        monkeypatch.setattr(frame_files.time, "perf_counter", FakeClock(0.0, 2.0, 2.5, 3.0))
+        budget = frame_files.RenderBudget(seconds, 100)
         budget.after_frame(1)
         budget.after_frame(2)
         budget.after_frame(3)
@@ -428,10 +428,10 @@ def test_a_render_projected_over_its_budget_stops_after_the_second_frame(monkeyp
 
 def test_a_first_frame_longer_than_the_whole_budget_stops_at_once(monkeypatch):
     from animbatch.errors import RenderError
-    from animbatch.farm import frames
+    from animbatch.farm import frame_files
 
-    monkeypatch.setattr(frames.time, "perf_counter", FakeClock(0.0, 7.0))
-    budget = frames.RenderBudget(5.0, 10)
+    monkeypatch.setattr(frame_files.time, "perf_counter", FakeClock(0.0, 7.0))
+    budget = frame_files.RenderBudget(5.0, 10)
     with pytest.raises(RenderError, match="more than the 7 s the first frame took"):
         budget.after_frame(1)
 

@@ -517,7 +517,7 @@ def test_a_study_of_more_particles_than_fit_is_refused_before_it_runs():
 def test_particles_are_matched_by_serial_whatever_slot_holds_them():
     """Two runs may hold a particle in different pool slots: the study compares it with itself, by serial, and
     leaves out frames where it is not alive."""
-    from animbatch.study.particles import particle_motion
+    from animbatch.study.emitter_study import particle_motion
     from animbatch.trajectory import ParticleFrames
 
     positions = np.arange(2 * 3 * 3, dtype=float).reshape(2, 3, 3)

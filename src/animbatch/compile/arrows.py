@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from animbatch.render.geometry import ArrowSeries
+from animbatch.render.frame_geometry import ArrowSeries
 from animbatch.scene.schema import FORCE_ARROW_KINDS, SceneSpec
 from animbatch.sim.model import Dynamics, Model
 

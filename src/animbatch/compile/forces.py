@@ -31,12 +31,12 @@ from animbatch.scene.schema import (
 )
 from animbatch.sim.forces.aerodynamics import build_aerodynamics
 from animbatch.sim.forces.applied import build_angular_drag, build_force, build_torque
-from animbatch.sim.forces.base import BodyTable, ForceTerm, TermFactory
 from animbatch.sim.forces.buoyancy import build_buoyancy
 from animbatch.sim.forces.drag import Drag
 from animbatch.sim.forces.electromagnetic import FieldHistory, build_lorentz
 from animbatch.sim.forces.gravitation import build_coulomb, build_gravitation
 from animbatch.sim.forces.gravity import build_gravity
+from animbatch.sim.forces.term import BodyTable, ForceTerm, TermFactory
 
 Index = np.ndarray | None
 

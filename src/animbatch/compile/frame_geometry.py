@@ -1,4 +1,5 @@
-"""What the renderer draws, compiled from the scene and its model: a :class:`~animbatch.render.geometry.FrameGeometry`.
+"""What the renderer draws, compiled from the scene and its model: a
+:class:`~animbatch.render.frame_geometry.FrameGeometry`.
 
 Rendering never reads the Model or recompiles anything: everything it needs about bodies, springs, fluids,
 controllers and mesh files is gathered here, once per render.
@@ -22,7 +23,7 @@ from animbatch.render.colors import (
     darker,
     hex_to_rgb,
 )
-from animbatch.render.geometry import (
+from animbatch.render.frame_geometry import (
     BodyPath,
     DrawnCollider,
     Finish,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from animbatch.render.geometry import StopwatchReading, stopwatch_line
+from animbatch.render.frame_geometry import StopwatchReading, stopwatch_line
 from animbatch.scene.schema import EventSpec, StopwatchSpec
 from animbatch.sim.events import plane_crossings
 from animbatch.trajectory import Trajectory

@@ -29,7 +29,7 @@ EXPORT_FORMATS = {
 def export(trajectory: Trajectory, folder: str | Path, kind: str, geometry: Any = None, render: Any = None,
            fps: float = 30.0) -> list[Path]:
     """Write ``trajectory`` as ``kind`` (a key of :data:`EXPORT_FORMATS`) into ``folder``; the files written.
-    ``geometry`` (the scene's :class:`~animbatch.render.geometry.FrameGeometry`) is needed by every format but
+    ``geometry`` (the scene's :class:`~animbatch.render.frame_geometry.FrameGeometry`) is needed by every format but
     ``csv``; ``usd`` also takes the scene's ``render`` spec (camera) and ``fps``."""
     if kind not in EXPORT_FORMATS:
         raise ValueError(f"unknown export format {kind!r}; choose from {', '.join(EXPORT_FORMATS)}")

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.export.frames import deformable_vertices
+from animbatch.export.vertices import deformable_vertices
 from animbatch.files import atomic_path
 from animbatch.render.emitted import ParticleAppearance
 from animbatch.trajectory import Trajectory

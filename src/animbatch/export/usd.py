@@ -31,13 +31,13 @@ from typing import Any
 import numpy as np
 
 from animbatch.errors import ExportError
-from animbatch.export.frames import deformable_vertices, own_particles
+from animbatch.export.vertices import deformable_vertices, own_particles
 from animbatch.files import atomic_path
 from animbatch.render.camera import CameraPath
 from animbatch.render.colors import COLLIDER_COLOR, hex_to_rgb
 from animbatch.render.emitted import ParticleAppearance
-from animbatch.render.shapes import collider_surface, shape_mesh
 from animbatch.render.studio import three_point_rig
+from animbatch.render.surfaces import collider_surface, shape_mesh
 from animbatch.trajectory import Trajectory
 
 #: Up to this many particles each become a prim of their own (an object to pick in Blender); more become one Points.
@@ -78,8 +78,8 @@ def prim_names(names: list[str] | tuple[str, ...]) -> list[str]:
 
 def write_usd(trajectory: Trajectory, geometry: Any, render: Any, fps: float, path: str | Path) -> Path:
     """Write the run as a USD stage at ``path`` (``.usd``, ``.usdc`` or ``.usda``; atomically) and return it.
-    ``geometry``: the scene's :class:`~animbatch.render.geometry.FrameGeometry`; ``render``: its render spec (camera,
-    up axis, resolution); ``fps``: the scene's frames per second."""
+    ``geometry``: the scene's :class:`~animbatch.render.frame_geometry.FrameGeometry`; ``render``: its render spec
+    (camera, up axis, resolution); ``fps``: the scene's frames per second."""
     pxr = _pxr()
     Usd, UsdGeom = pxr.Usd, pxr.UsdGeom
     stage = Usd.Stage.CreateInMemory()

@@ -25,7 +25,7 @@ from animbatch.cluster import WORKER_ENV, connect
 from animbatch.errors import SimulationError
 from animbatch.farm import bake, render_frames
 from animbatch.farm.encode import encode
-from animbatch.farm.frames import FrameRange, frames_folder, prepare_frames
+from animbatch.farm.frame_files import FrameRange, frames_folder, prepare_frames
 from animbatch.files import write_json_atomic
 from animbatch.stopwatch import Stopwatch
 from animbatch.trajectory import Trajectory

@@ -1,8 +1,8 @@
 """Encoding a scene's rendered frames (``frames/frame_00000.png`` …) into MP4, and WebM or GIF on request.
 
-Every frame must be complete first (see :func:`~animbatch.farm.frames.frame_is_complete`); otherwise the error lists
-the missing ones and the command that renders them. All videos are encoded in one pass over the frames, each under a
-temporary name renamed when ffmpeg has finished.
+Every frame must be complete first (see :func:`~animbatch.farm.frame_files.frame_is_complete`); otherwise the error
+lists the missing ones and the command that renders them. All videos are encoded in one pass over the frames, each
+under a temporary name renamed when ffmpeg has finished.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numpy as np
 from animbatch.encode.images import PngSequenceWriter
 from animbatch.encode.video import VIDEO_KINDS, VideoWriter
 from animbatch.errors import RenderError
-from animbatch.farm.frames import frame_is_complete, frames_folder, output_stem
+from animbatch.farm.frame_files import frame_is_complete, frames_folder, output_stem
 from animbatch.scene import LoadedScene
 
 

@@ -15,7 +15,7 @@ from typing import Any
 
 import yaml
 
-from animbatch.farm.frames import FrameRange
+from animbatch.farm.frame_files import FrameRange
 from animbatch.farm.slurm import animbatch_command
 
 SPECIFICATION = "jobtemplate-2023-09"

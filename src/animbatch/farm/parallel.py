@@ -20,7 +20,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 from animbatch import stages
-from animbatch.farm.frames import FrameRange, RangeResult, render_frames
+from animbatch.farm.frame_files import FrameRange, RangeResult, render_frames
 from animbatch.trajectory import Trajectory
 
 #: Below this many frames per worker, starting worker processes costs more than it saves.

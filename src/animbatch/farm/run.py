@@ -19,7 +19,7 @@ from animbatch.encode import PngSequenceWriter
 from animbatch.errors import SimulationError
 from animbatch.farm.cache import bake
 from animbatch.farm.encode import encode
-from animbatch.farm.frames import (
+from animbatch.farm.frame_files import (
     FrameRange,
     RangeResult,
     draw_frames,
@@ -27,7 +27,7 @@ from animbatch.farm.frames import (
     prepare_frames,
 )
 from animbatch.farm.parallel import render_in_parallel, worker_count
-from animbatch.farm.stream import resumable_frames, stream_frames
+from animbatch.farm.streamed_render import resumable_frames, stream_frames
 from animbatch.files import write_json_atomic
 from animbatch.progress import Progress
 from animbatch.scene import LoadedScene
@@ -176,7 +176,7 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
     * **bake**: the trajectory from the cache (``renders/<scene>/cache/``) when the physics, solver settings and
       package version match, else simulated and cached (or read from ``trajectory_path``);
     * **render** and **encode**: by default in this process, every frame streamed into the encoders as it is drawn
-      (PNG frames too when ``png`` is one of the formats; see :mod:`animbatch.farm.stream`). With ``jobs`` > 1,
+      (PNG frames too when ``png`` is one of the formats; see :mod:`animbatch.farm.streamed_render`). With ``jobs`` > 1,
       or when frames of this picture are already on disk (an interrupted ``jobs`` or farm render), the frames not
       yet complete are drawn as PNGs into ``renders/<scene>/frames/`` (in ``jobs`` worker processes, fewer for
       short animations) and then encoded; the frame files are deleted unless ``png`` is one of the formats.

@@ -4,7 +4,7 @@ One actor per quantity, whatever the number of bodies: a point set (a point per 
 feeds a VTK tensor glyph filter that stretches a unit arrow along each vector to its length while keeping every
 arrow equally thick; a frame rewrites the points and axes in place. Brief peaks (an impact's mean force over a frame)
 are drawn at most CAP times as long as a quantity's typical longest arrow. The vectors come precomputed per frame
-(:class:`~animbatch.render.geometry.ArrowSeries`).
+(:class:`~animbatch.render.frame_geometry.ArrowSeries`).
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from animbatch.render.colors import hex_to_rgb
-from animbatch.render.geometry import ArrowSeries, nearest_frame
-from animbatch.render.shapes import arrow_basis
+from animbatch.render.frame_geometry import ArrowSeries, nearest_frame
+from animbatch.render.surfaces import arrow_basis
 
 #: The longest an arrow is drawn [in units of the typical longest arrow]: brief peaks such as impacts are capped.
 CAP = 2.0

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.render.geometry import BodyPath
+from animbatch.render.frame_geometry import BodyPath
 from animbatch.render.settings import CameraSettings
 
 

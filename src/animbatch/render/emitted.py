@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.render.geometry import ParticleLook
+from animbatch.render.frame_geometry import ParticleLook
 from animbatch.trajectory import ParticleFrames
 
 

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.render.geometry import PanelSeries
+from animbatch.render.frame_geometry import PanelSeries
 
 #: Line colours per series label (matplotlib's default cycle otherwise).
 COLORS = {"kinetic [J]": "#e15759", "potential [J]": "#4e79a7", "total [J]": "#222222", "|p| [kg·m/s]": "#59a14f"}

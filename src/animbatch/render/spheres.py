@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from animbatch.render.colors import hex_to_rgb, srgb_to_linear
-from animbatch.render.geometry import Finish
+from animbatch.render.frame_geometry import Finish
 
 #: Pixels of a sphere's outline per segment when it is tessellated for its size on screen.
 PIXELS_PER_SEGMENT = 4.0

@@ -1,6 +1,6 @@
 """Trails: a polyline behind each trailed body through where it was at the frames of the last ``length`` seconds.
 
-The path comes from the trajectory (:class:`~animbatch.render.geometry.TrailPaths`), not from frames drawn before,
+The path comes from the trajectory (:class:`~animbatch.render.frame_geometry.TrailPaths`), not from frames drawn before,
 so a frame range drawn on its own (a farm chunk) shows the same trails as a single pass. Each trail is one line
 actor of a fixed number of points, rewritten in place per frame; before the trail has its full length, the missing
 points repeat the first position (segments of zero length draw nothing). Fading is a per-point alpha that rises
@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from animbatch.render.colors import hex_to_rgb
-from animbatch.render.geometry import TrailPaths, nearest_frame
+from animbatch.render.frame_geometry import TrailPaths, nearest_frame
 
 
 class TrailLayer:

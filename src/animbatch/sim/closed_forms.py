@@ -26,14 +26,14 @@ import numpy as np
 from scipy.linalg import expm
 
 from animbatch.sim.forces import Drag, Gravitation, SpringForces, UniformGravity
-from animbatch.sim.integrators.base import (
+from animbatch.sim.integrators.description import describe_method
+from animbatch.sim.integrators.interface import (
     EquationsOfMotion,
     FrameCallback,
     IntegrationResult,
     Integrator,
     SolverStats,
 )
-from animbatch.sim.integrators.description import describe_method
 
 if TYPE_CHECKING:  # the model imports nothing from here; the hint only
     from animbatch.sim.model.model import Model

@@ -2,7 +2,7 @@
 
 The methods (:mod:`animbatch.sim.integrators`) know nothing of contacts: a fixed-step scheme applies whatever
 velocity constraint it is given between its kick and its drift, and an adaptive method stops at the events it is
-given (:class:`~animbatch.sim.integrators.base.StepEvents`: it asks for the first event in each step, and lets the
+given (:class:`~animbatch.sim.integrators.interface.StepEvents`: it asks for the first event in each step, and lets the
 events act there before it restarts). This module gives them the contact ones when the model has contacts, so that
 ``integrators`` never imports ``contact`` (contact code imports the integrators, one way).
 """
@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from animbatch.sim.contact.events import ContactEvents
-from animbatch.sim.contact.stepping import ContactResolver
+from animbatch.sim.contact.impact_events import ContactEvents
+from animbatch.sim.contact.time_stepping import ContactResolver
 from animbatch.sim.integrators import SCIPY_METHODS, FixedStepIntegrator, Integrator, ScipyIntegrator
-from animbatch.sim.integrators.base import EquationsOfMotion
+from animbatch.sim.integrators.interface import EquationsOfMotion
 from animbatch.sim.integrators.step_plan import resolve_dt
 from animbatch.sim.joints.stops import JointStops
 from animbatch.sim.model.dynamics import Dynamics

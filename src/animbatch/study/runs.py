@@ -25,8 +25,9 @@ from animbatch.stages import choose_dynamics
 
 @dataclass(frozen=True)
 class StepValues:
-    """Step settings in the shape of a scene's solver section (:class:`~animbatch.sim.integrators.base.StepSettings`):
-    ``dt`` [s] for fixed steps, ``rtol`` and a scalar ``atol`` for adaptive ones."""
+    """Step settings in the shape of a scene's solver section
+    (:class:`~animbatch.sim.integrators.interface.StepSettings`): ``dt`` [s] for fixed steps, ``rtol`` and a scalar
+    ``atol`` for adaptive ones."""
 
     method: str
     dt: float | None

@@ -21,9 +21,9 @@ from animbatch.errors import SceneError, SceneIssue
 from animbatch.scene import LoadedScene
 from animbatch.sim.closed_forms import NoClosedForm
 from animbatch.sim.model import Model
+from animbatch.study.emitter_study import births_by_end, execute_particles, particle_motion, particle_reference
 from animbatch.study.measure import Motion, conserved, contact_time_error, drifts, final_error, position_error
 from animbatch.study.merit import Point, TimeTo, observed_order, time_to
-from animbatch.study.particles import births_by_end, execute_particles, particle_motion, particle_reference
 from animbatch.study.reference import REFERENCE_MARGIN, Reference, find_reference
 from animbatch.study.runs import RunOutcome, applicable_methods, execute, plan_settings
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from animbatch import api
-from animbatch.sim.contact import clearance, stepping
+from animbatch.sim.contact import clearance, time_stepping
 from support.scenes import counting, scene
 
 
@@ -50,7 +50,7 @@ PADDLES = world(1.0, "verlet", [ball("near", "[0, 0, 0]"), ball("far", "[0.6, 0,
 
 
 def trajectories(monkeypatch, *, skipping: bool, text: str = THROWN):
-    searches = counting(monkeypatch, stepping, "detect")
+    searches = counting(monkeypatch, time_stepping, "detect")
     if not skipping:
         monkeypatch.setattr(clearance.Clearance, "clear", lambda self, state, travel: False)
         monkeypatch.setattr(clearance.Clearance, "look_ahead", lambda self, travel, margin: 0.0)

@@ -337,7 +337,7 @@ def test_the_hull_distance_is_the_numpy_one_everywhere():
 def test_the_compiled_contact_rows_are_the_numpy_ones():
     """Directions, lever arms, responses and split effective masses of 60 random contacts among 8 bodies (particles,
     rigid bodies, the fixed body last), normals along every axis (both tangent-basis branches)."""
-    from animbatch.sim.contact.solver import BodyVelocities, ContactRows
+    from animbatch.sim.contact.impulses import BodyVelocities, ContactRows
     from animbatch.sim.kernels import contact_impulses
 
     rng = np.random.default_rng(4)
@@ -374,7 +374,7 @@ def random_solve(seed: int, count: int = 40, size: int = 8):
     """K random contacts among bodies (particles, rigid bodies, a moving collider, the fixed body last): some
     approaching fast, some resting, some in the air within the step's reach, some overlapping past the slop; with a
     warm start. Returns (contacts, bodies, x, warm, kinematic slots)."""
-    from animbatch.sim.contact.solver import BodyVelocities
+    from animbatch.sim.contact.impulses import BodyVelocities
 
     rng = np.random.default_rng(seed)
     inverse_mass = np.concatenate([rng.uniform(0.2, 5.0, size - 2), [0.0, 0.0]])  # a moving collider, the fixed body
@@ -408,16 +408,16 @@ def test_the_compiled_impulse_solve_is_the_numpy_one(h, bounce, monkeypatch):
     import copy
 
     from animbatch.sim import kernels
-    from animbatch.sim.contact import solver
+    from animbatch.sim.contact import impulses
 
     for seed in range(3):
         found, bodies, x, warm, kinematic = random_solve(seed)
         settings = dict(iterations=300, rest_speed=0.01, slop=1e-4, bounce=bounce, warm=warm, kinematic=kinematic)
         compiled_bodies = copy.deepcopy(bodies)
         monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numpy")
-        expected = solver.solve_impulses(found, bodies, x, h, **settings)
+        expected = impulses.solve_impulses(found, bodies, x, h, **settings)
         monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
-        result = solver.solve_impulses(found, compiled_bodies, x, h, long_run=True, **settings)
+        result = impulses.solve_impulses(found, compiled_bodies, x, h, long_run=True, **settings)
         assert expected.numpy_sweeps > 0 and result.numpy_sweeps == 0  # one of each
         scale = max(1.0, float(np.abs(expected.normal_impulse).max()))
         for name in ("normal_impulse", "tangent_impulse", "tangent_vector", "arrival"):
@@ -441,7 +441,7 @@ def test_the_compiled_jointed_sweeps_are_the_numpy_ones(monkeypatch):
     a ball-jointed pair tumbling onto them): the compiled sweeps on the row arrays, with the jointed contacts'
     normals solved at once every few sweeps, give the numpy sweeps' impulses and velocities."""
     from animbatch import api
-    from animbatch.sim.contact import solver
+    from animbatch.sim.contact import impulses
     from animbatch.sim.kernels import contact_impulses
     from support.scenes import scene
 
@@ -463,7 +463,7 @@ def test_the_compiled_jointed_sweeps_are_the_numpy_ones(monkeypatch):
         fields: [{type: gravity}]
         contacts: {iterations: 60}  # seven of the block's solves a step at most, compared sweep for sweep
     """
-    original, compared, in_contact_space = solver._sweeps, [], []
+    original, compared, in_contact_space = impulses._sweeps, [], []
 
     def both(rows, contacts, velocity, *rest):
         start = velocity.copy()
@@ -471,7 +471,7 @@ def test_the_compiled_jointed_sweeps_are_the_numpy_ones(monkeypatch):
         if rows.dense:
             compiled_velocity = start.copy()
             copied = [np.array(r) if isinstance(r, np.ndarray) else r for r in rest]
-            compiled = solver._compiled_dense_sweeps(rows, contacts, compiled_velocity, *copied)
+            compiled = impulses._compiled_dense_sweeps(rows, contacts, compiled_velocity, *copied)
             scale = max(1.0, float(np.abs(found[0]).max()))
             np.testing.assert_allclose(compiled[0], found[0], rtol=0, atol=1e-9 * scale)
             np.testing.assert_allclose(compiled[1], found[1], rtol=0, atol=1e-9 * scale)
@@ -484,7 +484,7 @@ def test_the_compiled_jointed_sweeps_are_the_numpy_ones(monkeypatch):
                                                                                        len(velocity)))
         return found
 
-    monkeypatch.setattr(solver, "_sweeps", both)
+    monkeypatch.setattr(impulses, "_sweeps", both)
     monkeypatch.setenv("ANIMBATCH_KERNELS", "numpy")
     api.simulate(scene(text))
     assert len(compared) > 100 and any(compared)
@@ -496,7 +496,7 @@ def test_the_compiled_jointed_pushes_out_of_overlaps_are_the_numpy_ones(monkeypa
     that push them out, compiled on the row arrays, give the numpy sweeps' pseudo-velocities, and the push does lift
     them (a push that changed nothing would compare equal too)."""
     from animbatch import api
-    from animbatch.sim.contact import solver
+    from animbatch.sim.contact import impulses
     from support.scenes import scene
 
     text = """
@@ -516,18 +516,18 @@ def test_the_compiled_jointed_pushes_out_of_overlaps_are_the_numpy_ones(monkeypa
         colliders: [{type: plane}]
         fields: [{type: gravity}]
     """
-    original, lifted = solver._pushes, []
+    original, lifted = impulses._pushes, []
 
     def both(rows, pseudo, push_target, enough, iterations):
         start = pseudo.copy()
         original(rows, pseudo, push_target, enough, iterations)
         if rows.dense:
             compiled = start.copy()
-            solver._compiled_dense_pushes(rows, compiled, push_target.copy(), enough, iterations)
+            impulses._compiled_dense_pushes(rows, compiled, push_target.copy(), enough, iterations)
             np.testing.assert_allclose(compiled, pseudo, rtol=0, atol=1e-12 * max(1.0, float(np.abs(pseudo).max())))
             lifted.append(float(np.abs(pseudo).max()))
 
-    monkeypatch.setattr(solver, "_pushes", both)
+    monkeypatch.setattr(impulses, "_pushes", both)
     monkeypatch.setenv("ANIMBATCH_KERNELS", "numpy")
     api.simulate(scene(text))
     assert len(lifted) >= 3 and max(lifted) > 1e-3
@@ -541,9 +541,9 @@ def test_a_run_whose_contacts_cost_more_than_estimated_goes_compiled_partway_and
     the rest of the run goes compiled, at the same step on every run in a fresh process (two runs agree exactly), and
     ends where a run in numpy all the way puts the box. Where the process has loaded the contact kernels already,
     the switch comes ten times sooner (the same box, near enough)."""
-    from animbatch.compile.solver import make_integrator
+    from animbatch.compile.integrator import make_integrator
     from animbatch.sim import kernels
-    from animbatch.sim.contact import stepping
+    from animbatch.sim.contact import time_stepping
 
     monkeypatch.setenv("ANIMBATCH_KERNELS", "auto")
     loaded = parse_scene("""
@@ -561,7 +561,7 @@ def test_a_run_whose_contacts_cost_more_than_estimated_goes_compiled_partway_and
     model = compile_scene(loaded.spec)
 
     switches = []
-    original = stepping.ContactResolver._count_numpy_work
+    original = time_stepping.ContactResolver._count_numpy_work
 
     def counted(resolver, sweeps):
         original(resolver, sweeps)
@@ -569,7 +569,7 @@ def test_a_run_whose_contacts_cost_more_than_estimated_goes_compiled_partway_and
             switches[-1] = resolver._steps_counted
         resolver._steps_counted = getattr(resolver, "_steps_counted", 0) + 1
 
-    monkeypatch.setattr(stepping.ContactResolver, "_count_numpy_work", counted)
+    monkeypatch.setattr(time_stepping.ContactResolver, "_count_numpy_work", counted)
 
     def run(fresh: bool = True) -> tuple[bool, np.ndarray]:
         if fresh:
@@ -586,7 +586,7 @@ def test_a_run_whose_contacts_cost_more_than_estimated_goes_compiled_partway_and
     soon, soon_end = run(fresh=False)  # the kernels are loaded now
     assert soon and 0 < switches[-1] < switches[0] / 5
     np.testing.assert_allclose(model.positions(soon_end)[0], model.positions(end)[0], atol=1e-4)
-    monkeypatch.setattr(stepping, "COMPILE_CONTACTS_AFTER", np.inf)  # numpy all the way: the same box, near enough
+    monkeypatch.setattr(time_stepping, "COMPILE_CONTACTS_AFTER", np.inf)  # numpy all the way: the same box, near enough
     stayed, numpy_end = run()
     assert not stayed
     np.testing.assert_allclose(model.positions(numpy_end)[0], model.positions(end)[0], atol=1e-4)
@@ -620,7 +620,7 @@ def test_a_short_run_resting_on_its_contacts_is_estimated_by_its_solve_and_goes_
     the contact the search finds at the start, so its 1000 steps come to more than COMPILE_AFTER and the run is
     compiled from its first step (the timed searches alone come to about 0.1 s here: numpy all the way)."""
     from animbatch import api, stages
-    from animbatch.sim.contact.stepping import NUMPY_CONTACT_STEP, measure_contact_search, numpy_contact_solve
+    from animbatch.sim.contact.time_stepping import NUMPY_CONTACT_STEP, measure_contact_search, numpy_contact_solve
     from animbatch.sim.model.compiled import COMPILE_AFTER
 
     monkeypatch.setenv("ANIMBATCH_KERNELS", "auto")
@@ -654,10 +654,10 @@ def test_an_adaptive_run_solves_its_resting_forces_compiled_once_they_have_cost_
     side. Counted in numpy cost, a long run's solves go compiled partway (here after 40 of them: the threshold is
     lowered), and the box ends where a run in numpy all the way puts it; with the threshold out of reach no solve is
     compiled."""
-    from animbatch.compile.solver import make_integrator
+    from animbatch.compile.integrator import make_integrator
     from animbatch.sim import kernels
-    from animbatch.sim.contact import events, stepping
-    from animbatch.sim.contact.solver import build_contact_kernels
+    from animbatch.sim.contact import impact_events, time_stepping
+    from animbatch.sim.contact.impulses import build_contact_kernels
     from animbatch.sim.kernels import resting_forces
     from support.scenes import counting
 
@@ -675,17 +675,17 @@ def test_an_adaptive_run_solves_its_resting_forces_compiled_once_they_have_cost_
     model = compile_scene(loaded.spec)
     assert build_contact_kernels() is None  # built before counting (the build calls each kernel once)
     compiled_calls = counting(monkeypatch, resting_forces, "resting_forces")
-    numpy_calls = counting(monkeypatch, events, "solve_forces")
+    numpy_calls = counting(monkeypatch, impact_events, "solve_forces")
 
     def run(threshold: float) -> np.ndarray:
         monkeypatch.setattr(kernels, "_loaded", set())
-        monkeypatch.setattr(stepping, "COMPILE_CONTACTS_AFTER", threshold)
+        monkeypatch.setattr(time_stepping, "COMPILE_CONTACTS_AFTER", threshold)
         compiled_calls.clear()
         numpy_calls.clear()
         system = Dynamics(model)
         return make_integrator(loaded.spec.solver, model).integrate(system, model.y0, model.frame_times).states[-1]
 
-    end = run(39.5 * events.NUMPY_FORCE_SOLVE)
+    end = run(39.5 * impact_events.NUMPY_FORCE_SOLVE)
     solves, compiled = len(numpy_calls), len(compiled_calls)
     assert solves > 60 and compiled == solves - 39  # the 40th solve and every one after it
     numpy_end = run(np.inf)

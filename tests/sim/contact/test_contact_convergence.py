@@ -8,7 +8,7 @@ import pytest
 
 from animbatch import api
 from animbatch.sim import kernels
-from animbatch.sim.contact.solver import VELOCITY_TOLERANCE, BodyVelocities, solve_impulses
+from animbatch.sim.contact.impulses import VELOCITY_TOLERANCE, BodyVelocities, solve_impulses
 from animbatch.sim.ledger import summary
 from support.scenes import box_inverse_inertia, corners_on_floor, scene
 
@@ -119,13 +119,13 @@ def test_the_compiled_sweeps_stall_by_the_numpy_rule():
     """The compiled sweeps' stall test is the numpy sweeps' function compiled, and decides alike on the same
     violations (a level stalls at the end of the second window, a halving never does)."""
     pytest.importorskip("numba")
-    from animbatch.sim.contact import solver
+    from animbatch.sim.contact import impulses
     from animbatch.sim.kernels import contact_impulses
     from animbatch.sim.kernels.stall import STALL_WINDOW
 
-    assert contact_impulses._stalled.py_func is solver.stalled
+    assert contact_impulses._stalled.py_func is impulses.stalled
     for violations in (np.full(5 * STALL_WINDOW, 3e-3), 0.5 ** np.arange(1, 5 * STALL_WINDOW + 1)):
         numpy_watch, compiled_watch = [np.inf, np.inf], np.full(2, np.inf)
         for iteration, worst in enumerate(violations, start=1):
-            assert contact_impulses._stalled(iteration, worst, compiled_watch) == solver.stalled(iteration, worst,
+            assert contact_impulses._stalled(iteration, worst, compiled_watch) == impulses.stalled(iteration, worst,
                                                                                                   numpy_watch)

@@ -61,7 +61,7 @@ def test_kernels_that_fail_to_build_leave_the_contacts_to_numpy_and_say_so(monke
     """numba loads but cannot compile the contact sweeps: the solve warns and gives the numpy solver's result."""
     from numba.core.errors import TypingError
 
-    from animbatch.sim.contact import solver
+    from animbatch.sim.contact import impulses
     from animbatch.sim.kernels import contact_impulses
 
     def broken(*args, **kwargs):
@@ -71,12 +71,12 @@ def test_kernels_that_fail_to_build_leave_the_contacts_to_numpy_and_say_so(monke
     _, reference = run(pile())
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
     monkeypatch.setattr(contact_impulses, "solve_contacts", broken)
-    solver.build_contact_kernels.cache_clear()
+    impulses.build_contact_kernels.cache_clear()
     try:
         with pytest.warns(RuntimeWarning, match=r"compiled contact solver could not be built \(TypingError"):
             _, fallen = run(pile())
     finally:
-        solver.build_contact_kernels.cache_clear()
+        impulses.build_contact_kernels.cache_clear()
     np.testing.assert_array_equal(fallen.positions, reference.positions)
 
 

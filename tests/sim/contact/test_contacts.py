@@ -498,9 +498,9 @@ def test_an_event_loop_that_stops_advancing_is_stopped_with_a_clear_error(monkey
     run stops after MAX_STALLED_EVENTS events at that instant, naming the time and a method that copes, instead of
     spinning forever."""
     from animbatch.errors import SimulationError
-    from animbatch.sim.contact import events
+    from animbatch.sim.contact import impact_events
 
-    monkeypatch.setattr(events.ContactEvents, "_first_impact", lambda self, solver, candidates, closing: solver.t_old)
+    monkeypatch.setattr(impact_events.ContactEvents, "_first_impact", lambda self, solver, candidates, closing: solver.t_old)
     with pytest.raises(SimulationError, match=r"contact events stopped advancing at t = 0 s \(101 events at that "
                                               r"time\).*symplectic_euler"):
         run(f"""
@@ -569,7 +569,7 @@ def test_a_block_sliding_down_a_slope_under_rk45_solves_its_resting_forces_once_
     are checked at that same state: the resting forces found there are used again, not solved again (only a
     restart, or the first settling of the contacts, solves them anew). The block slides at g (sin θ − μk cos θ)
     all the same."""
-    from animbatch.sim.contact.events import ContactEvents
+    from animbatch.sim.contact.impact_events import ContactEvents
 
     forces = counting(monkeypatch, ContactEvents, "_contact_forces")
     right_hand_sides = counting(monkeypatch, ContactEvents, "rhs")
@@ -587,11 +587,11 @@ def test_resting_forces_on_python_floats_are_the_array_ones(monkeypatch):
     """A box held by friction on its four corners on a 20° slope under RK45 (μs = 0.5 > tan 20°): the resting-contact
     solve of a few contacts sweeps on Python floats; forced onto numpy arrays it gives the same motion, and in both
     the box stays where it was put."""
-    from animbatch.sim.contact import solver
+    from animbatch.sim.contact import impulses
 
     text = block_on_slope(0.3, 0.5, 0.3)
     _, floats = run(text)
-    monkeypatch.setattr(solver, "SMALL_FORCE_ROWS", 0)
+    monkeypatch.setattr(impulses, "SMALL_FORCE_ROWS", 0)
     _, arrays = run(text)
     np.testing.assert_allclose(floats.positions, arrays.positions, rtol=0, atol=1e-12)
     assert np.abs(floats.positions - floats.positions[0]).max() < 1e-9

@@ -1,5 +1,5 @@
 """The one-dimensional search the adaptive contact events use to find a hop's apex and a gap's dip between samples
-(:func:`animbatch.sim.contact.events._golden_section`)."""
+(:func:`animbatch.sim.contact.impact_events._golden_section`)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from animbatch.sim.contact.events import _golden_section
+from animbatch.sim.contact.impact_events import _golden_section
 
 
 @pytest.mark.parametrize("start", [0.0, 1.0e6])  # late in a long run a step is tiny beside t itself

@@ -148,10 +148,10 @@ def audit_warnings(text: str) -> tuple:
 @pytest.fixture
 def impact_search_off(monkeypatch):
     """Adaptive runs whose impact search finds nothing: a method that misses every collision."""
-    from animbatch.sim.contact import events
+    from animbatch.sim.contact import impact_events
     from animbatch.sim.contact.contacts import Contacts
 
-    monkeypatch.setattr(events.ContactEvents, "_impact_candidates",
+    monkeypatch.setattr(impact_events.ContactEvents, "_impact_candidates",
                         lambda self, y0, y1, h, t1=0.0: (Contacts.concatenate([]), np.zeros(0)))
 
 

@@ -1,4 +1,4 @@
-"""The resting-contact forces of adaptive methods (:func:`animbatch.sim.contact.solver.solve_forces`) against
+"""The resting-contact forces of adaptive methods (:func:`animbatch.sim.contact.impulses.solve_forces`) against
 statics and Coulomb's law in closed form: a box standing on its four bottom corners carries its weight and neither
 sinks nor tips, on a level floor and held by friction on a slope; the same box pushed sideways on a level floor
 slides at μk g; a crate on another crate presses on it with its own weight. Each in numpy and compiled
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from animbatch.sim.contact.contacts import PLANE, STATIC, Contacts
-from animbatch.sim.contact.solver import BodyVelocities, solve_forces
+from animbatch.sim.contact.impulses import BodyVelocities, solve_forces
 from support.scenes import box_inverse_inertia, corners_on_floor
 
 G = 9.81

@@ -156,7 +156,7 @@ def test_kernels_that_fail_to_build_leave_the_cloth_to_superlu_and_say_so(monkey
     from numba.core.errors import TypingError
 
     from animbatch.sim.integrators import linear_algebra
-    from animbatch.sim.kernels import assembly
+    from animbatch.sim.kernels import spring_assembly
 
     def broken(*args, **kwargs):
         raise TypingError("no implementation for this machine")
@@ -165,7 +165,7 @@ def test_kernels_that_fail_to_build_leave_the_cloth_to_superlu_and_say_so(monkey
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numpy")
     reference = run(text)[1]
     monkeypatch.setenv(kernels.KERNELS_VARIABLE, "numba")
-    monkeypatch.setattr(assembly, "scatter_pairs", broken)
+    monkeypatch.setattr(spring_assembly, "scatter_pairs", broken)
     linear_algebra.build_step_kernels.cache_clear()
     try:
         with pytest.warns(RuntimeWarning, match=r"compiled cloth solver could not be built \(TypingError: no impl"):

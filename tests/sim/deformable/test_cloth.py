@@ -237,7 +237,7 @@ def test_implicit_adaptive_methods_with_the_sparse_jacobian_follow_the_exact_lin
     changes), reproduce x(t) = expm(A t) x0 of a stiff two-spring chain to within their tolerance."""
     from scipy.linalg import expm
 
-    from animbatch.compile.solver import make_integrator
+    from animbatch.compile.integrator import make_integrator
 
     loaded = scene(stiff_oscillator_chain(method))
     model = compile_scene(loaded.spec)
@@ -258,7 +258,7 @@ def test_implicit_adaptive_methods_with_the_sparse_jacobian_follow_the_exact_lin
 def test_implicit_adaptive_methods_reuse_newton_factors_without_losing_accuracy(monkeypatch):
     """On a stiff falling cloth, BDF factors its Newton matrix far less often when factors are reused across small
     step changes, and lands where it lands when it refactors at every change (both within tolerance of each other)."""
-    from animbatch.compile.solver import make_integrator
+    from animbatch.compile.integrator import make_integrator
     from animbatch.scene.schema import SolverSpec
     from animbatch.sim.integrators import linear_algebra
 

@@ -142,7 +142,7 @@ def test_compiled_assembly_gives_the_numpy_step_matrix_and_products(definite):
         assert np.abs(plain - fast).max() <= 1e-12 * np.abs(plain).max()
     assert np.abs(results[True][0] - results[True][0].T).max() > 1e-6  # the magnetic field's ∂f/∂v is in it
     # and the spring blocks of the kernel are the numpy code's, a zero-length spring included
-    from animbatch.sim.kernels.assembly import spring_blocks
+    from animbatch.sim.kernels.spring_assembly import spring_blocks
 
     springs = next(term for term in model.force_terms if term.kind == "spring")
     axis, relative = rng.normal(0, 1, (springs.springs.count, 3)), rng.normal(0, 1, (springs.springs.count, 3))

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
+from animbatch.compile.integrator import make_integrator
 from animbatch.compile.model import compile_scene
-from animbatch.compile.solver import make_integrator
 from animbatch.sim import blas
 from animbatch.sim.model.dynamics import Dynamics
 from support.scenes import scene

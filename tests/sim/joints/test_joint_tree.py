@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from scipy.special import ellipk
 
+from animbatch.compile.integrator import make_integrator
 from animbatch.compile.model import compile_scene
-from animbatch.compile.solver import make_integrator
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.integrators.methods import FIXED_STEP_SCHEMES
 from animbatch.sim.joints import tree as reference

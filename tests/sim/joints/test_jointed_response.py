@@ -80,7 +80,7 @@ def test_a_tree_of_joints_is_solved_by_cholesky_and_redundant_rows_by_the_pseudo
 def test_the_inverse_mass_matrix_moves_each_body_by_its_mass_and_world_inertia():
     """``M⁻¹ V`` over the flat velocity ``[v, ω]`` of particles (no inertia), rigid bodies, a body of no mass (a
     moving collider) and the fixed body: ``v / m`` and ``I⁻¹ ω`` body by body."""
-    from animbatch.sim.contact.solver import BodyVelocities, inverse_mass_matrix
+    from animbatch.sim.contact.impulses import BodyVelocities, inverse_mass_matrix
 
     rng = np.random.default_rng(5)
     count = 7
@@ -119,8 +119,8 @@ def test_bodies_joined_directly_or_through_others_share_a_group():
 def test_the_block_inverse_is_the_inverse_mass_matrix():
     """``BlockInverse @ columns`` (a small jointed system's M⁻¹) is the sparse inverse mass matrix's product, body
     by body: particles (no inertia), rigid bodies, a massless moving collider and the fixed body."""
+    from animbatch.sim.contact.impulses import BodyVelocities, inverse_mass_matrix
     from animbatch.sim.contact.jointed import BlockInverse
-    from animbatch.sim.contact.solver import BodyVelocities, inverse_mass_matrix
 
     rng = np.random.default_rng(8)
     count = 6
@@ -171,10 +171,10 @@ def test_a_small_jointed_systems_rows_are_the_piecewise_ones(monkeypatch):
     the rows built at once (``ContactRows._small_jointed``) are the ones built piece by piece as for large systems:
     the Jacobians, the responses within the joints and the effective masses."""
     from animbatch import api
-    from animbatch.sim.contact import solver
+    from animbatch.sim.contact import impulses
     from support.scenes import scene
 
-    original, checked, calls = solver.ContactRows._small_jointed, [], []
+    original, checked, calls = impulses.ContactRows._small_jointed, [], []
 
     def compared(rows, jointed):
         original(rows, jointed)
@@ -195,7 +195,7 @@ def test_a_small_jointed_systems_rows_are_the_piecewise_ones(monkeypatch):
         checked.append((rows.count, bool(np.any(rows.bodies.driven[rows.b])) if rows.bodies.driven is not None
                         else False))
 
-    monkeypatch.setattr(solver.ContactRows, "_small_jointed", compared)
+    monkeypatch.setattr(impulses.ContactRows, "_small_jointed", compared)
     monkeypatch.setenv("ANIMBATCH_KERNELS", "numpy")  # the numpy build at every step (a long run goes compiled)
     # what is checked is the rows; the sweeps that use them (numpy's here, up to 300 a step) are tested elsewhere
     api.simulate(scene(JOINTED_SCENE + "        contacts: {iterations: 20}\n"))
@@ -208,8 +208,8 @@ def test_rows_between_two_bodies_of_one_jointed_group_are_the_piecewise_ones():
     beside contacts of a body of the group on a free body and on the fixed one: the rows built at once take the pair's
     joint response together (``J K Jᵀ`` of both ends at once), as the piecewise build does."""
     from animbatch.sim.contact.contacts import Contacts
+    from animbatch.sim.contact.impulses import BodyVelocities, ContactRows
     from animbatch.sim.contact.jointed import BlockInverse
-    from animbatch.sim.contact.solver import BodyVelocities, ContactRows
 
     rng = np.random.default_rng(11)
     size = 5  # bodies 0, 1, 2 joined in a chain, body 3 free, the fixed body last
@@ -264,23 +264,23 @@ def test_the_compiled_small_jointed_rows_are_the_numpy_ones(monkeypatch):
     joints and effective masses to round-off."""
     pytest.importorskip("numba")
     from animbatch import api
-    from animbatch.sim.contact import solver
+    from animbatch.sim.contact import impulses
     from support.scenes import scene
 
-    original, checked = solver.ContactRows._compiled_small_jointed, []
+    original, checked = impulses.ContactRows._compiled_small_jointed, []
 
     def compared(rows, jointed, directions):
         original(rows, jointed, directions)
         names = ("_jacobian_normal", "_jacobian_tangent", "_response_normal", "_response_tangent")
         compiled = [rows.__dict__[name].copy() for name in names] + [rows.w_n, rows.w_1, rows.w_2]
-        solver.ContactRows._small_jointed(rows, jointed)
+        impulses.ContactRows._small_jointed(rows, jointed)
         expected = [rows.__dict__[name] for name in names] + [rows.w_n, rows.w_1, rows.w_2]
         for name, got, want in zip(names + ("w_n", "w_1", "w_2"), compiled, expected):
             scale = max(1.0, float(np.abs(want).max()))
             np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12 * scale, err_msg=name)
         checked.append(jointed.cholesky)
 
-    monkeypatch.setattr(solver.ContactRows, "_compiled_small_jointed", compared)
+    monkeypatch.setattr(impulses.ContactRows, "_compiled_small_jointed", compared)
     monkeypatch.setenv("ANIMBATCH_KERNELS", "numba")
     api.simulate(scene(JOINTED_SCENE))
     loop = """

@@ -138,8 +138,8 @@ def test_one_kick_methods_keep_a_pendulums_energy_bounded_swing_after_swing(name
     forms of the equations of motion (numpy, compiled); backward Euler takes the same steps with joints."""
     if form == "compiled":
         pytest.importorskip("numba")
+    from animbatch.compile.integrator import make_integrator
     from animbatch.compile.model import compile_scene
-    from animbatch.compile.solver import make_integrator
     from animbatch.sim.model.compiled import CompiledDynamics
     from animbatch.sim.model.dynamics import Dynamics
 

@@ -12,17 +12,6 @@ One module per section of a scene file; everything is importable from here.
 
 from animbatch.scene.schema.assignment import SAMPLED as SAMPLED_QUANTITIES
 from animbatch.scene.schema.assignment import AssignmentSpec, CheckSpec, PartialCreditSpec
-from animbatch.scene.schema.base import (
-    NAME_PATTERN,
-    Color,
-    Name,
-    NonZeroVec3,
-    PositiveVec3,
-    SceneModel,
-    Vec3,
-    key,
-    rule_error,
-)
 from animbatch.scene.schema.bodies import (
     AnchorSpec,
     Interpolation,
@@ -118,6 +107,17 @@ from animbatch.scene.schema.joints import (
     PulleyJointSpec,
     RopeJointSpec,
     SliderJointSpec,
+)
+from animbatch.scene.schema.keys import (
+    NAME_PATTERN,
+    Color,
+    Name,
+    NonZeroVec3,
+    PositiveVec3,
+    SceneModel,
+    Vec3,
+    key,
+    rule_error,
 )
 from animbatch.scene.schema.render import (
     FORCE_ARROW_KINDS,

@@ -8,7 +8,7 @@ from pydantic import field_validator, model_validator
 
 from animbatch.curves import ExpressionError, compile_expression
 from animbatch.scene.overrides import parse_key_path
-from animbatch.scene.schema.base import Name, SceneModel, key, rule_error
+from animbatch.scene.schema.keys import Name, SceneModel, key, rule_error
 from animbatch.scene.schema.solver import Method
 
 Quantity = Literal["position", "velocity", "speed", "stopwatch", "energy_drift", "momentum_drift",

@@ -7,7 +7,7 @@ from typing import Annotated, Any, Literal, TypeVar
 import annotated_types as at
 from pydantic import AfterValidator, model_validator
 
-from animbatch.scene.schema.base import (
+from animbatch.scene.schema.keys import (
     Color,
     Name,
     SceneModel,

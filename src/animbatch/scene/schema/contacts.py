@@ -7,7 +7,8 @@ from typing import Annotated, Literal, get_args
 import annotated_types as at
 from pydantic import Field, model_validator
 
-from animbatch.scene.schema.base import (
+from animbatch.scene.schema.bodies import Interpolation, KeyframeList
+from animbatch.scene.schema.keys import (
     Color,
     Name,
     NonZeroVec3,
@@ -19,7 +20,6 @@ from animbatch.scene.schema.base import (
     roughness_key,
     rule_error,
 )
-from animbatch.scene.schema.bodies import Interpolation, KeyframeList
 from animbatch.scene.schema.rigid import (
     KinematicSolid,
     MotionSpec,

@@ -8,8 +8,8 @@ import annotated_types as at
 from pydantic import Field, field_validator
 
 from animbatch.curves import ExpressionError, compile_expression
-from animbatch.scene.schema.base import Name, SceneModel, Vec3, key, rule_error
 from animbatch.scene.schema.bodies import Interpolation, KeyframeList, KeyframeSpec
+from animbatch.scene.schema.keys import Name, SceneModel, Vec3, key, rule_error
 
 
 class PointTarget(SceneModel):

@@ -7,7 +7,8 @@ from typing import Annotated, Any, Literal, Union
 import annotated_types as at
 from pydantic import Discriminator, Field, Tag, field_validator, model_validator
 
-from animbatch.scene.schema.base import (
+from animbatch.scene.schema.bodies import Interpolation, KeyframeList, ParticleSpec
+from animbatch.scene.schema.keys import (
     Color,
     Name,
     PositiveVec3,
@@ -18,7 +19,6 @@ from animbatch.scene.schema.base import (
     roughness_key,
     rule_error,
 )
-from animbatch.scene.schema.bodies import Interpolation, KeyframeList, ParticleSpec
 from animbatch.scene.schema.rigid import OrientationSpec, RigidBodySpec
 
 

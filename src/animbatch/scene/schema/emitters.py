@@ -7,8 +7,8 @@ from typing import Annotated, Literal, get_args
 import annotated_types as at
 from pydantic import AfterValidator, Field, model_validator
 
-from animbatch.scene.schema.base import Color, Name, NonZeroVec3, PositiveVec3, SceneModel, Vec3, key, rule_error
 from animbatch.scene.schema.bodies import _increasing_times
+from animbatch.scene.schema.keys import Color, Name, NonZeroVec3, PositiveVec3, SceneModel, Vec3, key, rule_error
 from animbatch.scene.schema.rigid import OrientationSpec
 
 

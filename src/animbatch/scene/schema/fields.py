@@ -7,8 +7,8 @@ from typing import Annotated, Literal, get_args
 from pydantic import Field, model_validator
 
 from animbatch.scene.annotations import tag_of
-from animbatch.scene.schema.base import Name, NonZeroVec3, SceneModel, Vec3, key, rule_error
 from animbatch.scene.schema.bodies import KeyframeList
+from animbatch.scene.schema.keys import Name, NonZeroVec3, SceneModel, Vec3, key, rule_error
 
 BodySelection = list[Name] | None
 _BODIES_DESCRIPTION = "Names of the bodies this field acts on (default: all bodies)."

@@ -17,8 +17,8 @@ from typing import Annotated, Literal, get_args
 import annotated_types as at
 from pydantic import Field, model_validator
 
-from animbatch.scene.schema.base import Name, NonZeroVec3, SceneModel, Vec3, key, rule_error
 from animbatch.scene.schema.bodies import Interpolation, KeyframeList
+from animbatch.scene.schema.keys import Name, NonZeroVec3, SceneModel, Vec3, key, rule_error
 
 
 class MotorKeyframe(SceneModel):

@@ -9,7 +9,7 @@ import annotated_types as at
 from pydantic import Field, field_validator, model_validator
 
 from animbatch.scene.diagnostics import did_you_mean
-from animbatch.scene.schema.base import Color, Name, SceneModel, Vec3, key, rule_error
+from animbatch.scene.schema.keys import Color, Name, SceneModel, Vec3, key, rule_error
 
 
 class CameraKeyframe(SceneModel):

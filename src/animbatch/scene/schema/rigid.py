@@ -8,7 +8,8 @@ from typing import Annotated, Any, Literal, get_args
 import annotated_types as at
 from pydantic import Field, field_validator, model_validator
 
-from animbatch.scene.schema.base import (
+from animbatch.scene.schema.bodies import Interpolation, KeyframeList
+from animbatch.scene.schema.keys import (
     Color,
     Name,
     PositiveVec3,
@@ -20,7 +21,6 @@ from animbatch.scene.schema.base import (
     roughness_key,
     rule_error,
 )
-from animbatch.scene.schema.bodies import Interpolation, KeyframeList
 
 
 class SphereShape(SceneModel):

@@ -7,7 +7,6 @@ from typing import Annotated, Any
 from pydantic import Field, model_validator
 
 from animbatch.scene.schema.assignment import AssignmentSpec
-from animbatch.scene.schema.base import Name, SceneModel, key, rule_error
 from animbatch.scene.schema.bodies import AnchorSpec
 from animbatch.scene.schema.contacts import ColliderSpec, ContactSpec, MaterialPairSpec, MaterialSpec
 from animbatch.scene.schema.controllers import ControllerSpec
@@ -15,6 +14,7 @@ from animbatch.scene.schema.deformable import BodySpec, SpringSpec
 from animbatch.scene.schema.emitters import EmitterSpec
 from animbatch.scene.schema.fields import FieldSpec
 from animbatch.scene.schema.joints import JointSpec
+from animbatch.scene.schema.keys import Name, SceneModel, key, rule_error
 from animbatch.scene.schema.render import RenderSpec
 from animbatch.scene.schema.solver import FixedStepMethod, Method, SolverSpec
 from animbatch.scene.schema.stopwatches import ClocksSpec, StopwatchSpec

@@ -6,7 +6,7 @@ from typing import Annotated, Any, Literal, get_args
 
 from pydantic import BeforeValidator
 
-from animbatch.scene.schema.base import SceneModel, key
+from animbatch.scene.schema.keys import SceneModel, key
 
 AdaptiveMethodName = Literal["RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA"]
 FixedStepMethodName = Literal["euler", "midpoint", "symplectic_euler", "verlet", "backward_euler"]

@@ -8,7 +8,7 @@ from typing import Literal
 
 from pydantic import model_validator
 
-from animbatch.scene.schema.base import Name, NonZeroVec3, SceneModel, Vec3, key, rule_error
+from animbatch.scene.schema.keys import Name, NonZeroVec3, SceneModel, Vec3, key, rule_error
 
 
 class EventSpec(SceneModel):

@@ -49,7 +49,7 @@ from animbatch.sim.contact.detection import (
     points_moved,
     probe_centres,
 )
-from animbatch.sim.contact.solver import compiled_contacts
+from animbatch.sim.contact.impulses import compiled_contacts
 
 #: Points between consecutive frames at which the straight path is checked.
 SUBSAMPLES = 8

@@ -15,7 +15,7 @@ have a vertex (two planks crossed face on face). Hulls with more than :data:`MAX
 skip it: their vertices are dense enough that crossing edges cut in only as deep as the vertices are apart times
 the edges' slope.
 
-Edge contacts are fixed-step contacts (:class:`~animbatch.sim.contact.stepping.ContactResolver`); the adaptive
+Edge contacts are fixed-step contacts (:class:`~animbatch.sim.contact.time_stepping.ContactResolver`); the adaptive
 methods' events track probes only.
 """
 

@@ -16,7 +16,7 @@ rests on a line, not on a pivot. Against another round, points at its axis's end
 are probes, which hold those contacts (the other round is taken as its axis thickened, a capsule: exact along its
 side, which is all that is kept).
 
-Side contacts are fixed-step contacts (:class:`~animbatch.sim.contact.stepping.ContactResolver`), like box edges.
+Side contacts are fixed-step contacts (:class:`~animbatch.sim.contact.time_stepping.ContactResolver`), like box edges.
 """
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from animbatch.sim.deformable.vertices import PARTICLE, DeformableSet
-from animbatch.sim.forces.base import BodyTable, ForceTerm, Kinematics, vector_text
+from animbatch.sim.forces.term import BodyTable, ForceTerm, Kinematics, vector_text
 
 #: Relative frequencies, weights and phases of the three sine waves of a gust (incommensurate, so the pattern does
 #: not visibly repeat within a few periods).

@@ -13,7 +13,7 @@ from typing import Literal
 import numpy as np
 
 from animbatch.quaternion import cross
-from animbatch.sim.forces.base import BodyTable, ForceTerm, Kinematics, rigid_selection, selection_text, vector_text
+from animbatch.sim.forces.term import BodyTable, ForceTerm, Kinematics, rigid_selection, selection_text, vector_text
 
 
 def _in_world(vector: np.ndarray, frame: str, rotation: np.ndarray | None, rigid: np.ndarray) -> np.ndarray:

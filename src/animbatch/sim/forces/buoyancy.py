@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from animbatch.quaternion import cross
-from animbatch.sim.forces.base import BodyTable, ForceTerm, Kinematics, selection_text, vector_text
+from animbatch.sim.forces.term import BodyTable, ForceTerm, Kinematics, selection_text, vector_text
 from animbatch.sim.rigid.polyhedra import submerged_volume_and_moment
 
 

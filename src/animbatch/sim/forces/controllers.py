@@ -22,7 +22,7 @@ import numpy as np
 
 from animbatch.curves import ParametricCurve, Polyline
 from animbatch.quaternion import cross
-from animbatch.sim.forces.base import ForceJacobian, ForceTerm, Kinematics
+from animbatch.sim.forces.term import ForceJacobian, ForceTerm, Kinematics
 from animbatch.sim.motion import KeyframePath
 
 

@@ -24,7 +24,7 @@ import scipy.sparse as sp
 
 from animbatch.quaternion import cross
 from animbatch.sim.deformable.vertices import PARTICLE, DeformableSet
-from animbatch.sim.forces.base import ForceJacobian, ForceTerm, Kinematics
+from animbatch.sim.forces.term import ForceJacobian, ForceTerm, Kinematics
 
 
 def hinge_angles(x: np.ndarray) -> np.ndarray:

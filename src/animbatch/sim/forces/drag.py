@@ -19,7 +19,7 @@ from typing import Literal
 import numpy as np
 
 from animbatch.quaternion import cross
-from animbatch.sim.forces.base import (
+from animbatch.sim.forces.term import (
     BodyTable,
     ForceJacobian,
     ForceTerm,

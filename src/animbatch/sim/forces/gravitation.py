@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from animbatch.sim.forces.base import BodyTable, ForceTerm, Kinematics, add_at, selection_text
+from animbatch.sim.forces.term import BodyTable, ForceTerm, Kinematics, add_at, selection_text
 
 #: Pairs evaluated at once (rows × columns); bounds the temporary arrays to a few tens of MB.
 PAIR_BLOCK = 1 << 20

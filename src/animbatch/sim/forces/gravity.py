@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from animbatch.sim.forces.base import (
+from animbatch.sim.forces.term import (
     BodyTable,
     ForceJacobian,
     ForceTerm,

@@ -1,10 +1,10 @@
 """Force Jacobians: the 3×3 blocks force terms give, and the sparse matrices implicit methods build from them.
 
 Implicit integration (backward Euler, Radau, BDF) needs ``∂f/∂x`` and ``∂f/∂v`` of the forces on the particles; the
-terms add them block by block (:meth:`ForceTerm.jacobian <animbatch.sim.forces.base.ForceTerm.jacobian>`) into a
+terms add them block by block (:meth:`ForceTerm.jacobian <animbatch.sim.forces.term.ForceTerm.jacobian>`) into a
 :class:`ForceJacobian`, which assembles sparse matrices of a pattern worked out once and reused at every step
 (:class:`BlockPattern`, :class:`StepPattern`). Backward Euler's whole step matrix ``M − h D − h² K`` and the
-product ``K v`` can be assembled by compiled kernels (:mod:`animbatch.sim.kernels.assembly`) straight from the
+product ``K v`` can be assembled by compiled kernels (:mod:`animbatch.sim.kernels.spring_assembly`) straight from the
 blocks; the numpy path builds the two matrices and sums them.
 """
 
@@ -116,7 +116,7 @@ class ForceJacobian:
         self.particles = particles
         self.definite = definite
         #: whether terms and assembly may use the compiled kernels (numba known to load; see
-        #: :mod:`animbatch.sim.kernels.assembly`)
+        #: :mod:`animbatch.sim.kernels.spring_assembly`)
         self.compiled = compiled
         self._patterns = patterns if patterns is not None else {}
         self._blocks: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {"x": [], "v": []}
@@ -173,7 +173,7 @@ class ForceJacobian:
             return self._dense_step_matrix(mass, h)
         if not self.compiled:
             return sp.csr_matrix(sp.diags(mass) - h * self.matrix("v") - (h * h) * self.matrix("x"))
-        from animbatch.sim.kernels.assembly import scatter_pairs, scatter_plain
+        from animbatch.sim.kernels.spring_assembly import scatter_pairs, scatter_plain
 
         parts = self._parts()
         layout: list[PartLayout] = [(kind, i, j) for kind, i, j, _, _ in parts]
@@ -209,7 +209,7 @@ class ForceJacobian:
         """``∂f/∂x · vector`` (``which='x'``) or ``∂f/∂v · vector`` (3N,), from the blocks when :attr:`compiled`."""
         if not self.compiled:
             return self.matrix(which) @ vector
-        from animbatch.sim.kernels.assembly import multiply_pairs, multiply_plain
+        from animbatch.sim.kernels.spring_assembly import multiply_pairs, multiply_plain
 
         out = np.zeros(3 * self.particles)
         vector = np.ascontiguousarray(vector, dtype=np.float64)

@@ -23,11 +23,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from animbatch.quaternion import cross
-from animbatch.sim.forces.base import ForceJacobian, ForceTerm, Kinematics
+from animbatch.sim.forces.term import ForceJacobian, ForceTerm, Kinematics
 from animbatch.sim.motion import AnchorMotion
 
 #: Spring terms with at least this many springs (a 30×30 cloth has 5100) evaluate their forces compiled
-#: (:mod:`animbatch.sim.kernels.assembly`) unless ``ANIMBATCH_KERNELS=numpy``: such scenes load numba for their
+#: (:mod:`animbatch.sim.kernels.spring_assembly`) unless ``ANIMBATCH_KERNELS=numpy``: such scenes load numba for their
 #: implicit steps anyway, and explicit methods take many steps. Measured on the 64×64 cloth (24 000 springs): a
 #: right-hand side in 0.47 ms instead of 1.69 ms.
 COMPILED_SPRINGS = 5000
@@ -39,7 +39,7 @@ def build_spring_kernel() -> str | None:
     from animbatch.sim.kernels import build_failure
 
     def build() -> None:
-        from animbatch.sim.kernels.assembly import spring_forces
+        from animbatch.sim.kernels.spring_assembly import spring_forces
 
         def frozen(array: np.ndarray) -> np.ndarray:
             array.setflags(write=False)
@@ -197,7 +197,7 @@ class SpringForces(ForceTerm):
 
     @functools.cached_property
     def compiled(self) -> bool:
-        """Whether :meth:`accumulate` runs compiled (:func:`animbatch.sim.kernels.assembly.spring_forces`): for
+        """Whether :meth:`accumulate` runs compiled (:func:`animbatch.sim.kernels.spring_assembly.spring_forces`): for
         :data:`COMPILED_SPRINGS` springs or more, none of them at a body point, where the kernels load."""
         from animbatch.sim.kernels import MIN_WORK, kernels_ready
 
@@ -208,7 +208,7 @@ class SpringForces(ForceTerm):
 
     def accumulate(self, t: float, state: Kinematics, force: np.ndarray, torque: np.ndarray | None) -> None:
         if self.compiled:
-            from animbatch.sim.kernels.assembly import spring_forces
+            from animbatch.sim.kernels.spring_assembly import spring_forces
 
             springs, anchors = self.springs, self.anchors
             anchor_x = anchors.positions(state.t) if anchors.count else np.zeros((1, 3))
@@ -239,7 +239,7 @@ class SpringForces(ForceTerm):
         springs = self.springs
         axis, relative, _, _ = self._differences(state)
         if out.compiled:
-            from animbatch.sim.kernels.assembly import spring_blocks
+            from animbatch.sim.kernels.spring_assembly import spring_blocks
 
             dfdx, dfdv = spring_blocks(axis, relative, springs.stiffness, springs.damping, springs.rest_length,
                                        out.definite)

@@ -20,7 +20,7 @@ import numpy as np
 
 from animbatch.files import atomic_path
 from animbatch.sim.integrators import IntegrationResult, Integrator, SolverStats
-from animbatch.sim.integrators.base import EquationsOfMotion, FrameCallback
+from animbatch.sim.integrators.interface import EquationsOfMotion, FrameCallback
 
 
 def _load(path: Path, size: int) -> tuple[np.ndarray, SolverStats] | None:

@@ -30,8 +30,8 @@ import numpy as np
 
 from animbatch.errors import OverBudget, SimulationError
 from animbatch.sim.forces.gravitation import InverseSquarePairs
-from animbatch.sim.integrators.base import EquationsOfMotion, StepSettings
 from animbatch.sim.integrators.budget import format_seconds
+from animbatch.sim.integrators.interface import EquationsOfMotion, StepSettings
 from animbatch.sim.integrators.methods import EXPLICIT_LIMITS, METHODS
 from animbatch.sim.integrators.stability import stiffest_mode
 from animbatch.sim.integrators.step_plan import resolve_dt, substeps
@@ -93,8 +93,8 @@ def estimate_cost(model: Model, solver: StepSettings, particle_pools: Sequence[t
     ``particle_pools``: (emitter name, pool capacity, particles born over the run[, seconds per particle-step, default
     PARTICLE_STEP_SECONDS]), each advanced ``particle_steps`` times. ``rhs_seconds``: time of one right-hand side [s]
     (measured here when not given); ``contact_seconds``: time of one step's contacts [s]: the search, which the
-    contacts' package measures (:func:`animbatch.sim.contact.stepping.measure_contact_search`), and for numpy's
-    path the solve of the contacts it found (:func:`animbatch.sim.contact.stepping.numpy_contact_solve`)."""
+    contacts' package measures (:func:`animbatch.sim.contact.time_stepping.measure_contact_search`), and for numpy's
+    path the solve of the contacts it found (:func:`animbatch.sim.contact.time_stepping.numpy_contact_solve`)."""
     times = np.asarray(model.frame_times)
     frames = len(times)
     states = int(np.size(model.y0))

@@ -24,7 +24,7 @@ half kick. After every step of every method, quaternions are re-normalised.
 
 Explicit Runge–Kutta methods are given as Butcher tableaux, so adding one is adding data. Every method is listed once,
 with its order, stability matrix and particle kernel, in :data:`animbatch.sim.integrators.methods.METHODS`; the
-loop that steps them between frames is :class:`~animbatch.sim.integrators.stepping.FixedStepIntegrator`.
+loop that steps them between frames is :class:`~animbatch.sim.integrators.fixed_step_loop.FixedStepIntegrator`.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.sim.integrators.base import EquationsOfMotion, VelocityConstraint
+from animbatch.sim.integrators.interface import EquationsOfMotion, VelocityConstraint
 
 
 class Scheme(ABC):

@@ -11,7 +11,7 @@ amplifying, whatever ``h √(k/m)``: stiff cloth runs at one step per frame wher
 The price is numerical damping (energy is lost at a rate that grows with ``h ω``), and one sparse solve per step.
 
 * The derivatives come from the force terms (:meth:`ForceTerm.jacobian`) in their *definite* form (see
-  :class:`~animbatch.sim.forces.base.ForceJacobian`): springs and dampers, controllers, drag and dihedral springs give
+  :class:`~animbatch.sim.forces.term.ForceJacobian`): springs and dampers, controllers, drag and dihedral springs give
   them; terms that give none (aerodynamics, buoyancy, gravitation, applied forces) enter with their value at the
   start of the step only. With the exact derivatives a compressed spring or a bent hinge makes the matrix
   indefinite, and a falling cloth's energy grew ten-thousandfold in forty steps; with the definite ones (a
@@ -57,8 +57,8 @@ from typing import Any
 import numpy as np
 
 from animbatch.errors import OverBudget, SimulationError
-from animbatch.sim.forces.base import ForceTerm
 from animbatch.sim.forces.jacobian import ForceJacobian
+from animbatch.sim.forces.term import ForceTerm
 from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.fixed_step import PartitionedScheme, kick_constrain_drift
 from animbatch.sim.integrators.linear_algebra import StepMatrixSolver, compiled_solves

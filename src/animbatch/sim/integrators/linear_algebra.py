@@ -1,7 +1,7 @@
 """Sparse factorisations for the implicit methods, shaped by the mechanics of particles.
 
 Every implicit method here solves, for particles of masses M under forces with derivatives ``K = ∂f/∂x`` and
-``D = ∂f/∂v`` (3N × 3N, see :class:`~animbatch.sim.forces.base.ForceJacobian`), a system whose matrix has the sparsity
+``D = ∂f/∂v`` (3N × 3N, see :class:`~animbatch.sim.forces.term.ForceJacobian`), a system whose matrix has the sparsity
 of the springs' graph and is symmetric, or nearly so, once its rows are scaled by the masses:
 
 * backward Euler: ``M - h D - h² K`` (:func:`factor_symmetric`);
@@ -68,7 +68,7 @@ def build_step_kernels() -> str | None:
     def build() -> None:
         from animbatch.sim.forces.jacobian import ForceJacobian
         from animbatch.sim.integrators.cholesky import SparseCholesky
-        from animbatch.sim.kernels.assembly import spring_blocks
+        from animbatch.sim.kernels.spring_assembly import spring_blocks
 
         dfdx, dfdv = spring_blocks(np.array([[1.0, 0.0, 0.0]]), np.zeros((1, 3)), np.ones(1), np.ones(1), np.ones(1),
                                    True)

@@ -10,9 +10,10 @@ without it scipy estimates a dense one by finite differences, one right-hand sid
 cloth costs thousands of evaluations per Jacobian and a dense LU. Their Newton matrices are then factored through the
 half-size velocity system (:mod:`animbatch.sim.integrators.linear_algebra`), not as 6N × 6N general sparse matrices.
 
-Given events (:class:`~animbatch.sim.integrators.base.StepEvents`; contacts, :mod:`animbatch.sim.contact.events`),
-the same loop asks after each step for the first event inside it, writes the frames before it from the step's dense
-output, lets the events act on the state at that instant, and restarts the solver from there.
+Given events (:class:`~animbatch.sim.integrators.interface.StepEvents`; contacts,
+:mod:`animbatch.sim.contact.impact_events`), the same loop asks after each step for the first event inside it, writes
+the frames before it from the step's dense output, lets the events act on the state at that instant, and restarts the
+solver from there.
 """
 
 from __future__ import annotations
@@ -25,7 +26,10 @@ from scipy.integrate import OdeSolver
 from animbatch.errors import OverBudget, SimulationError
 from animbatch.sim.blas import threads_for_state
 from animbatch.sim.integrators.advice import failure_advice
-from animbatch.sim.integrators.base import (
+from animbatch.sim.integrators.budget import budget_spent
+from animbatch.sim.integrators.description import describe_method
+from animbatch.sim.integrators.guard import divergence_error, fastest_body, first_non_finite
+from animbatch.sim.integrators.interface import (
     CountingRhs,
     EquationsOfMotion,
     EventsFactory,
@@ -35,9 +39,6 @@ from animbatch.sim.integrators.base import (
     SolverStats,
     StepEvents,
 )
-from animbatch.sim.integrators.budget import budget_spent
-from animbatch.sim.integrators.description import describe_method
-from animbatch.sim.integrators.guard import divergence_error, fastest_body, first_non_finite
 from animbatch.sim.integrators.linear_algebra import use_second_order_factors
 from animbatch.sim.integrators.methods import METHODS, SCIPY_METHODS
 from animbatch.sim.model.dynamics import Dynamics

@@ -33,7 +33,7 @@ class StepPlan:
     ``analytic`` counts as neither); ``dt``: the step bound of fixed-step methods [s], the default applied
     (``dt_given``: the scene set it); ``rtol``, ``atol``, ``max_step`` [s]: the adaptive methods' settings;
     ``interval``: the frame interval 1/fps [s] (None with a single frame). It has the shape of
-    :class:`~animbatch.sim.integrators.base.StepSettings`."""
+    :class:`~animbatch.sim.integrators.interface.StepSettings`."""
 
     method: str
     adaptive: bool

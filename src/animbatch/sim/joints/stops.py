@@ -28,7 +28,7 @@ REACH = 1e-9
 
 
 class JointStops:
-    """The :class:`~animbatch.sim.integrators.base.StepEvents` of joints with limits or ropes, for a model's
+    """The :class:`~animbatch.sim.integrators.interface.StepEvents` of joints with limits or ropes, for a model's
     Dynamics ``system`` (whose ``engaged_stops`` they set)."""
 
     label = "joint limits and ropes"

@@ -1,4 +1,4 @@
-"""Compiled iterations of the contact impulse solver: the loops of :func:`animbatch.sim.contact.solver.solve_impulses`
+"""Compiled iterations of the contact impulse solver: the loops of :func:`animbatch.sim.contact.impulses.solve_impulses`
 (projected Jacobi with mass splitting), in one pass over the contacts per half iteration instead of five sparse
 products and a dozen temporary arrays.
 
@@ -151,7 +151,7 @@ def push_iterations(pseudo: np.ndarray, a: np.ndarray, b: np.ndarray, direction:
 @njit(cache=True, error_model="numpy")
 def dense_pushes(pseudo: np.ndarray, jacobian_normal: np.ndarray, response_normal: np.ndarray, weight: np.ndarray,
                  push_target: np.ndarray, enough: float, iterations: int) -> None:
-    """The numpy split impulse's sweeps (:func:`animbatch.sim.contact.solver._pushes`) on the normal rows as arrays
+    """The numpy split impulse's sweeps (:func:`animbatch.sim.contact.impulses._pushes`) on the normal rows as arrays
     (small jointed scenes): ``jacobian_normal`` (K, V), ``response_normal`` (V, K), ``weight`` (K,) the normals'
     effective masses; ``pseudo`` (V,) changes in place until every push meets its target ``push_target`` (K,)
     [m/s] to ``enough`` or after ``iterations``. The same operations in the same order (Jacobi: every push from the
@@ -178,7 +178,7 @@ def contact_rows(a: np.ndarray, b: np.ndarray, normal: np.ndarray, point: np.nda
                  inverse_mass: np.ndarray, inverse_inertia: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                             np.ndarray]:
-    """The rows of K contacts as :class:`animbatch.sim.contact.solver.ContactRows` builds them, in one pass:
+    """The rows of K contacts as :class:`animbatch.sim.contact.impulses.ContactRows` builds them, in one pass:
     ``direction`` (normal, then the tangent basis of ``tangent_basis``), ``arm_a``, ``arm_b`` (``r × d``),
     ``lin_a``, ``lin_b`` (``d / m``), ``turn_a``, ``turn_b`` (``I⁻¹ (r × d)``), all (3, K, 3), and the effective
     masses ``weight`` (3, K) with each body's inverse mass and inertia times its number of contacts (mass
@@ -234,7 +234,7 @@ def contact_rows(a: np.ndarray, b: np.ndarray, normal: np.ndarray, point: np.nda
 @njit(cache=True, error_model="numpy")
 def _block_solve(normal_impulse: np.ndarray, normal_now: np.ndarray, chosen: np.ndarray, matrix: np.ndarray,
                  passes: int, patterns: np.ndarray, inverses: np.ndarray, stored: np.ndarray) -> np.ndarray:
-    """:meth:`animbatch.sim.contact.solver.JointedNormals.solve`: the chosen rows' normal impulses by active sets,
+    """:meth:`animbatch.sim.contact.impulses.JointedNormals.solve`: the chosen rows' normal impulses by active sets,
     the others as they were. Each pass's pseudo-inverse is kept (``patterns`` (P, J): the active rows it was made
     for, ``inverses`` (P, J, J): it, on those rows and zero elsewhere, ``stored`` (P,): whether there is one) and
     used again while that pass meets the same active rows, as it does solve after solve of one sweep loop."""
@@ -279,7 +279,7 @@ def dense_sweeps(velocity: np.ndarray, jacobian_normal: np.ndarray, jacobian_tan
                  static_friction: np.ndarray, kinetic_friction: np.ndarray, sticking: np.ndarray,
                  block_chosen: np.ndarray, block_matrix: np.ndarray, block_every: int, block_passes: int,
                  iterations: int, tolerance: float) -> tuple[np.ndarray, np.ndarray, int, float]:
-    """The numpy sweeps of :func:`animbatch.sim.contact.solver._sweeps` on the row matrices as arrays (what small
+    """The numpy sweeps of :func:`animbatch.sim.contact.impulses._sweeps` on the row matrices as arrays (what small
     jointed scenes use: the responses are the joints' ``K Jᵀ``): ``jacobian_normal`` (K, V), ``jacobian_tangent``
     (2K, V), ``response_normal`` (V, K), ``response_tangent`` (V, 2K), ``weight`` (3, K); the jointed contacts'
     normals (``block_chosen``, none: empty) solved at once every ``block_every`` sweeps. ``velocity`` (V,) changes
@@ -396,7 +396,7 @@ def solve_contacts(a: np.ndarray, b: np.ndarray, normal: np.ndarray, point: np.n
                    warm_normal: np.ndarray, warm_tangent: np.ndarray, h: float, bounce: bool, rest_speed: float,
                    slop: float, iterations: int, settings: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, float]:
-    """A whole impulse solve of :func:`animbatch.sim.contact.solver.solve_impulses` (without joints) in one call:
+    """A whole impulse solve of :func:`animbatch.sim.contact.impulses.solve_impulses` (without joints) in one call:
     the rows (:func:`contact_rows`), each contact's approach and whether it sticks, its velocity target (bounce,
     speculative gap, rest), the warm start, the sweeps (:func:`impulse_iterations`) and the split impulse's push
     (:func:`push_iterations`), in the numpy code's order.
@@ -514,7 +514,7 @@ def small_jointed_rows(a: np.ndarray, b: np.ndarray, directions: np.ndarray, r_a
                        read_turning: np.ndarray, moving: np.ndarray, turning: np.ndarray, group: np.ndarray,
                        rows: np.ndarray, push: np.ndarray, factor: np.ndarray, cholesky: bool
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:meth:`animbatch.sim.contact.solver.ContactRows._small_jointed` in one call: the Jacobian ``J`` (3K, 6S) of K
+    """:meth:`animbatch.sim.contact.impulses.ContactRows._small_jointed` in one call: the Jacobian ``J`` (3K, 6S) of K
     contacts' rows along ``directions`` (3, K, 3) (normals, first and second tangents) at lever arms ``r_a``, ``r_b``
     (K, 3) on bodies ``a``, ``b`` (K,) of S (the fixed one last; ``inverse_mass`` (S,), world ``inverse_inertia``
     (S, 3, 3)); each end's response ``M⁻¹ Jᵀ``, corrected within the joints (rows ``rows`` G (R, 6S), ``push``

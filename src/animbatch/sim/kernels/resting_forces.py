@@ -1,4 +1,4 @@
-"""The resting-contact force solve of adaptive methods compiled: :func:`animbatch.sim.contact.solver.solve_forces`'s
+"""The resting-contact force solve of adaptive methods compiled: :func:`animbatch.sim.contact.impulses.solve_forces`'s
 contact matrix, its projected Gauss–Seidel sweeps and the accelerations the forces add, in one call.
 
 An adaptive method evaluates the right-hand side hundreds of times a second of a resting box, and each evaluation

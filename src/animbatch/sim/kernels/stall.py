@@ -1,5 +1,5 @@
 """When the contact impulse sweeps have stalled: one rule for the numpy sweeps
-(:func:`animbatch.sim.contact.solver.solve_impulses`) and the compiled ones
+(:func:`animbatch.sim.contact.impulses.solve_impulses`) and the compiled ones
 (:mod:`animbatch.sim.kernels.contact_impulses` compiles :func:`stalled` as it is). Plain Python on numbers, so that
 the numpy side needs no numba.
 

@@ -11,7 +11,7 @@
 added; springs and fields refer to bodies by handle. The model numbers bodies particles-first (see
 :mod:`animbatch.sim.model.model`). Only the fields added and, when springs exist, the spring term are compiled in.
 
-This builder works on numbers only. :class:`animbatch.compile.builder.ModelBuilder` (also ``animbatch.api.
+This builder works on numbers only. :class:`animbatch.compile.scene_builder.ModelBuilder` (also ``animbatch.api.
 ModelBuilder``) is the same builder whose ``add_field`` takes a scene field spec or dict, ``{"type": "gravity"}``.
 """
 
@@ -350,10 +350,10 @@ class ModelBuilder:
         """Add a force term, made once the bodies are known by ``term(bodies, selected points or None)``, acting on
         ``bodies`` (handles; default all). From a scene field spec or dict:
         ``add_field(animbatch.compile.forces.field_term({"type": "gravity"}))``, or use
-        :class:`animbatch.compile.builder.ModelBuilder`, whose ``add_field`` takes the spec itself."""
+        :class:`animbatch.compile.scene_builder.ModelBuilder`, whose ``add_field`` takes the spec itself."""
         if not callable(term):
             raise TypeError(f"add_field takes a term factory (bodies, index) -> ForceTerm, not {type(term).__name__}; "
-                            "for a scene field spec or dict use animbatch.compile.builder.ModelBuilder")
+                            "for a scene field spec or dict use animbatch.compile.scene_builder.ModelBuilder")
         self._fields.append((term, None if bodies is None else np.asarray(bodies, dtype=np.intp)))
 
     # ------------------------------------------------------------------------------------------ finalize

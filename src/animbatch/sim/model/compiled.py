@@ -7,7 +7,7 @@ arithmetic: a step of a 20-link hinge chain is dozens of numpy calls on 3-vector
 which steps a whole frame of a fixed-step method in one call. Everything else (energies, joint reactions, events,
 contacts) is inherited and stays numpy, which remains the reference the kernels are tested against. A scene with
 contacts takes the compiled forms step by step, with the contact solve between its kick and its drift in numpy
-(:class:`~animbatch.sim.contact.stepping.ContactResolver`).
+(:class:`~animbatch.sim.contact.time_stepping.ContactResolver`).
 
 A model is compiled when every part of it has a compiled form (:func:`stepper_tables` names the first that has
 none) and when its numpy run would take long enough to repay loading numba (:func:`dynamics_for`).

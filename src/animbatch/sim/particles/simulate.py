@@ -3,7 +3,7 @@
 Per step (fixed-step methods: every step; adaptive methods: every frame interval, the *segment* solve_ivp
 integrates):
 
-1. the particles alive at the step's start move with the scene's method (:mod:`animbatch.sim.particles.stepping`);
+1. the particles alive at the step's start move with the scene's method (:mod:`animbatch.sim.particles.advance`);
 2. the particles born during the step (:mod:`animbatch.sim.particles.schedule`) take the lowest free slots, with their
    attributes (:mod:`animbatch.sim.particles.emitter`), each advanced in a straight line from its birth instant to the
    step's end;
@@ -25,9 +25,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from animbatch.errors import OverBudget, SimulationError
-from animbatch.sim.integrators.base import StepSettings
 from animbatch.sim.integrators.budget import budget_spent
+from animbatch.sim.integrators.interface import StepSettings
 from animbatch.sim.integrators.step_plan import substeps
+from animbatch.sim.particles.advance import FIXED_METHODS, Accelerations, adaptive_segment, fixed_step
 from animbatch.sim.particles.body_motion import BodyMotion, BodyPose
 from animbatch.sim.particles.collisions import MAX_BOUNCES, ParticleColliders, bounce
 from animbatch.sim.particles.compiled import CompiledPool, colliders_met, kernel_work, numpy_pool_seconds
@@ -35,7 +36,6 @@ from animbatch.sim.particles.emitter import Emitter, Newborns
 from animbatch.sim.particles.obstacles import SURFACE_GAP
 from animbatch.sim.particles.pool import ParticlePool
 from animbatch.sim.particles.schedule import Births
-from animbatch.sim.particles.stepping import FIXED_METHODS, Accelerations, adaptive_segment, fixed_step
 from animbatch.trajectory import ParticleFrames
 
 #: Serials are stored as int32 in trajectories.

@@ -10,7 +10,11 @@ import numpy as np
 
 from animbatch.errors import OverBudget
 from animbatch.sim.blas import threads_for_state
-from animbatch.sim.integrators.base import (
+from animbatch.sim.integrators.budget import budget_spent
+from animbatch.sim.integrators.description import describe_method
+from animbatch.sim.integrators.fixed_step import Scheme
+from animbatch.sim.integrators.guard import divergence_error, first_non_finite
+from animbatch.sim.integrators.interface import (
     ConstraintFactory,
     EquationsOfMotion,
     FrameCallback,
@@ -18,10 +22,6 @@ from animbatch.sim.integrators.base import (
     Integrator,
     SolverStats,
 )
-from animbatch.sim.integrators.budget import budget_spent
-from animbatch.sim.integrators.description import describe_method
-from animbatch.sim.integrators.fixed_step import Scheme
-from animbatch.sim.integrators.guard import divergence_error, first_non_finite
 from animbatch.sim.integrators.methods import FIXED_STEP_SCHEMES
 from animbatch.sim.integrators.stability import check_fixed_step
 from animbatch.sim.integrators.step_plan import substeps

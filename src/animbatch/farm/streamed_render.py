@@ -18,7 +18,7 @@ from animbatch.compile.plan import RunPlan
 from animbatch.encode.images import PngSequenceWriter
 from animbatch.encode.stream import FrameStream
 from animbatch.encode.video import VideoWriter
-from animbatch.farm.frames import RangeResult, draw_into, frames_folder, output_stem, prepare_frames
+from animbatch.farm.frame_files import RangeResult, draw_into, frames_folder, output_stem, prepare_frames
 from animbatch.scene import LoadedScene
 from animbatch.trajectory import Trajectory
 

@@ -1,7 +1,7 @@
 """Generate the key reference of ``docs/scene-format.md`` from the schema, so the docs cannot drift from the code.
 
-    python -m animbatch.scene.reference docs/scene-format.md    # rewrite the generated section in place
-    python -m animbatch.scene.reference                         # print it
+    python -m animbatch.scene.key_reference docs/scene-format.md    # rewrite the generated section in place
+    python -m animbatch.scene.key_reference                         # print it
 
 The section between the BEGIN/END markers is replaced; everything else in the file is hand-written.
 """
@@ -23,7 +23,7 @@ from pydantic_core import PydanticUndefined
 from animbatch.scene import schema
 from animbatch.scene.annotations import field_metadata, tag_of, union_members
 
-BEGIN = "<!-- BEGIN GENERATED REFERENCE (python -m animbatch.scene.reference docs/scene-format.md) -->"
+BEGIN = "<!-- BEGIN GENERATED REFERENCE (python -m animbatch.scene.key_reference docs/scene-format.md) -->"
 END = "<!-- END GENERATED REFERENCE -->"
 
 #: (heading, key path prefix used in the table, model), in the order they appear in the docs.

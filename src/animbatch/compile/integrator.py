@@ -5,7 +5,7 @@ from __future__ import annotations
 from animbatch.sim.closed_forms import ClosedFormIntegrator
 from animbatch.sim.integrate import integrator_for
 from animbatch.sim.integrators import Integrator
-from animbatch.sim.integrators.base import StepSettings
+from animbatch.sim.integrators.interface import StepSettings
 from animbatch.sim.model.model import Model
 
 

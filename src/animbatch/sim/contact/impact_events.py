@@ -11,16 +11,16 @@ The scipy solver integrates free motion. After each accepted step, the step is s
   friction would exceed ``μs f_n`` starts to slide.
 
 At the first such event the integration stops exactly there, impulses are applied (restitution and friction,
-:func:`~animbatch.sim.contact.solver.solve_impulses`) or the contact's mode changes, and the solver restarts. Frames
+:func:`~animbatch.sim.contact.impulses.solve_impulses`) or the contact's mode changes, and the solver restarts. Frames
 before the event come from the old dense output, frames after it from the new one: both sides of a contact are right.
 
 An impact slower than ``rest_speed`` does not bounce: the contact becomes *resting*, and from then on it exerts
-forces (:func:`~animbatch.sim.contact.solver.solve_forces`) instead of impulses. So a bouncing ball comes to rest after
-finitely many bounces instead of stalling the solver on ever shorter ones (the Zeno problem), and a resting body
+forces (:func:`~animbatch.sim.contact.impulses.solve_forces`) instead of impulses. So a bouncing ball comes to rest
+after finitely many bounces instead of stalling the solver on ever shorter ones (the Zeno problem), and a resting body
 stays exactly still.
 
-For stacks, piles and many simultaneous contacts, the fixed-step methods (:mod:`animbatch.sim.contact.stepping`) are the
-robust choice; this path suits scenes with few contacts where exact impact times matter.
+For stacks, piles and many simultaneous contacts, the fixed-step methods (:mod:`animbatch.sim.contact.time_stepping`)
+are the robust choice; this path suits scenes with few contacts where exact impact times matter.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ from animbatch.sim.contact.detection import (
     turn_angle,
 )
 from animbatch.sim.contact.impacts import ImpactLog
-from animbatch.sim.contact.solver import (
+from animbatch.sim.contact.impulses import (
     BodyVelocities,
     ContactFrame,
     ContactRows,
@@ -54,7 +54,7 @@ from animbatch.sim.contact.solver import (
     solve_forces,
     solve_impulses,
 )
-from animbatch.sim.contact.stepping import DEFAULT_REST_SPEED, NumpyContactCost
+from animbatch.sim.contact.time_stepping import DEFAULT_REST_SPEED, NumpyContactCost
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.model.dynamics import Dynamics
 
@@ -77,7 +77,7 @@ MAX_STALLED_EVENTS = 100
 SLIP_ONSET = 1e-6  # m/s²: tangential acceleration of a sticking contact point at which it starts to slide
 #: What one resting-force solve costs in numpy [s] (a few contacts; measured 0.4-0.5 ms): counted as the stepping
 #: path counts its steps, so that a long adaptive run solves its resting forces compiled from the
-#: :class:`~animbatch.sim.contact.stepping.NumpyContactCost` threshold on, at the same evaluation on every machine.
+#: :class:`~animbatch.sim.contact.time_stepping.NumpyContactCost` threshold on, at the same evaluation on every machine.
 NUMPY_FORCE_SOLVE = 0.5e-3
 
 
@@ -288,7 +288,7 @@ class ContactEvents:
 
     def _compiled_forces(self) -> bool:
         """Whether this resting-force solve runs compiled: in a long run, or once this run's numpy solves have cost
-        :class:`~animbatch.sim.contact.stepping.NumpyContactCost`'s threshold at :data:`NUMPY_FORCE_SOLVE` each."""
+        :class:`~animbatch.sim.contact.time_stepping.NumpyContactCost`'s threshold at :data:`NUMPY_FORCE_SOLVE` each."""
         self._numpy_cost.add(self.system, NUMPY_FORCE_SOLVE)
         return compiled_contacts(0, long_run=self.system.long_run)
 

@@ -1,11 +1,12 @@
 """Contacts for the fixed-step methods (velocity-level time stepping, as in Box2D, Bullet or MuJoCo).
 
 :class:`ContactResolver` is the velocity constraint the fixed-step schemes apply between their kick and their drift
-(:class:`~animbatch.sim.integrators.base.VelocityConstraint`); :func:`animbatch.sim.integrate.integrator_for` hands
+(:class:`~animbatch.sim.integrators.interface.VelocityConstraint`); :func:`animbatch.sim.integrate.integrator_for` hands
 it to them for scenes with contacts.
 
 A step of ``h``: forces change the velocities (kick), the contact solver changes them again so that every contact
-holds over the step (see :mod:`animbatch.sim.contact.solver`), and positions move with the corrected velocities (drift).
+holds over the step (see :mod:`animbatch.sim.contact.impulses`), and positions move with the corrected velocities
+(drift).
 Contacts are looked for up to the distance bodies can travel in the step (speculative contacts), which is the swept
 test: a fast body stops at a thin wall instead of passing through it. Positions never move with velocities that would
 take them into a collider, so a body resting on the ground stays exactly still.
@@ -28,16 +29,16 @@ from animbatch.sim.contact.clearance import Clearance
 from animbatch.sim.contact.contacts import Contacts, contact_codes
 from animbatch.sim.contact.detection import body_reach, detect
 from animbatch.sim.contact.impacts import ImpactLog
-from animbatch.sim.contact.jointed import DENSE_COLUMNS, BlockInverse, JointedResponse
-from animbatch.sim.contact.solver import (
+from animbatch.sim.contact.impulses import (
     BodyVelocities,
     compiled_contacts,
     inverse_mass_matrix,
     solve_impulses,
 )
+from animbatch.sim.contact.jointed import DENSE_COLUMNS, BlockInverse, JointedResponse
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.forces.gravity import gravity_magnitude
-from animbatch.sim.integrators.base import ContactSolves
+from animbatch.sim.integrators.interface import ContactSolves
 from animbatch.sim.kernels import CONTACT_KERNELS, MIN_WORK, compiled_kernels, kernels_loaded
 from animbatch.sim.model.dynamics import Dynamics
 

@@ -1,4 +1,4 @@
-"""The model builder of :mod:`animbatch.sim.model.builder`, whose fields may be given as scene specs or dicts."""
+"""A model builder whose fields may be given as scene specs or dicts: :class:`SceneModelBuilder`."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ from typing import Any
 import numpy as np
 
 from animbatch.compile.forces import field_term
-from animbatch.sim.model.builder import ModelBuilder as NumericModelBuilder
+from animbatch.sim.model.builder import ModelBuilder
 
 
-class ModelBuilder(NumericModelBuilder):
+class SceneModelBuilder(ModelBuilder):
     """:class:`animbatch.sim.model.builder.ModelBuilder` with ``add_field({"type": "drag", ...})``: a dict is
     validated with the scene's rules (a pydantic ValidationError names the bad key), a field spec is used as is, and
     a term factory is passed through."""

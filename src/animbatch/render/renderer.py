@@ -37,17 +37,10 @@ from animbatch.render.colors import (
     linear_rgb,
 )
 from animbatch.render.emitted import EmitterLayer
-from animbatch.render.geometry import Finish, FrameGeometry, FrameSeries
+from animbatch.render.frame_geometry import Finish, FrameGeometry, FrameSeries
 from animbatch.render.occlusion import GroundOcclusion
 from animbatch.render.settings import Ground, GroundSettings, RenderSettings
 from animbatch.render.shadows import GroundShadows
-from animbatch.render.shapes import (
-    arrow_basis,
-    collider_surface,
-    plane_square,
-    shape_mesh,
-    vertex_normals,
-)
 from animbatch.render.spheres import SphereGroup, group_by_finish, sphere_segments
 from animbatch.render.studio import (
     GROUND_REACH,
@@ -57,6 +50,13 @@ from animbatch.render.studio import (
     environment_faces,
     three_point_rig,
     use_environment,
+)
+from animbatch.render.surfaces import (
+    arrow_basis,
+    collider_surface,
+    plane_square,
+    shape_mesh,
+    vertex_normals,
 )
 from animbatch.render.trails import TrailLayer
 

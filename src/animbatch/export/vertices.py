@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from animbatch import quaternion
-from animbatch.render.geometry import FrameGeometry
+from animbatch.render.frame_geometry import FrameGeometry
 from animbatch.trajectory import Trajectory
 
 

@@ -4,7 +4,7 @@ the numpy code goes through.
 
 The numpy forms they replace: :meth:`animbatch.sim.forces.springs.SpringForces.accumulate` (forces, for springs
 between points or to anchors; ends at body points stay with numpy), ``SpringForces.jacobian`` (blocks),
-:meth:`animbatch.sim.forces.base.ForceJacobian.matrix` and scipy's sparse sums (scatter),
+:meth:`animbatch.sim.forces.term.ForceJacobian.matrix` and scipy's sparse sums (scatter),
 ``ForceJacobian.matrix(which) @ vector`` (product). The tests compare each pair.
 
 Blocks are (K, 3, 3), row-major. A *pair* part holds one block B per pair of particles (i, j), standing for the four

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from animbatch.render.camera import plane_axes
-from animbatch.render.geometry import DrawnCollider, Solid
+from animbatch.render.frame_geometry import DrawnCollider, Solid
 
 
 def shape_mesh(solid: Solid, resolution: int) -> Any:

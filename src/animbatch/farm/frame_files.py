@@ -27,7 +27,7 @@ from animbatch.errors import RenderError
 from animbatch.farm.cache import simulation_settings
 from animbatch.files import write_text_atomic
 from animbatch.render.backend import select_backend
-from animbatch.render.frames import FrameRenderer
+from animbatch.render.renderer import FrameRenderer
 from animbatch.scene import LoadedScene
 from animbatch.sim.integrators.budget import format_seconds
 from animbatch.stages import check_trajectory, frame_geometry, plan
