@@ -29,6 +29,71 @@ def test_every_field_type_in_the_schema_has_a_force_term():
     assert set(field_type_names()) == set(FIELD_TERMS)
 
 
+def test_the_laws_with_a_particle_form_are_those_fields_may_name_emitters_for():
+    """The table of laws gives a particle form to exactly the field types the scene format lets act on emitters."""
+    from animbatch.compile.forces import LAWS
+    from animbatch.scene.schema import PARTICLE_FIELD_TYPES
+
+    assert {name for name, law in LAWS.items() if law.particles is not None} == set(PARTICLE_FIELD_TYPES)
+
+
+def test_a_force_law_on_bodies_and_particles_is_its_own_module_and_one_table_row(monkeypatch):
+    """The recipe of docs/architecture.md, followed in this test alone: a uniform push ``a`` written once (its term on
+    bodies, its form on particles with its row of the compiled kernel's table) and added as one row of the table of
+    laws moves a body as x = x0 + ½ a t², accelerates emitted particles by a in the numpy code, and gives the kernel
+    the row of a uniform acceleration. Nothing else in animbatch is touched."""
+    from dataclasses import dataclass
+    from types import SimpleNamespace
+
+    from animbatch.compile import forces
+    from animbatch.compile.particles import _particle_fields
+    from animbatch.compile.scene_builder import SceneModelBuilder
+    from animbatch.sim.forces.gravity import build_gravity
+    from animbatch.sim.forces.on_particles import ParticleLaw, Slots
+    from animbatch.sim.integrate import integrator_for
+    from animbatch.sim.kernels import particle_pool as kernel
+    from animbatch.sim.model import Dynamics
+    from animbatch.sim.particles.advance import Accelerations
+
+    @dataclass(frozen=True, eq=False)
+    class PushOnParticles(ParticleLaw):  # the law's particle form (its own module, in a real law)
+        a: np.ndarray
+        label: str = "push"
+
+        def add_acceleration(self, slots: Slots, out: np.ndarray) -> None:
+            out += self.a
+
+        @property
+        def compiled(self) -> bool:
+            return True
+
+        def kernel_row(self, row: np.ndarray, kernel) -> None:
+            row[kernel.KIND] = kernel.FIELD_GRAVITY  # the kernel's uniform acceleration
+            row[kernel.VECTOR:kernel.VECTOR + 3] = self.a
+
+    push = np.array([0.5, -2.0, 1.0])
+    monkeypatch.setitem(forces.LAWS, "push", forces.Law(  # the table row
+        lambda spec, bodies, index: build_gravity(bodies, index, g=np.asarray(spec.a, float)),
+        lambda spec: PushOnParticles(np.asarray(spec.a, float))))
+    spec = SimpleNamespace(type="push", a=push.tolist(), bodies=None)
+
+    builder = SceneModelBuilder()
+    builder.add_particle("p", mass=2.0, velocity=(1.0, 0.0, 0.0))
+    builder.add_field(spec)
+    model = builder.finalize(duration=1.0, fps=10)
+    states = integrator_for(model, "DOP853", rtol=1e-10, atol=1e-12).integrate(
+        Dynamics(model), model.y0, model.frame_times).states
+    t = model.frame_times[:, None]
+    np.testing.assert_allclose(model.positions(states)[:, 0], [1.0, 0.0, 0.0] * t + 0.5 * push * t ** 2, atol=1e-9)
+
+    (law,) = _particle_fields([spec], "sparks")
+    x, v = np.zeros((4, 3)), np.ones((4, 3))
+    np.testing.assert_allclose(Accelerations((law,))(x, v, np.full(4, 1e-3), np.full(4, 0.01)), np.tile(push, (4, 1)))
+    row = np.zeros(kernel.FIELD_COLUMNS)
+    law.kernel_row(row, kernel)
+    assert row[kernel.KIND] == kernel.FIELD_GRAVITY and np.array_equal(row[kernel.VECTOR:kernel.VECTOR + 3], push)
+
+
 def test_three_particles_with_gravity_compile_one_term():
     """A scene with gravity only evaluates exactly one term: gravity."""
     model = compile_scene(scene(PLAIN).spec)

@@ -1,13 +1,18 @@
-"""Scene fields -> force terms: the one table that says which field ``type`` builds which term.
+"""Scene fields -> force laws: the one table (:data:`LAWS`) that says which field ``type`` builds which term on
+bodies, and which form on emitted particles.
 
-Each entry reads a validated field spec and calls the term's numeric constructor in :mod:`animbatch.sim.forces`,
-which never sees the scene format. A new force law adds its spec (``scene/schema``), its module (``sim/forces``) and
-one line here; a test checks that this table and the schema's field types are the same set.
+Each entry reads a validated field spec and calls the law's numeric constructors in :mod:`animbatch.sim.forces`,
+which never see the scene format: the term on bodies (a ``ForceTerm``) and, for the laws that act on particles, the
+particle form (a :class:`~animbatch.sim.forces.on_particles.ParticleLaw`, which also writes the compiled pool
+kernel's row). A new force law adds its spec (``scene/schema``), its module (``sim/forces``, both forms) and one row
+here; tests check that this table and the schema's field types are the same set, and that the laws with a particle
+form are the ones the scene format lets fields name emitters for.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from functools import partial
 from typing import Any
 
@@ -31,11 +36,12 @@ from animbatch.scene.schema import (
 )
 from animbatch.sim.forces.aerodynamics import build_aerodynamics
 from animbatch.sim.forces.applied import build_angular_drag, build_force, build_torque
-from animbatch.sim.forces.buoyancy import build_buoyancy
-from animbatch.sim.forces.drag import Drag
+from animbatch.sim.forces.buoyancy import BuoyancyOnParticles, build_buoyancy
+from animbatch.sim.forces.drag import AIR_VISCOSITY, Drag, DragOnParticles
 from animbatch.sim.forces.electromagnetic import FieldHistory, build_lorentz
 from animbatch.sim.forces.gravitation import build_coulomb, build_gravitation
-from animbatch.sim.forces.gravity import build_gravity
+from animbatch.sim.forces.gravity import GravityOnParticles, build_gravity
+from animbatch.sim.forces.on_particles import ParticleLaw
 from animbatch.sim.forces.term import BodyTable, ForceTerm, TermFactory
 
 Index = np.ndarray | None
@@ -110,21 +116,58 @@ def _aerodynamics(spec: AerodynamicsSpec, bodies: BodyTable, index: Index) -> Fo
                               friction=spec.friction)
 
 
-#: Field ``type`` (as in the scene file) -> builder of its term from (spec, bodies, selected points or None); the
-#: fields on charges (CHARGED_FIELD_TYPES) also take ``charges=`` (body name -> charge [C]).
-FIELD_TERMS: dict[str, Callable[..., ForceTerm]] = {
-    "aerodynamics": _aerodynamics,
-    "force": _force,
-    "torque": _torque,
-    "angular_drag": _angular_drag,
-    "buoyancy": _buoyancy,
-    "drag": _drag,
-    "wind": _wind,
-    "gravitation": _gravitation,
-    "gravity": _gravity,
-    "electromagnetic": _electromagnetic,
-    "coulomb": _coulomb,
+def _vector(values: Any) -> str:
+    return "(" + ", ".join(f"{c:g}" for c in values) + ")"
+
+
+def _gravity_on_particles(spec: GravitySpec) -> ParticleLaw:
+    return GravityOnParticles(np.asarray(spec.g, float), f"gravity g = {_vector(spec.g)} m/s²")
+
+
+def _drag_on_particles(spec: DragSpec | WindSpec) -> ParticleLaw:
+    wind = np.asarray(spec.velocity, float) if isinstance(spec, WindSpec) else None
+    viscosity = spec.viscosity if spec.viscosity is not None else AIR_VISCOSITY
+    if spec.model == "stokes":
+        law = f"stokes 6πηr, η = {viscosity:g} Pa·s"
+    else:
+        law = f"{spec.model}, C = {spec.coefficient:g} {'N·s/m' if spec.model == 'linear' else 'kg/m'}"
+    label = f"{spec.type} {law}" + (f", wind {_vector(wind)} m/s" if wind is not None else "")
+    return DragOnParticles(spec.model, float(spec.coefficient or 0.0), viscosity,
+                           wind if wind is not None and np.any(wind) else None, label)
+
+
+def _buoyancy_on_particles(spec: BuoyancySpec) -> ParticleLaw:
+    up = np.asarray(spec.up, float)
+    return BuoyancyOnParticles(spec.density, spec.g, spec.level, up / np.linalg.norm(up), spec.linear_damping,
+                               f"buoyancy ρ = {spec.density:g} kg/m³ below {spec.level:g} m")
+
+
+@dataclass(frozen=True)
+class Law:
+    """One field type: the builder of its term on bodies from (spec, bodies, selected points or None), and of its
+    form on emitted particles from the spec (None: it acts on bodies only)."""
+
+    bodies: Callable[..., ForceTerm]
+    particles: Callable[[Any], ParticleLaw] | None = None
+
+
+#: Field ``type`` (as in the scene file) -> its law. The fields on charges (CHARGED_FIELD_TYPES) also take
+#: ``charges=`` (body name -> charge [C]) in their body builder.
+LAWS: dict[str, Law] = {
+    "aerodynamics": Law(_aerodynamics),
+    "force": Law(_force),
+    "torque": Law(_torque),
+    "angular_drag": Law(_angular_drag),
+    "buoyancy": Law(_buoyancy, _buoyancy_on_particles),
+    "drag": Law(_drag, _drag_on_particles),
+    "wind": Law(_wind, _drag_on_particles),
+    "gravitation": Law(_gravitation),
+    "gravity": Law(_gravity, _gravity_on_particles),
+    "electromagnetic": Law(_electromagnetic),
+    "coulomb": Law(_coulomb),
 }
+#: The body builders of :data:`LAWS`, by field type.
+FIELD_TERMS: dict[str, Callable[..., ForceTerm]] = {name: law.bodies for name, law in LAWS.items()}
 
 _FIELD_ADAPTER: TypeAdapter[Any] = TypeAdapter(FieldSpec)
 
@@ -135,5 +178,11 @@ def field_term(spec: Any, charges: dict[str, float] | None = None) -> TermFactor
     if isinstance(spec, dict):
         spec = _FIELD_ADAPTER.validate_python(spec)
     if spec.type in CHARGED_FIELD_TYPES:
-        return partial(FIELD_TERMS[spec.type], spec, charges=charges or {})
-    return partial(FIELD_TERMS[spec.type], spec)
+        return partial(LAWS[spec.type].bodies, spec, charges=charges or {})
+    return partial(LAWS[spec.type].bodies, spec)
+
+
+def particle_law(spec: Any) -> ParticleLaw | None:
+    """The form on emitted particles of a field spec, or None for a field that acts on bodies only."""
+    build = LAWS[spec.type].particles
+    return build(spec) if build is not None else None

@@ -10,15 +10,12 @@ import numpy as np
 
 from animbatch.compile.bodies import orientation_matrix
 from animbatch.compile.contacts import _statics, build_contact_world, material_table, pose_path
+from animbatch.compile.forces import particle_law
 from animbatch.render.colors import hex_to_rgb
 from animbatch.scene.schema import (
-    PARTICLE_FIELD_TYPES,
     BoxCollider,
     BoxSource,
-    BuoyancySpec,
     DiscSource,
-    DragSpec,
-    GravitySpec,
     MeshCollider,
     PlaneCollider,
     PointSource,
@@ -27,16 +24,14 @@ from animbatch.scene.schema import (
     SceneSpec,
     SphereCollider,
     SphereSource,
-    WindSpec,
 )
 from animbatch.sim.contact.geometry import BodyBoxes, BodyCylinders, StaticColliders
 from animbatch.sim.contact.meshes import TriangleGroup
-from animbatch.sim.forces.drag import AIR_VISCOSITY
+from animbatch.sim.forces.on_particles import ParticleLaw
 from animbatch.sim.motion import SolidPath
 from animbatch.sim.particles.collisions import ParticleColliders
 from animbatch.sim.particles.compiled import kernel_work, numpy_pool_seconds, particle_step_seconds
 from animbatch.sim.particles.emitter import Emitter, Law
-from animbatch.sim.particles.fields import ParticleField
 from animbatch.sim.particles.obstacles import ParticleObstacles, body_shapes, moving_collider_shapes
 from animbatch.sim.particles.schedule import EmissionSchedule
 from animbatch.sim.particles.sources import Source
@@ -236,36 +231,14 @@ def _source(spec: object, body_geometry: BodyGeometry | None = None) -> Source:
     return Source("surface", np.zeros(3), triangles=triangles, spheres=spheres, area_cumulative=cumulative)
 
 
-def _particle_fields(fields: list, emitter: str) -> tuple[ParticleField, ...]:
-    """The fields (scene specs) that act on the particles of ``emitter``, in declaration order."""
+def _particle_fields(fields: list, emitter: str) -> tuple[ParticleLaw, ...]:
+    """The laws of the fields (scene specs) that act on the particles of ``emitter``, in declaration order (see the
+    table of laws, :data:`animbatch.compile.forces.LAWS`)."""
     built = []
     for field in fields:
-        if field.type not in PARTICLE_FIELD_TYPES:
-            continue
         if field.bodies is not None and emitter not in field.bodies:
             continue
-        built.append(_particle_field(field))
+        law = particle_law(field)
+        if law is not None:
+            built.append(law)
     return tuple(built)
-
-
-def _vector(values: Any) -> str:
-    return "(" + ", ".join(f"{c:g}" for c in values) + ")"
-
-
-def _particle_field(field: GravitySpec | DragSpec | WindSpec | BuoyancySpec) -> ParticleField:
-    if isinstance(field, GravitySpec):
-        return ParticleField("gravity", f"gravity g = {_vector(field.g)} m/s²", g=np.asarray(field.g, float))
-    if isinstance(field, DragSpec | WindSpec):
-        wind = np.asarray(field.velocity, float) if isinstance(field, WindSpec) else None
-        viscosity = field.viscosity if field.viscosity is not None else AIR_VISCOSITY
-        if field.model == "stokes":
-            law = f"stokes 6πηr, η = {viscosity:g} Pa·s"
-        else:
-            law = f"{field.model}, C = {field.coefficient:g} {'N·s/m' if field.model == 'linear' else 'kg/m'}"
-        label = f"{field.type} {law}" + (f", wind {_vector(wind)} m/s" if wind is not None else "")
-        return ParticleField(field.type, label, law=field.model, coefficient=float(field.coefficient or 0.0),
-                             viscosity=viscosity, wind=wind if wind is not None and np.any(wind) else None)
-    up = np.asarray(field.up, float)
-    return ParticleField("buoyancy", f"buoyancy ρ = {field.density:g} kg/m³ below {field.level:g} m",
-                         density=field.density, level=field.level, up=up / np.linalg.norm(up), buoyancy_g=field.g,
-                         damping=field.linear_damping)

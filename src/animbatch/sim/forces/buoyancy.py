@@ -18,10 +18,12 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 
 from animbatch.quaternion import cross
+from animbatch.sim.forces.on_particles import ParticleLaw, Slots
 from animbatch.sim.forces.term import BodyTable, ForceTerm, Kinematics, selection_text, vector_text
 from animbatch.sim.rigid.polyhedra import submerged_volume_and_moment
 
@@ -181,3 +183,45 @@ def build_buoyancy(bodies: BodyTable, index: np.ndarray | None, *, density: floa
                     np.concatenate(triangle_owner) if triangle_owner else np.zeros(0, np.intp),
                     np.concatenate(triangle_rigid) if triangle_rigid else np.zeros(0, np.intp),
                     bodies.first_rigid, bodies.names)
+
+
+@dataclass(frozen=True, eq=False)
+class BuoyancyOnParticles(ParticleLaw):
+    """Buoyancy on emitted particles: ``a = ρ g V_sub up / m`` (V_sub: the submerged cap of the particle's sphere
+    below ``level`` [m] along the unit ``up`` (3,)), with the fluid's damping ``-c v V_sub / V`` (``damping`` c
+    [N·s/m])."""
+
+    density: float
+    g: float
+    level: float
+    up: np.ndarray
+    damping: float
+    label: str
+
+    def _fraction(self, slots: Slots) -> tuple[np.ndarray, np.ndarray]:
+        """The submerged volume (K,) [m³] and its fraction of each sphere (K,)."""
+        volume, _ = spherical_caps(slots.x, slots.radius, self.level, self.up)
+        return volume, volume / (4.0 / 3.0 * np.pi * slots.radius ** 3)
+
+    def add_acceleration(self, slots: Slots, out: np.ndarray) -> None:
+        volume, fraction = self._fraction(slots)
+        out += (self.density * self.g * volume / slots.mass)[:, None] * self.up
+        if self.damping:
+            out -= (self.damping * fraction / slots.mass)[:, None] * slots.v
+
+    def rates(self, slots: Slots) -> np.ndarray | None:
+        if not self.damping:
+            return None
+        rates = np.zeros((len(slots.mass), 2))
+        rates[:, 0] = self.damping * self._fraction(slots)[1] / slots.mass
+        return rates
+
+    @property
+    def compiled(self) -> bool:
+        return True
+
+    def kernel_row(self, row: np.ndarray, kernel: ModuleType) -> None:
+        row[kernel.KIND] = kernel.FIELD_BUOYANCY
+        row[kernel.VECTOR:kernel.VECTOR + 3] = self.up
+        row[kernel.DENSITY], row[kernel.BUOYANCY_G] = self.density, self.g
+        row[kernel.LEVEL], row[kernel.DAMPING] = self.level, self.damping

@@ -14,11 +14,13 @@ torque ``r × f``; particles and bodies without ``at`` feel the drag at their ce
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import ModuleType
 from typing import Literal
 
 import numpy as np
 
 from animbatch.quaternion import cross
+from animbatch.sim.forces.on_particles import ParticleLaw, Slots
 from animbatch.sim.forces.term import (
     BodyTable,
     ForceJacobian,
@@ -159,3 +161,55 @@ class Drag(ForceTerm):
                 f"{vector_text(self.at)} m")
 
 
+#: The drag laws the compiled pool kernel evaluates, by its codes.
+_KERNEL_LAWS = ("linear", "quadratic", "stokes")
+
+
+@dataclass(frozen=True, eq=False)
+class DragOnParticles(ParticleLaw):
+    """Drag (or wind: ``wind`` (3,) [m/s], None for still air) on emitted particles: ``a = f(u) / m`` with
+    ``u = v - w`` and ``f`` of :func:`drag_force` (``law``, ``coefficient``; Stokes' ``6 π η r`` from ``viscosity``
+    [Pa·s] and each particle's radius)."""
+
+    law: DragLaw
+    coefficient: float
+    viscosity: float
+    wind: np.ndarray | None
+    label: str
+
+    def _relative(self, v: np.ndarray) -> np.ndarray:
+        return v - self.wind if self.wind is not None else v
+
+    def drag_coefficient(self, slots: Slots) -> float | np.ndarray:
+        """C of the law: a number, or per slot (K, 1) for Stokes' 6 π η r."""
+        if self.law == "stokes":
+            return (6.0 * np.pi * self.viscosity * slots.radius)[:, None]
+        return self.coefficient
+
+    def add_acceleration(self, slots: Slots, out: np.ndarray) -> None:
+        out += drag_force(self.law, self.drag_coefficient(slots), self._relative(slots.v)) / slots.mass[:, None]
+
+    def rates(self, slots: Slots) -> np.ndarray:
+        rates = np.zeros((len(slots.mass), 2))
+        coefficient = np.ravel(np.broadcast_to(self.drag_coefficient(slots), (len(slots.mass), 1)))
+        if self.law == "quadratic":
+            relative = self._relative(slots.v)
+            speed = np.sqrt(np.einsum("ij,ij->i", relative, relative))
+            rates[:, 0] = rates[:, 1] = coefficient * speed / slots.mass  # ∂(|u| u)/∂u = |u| (I + û ûᵀ)
+        else:
+            rates[:, 0] = coefficient / slots.mass
+        return rates
+
+    def quadratic_relative(self, v: np.ndarray) -> np.ndarray | None:
+        return self._relative(v) if self.law == "quadratic" else None
+
+    @property
+    def compiled(self) -> bool:
+        return self.law in _KERNEL_LAWS
+
+    def kernel_row(self, row: np.ndarray, kernel: ModuleType) -> None:
+        row[kernel.KIND] = kernel.FIELD_DRAG
+        row[kernel.LAW] = (kernel.LAW_LINEAR, kernel.LAW_QUADRATIC, kernel.LAW_STOKES)[_KERNEL_LAWS.index(self.law)]
+        row[kernel.COEFFICIENT], row[kernel.VISCOSITY] = self.coefficient, self.viscosity
+        row[kernel.HAS_WIND] = self.wind is not None
+        row[kernel.VECTOR:kernel.VECTOR + 3] = self.wind if self.wind is not None else 0.0

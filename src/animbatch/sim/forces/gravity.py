@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 
+from animbatch.sim.forces.on_particles import ParticleLaw, Slots
 from animbatch.sim.forces.term import (
     BodyTable,
     ForceJacobian,
@@ -60,3 +62,26 @@ def build_gravity(bodies: BodyTable, index: np.ndarray | None, *, g: np.ndarray)
 def gravity_magnitude(terms: Iterable[ForceTerm]) -> float:
     """The strongest uniform gravity among force terms [m/s²] (0 without gravity): the scale of free-flight speeds."""
     return max((float(np.linalg.norm(term.g)) for term in terms if isinstance(term, UniformGravity)), default=0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class GravityOnParticles(ParticleLaw):
+    """Gravity on emitted particles: ``a = g`` (3,) [m/s²]."""
+
+    g: np.ndarray
+    label: str
+
+    def add_acceleration(self, slots: Slots, out: np.ndarray) -> None:
+        out += self.g
+
+    @property
+    def gravity(self) -> np.ndarray:
+        return self.g
+
+    @property
+    def compiled(self) -> bool:
+        return True
+
+    def kernel_row(self, row: np.ndarray, kernel: ModuleType) -> None:
+        row[kernel.KIND] = kernel.FIELD_GRAVITY
+        row[kernel.VECTOR:kernel.VECTOR + 3] = self.g

@@ -27,8 +27,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from animbatch.errors import SimulationError
+from animbatch.sim.forces.on_particles import ParticleLaw, Slots
 from animbatch.sim.integrators.methods import METHODS
-from animbatch.sim.particles.fields import ParticleField, Slots
 
 #: The fixed-step methods (each has a particle kernel).
 FIXED_METHODS = tuple(name for name, method in METHODS.items() if method.particle_step is not None)
@@ -37,7 +37,7 @@ FIXED_METHODS = tuple(name for name, method in METHODS.items() if method.particl
 class Accelerations:
     """``a(x, v)`` [m/s²] of a set of slots under the emitter's fields; counts its evaluations."""
 
-    def __init__(self, fields: tuple[ParticleField, ...]) -> None:
+    def __init__(self, fields: tuple[ParticleLaw, ...]) -> None:
         self.fields = fields
         self.evaluations = 0
 
@@ -56,13 +56,13 @@ class Accelerations:
         slots = Slots(x, v, mass, radius)
         rates = np.zeros((len(mass), 2))
         for field in self.fields:
-            if field.velocity_dependent:
-                rates += field.drag_rate(slots)
+            field_rates = field.rates(slots)
+            if field_rates is not None:
+                rates += field_rates
         return rates
 
     def quadratic_direction(self, v: np.ndarray) -> np.ndarray:
-        field = next((f for f in self.fields if f.velocity_dependent and f.law == "quadratic"), None)
-        relative = v - field.wind if field is not None and field.wind is not None else v
+        relative = next((found for f in self.fields if (found := f.quadratic_relative(v)) is not None), v)
         speed = np.linalg.norm(relative, axis=1, keepdims=True)
         return np.divide(relative, speed, out=np.zeros_like(relative), where=speed > 0)
 

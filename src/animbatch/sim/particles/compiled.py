@@ -28,9 +28,6 @@ from animbatch.sim.particles.emitter import Emitter
 from animbatch.sim.particles.obstacles import SURFACE_GAP
 from animbatch.sim.particles.pool import ParticlePool
 
-#: Field kinds and drag laws the kernel evaluates.
-KERNEL_FIELDS = ("gravity", "drag", "wind", "buoyancy")
-KERNEL_LAWS = ("linear", "quadratic", "stokes")
 #: Below this many particle-steps a call runs on the calling thread alone: numba's threads sleep between calls
 #: (OMP_WAIT_POLICY=PASSIVE), and waking them takes longer than a small pool's step.
 SERIAL_WORK = 50_000
@@ -66,21 +63,8 @@ class CompiledPool:
         fields = emitter.fields
 
         table = np.zeros((len(fields), kernel.FIELD_COLUMNS))
-        for row, f in zip(table, fields):
-            if f.kind == "gravity":
-                row[kernel.KIND] = kernel.FIELD_GRAVITY
-                row[kernel.VECTOR:kernel.VECTOR + 3] = f.g
-            elif f.kind == "buoyancy":
-                row[kernel.KIND] = kernel.FIELD_BUOYANCY
-                row[kernel.VECTOR:kernel.VECTOR + 3] = f.up
-                row[kernel.DENSITY], row[kernel.BUOYANCY_G] = f.density, f.buoyancy_g
-                row[kernel.LEVEL], row[kernel.DAMPING] = f.level, f.damping
-            else:
-                row[kernel.KIND] = kernel.FIELD_DRAG
-                row[kernel.LAW] = KERNEL_LAWS.index(f.law)
-                row[kernel.COEFFICIENT], row[kernel.VISCOSITY] = f.coefficient, f.viscosity
-                row[kernel.HAS_WIND] = f.wind is not None
-                row[kernel.VECTOR:kernel.VECTOR + 3] = f.wind if f.wind is not None else 0.0
+        for row, law in zip(table, fields):  # each law writes its own row (see animbatch.sim.forces.on_particles)
+            law.kernel_row(row, kernel)
         solids = solid_table(colliders, kernel) if colliders is not None else np.zeros((0, kernel.SOLID_COLUMNS))
         mode = emitter.collision if colliders is not None else "pass"
         compiled = cls(kernel.METHOD_CODES[method], kernel.MODE_CODES[mode], table, solids, float(gravity),
@@ -97,8 +81,7 @@ class CompiledPool:
     @staticmethod
     def covers(emitter: Emitter, colliders: ParticleColliders | None, method: str) -> bool:
         """Whether the kernel can step this emitter (its fields, the ``colliders`` it meets, ``method``)."""
-        if method not in KERNEL_METHODS or any(f.kind not in KERNEL_FIELDS or (
-                f.kind in ("drag", "wind") and f.law not in KERNEL_LAWS) for f in emitter.fields):
+        if method not in KERNEL_METHODS or not all(law.compiled for law in emitter.fields):
             return False
         # meshes, bodies and moving colliders are traced by the numpy code
         return colliders is None or colliders.obstacles is None or colliders.obstacles.empty

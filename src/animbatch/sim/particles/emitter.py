@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from animbatch.sim.forces.on_particles import ParticleLaw
 from animbatch.sim.particles.body_motion import BodyMotion
-from animbatch.sim.particles.fields import ParticleField
 from animbatch.sim.particles.schedule import Births, EmissionSchedule
 from animbatch.sim.particles.sources import Source, cone_directions
 from animbatch.sim.particles.streams import DRAW, ParticleStreams, spread_values
@@ -82,7 +82,7 @@ class Emitter:
     collision: str
     material: int
     capacity: int
-    fields: tuple[ParticleField, ...]
+    fields: tuple[ParticleLaw, ...]
 
     def newborns(self, births: Births, motion: BodyMotion | None) -> Newborns:
         """Start states and attributes of ``births``; ``motion`` places an emitter that moves with a body."""

@@ -79,7 +79,7 @@ class EmitterRun:
         self.solver = solver
         self.motion = motion
         self.acceleration = Accelerations(emitter.fields)
-        gravity = sum((f.g for f in emitter.fields if f.kind == "gravity" and f.g is not None), np.zeros(3))
+        gravity = sum((f.gravity for f in emitter.fields), np.zeros(3))
         self._gravity = float(np.linalg.norm(gravity))
         self.collisions = 0
         self.steps = 0
