@@ -242,6 +242,39 @@ def test_linear_drag_reaches_terminal_velocity_and_backward_euler_survives_stiff
         run(text.replace("backward_euler", "symplectic_euler").replace("duration: 0.5", "duration: 10"))
 
 
+def test_an_explicit_step_beyond_a_laws_rate_is_refused_before_any_particle_moves_and_one_within_it_settles():
+    """Linear drag slows a particle at α = C/m; an explicit step h is stable while α h < 2. At α h = 2.4 the run is
+    refused before it starts, naming the emitter, the law, the rate and the largest stable dt; at α h = 1.5 it runs
+    and the particles settle at the terminal velocity g / α. A fluid's damping meant for bodies, on light particles
+    (the rate c/m of a fully submerged one), is refused the same way instead of flinging them off."""
+    h, mass = 1 / 30, 0.001
+
+    def scene_text(alpha_h: float) -> str:
+        return f"""
+            duration: 2
+            fps: 30
+            solver: {{method: symplectic_euler, dt: 0.0333334}}
+            emitters: [{{name: mist, bursts: [{{time: 0, count: 5}}], speed: 0, mass: {mass}, lifetime: 10}}]
+            fields: [{{type: gravity}}, {{type: drag, model: linear, coefficient: {alpha_h * mass / h}}}]
+            """
+
+    with pytest.raises(SimulationError, match=r"emitter 'mist': drag linear.*stable only below 0\.0278 s") as refused:
+        run(scene_text(2.4))
+    assert "solver.dt ≤ 0.025 s" in str(refused.value) and refused.value.time is None
+    _, trajectory = run(scene_text(1.5))
+    frames, alpha = trajectory.particles[0], 1.5 / h
+    live = frames.serials[-1] >= 0
+    velocity = (frames.positions[-1][live] - frames.positions[-2][live]) / h
+    np.testing.assert_allclose(velocity, np.tile([0, -G / alpha, 0], (live.sum(), 1)), atol=1e-6)
+    with pytest.raises(SimulationError, match=r"emitter 'bubbles': buoyancy.*rate of 1\.25e\+07 /s"):
+        run("""
+            duration: 1
+            solver: {method: verlet, dt: 0.005}
+            emitters: [{name: bubbles, rate: 100, speed: 0.2, radius: 0.01, mass: 4.0e-7}]
+            fields: [{type: gravity}, {type: buoyancy, density: 1000, level: 0, linear_damping: 5}]
+            """)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("kernels", ["numpy", "numba"])
 def test_bounce_on_a_plane_rises_to_e_squared_of_the_drop_height(monkeypatch, kernels):

@@ -220,6 +220,9 @@ class BuoyancyOnParticles(ParticleLaw):
     def compiled(self) -> bool:
         return True
 
+    def largest_rate(self, mass: float, radius: float) -> float | None:
+        return self.damping / mass if self.damping else None  # fully submerged
+
     def kernel_row(self, row: np.ndarray, kernel: ModuleType) -> None:
         row[kernel.KIND] = kernel.FIELD_BUOYANCY
         row[kernel.VECTOR:kernel.VECTOR + 3] = self.up

@@ -203,6 +203,11 @@ class DragOnParticles(ParticleLaw):
     def quadratic_relative(self, v: np.ndarray) -> np.ndarray | None:
         return self._relative(v) if self.law == "quadratic" else None
 
+    def largest_rate(self, mass: float, radius: float) -> float | None:
+        if self.law == "quadratic":
+            return None  # C |u| / m: it grows with the speed
+        return (6.0 * np.pi * self.viscosity * radius if self.law == "stokes" else self.coefficient) / mass
+
     @property
     def compiled(self) -> bool:
         return self.law in _KERNEL_LAWS

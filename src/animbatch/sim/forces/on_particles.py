@@ -42,6 +42,12 @@ class ParticleLaw(ABC):
         acceleration does not depend on velocity."""
         return None
 
+    def largest_rate(self, mass: float, radius: float) -> float | None:
+        """The largest ``α`` of :meth:`rates` [1/s] on a particle of ``mass`` [kg] and ``radius`` [m], wherever it
+        is and however fast it moves; None when it does not depend on velocity, or without bound (quadratic drag
+        grows with speed). An explicit step h is stable only while α h < 2."""
+        return None
+
     def quadratic_relative(self, v: np.ndarray) -> np.ndarray | None:
         """The velocity (K, 3) [m/s] a quadratic law acts on (``û`` of :meth:`rates`), None for other laws."""
         return None

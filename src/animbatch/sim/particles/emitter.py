@@ -34,6 +34,10 @@ class Law:
     def largest(self) -> float:
         return self.mean + self.spread
 
+    @property
+    def smallest(self) -> float:
+        return self.mean - self.spread
+
 
 @dataclass(frozen=True)
 class Newborns:

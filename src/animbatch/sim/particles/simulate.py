@@ -27,6 +27,7 @@ import numpy as np
 from animbatch.errors import OverBudget, SimulationError
 from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.interface import StepSettings
+from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.integrators.step_plan import substeps
 from animbatch.sim.particles.advance import FIXED_METHODS, Accelerations, adaptive_segment, fixed_step
 from animbatch.sim.particles.body_motion import BodyMotion, BodyPose
@@ -287,6 +288,29 @@ class EmitterRun:
                 "which takes drag implicitly", time=t, body=self.emitter.name)
 
 
+#: An explicit step h of ``v' = -α v`` stays bounded only while α h < 2 (Euler's |1 - α h| ≤ 1; the symplectic
+#: methods and Verlet share the bound along the real axis).
+EXPLICIT_RATE_LIMIT = 2.0
+
+
+def check_stability(emitter: Emitter, method: str, h: float) -> None:
+    """Refuse, before any particle moves, a fixed step ``h`` [s] of an explicit ``method`` that a law of the emitter
+    makes unstable for its lightest, largest particle (a velocity rate ``α = -∂a/∂v`` with α h ≥ 2: drag on tiny
+    particles, a fluid's damping meant for bodies), naming the law and the fix."""
+    if method not in METHODS or not METHODS[method].fixed_step or METHODS[method].implicit:
+        return
+    mass, radius = max(emitter.mass.smallest, 1e-300), max(emitter.radius.largest, 0.0)
+    for law in emitter.fields:
+        alpha = law.largest_rate(mass, radius)
+        if alpha is not None and alpha * h >= EXPLICIT_RATE_LIMIT:
+            raise SimulationError(
+                f"emitter {emitter.name!r}: {law.describe()} slows its lightest particles ({mass:.3g} kg, radius "
+                f"{radius:.3g} m) at a rate of {alpha:.3g} /s, and a {method} step of {h:.3g} s is stable only below "
+                f"{EXPLICIT_RATE_LIMIT / alpha:.3g} s: the particles would gain speed every step. Use "
+                f"solver.dt ≤ {0.9 * EXPLICIT_RATE_LIMIT / alpha:.3g} s, or solver.method: backward_euler (which "
+                "takes the rate implicitly), or heavier particles or a weaker field", body=emitter.name)
+
+
 def steps_per_frame(interval: float, method: str, dt: float) -> int:
     """Calls of EmitterRun.step per frame interval [s]: fixed-step methods take steps of at most ``dt`` [s] that
     divide it; adaptive ones integrate each frame interval as one segment (their own steps inside)."""
@@ -311,6 +335,10 @@ def simulate_particles(emitters: tuple[Emitter, ...], colliders: dict[str, Parti
     started = time.perf_counter()
     method = solver.method
     frames = len(times)
+    if len(times) > 1:
+        interval = float(times[1] - times[0])
+        for emitter in emitters:
+            check_stability(emitter, method, interval / steps_per_frame(interval, method, dt))
     total_steps = sum(steps_per_frame(float(b - a), method, dt) for a, b in zip(times[:-1], times[1:]))
     run_seconds = sum(numpy_pool_seconds(e.capacity, total_steps) for e in emitters)
     runs = [EmitterRun(e, colliders.get(e.name), method, solver, motion, total_steps, run_seconds) for e in emitters]
