@@ -34,6 +34,14 @@ def test_the_scene_format_offers_exactly_the_methods_of_the_table():
     assert set(CONTACT_METHODS) == {name for name, m in METHODS.items() if m.scheme and m.scheme.takes_constraints}
 
 
+def test_the_methods_that_default_to_one_step_per_frame_are_the_implicit_fixed_step_ones():
+    """Without solver.dt, the implicit fixed-step methods (stable at any step) take one step per frame; the step
+    rule's list and the method table agree."""
+    from animbatch.sim.integrators.step_plan import ONE_STEP_PER_FRAME
+
+    assert set(ONE_STEP_PER_FRAME) == {name for name, m in METHODS.items() if m.fixed_step and m.implicit}
+
+
 @pytest.mark.parametrize("name", [name for name, m in METHODS.items() if m.fixed_step])
 def test_every_fixed_step_method_is_complete_in_the_table(name):
     """A fixed-step method has its scheme, its particle kernel and a stability matrix that tends to the identity

@@ -214,6 +214,29 @@ def test_a_default_step_that_does_not_divide_the_frame_is_not_blamed_on_solver_d
     assert "42 per frame: the largest step ≤ the default step 0.001 s" in described
 
 
+def test_backward_euler_takes_one_step_per_frame_unless_given_a_dt_and_the_summary_says_where_each_step_came_from():
+    """Without solver.dt, backward Euler (stable at any step) takes one step per frame; an explicit method takes the
+    1 ms default; a given dt that divides the frame is solver.dt's. The summary line says which."""
+    text = """
+        duration: 0.5
+        fps: 25
+        solver: {method: backward_euler}
+        bodies: [{name: ball}]
+        fields: [{type: gravity}]
+    """
+    assert api.plan(scene(text)).steps.frame_substeps == 1
+    _, implicit = run(text)
+    assert implicit.ledger["step"]["steps_per_frame"] == 1 and implicit.ledger["step"]["dt"] == pytest.approx(0.04)
+    assert "backward_euler dt 0.04 s (default: one step per frame)" in summary(implicit.ledger)
+    _, explicit = run(text.replace("backward_euler", "verlet"))
+    assert explicit.ledger["step"]["steps_per_frame"] == 40 and "verlet dt 0.001 s (default):" in summary(explicit.ledger)
+    _, given = run(text.replace("{method: backward_euler}", "{method: backward_euler, dt: 0.01}"))
+    assert given.ledger["step"]["steps_per_frame"] == 4 and "backward_euler dt 0.01 s:" in summary(given.ledger)
+    from animbatch.summary import describe_solver
+
+    assert describe_solver(scene(text).spec.solver) == "backward_euler (fixed step, one step per frame)"
+
+
 def test_a_step_written_to_a_few_digits_still_divides_the_frame():
     """dt = 0.008333333 s is 1/120 s to seven digits: four steps per 30 fps frame, not five (the bundled fountain
     took five, 25 % more work, and was told its dt did not divide 1/fps). A dt smaller by more than 1e-6 relative

@@ -15,7 +15,6 @@ from animbatch.sim.contact.impact_events import ContactEvents
 from animbatch.sim.contact.time_stepping import ContactResolver
 from animbatch.sim.integrators import SCIPY_METHODS, FixedStepIntegrator, Integrator, ScipyIntegrator
 from animbatch.sim.integrators.interface import EquationsOfMotion
-from animbatch.sim.integrators.step_plan import resolve_dt
 from animbatch.sim.joints.stops import JointStops
 from animbatch.sim.model.dynamics import Dynamics
 from animbatch.sim.model.model import Model
@@ -53,5 +52,5 @@ def integrator_for(model: Model | None, method: str, *, dt: float | None = None,
         stops = model is not None and model.joints is not None and model.joints.stopping and not contacts
         return ScipyIntegrator(method, rtol=rtol, atol=atol, max_step=max_step,
                                events=contact_events if contacts else joint_stops if stops else None)
-    return FixedStepIntegrator(method, dt=resolve_dt(dt),
+    return FixedStepIntegrator(method, dt=dt,
                                constraint=contact_constraint if contacts else None)

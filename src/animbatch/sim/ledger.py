@@ -37,6 +37,7 @@ from animbatch.sim.forces.gravitation import InverseSquarePairs
 from animbatch.sim.integrators.advice import Encounter, closest_encounter
 from animbatch.sim.integrators.guard import energy_scale
 from animbatch.sim.integrators.methods import METHODS
+from animbatch.sim.integrators.step_plan import ONE_STEP_PER_FRAME
 from animbatch.sim.invariants import angular_momentum, centre_of_mass, kinetic_energy, linear_momentum, potential_energy
 from animbatch.sim.model.dynamics import Dynamics
 from animbatch.sim.model.model import Model
@@ -440,9 +441,14 @@ def summary(ledger: dict[str, Any]) -> str:
     method, step = ledger.get("method", "?"), ledger.get("step", {})
     work = ledger.get("work", {})
     if ledger.get("kind") == "fixed-step" and step.get("dt"):
-        bound = "solver.dt" if step.get("dt_given", True) else "the default step"
-        how = f" dt {step['dt']:.4g} s" + (f" ({bound} {step['requested_dt']:.4g} s does not divide 1/fps)"
-                                           if step.get("note") else "")
+        # where the step came from: solver.dt (no note), the default, or either adjusted to divide 1/fps
+        given = step.get("dt_given", True)
+        bound = "solver.dt" if given else "the default step"
+        how = f" dt {step['dt']:.4g} s"
+        if step.get("note"):
+            how += f" ({bound} {step['requested_dt']:.4g} s does not divide 1/fps)"
+        elif not given:
+            how += " (default: one step per frame)" if method in ONE_STEP_PER_FRAME else " (default)"
     elif step.get("smallest") is not None:
         how = f" steps {step['smallest']:.2g}–{step['largest']:.2g} s"
     else:

@@ -113,7 +113,7 @@ def preflight(model: Model, method: str, dt: float | None = None) -> list[str]:
     h = steps = None
     if METHODS[method].fixed_step and len(times) > 1:
         interval = float(times[1] - times[0])
-        count = substeps(interval, resolve_dt(dt))
+        count = substeps(interval, resolve_dt(dt, method, interval))
         h, steps = interval / count, count * (len(times) - 1)
     messages = _spring_warnings(model, method, steps or 0, h)
     if h is not None and model.contact_world is not None:

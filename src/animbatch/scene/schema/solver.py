@@ -56,7 +56,8 @@ class SolverSpec(SceneModel):
     atol: float = key(1e-9, "Absolute tolerance of adaptive methods, in the units of each state component "
                             "(m for positions, m/s for velocities).", "m, m/s", gt=0)
     max_step: float | None = key(None, "Largest step an adaptive method may take (default: no limit).", "s", gt=0)
-    dt: float | None = key(None, "Step of fixed-step methods (default 1e-3 s). The step used is the largest one "
+    dt: float | None = key(None, "Step of fixed-step methods (default: one step per frame for backward_euler, which "
+                                 "is stable at any step; 1e-3 s for the others). The step used is the largest one "
                                  "<= dt that divides the frame interval 1/fps, so that frames fall on steps (to 1e-6: "
                                  "dt 0.008333333 counts as 1/120 s).",
                            "s", gt=0)

@@ -133,7 +133,7 @@ def _steps(model: Model, solver: StepSettings, times: np.ndarray) -> tuple[float
     interval = duration / (frames - 1)
     method = solver.method
     if method not in METHODS or METHODS[method].fixed_step:
-        per_frame = substeps(interval, resolve_dt(solver.dt))
+        per_frame = substeps(interval, resolve_dt(solver.dt, method, interval))
         return float(per_frame * (frames - 1)), f"{per_frame} per frame × {frames - 1} frames"
     candidates = [(float(frames - 1), "one per frame at least")]
     if solver.max_step:

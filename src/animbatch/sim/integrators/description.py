@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from animbatch.sim.integrators.step_plan import resolve_dt
+from animbatch.sim.integrators.step_plan import ONE_STEP_PER_FRAME, resolve_dt
 
 
 def describe_method(method: str, *, adaptive: bool, dt: float | None = None, rtol: float = 1e-6, atol: Any = 1e-9,
@@ -17,7 +17,9 @@ def describe_method(method: str, *, adaptive: bool, dt: float | None = None, rto
     if method == "analytic":
         return "analytic (closed forms of the motion: no integration)"
     if not adaptive:
-        return f"{method} (fixed step, dt <= {resolve_dt(dt):g} s)"
+        if dt is None and method in ONE_STEP_PER_FRAME:
+            return f"{method} (fixed step, one step per frame)"
+        return f"{method} (fixed step, dt <= {resolve_dt(dt, method):g} s)"
     limit = f", max_step {max_step:g} s" if max_step else ""
     tolerance = f"{float(atol):g}" if np.ndim(atol) == 0 else "per component"
     return f"{method} (adaptive, rtol {rtol:g}, atol {tolerance}{limit})"

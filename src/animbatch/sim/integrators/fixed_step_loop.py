@@ -24,20 +24,21 @@ from animbatch.sim.integrators.interface import (
 )
 from animbatch.sim.integrators.methods import FIXED_STEP_SCHEMES
 from animbatch.sim.integrators.stability import check_fixed_step
-from animbatch.sim.integrators.step_plan import substeps
+from animbatch.sim.integrators.step_plan import resolve_dt, substeps
 
 #: At most this many steps per compiled call, between reads of the wall-time budget.
 COMPILED_CHUNK = 256
 
 
 class FixedStepIntegrator(Integrator):
-    """A fixed-step scheme with step at most ``dt`` [s], aligned to the frame times."""
+    """A fixed-step scheme with step at most ``dt`` [s] (None: the method's default, see
+    :func:`~animbatch.sim.integrators.step_plan.resolve_dt`), aligned to the frame times."""
 
-    def __init__(self, method: str, *, dt: float, constraint: ConstraintFactory | None = None) -> None:
+    def __init__(self, method: str, *, dt: float | None = None, constraint: ConstraintFactory | None = None) -> None:
         """``constraint``: makes the velocity constraints (contacts) for the system integrated, or None."""
         if method not in FIXED_STEP_SCHEMES:
             raise ValueError(f"unknown fixed-step method {method!r}; choose from {', '.join(FIXED_STEP_SCHEMES)}")
-        if not dt > 0:
+        if dt is not None and not dt > 0:
             raise ValueError(f"dt must be > 0 (got {dt})")
         if constraint is not None and not FIXED_STEP_SCHEMES[method].takes_constraints:
             keeping = [name for name, scheme in FIXED_STEP_SCHEMES.items() if scheme.takes_constraints]
@@ -49,13 +50,18 @@ class FixedStepIntegrator(Integrator):
     def describe(self) -> str:
         return describe_method(self.method, adaptive=False, dt=self.dt)
 
+    def step_bound(self, times: np.ndarray) -> float:
+        """The largest step [s] over frames at ``times`` (F,): ``dt``, or the method's default for their interval."""
+        return resolve_dt(self.dt, self.method, float(times[1] - times[0]) if len(times) > 1 else None)
+
     def integrate(self, system: EquationsOfMotion, y0: np.ndarray, times: np.ndarray, *,
                   on_frame: FrameCallback | None = None) -> IntegrationResult:
         started = time.perf_counter()
+        dt = self.step_bound(times)
         model = getattr(system, "model", None)
         layout = getattr(model, "layout", None)
         if model is not None and len(times) > 1:  # refuse a step that cannot hold the springs, before any work
-            count = substeps(float(times[1] - times[0]), self.dt)
+            count = substeps(float(times[1] - times[0]), dt)
             check_fixed_step(model, self.method, float(times[1] - times[0]) / count, count * (len(times) - 1))
         scheme = FIXED_STEP_SCHEMES[self.method](system)
         if self.constraint is not None:
@@ -72,7 +78,7 @@ class FixedStepIntegrator(Integrator):
             on_frame(0, float(times[0]))
         # overflow is detected once per frame and reported, not warned about; small systems keep BLAS on one thread
         with np.errstate(all="ignore"), threads_for_state(len(y)):
-            largest_step = self._run(scheme, y, states, times, stats, layout, on_frame)
+            largest_step = self._run(scheme, y, states, times, dt, stats, layout, on_frame)
         stats.rhs_evaluations = scheme.evaluations
         stats.jacobian_evaluations = stats.lu_decompositions = scheme.factorisations
         if scheme.constraint is not None:  # contacts log their impacts, and how their solves ended
@@ -80,12 +86,12 @@ class FixedStepIntegrator(Integrator):
             stats.contact_solves = scheme.constraint.solves
         stats.dt = largest_step or None
         if len(times) > 1:
-            stats.substeps_per_frame = substeps(float(times[1] - times[0]), self.dt)
+            stats.substeps_per_frame = substeps(float(times[1] - times[0]), dt)
         stats.wall_time = time.perf_counter() - started
         return IntegrationResult(states, stats)
 
-    def _run(self, scheme: Scheme, y: np.ndarray, states: np.ndarray, times: np.ndarray, stats: SolverStats,
-             layout: Any, on_frame: FrameCallback | None) -> float:
+    def _run(self, scheme: Scheme, y: np.ndarray, states: np.ndarray, times: np.ndarray, dt: float,
+             stats: SolverStats, layout: Any, on_frame: FrameCallback | None) -> float:
         """Step through every frame interval; return the largest step used [s]."""
         scheme.start(float(times[0]), y)
         # a system that takes a scheme's form (compiled equations of motion: every form; a tree of hinges and
@@ -96,7 +102,7 @@ class FixedStepIntegrator(Integrator):
         largest_step = 0.0
         for frame in range(1, len(times)):
             t0, t1 = float(times[frame - 1]), float(times[frame])
-            count = substeps(t1 - t0, self.dt)
+            count = substeps(t1 - t0, dt)
             h = (t1 - t0) / count
             largest_step = max(largest_step, h)
             saved_state, saved_scheme = y.copy(), scheme.snapshot()

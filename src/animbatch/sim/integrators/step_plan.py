@@ -9,14 +9,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: The step fixed-step methods take when the scene names none [s].
+#: The step explicit fixed-step methods take when the scene names none [s].
 DEFAULT_DT = 1e-3
+#: Fixed-step methods stable at any step (implicit): without ``solver.dt`` they take one step per frame, as the
+#: docs recommend for cloth (a test checks this is every implicit fixed-step method of the method table).
+ONE_STEP_PER_FRAME = ("backward_euler",)
 
 
-def resolve_dt(dt: float | None) -> float:
-    """The step bound [s] a fixed-step method uses: the scene's ``solver.dt``, or :data:`DEFAULT_DT` without one.
-    This is the one place the default is applied."""
-    return float(dt) if dt is not None else DEFAULT_DT
+def resolve_dt(dt: float | None, method: str = "", interval: float | None = None) -> float:
+    """The step bound [s] a fixed-step ``method`` uses over frames ``interval`` [s] apart: the scene's ``solver.dt``;
+    without one, the frame interval for the implicit methods (:data:`ONE_STEP_PER_FRAME`) and :data:`DEFAULT_DT`
+    for the others. This is the one place the default is applied."""
+    if dt is not None:
+        return float(dt)
+    if method in ONE_STEP_PER_FRAME and interval is not None:
+        return float(interval)
+    return DEFAULT_DT
 
 
 def substeps(interval: float, dt: float) -> int:
@@ -70,5 +78,5 @@ def plan_steps(method: str, *, adaptive: bool, dt: float | None, rtol: float, at
     """The :class:`StepPlan` of a run over ``frame_times`` (F,) [s] with these settings (``dt`` None: the
     default)."""
     interval = float(frame_times[1] - frame_times[0]) if len(frame_times) > 1 else None
-    return StepPlan(method, adaptive, resolve_dt(dt), dt is not None, float(rtol), float(atol),
+    return StepPlan(method, adaptive, resolve_dt(dt, method, interval), dt is not None, float(rtol), float(atol),
                     None if max_step is None else float(max_step), interval)
