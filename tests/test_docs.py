@@ -88,3 +88,13 @@ def test_the_architecture_page_figures_are_what_their_commands_count():
         printed = subprocess.run(["bash", "-c", command.replace("\\|", "|")], cwd=REPO, capture_output=True,
                                  text=True, check=True).stdout.strip()
         assert printed == value, f"{figure}: the page says {value}, '{command}' prints {printed}"
+
+
+def test_the_reference_describes_a_list_of_points_or_nulls_as_such():
+    """joints[].attach and springs[].attach are lists of two points or nulls, not mappings chosen by type (a user
+    who read the old line wrote mappings); discriminated unions stay 'mapping (by `type`)'."""
+    page = (REPO / "docs" / "scene-format.md").read_text(encoding="utf-8")
+    for key in ("joints[].attach", "springs[].attach"):
+        rows = [line for line in page.splitlines() if line.startswith(f"| `{key}` |")]
+        assert rows and all("| list of 2 items (each [x, y, z] or null) or null |" in row for row in rows), key
+    assert "| `colliders` | list of mappings (by `type`) |" in page

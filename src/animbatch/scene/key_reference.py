@@ -130,6 +130,8 @@ def _one_type(annotation: Any, field: FieldInfo) -> str:
             return "[x, y, z]"
         inner = _one_type(item, FieldInfo(annotation=item))
         count = f"{lengths[0].min_length} " if lengths and lengths[0].min_length == lengths[0].max_length else ""
+        if " or " in inner:
+            return f"list of {count}items (each {inner})"
         if inner.startswith("one of"):
             return f"list of {count}items, each {inner}"
         noun, _, qualifier = inner.partition(" (")
@@ -140,7 +142,12 @@ def _one_type(annotation: Any, field: FieldInfo) -> str:
     if isinstance(base, type) and issubclass(base, BaseModel):
         return "mapping"
     if typing.get_origin(base) in (typing.Union, types.UnionType):
-        return "mapping (by `type`)"
+        members = [m for m in typing.get_args(base) if m is not type(None)]
+        models = [m.__origin__ if typing.get_origin(m) is typing.Annotated else m for m in members]
+        if all(isinstance(m, type) and issubclass(m, BaseModel) for m in models):  # a discriminated union
+            return "mapping (by `type`)"
+        nullable = " or null" if type(None) in typing.get_args(base) else ""
+        return " or ".join(dict.fromkeys(_one_type(m, FieldInfo(annotation=m)) for m in members)) + nullable
     return str(base)
 
 
