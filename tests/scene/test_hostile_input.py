@@ -477,3 +477,18 @@ def test_a_document_is_built_without_recursion():
     for _ in range(60):
         value = value[0]
     assert value == 1
+
+
+@pytest.mark.parametrize("method", ["DOP853", "verlet"])
+def test_a_start_too_far_for_its_rope_stops_naming_the_body_and_the_joint(method):
+    """The fuzzer's rope_swing with the roped ball's z at −9223372036854775808: moving that start onto the rope
+    overflows to NaN. It stops before the first step with the body and the joint named (it was scipy's traceback
+    under DOP853, and under Verlet a divergence blamed on the step)."""
+    loaded = load_scene(REPO / "scenes" / "rope_swing.yaml",
+                        [f"solver.method={method}", "bodies[1].position=[1.3, 2, -9223372036854775808]"])
+    with pytest.raises(SimulationError, match=r"body 'on_rope', held by joint 'hook_rope--on_rope', starts too far"):
+        api.simulate(loaded)
+    result = CliRunner().invoke(cli, ["simulate", str(REPO / "scenes" / "rope_swing.yaml"), "-o", os.devnull,
+                                      "--set", f"solver.method={method}",
+                                      "--set", "bodies[1].position=[1.3, 2, -9223372036854775808]"])
+    assert result.exit_code == SimulationError.exit_code and "Traceback" not in result.output

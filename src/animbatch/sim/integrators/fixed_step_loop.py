@@ -13,7 +13,7 @@ from animbatch.sim.blas import threads_for_state
 from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.description import describe_method
 from animbatch.sim.integrators.fixed_step import Scheme
-from animbatch.sim.integrators.guard import divergence_error, first_non_finite
+from animbatch.sim.integrators.guard import divergence_error, first_non_finite, project_start
 from animbatch.sim.integrators.interface import (
     ConstraintFactory,
     EquationsOfMotion,
@@ -69,7 +69,7 @@ class FixedStepIntegrator(Integrator):
         stats = SolverStats(self.method)
         y = np.array(y0, dtype=float)
         # a start that breaks its joints (see EquationsOfMotion.project) is put on them first
-        system.project(y, t=float(times[0]))
+        project_start(system, y, float(times[0]))
         if hasattr(system, "joint_stabilisation"):  # projected after every step, joints need no Baumgarte term
             system.joint_stabilisation = 0.0
         states = np.empty((len(times), len(y)))

@@ -8,6 +8,7 @@ from animbatch.errors import SimulationError
 from animbatch.sim.forces.gravitation import InverseSquarePairs
 from animbatch.sim.forces.gravity import gravity_magnitude
 from animbatch.sim.integrators.advice import closest_encounter, failure_advice
+from animbatch.sim.integrators.interface import EquationsOfMotion
 from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.integrators.stability import largest_stable_step, stiffest_mode
 from animbatch.sim.invariants import kinetic_energy, total_energy
@@ -20,6 +21,35 @@ def first_non_finite(y: np.ndarray) -> int | None:
     if np.isfinite(y).all():  # the common case: one fast pass
         return None
     return int(np.flatnonzero(~np.isfinite(y))[0])
+
+
+def project_start(system: EquationsOfMotion, y: np.ndarray, t: float) -> None:
+    """Put a start that breaks its joints on them (:meth:`EquationsOfMotion.project`, in place), and stop with the
+    body and its joints named when that start cannot be placed: a state that is not finite after the projection
+    (a position so far out, 1e18 m say, that the joint's geometry overflows) would otherwise reach the method as
+    NaN, or pass for a divergence of the step."""
+    before = y.copy()
+    with np.errstate(all="ignore"):  # a start that overflows is reported below, not warned about
+        system.project(y, t=t)
+    index = first_non_finite(y)
+    if index is None:
+        return
+    model: Model | None = getattr(system, "model", None)
+    body: str | None = None
+    quantity, holding = f"component {index}", tuple[str, ...]()
+    if model is not None and model.body_count:
+        quantity = model.layout.describe_index(index)[1]
+        # the culprit is the body that started farthest out (the projection spreads NaN to the bodies it couples)
+        reach = np.linalg.norm(model.positions(before[None])[0], axis=1)
+        body = model.body_names[int(np.argmax(np.where(np.isnan(reach), np.inf, reach)))]
+        if model.joints is not None:
+            holding = model.joints.names_joining(model.body_names.index(body))
+    held = f" by joint{'s' if len(holding) > 1 else ''} {', '.join(repr(n) for n in holding)}" if holding else ""
+    raise SimulationError(
+        f"the start cannot be put on its joints: body {body!r}, held{held}, starts too far from where they allow "
+        f"(its state is {'NaN' if np.isnan(y[index]) else 'infinite'} once moved onto them). Give it a start within "
+        "the joint's reach of the other end", time=t, body=body,
+        details={"quantity": quantity, "joints": list(holding)})
 
 
 def divergence_error(layout: StateLayout | None, y: np.ndarray, index: int, t: float, *, method: str,

@@ -28,7 +28,7 @@ from animbatch.sim.blas import threads_for_state
 from animbatch.sim.integrators.advice import failure_advice
 from animbatch.sim.integrators.budget import budget_spent
 from animbatch.sim.integrators.description import describe_method
-from animbatch.sim.integrators.guard import divergence_error, fastest_body, first_non_finite
+from animbatch.sim.integrators.guard import divergence_error, fastest_body, first_non_finite, project_start
 from animbatch.sim.integrators.interface import (
     CountingRhs,
     EquationsOfMotion,
@@ -110,7 +110,7 @@ class ScipyIntegrator(Integrator):
         fun = CountingRhs(events.rhs if events is not None else system.rhs)
         start = np.array(y0, dtype=float)
         # a start that breaks its joints (see EquationsOfMotion.project) is put on them first
-        system.project(start, t=float(times[0]))
+        project_start(system, start, float(times[0]))
         # overflow is detected and reported by the checks below, not as warnings; small systems keep BLAS on one thread
         with np.errstate(all="ignore"), threads_for_state(len(start)):
             self._run(system, events, fun, start, times, states, stats, on_frame)

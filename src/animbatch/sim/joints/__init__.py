@@ -161,6 +161,12 @@ class Joints:
         """Whether each row's C is an angle [rad] rather than a length [m] (R,)."""
         return self._cache["angular"]
 
+    def names_joining(self, point: int) -> tuple[str, ...]:
+        """The names of the joints that hold model point ``point`` (to another body or to the world)."""
+        bodies = self._cache["bodies"]  # (K, 2) joined-body indices; the anchors and the world come after them
+        joined = np.flatnonzero(self.points == point)
+        return tuple(name for k, name in enumerate(self.names) if np.isin(bodies[k], joined).any())
+
     def joined_pairs(self) -> np.ndarray:
         """The pairs of model points (K', 2) that some joint joins to each other (joints to the world left out)."""
         bodies = self._cache["bodies"]
