@@ -507,3 +507,38 @@ def test_a_video_writer_whose_encoder_died_says_so_and_leaves_no_file(tmp_path):
             for _ in range(50):  # the pipe's buffer may take a frame or two before the write fails
                 writer.write(np.zeros((HEIGHT, WIDTH, 3), np.uint8))
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_next_run_sweeps_what_a_killed_writer_left_and_keeps_what_live_writers_write(throw, tmp_cwd):
+    """A writer killed with SIGKILL leaves its temporary files for good (issue 40: '.frame_00023.png.partial-24437.png',
+    '.throw.mp4.partial-24437.mp4'). The next run removes those whose process is gone from this host, in the scene's
+    output, frames and cache folders, and keeps a running writer's and another host's (a farm's shared folder)."""
+    import subprocess
+    import sys
+
+    from animbatch.files import partial_path, sweep_partials
+
+    folder = tmp_cwd / "renders" / "throw"
+    (folder / "frames").mkdir(parents=True)
+    (folder / "cache").mkdir()
+    killed = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    killed.kill()
+    killed.wait()  # its pid is free now: nothing of this host runs under it
+    written_by_killed = subprocess.run(
+        [sys.executable, "-c", "import sys; from pathlib import Path; from animbatch.files import partial_path; "
+         "[print(partial_path(Path(p))) for p in sys.argv[1:]]", *(str(folder / name) for name in (
+             "throw.mp4", "frames/frame_00023.png", "cache/trajectory-x.npz"))],
+        capture_output=True, text=True, check=True).stdout.split()
+    left = [Path(name) for name in written_by_killed]
+    legacy = folder / "frames" / f".frame_00024.png.partial-{killed.pid}.png"  # named by an older version
+    live = partial_path(folder / "frames" / "frame_00099.png")  # this process: a writer still running
+    elsewhere = folder / f".throw.mp4.partial-othernode-{killed.pid}.mp4"  # another host's, on a shared folder
+    for path in [*left, legacy, live, elsewhere]:
+        path.write_bytes(b"half a file")
+    assert sorted(sweep_partials(folder / "frames")) == sorted([left[1], legacy])
+    left[1].write_bytes(b"half a file")
+    legacy.write_bytes(b"half a file")
+    assert api.run(throw, out_dir="renders").frame_count == 50
+    assert not any(path.exists() for path in [*left, legacy])
+    assert live.exists() and elsewhere.exists()
+    assert (folder / "throw.mp4").is_file()

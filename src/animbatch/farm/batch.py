@@ -25,7 +25,7 @@ from animbatch.cluster import WORKER_ENV, connect
 from animbatch.errors import SimulationError
 from animbatch.farm import bake, render_frames
 from animbatch.farm.encode import encode
-from animbatch.farm.frame_files import FrameRange, frames_folder, prepare_frames
+from animbatch.farm.frame_files import FrameRange, frames_folder, prepare_frames, sweep_killed_writers
 from animbatch.files import write_json_atomic
 from animbatch.stopwatch import Stopwatch
 from animbatch.trajectory import Trajectory
@@ -62,6 +62,7 @@ class JobResult:
 def bake_task(scene_path: str, overrides: Sequence[Any], out_dir: str) -> dict[str, Any]:
     """Simulate (or reuse the cache) and prepare the frames folder; what the render tasks need to know."""
     scene = stages.load_scene(scene_path, list(overrides))
+    sweep_killed_writers(scene, out_dir)
     started = time.perf_counter()
     try:
         result = bake(scene, out_dir=out_dir)

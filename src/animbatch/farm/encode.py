@@ -17,7 +17,7 @@ import numpy as np
 from animbatch.encode.images import PngSequenceWriter
 from animbatch.encode.video import VIDEO_KINDS, VideoWriter
 from animbatch.errors import RenderError
-from animbatch.farm.frame_files import frame_is_complete, frames_folder, output_stem
+from animbatch.farm.frame_files import frame_is_complete, frames_folder, output_stem, sweep_killed_writers
 from animbatch.scene import LoadedScene
 
 
@@ -87,6 +87,7 @@ def encode(scene: LoadedScene, frame_count: int, *, out_dir: str | Path = "rende
     unknown = [kind for kind in kinds if kind not in VIDEO_KINDS]
     if unknown:
         raise ValueError(f"unknown video format {', '.join(unknown)}; choose from {', '.join(VIDEO_KINDS)}")
+    sweep_killed_writers(scene, out_dir)  # a killed encoder's half-written video is never taken for one
     frames = PngSequenceWriter(frames_folder(scene, out_dir))
     size = (int(scene.spec.render.resolution[0]), int(scene.spec.render.resolution[1]))
     missing = [index for index in range(frame_count) if not frame_is_complete(frames.path_of(index), size)]

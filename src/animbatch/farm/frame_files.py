@@ -25,7 +25,7 @@ from animbatch.compile.plan import RunPlan
 from animbatch.encode.images import BackgroundFrameWriter, FrameWriter, PngSequenceWriter
 from animbatch.errors import RenderError
 from animbatch.farm.cache import simulation_settings
-from animbatch.files import write_text_atomic
+from animbatch.files import sweep_partials, write_text_atomic
 from animbatch.render.backend import select_backend
 from animbatch.render.renderer import FrameRenderer
 from animbatch.scene import LoadedScene
@@ -68,6 +68,15 @@ def output_stem(scene: LoadedScene) -> str:
     """The name of a render's videos: the scene's, with ``-<camera>`` when drawn through a named camera."""
     camera = scene.spec.render.use_camera
     return scene.name if camera is None else f"{scene.name}-{camera}"
+
+
+def sweep_killed_writers(scene: LoadedScene, out_dir: str | Path) -> list[Path]:
+    """Remove the temporary files that writers killed mid-write (SIGKILL, a lost node) left in the scene's folders:
+    its outputs, frames and cache (:func:`animbatch.files.sweep_partials`: running writers' files are kept).
+    Returns what was removed."""
+    base = Path(out_dir) / scene.name
+    folders = [base, frames_folder(scene, out_dir), base / "cache"]
+    return [path for folder in dict.fromkeys(folders) for path in sweep_partials(folder)]
 
 
 def frames_folder(scene: LoadedScene, out_dir: str | Path) -> Path:

@@ -25,6 +25,7 @@ from animbatch.farm.frame_files import (
     draw_frames,
     frames_folder,
     prepare_frames,
+    sweep_killed_writers,
 )
 from animbatch.farm.parallel import render_in_parallel, worker_count
 from animbatch.farm.streamed_render import resumable_frames, stream_frames
@@ -64,6 +65,7 @@ def render(scene: LoadedScene | RunPlan, trajectory: Trajectory, *, out_dir: str
     run = plan(scene)
     scene = run.scene
     check_trajectory(scene, run.model, trajectory)
+    sweep_killed_writers(scene, out_dir)
     progress = progress or Progress(enabled=False)
     with progress.task("render", trajectory.frame_count) as on_frame:
         def each(i: int) -> None:
@@ -189,6 +191,7 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
     progress = progress or Progress(enabled=False)
     with watch.stage("load"):
         scene = load_scene(scene_path, overrides)
+    sweep_killed_writers(scene, out_dir)  # what a killed run left half-written is never mistaken for output
     with watch.stage("compile"):
         compiled = plan(scene)
     model = compiled.model
