@@ -441,13 +441,18 @@ def _run_of(plan: Any, trajectory: Path | None, out_dir: Path, progress: bool | 
     from animbatch import api
     from animbatch.farm import bake as bake_scene
     from animbatch.progress import Progress
+    from animbatch.sim.ledger import summary
     from animbatch.trajectory import Trajectory
 
     if trajectory is not None:
         run = Trajectory.load(trajectory)
         api.check_trajectory(plan.scene, plan.model, run, trajectory)
         return run
-    return bake_scene(plan, out_dir=out_dir, progress=Progress(enabled=progress)).trajectory
+    baked = bake_scene(plan, out_dir=out_dir, progress=Progress(enabled=progress))
+    # the wait before the command's own output is the simulation's: say so, or that the cache spared it
+    how = "read from the cache" if baked.reused else f"simulated in {baked.seconds:.2f} s"
+    click.echo(f"{plan.name}: trajectory {how} -> {baked.path} | {summary(baked.trajectory.ledger)}")
+    return baked.trajectory
 
 
 @cli.command()
