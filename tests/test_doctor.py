@@ -89,3 +89,26 @@ def test_a_blank_test_frame_is_not_taken_for_a_drawn_one(tmp_path):
     drawn[(x - 160) ** 2 + (y - 120) ** 2 < 30 ** 2] = (200, 30, 30)
     Image.fromarray(drawn).save(tmp_path / "drawn.png")
     assert doctor.ball_pixels(tmp_path / "drawn.png") > 2000
+
+
+def test_the_optional_parts_are_checked_too_each_with_its_fix(monkeypatch):
+    """numba (the compiled kernels), usd-core (the default export format) and the browser the report page's test
+    uses are listed; missing, each is marked optional with the command that installs it (issue 40: none was
+    checked), and the machine can still render."""
+    real_import = doctor.importlib.import_module
+
+    def without_usd(name, *args):
+        if name == "pxr":
+            raise ImportError("No module named 'pxr'")
+        return real_import(name, *args)
+
+    monkeypatch.setattr(doctor.importlib, "import_module", without_usd)
+    monkeypatch.setattr(doctor, "BROWSERS", ("no-such-browser-for-animbatch",))
+    report = doctor.diagnose(probe=False, encode=False)
+    checks = {check.name: check for check in report.libraries}
+    assert checks["numba"].ok and not checks["numba"].required
+    usd, browser = checks["usd-core"], checks["chromium"]
+    assert not usd.ok and not usd.required and usd.fix.endswith("-m pip install usd-core")
+    assert not browser.ok and not browser.required and "apt-get install chromium" in browser.fix
+    text = doctor.format_report(report)
+    assert "usd-core" in text and "chromium" in text

@@ -23,6 +23,7 @@ import importlib
 import importlib.metadata
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -53,8 +54,12 @@ LIBRARIES = (
 )
 #: Libraries some commands use when present.
 OPTIONAL_LIBRARIES = (
+    ("numba", "numba", "compiled kernels (without it the numpy code runs everything, the same but slower)"),
+    ("pxr", "usd-core", "animbatch export --format usd, the default export (install: the 'usd' extra)"),
     ("openjd.model", "openjd-model", "checking OpenJD job templates (farm.md)"),
 )
+#: Browsers the report page's test opens it in (headless); the pages themselves open in any browser.
+BROWSERS = ("chromium", "chromium-browser")
 
 #: The test frame: a red ball over the ground, small enough to draw in well under a second in software.
 PROBE_SCENE = """\
@@ -124,6 +129,11 @@ def check_libraries() -> list[Check]:
         except importlib.metadata.PackageNotFoundError:
             version = "unknown version"
         checks.append(Check(distribution, True, f"{version} ({purpose})", required=required))
+    browser = next((found for name in BROWSERS if (found := shutil.which(name))), None)
+    checks.append(Check("chromium", True, f"{browser} (the report page's browser test)", required=False)
+                  if browser else
+                  Check("chromium", False, "not found; the report page's browser test is skipped without it",
+                        "apt-get install chromium (bash scripts/dev.sh test installs it as root)", required=False))
     return checks
 
 
