@@ -57,17 +57,22 @@ def test_no_backend_at_all_exits_1_and_says_what_to_install(monkeypatch):
     assert "osmesa: apt-get install libosmesa6" in result.output
 
 
+def import_without(monkeypatch, missing: str) -> None:
+    """Make doctor's imports of ``missing`` fail as an uninstalled library's would."""
+    real_import = doctor.importlib.import_module
+
+    def imported(name, *args):
+        if name == missing:
+            raise ImportError(f"No module named '{missing}'")
+        return real_import(name, *args)
+
+    monkeypatch.setattr(doctor.importlib, "import_module", imported)
+
+
 def test_a_missing_python_library_and_a_missing_encoder_are_named_with_their_fix(monkeypatch):
     """A library that fails to import is marked missing with the set-up command; an ffmpeg without the MP4
     encoder makes the machine unable to render videos, and the fix says how to get an ffmpeg that has it."""
-    real_import = doctor.importlib.import_module
-
-    def without_trimesh(name, *args):
-        if name == "trimesh":
-            raise ImportError("No module named 'trimesh'")
-        return real_import(name, *args)
-
-    monkeypatch.setattr(doctor.importlib, "import_module", without_trimesh)
+    import_without(monkeypatch, "trimesh")
     monkeypatch.setitem(doctor.ENCODERS, "mp4", "libx264-that-is-not-there")
     report = doctor.diagnose(probe=False, encode=False)
     trimesh = next(check for check in report.libraries if check.name == "trimesh")
@@ -95,14 +100,7 @@ def test_the_optional_parts_are_checked_too_each_with_its_fix(monkeypatch):
     """numba (the compiled kernels), usd-core (the default export format) and the browser the report page's test
     uses are listed; missing, each is marked optional with the command that installs it (issue 40: none was
     checked), and the machine can still render."""
-    real_import = doctor.importlib.import_module
-
-    def without_usd(name, *args):
-        if name == "pxr":
-            raise ImportError("No module named 'pxr'")
-        return real_import(name, *args)
-
-    monkeypatch.setattr(doctor.importlib, "import_module", without_usd)
+    import_without(monkeypatch, "pxr")
     monkeypatch.setattr(doctor, "BROWSERS", ("no-such-browser-for-animbatch",))
     report = doctor.diagnose(probe=False, encode=False)
     checks = {check.name: check for check in report.libraries}
