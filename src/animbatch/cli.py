@@ -597,6 +597,10 @@ def encode(scene: Path, out_dir: Path, formats: str | None, resolution: str | No
 @click.option("--chunk-size", type=click.IntRange(min=1), default=48, show_default=True,
               help="Frames per render task.")
 @click.option("--backend", type=click.Choice(["auto", "egl", "osmesa"]), default="auto", show_default=True)
+@click.option("--resolution", metavar="WxH", help="Frame size of every scene, e.g. 640x360 (render.resolution).")
+@click.option("--quality", metavar="PRESET", help="draft, preview or final for every scene (render.quality), as "
+              "render takes it.")
+@click.option("--formats", metavar="LIST", help="Outputs of every scene: mp4, webm, gif, png (render.formats).")
 @click.option("--set", "settings", multiple=True, metavar="KEY.PATH=VALUE", help="Override a value in every scene.")
 @click.option("--sweep", "sweeps", multiple=True, metavar="KEY.PATH=V1,V2,…", help="Render one variant per value "
               "(repeat for every combination of several keys); one scene only. Writes sweep.csv and "
@@ -606,14 +610,16 @@ def encode(scene: Path, out_dir: Path, formats: str | None, resolution: str | No
                    "ledger and energy plot, and a sweep's table sortable by each column.")
 @_reports_errors
 def batch(scenes: tuple[Path, ...], out_dir: Path, workers: int | None, scheduler: str | None, chunk_size: int,
-          backend: str, settings: tuple[str, ...], sweeps: tuple[str, ...], page: str) -> None:
+          backend: str, settings: tuple[str, ...], sweeps: tuple[str, ...], page: str,
+          **frame_options: str | None) -> None:
     """Render many scenes on Dask: each is baked, rendered in chunks in parallel, then encoded. Every job runs to
-    its end; a summary table follows, and the exit code is 1 if any job failed."""
+    its end; a summary table follows, and the exit code is 1 if any job failed. --resolution, --quality and
+    --formats apply to every scene, as render's do."""
     from animbatch.farm import batch as farm_batch
     from animbatch.farm.sweep import finish_sweep, plan_batch
 
     try:
-        plan = plan_batch(scenes, settings, sweeps, out_dir)
+        plan = plan_batch(scenes, _overrides(settings, **frame_options), sweeps, out_dir)
     except ValueError as error:
         raise click.BadParameter(str(error), param_hint="--sweep") from None
     results = farm_batch.run_batch(plan.jobs, out_dir=out_dir, workers=workers, scheduler=scheduler,

@@ -181,6 +181,28 @@ sweep:
                                     "name=bob-stiffness-80-velocity-1_0_0")
 
 
+def test_batch_takes_the_frame_options_render_takes(tmp_cwd, monkeypatch):
+    """--resolution, --quality and --formats apply to every scene of a batch, as render's do (a draft pass over a
+    batch needed --set "render.resolution=[320,240]"; issue 40); a bad value is named by its flag."""
+    from animbatch.farm import batch as batch_module
+    from animbatch.stages import load_scene
+
+    planned = []
+    monkeypatch.setattr(batch_module, "run_batch", lambda jobs, **kwargs: planned.extend(jobs) or [])
+    for name in ("one", "two"):
+        (tmp_cwd / f"{name}.yaml").write_text(ball(name, 0.5, 1.0))
+    result = CliRunner().invoke(cli, ["batch", "one.yaml", "two.yaml", "--resolution", "320x240", "--quality",
+                                      "draft", "--formats", "mp4,png", "--report", "none"])
+    assert result.exit_code == 0, result.output
+    for job in planned:
+        render = load_scene(job.scene_path, list(job.overrides)).spec.render
+        assert list(render.resolution) == [320, 240] and render.quality == "draft"
+        assert list(render.formats) == ["mp4", "png"]
+    assert len(planned) == 2
+    bad = CliRunner().invoke(cli, ["batch", "one.yaml", "--resolution", "320by240", "--report", "none"])
+    assert bad.exit_code != 0 and "--resolution 320by240" in bad.output
+
+
 def test_the_batch_summary_says_when_a_job_ran_but_its_ledger_warns():
     """A job that succeeded with an accuracy warning is marked so in the table, with the warning's start."""
     from animbatch.farm.batch import JobResult, summary

@@ -20,6 +20,7 @@ from animbatch import stages
 from animbatch.encode.video import middle_frame
 from animbatch.farm.batch import Job, JobResult
 from animbatch.files import atomic_path, write_text_atomic
+from animbatch.scene.overrides import Override
 from animbatch.sim.integrators.guard import energy_scale
 from animbatch.sim.invariants import total_energy
 from animbatch.trajectory import Trajectory
@@ -148,7 +149,8 @@ class BatchPlan:
     sweep_folder: Path | None = None
 
 
-def plan_batch(scenes: Sequence[Path], settings: Sequence[str], sweeps: Sequence[str], out_dir: Path) -> BatchPlan:
+def plan_batch(scenes: Sequence[Path], settings: Sequence[Override], sweeps: Sequence[str], out_dir: Path
+               ) -> BatchPlan:
     """The jobs for ``animbatch batch``: a ``sweep:`` block in a lone scene stands for ``--sweep`` options; every
     variant is validated before any work starts (SceneError). ValueError names a bad ``--sweep``."""
 
