@@ -58,7 +58,9 @@ def test_a_force_law_on_bodies_and_particles_is_its_own_module_and_one_table_row
     @dataclass(frozen=True, eq=False)
     class PushOnParticles(ParticleLaw):  # the law's particle form (its own module, in a real law)
         a: np.ndarray
-        label: str = "push"
+
+        def describe(self) -> str:
+            return "push"
 
         def add_acceleration(self, slots: Slots, out: np.ndarray) -> None:
             out += self.a

@@ -116,30 +116,20 @@ def _aerodynamics(spec: AerodynamicsSpec, bodies: BodyTable, index: Index) -> Fo
                               friction=spec.friction)
 
 
-def _vector(values: Any) -> str:
-    return "(" + ", ".join(f"{c:g}" for c in values) + ")"
-
-
 def _gravity_on_particles(spec: GravitySpec) -> ParticleLaw:
-    return GravityOnParticles(np.asarray(spec.g, float), f"gravity g = {_vector(spec.g)} m/s²")
+    return GravityOnParticles(np.asarray(spec.g, float))
 
 
 def _drag_on_particles(spec: DragSpec | WindSpec) -> ParticleLaw:
     wind = np.asarray(spec.velocity, float) if isinstance(spec, WindSpec) else None
     viscosity = spec.viscosity if spec.viscosity is not None else AIR_VISCOSITY
-    if spec.model == "stokes":
-        law = f"stokes 6πηr, η = {viscosity:g} Pa·s"
-    else:
-        law = f"{spec.model}, C = {spec.coefficient:g} {'N·s/m' if spec.model == 'linear' else 'kg/m'}"
-    label = f"{spec.type} {law}" + (f", wind {_vector(wind)} m/s" if wind is not None else "")
     return DragOnParticles(spec.model, float(spec.coefficient or 0.0), viscosity,
-                           wind if wind is not None and np.any(wind) else None, label)
+                           wind if wind is not None and np.any(wind) else None, spec.type)
 
 
 def _buoyancy_on_particles(spec: BuoyancySpec) -> ParticleLaw:
     up = np.asarray(spec.up, float)
-    return BuoyancyOnParticles(spec.density, spec.g, spec.level, up / np.linalg.norm(up), spec.linear_damping,
-                               f"buoyancy ρ = {spec.density:g} kg/m³ below {spec.level:g} m")
+    return BuoyancyOnParticles(spec.density, spec.g, spec.level, up / np.linalg.norm(up), spec.linear_damping)
 
 
 @dataclass(frozen=True)

@@ -196,7 +196,9 @@ class BuoyancyOnParticles(ParticleLaw):
     level: float
     up: np.ndarray
     damping: float
-    label: str
+
+    def describe(self) -> str:
+        return f"buoyancy ρ = {self.density:g} kg/m³ below {self.level:g} m"
 
     def _fraction(self, slots: Slots) -> tuple[np.ndarray, np.ndarray]:
         """The submerged volume (K,) [m³] and its fraction of each sphere (K,)."""

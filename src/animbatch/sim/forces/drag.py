@@ -169,13 +169,22 @@ _KERNEL_LAWS = ("linear", "quadratic", "stokes")
 class DragOnParticles(ParticleLaw):
     """Drag (or wind: ``wind`` (3,) [m/s], None for still air) on emitted particles: ``a = f(u) / m`` with
     ``u = v - w`` and ``f`` of :func:`drag_force` (``law``, ``coefficient``; Stokes' ``6 π η r`` from ``viscosity``
-    [Pa·s] and each particle's radius)."""
+    [Pa·s] and each particle's radius). ``kind``: the field it came from, ``drag`` or ``wind``."""
 
     law: DragLaw
     coefficient: float
     viscosity: float
     wind: np.ndarray | None
-    label: str
+    kind: str = "drag"
+
+    def describe(self) -> str:
+        if self.law == "stokes":
+            law = f"stokes 6πηr, η = {self.viscosity:g} Pa·s"
+        else:
+            law = f"{self.law}, C = {self.coefficient:g} {'N·s/m' if self.law == 'linear' else 'kg/m'}"
+        wind = "" if self.kind != "wind" else \
+            f", wind {vector_text(self.wind if self.wind is not None else np.zeros(3))} m/s"
+        return f"{self.kind} {law}{wind}"
 
     def _relative(self, v: np.ndarray) -> np.ndarray:
         return v - self.wind if self.wind is not None else v

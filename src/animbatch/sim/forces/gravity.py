@@ -69,7 +69,9 @@ class GravityOnParticles(ParticleLaw):
     """Gravity on emitted particles: ``a = g`` (3,) [m/s²]."""
 
     g: np.ndarray
-    label: str
+
+    def describe(self) -> str:
+        return f"gravity g = {vector_text(self.g)} m/s²"
 
     def add_acceleration(self, slots: Slots, out: np.ndarray) -> None:
         out += self.g

@@ -29,9 +29,11 @@ class Slots:
 
 
 class ParticleLaw(ABC):
-    """One declared field acting on particles (subclasses are frozen dataclasses with a ``label`` field)."""
+    """One declared field acting on particles (subclasses are frozen dataclasses of the law's parameters)."""
 
-    label: str
+    @abstractmethod
+    def describe(self) -> str:
+        """The law and its parameters in words, for ``animbatch info`` and messages."""
 
     @abstractmethod
     def add_acceleration(self, slots: Slots, out: np.ndarray) -> None:
@@ -66,7 +68,4 @@ class ParticleLaw(ABC):
     def kernel_row(self, row: np.ndarray, kernel: ModuleType) -> None:
         """Write this law's row of the compiled pool kernel's field table (``kernel``:
         :mod:`animbatch.sim.kernels.particle_pool`); only when :attr:`compiled`."""
-        raise NotImplementedError(f"no compiled form of {self.label}")
-
-    def describe(self) -> str:
-        return self.label
+        raise NotImplementedError(f"no compiled form of {self.describe()}")

@@ -36,7 +36,8 @@ def project_start(system: EquationsOfMotion, y: np.ndarray, t: float) -> None:
         return
     model: Model | None = getattr(system, "model", None)
     body: str | None = None
-    quantity, holding = f"component {index}", tuple[str, ...]()
+    quantity = f"component {index}"
+    holding: tuple[str, ...] = ()
     if model is not None and model.body_count:
         quantity = model.layout.describe_index(index)[1]
         # the culprit is the body that started farthest out (the projection spreads NaN to the bodies it couples)
