@@ -179,6 +179,15 @@ def test_set_overrides_change_values_and_are_validated():
     assert loaded.spec.render.resolution == [640, 360]
 
 
+def test_a_backslash_n_in_an_unquoted_text_override_starts_a_line_as_in_a_double_quoted_yaml_string():
+    """A shell cannot easily pass a newline: 'render.time_label=a\\nb' is two lines; a single-quoted value keeps
+    the backslash, as YAML does."""
+    assert scene(GOOD, r"render.time_label=t = {t:.2f} s\nE = {E:.3f} J").spec.render.time_label == (
+        "t = {t:.2f} s\nE = {E:.3f} J")
+    assert scene(GOOD, r'render.time_label="a\nb"').spec.render.time_label == "a\nb"
+    assert scene(GOOD, r"render.time_label='a\nb'").spec.render.time_label == "a\\nb"
+
+
 @pytest.mark.parametrize("override, expected", [
     ("bodies[0].mass=-2", "--set bodies[0].mass=-2: bodies[0].mass: must be > 0 kg (got -2)"),
     ("bodies[ghost].mass=1", "--set bodies[ghost].mass=1: bodies[ghost]: no item named 'ghost' in bodies; names: ball"),

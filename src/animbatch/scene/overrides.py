@@ -2,7 +2,9 @@
 
 Paths use dots and brackets: ``solver.method``, ``bodies[0].mass``, ``bodies.0.mass``, or ``bodies[ball].mass`` (a
 list item chosen by its ``name``). The value is read as YAML (``1e-3``, ``[640, 360]``, ``true``, ``DOP853``), and the
-result is validated exactly like the file, with errors that point at the override.
+result is validated exactly like the file, with errors that point at the override. In an unquoted text value, ``\n``
+starts a new line, as in a double-quoted YAML string (a shell cannot easily pass a newline; a quoted value is
+read as YAML reads it).
 """
 
 from __future__ import annotations
@@ -76,6 +78,8 @@ def _apply_one(data: Any, text: str, source: SourceMap, label: str) -> Any:
     except SceneError as error:
         reason = "; ".join(issue.message for issue in error.issues)
         raise _OverrideProblem(raw_path, f"cannot read the value as YAML: {reason}") from None
+    if isinstance(value, str) and not raw_value.strip().startswith(("'", '"')):
+        value = value.replace("\\n", "\n")  # --set render.time_label=t = {t:.2f} s\nE = {E:.3f} J
     if not isinstance(data, dict):
         raise _OverrideProblem("", "the scene's top level is not a mapping")
 
