@@ -34,6 +34,7 @@ from animbatch.files import write_text_atomic
 from animbatch.plot import plot_quantities
 from animbatch.progress import Progress
 from animbatch.provenance import simulation_code
+from animbatch.render.arrows import arrow_tips
 from animbatch.render.camera import motion_bounds
 from animbatch.render.frame_geometry import FrameGeometry, LabelValues, PanelSeries
 from animbatch.scene import LoadedScene, physics_fingerprint
@@ -223,14 +224,21 @@ def frame_geometry(run: RunPlan, trajectory: Trajectory) -> FrameGeometry:
                                       run.folder, emitters, (trajectory.positions, trajectory.times),
                                       trajectory.particles)
     arrows = None
+    framed = [bounds]  # what the camera fits: the motion, and what is drawn beyond it (arrows, target curves)
     if spec.render.arrows is not None:
         arrows = arrow_series(spec, model, trajectory_states(model, trajectory), np.asarray(trajectory.times),
                               np.asarray(trajectory.velocities), bounds)
+        if arrows is not None:
+            framed.append(arrow_tips(arrows, np.asarray(trajectory.positions)))
+    if geometry.target_segments is not None:
+        framed.append(geometry.target_segments.reshape(-1, 3))
+    points = np.vstack(framed)
+    low, high = np.nanmin(points, axis=0), np.nanmax(points, axis=0)  # (bodies not yet shown are NaN)
     quantities = (quantity_series(model, trajectory) if model.body_count and
                   (spec.render.energy_panel is not None or label_asks_for_quantities(spec.render.time_label))
                   else None)  # one pass over the trajectory, shared by the overlay and the panel
     return dataclasses.replace(geometry, label=label_values(scene, model, trajectory, quantities), arrows=arrows,
-                               panel=panel_series(scene, quantities, trajectory))
+                               panel=panel_series(scene, quantities, trajectory), bounds=np.stack([low, high]))
 
 
 def panel_series(scene: LoadedScene, quantities: QuantitySeries | None, trajectory: Trajectory

@@ -216,7 +216,7 @@ def test_the_camera_is_the_renders_camera(tmp_cwd):
     towards = np.array([2, 2, 2]) - np.array([3, 2, 9])
     assert np.allclose(frustum.ComputeViewDirection(), towards / np.linalg.norm(towards), atol=1e-9)
     lights = [prim.GetName() for prim in stage.GetPrimAtPath("/World/Lights").GetChildren()]
-    assert lights == ["key", "fill", "rim"]
+    assert lights == ["key", "fill", "rim", "bounce"]
     # a distant light shines along its -Z axis: the key comes from above and the camera's side, the rim from behind
     def shines_from(name: str) -> np.ndarray:
         return world_transform(stage, f"/World/Lights/{name}", 0)[:3, 2]

@@ -20,6 +20,7 @@ from animbatch.render.camera import CameraPath, follower
 from animbatch.render.frame_geometry import BodyPath
 from animbatch.render.renderer import FrameRenderer
 from animbatch.scene.schema import CameraSpec
+from support.rendering import CHASE
 from support.scenarios import on_screen_extent
 
 pytestmark = pytest.mark.render
@@ -90,16 +91,7 @@ def test_a_fitted_orbiting_camera_sees_the_whole_motion_from_every_side():
         assert extent.max() <= 1.0, f"a corner leaves the frame at t = {t:.3f} s"
 
 
-FOLLOW = """
-name: chase
-duration: 1.2
-fps: 10
-bodies:
-  - {name: ball, radius: 0.15, position: [0, 1, 0], velocity: [5, 0, 0], color: "#ff0000"}
-render:
-  resolution: [320, 180]
-  show_time: false
-  ground: {grid: false}
+FOLLOW = CHASE + """  show_time: false
   camera: {follow: ball, follow_lag: 0}
 """
 

@@ -76,10 +76,50 @@ def test_a_floor_collider_is_drawn_as_a_ground_and_takes_the_shadows():
     assert ((plain - lit).sum(axis=2) > 40).sum() > 40, "a shadow on it"
 
 
-def test_the_key_light_is_the_light_the_shadows_fall_from_and_the_rig_lights_from_three_sides():
+TABLE = """
+name: table
+duration: 0.1
+fps: 30
+bodies:
+  - {{name: cube, type: rigid, shape: {{type: box, size: [0.3, 0.3, 0.3]}}, density: 500, position: [0, 1.3, 0],
+     color: "#ff0000"}}
+colliders:
+  - {{type: box, position: [0, 0.4, 0], size: [2.4, 0.8, 1.6], orientation: {{axis: [0, 0, 1], angle: {tilt}}},
+     color: "#3060c0"}}
+  - {{type: plane, size: 8, color: "#e0e0e0"}}
+render:
+  resolution: [320, 180]
+  show_time: false
+  shadows: {shadows}
+  ambient_occlusion: false
+  camera: {{position: [0.5, 2.6, 4.0], focal_point: [0, 0.8, 0]}}
+"""
+
+
+@pytest.mark.parametrize("tilt", [0, 10])
+def test_a_body_over_a_raised_box_casts_its_shadow_on_the_box_not_through_it_onto_the_ground(tilt):
+    """A cube hovering over a blue table (flat, then tilted as a ramp): every pixel its shadow darkens is on the
+    table's top, none on the ground; before, the shadow fell through the table onto the ground beneath it."""
+
+    def frame(shadows: str) -> np.ndarray:
+        scene = stages.parse_scene(TABLE.format(tilt=tilt, shadows=shadows))
+        model = api.compile_model(scene)
+        trajectory = api.simulate(scene, model=model)
+        geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
+        with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
+            return renderer.draw(0.0, trajectory.positions[0], trajectory.orientations[0]).astype(int)
+
+    plain, shaded = frame("false"), frame("true")
+    darker = (plain - shaded).sum(axis=2) > 40
+    table = (plain[..., 2] > plain[..., 0] + 60) & (plain[..., 2] > plain[..., 1] + 30)
+    assert darker.sum() > 100, "a shadow is drawn"
+    assert (darker & table).sum() > 0.95 * darker.sum(), "on the table's top"
+
+
+def test_the_key_light_is_the_light_the_shadows_fall_from_and_the_rig_lights_from_three_sides_and_below():
     up = np.array([0.0, 1.0, 0.0])
     toward_camera = np.array([0.4, 0.35, 1.0]) / np.linalg.norm([0.4, 0.35, 1.0])
-    key, fill, rim = three_point_rig(up, toward_camera)
+    key, fill, rim, bounce = three_point_rig(up, toward_camera)
     assert np.allclose(key.toward_light, -key_light_direction(up, toward_camera))
     level = toward_camera - toward_camera @ up * up
     assert key.toward_light @ up > 0.5 and rim.toward_light @ up > 0.3, "key and rim from above"
@@ -87,6 +127,8 @@ def test_the_key_light_is_the_light_the_shadows_fall_from_and_the_rig_lights_fro
     assert key.intensity > fill.intensity and key.intensity > rim.intensity
     right = np.cross(up, level)
     assert (key.toward_light @ right) * (fill.toward_light @ right) < 0, "key and fill on opposite sides"
+    assert bounce.toward_light @ up < 0 < bounce.toward_light @ level, "the bounce from below, on the camera's side"
+    assert bounce.intensity < key.intensity
 
 
 def test_ambient_occlusion_darkens_the_ground_where_a_body_touches_it_and_nothing_far_from_it():

@@ -6,13 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from animbatch import api, stages
+from animbatch import stages
 from animbatch.compile.frame_geometry import surface_look
 from animbatch.materials import BUILT_IN_LOOKS
 from animbatch.render.backend import select_backend
 from animbatch.render.renderer import FrameRenderer
 from animbatch.scene.loader import physics_fingerprint
 from support.paths import REPO
+from support.rendering import ready_to_draw
 
 LOOKS = """
 name: looks
@@ -72,9 +73,7 @@ render:
 def brightest(metallic: float) -> np.ndarray:
     """The mean colour of the 30 brightest pixels of the sphere's face: its specular highlights."""
     scene = stages.parse_scene(SPHERE.format(metallic=metallic))
-    model = api.compile_model(scene)
-    trajectory = api.simulate(scene, model=model)
-    geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
+    trajectory, geometry = ready_to_draw(scene)
     with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
         image = renderer.draw(0.0, trajectory.positions[0]).astype(float)
     rows, columns = np.nonzero(np.abs(image - 128).sum(axis=2) > 30)
@@ -104,3 +103,53 @@ def test_the_documented_table_of_looks_is_the_built_in_one():
         if len(cells) == 4 and cells[1].startswith("#"):
             rows[cells[0]] = (cells[1], float(cells[2]), float(cells[3]))
     assert rows == {name: (look.color, look.metallic, look.roughness) for name, look in BUILT_IN_LOOKS.items()}
+
+
+SHEET = """
+name: sheet
+duration: 0.1
+fps: 10
+solver: {{method: backward_euler}}
+bodies:
+  - name: sheet
+    type: cloth
+    grid: {{size: [1.0, 1.0], resolution: [6, 6]}}
+    position: [0, 1, 0]
+    orientation: {{axis: [1, 0, 0], angle: {angle}}}
+    density: 0.2
+    structural: {{stiffness: 100}}
+    pin: [{{corners: [top-left, top-right, bottom-left, bottom-right]}}]
+    color: "#d8d0c0"
+    back_color: "#d8d0c0"
+render:
+  resolution: [320, 180]
+  show_time: false
+  camera: {{position: [0.9, 1.64, 2.6], focal_point: [0, 1, 0]}}
+"""
+
+
+def sheet_brightness(angle: float) -> float:
+    """The mean brightness (0…255) of a flat, pinned sheet turned ``angle`` [deg] about x, under the default
+    lights and camera, on its pixels (those that differ from the empty frame)."""
+    scene = stages.parse_scene(SHEET.format(angle=angle))
+    trajectory, geometry = ready_to_draw(scene)
+    with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
+        image = renderer.draw(0.0, trajectory.positions[0]).astype(int)
+        for actor in renderer.plotter.renderer.actors.values():
+            actor.SetVisibility(False)
+        empty = renderer.draw(0.0, trajectory.positions[0]).astype(int)
+    sheet = np.abs(image - empty).max(axis=2) > 12
+    assert sheet.sum() > 5000, "the sheet fills a good part of the frame"
+    return float(image[sheet].mean())
+
+
+@pytest.mark.slow
+def test_a_sheet_seen_on_its_side_turned_away_from_the_key_light_is_at_least_half_as_bright():
+    """The camera sees the sheet's face tilted up towards the key light (−30°: normal (0, 0.5, 0.87)), then the
+    same sheet tilted down, the face it shows turned away from the key (30°: normal (0, −0.5, 0.87)), as a bedsheet
+    swinging towards the camera: that side still reads as cloth (at least half as bright; it was a fifth). Its
+    other face, seen from the same side (150°, 210°: the back by winding), is lit the same: two-sided."""
+    toward, away = sheet_brightness(-30), sheet_brightness(30)
+    assert away >= 0.5 * toward, (toward, away)
+    assert toward > 150, "and the face towards the key is bright"
+    assert abs(sheet_brightness(150) - toward) < 2 and abs(sheet_brightness(210) - away) < 2

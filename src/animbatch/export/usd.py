@@ -276,7 +276,7 @@ class _StageWriter:
             transform.Set(Gf.Matrix4d(*matrix.ravel().tolist()), when)
 
     def lights(self, camera: CameraPath) -> None:
-        """The renderer's three-point rig as distant lights (intensities relative: key 0.8, fill 0.4, rim 0.3),
+        """The renderer's rig as distant lights (intensities relative: key 0.8, fill 0.4, rim 0.3, bounce 0.35),
         placed from the camera at the start, as the renderer places them."""
         Gf, UsdGeom, UsdLux = self.pxr.Gf, self.pxr.UsdGeom, self.pxr.UsdLux
         placement = camera.at(float(self.trajectory.times[0]))

@@ -53,22 +53,15 @@ class ArrowLayer:
                                      specular=0.15)
             actor.mapper.SetInputConnection(glyph.GetOutputPort())  # the glyphs replace the placeholder arrow
             self.clouds.append(cloud)
-        if series.legend and series.names:
-            entries = [[f"{name} (1 m = {1 / scale:.3g} {unit})" if scale > 0 else name, color]
-                       for name, unit, scale, color in zip(series.names, series.units, series.scales,
-                                                           series.colors)]
-            # upper right: the sky is the emptiest part of most frames (the HUD text sits upper left)
-            # wide enough for the longest entry: a letter is ~0.45 of a line's height, plus the swatch and margins
-            width, height = plotter.window_size
-            line = min(max(0.042, LEGEND_LINE_PIXELS / height), 0.5 / len(entries))  # readable at 320×240 too
-            letters = max(len(text) for text, _ in entries)
-            # VTK pads the box by a few pixels, which a one-line legend's letters would lose
-            size = (min(0.9, (0.45 * letters + 2.5) * line * height / width), line * len(entries) + 8 / height)
+        box = legend_box(series, *plotter.window_size)
+        if box is not None:
+            size, entries = box
             legend = plotter.add_legend(entries, bcolor=tuple(hex_to_rgb("#ffffff")), border=False, size=size,
                                         loc="upper right", face="rectangle")
             # placed here: PyVista's 'upper right' offsets the box from the right edge by its height, not its
             # width, so a legend wider than tall ran off the frame
             legend.SetPosition(1 - size[0] - LEGEND_MARGIN, 1 - size[1] - LEGEND_MARGIN)
+        self.legend = legend if box is not None else None
 
     def update(self, t: float, positions: np.ndarray) -> None:
         """Place the arrows of the frame nearest to ``t`` [s] at the bodies' ``positions`` (P, 3) [m]."""
@@ -79,6 +72,37 @@ class ArrowLayer:
             cloud.points[:] = origins
             cloud.point_data["axes"][:] = arrow_axes(np.nan_to_num(vectors[frame]), scale, series.length)
             cloud.Modified()
+
+
+def arrow_tips(series: ArrowSeries, positions: np.ndarray) -> np.ndarray:
+    """Where every arrow's tip is at every frame (M, 3) [m], drawn as :func:`arrow_axes` draws them (capped), from
+    the bodies' ``positions`` (F, P, 3) at the series' frames: what a fitted camera must frame besides the bodies."""
+    origins = positions[:, series.bodies]  # (F, A, 3)
+    tips = [origins.reshape(-1, 3)]
+    for vectors, scale in zip(series.vectors, series.scales):
+        vectors = np.nan_to_num(vectors)
+        size = np.linalg.norm(vectors, axis=-1, keepdims=True)
+        length = np.minimum(size * scale, CAP * series.length)
+        tips.append((origins + np.divide(vectors, size, out=np.zeros_like(vectors), where=size > 0)
+                     * length).reshape(-1, 3))
+    return np.vstack(tips)
+
+
+def legend_box(series: ArrowSeries, width: int, height: int
+               ) -> tuple[tuple[float, float], list[list[str]]] | None:
+    """The legend's size (width, height) as fractions of a ``width`` × ``height`` [px] frame, and its entries
+    (text, colour); None when the arrows have no legend. It sits in the upper right corner, LEGEND_MARGIN from
+    both edges: the sky is the emptiest part of most frames, and the overlay's text sits upper left by default."""
+    if not (series.legend and series.names):
+        return None
+    entries = [[f"{name} (1 m = {1 / scale:.3g} {unit})" if scale > 0 else name, color]
+               for name, unit, scale, color in zip(series.names, series.units, series.scales, series.colors)]
+    # wide enough for the longest entry: a letter is ~0.45 of a line's height, plus the swatch and margins
+    line = min(max(0.042, LEGEND_LINE_PIXELS / height), 0.5 / len(entries))  # readable at 320×240 too
+    letters = max(len(text) for text, _ in entries)
+    # VTK pads the box by a few pixels, which a one-line legend's letters would lose
+    size = (min(0.9, (0.45 * letters + 2.5) * line * height / width), line * len(entries) + 8 / height)
+    return size, entries
 
 
 def arrow_axes(vectors: np.ndarray, scale: float, width: float) -> np.ndarray:

@@ -1,6 +1,10 @@
 """Camera placement: as given in the scene, or fitted to the bounding box of the whole motion; and its path over
 time (:class:`CameraPath`: keyframes, following a body, orbiting).
 
+A fitted camera keeps what it frames out of the frame's reserved strips (:class:`Reserved`) along the top and
+bottom edges, where the overlay's text and the arrows' legend are written. The box is fitted into the rest of the
+frame, and the camera aims above or below the box's centre so that the centre sits in the middle of that rest.
+
 Pure geometry (no VTK), so it is cheap to test.
 """
 
@@ -45,14 +49,40 @@ def motion_bounds(positions: np.ndarray, radius: np.ndarray, extra_points: np.nd
     return np.stack([low, high])
 
 
+@dataclass(frozen=True)
+class Reserved:
+    """The strips of the frame a fitted camera keeps clear, as fractions of the frame's height: ``top`` along the
+    top edge, ``bottom`` along the bottom edge (full width: the overlay and the legend sit in corners, and a strip
+    is what keeps every body, arrow and trail out of them whatever the shape of the motion)."""
+
+    top: float = 0.0
+    bottom: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (0 <= self.top and 0 <= self.bottom and self.top + self.bottom <= MOST_RESERVED):
+            raise ValueError(f"reserved strips of {self.top:.3g} and {self.bottom:.3g} of the frame leave too little "
+                             "to draw in")
+
+    @property
+    def limits(self) -> tuple[float, float]:
+        """The lowest and highest normalised screen height (−1 at the bottom edge, 1 at the top) left to draw in."""
+        return -1 + 2 * self.bottom, 1 - 2 * self.top
+
+
+#: The most of a frame's height the strips may take together.
+MOST_RESERVED = 0.6
+NOTHING_RESERVED = Reserved()
+
+
 def place_camera(spec: CameraSettings, bounds: np.ndarray, aspect: float = 16 / 9,
-                 any_azimuth: bool = False) -> CameraPlacement:
+                 any_azimuth: bool = False, reserved: Reserved = NOTHING_RESERVED) -> CameraPlacement:
     """Where the camera goes for ``bounds`` (2, 3) and frame ``aspect`` (width / height).
 
     Fitted unless the scene gives position and focal point: the camera looks at the centre of the box from
     ``spec.direction`` and backs off until all eight corners of the box fit the frame, in both the vertical field of
     view and the horizontal one (wider by ``aspect``), with ``fit_margin`` to spare; with ``any_azimuth`` (an orbiting
-    camera) far enough for every direction turned about ``up``.
+    camera) far enough for every direction turned about ``up``. With ``reserved`` strips the corners fit between
+    them, and the camera aims up or down along the screen so that the box's centre is midway between them.
     """
     centre = bounds.mean(axis=0)
     up = _unit(np.asarray(spec.up, float))
@@ -67,22 +97,40 @@ def place_camera(spec: CameraSettings, bounds: np.ndarray, aspect: float = 16 / 
         corners = np.array([[bounds[i][0], bounds[j][1], bounds[k][2]] for i in (0, 1) for j in (0, 1)
                             for k in (0, 1)]) - centre
         corners *= spec.fit_margin
-        turns = np.linspace(0, 2 * np.pi, 24, endpoint=False) if any_azimuth else np.zeros(1)
-        distance = max(_fit_distance(corners, _turn(direction, up, angle), up, tan_vertical, aspect)
-                       for angle in turns)
-        focal = centre
-        position = centre + direction * distance
+        low, high = reserved.limits
+        if any_azimuth:  # one aim for every side: the box stays centred, inside the narrower of the two halves
+            half = min(-low, high)
+            turns = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+            distance = max(_fit(corners, _turn(direction, up, angle), up, tan_vertical, aspect, -half, half)[0]
+                           for angle in turns)
+            shift = 0.0
+        else:
+            distance, shift = _fit(corners, direction, up, tan_vertical, aspect, low, high)
+        right = _unit(np.cross(up, direction))
+        focal = centre + shift * np.cross(direction, right)
+        position = focal + direction * distance
     return CameraPlacement(position, focal, up, float(spec.view_angle))
 
 
-def _fit_distance(corners: np.ndarray, direction: np.ndarray, up: np.ndarray, tan_vertical: float,
-                  aspect: float) -> float:
-    """How far along ``direction`` from the centre the camera must stand to see every corner (8, 3) [m]."""
+def _fit(corners: np.ndarray, direction: np.ndarray, up: np.ndarray, tan_vertical: float, aspect: float,
+         low: float = -1.0, high: float = 1.0) -> tuple[float, float]:
+    """How far along ``direction`` the camera must stand to see every corner (8, 3) [m] (relative to the box's
+    centre) between the normalised screen heights ``low`` and ``high``, with the box's centre at the middle of
+    them, and how far [m] along the screen's up its aim moves from the centre for that: (distance, shift).
+
+    Seen from distance D with the aim shifted by s, a point at height h along the screen's up and w toward the camera
+    is at screen height (h − s) / ((D − w) tan θ). The centre (h = w = 0) at the middle m = (low + high) / 2 takes
+    s = −m D tan θ; then a corner fits when D ≥ h / (r tan θ) + high w / r and D ≥ −h / (r tan θ) − low w / r,
+    r = (high − low) / 2 (with the whole frame: D ≥ w + |h| / tan θ, the symmetric fit)."""
     right = _unit(np.cross(up, direction))
     screen_up = np.cross(direction, right)
     toward_camera = corners @ direction  # a corner nearer the camera needs more distance
-    return max(float(np.max(toward_camera + np.abs(corners @ screen_up) / tan_vertical)),
-               float(np.max(toward_camera + np.abs(corners @ right) / (tan_vertical * aspect))), 1e-3)
+    height = corners @ screen_up
+    middle, half = (low + high) / 2, (high - low) / 2
+    distance = max(float(np.max(toward_camera + np.abs(corners @ right) / (tan_vertical * aspect))),
+                   float(np.max(height / (half * tan_vertical) + high * toward_camera / half)),
+                   float(np.max(-height / (half * tan_vertical) - low * toward_camera / half)), 1e-3)
+    return distance, -middle * distance * tan_vertical
 
 
 def _turn(vector: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
@@ -123,7 +171,7 @@ class CameraPath:
     body (focal point on the smoothed body, same offset), then turned about the orbit's axis."""
 
     def __init__(self, spec: CameraSettings, bounds: np.ndarray, aspect: float = 16 / 9,
-                 followed: BodyPath | None = None) -> None:
+                 followed: BodyPath | None = None, reserved: Reserved = NOTHING_RESERVED) -> None:
         self.spec = spec
         self.up = _unit(np.asarray(spec.up, float))
         fit = bounds
@@ -132,7 +180,9 @@ class CameraPath:
             half = max(4 * followed.extent, float(np.max(bounds[1] - bounds[0])) / 8)
             start = np.asarray(followed.positions[0], float)
             fit = np.stack([start - half, start + half])
-        self.base = place_camera(spec, fit, aspect, any_azimuth=spec.orbit is not None)
+        self.base = place_camera(spec, fit, aspect, any_azimuth=spec.orbit is not None, reserved=reserved)
+        # a followed body stays where the fit put the box's centre (between the reserved strips), not on the aim
+        self.aim_offset = self.base.focal_point - fit.mean(axis=0)
         self.splines = self._keyframe_splines(spec)
         self.followed = followed
         self.track = follower(followed, spec.follow_lag) if followed is not None else None
@@ -163,7 +213,8 @@ class CameraPath:
         view_angle = float(splines["view_angle"](t)) if "view_angle" in splines else base.view_angle
         if self.track is not None and self.followed is not None:
             body = np.array([np.interp(t, self.followed.times, self.track[:, k]) for k in range(3)])
-            position, focal = position + body - focal, body
+            aim = body + self.aim_offset
+            position, focal = position + aim - focal, aim
         orbit = self.spec.orbit
         if orbit is not None:
             centre = np.asarray(orbit.center, float) if orbit.center is not None else focal

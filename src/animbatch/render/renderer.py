@@ -16,18 +16,16 @@ silently switches to SSAA on OSMesa/EGL builds, which is several times slower.
 
 from __future__ import annotations
 
-import importlib.util
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from animbatch import quaternion
 from animbatch.errors import RenderError
-from animbatch.render.arrows import ArrowLayer
+from animbatch.render.arrows import LEGEND_MARGIN, ArrowLayer, legend_box
 from animbatch.render.backend import Backend, activate
-from animbatch.render.camera import CameraPath, CameraPlacement
+from animbatch.render.camera import CameraPath, CameraPlacement, Reserved
 from animbatch.render.colors import (
     ANCHOR_COLOR,
     AXIS_COLORS,
@@ -39,8 +37,9 @@ from animbatch.render.colors import (
 from animbatch.render.emitted import EmitterLayer
 from animbatch.render.frame_geometry import Finish, FrameGeometry, FrameSeries
 from animbatch.render.occlusion import GroundOcclusion
+from animbatch.render.overlay import LabelFit, fit_label, reserved_strips, use_overlay_font
 from animbatch.render.settings import Ground, GroundSettings, RenderSettings
-from animbatch.render.shadows import GroundShadows
+from animbatch.render.shadows import GroundShadows, Shadow, shadow_receivers
 from animbatch.render.spheres import SphereGroup, group_by_finish, sphere_segments
 from animbatch.render.studio import (
     GROUND_REACH,
@@ -60,22 +59,10 @@ from animbatch.render.surfaces import (
 )
 from animbatch.render.trails import TrailLayer
 
+#: The share of a cloth's or lattice's colour it shows unlit (``ambient``), whichever way it faces the lights.
+SURFACE_AMBIENT = 0.3
 #: Above this many particles, ``particles: auto`` draws point sprites instead of sphere meshes.
 SPRITE_THRESHOLD = 200
-
-#: vtkTextProperty's font family that reads a font file (VTK_FONT_FILE in vtkSystemIncludes.h).
-VTK_FONT_FILE = 4
-
-
-def overlay_font() -> Path | None:
-    """DejaVu Sans, which matplotlib (a dependency) ships, found without importing matplotlib; None if absent."""
-    spec = importlib.util.find_spec("matplotlib")
-    for folder in (spec.submodule_search_locations or []) if spec is not None else []:
-        path = Path(folder) / "mpl-data" / "fonts" / "ttf" / "DejaVuSans.ttf"
-        if path.is_file():
-            return path
-    return None
-
 
 class FrameRenderer:
     """Renders frames of one scene. Create once, call :meth:`draw` per frame, then :meth:`close`."""
@@ -110,8 +97,11 @@ class FrameRenderer:
             raise RenderError(f"VTK created a {created} instead of {backend.vtk_window_class} for the {backend.name} "
                               "backend; install VTK >= 9.4 ('bash scripts/dev.sh setup') or try another --backend")
         self._configure_quality()
-        self.camera_path = CameraPath(render.active_camera, geometry.bounds, self.width / self.height,
-                                      geometry.followed)
+        self._drawing_seconds = self._last_frame_seconds = 0.0
+        self.reserved = self._reserve_overlays()
+        self._ground = self._find_ground()
+        self.camera_path = CameraPath(render.active_camera, self._framed_bounds(), self.width / self.height,
+                                      geometry.followed, self.reserved)
         self.camera = self.camera_path.at(float(geometry.label.times[0]) if geometry.label is not None
                                           and len(geometry.label.times) else 0.0)
         self._backdrop = (np.asarray(hex_to_rgb(render.background)),
@@ -121,12 +111,15 @@ class FrameRenderer:
             view = self.camera.position - self.camera.focal_point
             add_lights(self.pv, self.plotter, three_point_rig(self.camera.up, view / np.linalg.norm(view)),
                        self.camera.focal_point, float(np.linalg.norm(view)))
-        self._ground = self._find_ground()
         self._environment = False  # set up when the first physically based surface needs it
-        self._add_ground()
+        #: Actors drawn to the horizon (the ground, fluids' surfaces, plane colliders), which the camera does not
+        #: frame; and the overlays (the time label, the legend), which it keeps clear of (``reserved``).
+        self.scenery: list[Any] = []
+        self.overlays: list[Any] = []
+        self._as_scenery(self._add_ground)
         self._shadows = self._make_shadows()
         self._add_colliders()
-        self._add_fluids()
+        self._as_scenery(self._add_fluids)
         self._add_particles()
         self._occlusion = self._make_occlusion()  # after the particles: it needs how they are drawn
         self._add_emitted()
@@ -137,10 +130,16 @@ class FrameRenderer:
         self._add_springs()
         self._add_anchors()
         self._add_targets()
-        self._drawing_seconds = self._last_frame_seconds = 0.0
         self._add_time_label()
+        self.overlays += [actor for actor in (self._label, self._arrows and self._arrows.legend) if actor is not None]
         self._apply_camera(self.camera)
         self._pixels: Any = None
+
+    def _as_scenery(self, add: Any) -> None:
+        """Call ``add`` and count the actors it adds as scenery."""
+        before = set(map(id, self.plotter.renderer.actors.values()))
+        add()
+        self.scenery += [actor for actor in self.plotter.renderer.actors.values() if id(actor) not in before]
 
     # ------------------------------------------------------------------ setup
 
@@ -152,7 +151,8 @@ class FrameRenderer:
         _, _, size = self._plane_square(ground.level, self.camera.up, ground.size)
         view = self.camera.position - self.camera.focal_point
         return GroundShadows(self.pv, self.plotter, self._matrix_class, self.camera.up, ground.level,
-                             view / np.linalg.norm(view), lift=3e-3 * size)  # clear of depth-test ties
+                             view / np.linalg.norm(view), lift=3e-3 * size,  # clear of depth-test ties
+                             receivers=shadow_receivers(self.geometry.colliders, self.camera.up))
 
     def _make_occlusion(self) -> GroundOcclusion | None:
         """Ambient occlusion of the ground around the motion, when asked for and there is a ground. The occluders'
@@ -176,13 +176,29 @@ class FrameRenderer:
         own colour, since it is the floor bodies land on)."""
         if self.render_spec.ground is not None:
             return self.render_spec.ground
-        up = self.camera.up / np.linalg.norm(self.camera.up)
+        up = np.asarray(self.render_spec.active_camera.up, float)
+        up /= np.linalg.norm(up)
         for collider in self.geometry.colliders:
             if collider.normal is not None and collider.track is None:  # a moving plane is no ground
                 if float(np.dot(collider.normal, up)) > 1 - 1e-9:
                     return Ground(level=collider.level, size=collider.size,
                                   color=collider.color or Ground.color)
         return None
+
+    def _framed_bounds(self) -> np.ndarray:
+        """What the fitted camera frames (2, 3) [m]: everything drawn (the geometry's bounds), except what lies
+        under an opaque ground seen from above (an arrow of a body resting on the floor points into it)."""
+        bounds = np.array(self.geometry.bounds, float)
+        spec = self.render_spec.active_camera
+        up = np.asarray(spec.up, float) / np.linalg.norm(spec.up)
+        axis = int(np.argmax(np.abs(up)))
+        if self._ground is not None and abs(up[axis]) == 1.0 and float(np.dot(spec.direction, up)) > 0:
+            level = self._ground.level * up[axis]  # the ground's coordinate along that axis
+            if up[axis] > 0:
+                bounds[0, axis] = min(max(bounds[0, axis], level), bounds[1, axis])
+            else:
+                bounds[1, axis] = max(min(bounds[1, axis], level), bounds[0, axis])
+        return bounds
 
     def _finish(self, body: int | np.integer) -> Finish | None:
         finishes = self.geometry.finishes
@@ -257,7 +273,10 @@ class FrameRenderer:
             mesh = self.pv.PolyData(points, faces)
             mesh.point_data["Normals"] = np.zeros_like(points)
             mesh.point_data.active_normals_name = "Normals"
-            shading = self._shading(finish, front) if finish is not None else {"color": front, "specular": 0.15}
+            # a thin sheet: more of its light is ambient (light through the cloth and from around it), so that the
+            # side turned away from the key reads as cloth, not as a hole
+            shading = (self._shading(finish, front) if finish is not None
+                       else {"color": front, "specular": 0.15, "ambient": SURFACE_AMBIENT, "diffuse": 0.7})
             actor = self.plotter.add_mesh(mesh, opacity=self.render_spec.surface_opacity,
                                           **{**shading, "smooth_shading": False})
             if finish is None:
@@ -272,7 +291,7 @@ class FrameRenderer:
         geometry, spec = self.geometry, self.render_spec
         first = len(geometry.particle_radius)
         self._rigid_matrices = []
-        self._rigid_shadows = []
+        self._rigid_shadows: list[Shadow] = []
         self._vector_actors = []
         for b, shape in enumerate(geometry.rigid_shapes):
             mesh = shape_mesh(shape, spec.sphere_resolution).translate(-geometry.rigid_centre[b])
@@ -384,6 +403,8 @@ class FrameRenderer:
             actor = self.plotter.add_mesh(mesh, **shading)
             if collider.track is not None:
                 self._moving_colliders.append((actor, collider.track))
+            if collider.normal is not None:
+                self.scenery.append(actor)
 
     def _is_ground(self, normal: np.ndarray, level: float) -> bool:
         """Whether the plane ``normal · p = level`` is the drawn ground's."""
@@ -397,18 +418,25 @@ class FrameRenderer:
             plane, _, _ = self._plane_square(level, np.asarray(up, float), None)
             self.plotter.add_mesh(plane, color=self.render_spec.fluid_color, opacity=0.35, ambient=0.3)
 
+    def _reserve_overlays(self) -> Reserved:
+        """The strips the fitted camera keeps clear for the time label and the arrows' legend; sizes the label."""
+        spec, geometry = self.render_spec, self.geometry
+        self._label_fit: LabelFit | None = None
+        if spec.show_time:
+            times = geometry.label.times if geometry.label is not None and len(geometry.label.times) else [0.0]
+            samples = np.unique(np.linspace(0, len(times) - 1, min(len(times), 9)).round().astype(int))
+            texts = [self._label_text(float(times[k])) for k in samples]  # its numbers change width
+            self._label_fit = fit_label(texts, max(8, round(spec.label_size * self.height)), self.width)
+        legend = legend_box(geometry.arrows, self.width, self.height) if geometry.arrows else None
+        return reserved_strips(self.height, self._label_fit, spec.label_corner,
+                               legend[0][1] if legend is not None else None, LEGEND_MARGIN)
+
     def _add_time_label(self) -> None:
         self._label = None
-        if not self.render_spec.show_time:
+        if self._label_fit is None:
             return
         spec = self.render_spec
-        # Plain text, always: VTK's default backend hands any label with '|' (as in '|v|') to matplotlib's MathText,
-        # which draws it in another font and drops the bars
-        from vtkmodules.vtkRenderingCore import vtkTextRenderer  # heavy (VTK): only when drawing
-        from vtkmodules.vtkRenderingFreeType import vtkFreeTypeTools  # noqa: F401  (registers the text renderer)
-
-        vtkTextRenderer.GetInstance().SetDefaultBackend(vtkTextRenderer.FreeType)
-        size = max(8, round(spec.label_size * self.height))  # letters scale with the frame
+        size = self._label_fit.margin  # letters scale with the frame, shrunk if a line would run off it
         right, lower = spec.label_corner.endswith("right"), spec.label_corner.startswith("lower")
         red, green, blue = backdrop_color(*self._backdrop, np.array(0.05 if lower else 0.95))
         text_color = "black" if 0.299 * red + 0.587 * green + 0.114 * blue > 0.5 else "white"
@@ -416,10 +444,7 @@ class FrameRenderer:
                                             position=(self.width - size if right else size,
                                                       size if lower else self.height - size))
         text = self._label.GetTextProperty()
-        font = overlay_font()
-        if font is not None:  # VTK's own fonts have no π, ω, τ, γ, ≈: the notes' symbols need a fuller one
-            text.SetFontFamily(VTK_FONT_FILE)
-            text.SetFontFile(str(font))
+        use_overlay_font(text, self._label_fit.font)
         text.SetVerticalJustificationToBottom() if lower else text.SetVerticalJustificationToTop()
         text.SetJustificationToRight() if right else text.SetJustificationToLeft()
 
@@ -486,9 +511,9 @@ class FrameRenderer:
             for b, matrix in enumerate(self._rigid_matrices):
                 self._set_matrix(matrix, rotation[b], positions[n + b])
             shadows = self._shadows
-            for b, matrix in enumerate(self._rigid_shadows):  # (none without shadows)
+            for b, shadow in enumerate(self._rigid_shadows):  # (none without shadows)
                 assert shadows is not None
-                shadows.place(matrix, rotation[b], positions[n + b])
+                shadows.place(shadow, rotation[b], positions[n + b])
             if self._vector_actors and angular_velocities is not None:
                 vectors = angular_velocities[n:]
                 if self.render_spec.show_vectors == "angular_momentum":

@@ -1,5 +1,10 @@
 """Contact shadows: each body's own mesh, flattened onto the ground along the key light (a planar projected shadow).
 
+A rigid body's shadow lands on the first surface under it along the light: the ground, or an upward face of a fixed
+box collider (a ramp, a table, a step), flattened onto that face's plane and clipped to its edges, so that a block
+on a ramp shades the ramp instead of the ground beneath it. (Particles' shadows, drawn as one instanced set, fall on
+the ground.)
+
 VTK's shadow-map pass (``enable_shadows``) was tried first: under Mesa's software rasteriser it shadowed whole
 regions of the ground black at the edges of its light frustum and speckled lit spheres with acne, and it doubled the
 time per frame. A projected shadow costs one more actor per body, sharing the body's transform through one more
@@ -9,9 +14,12 @@ plane ``n · p = c`` is ``p − ((n · p − c) / (n · d)) d``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from animbatch.render.frame_geometry import DrawnCollider
 
 #: Shadow colour and opacity: a translucent dark grey keeps the ground's grid and colour readable through it.
 SHADOW_COLOR = "#1e1e24"
@@ -41,34 +49,113 @@ def planar_projection(normal: np.ndarray, level: float, direction: np.ndarray) -
     return matrix
 
 
+#: A face catches shadows when its outward normal is within 60° of straight up (this cosine): ramps, not walls.
+FACING_UP = 0.5
+
+
+@dataclass(frozen=True, eq=False)
+class Receiver:
+    """A flat face that catches shadows: the points p with ``normal · p = level`` and ``edges[k, :3] · p ≥
+    edges[k, 3]`` for each of its bounding planes (K, 4), the edge planes' normals pointing inward."""
+
+    normal: np.ndarray
+    level: float
+    edges: np.ndarray
+
+    def hit(self, point: np.ndarray, direction: np.ndarray) -> float:
+        """How far [m] along ``direction`` from ``point`` the face is met (inf: missed, or behind)."""
+        along = float(self.normal @ direction)
+        if along >= -1e-9:
+            return np.inf
+        distance = (self.level - float(self.normal @ point)) / along
+        met = point + distance * direction
+        return distance if distance > 0 and bool(np.all(self.edges[:, :3] @ met >= self.edges[:, 3] - 1e-9)) \
+            else np.inf
+
+
+def shadow_receivers(colliders: tuple[DrawnCollider, ...], up: np.ndarray) -> list[Receiver]:
+    """The upward faces of the fixed box colliders, as receivers of shadows."""
+    up = up / np.linalg.norm(up)
+    receivers = []
+    for collider in colliders:
+        solid = collider.solid
+        if solid is None or solid.kind != "box" or collider.track is not None:
+            continue
+        rotation, centre = collider.pose[:3, :3], collider.pose[:3, 3]
+        half = np.asarray(solid.size, float) / 2
+        for axis in range(3):
+            for sign in (1.0, -1.0):
+                normal = sign * rotation[:, axis]
+                if normal @ up < FACING_UP:
+                    continue
+                others = [j for j in range(3) if j != axis]
+                edges = np.array([[*(side * rotation[:, j]), side * rotation[:, j] @ centre - half[j]]
+                                  for j in others for side in (1.0, -1.0)])
+                receivers.append(Receiver(normal, float(normal @ centre + half[axis]), edges))
+    return receivers
+
+
+@dataclass
+class Shadow:
+    """One body's shadow: the 4×4 matrix that places it and its actor's mapper (clipped to a face it lands on)."""
+
+    matrix: Any
+    mapper: Any
+    receiver: Receiver | None = None
+
+
 class GroundShadows:
-    """The contact shadows of a scene's bodies on its ground; :meth:`place` moves one with its body."""
+    """The contact shadows of a scene's bodies on its ground and on the faces of its fixed boxes; :meth:`place`
+    moves one with its body."""
 
     def __init__(self, pv: Any, plotter: Any, matrix_class: Any, up: np.ndarray, level: float,
-                 camera_direction: np.ndarray, lift: float) -> None:
-        """``lift`` [m]: how far above the ground the shadows lie, so that they win the depth test against it."""
+                 camera_direction: np.ndarray, lift: float, receivers: list[Receiver] | None = None) -> None:
+        """``lift`` [m]: how far above the ground (or a face) the shadows lie, so that they win the depth test
+        against it; ``receivers``: the faces besides the ground that catch shadows."""
         self.pv, self.plotter, self.matrix_class = pv, plotter, matrix_class
         self.direction = key_light_direction(up, camera_direction)
         self.projection = planar_projection(up, level + lift, self.direction)
-        self.up, self.level = up / np.linalg.norm(up), level
+        self.up, self.level, self.lift = up / np.linalg.norm(up), level, lift
+        self.receivers = receivers or []
+        self._on_face = [planar_projection(face.normal, face.level + lift, self.direction) for face in self.receivers]
+        self._clips = [self._clipping_planes(face) for face in self.receivers]
+
+    def _clipping_planes(self, face: Receiver) -> Any:
+        from vtkmodules.vtkCommonDataModel import vtkPlane, vtkPlaneCollection  # heavy (VTK): only when drawing
+
+        planes = vtkPlaneCollection()
+        for edge in face.edges:
+            plane = vtkPlane()
+            plane.SetNormal(*edge[:3])  # VTK keeps the side the normal points to
+            plane.SetOrigin(*(edge[:3] * edge[3]))
+            planes.AddItem(plane)
+        return planes
 
     #: How a shadow is drawn (add_mesh keywords): translucent dark grey, unlit.
     LOOK: dict[str, Any] = {"color": SHADOW_COLOR, "opacity": SHADOW_OPACITY, "lighting": False,
                             "smooth_shading": False}
 
-    def add(self, mesh: Any) -> Any:
-        """A shadow actor for ``mesh`` (in its body's frame); returns the 4×4 matrix that places it."""
+    def add(self, mesh: Any) -> Shadow:
+        """A shadow actor for ``mesh`` (in its body's frame), to be placed by :meth:`place`."""
         actor = self.plotter.add_mesh(mesh, **self.LOOK)
         actor.prop.backface_culling = False
         matrix = self.matrix_class()
         actor.SetUserMatrix(matrix)
-        return matrix
+        return Shadow(matrix, actor.mapper)
 
-    def place(self, matrix: Any, rotation: np.ndarray | None, position: np.ndarray) -> None:
-        """Put a shadow under its body at ``position`` [m] turned by ``rotation`` (3, 3) (None: unturned)."""
+    def place(self, shadow: Shadow, rotation: np.ndarray | None, position: np.ndarray) -> None:
+        """Put a shadow under its body at ``position`` [m] turned by ``rotation`` (3, 3) (None: unturned): on the
+        first face along the light from the body's centre, else on the ground."""
         body = np.eye(4)
         if rotation is not None:
             body[:3, :3] = rotation
         body[:3, 3] = position
-        matrix.DeepCopy((self.projection @ body).ravel())
-        matrix.Modified()
+        distances = [face.hit(position, self.direction) for face in self.receivers]
+        nearest = int(np.argmin(distances)) if distances and np.isfinite(min(distances)) else None
+        face = self.receivers[nearest] if nearest is not None else None
+        if face is not shadow.receiver:  # clip to the face's edges (the ground: no clipping)
+            shadow.mapper.SetClippingPlanes(self._clips[nearest] if nearest is not None else None)
+            shadow.receiver = face
+        projection = self._on_face[nearest] if nearest is not None else self.projection
+        shadow.matrix.DeepCopy((projection @ body).ravel())
+        shadow.matrix.Modified()

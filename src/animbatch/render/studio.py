@@ -30,6 +30,10 @@ GRID_LINE_POINTS = 48
 MAX_GRID_LINES = 240
 
 
+#: The bounce light's intensity (the key's is 0.8).
+BOUNCE = 0.35
+
+
 @dataclass(frozen=True)
 class RigLight:
     """One light of the rig: where it shines from (unit vector from the subject towards the light) and how bright."""
@@ -42,8 +46,9 @@ class RigLight:
 def three_point_rig(up: np.ndarray, toward_camera: np.ndarray) -> list[RigLight]:
     """A key light from above, on the camera's side and to its left (the light the contact shadows fall from), a
     softer fill from the camera's right and low, and a rim light from behind, above and to the right that outlines
-    the bodies against the backdrop. ``up``, ``toward_camera``: unit vectors (from the subject towards the
-    camera)."""
+    the bodies against the backdrop; and under them, a bounce from below the camera (the light a floor throws back
+    up), so that a surface the camera sees but the key does not, such as the underside of a sheet swinging towards
+    the camera, stays readable. ``up``, ``toward_camera``: unit vectors (from the subject towards the camera)."""
     up = up / np.linalg.norm(up)
     level = toward_camera - np.dot(toward_camera, up) * up
     level = level / np.linalg.norm(level) if np.linalg.norm(level) > 1e-9 else plane_axes(up)[0]
@@ -54,7 +59,8 @@ def three_point_rig(up: np.ndarray, toward_camera: np.ndarray) -> list[RigLight]
 
     return [RigLight("key", -key_light_direction(up, toward_camera), 0.8),
             RigLight("fill", unit(level + 0.9 * right + 0.35 * up), 0.4),
-            RigLight("rim", unit(-level + 0.4 * right + 0.8 * up), 0.3)]
+            RigLight("rim", unit(-level + 0.4 * right + 0.8 * up), 0.3),
+            RigLight("bounce", unit(level - 0.5 * up), BOUNCE)]
 
 
 def add_lights(pv: Any, plotter: Any, rig: list[RigLight], focal: np.ndarray, distance: float) -> None:

@@ -214,8 +214,9 @@ class RenderSpec(SceneModel):
                                                    "gradient; null for a plain backdrop. A scene that sets "
                                                    "background but not this gets a plain backdrop.")
     lights: Literal["three_point", "light_kit"] = key(
-        "three_point", "Lighting: three_point (a key light that also casts the contact shadows, a fill and a rim "
-                       "light, fixed in the world, so a moving camera sees the bodies lit the same way) or "
+        "three_point", "Lighting: three_point (a key light that also casts the contact shadows, a fill, a rim "
+                       "light and a weak bounce from below, fixed in the world, so a moving camera sees the bodies "
+                       "lit the same way) or "
                        "light_kit (VTK's light kit, riding with the camera).")
     anti_aliasing: Literal["fxaa", "msaa", "none"] = key(
         "fxaa", "Edge smoothing: fxaa (default), msaa (smoother, slower) or none (fastest).")
@@ -260,8 +261,10 @@ class RenderSpec(SceneModel):
                                            "'\\n' starts a line.")
     label_corner: Literal["upper_left", "upper_right", "lower_left", "lower_right"] = key(
         "upper_left", "Where the text overlay sits.")
-    label_size: float = key(1 / 36, "Height of the overlay's letters, as a fraction of the frame height (the same "
-                                    "look at 320×240 and at 4K).", "1", gt=0, le=0.25)
+    label_size: float = key(1 / 36, "Size of the text overlay, as a fraction of the frame height (the same look at "
+                                    "320×240 and at 4K): its margin from the frame's edges; its font is twice as "
+                                    "large. A line too long for the frame is drawn smaller until it fits.", "1",
+                            gt=0, le=0.25)
     camera: CameraSpec = key(CameraSpec(), "Camera.")
     cameras: dict[Name, CameraSpec] = key({}, "More cameras, by name: each a camera block like render.camera. "
                                               "'render --camera NAME' renders through one, '--camera all' through "
