@@ -45,7 +45,7 @@ def still(path: Path) -> Image.Image:
                                      f"duration={(frame + 1) / loaded.spec.fps!r}"])
     model = api.compile_model(scene)
     trajectory = api.simulate(scene, model=model)
-    geometry = stages.frame_geometry(scene, model, trajectory)
+    geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)
     frame = min(frame, trajectory.frame_count - 1)
     with FrameRenderer(scene.spec.render, geometry, select_backend()) as renderer:
         image = renderer.draw(float(trajectory.times[frame]), trajectory.positions[frame],
