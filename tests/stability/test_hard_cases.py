@@ -9,7 +9,10 @@ import numpy as np
 import pytest
 
 from animbatch.compile.model import compile_scene
-from animbatch.errors import SimulationError
+from animbatch.errors import OverBudget, SimulationError
+from animbatch.sim.bodies import Kinematics
+from animbatch.sim.integrators.cost import estimate_cost
+from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.integrators.stability import largest_stable_step, step_matrix
 from animbatch.sim.invariants import angular_momentum, kinetic_energy, total_energy
 from animbatch.sim.preflight import StabilityWarning, preflight
@@ -479,3 +482,103 @@ def test_a_stiff_pd_controller_counts_as_a_spring_for_the_pre_flight_check():
     trajectory = api.simulate(fine)
     radius = np.hypot(trajectory.positions[:, 0, 0], trajectory.positions[:, 0, 1])
     assert np.abs(radius - 0.5).max() < 0.004  # within (m g + m v²/r) / ks = 3 mm of the wire, and a margin
+
+
+# ------------------------------------------------------------------------------------- fields' own time scales
+
+
+def gyration(method: str, b_field: float, *, dt: float | None = None, extra: str = "") -> str:
+    """A 0.5 kg charge of 1 C at 1 m/s across a uniform B along z: it circles at ω = q B / m = 2 B rad/s."""
+    step = f", dt: {dt!r}" if dt is not None else ", rtol: 1.0e-8, atol: 1.0e-10"
+    return f"""
+        duration: 2.0
+        fps: 20
+        solver: {{method: {method}{step}}}
+        bodies: [{{name: charge, mass: 0.5, charge: 1.0, position: [0, 0, 0], velocity: [1, 0, 0]}}]
+        fields: [{{type: electromagnetic, B: [0, 0, {b_field!r}]}}]
+        {extra}
+    """
+
+
+@pytest.mark.parametrize("b_field", [5.0, 500.0])
+def test_the_cost_estimate_counts_the_steps_a_gyration_forces_on_an_adaptive_method(b_field):
+    """DOP853 at rtol 1e-8 on a circle at ω = 2 B: about ω T rtol^(-1/(p+1)) steps (p the order the method table
+    gives, T = 1.95 s to the last frame), named in the estimate; a hundred times the field, a hundred times the
+    steps."""
+    loaded = scene(gyration("DOP853", b_field))
+    model = compile_scene(loaded.spec)
+    integration = next(term for term in estimate_cost(model, loaded.spec.solver, rhs_seconds=1e-5).terms
+                       if term.name == "integration")
+    omega = 2 * b_field
+    expected = omega * 1.95 * 1e-8 ** (-1 / (METHODS["DOP853"].order + 1))
+    assert f"about {expected:.3g} steps (accuracy on the gyration of 'charge'" in integration.detail
+    assert integration.seconds == pytest.approx(expected * 12 * 1e-5, rel=1e-9)
+
+
+def test_a_gyration_too_fast_for_the_budget_is_refused_before_it_starts_naming_it():
+    """B = 1e6 T: ω = 2e6 rad/s, some 1e8 DOP853 steps: refused in a moment, naming the gyration and the budget,
+    where it used to run for minutes without a word."""
+    with pytest.raises(OverBudget) as caught:
+        run(gyration("DOP853", 1e6))
+    message = str(caught.value)
+    assert "refused before it starts" in message and "gyration of 'charge' in B = 1e+06 T" in message
+
+
+def test_a_fixed_step_that_turns_a_gyration_by_more_than_half_a_radian_is_warned_about():
+    """symplectic_euler at dt = 0.025 s on ω = 40 rad/s turns it 1 rad a step (6.3 steps a turn): warned, with a
+    step that resolves it (0.5 / ω); at a tenth of that step, not."""
+    loaded = scene(gyration("symplectic_euler", 20.0, dt=0.025))
+    model = compile_scene(loaded.spec)
+    with pytest.warns(StabilityWarning) as caught:
+        messages = preflight(model, "symplectic_euler", 0.025)
+    assert len(messages) == 1 and len(caught) == 1
+    assert "turns the gyration of 'charge' in B = 20 T (ω = |q| B / m), ω = 40 rad/s, by 1 rad a step" in messages[0]
+    assert "Use solver.dt ≤ 0.0125 s" in messages[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert preflight(compile_scene(scene(gyration("symplectic_euler", 20.0, dt=0.0025)).spec),
+                         "symplectic_euler", 0.0025) == []
+
+
+def linear_drag(method: str, dt: float) -> str:
+    """A 0.1 kg ball at 2 m/s under linear drag c = 10 N·s/m: its velocity relaxes at λ = c / m = 100 1/s."""
+    return f"""
+        duration: 1.0
+        fps: 10
+        solver: {{method: {method}, dt: {dt!r}}}
+        bodies: [{{name: ball, mass: 0.1, position: [0, 0, 0], velocity: [2, 0, 0]}}]
+        fields: [{{type: drag, model: linear, coefficient: 10}}]
+    """
+
+
+def test_an_explicit_step_past_the_drag_limit_is_refused_and_one_inside_decays_as_the_method_says():
+    """Explicit Euler multiplies a velocity under drag by 1 − h λ per step: with λ = 100 1/s it overshoots and
+    grows past h = 2/λ = 0.02 s. At h = 0.025 s (×1.5 a step) the run is refused naming the drag and dt ≤ 0.018 s;
+    at h = 0.01 s it is exactly (1 − h λ)^n = 0 after one step, and at h = 0.005 s, 0.5^n."""
+    with pytest.raises(SimulationError) as caught:
+        run(linear_drag("euler", 0.025))
+    message = str(caught.value)
+    assert "euler at dt = 0.025 s cannot hold the linear drag on 'ball'" in message
+    assert "h λ = 2.5" in message and "Use solver.dt ≤ 0.018 s" in message and "Nothing was simulated." in message
+    _, trajectory = run(linear_drag("euler", 0.005))
+    speed = trajectory.velocities[:, 0, 0]
+    assert speed[1] == pytest.approx(2 * 0.5 ** 20, rel=1e-9)  # 20 steps of 0.005 s to the first frame
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        run(linear_drag("backward_euler", 0.025))  # implicit: stable at any step, not refused
+
+
+def test_quadratic_drag_relaxes_at_twice_c_times_the_speed_relative_to_the_wind_over_m():
+    loaded = scene("""
+        duration: 1.0
+        fps: 10
+        bodies: [{name: ball, mass: 0.2, position: [0, 0, 0], velocity: [3, 4, 0]},
+                 {name: other, mass: 1.0, position: [1, 0, 0]}]
+        fields: [{type: wind, velocity: [0, 4, 0], model: quadratic, coefficient: 0.05}]
+    """)
+    model = compile_scene(loaded.spec)
+    term = next(term for term in model.force_terms if term.kind == "drag")
+    start = Kinematics(np.zeros((2, 3)), np.array([[3.0, 4.0, 0.0], [0.0, 0.0, 0.0]]), None, None, 2)
+    scale = term.time_scale(start, model.bodies.mass)
+    # |v - w| = 3 for the ball: 2 × 0.05 × 3 / 0.2 = 1.5; the other: 2 × 0.05 × 4 / 1 = 0.4
+    assert scale.rate == pytest.approx(1.5) and "'ball'" in scale.what and not scale.turns

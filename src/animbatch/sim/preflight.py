@@ -9,7 +9,9 @@ What certainly fails is refused earlier (:func:`~animbatch.sim.integrators.stabi
 * LSODA on a large spring system: it takes no analytic Jacobian, so once it turns to its stiff mode each Jacobian
   costs one right-hand side per state variable and a dense factorisation;
 * fixed-step contact where a body may move further in one step than the thinnest box or sphere collider is thick:
-  speculative contacts catch it, but only to the accuracy of one step.
+  speculative contacts catch it, but only to the accuracy of one step;
+* a fixed step that turns a gyration in a magnetic field by more than ``MOST_TURN_PER_STEP`` (the circle is drawn
+  as a coarse polygon, and explicit methods spiral it outwards, implicit ones inwards).
 
 Each warning is a :class:`StabilityWarning` (shown on stderr by the command line) and is kept in the run's solver
 statistics.
@@ -26,7 +28,13 @@ from animbatch.sim.contact.contacts import STATIC_BOX, STATIC_SPHERE
 from animbatch.sim.contact.detection import ContactWorld
 from animbatch.sim.forces.gravity import gravity_magnitude
 from animbatch.sim.integrators.methods import EXPLICIT_LIMITS, METHODS
-from animbatch.sim.integrators.stability import GROWTH_LIMIT, amplification, largest_stable_step, stiffest_mode
+from animbatch.sim.integrators.stability import (
+    GROWTH_LIMIT,
+    amplification,
+    largest_stable_step,
+    start_kinematics,
+    stiffest_mode,
+)
 from animbatch.sim.integrators.step_plan import resolve_dt, substeps
 from animbatch.sim.model.model import Model
 
@@ -34,6 +42,8 @@ from animbatch.sim.model.model import Model
 STIFF_STEPS = 1e6
 #: Growth of the stiffest spring vibration over a run above which a fixed step gets a warning.
 WARN_GROWTH = 2.0
+#: The most a fixed step may turn a gyration [rad] without a warning (about 12 steps per turn).
+MOST_TURN_PER_STEP = 0.5
 #: State variables above which LSODA's finite-difference, dense Jacobians make it slow on springs (a 10×10 cloth).
 LSODA_DENSE_STATES = 600
 
@@ -106,6 +116,21 @@ def _contact_warnings(model: Model, world: ContactWorld, h: float) -> list[str]:
             "resolves the wall."]
 
 
+def _turn_warnings(model: Model, method: str, h: float) -> list[str]:
+    start = start_kinematics(model)
+    messages = []
+    for term in model.force_terms:
+        scale = term.time_scale(start, model.bodies.mass)
+        if scale is None or not scale.turns or scale.rate * h <= MOST_TURN_PER_STEP:
+            continue
+        drift = "shrinks" if METHODS[method].implicit else "grows"
+        messages.append(f"{method} at dt = {h:.3g} s turns the {scale.what}, ω = {scale.rate:.4g} rad/s, by "
+                        f"{scale.rate * h:.3g} rad a step ({2 * np.pi / (scale.rate * h):.3g} steps a turn): its "
+                        f"circle is a coarse polygon and its radius {drift} step by step. Use solver.dt ≤ "
+                        f"{MOST_TURN_PER_STEP / scale.rate:.3g} s, or an adaptive method (DOP853).")
+    return messages
+
+
 def preflight(model: Model, method: str, dt: float | None = None) -> list[str]:
     """Warnings for running ``model`` with ``method`` (at step ``dt`` [s] for a fixed-step method; None: its
     default); each is also issued as a StabilityWarning."""
@@ -118,6 +143,8 @@ def preflight(model: Model, method: str, dt: float | None = None) -> list[str]:
     messages = _spring_warnings(model, method, steps or 0, h)
     if h is not None and model.contact_world is not None:
         messages += _contact_warnings(model, model.contact_world, h)
+    if h is not None:
+        messages += _turn_warnings(model, method, h)
     for message in messages:
         warnings.warn(message, StabilityWarning, stacklevel=2)
     return messages

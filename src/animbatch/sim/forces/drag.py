@@ -26,6 +26,7 @@ from animbatch.sim.forces.term import (
     ForceJacobian,
     ForceTerm,
     Kinematics,
+    TimeScale,
     add_at,
     rigid_selection,
     selection_text,
@@ -100,6 +101,27 @@ class Drag(ForceTerm):
     @property
     def label(self) -> str:
         return "wind" if self.wind is not None else "drag"
+
+    def time_scale(self, state: Kinematics, mass: np.ndarray) -> TimeScale | None:
+        """The fastest decay of a velocity relative to the air: c / m (linear; Stokes with c = 6 π η r), and
+        2 C |u| / m for the quadratic law at the start's relative speed |u| (its derivative along u)."""
+        groups = [(np.arange(len(mass)) if self.index is None else self.index, self.coefficient)]
+        if self.at_points is not None:
+            groups.append((self.at_points, self.at_coefficient))
+        rates = []
+        for points, coefficient in groups:
+            if not len(points):
+                continue
+            c = np.broadcast_to(np.ravel(np.asarray(coefficient, float)), (len(points),))
+            if self.law == "quadratic":
+                relative = state.v[points] - (self.wind if self.wind is not None else 0.0)
+                c = 2 * c * np.linalg.norm(relative, axis=1)
+            rates += [(float(rate), int(point)) for rate, point in zip(c / mass[points], points)]
+        if not rates or not max(rates)[0] > 0:
+            return None
+        rate, point = max(rates)
+        return TimeScale(rate, f"{self.law} drag on {self.names[point]!r} (its velocity relaxes in "
+                               f"{1 / rate:.3g} s)", turns=False)
 
     @property
     def dissipative(self) -> bool:

@@ -17,6 +17,7 @@ from animbatch.sim.forces.term import (
     ForceJacobian,
     ForceTerm,
     Kinematics,
+    TimeScale,
     add_at,
     selection_text,
     vector_text,
@@ -75,6 +76,17 @@ class LorentzForce(ForceTerm):
         blocks = -self.charge[particles, None, None] * skew[None]
         out.add(points[particles], points[particles], dfdv=blocks)
         return True
+
+    def time_scale(self, state: Kinematics, mass: np.ndarray) -> TimeScale | None:
+        """The fastest gyration: a charge q of mass m turns about the strongest B at ω = |q| B / m."""
+        strongest = float(np.max(np.linalg.norm(self.magnetic.values, axis=1)))
+        points = np.arange(len(mass)) if self.index is None else self.index
+        omega = np.abs(self.charge) * strongest / mass[points]
+        if not omega.size or not omega.max() > 0:
+            return None
+        k = int(np.argmax(omega))
+        return TimeScale(float(omega[k]), f"gyration of {self.names[points[k]]!r} in B = {strongest:.3g} T "
+                                          f"(ω = |q| B / m)", turns=True)
 
     def energy_scale(self, size: float) -> float:
         strongest = float(np.max(np.linalg.norm(self.electric.values, axis=1)))

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
@@ -19,7 +20,7 @@ from animbatch.sim.bodies import BodyTable, Kinematics
 from animbatch.sim.forces.jacobian import BlockPattern, ForceJacobian
 
 __all__ = ["BlockPattern", "BodyTable", "ForceJacobian", "ForceTerm", "Kinematics", "TermFactory", "add_at",
-           "rigid_selection", "selection_text", "vector_text"]
+           "TimeScale", "rigid_selection", "selection_text", "vector_text"]
 
 
 class ForceTerm(ABC):
@@ -76,6 +77,22 @@ class ForceTerm(ABC):
         """Add this term's ``∂f/∂x`` and ``∂f/∂v`` on particles to ``out``; return False when the term gives none
         (implicit methods then treat its force explicitly, as evaluated at the start of the step)."""
         return False
+
+    def time_scale(self, state: Kinematics, mass: np.ndarray) -> TimeScale | None:
+        """The fastest motion this term sets at ``state`` on points of masses ``mass`` (P,) [kg]: what a step must
+        resolve (the pre-flight's and the cost estimate's); None for a term that sets none of its own."""
+        return None
+
+
+@dataclass(frozen=True)
+class TimeScale:
+    """How fast a term makes something change: a turn at ``rate`` [rad/s] (``turns``: a gyration, which a method
+    must follow for accuracy as well as stability) or a decay at ``rate`` [1/s] (drag: stability alone), and on
+    what, in words."""
+
+    rate: float
+    what: str
+    turns: bool
 
 
 #: How a model builder makes a force term once the bodies are known: (bodies, selected point indices or None for

@@ -33,7 +33,7 @@ from animbatch.sim.forces.gravitation import InverseSquarePairs
 from animbatch.sim.integrators.budget import format_seconds
 from animbatch.sim.integrators.interface import EquationsOfMotion, StepSettings
 from animbatch.sim.integrators.methods import EXPLICIT_LIMITS, METHODS
-from animbatch.sim.integrators.stability import stiffest_mode
+from animbatch.sim.integrators.stability import start_kinematics, stiffest_mode
 from animbatch.sim.integrators.step_plan import resolve_dt, substeps
 from animbatch.sim.model import Dynamics, Model
 
@@ -138,26 +138,34 @@ def _steps(model: Model, solver: StepSettings, times: np.ndarray) -> tuple[float
     candidates = [(float(frames - 1), "one per frame at least")]
     if solver.max_step:
         candidates.append((duration / solver.max_step, f"max_step {solver.max_step:g} s"))
-    for omega, what in _fastest_motions(model):
+    for omega, what, followed in _fastest_motions(model):
         if method in EXPLICIT_LIMITS:
             candidates.append((omega * duration / EXPLICIT_LIMITS[method],
-                               f"stability of the {what}, ω = {omega:.3g} rad/s"))
-        if "spring" in what:
-            continue  # a stiff spring rarely vibrates visibly: it costs explicit methods stability, not accuracy
+                               f"stability of the {what}, {'ω' if followed else 'rate'} = {omega:.3g} "
+                               f"{'rad/s' if followed else '1/s'}"))
+        if not followed:
+            continue  # a stiff spring rarely vibrates visibly, drag only decays: they cost stability, not accuracy
         per_radian = solver.rtol ** (-1.0 / (METHODS[method].order + 1))
         candidates.append((omega * duration * per_radian,
                            f"accuracy on the {what}, ω = {omega:.3g} rad/s at rtol {solver.rtol:g}"))
     return max(candidates)
 
 
-def _fastest_motions(model: Model) -> list[tuple[float, str]]:
-    """(ω [rad/s], description) of the stiffest spring and of the tightest gravitating or charged pair at the start."""
+def _fastest_motions(model: Model) -> list[tuple[float, str, bool]]:
+    """(rate [rad/s or 1/s], description, whether a method must follow it for accuracy too) of the stiffest spring,
+    of the tightest gravitating or charged pair at the start, of the fastest spin, and of each force term's own
+    time scale (a gyration in a magnetic field, the relaxation of drag)."""
     found = []
     mode = stiffest_mode(model)
     if mode is not None and mode.omega > 0:
-        found.append((float(mode.omega), f"stiffest spring (around {mode.body!r})"))
+        found.append((float(mode.omega), f"stiffest spring (around {mode.body!r})", False))
 
     positions = np.asarray(model.positions(model.y0[None])[0])
+    start = start_kinematics(model)
+    for term in model.force_terms:
+        scale = term.time_scale(start, model.bodies.mass)
+        if scale is not None:
+            found.append((scale.rate, scale.what, scale.turns))
     for term in model.force_terms:
         if not isinstance(term, InverseSquarePairs) or len(term.mass) < 2:
             continue
@@ -173,7 +181,7 @@ def _fastest_motions(model: Model) -> list[tuple[float, str]]:
         names = model.bodies.names
         found.append((float(np.sqrt(omega2[i, j])),
                       f"tightest {'gravitating' if term.kind == 'gravitation' else 'charged'} pair "
-                      f"({names[index[i]]!r} and {names[index[j]]!r})"))
+                      f"({names[index[i]]!r} and {names[index[j]]!r})", True))
     if model.rigid_count:
         # a body spinning at ω turns its orientation's quaternion at ω/2: each component a sinusoid the method must
         # follow (a spinning top at 400 rad/s takes some 1600 DOP853 steps over 2.5 s at rtol 1e-8)
@@ -181,7 +189,8 @@ def _fastest_motions(model: Model) -> list[tuple[float, str]]:
         if spin.size and spin.max() > 0:
             fastest = int(np.argmax(spin))
             found.append((float(spin[fastest]) / 2, f"spin of {model.bodies.names[model.particle_count + fastest]!r}"
-                                                    f" ({spin[fastest]:.3g} rad/s: its quaternion turns at half that)"))
+                                                    f" ({spin[fastest]:.3g} rad/s: its quaternion turns at half that)",
+                          True))
     return found
 
 

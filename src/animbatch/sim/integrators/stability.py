@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from animbatch.errors import SimulationError
+from animbatch.sim.bodies import Kinematics
 from animbatch.sim.forces.controllers import Controllers
 from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.model.model import Model
@@ -110,10 +111,11 @@ def amplification(method: str, h: float, omega: float, decay: float) -> float:
 def largest_stable_step(method: str, omega: float, decay: float) -> float | None:
     """The largest h with amplification ≤ 1 + 1e-9 (found by bisection), or None when no step is stable."""
     tolerance = 1e-9
-    high = 10.0 / max(omega, 1e-12)
+    rate = max(omega, 2 * decay, 1e-12)  # without a spring (ω = 0) the decay alone sets the scale
+    high = 10.0 / rate
     # ω h = 1e-4 is small enough for every method with a stable range, and large enough that undamped explicit
     # Euler's growth √(1 + (ω h)²) shows above the tolerance
-    low = 1e-4 / max(omega, 1e-12)
+    low = 1e-4 / rate
     if amplification(method, low, omega, decay) > 1 + tolerance:
         return None
     for _ in range(100):
@@ -125,11 +127,39 @@ def largest_stable_step(method: str, omega: float, decay: float) -> float | None
     return low
 
 
+def start_kinematics(model: Model) -> Kinematics:
+    """Where the bodies are and how they move at the start."""
+    return Kinematics(np.asarray(model.positions(model.y0[None])[0]), np.asarray(model.velocities(model.y0[None])[0]),
+                      None, None, model.particle_count)
+
+
+def _check_drag_step(model: Model, method: str, h: float, steps: int) -> None:
+    """Raise SimulationError when an explicit step ``h`` [s] is too long for the fastest drag: a velocity relaxing
+    at rate λ is multiplied by |1 − h λ| per explicit Euler step (the method's own factor for the others), which
+    overshoots and grows once h λ passes the method's limit (2 for Euler)."""
+    start = start_kinematics(model)
+    for term in model.force_terms:
+        scale = term.time_scale(start, model.bodies.mass)
+        if scale is None or scale.turns:
+            continue
+        growth = amplification(method, h, 0.0, scale.rate / 2)  # x'' = −λ x': the mode model without a spring
+        if growth <= 1.0 or steps * np.log(growth) <= np.log(GROWTH_LIMIT):
+            continue
+        limit = largest_stable_step(method, 0.0, scale.rate / 2)
+        fix = f"solver.dt ≤ {0.9 * limit:.3g} s" if limit is not None else "backward_euler"
+        raise SimulationError(
+            f"{method} at dt = {h:.3g} s cannot hold the {scale.what}: its rate λ = {scale.rate:.4g} 1/s gives "
+            f"h λ = {h * scale.rate:.3g}, and each step multiplies the velocity by {growth:.4g} instead of damping "
+            f"it. Use {fix}, or backward_euler (stable at any dt). Nothing was simulated.",
+            time=0.0, details={"rate": scale.rate, "dt": h, "method": method})
+
+
 def check_fixed_step(model: Model, method: str, h: float, steps: int) -> None:
     """Raise SimulationError before the run when ``method`` at step ``h`` [s] would let the stiffest spring
-    vibration grow by more than GROWTH_LIMIT over ``steps`` steps."""
+    vibration, or a velocity under the fastest drag, grow by more than GROWTH_LIMIT over ``steps`` steps."""
     if METHODS[method].implicit:  # stable at any step
         return
+    _check_drag_step(model, method, h, steps)
     mode = stiffest_mode(model)
     if mode is None:
         return
