@@ -579,7 +579,7 @@ def test_quadratic_drag_relaxes_at_twice_c_times_the_speed_relative_to_the_wind_
     model = compile_scene(loaded.spec)
     term = next(term for term in model.force_terms if term.kind == "drag")
     start = Kinematics(np.zeros((2, 3)), np.array([[3.0, 4.0, 0.0], [0.0, 0.0, 0.0]]), None, None, 2)
-    scale = term.time_scale(start, model.bodies.mass)
+    scale = term.time_scale(start, model.bodies)
     # |v - w| = 3 for the ball: 2 × 0.05 × 3 / 0.2 = 1.5; the other: 2 × 0.05 × 4 / 1 = 0.4
     assert scale.rate == pytest.approx(1.5) and "'ball'" in scale.what and not scale.turns
 
@@ -621,3 +621,32 @@ def test_backward_euler_gaining_a_fifth_of_its_energy_scale_is_stopped_naming_th
     model, trajectory = run(NAPKIN_AND_CUBE, "solver.dt=0.0052")
     energy = total_energy(model, states(model, trajectory))
     assert energy.max() < 1.1 * energy[0] and energy[-1] < 0.85 * energy[0]
+
+
+def test_angular_drag_and_fluid_damping_relax_at_c_over_the_least_inertia_and_c_over_m():
+    """A 1 kg box 0.2 × 0.4 × 0.6 m: its least moment of inertia is m (0.2² + 0.4²) / 12 = 1/60 kg·m² (about its
+    long axis), so τ = −0.5 ω relaxes a spin at 0.5 × 60 = 30 1/s; fluid damping of 4 N·s/m on a 2 kg ball
+    relaxes its velocity at 2 1/s, and the box's spin under 0.2 N·m·s of the fluid's at 12 1/s."""
+    loaded = scene("""
+        duration: 1.0
+        fps: 10
+        bodies:
+          - {name: box, type: rigid, shape: {type: box, size: [0.2, 0.4, 0.6]}, mass: 1.0, position: [0, 1, 0]}
+          - {name: ball, mass: 2.0, radius: 0.1, position: [1, 1, 0]}
+        fields:
+          - {type: angular_drag, coefficient: 0.5}
+          - {type: buoyancy, density: 1000, level: 0.5, linear_damping: 4, angular_damping: 0.2}
+    """)
+    model = compile_scene(loaded.spec)
+    start = Kinematics(np.zeros((2, 3)), np.zeros((2, 3)), None, None, 1)
+    scales = {term.kind: term.time_scale(start, model.bodies) for term in model.force_terms}
+    assert scales["angular_drag"].rate == pytest.approx(30.0) and "'box'" in scales["angular_drag"].what
+    assert scales["buoyancy"].rate == pytest.approx(12.0) and "spin" in scales["buoyancy"].what
+    lighter = scene("""
+        duration: 1.0
+        fps: 10
+        bodies: [{name: ball, mass: 2.0, radius: 0.1, position: [1, 1, 0]}]
+        fields: [{type: buoyancy, density: 1000, level: 0.5, linear_damping: 4}]
+    """)
+    ball = compile_scene(lighter.spec)
+    assert ball.force_terms[0].time_scale(start, ball.bodies).rate == pytest.approx(2.0)

@@ -120,7 +120,7 @@ def _turn_warnings(model: Model, method: str, h: float) -> list[str]:
     start = start_kinematics(model)
     messages = []
     for term in model.force_terms:
-        scale = term.time_scale(start, model.bodies.mass)
+        scale = term.time_scale(start, model.bodies)
         if scale is None or not scale.turns or scale.rate * h <= MOST_TURN_PER_STEP:
             continue
         drift = "shrinks" if METHODS[method].implicit else "grows"

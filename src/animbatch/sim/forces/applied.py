@@ -13,7 +13,16 @@ from typing import Literal
 import numpy as np
 
 from animbatch.quaternion import cross
-from animbatch.sim.forces.term import BodyTable, ForceTerm, Kinematics, rigid_selection, selection_text, vector_text
+from animbatch.sim.forces.term import (
+    BodyTable,
+    ForceTerm,
+    Kinematics,
+    TimeScale,
+    fastest_spin_decay,
+    rigid_selection,
+    selection_text,
+    vector_text,
+)
 
 
 def _in_world(vector: np.ndarray, frame: str, rotation: np.ndarray | None, rigid: np.ndarray) -> np.ndarray:
@@ -129,6 +138,9 @@ class AngularDrag(_RigidLoad):
     @property
     def adds_energy(self) -> bool:
         return False  # τ = -c ω only takes energy
+
+    def time_scale(self, state: Kinematics, bodies: BodyTable) -> TimeScale | None:
+        return fastest_spin_decay(self.coefficient, self.rigid, bodies, "angular drag")
 
     def describe(self) -> str:
         return f"c = {self.coefficient:g} N·m·s on {self.on_bodies()}"

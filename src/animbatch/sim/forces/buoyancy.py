@@ -24,7 +24,15 @@ import numpy as np
 
 from animbatch.quaternion import cross
 from animbatch.sim.forces.on_particles import ParticleLaw, Slots
-from animbatch.sim.forces.term import BodyTable, ForceTerm, Kinematics, selection_text, vector_text
+from animbatch.sim.forces.term import (
+    BodyTable,
+    ForceTerm,
+    Kinematics,
+    TimeScale,
+    fastest_spin_decay,
+    selection_text,
+    vector_text,
+)
 from animbatch.sim.rigid.polyhedra import submerged_volume_and_moment
 
 
@@ -68,6 +76,20 @@ class Buoyancy(ForceTerm):
     triangle_rigid: np.ndarray
     first_rigid: int
     names: tuple[str, ...]
+
+    def time_scale(self, state: Kinematics, bodies: BodyTable) -> TimeScale | None:
+        """The fastest relaxation in the fluid, fully submerged: c / m of a velocity or c_rot / I of a spin."""
+        found = []
+        if self.linear_damping and len(self.bodies):
+            rates = self.linear_damping / bodies.mass[self.bodies]
+            k = int(np.argmax(rates))
+            found.append(TimeScale(float(rates[k]), f"fluid damping on {self.names[self.bodies[k]]!r} (its "
+                                                     f"velocity relaxes in {1 / rates[k]:.3g} s when submerged)",
+                                   turns=False))
+        rigid = self.bodies[self.bodies >= self.first_rigid] - self.first_rigid
+        spin = fastest_spin_decay(self.angular_damping, rigid, bodies, "fluid damping")
+        found += [spin] if spin is not None else []
+        return max(found, key=lambda scale: scale.rate, default=None)
 
     @functools.cached_property
     def _off_centre_spheres(self) -> np.ndarray:

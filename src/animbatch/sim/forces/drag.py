@@ -102,9 +102,10 @@ class Drag(ForceTerm):
     def label(self) -> str:
         return "wind" if self.wind is not None else "drag"
 
-    def time_scale(self, state: Kinematics, mass: np.ndarray) -> TimeScale | None:
+    def time_scale(self, state: Kinematics, bodies: BodyTable) -> TimeScale | None:
         """The fastest decay of a velocity relative to the air: c / m (linear; Stokes with c = 6 π η r), and
         2 C |u| / m for the quadratic law at the start's relative speed |u| (its derivative along u)."""
+        mass = bodies.mass
         groups = [(np.arange(len(mass)) if self.index is None else self.index, self.coefficient)]
         if self.at_points is not None:
             groups.append((self.at_points, self.at_coefficient))

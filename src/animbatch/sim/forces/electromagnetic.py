@@ -77,8 +77,9 @@ class LorentzForce(ForceTerm):
         out.add(points[particles], points[particles], dfdv=blocks)
         return True
 
-    def time_scale(self, state: Kinematics, mass: np.ndarray) -> TimeScale | None:
+    def time_scale(self, state: Kinematics, bodies: BodyTable) -> TimeScale | None:
         """The fastest gyration: a charge q of mass m turns about the strongest B at ω = |q| B / m."""
+        mass = bodies.mass
         strongest = float(np.max(np.linalg.norm(self.magnetic.values, axis=1)))
         points = np.arange(len(mass)) if self.index is None else self.index
         omega = np.abs(self.charge) * strongest / mass[points]

@@ -20,7 +20,7 @@ from animbatch.sim.bodies import BodyTable, Kinematics
 from animbatch.sim.forces.jacobian import BlockPattern, ForceJacobian
 
 __all__ = ["BlockPattern", "BodyTable", "ForceJacobian", "ForceTerm", "Kinematics", "TermFactory", "add_at",
-           "TimeScale", "rigid_selection", "selection_text", "vector_text"]
+           "TimeScale", "fastest_spin_decay", "rigid_selection", "selection_text", "vector_text"]
 
 
 class ForceTerm(ABC):
@@ -78,8 +78,8 @@ class ForceTerm(ABC):
         (implicit methods then treat its force explicitly, as evaluated at the start of the step)."""
         return False
 
-    def time_scale(self, state: Kinematics, mass: np.ndarray) -> TimeScale | None:
-        """The fastest motion this term sets at ``state`` on points of masses ``mass`` (P,) [kg]: what a step must
+    def time_scale(self, state: Kinematics, bodies: BodyTable) -> TimeScale | None:
+        """The fastest motion this term sets at ``state`` on ``bodies`` (their masses, inertias): what a step must
         resolve (the pre-flight's and the cost estimate's); None for a term that sets none of its own."""
         return None
 
@@ -98,6 +98,18 @@ class TimeScale:
 #: How a model builder makes a force term once the bodies are known: (bodies, selected point indices or None for
 #: all) -> term. The compiler makes one from each scene field (:mod:`animbatch.compile.forces`).
 TermFactory = Callable[[BodyTable, "np.ndarray | None"], ForceTerm]
+
+
+def fastest_spin_decay(coefficient: float, rigid: np.ndarray, bodies: BodyTable, what: str) -> TimeScale | None:
+    """The fastest relaxation of a spin under a torque ``-c ω`` on the rigid bodies ``rigid`` (K,): c / I about the
+    axis of least inertia [1/s], named ``what`` on that body; None without rigid bodies or c."""
+    if not coefficient or not len(rigid) or bodies.rigid is None:
+        return None
+    least = np.linalg.eigvalsh(bodies.rigid.inertia[rigid])[:, 0]
+    k = int(np.argmax(coefficient / least))
+    name = bodies.names[bodies.first_rigid + rigid[k]]
+    return TimeScale(float(coefficient / least[k]),
+                     f"{what} on {name!r} (its spin relaxes in {least[k] / coefficient:.3g} s)", turns=False)
 
 
 def selection_text(index: np.ndarray | None, names: tuple[str, ...]) -> str:

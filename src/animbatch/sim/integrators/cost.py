@@ -163,7 +163,7 @@ def _fastest_motions(model: Model) -> list[tuple[float, str, bool]]:
     positions = np.asarray(model.positions(model.y0[None])[0])
     start = start_kinematics(model)
     for term in model.force_terms:
-        scale = term.time_scale(start, model.bodies.mass)
+        scale = term.time_scale(start, model.bodies)
         if scale is not None:
             found.append((scale.rate, scale.what, scale.turns))
     for term in model.force_terms:

@@ -139,7 +139,7 @@ def _check_drag_step(model: Model, method: str, h: float, steps: int) -> None:
     overshoots and grows once h λ passes the method's limit (2 for Euler)."""
     start = start_kinematics(model)
     for term in model.force_terms:
-        scale = term.time_scale(start, model.bodies.mass)
+        scale = term.time_scale(start, model.bodies)
         if scale is None or scale.turns:
             continue
         growth = amplification(method, h, 0.0, scale.rate / 2)  # x'' = −λ x': the mode model without a spring
