@@ -81,8 +81,7 @@ name: table
 duration: 0.1
 fps: 30
 bodies:
-  - {{name: cube, type: rigid, shape: {{type: box, size: [0.3, 0.3, 0.3]}}, density: 500, position: [0, 1.3, 0],
-     color: "#ff0000"}}
+  - {body}
 colliders:
   - {{type: box, position: [0, 0.4, 0], size: [2.4, 0.8, 1.6], orientation: {{axis: [0, 0, 1], angle: {tilt}}},
      color: "#3060c0"}}
@@ -96,13 +95,22 @@ render:
 """
 
 
+#: A rigid body's shadow is its mesh flattened; a particle's, its sphere glyph (drawn in one set per receiving face).
+OVER_THE_TABLE = {
+    "rigid cube": '{{name: cube, type: rigid, shape: {{type: box, size: [0.3, 0.3, 0.3]}}, density: 500, '
+                  'position: [0, 1.3, 0], color: "#ff0000"}}',
+    "particle": '{{name: ball, radius: 0.15, position: [0, 1.3, 0], color: "#ff0000"}}',
+}
+
+
+@pytest.mark.parametrize("body", OVER_THE_TABLE.values(), ids=OVER_THE_TABLE.keys())
 @pytest.mark.parametrize("tilt", [0, 10])
-def test_a_body_over_a_raised_box_casts_its_shadow_on_the_box_not_through_it_onto_the_ground(tilt):
-    """A cube hovering over a blue table (flat, then tilted as a ramp): every pixel its shadow darkens is on the
-    table's top, none on the ground; before, the shadow fell through the table onto the ground beneath it."""
+def test_a_body_over_a_raised_box_casts_its_shadow_on_the_box_not_through_it_onto_the_ground(tilt, body):
+    """A cube or a ball hovering over a blue table (flat, then tilted as a ramp): every pixel its shadow darkens is
+    on the table's top, none on the ground; before, the shadow fell through the table onto the ground beneath it."""
 
     def frame(shadows: str) -> np.ndarray:
-        scene = stages.parse_scene(TABLE.format(tilt=tilt, shadows=shadows))
+        scene = stages.parse_scene(TABLE.format(tilt=tilt, shadows=shadows, body=body.format()))
         model = api.compile_model(scene)
         trajectory = api.simulate(scene, model=model)
         geometry = stages.frame_geometry(stages.plan(scene, model=model), trajectory)

@@ -248,10 +248,9 @@ class FrameRenderer:
             distance = float(np.linalg.norm(geometry.bounds.mean(axis=0) - self.camera.position))
             segments = sphere_segments(spec.sphere_resolution, float(np.median(radius)), distance,
                                        self.camera.view_angle, self.height)
-            shadow = (self._shadows.projection, GroundShadows.LOOK) if self._shadows is not None else None
             for finish, members in group_by_finish([self._finish(k) for k in self._drawn]).items():
                 group = SphereGroup(self.pv, self.plotter, radius[members], [colors[k] for k in members], segments,
-                                    self._shading(finish, colors[members[0]]), shadow)
+                                    self._shading(finish, colors[members[0]]), self._shadows)
                 self._sphere_groups.append((members, group))
 
     def _add_emitted(self) -> None:

@@ -62,16 +62,6 @@ class Receiver:
     level: float
     edges: np.ndarray
 
-    def hit(self, point: np.ndarray, direction: np.ndarray) -> float:
-        """How far [m] along ``direction`` from ``point`` the face is met (inf: missed, or behind)."""
-        along = float(self.normal @ direction)
-        if along >= -1e-9:
-            return np.inf
-        distance = (self.level - float(self.normal @ point)) / along
-        met = point + distance * direction
-        return distance if distance > 0 and bool(np.all(self.edges[:, :3] @ met >= self.edges[:, 3] - 1e-9)) \
-            else np.inf
-
 
 def shadow_receivers(colliders: tuple[DrawnCollider, ...], up: np.ndarray) -> list[Receiver]:
     """The upward faces of the fixed box colliders, as receivers of shadows."""
@@ -101,7 +91,7 @@ class Shadow:
 
     matrix: Any
     mapper: Any
-    receiver: Receiver | None = None
+    receiver: int = -1  # the ground
 
 
 class GroundShadows:
@@ -143,6 +133,32 @@ class GroundShadows:
         actor.SetUserMatrix(matrix)
         return Shadow(matrix, actor.mapper)
 
+    def receivers_of(self, points: np.ndarray) -> np.ndarray:
+        """Which face catches the shadow of each point (K, 3) [m]: the index of the first receiver met along the light
+        from it, -1 for the ground (K,)."""
+        which = np.full(len(points), -1)
+        nearest = np.full(len(points), np.inf)
+        for k, face in enumerate(self.receivers):
+            along = float(face.normal @ self.direction)
+            if along >= -1e-9:  # the light runs along it or comes from under it
+                continue
+            distance = (face.level - points @ face.normal) / along
+            met = points + distance[:, None] * self.direction
+            inside = np.all(met @ face.edges[:, :3].T >= face.edges[:, 3] - 1e-9, axis=1)
+            closer = inside & (distance > 0) & (distance < nearest)
+            which[closer], nearest[closer] = k, distance[closer]
+        return which
+
+    def projection_onto(self, receiver: int) -> np.ndarray:
+        """The flattening matrix (4, 4) onto receiver ``receiver`` (-1: the ground)."""
+        return self.projection if receiver < 0 else self._on_face[receiver]
+
+    def clip(self, mapper: Any, receiver: int) -> None:
+        """Clip what ``mapper`` draws to the edges of receiver ``receiver`` (the ground: nothing clipped)."""
+        mapper.RemoveAllClippingPlanes()
+        if receiver >= 0:
+            mapper.SetClippingPlanes(self._clips[receiver])
+
     def place(self, shadow: Shadow, rotation: np.ndarray | None, position: np.ndarray) -> None:
         """Put a shadow under its body at ``position`` [m] turned by ``rotation`` (3, 3) (None: unturned): on the
         first face along the light from the body's centre, else on the ground."""
@@ -150,12 +166,9 @@ class GroundShadows:
         if rotation is not None:
             body[:3, :3] = rotation
         body[:3, 3] = position
-        distances = [face.hit(position, self.direction) for face in self.receivers]
-        nearest = int(np.argmin(distances)) if distances and np.isfinite(min(distances)) else None
-        face = self.receivers[nearest] if nearest is not None else None
-        if face is not shadow.receiver:  # clip to the face's edges (the ground: no clipping)
-            shadow.mapper.SetClippingPlanes(self._clips[nearest] if nearest is not None else None)
-            shadow.receiver = face
-        projection = self._on_face[nearest] if nearest is not None else self.projection
-        shadow.matrix.DeepCopy((projection @ body).ravel())
+        receiver = int(self.receivers_of(np.asarray(position, float)[None])[0])
+        if receiver != shadow.receiver:
+            self.clip(shadow.mapper, receiver)
+            shadow.receiver = receiver
+        shadow.matrix.DeepCopy((self.projection_onto(receiver) @ body).ravel())
         shadow.matrix.Modified()

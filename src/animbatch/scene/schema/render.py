@@ -234,8 +234,9 @@ class RenderSpec(SceneModel):
                                  gt=0, le=1)
     trails: TrailSpec | None = key(None, "Trails behind moving bodies (omit for none; 'trails: {}' for every "
                                          "particle and rigid body).")
-    shadows: bool = key(False, "Contact shadows: each body and particle sphere casts its shape onto the ground "
-                               "along the key light (needs a ground; on with quality: final).")
+    shadows: bool = key(False, "Contact shadows: each body and particle sphere casts its shape along the key light "
+                               "onto the ground, or onto the upward face of a fixed box collider under it (needs a "
+                               "ground; on with quality: final).")
     ambient_occlusion: bool = key(False, "Ambient occlusion: the ground darkens softly around where bodies rest on "
                                          "it or pass close (needs a ground; on with quality: final).")
     show_anchors: bool = key(True, "Draw anchors as small dark cubes.")
