@@ -275,6 +275,28 @@ def test_an_explicit_step_beyond_a_laws_rate_is_refused_before_any_particle_move
             """)
 
 
+@pytest.mark.parametrize("speed, wind, expected", [(10.0, 0.0, 2e4), (0.0, 0.0, 2 * np.sqrt(G * 1e-3 / 1e-6)),
+                                                   (10.0, 3.0, 2.6e4)], ids=["launch", "terminal fall", "wind"])
+def test_quadratic_drag_on_light_particles_is_bounded_by_the_launch_or_the_fall_and_refused_past_it(speed, wind,
+                                                                                                     expected):
+    """Quadratic drag slows a particle at up to 2 C |u| / m (the largest eigenvalue of C |u| (I + û ûᵀ) / m), with
+    |u| at most the faster of its launch and its terminal fall √(m g / C), plus the wind: for 1 µg particles
+    (C = 1e-3 kg/m) launched at 10 m/s, 2e4 /s; dropped, 2 √(g C / m) ≈ 198 /s; with 3 m/s of wind, 2.6e4 /s. A step
+    of 1.5 × 2 / rate is refused naming that rate; it used to pass, the particles gaining speed every step."""
+    law = "{type: wind, velocity: [%r, 0, 0], model: quadratic, coefficient: 1.0e-3}" % wind if wind else \
+        "{type: drag, model: quadratic, coefficient: 1.0e-3}"
+    dt = float(1.5 * 2 / expected)
+    with pytest.raises(SimulationError, match=r"emitter 'dust'") as refused:
+        run(f"""
+            duration: 0.1
+            fps: 20
+            solver: {{method: verlet, dt: {dt!r}}}
+            emitters: [{{name: dust, bursts: [{{time: 0, count: 5}}], speed: {speed}, mass: 1.0e-6, lifetime: 1}}]
+            fields: [{{type: gravity}}, {law}]
+            """)
+    assert f"rate of {expected:.3g} /s" in str(refused.value)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("kernels", ["numpy", "numba"])
 def test_bounce_on_a_plane_rises_to_e_squared_of_the_drop_height(monkeypatch, kernels):

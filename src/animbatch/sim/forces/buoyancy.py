@@ -244,7 +244,7 @@ class BuoyancyOnParticles(ParticleLaw):
     def compiled(self) -> bool:
         return True
 
-    def largest_rate(self, mass: float, radius: float) -> float | None:
+    def largest_rate(self, mass: float, radius: float, speed: float, gravity: float) -> float | None:
         return self.damping / mass if self.damping else None  # fully submerged
 
     def kernel_row(self, row: np.ndarray, kernel: ModuleType) -> None:

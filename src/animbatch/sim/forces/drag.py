@@ -235,9 +235,12 @@ class DragOnParticles(ParticleLaw):
     def quadratic_relative(self, v: np.ndarray) -> np.ndarray | None:
         return self._relative(v) if self.law == "quadratic" else None
 
-    def largest_rate(self, mass: float, radius: float) -> float | None:
+    def largest_rate(self, mass: float, radius: float, speed: float, gravity: float) -> float | None:
         if self.law == "quadratic":
-            return None  # C |u| / m: it grows with the speed
+            # 2 C |u| / m, |u| at most the faster of the launch and the fall (which tends to √(m g / C)), plus wind
+            terminal = np.sqrt(mass * gravity / self.coefficient) if self.coefficient > 0 else 0.0
+            wind = float(np.linalg.norm(self.wind)) if self.wind is not None else 0.0
+            return 2 * self.coefficient * (max(speed, terminal) + wind) / mass
         return (6.0 * np.pi * self.viscosity * radius if self.law == "stokes" else self.coefficient) / mass
 
     @property

@@ -44,10 +44,11 @@ class ParticleLaw(ABC):
         acceleration does not depend on velocity."""
         return None
 
-    def largest_rate(self, mass: float, radius: float) -> float | None:
-        """The largest ``α`` of :meth:`rates` [1/s] on a particle of ``mass`` [kg] and ``radius`` [m], wherever it
-        is and however fast it moves; None when it does not depend on velocity, or without bound (quadratic drag
-        grows with speed). An explicit step h is stable only while α h < 2."""
+    def largest_rate(self, mass: float, radius: float, speed: float, gravity: float) -> float | None:
+        """The largest eigenvalue of ``-∂a/∂v`` [1/s] (``α + β`` of :meth:`rates`) on a particle of ``mass`` [kg] and
+        ``radius`` [m], wherever it is, launched at up to ``speed`` [m/s] under a gravity of ``gravity`` [m/s²]
+        (which bounds how fast it can come to fall); None when it does not depend on velocity. An explicit step h
+        is stable only while that rate times h < 2."""
         return None
 
     def quadratic_relative(self, v: np.ndarray) -> np.ndarray | None:

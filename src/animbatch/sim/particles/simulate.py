@@ -296,12 +296,14 @@ EXPLICIT_RATE_LIMIT = 2.0
 def check_stability(emitter: Emitter, method: str, h: float) -> None:
     """Refuse, before any particle moves, a fixed step ``h`` [s] of an explicit ``method`` that a law of the emitter
     makes unstable for its lightest, largest particle (a velocity rate ``α = -∂a/∂v`` with α h ≥ 2: drag on tiny
-    particles, a fluid's damping meant for bodies), naming the law and the fix."""
+    particles, quadratic drag at the fastest launch or fall, a fluid's damping meant for bodies), naming the law and
+    the fix."""
     if method not in METHODS or not METHODS[method].fixed_step or METHODS[method].implicit:
         return
     mass, radius = max(emitter.mass.smallest, 1e-300), max(emitter.radius.largest, 0.0)
+    gravity = float(np.linalg.norm(sum((law.gravity for law in emitter.fields), np.zeros(3))))
     for law in emitter.fields:
-        alpha = law.largest_rate(mass, radius)
+        alpha = law.largest_rate(mass, radius, emitter.speed.largest, gravity)
         if alpha is not None and alpha * h >= EXPLICIT_RATE_LIMIT:
             raise SimulationError(
                 f"emitter {emitter.name!r}: {law.describe()} slows its lightest particles ({mass:.3g} kg, radius "
