@@ -413,6 +413,26 @@ def render(scene: Path, trajectory: Path | None, out_dir: Path, backend: str, se
         click.echo(f"{reports[0][1].scene}: page -> {run_page(reports, out_dir / reports[0][1].scene)}")
 
 
+@cli.command()
+@click.argument("scene", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--quality", type=click.Choice(["draft", "preview"]), default="draft", show_default=True,
+              help="Render quality of the preview (render.quality).")
+@click.option("--seconds", type=click.FloatRange(min=0, min_open=True), default=3.0, show_default=True,
+              help="Preview the first this many seconds of the scene (all of it when shorter).")
+@click.option("--port", type=click.IntRange(min=0, max=65535), default=0, show_default=True,
+              help="Port on 127.0.0.1 (0: a free one).")
+@click.option("--set", "settings", multiple=True, metavar="KEY.PATH=VALUE",
+              help="Override any scene value, as for render.")
+@_reports_errors
+def watch(scene: Path, quality: str, seconds: float, port: int, settings: tuple[str, ...]) -> None:
+    """Serve a live preview of SCENE on a local page (127.0.0.1, the address is printed): every save of the scene
+    or of a file beside it re-validates it and re-renders its first seconds; a scene that does not validate shows
+    its errors there, with the last good video kept."""
+    from animbatch.watch import watch as serve
+
+    serve(scene, quality=quality, seconds=seconds, port=port, settings=settings, say=click.echo)
+
+
 def _reads_a_run(verb: str) -> Callable[[F], F]:
     """The arguments of a command that reads a run (see :func:`_run_of`): the scene, --trajectory, --out, the scene
     options and --progress."""
