@@ -169,6 +169,12 @@ class RunReport:
         return (f"{self.scene}: {count} {width}×{height} @ {self.fps} fps -> {target} | "
                 f"{timings} | {solver} | {self.backend}{watches}")
 
+    def _repr_html_(self) -> str:
+        """In a Jupyter notebook: the video, the accuracy ledger and the energy plot (with ``plot``)."""
+        from animbatch.farm.notebook_display import run_html
+
+        return run_html(self.scene, self.summary(), self.outputs, self.ledger, self.quantities)
+
 
 def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: str | Path = "renders",
         backend: str = "auto", trajectory_path: str | Path | None = None, progress: Progress | None = None,
