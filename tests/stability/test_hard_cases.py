@@ -568,7 +568,7 @@ def test_an_explicit_step_past_the_drag_limit_is_refused_and_one_inside_decays_a
         run(linear_drag("backward_euler", 0.025))  # implicit: stable at any step, not refused
 
 
-def test_quadratic_drag_relaxes_at_twice_c_times_the_speed_relative_to_the_wind_over_m():
+def test_quadratic_drag_relaxes_at_twice_c_times_the_speed_through_the_air_over_m_or_at_the_terminal_fall():
     loaded = scene("""
         duration: 1.0
         fps: 10
@@ -579,9 +579,13 @@ def test_quadratic_drag_relaxes_at_twice_c_times_the_speed_relative_to_the_wind_
     model = compile_scene(loaded.spec)
     term = next(term for term in model.force_terms if term.kind == "drag")
     start = Kinematics(np.zeros((2, 3)), np.array([[3.0, 4.0, 0.0], [0.0, 0.0, 0.0]]), None, None, 2)
-    scale = term.time_scale(start, model.bodies)
+    scale = term.time_scale(start, model.bodies, 0.0)
     # |v - w| = 3 for the ball: 2 × 0.05 × 3 / 0.2 = 1.5; the other: 2 × 0.05 × 4 / 1 = 0.4
     assert scale.rate == pytest.approx(1.5) and "'ball'" in scale.what and not scale.turns
+    # under gravity a body falls towards √(m g / C) through the air (6.26 m/s for the ball, more than the wind's
+    # 4): 2 √(g C / m) = 3.13 /s, even for a body that starts at rest
+    at_rest = Kinematics(np.zeros((2, 3)), np.zeros((2, 3)), None, None, 2)
+    assert term.time_scale(at_rest, model.bodies, G).rate == pytest.approx(2 * np.sqrt(G * 0.05 / 0.2))
 
 
 NAPKIN_AND_CUBE = """
@@ -639,7 +643,7 @@ def test_angular_drag_and_fluid_damping_relax_at_c_over_the_least_inertia_and_c_
     """)
     model = compile_scene(loaded.spec)
     start = Kinematics(np.zeros((2, 3)), np.zeros((2, 3)), None, None, 1)
-    scales = {term.kind: term.time_scale(start, model.bodies) for term in model.force_terms}
+    scales = {term.kind: term.time_scale(start, model.bodies, 0.0) for term in model.force_terms}
     assert scales["angular_drag"].rate == pytest.approx(30.0) and "'box'" in scales["angular_drag"].what
     assert scales["buoyancy"].rate == pytest.approx(12.0) and "spin" in scales["buoyancy"].what
     lighter = scene("""
@@ -649,4 +653,4 @@ def test_angular_drag_and_fluid_damping_relax_at_c_over_the_least_inertia_and_c_
         fields: [{type: buoyancy, density: 1000, level: 0.5, linear_damping: 4}]
     """)
     ball = compile_scene(lighter.spec)
-    assert ball.force_terms[0].time_scale(start, ball.bodies).rate == pytest.approx(2.0)
+    assert ball.force_terms[0].time_scale(start, ball.bodies, 0.0).rate == pytest.approx(2.0)

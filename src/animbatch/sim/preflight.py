@@ -32,8 +32,8 @@ from animbatch.sim.integrators.stability import (
     GROWTH_LIMIT,
     amplification,
     largest_stable_step,
-    start_kinematics,
     stiffest_mode,
+    time_scales,
 )
 from animbatch.sim.integrators.step_plan import resolve_dt, substeps
 from animbatch.sim.model.model import Model
@@ -117,11 +117,9 @@ def _contact_warnings(model: Model, world: ContactWorld, h: float) -> list[str]:
 
 
 def _turn_warnings(model: Model, method: str, h: float) -> list[str]:
-    start = start_kinematics(model)
     messages = []
-    for term in model.force_terms:
-        scale = term.time_scale(start, model.bodies)
-        if scale is None or not scale.turns or scale.rate * h <= MOST_TURN_PER_STEP:
+    for scale in time_scales(model):
+        if not scale.turns or scale.rate * h <= MOST_TURN_PER_STEP:
             continue
         drift = "shrinks" if METHODS[method].implicit else "grows"
         messages.append(f"{method} at dt = {h:.3g} s turns the {scale.what}, ω = {scale.rate:.4g} rad/s, by "

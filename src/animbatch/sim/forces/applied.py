@@ -139,7 +139,7 @@ class AngularDrag(_RigidLoad):
     def adds_energy(self) -> bool:
         return False  # τ = -c ω only takes energy
 
-    def time_scale(self, state: Kinematics, bodies: BodyTable) -> TimeScale | None:
+    def time_scale(self, state: Kinematics, bodies: BodyTable, gravity: float) -> TimeScale | None:
         return fastest_spin_decay(self.coefficient, self.rigid, bodies, "angular drag")
 
     def describe(self) -> str:

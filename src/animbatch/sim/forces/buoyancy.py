@@ -77,7 +77,7 @@ class Buoyancy(ForceTerm):
     first_rigid: int
     names: tuple[str, ...]
 
-    def time_scale(self, state: Kinematics, bodies: BodyTable) -> TimeScale | None:
+    def time_scale(self, state: Kinematics, bodies: BodyTable, gravity: float) -> TimeScale | None:
         """The fastest relaxation in the fluid, fully submerged: c / m of a velocity or c_rot / I of a spin."""
         found = []
         if self.linear_damping and len(self.bodies):

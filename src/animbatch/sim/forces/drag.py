@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from types import ModuleType
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -44,6 +44,14 @@ def drag_force(law: DragLaw, coefficient: float | np.ndarray, relative: np.ndarr
         scale *= np.ravel(coefficient) if np.ndim(coefficient) else coefficient
         return scale[:, None] * -relative
     return -(coefficient * relative)
+
+
+def quadratic_drag_rate(coefficient: Any, mass: Any, relative_speed: Any, gravity: float) -> Any:
+    """The fastest a velocity relaxes under quadratic drag ``-C |u| u`` [1/s]: 2 C |u| / m (the largest eigenvalue
+    of C |u| (I + û ûᵀ) / m), with |u| the faster of ``relative_speed`` [m/s] (through the air, at a launch or at
+    the start) and the terminal fall √(m g / C) that a body under ``gravity`` [m/s²] tends to. Numbers or arrays."""
+    terminal = np.sqrt(mass * gravity / np.maximum(coefficient, 1e-300))
+    return 2 * coefficient * np.maximum(relative_speed, terminal) / mass
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,25 +110,27 @@ class Drag(ForceTerm):
     def label(self) -> str:
         return "wind" if self.wind is not None else "drag"
 
-    def time_scale(self, state: Kinematics, bodies: BodyTable) -> TimeScale | None:
-        """The fastest decay of a velocity relative to the air: c / m (linear; Stokes with c = 6 π η r), and
-        2 C |u| / m for the quadratic law at the start's relative speed |u| (its derivative along u)."""
-        mass = bodies.mass
-        groups = [(np.arange(len(mass)) if self.index is None else self.index, self.coefficient)]
-        if self.at_points is not None:
-            groups.append((self.at_points, self.at_coefficient))
-        rates = []
-        for points, coefficient in groups:
-            if not len(points):
-                continue
-            c = np.broadcast_to(np.ravel(np.asarray(coefficient, float)), (len(points),))
-            if self.law == "quadratic":
-                relative = state.v[points] - (self.wind if self.wind is not None else 0.0)
-                c = 2 * c * np.linalg.norm(relative, axis=1)
-            rates += [(float(rate), int(point)) for rate, point in zip(c / mass[points], points)]
-        if not rates or not max(rates)[0] > 0:
+    def time_scale(self, state: Kinematics, bodies: BodyTable, gravity: float) -> TimeScale | None:
+        """The fastest decay of a velocity relative to the air: c / m (linear; Stokes with c = 6 π η r), and for the
+        quadratic law :func:`quadratic_drag_rate` at the faster of the start's speed and the terminal fall."""
+        points = np.arange(len(bodies.mass)) if self.index is None else np.asarray(self.index)
+        coefficient = np.broadcast_to(np.ravel(np.asarray(self.coefficient, float)), (len(points),))
+        if self.at_points is not None:  # dragged at a body point: the same law on that body's mass
+            points = np.concatenate([points, self.at_points])
+            coefficient = np.concatenate([coefficient, np.broadcast_to(
+                np.ravel(np.asarray(self.at_coefficient, float)), (len(self.at_points),))])
+        if not len(points):
             return None
-        rate, point = max(rates)
+        mass = bodies.mass[points]
+        if self.law == "quadratic":
+            relative = state.v[points] - (self.wind if self.wind is not None else 0.0)
+            rates = quadratic_drag_rate(coefficient, mass, np.linalg.norm(relative, axis=1), gravity)
+        else:
+            rates = coefficient / mass
+        k = int(np.argmax(rates))
+        if not rates[k] > 0:
+            return None
+        rate, point = float(rates[k]), int(points[k])
         return TimeScale(rate, f"{self.law} drag on {self.names[point]!r} (its velocity relaxes in "
                                f"{1 / rate:.3g} s)", turns=False)
 
@@ -237,10 +247,9 @@ class DragOnParticles(ParticleLaw):
 
     def largest_rate(self, mass: float, radius: float, speed: float, gravity: float) -> float | None:
         if self.law == "quadratic":
-            # 2 C |u| / m, |u| at most the faster of the launch and the fall (which tends to √(m g / C)), plus wind
-            terminal = np.sqrt(mass * gravity / self.coefficient) if self.coefficient > 0 else 0.0
+            # launched at up to ``speed`` into the wind: at most speed + |w| through the air
             wind = float(np.linalg.norm(self.wind)) if self.wind is not None else 0.0
-            return 2 * self.coefficient * (max(speed, terminal) + wind) / mass
+            return float(quadratic_drag_rate(self.coefficient, mass, speed + wind, gravity))
         return (6.0 * np.pi * self.viscosity * radius if self.law == "stokes" else self.coefficient) / mass
 
     @property

@@ -77,7 +77,7 @@ class LorentzForce(ForceTerm):
         out.add(points[particles], points[particles], dfdv=blocks)
         return True
 
-    def time_scale(self, state: Kinematics, bodies: BodyTable) -> TimeScale | None:
+    def time_scale(self, state: Kinematics, bodies: BodyTable, gravity: float) -> TimeScale | None:
         """The fastest gyration: a charge q of mass m turns about the strongest B at ω = |q| B / m."""
         mass = bodies.mass
         strongest = float(np.max(np.linalg.norm(self.magnetic.values, axis=1)))

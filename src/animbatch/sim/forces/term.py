@@ -78,9 +78,10 @@ class ForceTerm(ABC):
         (implicit methods then treat its force explicitly, as evaluated at the start of the step)."""
         return False
 
-    def time_scale(self, state: Kinematics, bodies: BodyTable) -> TimeScale | None:
-        """The fastest motion this term sets at ``state`` on ``bodies`` (their masses, inertias): what a step must
-        resolve (the pre-flight's and the cost estimate's); None for a term that sets none of its own."""
+    def time_scale(self, state: Kinematics, bodies: BodyTable, gravity: float) -> TimeScale | None:
+        """The fastest motion this term sets from ``state`` on ``bodies`` (their masses, inertias) under a gravity of
+        ``gravity`` [m/s²] (how fast a body can come to fall): what a step must resolve (the pre-flight's and the
+        cost estimate's); None for a term that sets none of its own."""
         return None
 
 

@@ -33,7 +33,7 @@ from animbatch.sim.forces.gravitation import InverseSquarePairs
 from animbatch.sim.integrators.budget import format_seconds
 from animbatch.sim.integrators.interface import EquationsOfMotion, StepSettings
 from animbatch.sim.integrators.methods import EXPLICIT_LIMITS, METHODS
-from animbatch.sim.integrators.stability import start_kinematics, stiffest_mode
+from animbatch.sim.integrators.stability import stiffest_mode, time_scales
 from animbatch.sim.integrators.step_plan import resolve_dt, substeps
 from animbatch.sim.model import Dynamics, Model
 
@@ -161,11 +161,7 @@ def _fastest_motions(model: Model) -> list[tuple[float, str, bool]]:
         found.append((float(mode.omega), f"stiffest spring (around {mode.body!r})", False))
 
     positions = np.asarray(model.positions(model.y0[None])[0])
-    start = start_kinematics(model)
-    for term in model.force_terms:
-        scale = term.time_scale(start, model.bodies)
-        if scale is not None:
-            found.append((scale.rate, scale.what, scale.turns))
+    found += [(scale.rate, scale.what, scale.turns) for scale in time_scales(model)]
     for term in model.force_terms:
         if not isinstance(term, InverseSquarePairs) or len(term.mass) < 2:
             continue

@@ -22,6 +22,8 @@ import numpy as np
 from animbatch.errors import SimulationError
 from animbatch.sim.bodies import Kinematics
 from animbatch.sim.forces.controllers import Controllers
+from animbatch.sim.forces.gravity import gravity_magnitude
+from animbatch.sim.forces.term import TimeScale
 from animbatch.sim.integrators.methods import METHODS
 from animbatch.sim.model.model import Model
 
@@ -133,14 +135,21 @@ def start_kinematics(model: Model) -> Kinematics:
                       None, None, model.particle_count)
 
 
+def time_scales(model: Model) -> list[TimeScale]:
+    """Each force term's own fastest motion from the start (:meth:`ForceTerm.time_scale`): gyrations, drag and
+    damping."""
+    start = start_kinematics(model)
+    gravity = gravity_magnitude(model.force_terms)
+    found = (term.time_scale(start, model.bodies, gravity) for term in model.force_terms)
+    return [scale for scale in found if scale is not None]
+
+
 def _check_drag_step(model: Model, method: str, h: float, steps: int) -> None:
     """Raise SimulationError when an explicit step ``h`` [s] is too long for the fastest drag: a velocity relaxing
     at rate λ is multiplied by |1 − h λ| per explicit Euler step (the method's own factor for the others), which
     overshoots and grows once h λ passes the method's limit (2 for Euler)."""
-    start = start_kinematics(model)
-    for term in model.force_terms:
-        scale = term.time_scale(start, model.bodies)
-        if scale is None or scale.turns:
+    for scale in time_scales(model):
+        if scale.turns:
             continue
         growth = amplification(method, h, 0.0, scale.rate / 2)  # x'' = −λ x': the mode model without a spring
         if growth <= 1.0 or steps * np.log(growth) <= np.log(GROWTH_LIMIT):
