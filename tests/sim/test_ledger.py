@@ -192,16 +192,21 @@ def test_a_fixed_step_that_does_not_divide_the_frame_is_reported_as_used():
     assert "note" not in aligned.ledger["step"]
 
 
+def falling_ball(fps: int, solver: str) -> str:
+    """A ball falling for half a second at ``fps``, integrated with ``solver`` (a YAML mapping)."""
+    return f"""
+        duration: 0.5
+        fps: {fps}
+        solver: {solver}
+        bodies: [{{name: ball}}]
+        fields: [{{type: gravity}}]
+    """
+
+
 def test_a_default_step_that_does_not_divide_the_frame_is_not_blamed_on_solver_dt():
     """Without solver.dt the step bound is the 1 ms default; at 24 fps a frame (41.67 ms) takes 42 steps of
     0.992 ms. The ledger, the summary and 'info' name the default, not a solver.dt the user never wrote."""
-    text = """
-        duration: 0.5
-        fps: 24
-        solver: {method: verlet}
-        bodies: [{name: ball}]
-        fields: [{type: gravity}]
-    """
+    text = falling_ball(24, "{method: verlet}")
     _, trajectory = run(text)
     step = trajectory.ledger["step"]
     assert step["steps_per_frame"] == 42 and step["dt"] == pytest.approx(1 / 24 / 42)
@@ -217,13 +222,7 @@ def test_a_default_step_that_does_not_divide_the_frame_is_not_blamed_on_solver_d
 def test_backward_euler_takes_one_step_per_frame_unless_given_a_dt_and_the_summary_says_where_each_step_came_from():
     """Without solver.dt, backward Euler (stable at any step) takes one step per frame; an explicit method takes the
     1 ms default; a given dt that divides the frame is solver.dt's. The summary line says which."""
-    text = """
-        duration: 0.5
-        fps: 25
-        solver: {method: backward_euler}
-        bodies: [{name: ball}]
-        fields: [{type: gravity}]
-    """
+    text = falling_ball(25, "{method: backward_euler}")
     assert api.plan(scene(text)).steps.frame_substeps == 1
     _, implicit = run(text)
     assert implicit.ledger["step"]["steps_per_frame"] == 1 and implicit.ledger["step"]["dt"] == pytest.approx(0.04)

@@ -131,7 +131,8 @@ class FrameRenderer:
         self._add_anchors()
         self._add_targets()
         self._add_time_label()
-        self.overlays += [actor for actor in (self._label, self._arrows and self._arrows.legend) if actor is not None]
+        legend = self._arrows.legend if self._arrows is not None else None
+        self.overlays += [actor for actor in (self._label, legend) if actor is not None]
         self._apply_camera(self.camera)
         self._pixels: Any = None
 

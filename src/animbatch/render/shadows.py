@@ -1,9 +1,9 @@
 """Contact shadows: each body's own mesh, flattened onto the ground along the key light (a planar projected shadow).
 
-A rigid body's shadow lands on the first surface under it along the light: the ground, or an upward face of a fixed
-box collider (a ramp, a table, a step), flattened onto that face's plane and clipped to its edges, so that a block
-on a ramp shades the ramp instead of the ground beneath it. (Particles' shadows, drawn as one instanced set, fall on
-the ground.)
+A shadow lands on the first surface under its body along the light: the ground, or an upward face of a fixed box
+collider (a ramp, a table, a step), flattened onto that face's plane and clipped to its edges, so that a block on a
+ramp shades the ramp instead of the ground beneath it. A rigid body's shadow switches face as the body moves
+(:meth:`GroundShadows.place`); particle spheres draw one shadow set per face (:mod:`animbatch.render.spheres`).
 
 VTK's shadow-map pass (``enable_shadows``) was tried first: under Mesa's software rasteriser it shadowed whole
 regions of the ground black at the edges of its light frustum and speckled lit spheres with acne, and it doubled the
@@ -105,7 +105,7 @@ class GroundShadows:
         self.pv, self.plotter, self.matrix_class = pv, plotter, matrix_class
         self.direction = key_light_direction(up, camera_direction)
         self.projection = planar_projection(up, level + lift, self.direction)
-        self.up, self.level, self.lift = up / np.linalg.norm(up), level, lift
+        self.up, self.level = up / np.linalg.norm(up), level
         self.receivers = receivers or []
         self._on_face = [planar_projection(face.normal, face.level + lift, self.direction) for face in self.receivers]
         self._clips = [self._clipping_planes(face) for face in self.receivers]
