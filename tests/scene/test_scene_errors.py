@@ -188,10 +188,17 @@ def test_a_backslash_n_in_an_unquoted_text_override_starts_a_line_as_in_a_double
     assert scene(GOOD, r"render.time_label='a\nb'").spec.render.time_label == "a\\nb"
 
 
+def test_the_index_one_past_a_lists_end_appends_an_item_which_is_validated_like_the_others():
+    loaded = scene(GOOD, "fields[1]={type: drag, model: linear, coefficient: 0.1}")
+    assert [field.type for field in loaded.spec.fields] == [field.type for field in scene(GOOD).spec.fields] + ["drag"]
+    with pytest.raises(SceneError, match=r"bodies\[1\]\.type: .*did you mean 'particle'"):
+        scene(GOOD, "bodies[1]={type: particel, mass: 1}")
+
+
 @pytest.mark.parametrize("override, expected", [
     ("bodies[0].mass=-2", "--set bodies[0].mass=-2: bodies[0].mass: must be > 0 kg (got -2)"),
     ("bodies[ghost].mass=1", "--set bodies[ghost].mass=1: bodies[ghost]: no item named 'ghost' in bodies; names: ball"),
-    ("bodies[3].mass=1", "--set bodies[3].mass=1: bodies[3]: index 3 is out of range: bodies has 1 items"),
+    ("bodies[3].mass=1", "--set bodies[3].mass=1: bodies[3]: index 3 is out of range: bodies has 1 item"),
     ("solver.metod=RK45", "--set solver.metod=RK45: solver.metod: unknown key 'metod'; did you mean 'method'?"),
     ("duration", "--set duration: expected key.path=value"),
 ])

@@ -10,8 +10,8 @@ import difflib
 import hashlib
 import json
 import re
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -20,23 +20,38 @@ from pydantic import ValidationError
 from animbatch.errors import SceneError, SceneIssue
 from animbatch.scene.checks import Problem, check_references
 from animbatch.scene.diagnostics import issues_from_validation, sort_issues
-from animbatch.scene.overrides import Override, apply_overrides
+from animbatch.scene.overrides import Override, apply_overrides, as_overrides
 from animbatch.scene.schema import PRESENTATION_KEYS, SceneSpec
 from animbatch.scene.yaml_source import SourceMap, format_path, load_yaml
 
 
 @dataclass(frozen=True)
 class LoadedScene:
-    """A validated scene, where it came from, and how to point back into its file."""
+    """A validated scene, where it came from, and how to point back into its file.
+
+    It keeps its recipe (the text, the overrides applied, the checks it passed), so that :meth:`changed` can apply
+    more overrides and validate again, and worker processes can rebuild it without reading the file again."""
 
     spec: SceneSpec
     source: SourceMap
     path: Path | None = None
+    text: str = field(default="", repr=False)
+    overrides: tuple[Override, ...] = ()
+    geometry_checks: GeometryChecks | None = field(default=None, repr=False, compare=False)
 
     @property
     def name(self) -> str:
         assert self.spec.name is not None  # filled in by the loader
         return self.spec.name
+
+    def changed(self, values: Mapping[str, Any] | Sequence[Override]) -> LoadedScene:
+        """This scene with more values changed, validated again with every check it passed: ``values`` maps key
+        paths, as ``--set`` writes them (``"bodies[ball].mass"``), to Python values (``{"solver.method":
+        "RK45", "render.resolution": [640, 360]}``), or is a list of ``"key.path=value"`` texts. The scene itself
+        is not changed. SceneError names each change that is not valid, with what is allowed."""
+        return parse_scene(self.text, filename=self.source.filename, overrides=(*self.overrides, *as_overrides(values)),
+                           default_name=self.name, path=self.path,
+                           geometry_checks=self.geometry_checks)
 
 
 #: Checks of a validated scene that need more than the file format (mesh files, pin selections): (spec, the scene's
@@ -79,7 +94,7 @@ def parse_scene(text: str, *, filename: str = "<scene>", overrides: Sequence[Ove
                                       for p, message in file_problems]))
     if spec.name is None:
         spec = spec.model_copy(update={"name": _as_name(default_name)})
-    return LoadedScene(spec, source, path)
+    return LoadedScene(spec, source, path, text, tuple(overrides), geometry_checks)
 
 
 def _read(path: Path) -> str:

@@ -1,7 +1,8 @@
 """``--set key.path=value``: change any scene value from the command line before validation.
 
 Paths use dots and brackets: ``solver.method``, ``bodies[0].mass``, ``bodies.0.mass``, or ``bodies[ball].mass`` (a
-list item chosen by its ``name``). The value is read as YAML (``1e-3``, ``[640, 360]``, ``true``, ``DOP853``), and the
+list item chosen by its ``name``); the index one past a list's end appends an item (``fields[1]={type: drag}`` on a
+scene with one field). The value is read as YAML (``1e-3``, ``[640, 360]``, ``true``, ``DOP853``), and the
 result is validated exactly like the file, with errors that point at the override. In an unquoted text value, ``\n``
 starts a new line, as in a double-quoted YAML string (a shell cannot easily pass a newline; a quoted value is
 read as YAML reads it).
@@ -9,9 +10,12 @@ read as YAML reads it).
 
 from __future__ import annotations
 
+import json
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
+
+import yaml
 
 from animbatch.errors import SceneError, SceneIssue
 from animbatch.scene.yaml_source import KeyPath, SourceMap, format_path, load_yaml
@@ -38,6 +42,37 @@ def parse_key_path(text: str) -> list[str | int]:
 
 
 Override = str | tuple[str, str]
+
+
+def as_overrides(values: Mapping[str, Any] | Sequence[Override]) -> list[Override]:
+    """Changes given from Python as overrides: a mapping of key paths to Python values (numbers, text, lists,
+    mappings, None, numpy arrays) becomes ``key.path=value`` with the value written as YAML, so that it is read back
+    as the same value (the text ``"yes"`` stays text); a sequence of overrides is returned as it is."""
+    if not isinstance(values, Mapping):
+        if isinstance(values, str):  # one "key=value" text, not a sequence of its characters
+            return [values]
+        return list(values)
+    changes: list[Override] = []
+    for key, value in values.items():
+        plain = _plain(value)
+        if isinstance(plain, str):  # quoted, so that it is read as this text exactly (no \n rewriting either)
+            text = json.dumps(plain, ensure_ascii=False)
+        else:
+            text = yaml.safe_dump(plain, default_flow_style=True, width=float("inf"), allow_unicode=True)
+            text = text.strip().removesuffix("...").strip()  # a lone value ends its document with "..."
+        changes.append((f"{key}={text}", f"{key} = {text} (set from Python)"))
+    return changes
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with numpy arrays and scalars, tuples and other mappings as the plain types YAML writes."""
+    if hasattr(value, "tolist"):  # numpy arrays and scalars
+        return value.tolist()
+    if isinstance(value, Mapping):
+        return {str(key): _plain(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(item) for item in value]
+    return value
 
 
 def apply_overrides(data: Any, overrides: Sequence[Override], source: SourceMap) -> Any:
@@ -97,6 +132,8 @@ def _apply_one(data: Any, text: str, source: SourceMap, label: str) -> Any:
                 container = container.setdefault(part, {})
             resolved.append(part)
         elif isinstance(container, list):
+            if part == len(container):  # one past the end appends: fields[1]=... adds a second field
+                container.append(None if last else {})
             index = _list_index(container, part, here, resolved)
             resolved.append(index)
             if last:
@@ -114,8 +151,8 @@ def _apply_one(data: Any, text: str, source: SourceMap, label: str) -> Any:
 def _list_index(items: list[Any], part: str | int, here: str, resolved: list[str | int]) -> int:
     if isinstance(part, int):
         if not -len(items) <= part < len(items):
-            raise _OverrideProblem(format_path((*resolved, part)),
-                                   f"index {part} is out of range: {here} has {len(items)} items")
+            count = f"{len(items)} item{'' if len(items) == 1 else 's'}"
+            raise _OverrideProblem(format_path((*resolved, part)), f"index {part} is out of range: {here} has {count}")
         return part % len(items)
     names = [item.get("name") for item in items if isinstance(item, dict)]
     for index, item in enumerate(items):
