@@ -7,6 +7,7 @@
 #   bash scripts/dev.sh bench   set up, then run the benchmark suite and print its table
 #   bash scripts/dev.sh gallery set up, then redraw docs/gallery.md: one still per bundled scene at final quality
 #   bash scripts/dev.sh accuracy  set up, then regenerate docs/accuracy.md (studies of the bundled scenes)
+#   bash scripts/dev.sh notebooks set up, then run docs/notebooks/*.ipynb and save them with their outputs
 #   bash scripts/dev.sh fuzz    set up, then run 10 000 mutated scenes through validate and simulate (a table)
 #   bash scripts/dev.sh setup   only set up
 #
@@ -185,8 +186,12 @@ case "$command" in
         setup
         exec "$venv/bin/python" -m animbatch.study.document "$@"
         ;;
+    notebooks)
+        setup
+        exec "$venv/bin/python" scripts/notebooks.py "$@"
+        ;;
     *)
-        echo "usage: bash scripts/dev.sh {demo|test|bench|gallery|fuzz|accuracy|setup} [extra arguments]" >&2
+        echo "usage: bash scripts/dev.sh {demo|test|bench|gallery|fuzz|accuracy|notebooks|setup} [extra arguments]" >&2
         exit 2
         ;;
 esac

@@ -17,13 +17,17 @@ import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar, cast
+from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 import click
 
-from animbatch import __version__
 from animbatch.errors import AnimbatchError, SceneError
 from animbatch.scene.overrides import Override
+from animbatch.version import __version__
+
+if TYPE_CHECKING:
+    from animbatch.farm.run import RunReport
+    from animbatch.scene import LoadedScene
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -382,7 +386,7 @@ def study(scene: Path, out_dir: Path | None, methods: str | None, repeats: int |
 @click.option("--report", "page", type=click.Choice(["html"]), help="html: also write OUT/<scene>/index.html, a page "
               "with the video, a poster frame, the ledger and the energy plot (implies --plot).")
 @_scene_options
-@click.option("--progress/--no-progress", default=None, help="Progress bars (default: on a terminal).")
+@click.option("--progress/--no-progress", default=None, help="Progress bars (default: on a terminal or in a notebook).")
 @_reports_errors
 def render(scene: Path, trajectory: Path | None, out_dir: Path, backend: str, settings: tuple[str, ...],
            progress: bool | None, frames: str | None, jobs: int | None, plot: bool, camera: str | None,
@@ -390,18 +394,28 @@ def render(scene: Path, trajectory: Path | None, out_dir: Path, backend: str, se
     """Bake (or reuse the cached simulation), render the frames off-screen and encode the videos into
     renders/<scene>/, streaming each frame into the encoder as it is drawn (or drawn in parallel with --jobs).
     Frames already complete on disk are not drawn again."""
+    render_scene(scene, trajectory=trajectory, out_dir=out_dir, backend=backend, settings=settings,
+                 progress=progress, frames=frames, jobs=jobs, plot=plot, camera=camera, page=page, **shortcuts)
+
+
+def render_scene(scene: Path | LoadedScene, *, trajectory: Path | None, out_dir: Path, backend: str,
+                 settings: tuple[str, ...], progress: bool | None, frames: str | None, jobs: int | None, plot: bool,
+                 camera: str | None, page: str | None, **shortcuts: str | None) -> list[RunReport]:
+    """What ``animbatch render`` does with its options (parsed by click), for a scene file or a scene loaded
+    already (the ``%%animbatch`` cell magic's): one run per camera asked for, each summary printed, then the page.
+    Returns the reports, in camera order."""
     from animbatch import api
     from animbatch.progress import Progress
 
     overrides = _overrides(settings, **shortcuts)
     cameras: list[str | None] = [camera]
     if camera == "all":  # the simulation is baked once; each camera then reuses it from the cache
-        cameras = [None, *api.load_scene(scene, overrides).spec.render.cameras]
+        cameras = [None, *api.load(scene, overrides).spec.render.cameras]
     reports = []
     for name in cameras:
         chosen = overrides + ([(f"render.use_camera={name}", f"--camera {name}")] if name is not None else [])
         try:
-            report = api.run(scene, overrides=chosen, out_dir=out_dir, backend=backend, trajectory_path=trajectory,
+            report = api.run(scene, overrides=chosen, out_dir=out_dir, backend=backend, trajectory=trajectory,
                              progress=Progress(enabled=progress), jobs=jobs, frames=frames, plot=plot or bool(page))
         except ValueError as error:  # a --frames range the scene does not have
             raise click.BadParameter(str(error), param_hint="--frames") from None
@@ -411,6 +425,7 @@ def render(scene: Path, trajectory: Path | None, out_dir: Path, backend: str, se
         from animbatch.farm.page import run_page
 
         click.echo(f"{reports[0][1].scene}: page -> {run_page(reports, out_dir / reports[0][1].scene)}")
+    return [report for _, report in reports]
 
 
 @cli.command()

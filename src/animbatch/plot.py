@@ -28,12 +28,11 @@ def _title(name: str, ledger: dict[str, Any]) -> str:
 
 def plot_quantities(series: QuantitySeries, target: str | Path, *, scene: str, ledger: dict[str, Any]) -> Path:
     """Draw the series into a PNG at ``target`` (written atomically); returns the path."""
-    import matplotlib  # heavy (about 0.3 s): only when plotting
+    # a Figure without pyplot: drawn off-screen by Agg, never touching the backend a notebook or script chose
+    from matplotlib.figure import Figure  # heavy (about 0.3 s): only when plotting
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # heavy (about 0.3 s): only when plotting
-
-    figure, axes = plt.subplots(4, 1, figsize=(9, 11), dpi=100, sharex=True)
+    figure = Figure(figsize=(9, 11), dpi=100)
+    axes = figure.subplots(4, 1, sharex=True)
     t = series.times
     energy, momentum, angular, speed = axes
     energy.plot(t, series.kinetic, label="kinetic")
@@ -67,6 +66,5 @@ def plot_quantities(series: QuantitySeries, target: str | Path, *, scene: str, l
     figure.subplots_adjust(left=0.1, right=0.97, bottom=0.05, top=0.94, hspace=0.22)
     with atomic_path(target) as partial:
         figure.savefig(partial, format="png")
-    plt.close(figure)
     return Path(target)
 

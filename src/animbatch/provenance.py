@@ -13,7 +13,7 @@ import functools
 import hashlib
 from pathlib import Path
 
-from animbatch import __version__
+from animbatch.version import __version__
 
 #: Subpackages and modules of animbatch whose code does not change a trajectory (relative to the package folder).
 NOT_SIMULATION = ("render", "encode", "export", "cli.py", "doctor.py", "plot.py", "progress.py")

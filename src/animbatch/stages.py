@@ -19,7 +19,6 @@ from typing import Any
 
 import numpy as np
 
-from animbatch import __version__
 from animbatch.compile.arrows import arrow_series
 from animbatch.compile.checks import compile_checks
 from animbatch.compile.frame_geometry import body_extents, collider_points
@@ -56,6 +55,7 @@ from animbatch.sim.particles.simulate import simulate_particles
 from animbatch.sim.preflight import preflight
 from animbatch.stopwatch import Stopwatch
 from animbatch.trajectory import Trajectory
+from animbatch.version import __version__
 
 
 def load_scene(path: str | Path, overrides: Sequence[Override] = ()) -> LoadedScene:

@@ -105,6 +105,21 @@ class Trajectory:
     def frame_count(self) -> int:
         return len(self.times)
 
+    def _heading(self) -> str:
+        bodies = len(self.body_names)
+        return (f"{self.scene_name}: {self.frame_count} frames, {self.times[0]:g}–{self.times[-1]:g} s, "
+                f"{bodies} bod{'y' if bodies == 1 else 'ies'}")
+
+    def _repr_html_(self) -> str:
+        """In a Jupyter notebook: what was simulated and its accuracy ledger (``animbatch.render`` draws it)."""
+        from animbatch.notebook_display import trajectory_html
+
+        return trajectory_html(self._heading(), self.ledger)
+
+    def _repr_pretty_(self, printer: Any, cycle: bool) -> None:
+        """In IPython's terminal: what was simulated, not every array."""
+        printer.text(f"Trajectory({self._heading()})")
+
     def save(self, path: str | Path) -> Path:
         """Write the trajectory atomically to ``path`` (``.npz`` is appended when missing)."""
         path = Path(path)

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from animbatch import __version__, stages
+from animbatch import stages
 from animbatch.cluster import WORKER_ENV, connect
 from animbatch.errors import SimulationError
 from animbatch.farm import bake, render_frames
@@ -29,6 +29,7 @@ from animbatch.farm.frame_files import FrameRange, frames_folder, prepare_frames
 from animbatch.files import write_json_atomic
 from animbatch.stopwatch import Stopwatch
 from animbatch.trajectory import Trajectory
+from animbatch.version import __version__
 
 #: Frames per render task by default: enough to amortise a renderer's start-up, small enough to spread a scene.
 CHUNK_SIZE = 48

@@ -19,7 +19,6 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from animbatch import __version__
 from animbatch.compile.plan import RunPlan
 from animbatch.errors import TrajectoryError
 from animbatch.progress import Progress
@@ -28,6 +27,7 @@ from animbatch.scene import LoadedScene
 from animbatch.sim.ledger import warn_again, with_threshold
 from animbatch.stages import scene_fingerprint, simulate
 from animbatch.trajectory import Trajectory
+from animbatch.version import __version__
 
 #: Solver keys that judge a run rather than shape it: changing them re-judges a cached bake, never re-simulates.
 JUDGING_KEYS = ("drift_warning", "max_cost", "description")

@@ -20,7 +20,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from animbatch import __version__
 from animbatch.compile.plan import RunPlan
 from animbatch.encode.images import BackgroundFrameWriter, FrameWriter, PngSequenceWriter
 from animbatch.errors import RenderError
@@ -33,6 +32,7 @@ from animbatch.sim.integrators.budget import format_seconds
 from animbatch.stages import check_trajectory, frame_geometry, plan
 from animbatch.timeline import FrameRange, parse_frames
 from animbatch.trajectory import Trajectory
+from animbatch.version import __version__
 
 __all__ = ["FrameRange", "RangeResult", "draw_frames", "frame_is_complete", "frames_folder", "parse_frames",
            "prepare_frames", "render_frames"]

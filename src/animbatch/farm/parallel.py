@@ -15,13 +15,18 @@ from __future__ import annotations
 import math
 import multiprocessing
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 from animbatch import stages
 from animbatch.farm.frame_files import FrameRange, RangeResult, render_frames
+from animbatch.scene import LoadedScene
+from animbatch.scene.overrides import Override
 from animbatch.trajectory import Trajectory
+
+#: What a worker needs to rebuild a loaded scene: its text, file name (for messages), overrides, path and name.
+SceneRecipe = tuple[str, str, tuple[Override, ...], str | None, str]
 
 #: Below this many frames per worker, starting worker processes costs more than it saves.
 MIN_FRAMES_PER_WORKER = 24
@@ -38,25 +43,30 @@ def _limit_rasteriser_threads() -> None:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 
-def _render_chunk(scene_path: str, overrides: Sequence[tuple[str, str]], trajectory_path: str, chunk: FrameRange,
-                  out_dir: str, backend: str) -> RangeResult:
-    """In a worker: load the scene and the trajectory, render one chunk."""
-    scene = stages.load_scene(scene_path, list(overrides))
+def _render_chunk(recipe: SceneRecipe, trajectory_path: str, chunk: FrameRange, out_dir: str,
+                  backend: str) -> RangeResult:
+    """In a worker: rebuild the scene from its text and overrides, load the trajectory, render one chunk."""
+    text, filename, overrides, path, name = recipe
+    scene = stages.parse_scene(text, filename=filename, overrides=overrides, default_name=name,
+                               path=Path(path) if path else None)
     trajectory = Trajectory.load(trajectory_path)
     return render_frames(scene, trajectory, chunk, out_dir=out_dir, backend=backend)
 
 
-def render_in_parallel(scene_path: str | Path, overrides: Sequence[tuple[str, str]], trajectory_path: str | Path,
-                       frames: FrameRange, *, workers: int, out_dir: str | Path, backend: str,
+def render_in_parallel(scene: LoadedScene, trajectory_path: str | Path, frames: FrameRange, *, workers: int,
+                       out_dir: str | Path, backend: str,
                        on_chunk: Callable[[RangeResult], None] | None = None) -> RangeResult:
-    """Render ``frames`` in ``workers`` processes, one contiguous chunk each; the merged result."""
+    """Render ``frames`` of ``scene`` in ``workers`` processes, one contiguous chunk each; the merged result. The
+    workers rebuild the scene from its text, not its file, so that a save during the render changes nothing."""
     size = math.ceil(len(frames) / workers)
     chunks = frames.chunks(size)
     total = RangeResult()
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_limit_rasteriser_threads) as pool:
-        futures = [pool.submit(_render_chunk, str(scene_path), tuple(overrides), str(trajectory_path), chunk,
-                               str(out_dir), backend) for chunk in chunks]
+        recipe: SceneRecipe = (scene.text, scene.source.filename, scene.overrides,
+                               str(scene.path) if scene.path else None, scene.name)
+        futures = [pool.submit(_render_chunk, recipe, str(trajectory_path), chunk, str(out_dir), backend)
+                   for chunk in chunks]
         for future in as_completed(futures):
             result = future.result()
             total.drawn += result.drawn

@@ -3,16 +3,17 @@ yet on disk (in worker processes), encode, and write the run's report. ``animbat
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import platform
 import shutil
+import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from animbatch import __version__
 from animbatch.compile.plan import RunPlan
 from animbatch.compile.stopwatches import stopwatch_line, stopwatch_readings
 from animbatch.encode import PngSequenceWriter
@@ -38,48 +39,7 @@ from animbatch.sim.ledger import warn_again
 from animbatch.stages import check_trajectory, failure_report, load_scene, plan, write_quantities
 from animbatch.stopwatch import Stopwatch
 from animbatch.trajectory import Trajectory
-
-
-@dataclass
-class RenderResult:
-    """What a render wrote, and how long drawing and encoding took [s]."""
-
-    outputs: list[Path]
-    frame_count: int
-    backend: str
-    render_seconds: float
-    encode_seconds: float
-    resolution: tuple[int, int]
-    fps: int
-
-
-def render(scene: LoadedScene | RunPlan, trajectory: Trajectory, *, out_dir: str | Path = "renders",
-           backend: str = "auto", progress: Progress | None = None) -> RenderResult:
-    """Draw every frame of ``trajectory`` and write the scene's outputs into ``out_dir/<scene name>/``, in this
-    process: ``run`` without the bake (the same frames, videos and file rules, see :func:`run`).
-
-    The trajectory must come from this scene's physics (TrajectoryError otherwise); frames already complete on disk
-    for this picture are not drawn again; every file is written atomically. ``scene``: a loaded scene, or its run
-    plan when the caller compiled it.
-    """
-    run = plan(scene)
-    scene = run.scene
-    check_trajectory(scene, run.model, trajectory)
-    sweep_killed_writers(scene, out_dir)
-    progress = progress or Progress(enabled=False)
-    with progress.task("render", trajectory.frame_count) as on_frame:
-        def each(i: int) -> None:
-            on_frame(i, float(trajectory.times[i]))
-
-        rendered, outputs, encode_seconds = _render_whole(run, trajectory, out_dir, backend, each)
-    return RenderResult(outputs, trajectory.frame_count, rendered.backend or "(none: frames were complete)",
-                        rendered.render_seconds, encode_seconds, _size(scene.spec.render.resolution),
-                        scene.spec.fps)
-
-
-def _size(resolution: list[int]) -> tuple[int, int]:
-    width, height = resolution
-    return width, height
+from animbatch.version import __version__
 
 
 def _render_whole(run: RunPlan, trajectory: Trajectory, out_dir: str | Path, backend: str,
@@ -96,6 +56,31 @@ def _render_whole(run: RunPlan, trajectory: Trajectory, out_dir: str | Path, bac
                            on_frame=on_frame)
     outputs, encode_seconds = finish_outputs(scene, trajectory.frame_count, out_dir)
     return rendered, outputs, encode_seconds
+
+
+def _size(resolution: list[int]) -> tuple[int, int]:
+    width, height = resolution
+    return width, height
+
+
+def _scene_of(scene: str | Path | LoadedScene | RunPlan, overrides: Sequence[Override]) -> LoadedScene:
+    """The loaded scene of a file, a loaded scene or a run plan, with ``overrides`` applied."""
+    if isinstance(scene, RunPlan):
+        scene = scene.scene
+    if isinstance(scene, LoadedScene):
+        return scene.changed(overrides) if overrides else scene
+    return load_scene(scene, overrides)
+
+
+@contextlib.contextmanager
+def _trajectory_file(trajectory: Trajectory, source: Path | None, folder: Path) -> Iterator[Path]:
+    """The file of ``trajectory`` for worker processes: ``source`` when it has one, else a temporary file in
+    ``folder``, deleted afterwards."""
+    if source is not None:
+        yield source
+        return
+    with tempfile.TemporaryDirectory(dir=folder, prefix=".trajectory-") as temporary:
+        yield trajectory.save(Path(temporary) / "trajectory.npz")
 
 
 def finish_outputs(scene: LoadedScene, frame_count: int, out_dir: str | Path) -> tuple[list[Path], float]:
@@ -169,20 +154,29 @@ class RunReport:
         return (f"{self.scene}: {count} {width}×{height} @ {self.fps} fps -> {target} | "
                 f"{timings} | {solver} | {self.backend}{watches}")
 
+    def _repr_pretty_(self, printer: Any, cycle: bool) -> None:
+        """In IPython's terminal: the summary line, not every field."""
+        printer.text(self.summary())
+
     def _repr_html_(self) -> str:
         """In a Jupyter notebook: the video, the accuracy ledger and the energy plot (with ``plot``)."""
-        from animbatch.farm.notebook_display import run_html
+        from animbatch.notebook_display import run_html
 
         return run_html(self.scene, self.summary(), self.outputs, self.ledger, self.quantities)
 
 
-def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: str | Path = "renders",
-        backend: str = "auto", trajectory_path: str | Path | None = None, progress: Progress | None = None,
-        jobs: int | None = None, frames: str | None = None, plot: bool = False) -> RunReport:
+def run(scene: str | Path | LoadedScene | RunPlan, *, overrides: Sequence[Override] = (),
+        out_dir: str | Path = "renders", backend: str = "auto", trajectory: str | Path | Trajectory | None = None,
+        progress: Progress | None = None, jobs: int | None = None, frames: str | None = None,
+        plot: bool = False) -> RunReport:
     """Bake, render and encode one scene, as a render farm does, on this machine; write its report.
 
-    * **bake**: the trajectory from the cache (``renders/<scene>/cache/``) when the physics, solver settings and
-      package version match, else simulated and cached (or read from ``trajectory_path``);
+    ``scene``: a scene file, a loaded scene (changed from Python, say) or its run plan; ``overrides`` (``--set``
+    style) are applied to it first.
+
+    * **bake**: ``trajectory`` when given (a :class:`Trajectory` or its file, checked to be this scene's physics),
+      else the cached one (``renders/<scene>/cache/``) when the physics, solver settings and package version match,
+      else simulated and cached;
     * **render** and **encode**: by default in this process, every frame streamed into the encoders as it is drawn
       (PNG frames too when ``png`` is one of the formats; see :mod:`animbatch.farm.streamed_render`). With ``jobs`` > 1,
       or when frames of this picture are already on disk (an interrupted ``jobs`` or farm render), the frames not
@@ -196,18 +190,21 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
     watch = Stopwatch()
     progress = progress or Progress(enabled=False)
     with watch.stage("load"):
-        scene = load_scene(scene_path, overrides)
-    sweep_killed_writers(scene, out_dir)  # what a killed run left half-written is never mistaken for output
+        loaded = _scene_of(scene, overrides)
+    sweep_killed_writers(loaded, out_dir)  # what a killed run left half-written is never mistaken for output
     with watch.stage("compile"):
-        compiled = plan(scene)
+        compiled = scene if isinstance(scene, RunPlan) and not overrides else plan(loaded)
+    scene = loaded
     model = compiled.model
     cache = None
-    if trajectory_path is not None:
+    source: Path | None = None
+    if trajectory is not None:
         with watch.stage("load_trajectory"):
-            trajectory = Trajectory.load(trajectory_path)
-            check_trajectory(scene, model, trajectory, trajectory_path)  # before rendering, naming the file
-            warn_again(trajectory.ledger)
-        source = Path(trajectory_path)
+            if not isinstance(trajectory, Trajectory):
+                source = Path(trajectory)
+                trajectory = Trajectory.load(source)
+                warn_again(trajectory.ledger)
+            check_trajectory(scene, model, trajectory, source or "the trajectory given")  # before drawing
     else:
         try:
             baked = bake(compiled, out_dir=out_dir, progress=progress)
@@ -232,8 +229,13 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
         else:
             folder = prepare_frames(scene, trajectory, out_dir)  # before any worker starts: stale frames go
             if workers > 1:
-                rendered = render_in_parallel(scene_path, overrides, source, span, workers=workers, out_dir=out_dir,
-                                              backend=backend, on_chunk=lambda chunk: [each(i) for i in chunk.drawn])
+                with _trajectory_file(trajectory, source, folder) as shared:  # what the worker processes read
+                    def each_drawn(chunk: RangeResult) -> None:
+                        for i in chunk.drawn:
+                            each(i)
+
+                    rendered = render_in_parallel(scene, shared, span, workers=workers, out_dir=out_dir,
+                                                  backend=backend, on_chunk=each_drawn)
             else:
                 # checked above (a baked trajectory is this scene's by its cache key), and the folder just prepared
                 rendered = draw_frames(compiled, trajectory, span, folder, backend=backend, on_frame=each)
@@ -247,8 +249,8 @@ def run(scene_path: str | Path, *, overrides: Sequence[Override] = (), out_dir: 
         watch.add("encode", encode_seconds)
     report = RunReport(scene.name, str(scene.path) if scene.path else None, trajectory.physics_hash, __version__,
                        dict(watch.seconds), trajectory.solver, trajectory.solver_stats, trajectory.frame_count,
-                       tuple(spec.render.resolution), spec.fps, rendered.backend or "(none: frames were complete)",
-                       [str(p) for p in outputs], str(trajectory_path) if trajectory_path else None,
+                       _size(spec.render.resolution), spec.fps, rendered.backend or "(none: frames were complete)",
+                       [str(p) for p in outputs], str(source) if source is not None and cache is None else None,
                        trajectory.particle_stats, frames=str(span), frames_drawn=len(rendered.drawn),
                        frames_skipped=len(rendered.skipped), workers=workers,
                        cache=str(cache.path) if cache else None, cache_reused=bool(cache and cache.reused),

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import io
+from dataclasses import dataclass
 from pathlib import Path
 
 from animbatch.files import atomic_path, write_json_atomic, write_text_atomic
@@ -76,14 +77,14 @@ def csv_text(result: StudyResult) -> str:
 def plot(result: StudyResult, target: str | Path) -> None:
     """Log–log error against wall time, one line per method; hollow markers for points limited by the reference,
     the reference's accuracy as a dashed line, failed runs counted in the legend."""
+    # a Figure without pyplot: drawn off-screen by Agg, never touching the backend a notebook or script chose
     import matplotlib  # heavy (about 0.3 s): only when plotting
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # heavy (about 0.3 s): only when plotting
-
-    figure, axes = plt.subplots(figsize=(8, 5.5), dpi=110)
+    figure = Figure(figsize=(8, 5.5), dpi=110)
+    axes = figure.subplots()
     markers = "osD^v<>ph*"
-    colours = plt.get_cmap("tab20")
+    colours = matplotlib.colormaps["tab20"]
     for number, merit in enumerate(result.merits):
         rows = [r for r in result.rows if r.method == merit.method and r.status == "ok" and r.position_error
                 and r.wall_time]  # in sweep order: loosest tolerance or largest step first
@@ -111,7 +112,6 @@ def plot(result: StudyResult, target: str | Path) -> None:
     figure.tight_layout()
     with atomic_path(target) as partial:
         figure.savefig(partial, format="png")
-    plt.close(figure)
 
 
 def write_outputs(result: StudyResult, folder: str | Path) -> dict[str, Path]:
@@ -124,3 +124,17 @@ def write_outputs(result: StudyResult, folder: str | Path) -> dict[str, Path]:
     write_text_atomic(paths["txt"], table(result) + "\n")
     plot(result, paths["png"])
     return paths
+
+
+@dataclass
+class StudyReport:
+    """A study and the files it wrote (``csv``, ``json``, ``png``, ``txt``); a notebook shows the work-precision
+    plot and the table."""
+
+    result: StudyResult
+    paths: dict[str, Path]
+
+    def _repr_html_(self) -> str:
+        from animbatch.notebook_display import study_html
+
+        return study_html(self.result.scene, self.paths["png"], table(self.result))

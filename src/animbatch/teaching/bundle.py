@@ -22,10 +22,11 @@ import importlib.metadata
 import zipfile
 from pathlib import Path
 
-from animbatch import __version__, stages
+from animbatch import stages
 from animbatch.errors import SceneError
 from animbatch.scene.loader import mesh_files
 from animbatch.teaching.grade import GradeError
+from animbatch.version import __version__
 
 #: Seconds the whole grading of one submission may take (Gradescope's own default limit is ten minutes).
 TIMEOUT = 540

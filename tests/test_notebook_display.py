@@ -27,6 +27,6 @@ def test_a_run_displays_its_video_ledger_and_energy_plot_embedded(tmp_path):
     # the ledger: the method, and energy conserved (gravity alone) with its drift; momentum not, and why
     assert "<th>method</th><td colspan=2>RK45 (adaptive)" in page
     assert re.search(r"<th>energy</th><td>conserved: all forces derive from potentials: gravity</td><td>drift "
-                     r"[0-9.e+-]+ J</td>", page)
+                     r"[0-9.e+-]+ % of [0-9.]+ J</td>", page)
     assert "<th>momentum</th><td>not conserved: gravity is an external force</td>" in page
     assert report.summary().split(" | ")[0].replace(">", "&gt;") in page
