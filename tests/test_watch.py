@@ -10,10 +10,14 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
+import imageio.v3 as iio
+import numpy as np
 import pytest
 
-from animbatch.watch import Broadcast, make_server
+from animbatch import api
+from animbatch.watch import Broadcast, PreviewLoop, make_server
 
 pytestmark = pytest.mark.render
 
@@ -88,3 +92,34 @@ def test_a_save_re_renders_an_error_shows_its_line_and_a_fix_brings_the_video_ba
         process.terminate()
         process.wait(timeout=20)
     assert any("rendered" in line for line in lines), "".join(lines)
+
+
+def _red_centroid(image):
+    red = (image[..., 0] > 150) & (image[..., 1] < 90) & (image[..., 2] < 90)
+    rows, columns = np.nonzero(red)
+    return np.array([columns.mean(), rows.mean()])
+
+
+@pytest.mark.slow
+def test_a_frame_range_previews_those_frames_as_the_whole_render_draws_them(tmp_path):
+    """--frames 6-11: six frames, the first of which shows the ball where frame 6 of the whole render has it (at
+    t = 0.5 s it has flown 0.5 m right and 0.27 m up), framed alike; not where it starts."""
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(BALL.format(color="#ff0000"))
+    broadcast = Broadcast()
+    loop = PreviewLoop(scene, broadcast, tmp_path / "work", frames="6-11", say=lambda line: None)
+    loop._render_once()
+    (preview,) = broadcast.videos.values()
+    frames = iio.imread(preview, index=None)
+    assert frames.shape[:3] == (6, 180, 320)
+    whole = api.render(scene, out_dir=tmp_path / "whole", formats="png", progress=False, plot=False)
+    folder = Path(whole.outputs[0])
+    at = {index: _red_centroid(iio.imread(folder / f"frame_{index:05d}.png")) for index in (0, 6, 11)}
+    assert np.linalg.norm(_red_centroid(frames[0]) - at[6]) < 3  # pixels (the WebM's loss moves the edge a little)
+    assert np.linalg.norm(_red_centroid(frames[-1]) - at[11]) < 3
+    assert np.linalg.norm(at[6] - at[0]) > 20
+    # a range the scene does not have is named on the page, and nothing is rendered
+    loop.frames = "20-30"
+    loop._render_once()
+    assert broadcast.event == "errors" and "the scene has 12 frames (0-11)" in broadcast.data
+    assert len(broadcast.videos) == 1

@@ -434,18 +434,21 @@ def render_scene(scene: Path | LoadedScene, *, trajectory: Path | None, out_dir:
               help="Render quality of the preview (render.quality).")
 @click.option("--seconds", type=click.FloatRange(min=0, min_open=True), default=3.0, show_default=True,
               help="Preview the first this many seconds of the scene (all of it when shorter).")
+@click.option("--frames", metavar="FIRST-LAST", help="Preview these frames instead (e.g. 90-150, as render's "
+              "--frames), framed as in the whole scene's render.")
 @click.option("--port", type=click.IntRange(min=0, max=65535), default=0, show_default=True,
               help="Port on 127.0.0.1 (0: a free one).")
 @click.option("--set", "settings", multiple=True, metavar="KEY.PATH=VALUE",
               help="Override any scene value, as for render.")
 @_reports_errors
-def watch(scene: Path, quality: str, seconds: float, port: int, settings: tuple[str, ...]) -> None:
+def watch(scene: Path, quality: str, seconds: float, frames: str | None, port: int,
+          settings: tuple[str, ...]) -> None:
     """Serve a live preview of SCENE on a local page (127.0.0.1, the address is printed): every save of the scene
-    or of a file beside it re-validates it and re-renders its first seconds; a scene that does not validate shows
-    its errors there, with the last good video kept."""
+    or of a file beside it re-validates it and re-renders its first seconds (or --frames); a scene that does not
+    validate shows its errors there, with the last good video kept."""
     from animbatch.watch import watch as serve
 
-    serve(scene, quality=quality, seconds=seconds, port=port, settings=settings, say=click.echo)
+    serve(scene, quality=quality, seconds=seconds, frames=frames, port=port, settings=settings, say=click.echo)
 
 
 def _reads_a_run(verb: str) -> Callable[[F], F]:

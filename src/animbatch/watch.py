@@ -6,9 +6,10 @@ it may read (meshes, textures, curves). Each save:
 
 * validates the scene in this process: a scene that does not validate sends every error, with its
   ``file:line:column`` and fix, to the page, which keeps showing the last good video;
-* otherwise renders its first seconds (``duration`` capped) at draft quality into a fresh folder, in a child
-  process, so that a save during a render kills it and starts over: a video is sent to the page only once its
-  encoder has finished (the render writes it atomically), so nothing half-written is shown.
+* otherwise renders its first seconds (``duration`` capped), or the frames of ``--frames`` (framed as the whole
+  scene's render frames them), at draft quality into a fresh folder, in a child process, so that a save during a
+  render kills it and starts over: a video is sent to the page only once its encoder has finished (written
+  atomically), so nothing half-written is shown.
 
 The page swaps the new video in without reloading. Videos are WebM, which every browser plays.
 """
@@ -25,6 +26,8 @@ from dataclasses import dataclass, field
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
+
+from animbatch.timeline import FrameRange, Timeline
 
 #: Files beside the scene whose saves start a new render: the scene format's own and what it may read.
 WATCHED_SUFFIXES = (".yaml", ".yml", ".obj", ".stl", ".ply", ".off", ".glb", ".gltf", ".png", ".jpg", ".jpeg",
@@ -153,10 +156,10 @@ class PreviewLoop:
     during a render kills it and starts over."""
 
     def __init__(self, scene: Path, broadcast: Broadcast, workdir: Path, *, quality: str = "draft",
-                 seconds: float = PREVIEW_SECONDS, settings: tuple[str, ...] = (),
+                 seconds: float = PREVIEW_SECONDS, frames: str | None = None, settings: tuple[str, ...] = (),
                  say: Callable[[str], None] = print) -> None:
         self.scene, self.broadcast, self.workdir = scene, broadcast, workdir
-        self.quality, self.seconds, self.settings, self.say = quality, seconds, settings, say
+        self.quality, self.seconds, self.frames, self.settings, self.say = quality, seconds, frames, settings, say
         self.wanted = threading.Event()
         self.stopping = threading.Event()
         self.renders = 0
@@ -187,23 +190,37 @@ class PreviewLoop:
             self.broadcast.send("errors", str(error))
             self.say(f"{self.scene}: does not validate (the page shows why)")
             return
+        try:
+            span = Timeline.of(spec.duration, spec.fps).frames(self.frames) if self.frames else None
+        except ValueError as error:  # a range the scene does not have
+            self.broadcast.send("errors", str(error))
+            self.say(f"{self.scene}: {error}")
+            return
         self.renders += 1
         out = self.workdir / f"render-{self.renders}"
-        duration = min(spec.duration, self.seconds)
-        command = [sys.executable, "-m", "animbatch", "render", str(self.scene), "--out", str(out), "--formats",
-                   "webm", "--quality", self.quality, "--no-progress", "--set", f"duration={duration!r}"]
+        if span is None:  # the first seconds, encoded by the render
+            duration = min(spec.duration, self.seconds)
+            what, outputs = f"the first {duration:g} s", ["--formats", "webm", "--set", f"duration={duration!r}"]
+        else:  # the whole scene simulated, so that the camera frames the range as the final render will; the
+            # range's frames drawn as PNGs and encoded here
+            what, outputs = f"frames {span}", ["--formats", "png", "--frames", str(span)]
+        command = [sys.executable, "-m", "animbatch", "render", str(self.scene), "--out", str(out), *outputs,
+                   "--quality", self.quality, "--no-progress"]
         for setting in self.settings:
             command += ["--set", setting]
-        self.broadcast.send("status", f"rendering the first {duration:g} s at {self.quality} quality…")
+        self.broadcast.send("status", f"rendering {what} at {self.quality} quality…")
         process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         while process.poll() is None:
             if self.wanted.wait(timeout=0.1):  # saved again: this render is out of date
                 process.kill()
                 process.wait()
-                self.say(f"{self.scene}: saved during the render; starting over")
+                self._starting_over()
                 return
         output = process.stdout.read() if process.stdout is not None else ""
-        videos = sorted(out.glob("*/*.webm"))
+        videos = sorted(out.glob("*/*.webm")) if span is None else self._encode_range(out, span, spec.fps)
+        if self.wanted.is_set():  # saved while the range was encoded
+            self._starting_over()
+            return
         if process.returncode != 0 or not videos:
             self.broadcast.send("errors", output.strip() or f"the render failed (exit {process.returncode})")
             self.say(f"{self.scene}: the render failed (the page shows why)")
@@ -211,9 +228,32 @@ class PreviewLoop:
         url = self.broadcast.publish_video(videos[0])
         self.say(f"{self.scene}: rendered -> {url}")
 
+    def _starting_over(self) -> None:
+        self.say(f"{self.scene}: saved during the render; starting over")
 
-def watch(scene: Path, *, quality: str = "draft", seconds: float = PREVIEW_SECONDS, port: int = 0,
-          settings: tuple[str, ...] = (), say: Callable[[str], None] = print,
+    def _encode_range(self, out: Path, span: FrameRange, fps: int) -> list[Path]:
+        """The range's PNG frames (``out/<scene>/frames/``) as one WebM, written atomically; [] when frames are
+        missing (the render failed) or a save came in while encoding (the video is dropped)."""
+        import imageio.v3 as iio  # reads the PNGs: only when a range is previewed
+
+        from animbatch.encode.video import VideoWriter
+
+        paths = [path for index in span for path in out.glob(f"*/frames/frame_{index:05d}.png")]
+        if len(paths) != len(span):
+            return []
+        first = iio.imread(paths[0])
+        target = out / f"frames-{span}.webm"
+        with VideoWriter(target, (first.shape[1], first.shape[0]), fps, kind="webm") as video:
+            for path in paths:
+                if self.wanted.is_set():
+                    return []  # leaving the block without commit removes the partial file
+                video.write(iio.imread(path)[..., :3])
+            video.commit()
+        return [target]
+
+
+def watch(scene: Path, *, quality: str = "draft", seconds: float = PREVIEW_SECONDS, frames: str | None = None,
+          port: int = 0, settings: tuple[str, ...] = (), say: Callable[[str], None] = print,
           ready: Callable[[str], None] | None = None, stop: threading.Event | None = None) -> None:
     """Serve the live preview of ``scene`` until interrupted (or ``stop`` is set): the page's URL is printed (and
     given to ``ready``), then every save of the scene or a file beside it re-validates and re-renders it."""
@@ -226,8 +266,8 @@ def watch(scene: Path, *, quality: str = "draft", seconds: float = PREVIEW_SECON
     threading.Thread(target=server.serve_forever, daemon=True).start()
     stop = stop or threading.Event()
     with tempfile.TemporaryDirectory(prefix="animbatch-watch-") as folder:
-        loop = PreviewLoop(scene, broadcast, Path(folder), quality=quality, seconds=seconds, settings=settings,
-                           say=say)
+        loop = PreviewLoop(scene, broadcast, Path(folder), quality=quality, seconds=seconds, frames=frames,
+                           settings=settings, say=say)
         worker = threading.Thread(target=loop.run, daemon=True)
         worker.start()
         say(f"watching {scene.name}: open {url} (Ctrl-C to stop)")
