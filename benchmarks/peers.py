@@ -25,6 +25,10 @@ Cases (issue 36's targets: the chain ≤ 5× MuJoCo's time, the bar ≤ 0.5 s, t
 * ``scenes/mixed_pile.yaml`` (twelve bodies of five shapes into a bin) and ``scenes/dominoes.yaml`` as they are,
   3 s at 1 ms, step for step against MuJoCo's pile of boxes (issue 36's target for them: ≤ 20× its time per step);
 * ``scenes/ragdoll_stairs.yaml`` as it is (4 s, timed once) and the same bodies, joints and stairs in MJCF.
+
+And the other way round, MJCF models imported by ``animbatch import`` (issue 41): a 20-bar chain and
+``scenes/models/figure.xml`` (ball joints, hinges, defaults classes, a servo), each simulated by both for 1 s from
+the same file, with the largest difference between their joints' angles (:func:`imported_angles`).
 """
 
 from __future__ import annotations
@@ -498,6 +502,82 @@ CASES = (case_chain, case_chain_euler, case_bar, case_double_pendulum, case_pile
          case_ragdoll)
 
 
+def _rotation(quaternion: np.ndarray) -> Any:
+    from scipy.spatial.transform import Rotation
+
+    w, x, y, z = quaternion
+    return Rotation.from_quat([x, y, z, w])
+
+
+def relative_angles(orientations: np.ndarray, parents: list[int | None]) -> np.ndarray:
+    """Each body's turn [rad] relative to its parent since the start, (F, B): the angle of R_rel(0)ᵀ R_rel(t) with
+    R_rel = R_parentᵀ R_body (the world for a parent of None), from quaternions [w, x, y, z] (F, B, 4). It does not
+    depend on the world's axes, so MuJoCo's z-up bodies and an imported scene's y-up ones compare directly."""
+    frames, count = orientations.shape[:2]
+    angles = np.zeros((frames, count))
+    for b, parent in enumerate(parents):
+        def relative(k: int, b: int = b, parent: int | None = parent) -> Any:
+            own = _rotation(orientations[k, b])
+            return own if parent is None else _rotation(orientations[k, parent]).inv() * own
+
+        start = relative(0)
+        angles[:, b] = [(start.inv() * relative(k)).magnitude() for k in range(frames)]
+    return angles
+
+
+def imported_angles(path: Any, seconds: float = 1.0, fps: int = 50) -> tuple[np.ndarray, np.ndarray]:
+    """The MJCF file at ``path`` imported by ``animbatch import`` and simulated by animbatch (DOP853 at rtol
+    1e-10), and simulated by MuJoCo from the file itself (RK4 at 0.1 ms, its contacts off: the imported scene has
+    colliders only where the file has world geoms), for ``seconds``: each body's angle relative to its parent at
+    the frame times (ours, MuJoCo's), (F, B) each."""
+    import mujoco
+
+    from animbatch import api
+    from animbatch.scene.mjcf import import_mjcf
+
+    scene = api.parse_scene(import_mjcf(path).text, filename="imported.yaml", overrides=[
+        f"duration={seconds}", f"fps={fps}", "solver.method=DOP853", "solver.rtol=1e-10", "solver.atol=1e-12"])
+    trajectory = api.simulate(scene)
+    model = mujoco.MjModel.from_xml_path(str(path))
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    model.opt.timestep = 1e-4
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    data = mujoco.MjData(model)
+    theirs = []
+    for t in trajectory.times:
+        while data.time < t - 1e-9:
+            mujoco.mj_step(model, data)
+        mujoco.mj_kinematics(model, data)
+        theirs.append(data.xquat.copy())
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) for name in trajectory.body_names]
+    parents: list[int | None] = []
+    for body in ids:
+        parent = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.body_parentid[body]))
+        parents.append(trajectory.body_names.index(parent) if parent in trajectory.body_names else None)
+    return relative_angles(trajectory.orientations, parents), relative_angles(np.array(theirs)[:, ids], parents)
+
+
+def bench_imports(quick: bool) -> list[Row]:
+    """MJCF models imported and simulated by both: the largest joint-angle difference over 1 s [rad]."""
+    import tempfile
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parent.parent
+    rows: list[Row] = []
+    with tempfile.TemporaryDirectory() as folder:
+        chain = Path(folder) / "chain.xml"
+        chain.write_text(chain_mjcf(count=5 if quick else 20).replace('contype="0" conaffinity="0"', ""))
+        for label, path in (("20-bar chain", chain), ("scenes/models/figure.xml", repo / "scenes" / "models" /
+                                                       "figure.xml")):
+            ours, theirs = imported_angles(path)
+            gap = float(np.abs(ours - theirs).max())
+            print(f"  imported {label}: largest joint-angle difference from MuJoCo over 1 s {gap:.2e} rad "
+                  f"(the joints turned up to {theirs.max():.2f} rad)")
+            rows.append({"benchmark": "peers", "case": f"MJCF import, {label}: largest angle difference over 1 s",
+                         "value": gap, "unit": "rad"})
+    return rows
+
+
 def bench_peers(quick: bool) -> list[Row]:
     """Every case, printed as a table of both sides, and returned as rows for the benchmark table."""
     try:
@@ -524,4 +604,6 @@ def bench_peers(quick: bool) -> list[Row]:
         for integrator, outcome in theirs:
             print(f"    MuJoCo {integrator:<9} {outcome.seconds:8.3f} s   {outcome.accuracy}")
         print(f"    ratio            {ours.seconds / anchor.seconds:8.1f} ×")
+    print("\nMJCF models imported by animbatch, simulated by both from the same file")
+    rows += bench_imports(quick)
     return rows

@@ -185,6 +185,37 @@ def new(template: str | None, destination: Path | None, listing: bool, force: bo
     click.echo(f"wrote {target}: edit the lines marked TODO, then 'animbatch render {target}'")
 
 
+def _not_mapped_count(count: int) -> str:
+    return f", {count} element{'' if count == 1 else 's'} not mapped (listed above)" if count else ""
+
+
+@cli.command(name="import")
+@click.argument("model", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+              help="The scene to write [default: MODEL's name with .yaml, beside it].")
+@click.option("--force", is_flag=True, help="Replace OUTPUT if it exists.")
+@_reports_errors
+def import_model(model: Path, output: Path | None, force: bool) -> None:
+    """Turn an MJCF model (MuJoCo's XML) into a scene: bodies with their geoms as shapes, hinge, slide and ball
+    joints with their limits, position and velocity servos as motors, gravity and the time step. What does not map
+    is listed, and written at the top of the scene."""
+    from animbatch.files import write_text_atomic
+    from animbatch.scene.mjcf import import_mjcf
+    from animbatch.stages import load_scene
+
+    target = output or model.with_suffix(".yaml")
+    if target.exists() and not force:
+        raise click.UsageError(f"{target} exists; give --force to replace it, or -o another file")
+    imported = import_mjcf(model)
+    for line in imported.not_mapped:
+        click.echo(f"not mapped: {line}", err=True)
+    write_text_atomic(target, imported.text)
+    scene = load_scene(target)  # what was written is a valid scene, or this says why
+    joints = len(scene.spec.joints)
+    click.echo(f"wrote {target}: {len(scene.spec.bodies)} bodies, {joints} joint{'' if joints == 1 else 's'}"
+               f"{_not_mapped_count(len(imported.not_mapped))}")
+
+
 @cli.command()
 @click.argument("submission", type=click.Path(path_type=Path), required=False)
 @click.option("--reference", "-r", type=click.Path(dir_okay=False, path_type=Path),
