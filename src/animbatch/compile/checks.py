@@ -91,7 +91,8 @@ def check_files(spec: SceneSpec, base_dir: Path) -> list[Problem]:
                 problems.append(((*path, "file"), f"{error} (looked in {base_dir.resolve()})"
                                  if "no such file" in str(error) else str(error)))
     if not problems:
-        problems += _pin_selections(spec, base_dir) + _hollow_meshes(spec, base_dir)
+        problems += (_pin_selections(spec, base_dir) + _hollow_meshes(spec, base_dir)
+                     + _closed_surfaces(spec, base_dir))
     return problems + _joint_points(spec)
 
 
@@ -171,6 +172,21 @@ def _outside_scene_folder(name: str, base_dir: Path) -> str | None:
         return (f"{name!r} leads outside the scene's folder (through '..' or a link); mesh files are read only from "
                 "the scene's folder and the folders below it. Copy the file there")
     return None
+
+
+def _closed_surfaces(spec: Any, base_dir: Path) -> list[Problem]:
+    """Pressure needs a closed, consistently wound surface (a lattice's always is; a cloth mesh may not be)."""
+    problems: list[Problem] = []
+    for index, body in enumerate(spec.bodies):
+        if not isinstance(body, ClothSpec) or body.pressure is None:
+            continue
+        from animbatch.compile import deformables as build  # only scenes with pressure pay
+        from animbatch.sim.deformable.topology import closed_surface_problem
+
+        problem = closed_surface_problem(build.body_topology(body, base_dir).triangles)
+        if problem is not None:
+            problems.append((("bodies", index, "pressure"), f"{body.name!r} cannot hold a pressure: {problem}"))
+    return problems
 
 
 def _pin_selections(spec: Any, base_dir: Path) -> list[Problem]:

@@ -1,4 +1,5 @@
-"""From a cloth or lattice in a scene to what the model builder needs: topology, masses, pins, spring constants.
+"""From a cloth or lattice in a scene to what the model builder needs: topology, masses, pins, spring constants,
+pressure.
 
 Which vertices a pin selects is decided here (indices, grid corners, a region at the start), and so are the checks
 that need the topology: vertex indices in range, regions that select something.
@@ -11,8 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from animbatch.compile.bodies import orientation_matrix
-from animbatch.scene.schema import ClothSpec, LatticeSpec, PinSpec
+from animbatch.scene.schema import ClothSpec, LatticeSpec, PinSpec, PressureSpec
 from animbatch.sim.deformable import topology as topo
+from animbatch.sim.forces.pressure import PressureSetting
 from animbatch.sim.motion import KeyframePath
 from animbatch.sim.rigid.shapes import load_surface
 
@@ -81,3 +83,11 @@ def spring_families(spec: ClothSpec | LatticeSpec) -> dict[str, tuple[float, flo
     """Family -> (ks, kd) for the families the body declares."""
     return {name: (family.stiffness, family.damping) for name in topo.FAMILIES
             for family in [getattr(spec, name)] if family is not None}
+
+
+def pressure_setting(spec: PressureSpec) -> PressureSetting:
+    """A body's ``pressure`` as numbers: held, along keyframes, or a gas's start."""
+    if isinstance(spec.gauge, list):
+        return PressureSetting(times=np.array([key.time for key in spec.gauge], float),
+                               values=np.array([key.value for key in spec.gauge], float), outside=spec.outside)
+    return PressureSetting(gauge=float(spec.gauge), gas=spec.gas, outside=spec.outside)

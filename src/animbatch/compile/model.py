@@ -151,7 +151,8 @@ def _add_deformable(builder: ModelBuilder, body: ClothSpec | LatticeSpec, handle
         body.name, body.type, topology, masses=build.vertex_masses(body, topology),
         position=body.position, rotation=orientation_matrix(body.orientation),
         velocity=body.velocity, radius=body.radius, springs=build.spring_families(body),
-        pins=pins, dihedral=(dihedral.stiffness, dihedral.damping) if dihedral is not None else None)
+        pins=pins, dihedral=(dihedral.stiffness, dihedral.damping) if dihedral is not None else None,
+        pressure=build.pressure_setting(body.pressure) if body.pressure is not None else None)
 
 
 def _add_joint(builder: ModelBuilder, joint: Any, handles: dict[str, list[int]], anchor: dict[str, int]) -> None:

@@ -42,6 +42,8 @@ SECTIONS: list[tuple[str, str, type[BaseModel]]] = [
     ("`mesh` (cloth)", "mesh.", schema.ClothMeshSpec),
     ("`structural`, `shear`, `bend` (cloth and lattices)", "structural.", schema.SpringFamilySpec),
     ("`dihedral` (cloth)", "dihedral.", schema.AngleSpringSpec),
+    ("`pressure` (cloth and lattices)", "pressure.", schema.PressureSpec),
+    ("`pressure.gauge[]` (keyframes)", "gauge[].", schema.PressureKeyframe),
     ("`pin[]` (cloth and lattices)", "pin[].", schema.PinSpec),
     ("`pin[].region`", "pin[].region.", schema.RegionSpec),
     ("`pin[].keyframes[]`", "pin[].keyframes[].", schema.OffsetKeyframeSpec),

@@ -34,6 +34,7 @@ from animbatch.sim.contact.audit import Overlap, OverlapAudit
 from animbatch.sim.forces import SpringForces
 from animbatch.sim.forces.dihedral import DihedralSprings
 from animbatch.sim.forces.gravitation import InverseSquarePairs
+from animbatch.sim.forces.pressure import Pressure
 from animbatch.sim.integrators.advice import Encounter, closest_encounter
 from animbatch.sim.integrators.guard import energy_scale
 from animbatch.sim.integrators.methods import METHODS
@@ -126,7 +127,7 @@ def conservation_laws(model: Model) -> dict[str, Law]:
         if isinstance(term, SpringForces):
             if term.springs.second_is_anchor.any():
                 external.append("springs to anchors or pins hold the bodies")
-        elif not isinstance(term, InverseSquarePairs | DihedralSprings):
+        elif not isinstance(term, InverseSquarePairs | DihedralSprings | Pressure):
             external.append(f"{term.label} is an external force")
     if model.joints is not None and model.joints.anchored:
         external.append("joints to the world or anchors hold the bodies")
@@ -140,6 +141,8 @@ def conservation_laws(model: Model) -> dict[str, Law]:
         momentum = Law(False, "; ".join(dict.fromkeys(external)))
     else:
         contacts = "; contacts only between bodies" if model.contact_world is not None else ""
+        if any(isinstance(term, Pressure) for term in model.force_terms):
+            contacts += "; pressure on a closed surface adds no net force or torque"
         momentum = Law(True, "all forces act between the bodies, equal and opposite" + contacts)
     angular = Law(momentum.conserved, momentum.reason if not momentum.conserved else
                   "all forces act between the bodies, equal and opposite on one line" + contacts)

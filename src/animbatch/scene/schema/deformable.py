@@ -97,6 +97,43 @@ class GridSpec(SceneModel):
         description="Vertices along x and along y.", example=[32, 24])
 
 
+class PressureKeyframe(SceneModel):
+    """A gauge pressure at a time."""
+
+    time: float = key(description="Time of the key.", unit="s", ge=0)
+    value: float = key(description="Pressure inside above the outside at that time (negative: below it).",
+                       unit="Pa")
+
+
+class PressureSpec(SceneModel):
+    """Pressure inside a closed cloth or a lattice: each surface triangle of area A and outward normal n pushes its
+    three vertices with ``(P − P_outside) A n / 3`` each (F = P·A). ``gauge`` is ``P − P_outside``: held, along
+    keyframes, or, with ``gas``, what it is at the start, after which the gas inside keeps ``P V`` constant
+    (Boyle's law, constant temperature): squeezing the body raises it, letting it grow lowers it."""
+
+    gauge: float | KeyframeList[PressureKeyframe] = key(
+        description="Pressure inside above the outside: a number, held (or, with gas, at the start), or keyframes "
+                    "{time, value}, linear between them and held before the first and after the last.",
+        unit="Pa", example=2000)
+    gas: bool = key(False, "An ideal gas at constant temperature fills the body: its absolute pressure outside + "
+                           "gauge at the start, times the volume at the start, stays P V thereafter.")
+    outside: float = key(101325.0, "Absolute pressure of the surroundings (one atmosphere by default); only the "
+                                   "gas's law reads it.", "Pa", gt=0)
+
+    @model_validator(mode="after")
+    def _gas_starts_from_a_number(self) -> "PressureSpec":
+        gauge = self.gauge
+        if not self.gas:
+            return self
+        if not isinstance(gauge, float | int):
+            raise rule_error("with gas, gauge is the pressure at the start (a number): the gas's law sets it after",
+                             "gauge")
+        if self.outside + gauge <= 0:
+            raise rule_error(f"the gas's absolute pressure outside + gauge must be above 0 (got "
+                             f"{self.outside + gauge:g} Pa)", "gauge")
+        return self
+
+
 class ClothMeshSpec(SceneModel):
     """A cloth from a triangle mesh file (open or closed); its vertices are the point masses."""
 
@@ -121,6 +158,8 @@ class _DeformableBase(SceneModel):
                                      "length).", "m", gt=0)
     material: Name = key("default", "Material, for collisions and friction.")
     collide: bool = key(True, "Take part in collisions (its vertices never collide with each other).")
+    pressure: PressureSpec | None = key(None, "Pressure inside: a closed cloth (a mesh whose every edge joins two "
+                                              "triangles) or a lattice, inflated or squeezed (none if not given).")
     color: Color | None = key(None, "Display colour (default: its material's colour, else from a palette, by body "
                                     "index).")
     metallic: float | None = metallic_key()

@@ -67,6 +67,34 @@ def lumped_areas(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
                        minlength=len(vertices))
 
 
+def enclosed_volumes(vertices: np.ndarray, triangles: np.ndarray, owner: np.ndarray, count: int) -> np.ndarray:
+    """The volume [m³] each closed surface encloses, (count,): ``V = Σ a·(b × c) / 6`` over its triangles
+    ``(a, b, c)`` (positive when they wind counter-clockwise seen from outside); ``owner`` (T,) says whose
+    surface each triangle belongs to."""
+    a, b, c = (vertices[triangles[:, k]] for k in range(3))
+    return np.bincount(owner, weights=np.einsum("ij,ij->i", a, np.cross(b, c)) / 6, minlength=count)
+
+
+def closed_surface_problem(triangles: np.ndarray) -> str | None:
+    """Why a triangle list is not one closed, consistently wound surface (what pressure needs), or None: every
+    edge must join exactly two triangles, which run along it in opposite directions."""
+    directed = triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    _, counts = np.unique(np.sort(directed, axis=1), axis=0, return_counts=True)
+    border = int(np.sum(counts == 1))
+    if border:
+        return (f"its surface is open: {border} edge{'s' if border > 1 else ''} border one triangle only (a grid "
+                "cloth is always open); pressure needs a closed mesh, such as a sphere or a box of triangles")
+    shared = int(np.sum(counts > 2))
+    if shared:
+        return f"{shared} edge{'s' if shared > 1 else ''} join more than two triangles: not one closed surface"
+    same_way = len(directed) - len(np.unique(directed, axis=0))
+    if same_way:
+        return (f"its triangles are not wound consistently: {same_way} edge{'s' if same_way > 1 else ''} run the "
+                "same way in both of their triangles. Fix the mesh's winding (most tools have 'recalculate "
+                "normals')")
+    return None
+
+
 def unique_edges(triangles: np.ndarray) -> np.ndarray:
     """The edges of a triangle list, each once, as sorted vertex pairs (E, 2)."""
     edges = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)

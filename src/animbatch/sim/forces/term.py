@@ -87,13 +87,15 @@ class ForceTerm(ABC):
 
 @dataclass(frozen=True)
 class TimeScale:
-    """How fast a term makes something change: a turn at ``rate`` [rad/s] (``turns``: a gyration, which a method
-    must follow for accuracy as well as stability) or a decay at ``rate`` [1/s] (drag: stability alone), and on
-    what, in words."""
+    """How fast a term makes something change: a turn at ``rate`` [rad/s] (``turns``: a gyration or an
+    oscillation, which a method must follow for accuracy as well as stability) or a decay at ``rate`` [1/s] (drag:
+    stability alone), and on what, in words. ``explicit``: every fixed-step method takes this force explicitly,
+    backward Euler too (it has no definite derivatives of it), so its stability limit binds them all."""
 
     rate: float
     what: str
     turns: bool
+    explicit: bool = False
 
 
 #: How a model builder makes a force term once the bodies are known: (bodies, selected point indices or None for

@@ -163,9 +163,31 @@ def _check_drag_step(model: Model, method: str, h: float, steps: int) -> None:
             time=0.0, details={"rate": scale.rate, "dt": h, "method": method})
 
 
+def _check_explicit_oscillations(model: Model, method: str, h: float, steps: int) -> None:
+    """Raise SimulationError when a step ``h`` [s] is too long for an oscillation that every fixed-step method
+    follows explicitly (a gas's breathing): an implicit method then steps it as symplectic Euler does (the force
+    from the start of the step, the positions from the new velocities), stable up to ω h = 2."""
+    for scale in time_scales(model):
+        if not scale.explicit:
+            continue
+        scheme = "symplectic_euler" if METHODS[method].implicit else method
+        growth = amplification(scheme, h, scale.rate, 0.0)
+        if growth <= 1.0 or steps * np.log(growth) <= np.log(GROWTH_LIMIT):
+            continue
+        limit = largest_stable_step(scheme, scale.rate, 0.0)
+        fix = f"solver.dt ≤ {0.9 * limit:.3g} s, or " if limit is not None else ""
+        raise SimulationError(
+            f"{method} at dt = {h:.3g} s cannot follow the {scale.what}: every fixed-step method takes this force "
+            f"from the start of each step, and at ω = {scale.rate:.4g} rad/s (ω dt = {scale.rate * h:.3g}) each step "
+            f"multiplies the motion by {growth:.4g}. Use {fix}an adaptive method (DOP853), which follows it at its "
+            "own steps. Nothing was simulated.", time=0.0, details={"rate": scale.rate, "dt": h, "method": method})
+
+
 def check_fixed_step(model: Model, method: str, h: float, steps: int) -> None:
     """Raise SimulationError before the run when ``method`` at step ``h`` [s] would let the stiffest spring
-    vibration, or a velocity under the fastest drag, grow by more than GROWTH_LIMIT over ``steps`` steps."""
+    vibration, a velocity under the fastest drag, or an oscillation every method takes explicitly, grow by more
+    than GROWTH_LIMIT over ``steps`` steps."""
+    _check_explicit_oscillations(model, method, h, steps)
     if METHODS[method].implicit:  # stable at any step
         return
     _check_drag_step(model, method, h, steps)

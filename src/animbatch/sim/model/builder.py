@@ -28,6 +28,7 @@ from animbatch.sim.deformable.vertices import ANCHOR, BODY_POINT, PARTICLE, Defo
 from animbatch.sim.forces import BodyTable, ForceTerm, SpringForces, SpringSet, TermFactory
 from animbatch.sim.forces.controllers import ControllerSetting, controllers_term
 from animbatch.sim.forces.dihedral import DihedralSprings
+from animbatch.sim.forces.pressure import PressureSetting, build_pressure
 from animbatch.sim.joints import Joints
 from animbatch.sim.joints.assembly import MOVING_ANCHOR, WORLD, JointSetting, MotorSetting, assemble
 from animbatch.sim.joints.assembly import TYPES as JOINT_TYPES
@@ -115,6 +116,7 @@ class _Deformable:
     vertex_ref: np.ndarray  # (V,) particle handle, anchor index or rigid handle
     radius: float
     dihedral: tuple[float, float] | None
+    pressure: PressureSetting | None = None
 
 
 class ModelBuilder:
@@ -244,10 +246,12 @@ class ModelBuilder:
                        position: Sequence[float] = (0.0, 0.0, 0.0), rotation: np.ndarray | None = None,
                        velocity: Sequence[float] = (0.0, 0.0, 0.0), radius: float | None = None,
                        springs: dict[str, tuple[float, float]] | None = None, pins: Sequence[Pin] = (),
-                       dihedral: tuple[float, float] | None = None) -> np.ndarray:
+                       dihedral: tuple[float, float] | None = None,
+                       pressure: PressureSetting | None = None) -> np.ndarray:
         """Add a cloth or lattice (``kind``) from its ``topology``, placed by ``rotation`` (3, 3) and ``position``
         [m]; ``masses`` (V,) [kg]; ``springs``: family -> (ks [N/m], kd [N·s/m]); ``dihedral``: (k [N·m/rad],
-        c [N·m·s/rad]). Pinned vertices become anchors or body points; the others particles ``name[k]``.
+        c [N·m·s/rad]); ``pressure`` inside its closed surface. Pinned vertices become anchors or body points; the
+        others particles ``name[k]``.
 
         Returns the handles of its free vertices (the particles), for fields and selections. Rigid bodies that pins
         attach to must be added first.
@@ -276,7 +280,8 @@ class ModelBuilder:
                                      mass=np.asarray(masses, float)[free], radius=radius,
                                      names=[f"{name}[{k}]" for k in free], owner=name)
         vertex_ref[free] = handles
-        self._deformables.append(_Deformable(name, kind, topology, world, vertex_kind, vertex_ref, radius, dihedral))
+        self._deformables.append(_Deformable(name, kind, topology, world, vertex_kind, vertex_ref, radius, dihedral,
+                                             pressure))
         for family, (stiffness, damping) in (springs or {}).items():
             self._add_mesh_springs(self._deformables[-1], family, topology.springs[family], stiffness, damping)
         return handles
@@ -406,8 +411,9 @@ class ModelBuilder:
                 records.append((point, setting, offset, names[point]))
             terms.append(controllers_term(records, n))
         if deformables is not None and any(d.dihedral for d in self._deformables):
-
             terms.append(DihedralSprings.build(deformables, [d.dihedral for d in self._deformables]))
+        if deformables is not None and any(d.pressure for d in self._deformables):
+            terms.append(build_pressure(deformables, {d.name: d.pressure for d in self._deformables if d.pressure}))
 
         clocks = None
         if self._clocks is not None:
