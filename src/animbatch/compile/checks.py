@@ -34,9 +34,14 @@ def compile_checks(spec: SceneSpec, base_dir: Path) -> list[Problem]:
 def check_method(spec: SceneSpec) -> list[Problem]:
     """A fixed-step method that cannot apply contacts between its kick and its drift (an explicit Runge–Kutta
     method moves positions with the velocities from before the step) is refused for a scene with contacts; the
-    analytic method, for a scene with anything that has no closed form."""
+    analytic method, for a scene with anything that has no closed form; rotation matrices, for a scene whose
+    rigid bodies do more than move freely."""
     if spec.solver.method == "analytic":
         return check_analytic(spec)
+    if spec.solver.orientation == "matrix":
+        problem = _matrix_orientation_problem(spec)
+        if problem:
+            return [(("solver", "orientation"), problem)]
     adaptive = spec.solver.is_adaptive
     colliding = any(getattr(body, "collide", True) for body in spec.bodies)
     has_contacts = (bool(spec.colliders) or spec.contacts is not None) and colliding
@@ -59,6 +64,21 @@ def check_method(spec: SceneSpec) -> list[Problem]:
         f"{spec.solver.method} cannot keep contacts: it moves positions with the velocities from before the step, so "
         "bodies would sink into colliders. Use symplectic_euler or verlet (fixed step), or an adaptive method such "
         "as RK45"))]
+
+
+def _matrix_orientation_problem(spec: SceneSpec) -> str | None:
+    """Why a scene cannot integrate rotation matrices (the teaching form of the notes), or None."""
+    rigid = [body for body in spec.bodies if isinstance(body, RigidBodySpec)]
+    if not rigid:
+        return "orientation: matrix integrates rigid bodies' rotations, and this scene has none"
+    why = ("it has joints" if spec.joints else
+           "rigid bodies move on keyframes or a motion" if any(body.moves for body in rigid) else
+           "its rigid bodies meet colliders or each other" if spec.has_contacts and any(b.collide for b in rigid)
+           else None)
+    if why is None:
+        return None
+    return (f"orientation: matrix is for rigid bodies that move freely under forces, and {why}: their solvers keep "
+            "quaternions. Use orientation: quaternion (the default), or show the drift in a scene of free bodies")
 
 
 def check_files(spec: SceneSpec, base_dir: Path) -> list[Problem]:

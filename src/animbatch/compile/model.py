@@ -81,7 +81,8 @@ def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
         carriers = spec.clocks.bodies if spec.clocks.bodies is not None else [
             body.name for body in spec.bodies if body.type in ("particle", "rigid")]
         builder.add_clocks([handles[name][0] for name in carriers], c=spec.clocks.c)
-    model = builder.finalize(duration=spec.duration, fps=spec.fps)
+    model = builder.finalize(duration=spec.duration, fps=spec.fps, matrices=spec.solver.orientation == "matrix",
+                             renormalise_every=spec.solver.renormalise_every)
     kinematic = kinematic_bodies(spec, model)
     if kinematic is not None:  # bodies on keyframes start where their paths do
         model = replace(model, kinematic=kinematic, y0=model.y0.copy())

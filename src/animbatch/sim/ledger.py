@@ -281,10 +281,21 @@ class Ledger:
     contacts: dict[str, Any] | None = None
     encounter: dict[str, Any] | None = None  # two gravitating bodies closer than their radii, without softening
     joints: dict[str, Any] | None = None  # the joints' largest violations over the frames (see joint_drift)
+    orientation: dict[str, Any] | None = None  # rotation matrices' distance from rotations (orientation_drift)
     warnings: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
+
+
+def orientation_drift(model: Model, states: np.ndarray) -> dict[str, Any]:
+    """How far integrated rotation matrices strayed from rotations over the frames ``states`` (F, n): the largest
+    ‖RᵀR − I‖ (Frobenius) of any body, at which frame, the last frame's, and how often they were renormalised."""
+    errors = model.orientation_errors(states).max(axis=-1)  # (F,)
+    every = model.renormalise_every
+    frame = int(np.argmax(errors))
+    return {"largest": float(errors[frame]), "frame": frame, "final": float(errors[-1]),
+            "renormalise": "never" if not every else "every step" if every == 1 else f"every {every} steps"}
 
 
 def step_note(requested_dt: float | None, used: float | None, interval: float | None, dt_given: bool = True
@@ -406,6 +417,8 @@ def build_ledger(model: Model, states: np.ndarray, stats: dict[str, Any], partic
                     encounter=dataclasses.asdict(encounter) if encounter is not None else None)
     if model.joints is not None and len(states):
         ledger.joints = joint_drift(model, states, times)
+    if model.layout.matrix_orientation and len(states):
+        ledger.orientation = orientation_drift(model, states)
     ledger.warnings = judge(ledger.as_dict())
     for message in ledger.warnings:
         warnings.warn(message, AccuracyWarning, stacklevel=2)
@@ -477,6 +490,9 @@ def summary(ledger: dict[str, Any]) -> str:
     lost = [name.replace("_", " ") for name, entry in conservation.items() if not entry.get("conserved")]
     if lost and "bodies" in work:
         parts.append("not conserved: " + ", ".join(lost))
+    orientation = ledger.get("orientation")
+    if orientation:
+        parts.append(f"rotation matrices: ‖RᵀR − I‖ ≤ {_number(orientation['largest'])} ({orientation['renormalise']})")
     joints = ledger.get("joints")
     if joints:
         parts.append(f"joints: |C| ≤ {_number(joints['max_violation'])} m"

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal, get_args
 
-from pydantic import BeforeValidator
+from pydantic import BeforeValidator, Field, model_validator
 
-from animbatch.scene.schema.keys import SceneModel, key
+from animbatch.scene.schema.keys import SceneModel, key, rule_error
 
 AdaptiveMethodName = Literal["RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA"]
 FixedStepMethodName = Literal["euler", "midpoint", "symplectic_euler", "verlet", "backward_euler"]
@@ -68,6 +68,36 @@ class SolverSpec(SceneModel):
     drift_warning: float = key(0.01, "Relative drift of a conserved quantity (energy, momentum, angular momentum) "
                                      "above which a run warns, naming the quantity and what to change; 0.01 is 1 % "
                                      "of the quantity's scale in the scene (see the accuracy ledger).", "1", gt=0)
+    orientation: Literal["quaternion", "matrix"] = key(
+        "quaternion", "How rigid bodies' orientations are integrated: quaternion (unit by construction, so R stays a "
+                      "rotation), or matrix (the notes' R itself, dR/dt = [ω]× R, which drifts away from a rotation; "
+                      "the ledger reports the largest ‖RᵀR − I‖). matrix: for rigid bodies without joints, contacts "
+                      "or keyframes.")
+    renormalise: Literal["every step", "never"] | Annotated[int, Field(ge=1)] | None = key(
+        None, "With orientation: matrix, how often a fixed-step method turns each R back into the nearest "
+              "rotation: every step, never, or every N steps (default: every step; adaptive methods never can, "
+              "as solve_ivp integrates on between frames).", example="never")
+
+    @model_validator(mode="after")
+    def _renormalise_with_matrices(self) -> "SolverSpec":
+        if self.renormalise is not None and self.orientation != "matrix":
+            raise rule_error("renormalise is for solver.orientation: matrix (quaternions are unit by construction)",
+                             "renormalise")
+        if self.renormalise not in (None, "never") and self.method in ADAPTIVE_METHODS:
+            raise rule_error(f"{self.method} integrates on between frames, so it cannot renormalise: use never, or a "
+                             "fixed-step method (verlet, symplectic_euler, …)", "renormalise")
+        return self
+
+    @property
+    def renormalise_every(self) -> int:
+        """Fixed steps between renormalisations of rotation matrices; 0: never."""
+        if self.renormalise is None:
+            return 0 if self.method in ADAPTIVE_METHODS else 1
+        if self.renormalise == "every step":
+            return 1
+        if self.renormalise == "never":
+            return 0
+        return self.renormalise
 
     @property
     def is_adaptive(self) -> bool:

@@ -373,8 +373,10 @@ class ModelBuilder:
             points[chosen] = handles[chosen] - first + local + (self.particle_count if rigid else 0)
         return points
 
-    def finalize(self, *, duration: float, fps: float) -> Model:
-        """Freeze everything into a Model whose frames are sampled at ``k / fps`` over ``duration`` [s]."""
+    def finalize(self, *, duration: float, fps: float, matrices: bool = False, renormalise_every: int = 1) -> Model:
+        """Freeze everything into a Model whose frames are sampled at ``k / fps`` over ``duration`` [s]; with
+        ``matrices``, the rigid bodies' orientations integrated as rotation matrices, turned back into rotations
+        every ``renormalise_every`` fixed steps (0: never)."""
         n = self.particle_count  # no bodies at all is allowed: a scene of emitters only
         if self._chunks:
             mass, radius, x0, v0 = (np.concatenate(parts) for parts in zip(*self._chunks))
@@ -421,7 +423,7 @@ class ModelBuilder:
             points = np.unique(self._points(handles)) if handles is not None else np.arange(len(names))
             clocks = ProperClocks(_readonly(points), tuple(names[p] for p in points), c) if len(points) else None
         layout = StateLayout.for_bodies(tuple(self._particle_names), tuple(body.name for body in self._rigid),
-                                        clocks.names if clocks is not None else ())
+                                        clocks.names if clocks is not None else (), matrices=matrices)
         parts = [x0.ravel()]
         motion = [v0.ravel()]
         if rigid is not None:
@@ -429,7 +431,7 @@ class ModelBuilder:
             inertia_world = rotation @ rigid.inertia @ np.transpose(rotation, (0, 2, 1))
             angular_momentum = np.einsum("bij,bj->bi", inertia_world, [b.angular_velocity for b in self._rigid])
             parts += [np.ravel([b.centre_position for b in self._rigid]),
-                      np.ravel([b.orientation for b in self._rigid])]
+                      rotation.ravel() if matrices else np.ravel([b.orientation for b in self._rigid])]
             motion += [np.ravel([b.velocity * m for b, m in zip(self._rigid, rigid.mass)]), angular_momentum.ravel()]
         if clocks is not None:
             parts.append(np.zeros(clocks.count))  # every clock reads 0 at the start
@@ -438,7 +440,7 @@ class ModelBuilder:
         return Model(bodies, tuple(self._anchor_names), anchors.rest, springs, tuple(terms), layout, y0,
                      frame_times(duration, fps), anchors=anchors,
                      anchor_visible=_readonly(np.array(self._anchor_visible, bool)), owners=owners, clocks=clocks,
-                     joints=self._joint_set(x0, anchors.rest))
+                     joints=self._joint_set(x0, anchors.rest), renormalise_every=renormalise_every)
 
     def _joint_set(self, x0: np.ndarray, anchor_rest: np.ndarray) -> Joints | None:
         """The joints, with their points turned into body offsets (see :mod:`animbatch.sim.joints.assembly`)."""

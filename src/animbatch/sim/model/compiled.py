@@ -314,6 +314,8 @@ def stepper_tables(model: Model) -> PackedTables | str:
     they do not cover)."""
     if model.clocks is not None:
         return "it has proper-time clocks"
+    if model.layout.matrix_orientation:
+        return "it integrates rotation matrices"
     if model.kinematic is not None:
         return "it has rigid bodies on keyframes"
     if not model.layout.size:

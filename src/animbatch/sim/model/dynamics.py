@@ -27,7 +27,7 @@ from animbatch.sim.forces.jacobian import ForceJacobian
 from animbatch.sim.joints import STABILISATION_RATE
 from animbatch.sim.joints.tree import JointTree, joint_tree
 from animbatch.sim.joints.tree import advance as advance_tree
-from animbatch.sim.model.model import Model, world_inverse_inertia_times
+from animbatch.sim.model.model import Model, nearest_rotation, world_inverse_inertia_times
 
 #: The fixed-step forms that step a tree of hinges and sliders in its joint coordinates (semi-implicit Euler keeps
 #: maximal coordinates: see :mod:`animbatch.sim.joints.tree`).
@@ -66,7 +66,10 @@ class Dynamics:
         #: Whether the run is long enough to repay loading compiled kernels (:func:`~animbatch.sim.model.compiled.
         #: dynamics_for` decides): contacts then solve their impulse sweeps compiled however few they are
         self.long_run = False
-        self._clock_start = 3 * n + 7 * b  # the clocks' proper times close the configuration
+        #: orientations as rotation matrices (solver.orientation: matrix), not quaternions
+        self.matrices = model.layout.matrix_orientation
+        self._steps_since_renormalised = 0
+        self._clock_start = 3 * n + (12 if self.matrices else 7) * b  # the clocks' proper times close the configuration
         self._config_size = self._clock_start + (self.clocks.count if self.clocks is not None else 0)
         self._inverse_mass = (1.0 / model.bodies.mass[:n])[:, None]
         self._force = np.zeros((n + b, 3))
@@ -91,7 +94,10 @@ class Dynamics:
 
     def _rigid_views(self, config: np.ndarray, motion: np.ndarray) -> tuple[np.ndarray, ...]:
         n, b = self.particles, self.rigid
-        return (config[3 * n: 3 * n + 3 * b].reshape(b, 3), config[3 * n + 3 * b: 3 * n + 7 * b].reshape(b, 4),
+        width = 9 if self.matrices else 4  # rotation matrices, row by row, or quaternions
+        orientation = config[3 * n + 3 * b: 3 * n + (3 + width) * b]
+        return (config[3 * n: 3 * n + 3 * b].reshape(b, 3),
+                orientation.reshape(b, 3, 3) if self.matrices else orientation.reshape(b, 4),
                 motion[3 * n: 3 * n + 3 * b].reshape(b, 3), motion[3 * n + 3 * b:].reshape(b, 3))
 
     def kinematics(self, config: np.ndarray, motion: np.ndarray, *, t: float = 0.0, copy: bool = False) -> Kinematics:
@@ -106,7 +112,8 @@ class Dynamics:
         if not self.rigid:
             return Kinematics(x.copy(), v.copy(), None, None, n, t) if copy else Kinematics(x, v, None, None, n, t)
         position, orientation, momentum, angular_momentum = self._rigid_views(config, motion)
-        rotation = quaternion.to_matrix(orientation)
+        # I(t)⁻¹ = R I_body⁻¹ Rᵀ with R as integrated: with matrices, as the notes do, drift and all
+        rotation = orientation.copy() if self.matrices else quaternion.to_matrix(orientation)
         omega = world_inverse_inertia_times(rotation, self._inverse_inertia, angular_momentum)
         self._x[:n], self._x[n:] = x, position
         self._v[:n] = v
@@ -187,9 +194,14 @@ class Dynamics:
         if self.rigid:
             b = self.rigid
             assert state.omega is not None
-            orientation = config[3 * n + 3 * b: 3 * n + 7 * b].reshape(b, 4)
             out[3 * n: 3 * n + 3 * b] = state.v[n:].ravel()
-            out[3 * n + 3 * b: 3 * n + 7 * b] = quaternion.rate(orientation, state.omega).ravel()
+            if self.matrices:  # dR/dt = [ω]× R
+                assert state.rotation is not None
+                out[3 * n + 3 * b: 3 * n + 12 * b] = np.cross(state.omega[:, None, :], np.transpose(
+                    state.rotation, (0, 2, 1))).transpose(0, 2, 1).ravel()
+            else:
+                orientation = config[3 * n + 3 * b: 3 * n + 7 * b].reshape(b, 4)
+                out[3 * n + 3 * b: 3 * n + 7 * b] = quaternion.rate(orientation, state.omega).ravel()
         if self.clocks is not None:
             out[self._clock_start:] = self.clocks.rate(state.v[self.clocks.index], state.t)
 
@@ -215,12 +227,32 @@ class Dynamics:
         if self.rigid:
             position, orientation, momentum, angular_momentum = self._rigid_views(config, motion)
             position += h * momentum * self._rigid_inverse_mass
+            if self.matrices:  # the notes' step R ← R + h [ω]× R: no longer a rotation, by (h ω)² a step
+                omega = world_inverse_inertia_times(orientation, self._inverse_inertia, angular_momentum)
+                orientation += h * np.cross(omega[:, None, :], np.transpose(orientation, (0, 2, 1))
+                                            ).transpose(0, 2, 1)
+                return
             omega = world_inverse_inertia_times(quaternion.to_matrix(orientation), self._inverse_inertia,
                                                 angular_momentum)
             halfway = quaternion.multiply(quaternion.from_rotation_vector(0.5 * h * omega), orientation)
             omega = world_inverse_inertia_times(quaternion.to_matrix(halfway), self._inverse_inertia,
                                                 angular_momentum)
             orientation[...] = quaternion.multiply(quaternion.from_rotation_vector(h * omega), orientation)
+
+    def _renormalise_matrices(self, y: np.ndarray) -> None:
+        """A fixed step's matrices back to rotations (their polar factors), every ``model.renormalise_every``
+        steps (this counts the calls on one state: each step projects once); never with 0, and never on outputs
+        (F, n), which must show the drift."""
+        every = self.model.renormalise_every
+        if y.ndim != 1 or not every:
+            return
+        self._steps_since_renormalised += 1
+        if self._steps_since_renormalised < every:
+            return
+        self._steps_since_renormalised = 0
+        block = self.model.layout.block("rigid_orientation")
+        held = y[block.span].reshape(self.rigid, 3, 3)
+        held[...] = nearest_rotation(held)
 
     def advances(self, form: tuple[str, object] | None) -> bool:
         """Whether :meth:`advance` takes the steps of a scheme's form (``Scheme.compiled_form``): here, those of a
@@ -329,7 +361,9 @@ class Dynamics:
             self.joints.project(config[: 3 * points].reshape(points, 3), rigid[0],
                                 motion[: 3 * points].reshape(points, 3), rigid[1], reach=reach, t=t, start=begun,
                                 step=step)
-        if self.rigid:
+        if self.rigid and self.matrices:
+            self._renormalise_matrices(y)
+        elif self.rigid:
             block = self.model.layout.block("rigid_orientation")
             q = y[..., block.span].reshape(*y.shape[:-1], self.rigid, 4)
             q /= np.linalg.norm(q, axis=-1, keepdims=True)

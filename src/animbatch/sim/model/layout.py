@@ -11,7 +11,9 @@ left out, so a scene of particles only has just the first and fourth)::
                     rigid_momentum         (B×3, kg·m/s)   P = M v
                     rigid_angular_momentum (B×3, kg·m²/s)  L = I(t) ω, world axes
 
-This is the lecture notes' rigid-body state ``S = [x, R, P, L]`` with the rotation R stored as a quaternion.
+This is the lecture notes' rigid-body state ``S = [x, R, P, L]`` with the rotation R stored as a quaternion; with
+``solver.orientation: matrix`` the block ``rigid_orientation`` holds R itself instead (B×9, row by row), which the
+integration does not keep a rotation (see :meth:`StateLayout.matrix_orientation`).
 Configuration blocks come first and motion blocks after them, each contiguous, so that partitioned (symplectic)
 integrators can take ``y[config]`` and ``y[motion]`` as views without copying.
 """
@@ -55,12 +57,13 @@ class StateLayout:
 
     @classmethod
     def for_bodies(cls, particles: tuple[str, ...], rigid: tuple[str, ...] = (),
-                   clocks: tuple[str, ...] = ()) -> StateLayout:
-        """The layout for N particles and B rigid bodies (names in state order), and K clocks they carry."""
+                   clocks: tuple[str, ...] = (), *, matrices: bool = False) -> StateLayout:
+        """The layout for N particles and B rigid bodies (names in state order), and K clocks they carry; with
+        ``matrices``, orientations as rotation matrices (9 numbers each) rather than quaternions (4)."""
         specs: list[tuple[str, tuple[str, ...], int, str, Role]] = [
                  ("particle_position", particles, 3, "m", "config"),
                  ("rigid_position", rigid, 3, "m", "config"),
-                 ("rigid_orientation", rigid, 4, "1", "config"),
+                 ("rigid_orientation", rigid, 9 if matrices else 4, "1", "config"),
                  ("proper_time", clocks, 1, "s", "config"),
                  ("particle_velocity", particles, 3, "m/s", "motion"),
                  ("rigid_momentum", rigid, 3, "kg·m/s", "motion"),
@@ -71,6 +74,12 @@ class StateLayout:
                 blocks.append(StateBlock(name, offset, (len(owners), width), unit, role, owners))
                 offset += len(owners) * width
         return cls(tuple(blocks))
+
+    @property
+    def matrix_orientation(self) -> bool:
+        """Whether orientations are rotation matrices R (B, 3, 3) integrated as ``dR/dt = [ω]× R``, rather than
+        unit quaternions."""
+        return self.has("rigid_orientation") and self.block("rigid_orientation").shape[1] == 9
 
     def has(self, name: str) -> bool:
         return any(block.name == name for block in self.blocks)

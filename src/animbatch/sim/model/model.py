@@ -50,6 +50,8 @@ class Model:
         clocks: the proper-time clocks some bodies carry, or None (then the state has no proper-time block).
         joints: rods and ropes over pulleys between particles, or None (then no constraint code runs).
         kinematic: the rigid bodies on keyframes, whose states their paths prescribe, or None.
+        renormalise_every: with rotation matrices in the state (``layout.matrix_orientation``), fixed-step methods
+            turn them back into rotations every this many steps; 0: never (the drift the notes warn of shows).
     """
 
     bodies: BodyTable
@@ -68,6 +70,7 @@ class Model:
     clocks: ProperClocks | None = None
     joints: Joints | None = None
     kinematic: KinematicBodies | None = None
+    renormalise_every: int = 1
 
     @property
     def deformables(self) -> DeformableSet | None:
@@ -145,19 +148,38 @@ class Model:
         mass = self.rigid.mass[:, None] if self.rigid is not None else None
         return self._blocks(y, "particle_velocity", "rigid_momentum", lambda momentum: momentum / mass)
 
+    def rotations(self, y: np.ndarray) -> np.ndarray:
+        """The rigid bodies' orientations as the state holds them, as matrices (B, 3, 3) or (F, B, 3, 3): from the
+        quaternions, or the integrated matrices themselves (not quite rotations unless renormalised)."""
+        held = self.layout.view(y, "rigid_orientation")
+        if self.layout.matrix_orientation:
+            return held.reshape(*held.shape[:-1], 3, 3)
+        return quaternion.to_matrix(held)
+
+    def orientation_errors(self, y: np.ndarray) -> np.ndarray:
+        """‖RᵀR − I‖ (Frobenius) of each rigid body's orientation, (B,) or (F, B): 0 for a rotation, round-off for
+        quaternions (made unit by construction)."""
+        rotation = self.rotations(y)
+        gram = np.einsum("...ki,...kj->...ij", rotation, rotation) - np.eye(3)
+        return np.sqrt(np.einsum("...ij,...ij->...", gram, gram))
+
     def orientations(self, y: np.ndarray) -> np.ndarray:
-        """Unit quaternions [w, x, y, z] of all bodies (identity for particles): (P, 4) or (F, P, 4)."""
+        """Unit quaternions [w, x, y, z] of all bodies (identity for particles): (P, 4) or (F, P, 4). Integrated
+        matrices are shown as the rotation nearest them (their polar factor)."""
         result = np.zeros((*y.shape[:-1], self.body_count, 4))
         result[..., 0] = 1.0
         if self.rigid is not None:
-            result[..., self.particle_count:, :] = quaternion.normalized(self.layout.view(y, "rigid_orientation"))
+            if self.layout.matrix_orientation:
+                result[..., self.particle_count:, :] = quaternion.from_matrix(nearest_rotation(self.rotations(y)))
+            else:
+                result[..., self.particle_count:, :] = quaternion.normalized(self.layout.view(y, "rigid_orientation"))
         return result
 
     def angular_velocities(self, y: np.ndarray) -> np.ndarray:
         """Angular velocities ω [rad/s], world axes, of all bodies (zero for particles): (P, 3) or (F, P, 3)."""
         result = np.zeros((*y.shape[:-1], self.body_count, 3))
         if self.rigid is not None:
-            rotation = quaternion.to_matrix(self.layout.view(y, "rigid_orientation"))
+            rotation = self.rotations(y)
             momentum = self.layout.view(y, "rigid_angular_momentum")
             result[..., self.particle_count:, :] = world_inverse_inertia_times(rotation, self.rigid.inverse_inertia,
                                                                                momentum)
@@ -187,11 +209,19 @@ class Model:
             rotation = quaternion.to_matrix(q)
             momentum = np.einsum("...bij,bjk,...blk,...bl->...bi", rotation, self.rigid.inertia, rotation,
                                  angular_velocities[..., n:, :])  # L = R I Rᵀ ω
-            for name, values in (("rigid_position", positions[..., n:, :]), ("rigid_orientation", q),
+            held = rotation if self.layout.matrix_orientation else q
+            for name, values in (("rigid_position", positions[..., n:, :]), ("rigid_orientation", held),
                                  ("rigid_momentum", velocities[..., n:, :] * self.rigid.mass[:, None]),
                                  ("rigid_angular_momentum", momentum)):
                 y[..., self.layout.block(name).span] = values.reshape(*y.shape[:-1], -1)
         return y
+
+
+def nearest_rotation(matrices: np.ndarray) -> np.ndarray:
+    """The rotation nearest each matrix (…, 3, 3), its polar factor ``U Vᵀ`` (from ``M = U Σ Vᵀ``): how an
+    integrated rotation matrix is drawn, and what renormalising turns it back into."""
+    u, _, vt = np.linalg.svd(matrices)
+    return u @ vt
 
 
 def world_inverse_inertia_times(rotation: np.ndarray, inverse_inertia: np.ndarray, vector: np.ndarray) -> np.ndarray:
