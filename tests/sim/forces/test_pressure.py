@@ -104,8 +104,8 @@ def test_a_gas_balloon_breathes_keeping_kinetic_energy_plus_the_gas_potential_of
 
 def test_a_gas_balloon_slowed_by_drag_settles_where_its_pressure_meets_the_outsides(tmp_path):
     """P V = P₀ V₀ and P = P_out at rest: V = (P_out + p₀) V₀ / P_out = 1.3 V₀."""
-    plan = api.plan(balloon(tmp_path, f"{{gauge: {GAUGE}, gas: true, outside: {OUTSIDE}}}",
-                            extra="fields: [{type: drag, model: linear, coefficient: 0.05}]"))
+    plan = api.plan(balloon(tmp_path, f"{{gauge: {GAUGE}, gas: true, outside: {OUTSIDE}}}", duration=2.0,
+                            extra="fields: [{type: drag, model: linear, coefficient: 0.1}]"))
     volume = volumes(plan, api.simulate(plan))
     assert volume[-1] / volume[0] == pytest.approx((OUTSIDE + GAUGE) / OUTSIDE, rel=1e-4)
 
@@ -114,14 +114,14 @@ def test_a_held_gauge_swells_a_springy_ball_with_its_energy_kept_and_a_pump_does
     """600 Pa at once: the ball rings about the volume where its springs hold the pressure, its energy kept with
     the potential −p ΔV. The same 600 Pa pumped in over 0.5 s: the ball swells slowly to that volume (the middle
     of the ringing one's swing) and stays, and the pump's work is reported as such."""
-    held = api.plan(balloon(tmp_path, f"{{gauge: {GAUGE}}}", structural=2000.0, duration=1.0))
+    held = api.plan(balloon(tmp_path, f"{{gauge: {GAUGE}}}", structural=2000.0, duration=0.75))
     trajectory = api.simulate(held)
     ringing = volumes(held, trajectory) / volumes(held, trajectory)[0]
     assert ringing.max() > 1.05
     energy = trajectory.ledger["conservation"]["energy"]
     assert energy["conserved"] and energy["drift"] < 1e-6  # −p ΔV accounts for the pressure's work
     pumped = api.plan(balloon(tmp_path, f"[{{time: 0, value: 0}}, {{time: 0.5, value: {GAUGE}}}]".join(
-        ("{gauge: ", "}")), structural=2000.0, duration=1.0))
+        ("{gauge: ", "}")), structural=2000.0, duration=0.75))
     trajectory = api.simulate(pumped)
     swell = volumes(pumped, trajectory) / volumes(pumped, trajectory)[0]
     assert np.all(np.diff(swell[:10]) > 0) and swell[1] < 1.01  # slowly, from 0 Pa
