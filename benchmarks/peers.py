@@ -549,11 +549,11 @@ def imported_angles(path: Any, seconds: float = 1.0, fps: int = 50) -> tuple[np.
             mujoco.mj_step(model, data)
         mujoco.mj_kinematics(model, data)
         theirs.append(data.xquat.copy())
-    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) for name in trajectory.body_names]
-    parents: list[int | None] = []
-    for body in ids:
-        parent = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.body_parentid[body]))
-        parents.append(trajectory.body_names.index(parent) if parent in trajectory.body_names else None)
+    # the import keeps MuJoCo's body order (depth first; MuJoCo's body 0 is the world), names or none
+    assert model.nbody - 1 == len(trajectory.body_names), "every body of the file was imported"
+    ids = list(range(1, model.nbody))
+    parents: list[int | None] = [None if model.body_parentid[body] == 0 else int(model.body_parentid[body]) - 1
+                                 for body in ids]
     return relative_angles(trajectory.orientations, parents), relative_angles(np.array(theirs)[:, ids], parents)
 
 
