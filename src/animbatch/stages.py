@@ -123,7 +123,9 @@ def simulate(scene: LoadedScene | RunPlan, *, model: Model | None = None, progre
         proper_times=model.proper_times(states) if model.clocks is not None else None,
         joint_names=model.joints.names if model.joints is not None else (), joint_forces=joint_loads[0],
         joint_torques=joint_loads[1], motor_efforts=joint_loads[2] if model.joints is not None
-        and model.joints.motors is not None else None)
+        and model.joints.motors is not None else None,
+        orientation_errors=model.orientation_errors(states).max(axis=-1) if model.layout.matrix_orientation
+        and len(states) else None)
 
 
 def choose_dynamics(model: Model, solver: StepSettings, pools: Sequence[tuple[Any, ...]] = (),
@@ -274,6 +276,10 @@ def label_values(scene: LoadedScene, model: Model, trajectory: Trajectory,
               for name in label_names(label, "proper_time") if trajectory.proper_times is not None}
     values = LabelValues(np.asarray(trajectory.times), float(scene.spec.fps), stopwatches=watches,
                          wall_simulate=float(trajectory.solver_stats.get("wall_time", 0.0)), proper_times=clocks)
+    if "R_error" in {field for _, field, _, _ in string.Formatter().parse(label) if field}:
+        # integrated rotation matrices' distance from rotations; quaternions are rotations by construction
+        errors = trajectory.orientation_errors
+        values.series["R_error"] = errors if errors is not None else np.zeros(len(trajectory.times))
     if not label_asks_for_quantities(label) or not model.body_count:
         return values
     series = quantities if quantities is not None else quantity_series(model, trajectory)

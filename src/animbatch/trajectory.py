@@ -27,6 +27,7 @@ key                    shape / type    meaning
 ``particles_K_ages``      (F, C)       float32 age of each particle [s]
 ``particle_stats``     str (JSON)      births, deaths, drops, collisions, steps of the particle simulation
 ``ledger``             str (JSON)      the run's accuracy ledger (:mod:`animbatch.sim.ledger`; not in older files)
+``orientation_errors`` (F,) float64    the largest ‖RᵀR − I‖ at each frame (only with solver.orientation: matrix)
 =====================  ==============  =================================================================
 
 Version 2 files (without particles) are still read.
@@ -100,6 +101,7 @@ class Trajectory:
     joint_forces: np.ndarray | None = None  # (F, J, 3) [N] each joint's constraint force on its first body
     joint_torques: np.ndarray | None = None  # (F, J, 3) [N·m] and its torque, about the joint's point
     motor_efforts: np.ndarray | None = None  # (F, M) [N·m or N] the motors' torques or forces, in joint order
+    orientation_errors: np.ndarray | None = None  # (F,) the largest ‖RᵀR − I‖ of integrated rotation matrices
 
     @property
     def frame_count(self) -> int:
@@ -127,6 +129,8 @@ class Trajectory:
             path = path.with_name(path.name + ".npz")
         with atomic_path(path) as temporary, open(temporary, "wb") as stream:
             extra: dict[str, Any] = {**self._particle_arrays(), **self._clock_arrays(), **self._joint_arrays()}
+            if self.orientation_errors is not None:
+                extra["orientation_errors"] = self.orientation_errors
             np.savez(stream, format=np.str_(FORMAT), format_version=np.int64(FORMAT_VERSION), times=self.times,
                      body_names=np.array(self.body_names, dtype=str), body_kinds=np.array(self.body_kinds, dtype=str),
                      positions=self.positions, velocities=self.velocities, orientations=self.orientations,
@@ -209,7 +213,15 @@ class Trajectory:
                    json.loads(str(arrays.get("solver", "{}"))), json.loads(str(arrays.get("solver_stats", "{}"))),
                    tuple(particles), json.loads(str(arrays.get("particle_stats", "{}"))),
                    json.loads(str(arrays.get("ledger", "{}"))), *cls._clocks_of(arrays, len(times), path),
-                   *cls._joints_of(arrays, len(times), path))
+                   *cls._joints_of(arrays, len(times), path), cls._orientation_errors_of(arrays, len(times), path))
+
+    @staticmethod
+    def _orientation_errors_of(arrays: dict[str, np.ndarray], frames: int, path: Path) -> np.ndarray | None:
+        """The largest ‖RᵀR − I‖ at each frame (F,), in a file of a run with rotation matrices."""
+        errors = arrays.get("orientation_errors")
+        if errors is not None and errors.shape != (frames,):
+            raise TrajectoryError(f"{path}: orientation_errors has shape {errors.shape}, expected {(frames,)}")
+        return errors
 
     @staticmethod
     def _joints_of(arrays: dict[str, np.ndarray], frames: int, path: Path) -> tuple[Any, ...]:

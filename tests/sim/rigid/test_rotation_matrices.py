@@ -82,3 +82,19 @@ def test_matrices_are_refused_where_their_solvers_keep_quaternions_and_renormali
                                                              "solver.renormalise=never"])
     with pytest.raises(SceneError, match="RK45 integrates on between frames, so it cannot renormalise"):
         api.parse_scene(SPIN, filename="a.yaml", overrides=["solver.method=RK45", "solver.renormalise=5"])
+
+
+def test_the_drift_at_each_frame_is_kept_in_the_trajectory_and_shown_by_the_label(tmp_path):
+    """{R_error} in the text overlay shows the closed form's value at each frame; the trajectory file keeps it."""
+    from animbatch.stages import label_values
+    from animbatch.trajectory import Trajectory
+
+    plan, trajectory = spin("solver.renormalise=never", "render.time_label=‖RᵀR − I‖ = {R_error:.3g}")
+    expected = math.sqrt(2) * ((1 + (H * OMEGA) ** 2) ** steps_at(trajectory.times) - 1)
+    np.testing.assert_allclose(trajectory.orientation_errors, expected, rtol=1e-9, atol=1e-14)
+    shown = label_values(plan.scene, plan.model, trajectory).series["R_error"]
+    np.testing.assert_array_equal(shown, trajectory.orientation_errors)
+    again = Trajectory.load(trajectory.save(tmp_path / "spin.npz"))
+    np.testing.assert_array_equal(again.orientation_errors, trajectory.orientation_errors)
+    _, quaternions = spin("solver.orientation=quaternion", "render.time_label='{R_error}'")
+    assert quaternions.orientation_errors is None

@@ -99,7 +99,8 @@ class GroundSpec(SceneModel):
 
 
 #: The numbers a text overlay can show (besides ``{speed[NAME]}``), see :func:`label_speed_names`.
-LABEL_FIELDS = ("t", "frame", "frames", "fps", "E", "KE", "PE", "wall_simulate", "wall_render", "wall_frame")
+LABEL_FIELDS = ("t", "frame", "frames", "fps", "E", "KE", "PE", "R_error", "wall_simulate", "wall_render",
+                "wall_frame")
 #: The fields of a text overlay that name something: ``{speed[BODY]}``, ``{stopwatch[NAME]}`` and
 #: ``{proper_time[BODY]}``.
 LABEL_NAMED_FIELDS = ("speed", "stopwatch", "proper_time")
@@ -257,7 +258,9 @@ class RenderSpec(SceneModel):
     time_label: str = key("t = {t:.2f} s", "The text overlay (HUD), in Python format syntax: {t} simulated time "
                                            "[s], {frame}, {frames}, {fps}, energies {E}, {KE}, {PE} [J], "
                                            "{speed[NAME]} [m/s] of a body, {stopwatch[NAME]} [s], "
-                                           "{proper_time[NAME]} [s] of a body's clock, wall-clock "
+                                           "{proper_time[NAME]} [s] of a body's clock, {R_error}: the "
+                                           "largest ‖RᵀR − I‖ of rotation matrices (solver.orientation: matrix; "
+                                           "0 with quaternions), wall-clock "
                                            "times {wall_simulate}, {wall_render}, {wall_frame} [s] (see Render); "
                                            "'\\n' starts a line.")
     label_corner: Literal["upper_left", "upper_right", "lower_left", "lower_right"] = key(
