@@ -67,7 +67,7 @@ def test_the_teaching_notebook_runs_and_shows_the_throw_its_closed_form_the_drag
     cells = _run_notebook("teaching", tmp_path)
     vacuum, check, dragged, compare, study = (cells[index] for index in (0, 1, 2, 3, 4))
     # the throw: its video (1.45 s at 30 fps), its ledger and its energy plot
-    assert _video_frames(_html(vacuum), tmp_path, "vacuum").shape[:3] == (44, 360, 640)
+    assert _video_frames(_html(vacuum), tmp_path, "vacuum").shape[:3] == (44, 270, 480)
     assert "<th>energy</th><td>conserved: all forces derive from potentials: gravity</td>" in _html(vacuum)
     assert _html(vacuum).count('src="data:image/png;base64,') == 1
     # against the closed-form parabola, and the apex v0y²/2g above the start
@@ -90,14 +90,14 @@ def test_the_animation_notebook_renders_a_cloth_and_a_burst_of_sparks_from_cells
     cells = _run_notebook("animation", tmp_path)
     napkin, burst, grinder = (cell for cell in cells if "text/html" in str(cell.outputs))
     frames = _video_frames(_html(napkin), tmp_path, "napkin")
-    assert frames.shape[:3] == (40, 360, 640)  # 1.6 s at 25 fps
+    assert frames.shape[:3] == (40, 270, 480)  # 1.6 s at 25 fps
     # 4 backward-Euler steps between each of the 40 frames
     assert f"<th>work (bodies)</th><td colspan=2>{39 * 4} steps, {39 * 4} right-hand sides" in _html(napkin)
     assert "napkin: 40 frames" in _text(napkin)  # the magic prints the run's summary line too
     sparks = _video_frames(_html(burst), tmp_path, "burst")
     assert sparks.shape[0] == 45
     # before the burst (t = 0.2 s) the night sky is dark; after it, bright sparks fill it
-    sky = (slice(40, 150), slice(0, 640))  # below the time label
+    sky = (slice(30, 110), slice(0, 480))  # below the time label
     assert sparks[2][sky].max() < 80 and (sparks[8][sky].max(axis=-1) > 200).sum() > 200
     assert "1500 born" in _text(burst)
     assert "<th>work (particles)</th>" in _html(burst) and "<th>energy</th>" not in _html(burst)

@@ -111,7 +111,13 @@ def test_render_from_python_returns_a_run_whose_display_holds_its_video_ledger_a
     embedded = re.search(r'<video[^>]* src="data:video/webm;base64,([^"]+)"', page)
     assert embedded is not None and base64.b64decode(embedded.group(1)) == video.read_bytes()
     assert 'src="data:image/png;base64,' in page  # the energy plot: on by default from Python
-    assert "<th>energy</th><td>conserved: all forces derive from potentials: gravity</td>" in page
+    # the ledger: the method, energy conserved (gravity alone) with its drift as a share of its scale, as the
+    # energy plot says it; momentum not, and why
+    assert "<th>method</th><td colspan=2>DOP853 (adaptive)" in page
+    assert re.search(r"<th>energy</th><td>conserved: all forces derive from potentials: gravity</td><td>drift "
+                     r"[0-9.e+-]+ % of [0-9.]+ J</td>", page)
+    assert "<th>momentum</th><td>not conserved: gravity is an external force</td>" in page
+    assert report.summary().split(" | ")[0].replace(">", "&gt;") in page  # the run's line under it
     from IPython.lib.pretty import pretty
 
     assert pretty(report) == report.summary()

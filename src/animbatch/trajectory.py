@@ -204,6 +204,8 @@ class Trajectory:
             if positions.shape[:2] != serials.shape or serials.shape != ages.shape or len(serials) != len(times):
                 raise TrajectoryError(f"{path}: the particle arrays of emitter {name!r} disagree in shape")
             particles.append(ParticleFrames(str(name), positions, serials, ages))
+        clock_names, proper_times = cls._clocks_of(arrays, len(times), path)
+        joint_names, joint_forces, joint_torques, motor_efforts = cls._joints_of(arrays, len(times), path)
         return cls(times, names, arrays["positions"], arrays["velocities"], arrays["orientations"],
                    arrays["angular_velocities"], tuple(str(k) for k in arrays["body_kinds"]),
                    tuple(str(n) for n in arrays.get("anchor_names", ())),
@@ -212,8 +214,10 @@ class Trajectory:
                    str(arrays.get("package_version", "")),
                    json.loads(str(arrays.get("solver", "{}"))), json.loads(str(arrays.get("solver_stats", "{}"))),
                    tuple(particles), json.loads(str(arrays.get("particle_stats", "{}"))),
-                   json.loads(str(arrays.get("ledger", "{}"))), *cls._clocks_of(arrays, len(times), path),
-                   *cls._joints_of(arrays, len(times), path), cls._orientation_errors_of(arrays, len(times), path))
+                   json.loads(str(arrays.get("ledger", "{}"))), clock_names=clock_names, proper_times=proper_times,
+                   joint_names=joint_names, joint_forces=joint_forces, joint_torques=joint_torques,
+                   motor_efforts=motor_efforts,
+                   orientation_errors=cls._orientation_errors_of(arrays, len(times), path))
 
     @staticmethod
     def _orientation_errors_of(arrays: dict[str, np.ndarray], frames: int, path: Path) -> np.ndarray | None:
@@ -224,7 +228,8 @@ class Trajectory:
         return errors
 
     @staticmethod
-    def _joints_of(arrays: dict[str, np.ndarray], frames: int, path: Path) -> tuple[Any, ...]:
+    def _joints_of(arrays: dict[str, np.ndarray], frames: int, path: Path
+                   ) -> tuple[tuple[str, ...], np.ndarray | None, np.ndarray | None, np.ndarray | None]:
         """The joints' names, reactions (F, J, 3) and motor efforts (F, M) of a file, if it has joints."""
         if "joint_forces" not in arrays:
             return (), None, None, None
