@@ -103,3 +103,11 @@ class DeformableSet:
             if body.name == name:
                 return body
         raise KeyError(name)
+
+
+def triangle_share(triangles: np.ndarray, vertex_count: int) -> sp.csr_matrix:
+    """(V, T): a third at each of a triangle's three vertices, so that ``share @ face_forces`` (T, 3) gives each
+    vertex its part of the forces on the faces around it (wind, pressure)."""
+    count = len(triangles)
+    return sp.csr_matrix((np.full(3 * count, 1 / 3), (triangles.ravel(), np.repeat(np.arange(count), 3))),
+                         shape=(vertex_count, count))

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from animbatch.sim.deformable.vertices import PARTICLE, DeformableSet
+from animbatch.sim.deformable.vertices import PARTICLE, DeformableSet, triangle_share
 from animbatch.sim.forces.term import BodyTable, ForceTerm, Kinematics, vector_text
 
 #: Relative frequencies, weights and phases of the three sine waves of a gust (incommensurate, so the pattern does
@@ -111,8 +111,6 @@ def build_aerodynamics(bodies: BodyTable, index: np.ndarray | None, *, wind: np.
         if body.kind == "cloth" and (index is None or selected.intersection(points.tolist())):
             cloths.append(body)
     triangles = np.concatenate([body.triangles for body in cloths]) if cloths else np.zeros((0, 3), np.intp)
-    count = len(triangles)
-    share = sp.csr_matrix((np.full(3 * count, 1 / 3), (triangles.ravel(), np.repeat(np.arange(count), 3))),
-                          shape=(vertex_map.count, count))
+    share = triangle_share(triangles, vertex_map.count)
     return Aerodynamics(deformables, triangles, np.asarray(wind, float), np.asarray(gust_amplitude, float),
                         gust_period, density, drag, friction, share, tuple(body.name for body in cloths))

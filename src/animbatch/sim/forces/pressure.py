@@ -25,7 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from animbatch.sim.deformable.topology import enclosed_volumes
-from animbatch.sim.deformable.vertices import PARTICLE, DeformableSet
+from animbatch.sim.deformable.vertices import PARTICLE, DeformableSet, triangle_share
 from animbatch.sim.forces.term import BodyTable, ForceJacobian, ForceTerm, Kinematics, TimeScale
 
 
@@ -192,7 +192,5 @@ def build_pressure(deformables: DeformableSet, settings: dict[str, PressureSetti
     flip = inward[owner]
     triangles[flip] = triangles[flip][:, [0, 2, 1]]
     volumes = enclosed_volumes(x, triangles, owner, len(names))
-    count = len(triangles)
-    share = sp.csr_matrix((np.full(3 * count, 1 / 3), (triangles.ravel(), np.repeat(np.arange(count), 3))),
-                          shape=(deformables.vertex_map.count, count))
+    share = triangle_share(triangles, deformables.vertex_map.count)
     return Pressure(deformables, triangles, owner, names, tuple(settings[name] for name in names), volumes, share)

@@ -47,6 +47,11 @@ def tree_of(model: Model) -> JointTree | str:
                       model.particle_count)
 
 
+def _turning(omega: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """``[ω]× R`` for each body (B, 3, 3): ω (B, 3) crossed with each column of R, the rate of a rotation matrix."""
+    return np.cross(omega[:, None, :], np.transpose(rotation, (0, 2, 1))).transpose(0, 2, 1)
+
+
 class Dynamics:
     """Right-hand side for a Model. Holds its force/torque buffers, reused by every evaluation."""
 
@@ -69,6 +74,7 @@ class Dynamics:
         #: orientations as rotation matrices (solver.orientation: matrix), not quaternions
         self.matrices = model.layout.matrix_orientation
         self._steps_since_renormalised = 0
+        self._last_projected = float(model.frame_times[0]) if len(model.frame_times) else 0.0
         self._clock_start = 3 * n + (12 if self.matrices else 7) * b  # the clocks' proper times close the configuration
         self._config_size = self._clock_start + (self.clocks.count if self.clocks is not None else 0)
         self._inverse_mass = (1.0 / model.bodies.mass[:n])[:, None]
@@ -197,8 +203,7 @@ class Dynamics:
             out[3 * n: 3 * n + 3 * b] = state.v[n:].ravel()
             if self.matrices:  # dR/dt = [ω]× R
                 assert state.rotation is not None
-                out[3 * n + 3 * b: 3 * n + 12 * b] = np.cross(state.omega[:, None, :], np.transpose(
-                    state.rotation, (0, 2, 1))).transpose(0, 2, 1).ravel()
+                out[3 * n + 3 * b: 3 * n + 12 * b] = _turning(state.omega, state.rotation).ravel()
             else:
                 orientation = config[3 * n + 3 * b: 3 * n + 7 * b].reshape(b, 4)
                 out[3 * n + 3 * b: 3 * n + 7 * b] = quaternion.rate(orientation, state.omega).ravel()
@@ -229,8 +234,7 @@ class Dynamics:
             position += h * momentum * self._rigid_inverse_mass
             if self.matrices:  # the notes' step R ← R + h [ω]× R: no longer a rotation, by (h ω)² a step
                 omega = world_inverse_inertia_times(orientation, self._inverse_inertia, angular_momentum)
-                orientation += h * np.cross(omega[:, None, :], np.transpose(orientation, (0, 2, 1))
-                                            ).transpose(0, 2, 1)
+                orientation += h * _turning(omega, orientation)
                 return
             omega = world_inverse_inertia_times(quaternion.to_matrix(orientation), self._inverse_inertia,
                                                 angular_momentum)
@@ -239,13 +243,14 @@ class Dynamics:
                                                 angular_momentum)
             orientation[...] = quaternion.multiply(quaternion.from_rotation_vector(h * omega), orientation)
 
-    def _renormalise_matrices(self, y: np.ndarray) -> None:
-        """A fixed step's matrices back to rotations (their polar factors), every ``model.renormalise_every``
-        steps (this counts the calls on one state: each step projects once); never with 0, and never on outputs
-        (F, n), which must show the drift."""
+    def _renormalise_matrices(self, y: np.ndarray, t: float) -> None:
+        """A fixed step's matrices back to rotations (their polar factors) at every ``model.renormalise_every``-th
+        step; never with 0, and never on outputs (F, n), which must show the drift. A step is a projection at a
+        later time than the last one (the projection of the start, at its own time, is none)."""
         every = self.model.renormalise_every
-        if y.ndim != 1 or not every:
+        if y.ndim != 1 or not every or t <= self._last_projected:
             return
+        self._last_projected = t
         self._steps_since_renormalised += 1
         if self._steps_since_renormalised < every:
             return
@@ -362,7 +367,7 @@ class Dynamics:
                                 motion[: 3 * points].reshape(points, 3), rigid[1], reach=reach, t=t, start=begun,
                                 step=step)
         if self.rigid and self.matrices:
-            self._renormalise_matrices(y)
+            self._renormalise_matrices(y, t)
         elif self.rigid:
             block = self.model.layout.block("rigid_orientation")
             q = y[..., block.span].reshape(*y.shape[:-1], self.rigid, 4)
