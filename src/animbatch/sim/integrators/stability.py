@@ -144,11 +144,11 @@ def time_scales(model: Model) -> list[TimeScale]:
     return [scale for scale in found if scale is not None]
 
 
-def _check_drag_step(model: Model, method: str, h: float, steps: int) -> None:
+def _check_drag_step(scales: list[TimeScale], method: str, h: float, steps: int) -> None:
     """Raise SimulationError when an explicit step ``h`` [s] is too long for the fastest drag: a velocity relaxing
     at rate λ is multiplied by |1 − h λ| per explicit Euler step (the method's own factor for the others), which
     overshoots and grows once h λ passes the method's limit (2 for Euler)."""
-    for scale in time_scales(model):
+    for scale in scales:
         if scale.turns:
             continue
         growth = amplification(method, h, 0.0, scale.rate / 2)  # x'' = −λ x': the mode model without a spring
@@ -163,11 +163,11 @@ def _check_drag_step(model: Model, method: str, h: float, steps: int) -> None:
             time=0.0, details={"rate": scale.rate, "dt": h, "method": method})
 
 
-def _check_explicit_oscillations(model: Model, method: str, h: float, steps: int) -> None:
+def _check_explicit_oscillations(scales: list[TimeScale], method: str, h: float, steps: int) -> None:
     """Raise SimulationError when a step ``h`` [s] is too long for an oscillation that every fixed-step method
     follows explicitly (a gas's breathing): an implicit method then steps it as symplectic Euler does (the force
     from the start of the step, the positions from the new velocities), stable up to ω h = 2."""
-    for scale in time_scales(model):
+    for scale in scales:
         if not scale.explicit:
             continue
         scheme = "symplectic_euler" if METHODS[method].implicit else method
@@ -187,10 +187,11 @@ def check_fixed_step(model: Model, method: str, h: float, steps: int) -> None:
     """Raise SimulationError before the run when ``method`` at step ``h`` [s] would let the stiffest spring
     vibration, a velocity under the fastest drag, or an oscillation every method takes explicitly, grow by more
     than GROWTH_LIMIT over ``steps`` steps."""
-    _check_explicit_oscillations(model, method, h, steps)
+    scales = time_scales(model)  # each term's, gathered once
+    _check_explicit_oscillations(scales, method, h, steps)
     if METHODS[method].implicit:  # stable at any step
         return
-    _check_drag_step(model, method, h, steps)
+    _check_drag_step(scales, method, h, steps)
     mode = stiffest_mode(model)
     if mode is None:
         return
