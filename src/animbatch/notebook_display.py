@@ -33,6 +33,12 @@ def video_html(outputs: list[str]) -> str:
     return ""
 
 
+def drift_text(law: dict[str, Any]) -> str:
+    """A conserved quantity's drift over a run as a share of its scale, ``"4.5e-13 % of 11.86 J"`` (the report page,
+    the notebook's ledger and the energy plot all say it so)."""
+    return f"{100 * law['drift']:.2g} % of {law.get('scale', 0):.4g} {law.get('unit', '')}".rstrip()
+
+
 def ledger_html(ledger: dict[str, Any]) -> str:
     """The accuracy ledger as a table: the method and its step, the work of each part (bodies, emitted particles),
     then, for the bodies, each conservation law, whether the scene conserves it (and why not) and how far it
@@ -52,8 +58,7 @@ def ledger_html(ledger: dict[str, Any]) -> str:
     if "bodies" in work:  # the laws are the bodies'; emitted particles are not in them
         for name, law in ledger.get("conservation", {}).items():
             drift = law.get("drift")
-            measured = (f"drift {100 * drift:.2g} % of {law.get('scale', 0):.4g} {law.get('unit', '')}"
-                        if drift is not None else "—")  # as the energy plot's titles say it
+            measured = f"drift {drift_text(law)}" if drift is not None else "—"
             verdict = "conserved" if law.get("conserved") else "not conserved"
             rows.append(f"<tr><th>{html.escape(name.replace('_', ' '))}</th>"
                         f"<td>{verdict}: {html.escape(str(law.get('reason', '')))}</td>"

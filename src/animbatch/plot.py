@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from animbatch.files import atomic_path
+from animbatch.notebook_display import drift_text
 from animbatch.sim.ledger import QuantitySeries
 
 #: Bodies drawn one line each in the speed panel; with more, the mean and the fastest are drawn instead.
@@ -22,7 +23,7 @@ def _title(name: str, ledger: dict[str, Any]) -> str:
     if not entry:
         return label
     if entry.get("drift") is not None:
-        return f"{label} (conserved; drift {100 * entry['drift']:.2g} % of {entry['scale']:.3g} {entry['unit']})"
+        return f"{label} (conserved; drift {drift_text(entry)})"
     return f"{label} (not conserved: {entry['reason']})"
 
 

@@ -23,6 +23,7 @@ from animbatch.encode.video import middle_frame
 from animbatch.farm.batch import JobResult
 from animbatch.farm.sweep import BatchPlan, metrics_csv
 from animbatch.files import atomic_path, write_text_atomic
+from animbatch.notebook_display import drift_text
 from animbatch.sim.ledger import summary
 
 #: The poster's file name beside its video.
@@ -142,7 +143,7 @@ def _ledger(report: dict[str, Any]) -> str:
     for name, law in (ledger.get("conservation") or {}).items():
         label = name.replace("_", " ")
         if law.get("conserved") and law.get("drift") is not None:
-            rows.append((f"{label} drift", f"{law['drift']:.3g}, relative to {law['scale']:.4g} {law.get('unit', '')}"))
+            rows.append((f"{label} drift", drift_text(law)))
         elif not law.get("conserved"):
             rows.append((label, f"not conserved: {law.get('reason', '')}"))
     items = "".join(f"<dt>{html.escape(k)}</dt><dd>{html.escape(v)}</dd>" for k, v in rows)
