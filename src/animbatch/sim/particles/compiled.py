@@ -86,6 +86,24 @@ class CompiledPool:
         # meshes, bodies and moving colliders are traced by the numpy code
         return colliders is None or colliders.obstacles is None or colliders.obstacles.empty
 
+    @functools.cached_property
+    def summary_table(self) -> np.ndarray | None:
+        """The field table as :func:`~animbatch.sim.kernels.particle_pool.advance_one` takes it: None when the
+        kernel's scalar summary covers it (gravity and at most one drag), so that the table's code is compiled out."""
+        from animbatch.sim.kernels.particle_pool import field_summary
+
+        return None if field_summary(self.fields)[0] else self.fields
+
+    @functools.cached_property
+    def after_first_plane(self) -> np.ndarray | None:
+        """The solids :func:`~animbatch.sim.kernels.particle_pool.advance_one` tests from their table (it reads the
+        first plane into scalars): all but the first plane, or None when there are no others."""
+        from animbatch.sim.kernels.particle_pool import SOLID, SOLID_PLANE
+
+        planes = np.flatnonzero(self.solids[:, SOLID] == SOLID_PLANE)
+        rest = np.delete(self.solids, planes[:1], axis=0)
+        return np.ascontiguousarray(rest) if len(rest) else None
+
     def compile_now(self) -> None:
         """Build (or load from the disk cache) every kernel on a pool of one particle before the run starts, so that a
         kernel that fails to build is found before any particle has moved, and so that the first compilation is not
@@ -93,7 +111,8 @@ class CompiledPool:
         from animbatch.sim.kernels.particle_pool import age_pool
 
         pool = ParticlePool(1)
-        self.advance(pool, 0.0, 1.0, 1, 0, 1, age=True)
+        self.advance(pool, 0.0, 1.0, 1, 0, 1, age=True)  # one step per call, and several
+        self.advance(pool, 0.0, 1.0, 2, 0, 2, age=True)
         self.collide_newborns(pool, np.zeros(1, np.int64), np.zeros((1, 3)), 1.0)
         self.age(pool, 1.0)
         age_pool(pool.alive, pool.stuck, pool.v, pool.birth, pool.lifetime, 1.0)  # what large pools age with
@@ -104,7 +123,7 @@ class CompiledPool:
         with ``age``, deaths by age at the end of each step too. Returns the collisions."""
         import numba
 
-        from animbatch.sim.kernels.particle_pool import advance_pool
+        from animbatch.sim.kernels.particle_pool import advance_one, advance_pool
 
         # the instants as the numpy loop computes them, so that both take the same steps
         times = start + (stop - start) * np.arange(first, last + 1) / steps
@@ -114,10 +133,17 @@ class CompiledPool:
         if pool.capacity * (last - first) < SERIAL_WORK:  # waking the threads would cost more than the work
             numba.set_num_threads(1)
         try:
-            hits, deaths, soonest = advance_pool(pool.x, pool.v, pool.acceleration, pool.alive, pool.stuck,
-                                                 pool.mass, pool.radius, pool.birth, pool.lifetime, times,
-                                                 self.method, self.fields, self.solids, self.planes, self.others,
-                                                 self.mode, MAX_BOUNCES, SURFACE_GAP, self.gravity, age)
+            if last - first == 1:  # a pool with births: one step per call, in the loop made for it
+                hits, deaths, soonest = advance_one(pool.x, pool.v, pool.acceleration, pool.alive, pool.stuck,
+                                                    pool.mass, pool.radius, pool.birth, pool.lifetime, times,
+                                                    self.method, self.fields, self.summary_table, self.solids,
+                                                    self.planes, self.after_first_plane, self.mode, MAX_BOUNCES,
+                                                    SURFACE_GAP, self.gravity, age)
+            else:
+                hits, deaths, soonest = advance_pool(pool.x, pool.v, pool.acceleration, pool.alive, pool.stuck,
+                                                     pool.mass, pool.radius, pool.birth, pool.lifetime, times,
+                                                     self.method, self.fields, self.solids, self.planes, self.others,
+                                                     self.mode, MAX_BOUNCES, SURFACE_GAP, self.gravity, age)
         finally:
             numba.set_num_threads(threads)
         pool.died += int(deaths)
