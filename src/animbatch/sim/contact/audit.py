@@ -13,6 +13,11 @@ and removes) and :data:`RADIUS_FRACTION` of the smaller body's radius (a chord b
 convex solid that a body rolls over). A missed impact is far deeper: a body halfway or all the way through.
 
 Only frame times are looked at, so the cost is a few contact detections per frame, not per step.
+
+At the frames, the contacts that probes miss are measured too: box and hull edges crossing edges, cylinders' rims on
+planes, and the sides of rods, cylinders and capsules (:mod:`animbatch.sim.contact.sides`). The fixed-step methods
+resolve those; the adaptive methods' events follow probes only, so there an overlap found this way (two crossed rods
+passing through each other) is reported as what it is, with the fix: a fixed-step method.
 """
 
 from __future__ import annotations
@@ -27,12 +32,18 @@ import numpy as np
 from animbatch.sim.contact.contacts import (
     BODY_BOX,
     BODY_BOX_FACE,
+    BODY_EDGE,
     BODY_HULL,
     BODY_ROUND,
     BODY_SPHERE,
+    HULL_EDGE,
     PLANE,
+    PLANE_RIM,
+    SIDE_EDGE,
+    SIDE_ROUND,
     STATIC_BOX,
     STATIC_BOX_FACE,
+    STATIC_EDGE,
     STATIC_SPHERE,
     TRIANGLE,
     Contacts,
@@ -61,7 +72,9 @@ SLOP_MULTIPLE = 10.0
 RADIUS_FRACTION = 0.25
 
 _STATIC_KINDS = {PLANE: "plane", STATIC_SPHERE: "sphere", STATIC_BOX: "box", STATIC_BOX_FACE: "box",
-                 TRIANGLE: "mesh"}
+                 TRIANGLE: "mesh", PLANE_RIM: "plane"}
+#: Contacts that probes miss (edges, rims, sides): the fixed-step methods' alone.
+EDGE_KINDS = (STATIC_EDGE, BODY_EDGE, PLANE_RIM, SIDE_ROUND, SIDE_EDGE, HULL_EDGE)
 
 
 @dataclass(frozen=True)
@@ -78,6 +91,8 @@ class Overlap:
     solid: str
     between_frames: bool = False
     at_start: bool = False
+    #: an edge, rim or side overlapped (a contact that only the fixed-step methods resolve)
+    edge: bool = False
 
     def as_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -89,6 +104,12 @@ class Overlap:
                     f"them {self.depth:.3g} m further apart (positions, sizes or radii).")
         where = f"between two frames, at about t = {self.time:.4g} s" if self.between_frames else \
             f"at t = {self.time:.4g} s"
+        if self.edge and adaptive:
+            return (f"body {self.body!r} was {self.depth:.3g} m inside {self.solid} {where}, an edge, rim or side "
+                    f"of one against the other (contact solving tolerates {self.allowance:.3g} m): {method} follows "
+                    "contacts at probes only, and these contacts are the fixed-step methods' alone, so the bodies "
+                    "passed into each other and the motion after it is wrong. Use solver.method: verlet or "
+                    "symplectic_euler.")
         fix = ("a smaller solver.max_step (shorter than the time the bodies take to cross each other) or "
                "solver.method: verlet" if adaptive else "a smaller solver.dt")
         return (f"body {self.body!r} was {self.depth:.3g} m inside {self.solid} {where}, with no impact logged "
@@ -130,8 +151,10 @@ class OverlapAudit:
     def _solid_name(self, kind: int, index: int, body: int) -> str:
         if body >= 0:
             return f"body {self.names[body]!r}"
+        if kind in (STATIC_EDGE, SIDE_EDGE, HULL_EDGE):  # numbered by edge: the collider's kind is all that is named
+            return "a fixed box's edge"
         solid = index // 6 if kind == STATIC_BOX_FACE else index
-        sources = self.sources.get(STATIC_BOX if kind == STATIC_BOX_FACE else kind)
+        sources = self.sources.get(STATIC_BOX if kind == STATIC_BOX_FACE else PLANE if kind == PLANE_RIM else kind)
         number = f"colliders[{int(sources[solid])}]" if sources is not None and solid < len(sources) else "a collider"
         return f"{number} ({_STATIC_KINDS.get(kind, 'collider')})"
 
@@ -149,7 +172,7 @@ class OverlapAudit:
         impact_times = np.array([t for t, _ in impacts], float)
         impact_bodies = np.array([b for _, b in impacts], np.intp)
         start = self._state(states[0], float(times[0]))
-        first = detect(self.world, start, 0.0, compiled=self.compiled)
+        first = detect(self.world, start, 0.0, edges=True, compiled=self.compiled)
         first = first.select(-first.gap > self._allowance(first))
         self.excused = np.zeros(0, np.int64)
         deepest = self._deepest(first, float(times[0]), False)
@@ -162,7 +185,8 @@ class OverlapAudit:
             for fraction, contacts in self._between(states[k - 1], states[k], start, end, bounced):
                 worst = self._deeper(worst, contacts, float(times[k - 1] + fraction * (times[k] - times[k - 1])),
                                      True)
-            worst = self._deeper(worst, detect(self.world, end, 0.0, compiled=self.compiled), float(times[k]), False)
+            worst = self._deeper(worst, detect(self.world, end, 0.0, edges=True, compiled=self.compiled),
+                                 float(times[k]), False)
             start = end
         found["missed"] = worst
         return found
@@ -264,9 +288,10 @@ class OverlapAudit:
         k = int(np.argmax(-contacts.gap - allowance))
         if -contacts.gap[k] <= allowance[k]:
             return None
+        kind = int(contacts.solid_kind[k])
         return Overlap(float(-contacts.gap[k]), float(allowance[k]), t, self.names[int(contacts.probe_body[k])],
-                       self._solid_name(int(contacts.solid_kind[k]), int(contacts.solid_index[k]),
-                                        int(contacts.solid_body[k])), between_frames)
+                       self._solid_name(kind, int(contacts.solid_index[k]), int(contacts.solid_body[k])),
+                       between_frames, edge=kind in EDGE_KINDS)
 
     def _deeper(self, worst: Overlap | None, contacts: Contacts, t: float, between_frames: bool) -> Overlap | None:
         """``worst``, or the deepest of ``contacts`` when that is deeper."""
