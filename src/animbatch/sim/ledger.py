@@ -31,6 +31,7 @@ import numpy as np
 
 from animbatch.errors import AccuracyWarning
 from animbatch.sim.contact.audit import Overlap, OverlapAudit
+from animbatch.sim.deformable.intersections import crossing_pairs
 from animbatch.sim.forces import SpringForces
 from animbatch.sim.forces.dihedral import DihedralSprings
 from animbatch.sim.forces.gravitation import InverseSquarePairs
@@ -282,10 +283,49 @@ class Ledger:
     encounter: dict[str, Any] | None = None  # two gravitating bodies closer than their radii, without softening
     joints: dict[str, Any] | None = None  # the joints' largest violations over the frames (see joint_drift)
     orientation: dict[str, Any] | None = None  # rotation matrices' distance from rotations (orientation_drift)
+    surfaces: dict[str, Any] | None = None  # cloth or lattices through themselves or each other (surface_crossings)
     warnings: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
+
+
+def surface_crossings(model: Model, states: np.ndarray, times: np.ndarray) -> dict[str, Any] | None:
+    """Where cloth and lattices passed through themselves or each other over the frames ``states`` (F, n) at
+    ``times`` (F,) [s] (they do not collide with their own triangles, nor with another's): the first frame time
+    with a crossing, the frame with the most crossing triangle pairs and how many, and which bodies crossed (pairs
+    of names, a name twice for a body through itself); None when no frame has one."""
+    deformables = model.deformables
+    assert deformables is not None
+    bodies, triangles = deformables.bodies, deformables.triangles
+    owner = np.repeat(np.arange(len(bodies)), [len(body.triangles) for body in bodies])
+    dynamics = Dynamics(model)
+    first, most, worst = None, 0, 0.0
+    crossed: set[tuple[int, int]] = set()
+    for y, t in zip(states, times):
+        state = dynamics.kinematics(*dynamics.split(y), t=float(t))
+        x = deformables.vertex_map.place(state.x, state.rotation, deformables.anchors.positions(float(t)))
+        pairs = crossing_pairs(x, triangles)
+        if len(pairs):
+            first = float(t) if first is None else first
+            if len(pairs) > most:
+                most, worst = len(pairs), float(t)
+            crossed.update(map(tuple, np.unique(np.sort(owner[pairs], axis=1), axis=0).tolist()))
+    if first is None:
+        return None
+    return {"first_time": first, "worst_time": worst, "pairs": most,
+            "bodies": [[bodies[a].name, bodies[b].name] for a, b in sorted(crossed)]}
+
+
+def crossing_message(surfaces: dict[str, Any]) -> str:
+    """The warning for :func:`surface_crossings`' finding."""
+    through = [f"'{a}' through itself" if a == b else f"'{a}' and '{b}' through each other"
+               for a, b in surfaces["bodies"]]
+    return (f"{', '.join(through)} from t = {surfaces['first_time']:.4g} s ({surfaces['pairs']} triangle pairs "
+            f"crossing at t = {surfaces['worst_time']:.4g} s): cloth and lattices do not collide with their own "
+            "triangles or with each other's (see Limitations in docs/scene-format.md), so the frames from then on draw "
+            "them passing through. Give the cloth room to fall without folding onto itself (a lower drop, more "
+            "bending stiffness, cloth kept apart), or end the scene before it folds.")
 
 
 def orientation_drift(model: Model, states: np.ndarray) -> dict[str, Any]:
@@ -353,6 +393,8 @@ def judge(ledger: dict[str, Any]) -> list[str]:
         if overlap:
 
             messages.append(Overlap(**overlap).message(method, adaptive=adaptive))
+    if ledger.get("surfaces"):
+        messages.append(crossing_message(ledger["surfaces"]))
     return messages
 
 
@@ -419,6 +461,8 @@ def build_ledger(model: Model, states: np.ndarray, stats: dict[str, Any], partic
         ledger.joints = joint_drift(model, states, times)
     if model.layout.matrix_orientation and len(states):
         ledger.orientation = orientation_drift(model, states)
+    if model.deformables is not None and model.deformables.bodies and len(states):
+        ledger.surfaces = surface_crossings(model, states, times)
     ledger.warnings = judge(ledger.as_dict())
     for message in ledger.warnings:
         warnings.warn(message, AccuracyWarning, stacklevel=2)
