@@ -110,6 +110,51 @@ def test_a_gas_balloon_slowed_by_drag_settles_where_its_pressure_meets_the_outsi
     assert volume[-1] / volume[0] == pytest.approx((OUTSIDE + GAUGE) / OUTSIDE, rel=1e-4)
 
 
+def cushion(tmp_path, pressure, *, extra="", duration=2.0):
+    """A closed cube of cloth (0.3 m, each face cut into 32 triangles, 0.5 kg/m²) with ``pressure``, no gravity."""
+    cube = trimesh.creation.box(extents=(1.0, 1.0, 1.0)).subdivide().subdivide()
+    cube.export(tmp_path / "cube.obj")
+    (tmp_path / "cushion.yaml").write_text(f"""name: cushion
+duration: {duration}
+fps: 20
+solver: {{method: DOP853, rtol: 1.0e-9, atol: 1.0e-11}}
+bodies:
+  - {{name: cushion, type: cloth, mesh: {{file: cube.obj, scale: 0.3}}, density: 0.5, pressure: {pressure},
+     collide: false}}
+{extra}""")
+    return api.load_scene(tmp_path / "cushion.yaml")
+
+
+def test_a_squeezed_gas_cube_pushes_back_as_p_v_constant_says(tmp_path):
+    """A gas cube squeezed (or let out) to a volume V pushes on its walls with the gauge P₀ V₀ / V − P_out: over a
+    closed surface Σ F·x = 3 p V (each triangle's p A n shared by its corners; ∮ x·n dA = 3 V), so the virial of the
+    vertex forces is 3 (P₀ V₀ − P_out V), at every squeeze and whatever the shape."""
+    plan = api.plan(cushion(tmp_path, f"{{gauge: {GAUGE}, gas: true, outside: {OUTSIDE}}}"))
+    term = pressure_term(plan)
+    rest = term.deformables.initial_positions
+    start = term.volumes(rest)[0]
+    assert start == pytest.approx(0.3**3, rel=1e-12)
+    dent = np.random.default_rng(7).normal(scale=0.01, size=rest.shape)  # not a cube any more
+    for scale in (0.5, 0.8, 1.0, 1.3, 1.6):
+        x = scale * rest + dent
+        volume = term.volumes(x)[0]
+        force = term.share @ term.face_forces(x, 0.0)
+        virial = np.einsum("vi,vi->", force, x)
+        assert virial == pytest.approx(3 * ((OUTSIDE + GAUGE) * start - OUTSIDE * volume), rel=1e-9), scale
+    # squeezed below P₀ V₀ / P_out it pushes out, let out beyond it pulls in
+    assert (OUTSIDE + GAUGE) * start - OUTSIDE * term.volumes(0.5 * rest)[0] > 0
+    assert (OUTSIDE + GAUGE) * start - OUTSIDE * term.volumes(1.6 * rest)[0] < 0
+
+
+def test_an_inflated_gas_cube_settles_at_the_volume_where_its_pressure_meets_the_outsides(tmp_path):
+    """The cube of cloth, no springs, released at 600 Pa over the outside and slowed by drag, bulges into a cushion
+    and settles where P₀ V₀ / V = P_out: V = 1.3 V₀, whatever shape it takes."""
+    plan = api.plan(cushion(tmp_path, f"{{gauge: {GAUGE}, gas: true, outside: {OUTSIDE}}}",
+                            extra="fields: [{type: drag, model: linear, coefficient: 0.1}]"))
+    volume = volumes(plan, api.simulate(plan))
+    assert volume[-1] / volume[0] == pytest.approx((OUTSIDE + GAUGE) / OUTSIDE, rel=1e-4)
+
+
 def test_a_held_gauge_swells_a_springy_ball_with_its_energy_kept_and_a_pump_does_work(tmp_path):
     """600 Pa at once: the ball rings about the volume where its springs hold the pressure, its energy kept with
     the potential −p ΔV. The same 600 Pa pumped in over 0.5 s: the ball swells slowly to that volume (the middle
