@@ -20,6 +20,7 @@ from animbatch.sim.contact.geometry import round_distance, segment_distance, to_
 from animbatch.sim.contact.hulls import BodyHull, hull_edge_contact, to_hull
 from animbatch.sim.rigid import mass_properties as mp
 from animbatch.sim.rigid.polyhedra import capsule_mesh, mesh_mass_properties
+from support.paths import SCENES
 
 HEADER = """duration: {duration}
 fps: 50
@@ -193,28 +194,66 @@ colliders:
     assert np.all(np.hypot(across[:, 0] - edge[0], across[:, 1] - edge[1])[turning] > 0.03 - 3e-3)
 
 
-CROSSED_RODS = """bodies:
-  - {name: lower, type: rigid, shape: {type: rod, radius: 0.03, length: 1.0}, density: 500, material: wood, position: [0, 0.03, 0]}
-  - {name: upper, type: rigid, shape: {type: rod, radius: 0.03, length: 1.0}, density: 500, material: wood, position: [0, 0.3, 0], orientation: {axis: [0, 1, 0], angle: 90}}
-colliders: [{type: plane, material: wood}]
+def crossed(lower: str, upper: str, method: str, duration: float = 1.0) -> str:
+    solver = "method: RK45" if method == "RK45" else f"method: {method}, dt: 1.0e-3"
+    return HEADER.format(duration=duration).replace("method: symplectic_euler, dt: 1.0e-3", solver) + f"""bodies:
+  - {{name: lower, type: rigid, density: 500, material: wood, {lower}}}
+  - {{name: upper, type: rigid, density: 500, material: wood, {upper}}}
+colliders: [{{type: plane, material: wood}}]
 """
 
 
-def test_crossed_rods_rest_on_each_other_under_verlet_and_under_rk45_the_run_says_they_passed_through(tmp_path):
-    """A rod dropped across another: a fixed-step method holds it on the other's side (one radius above the other's
-    top); RK45's events follow probes, which sit at the rods' ends, so the sides pass into each other and the run
-    must say so, naming both rods and the fix (the frames' audit measures sides too)."""
-    resting = simulate(tmp_path, CROSSED_RODS, duration=1.0)
-    assert resting.positions[:, 1, 1].min() > 0.09 - 3e-3
-    assert resting.positions[-1, 1, 1] == pytest.approx(0.09, abs=2e-3)
-    (tmp_path / "s.yaml").write_text(HEADER.format(duration=1.0).replace("method: symplectic_euler, dt: 1.0e-3",
-                                                                         "method: RK45") + CROSSED_RODS)
+#: A rod on the floor along x, and one dropped square across its middle (balanced there: crossed anywhere else, or
+#: at another angle, it tips until an end reaches the floor).
+RODS = ("shape: {type: rod, radius: 0.03, length: 1.0}, position: [0, 0.03, 0]",
+        "shape: {type: rod, radius: 0.03, length: 1.0}, position: [0, 0.3, 0], orientation: {axis: [0, 1, 0], "
+        "angle: 90}")
+
+
+@pytest.mark.parametrize("method", ["verlet", "RK45"])
+def test_crossed_rods_rest_on_each_other_under_rk45_as_under_verlet(tmp_path, method):
+    """A rod dropped across another rests on its side, one diameter up (0.09 m), under a fixed-step method and under
+    RK45, whose events follow the two sides' contact (no probe sits where they touch: probes are at the rods'
+    ends); neither run finds the rods inside each other at any frame (the audit measures sides too)."""
+    (tmp_path / "s.yaml").write_text(crossed(*RODS, method))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AccuracyWarning)
+        trajectory = api.simulate(api.load_scene(tmp_path / "s.yaml"))
+    height = trajectory.positions[:, 1, 1]
+    assert height.min() > 0.09 - 1e-3
+    assert height[-1] == pytest.approx(0.09, abs=5e-4)
+    np.testing.assert_allclose(trajectory.positions[-1, 1, [0, 2]], [0.0, 0.0], atol=5e-3)  # it did not slide off
+
+
+@pytest.mark.parametrize("method", ["verlet", "RK45"])
+def test_a_stack_of_three_crossed_rods_rests_a_diameter_apart_under_rk45_as_under_verlet(tmp_path, method):
+    """The bundled log-cabin corner: three rods dropped square across each other's middles, each resting on the side
+    of the one below (0.03, 0.09, 0.15 m), the upper two held by side contacts alone."""
+    trajectory = api.simulate(api.load_scene(SCENES / "crossed_rods.yaml",
+                                             overrides=[] if method == "RK45" else
+                                             ["solver.method=verlet", "solver.dt=0.001"]))
+    np.testing.assert_allclose(trajectory.positions[-1, :, 1], [0.03, 0.09, 0.15], atol=5e-4)
+    assert trajectory.positions[:, 1:, 1].min(axis=0) == pytest.approx([0.09, 0.15], abs=1e-3)
+
+
+def test_crossed_beams_under_rk45_pass_through_each_other_and_the_run_says_so(tmp_path):
+    """Two square beams turned 45° about their long axes and crossed, edge on edge: a fixed-step method holds the
+    upper one on the lower's ridge; RK45's events do not follow edges, so the beams pass into each other, and the
+    run must say so, naming both and the fix."""
+    lower = "shape: {type: box, size: [1.0, 0.1, 0.1]}, position: [0, 0.0707, 0], orientation: {axis: [1, 0, 0], angle: 45}"
+    upper = "shape: {type: box, size: [0.1, 0.1, 1.0]}, position: [0, 0.4, 0], orientation: {axis: [0, 0, 1], angle: 45}"
+    (tmp_path / "s.yaml").write_text(crossed(lower, upper, "symplectic_euler"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AccuracyWarning)
+        held = api.simulate(api.load_scene(tmp_path / "s.yaml"))
+    assert held.positions[-1, 1, 1] == pytest.approx(3 * 0.05 * np.sqrt(2), abs=3e-3)  # ridge on ridge: 3 half diagonals
+    (tmp_path / "s.yaml").write_text(crossed(lower, upper, "RK45"))
     with pytest.warns(AccuracyWarning) as caught:
         through = api.simulate(api.load_scene(tmp_path / "s.yaml"))
-    assert through.positions[-1, 1, 1] < 0.05  # through the lower rod, onto the floor
+    assert through.positions[-1, 1, 1] < 0.1  # through the lower beam, onto the floor
     message = " ".join(str(w.message) for w in caught)
-    assert re.search(r"body '(lower|upper)' was 0\.0[3-6]\d* m inside body '(upper|lower)'", message), message
-    assert "RK45 follows contacts at probes only" in message and "solver.method: verlet" in message
+    assert re.search(r"body '(lower|upper)' was 0\.\d+ m inside body '(upper|lower)'.* an edge or rim", message), message
+    assert "RK45 follows contacts at probes and rounds' sides only" in message and "solver.method: verlet" in message
 
 
 @pytest.mark.slow

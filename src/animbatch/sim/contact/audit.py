@@ -16,8 +16,8 @@ Only frame times are looked at, so the cost is a few contact detections per fram
 
 At the frames, the contacts that probes miss are measured too: box and hull edges crossing edges, cylinders' rims on
 planes, and the sides of rods, cylinders and capsules (:mod:`animbatch.sim.contact.sides`). The fixed-step methods
-resolve those; the adaptive methods' events follow probes only, so there an overlap found this way (two crossed rods
-passing through each other) is reported as what it is, with the fix: a fixed-step method.
+resolve them all; the adaptive methods' events follow probes and rounds' sides only, so there an overlap of edges
+(two crossed beams passing through each other) is reported as what it is, with the fix: a fixed-step method.
 """
 
 from __future__ import annotations
@@ -40,7 +40,6 @@ from animbatch.sim.contact.contacts import (
     PLANE,
     PLANE_RIM,
     SIDE_EDGE,
-    SIDE_ROUND,
     STATIC_BOX,
     STATIC_BOX_FACE,
     STATIC_EDGE,
@@ -73,8 +72,9 @@ RADIUS_FRACTION = 0.25
 
 _STATIC_KINDS = {PLANE: "plane", STATIC_SPHERE: "sphere", STATIC_BOX: "box", STATIC_BOX_FACE: "box",
                  TRIANGLE: "mesh", PLANE_RIM: "plane"}
-#: Contacts that probes miss (edges, rims, sides): the fixed-step methods' alone.
-EDGE_KINDS = (STATIC_EDGE, BODY_EDGE, PLANE_RIM, SIDE_ROUND, SIDE_EDGE, HULL_EDGE)
+#: Contacts that only the fixed-step methods resolve: edges crossing edges, and exact rims on planes (the adaptive
+#: methods' events follow probes, and rounds' sides: SIDE_ROUND, SIDE_EDGE).
+FIXED_STEP_KINDS = (STATIC_EDGE, BODY_EDGE, PLANE_RIM, HULL_EDGE)
 
 
 @dataclass(frozen=True)
@@ -91,7 +91,7 @@ class Overlap:
     solid: str
     between_frames: bool = False
     at_start: bool = False
-    #: an edge, rim or side overlapped (a contact that only the fixed-step methods resolve)
+    #: an edge or rim overlapped (a contact that only the fixed-step methods resolve)
     edge: bool = False
 
     def as_dict(self) -> dict[str, Any]:
@@ -105,9 +105,9 @@ class Overlap:
         where = f"between two frames, at about t = {self.time:.4g} s" if self.between_frames else \
             f"at t = {self.time:.4g} s"
         if self.edge and adaptive:
-            return (f"body {self.body!r} was {self.depth:.3g} m inside {self.solid} {where}, an edge, rim or side "
-                    f"of one against the other (contact solving tolerates {self.allowance:.3g} m): {method} follows "
-                    "contacts at probes only, and these contacts are the fixed-step methods' alone, so the bodies "
+            return (f"body {self.body!r} was {self.depth:.3g} m inside {self.solid} {where}, an edge or rim of one "
+                    f"against the other (contact solving tolerates {self.allowance:.3g} m): {method} follows contacts "
+                    "at probes and rounds' sides only, and edges are the fixed-step methods' alone, so the bodies "
                     "passed into each other and the motion after it is wrong. Use solver.method: verlet or "
                     "symplectic_euler.")
         fix = ("a smaller solver.max_step (shorter than the time the bodies take to cross each other) or "
@@ -210,7 +210,7 @@ class OverlapAudit:
         candidates = candidates.select(quiet)
         gaps = [pair_gaps(self.world, state, candidates.probe, candidates.solid_kind, candidates.solid_index)
                 for state in (start, end)]
-        closing = closing_margin(self.world, candidates.probe, candidates.solid_body, 0.0, travel)
+        closing = closing_margin(candidates.probe_body, candidates.solid_body, 0.0, travel)
         allowance = self._allowance(candidates)
         could_meet = (gaps[0] > allowance) & (gaps[1] > allowance) & (closing > gaps[0] + gaps[1])
         candidates = candidates.select(could_meet)
@@ -291,7 +291,7 @@ class OverlapAudit:
         kind = int(contacts.solid_kind[k])
         return Overlap(float(-contacts.gap[k]), float(allowance[k]), t, self.names[int(contacts.probe_body[k])],
                        self._solid_name(kind, int(contacts.solid_index[k]), int(contacts.solid_body[k])),
-                       between_frames, edge=kind in EDGE_KINDS)
+                       between_frames, edge=kind in FIXED_STEP_KINDS)
 
     def _deeper(self, worst: Overlap | None, contacts: Contacts, t: float, between_frames: bool) -> Overlap | None:
         """``worst``, or the deepest of ``contacts`` when that is deeper."""

@@ -25,9 +25,9 @@ STATIC_EDGE, BODY_EDGE = 8, 9
 PLANE_RIM = 10
 # probes against a body's round solid (cylinder, rod, capsule; solid index: the round) or convex hull (the hull)
 BODY_ROUND, BODY_HULL = 11, 12
-# fixed-step only, see animbatch.sim.contact.sides: a round's side against another round's side (solid index: the
-# other round) or against an edge (solid index: the edge's number in sides.EdgeSet), times 2 plus 0 or 1 (see
-# sides._touching); two hulls' crossing edges
+# see animbatch.sim.contact.sides (the adaptive methods' events follow these two as well): a round's side against
+# another round's side (solid index: the other round) or against an edge (solid index: the edge's number in
+# sides.EdgeSet), times 2 plus 0 or 1 (see sides._touching); two hulls' crossing edges (fixed-step only)
 SIDE_ROUND, SIDE_EDGE, HULL_EDGE = 13, 14, 15
 
 

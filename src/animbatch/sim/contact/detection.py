@@ -33,6 +33,7 @@ from animbatch.sim.contact.contacts import (
     PLANE,
     PLANE_RIM,
     SIDE_EDGE,
+    SIDE_ROUND,
     STATIC,
     STATIC_BOX,
     STATIC_BOX_FACE,
@@ -61,7 +62,7 @@ from animbatch.sim.contact.hulls import BodyHull, compiled_edge_contacts, edge_c
 from animbatch.sim.contact.materials import MaterialTable
 from animbatch.sim.contact.meshes import TriangleGroup
 from animbatch.sim.contact.moving import MovingColliders
-from animbatch.sim.contact.sides import compiled_side_contacts, side_contacts
+from animbatch.sim.contact.sides import compiled_side_contacts, side_contacts, side_pairs
 
 #: For each kind of contact with a collider: which of MovingColliders' solid arrays its index runs over, and the
 #: index's stride (a box face is 6 × box + face, a box edge 12 × box + edge).
@@ -203,14 +204,15 @@ _OFF_CENTRE: weakref.WeakKeyDictionary[ContactWorld, tuple[int, np.ndarray, np.n
     weakref.WeakKeyDictionary()
 
 
-def closing_margin(world: ContactWorld, probes: np.ndarray, solid_body: np.ndarray, margin: float,
-                   travel: np.ndarray | None) -> np.ndarray:
-    """How close (gap [m]) probe–solid pairs (K,) must be to be kept: ``margin`` plus the distance both sides can
-    travel (``travel`` (P,) per body, None: no travel; fixed solids, body -1, travel nothing)."""
+def closing_margin(probe_body: np.ndarray, solid_body: np.ndarray, margin: float, travel: np.ndarray | None
+                   ) -> np.ndarray:
+    """How close (gap [m]) pairs (K,) of a probe (or another feature) on ``probe_body`` and a solid on
+    ``solid_body`` must be to be kept: ``margin`` plus the distance both sides can travel (``travel`` (P,) per body,
+    None: no travel; fixed solids, body -1, travel nothing)."""
     if travel is None:
-        return np.full(len(probes), margin)
+        return np.full(len(probe_body), margin)
     solid = np.where(solid_body >= 0, travel[np.maximum(solid_body, 0)], 0.0)
-    return margin + travel[world.probes.owner[probes]] + solid
+    return margin + travel[probe_body] + solid
 
 
 def _contacts(world: ContactWorld, probes: np.ndarray, centres: np.ndarray, distance: np.ndarray,
@@ -220,7 +222,7 @@ def _contacts(world: ContactWorld, probes: np.ndarray, centres: np.ndarray, dist
     with a gap under the pair's :func:`closing_margin` are kept."""
     radius = world.probes.radius[probes]
     gap = distance - radius
-    keep = gap < closing_margin(world, probes, solid_body, margin, travel)
+    keep = gap < closing_margin(world.probes.owner[probes], solid_body, margin, travel)
     every = bool(keep.all())  # (the compiled search hands over only contacts: all of them)
     if every:  # the contacts' own arrays, contiguous, as the selections below make them
         probes, normal = probes.copy(), np.ascontiguousarray(normal)
@@ -295,7 +297,8 @@ def detect(world: ContactWorld, state: Kinematics, margin: float, travel: np.nda
         probes = everywhere[which]
         if len(probes):
             d, n = to_triangles(centres[probes], statics.triangles[triangles], state.x[world.probes.owner[probes]],
-                                closing_margin(world, probes, np.full(len(probes), STATIC), margin, travel))
+                                closing_margin(world.probes.owner[probes], np.full(len(probes), STATIC), margin,
+                                               travel))
             parts.append(_contacts(world, probes, centres[probes], d, n, np.full(len(probes), STATIC),
                                    statics.triangle_material[triangles], margin, TRIANGLE, triangles, travel))
     if world.bodies_collide and tree is not None:
@@ -583,20 +586,39 @@ def round_poses(world: ContactWorld, state: Kinematics) -> tuple[np.ndarray, np.
             np.einsum("kij,kj->ki", state.rotation[rigid], rounds.axis))
 
 
+#: The contacts beyond probes' that can be followed from state to state (:func:`evaluate_pairs`): the sides of rounds
+#: against other rounds' sides and against edges (:func:`~animbatch.sim.contact.sides.side_pairs`).
+FOLLOWED_KINDS = (SIDE_ROUND, SIDE_EDGE)
+
+
 def evaluate_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, kind: np.ndarray,
                    index: np.ndarray) -> Contacts:
     """The contacts of given probe–solid pairs (K,) at ``state``, whatever their distance (for tracking contacts
-    between events)."""
-    centres, distance, normal, solid_body, material = _pair_geometry(world, state, probe, kind, index)
-    return _contacts(world, probe, centres, distance, normal, solid_body, material, np.inf, kind, index)
+    between events); pairs of :data:`FOLLOWED_KINDS` too."""
+    sides = np.isin(kind, FOLLOWED_KINDS)
+    if not sides.any():
+        centres, distance, normal, solid_body, material = _pair_geometry(world, state, probe, kind, index)
+        return _contacts(world, probe, centres, distance, normal, solid_body, material, np.inf, kind, index)
+    parts = [evaluate_pairs(world, state, probe[~sides], kind[~sides], index[~sides]),
+             side_pairs(world, state, *body_box_poses(world, state), probe[sides], kind[sides], index[sides])]
+    asked = np.concatenate([np.flatnonzero(~sides), np.flatnonzero(sides)])  # the pairs in the parts' order
+    return Contacts.concatenate(parts).select(np.argsort(asked))
 
 
 def pair_gaps(world: ContactWorld, state: Kinematics, probe: np.ndarray, kind: np.ndarray,
               index: np.ndarray) -> np.ndarray:
     """The gaps (K,) [m] of given probe–solid pairs at ``state``: :func:`evaluate_pairs`'s, without building the
     contacts (the event search asks for gaps alone, a root search many times over)."""
-    _, distance, *_ = _pair_geometry(world, state, probe, kind, index)
-    return distance - world.probes.radius[probe]
+    sides = np.isin(kind, FOLLOWED_KINDS)
+    gaps = np.zeros(len(kind))
+    if sides.any():
+        gaps[sides] = side_pairs(world, state, *body_box_poses(world, state), probe[sides], kind[sides],
+                                 index[sides]).gap
+        if sides.all():
+            return gaps
+    _, distance, *_ = _pair_geometry(world, state, probe[~sides], kind[~sides], index[~sides])
+    gaps[~sides] = distance - world.probes.radius[probe[~sides]]
+    return gaps
 
 
 def _pair_geometry(world: ContactWorld, state: Kinematics, probe: np.ndarray, kind: np.ndarray, index: np.ndarray

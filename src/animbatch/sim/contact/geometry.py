@@ -215,6 +215,13 @@ def segment_distance(start_a: np.ndarray, along_a: np.ndarray, start_b: np.ndarr
                      ) -> np.ndarray:
     """Distance [m] (K,) between segments ``start + s along``, s in [0, 1] (K, 3 each; non-zero lengths), after
     Ericson, "Real-Time Collision Detection", 5.1.9, vectorised."""
+    return segment_closest(start_a, along_a, start_b, along_b)[0]
+
+
+def segment_closest(start_a: np.ndarray, along_a: np.ndarray, start_b: np.ndarray, along_b: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`segment_distance`'s distance (K,) [m], and the parameters s and t (K,) of the closest points on
+    segments a and b (for parallel segments, one pair of closest points of many)."""
     between = start_a - start_b
     aa, ee = np.einsum("ij,ij->i", along_a, along_a), np.einsum("ij,ij->i", along_b, along_b)
     bb = np.einsum("ij,ij->i", along_a, along_b)
@@ -225,7 +232,7 @@ def segment_distance(start_a: np.ndarray, along_a: np.ndarray, start_b: np.ndarr
     t = (bb * s + ff) / ee
     s = np.where(t < 0, np.clip(-cc / aa, 0, 1), np.where(t > 1, np.clip((bb - cc) / aa, 0, 1), s))
     t = np.clip(t, 0, 1)
-    return np.linalg.norm(start_a + s[:, None] * along_a - start_b - t[:, None] * along_b, axis=1)
+    return np.linalg.norm(start_a + s[:, None] * along_a - start_b - t[:, None] * along_b, axis=1), s, t
 
 
 @dataclass(frozen=True, eq=False)

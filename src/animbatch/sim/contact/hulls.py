@@ -16,7 +16,7 @@ skip it: their vertices are dense enough that crossing edges cut in only as deep
 the edges' slope.
 
 Edge contacts are fixed-step contacts (:class:`~animbatch.sim.contact.time_stepping.ContactResolver`); the adaptive
-methods' events track probes only.
+methods' events follow probes and rounds' sides, not edges (the overlap audit names a run that needed them).
 """
 
 from __future__ import annotations

@@ -2,10 +2,12 @@
 
 The scipy solver integrates free motion. After each accepted step, the step is searched for
 
-* **impacts**: a probe reaching a solid it was not resting on. The probe–solid pairs that the step's travel could
-  bring into touch are evaluated along the solver's dense output; between samples the gap along the straight segment
-  is minimised too, so that a thin wall cannot hide between two samples. The first crossing is refined by Brent's
-  method to the exact contact time;
+* **impacts**: a probe, or a round's side (a rod's, cylinder's or capsule's, against another's side or an edge:
+  :func:`~animbatch.sim.contact.sides.side_pairs`), reaching a solid it was not resting on. The pairs that the
+  step's travel could bring into touch are evaluated along the solver's dense output; between samples a probe's gap
+  along the straight segment is minimised too, so that a thin wall cannot hide between two samples (a side is a
+  body's length, no thin wall, and its search costs a hundred times a probe's). The first crossing is refined by
+  Brent's method to the exact contact time;
 * **mode changes** of resting contacts (root finding on the dense output as well): a contact whose normal force
   would turn into a pull separates; a sliding contact whose slip reverses starts to stick; a sticking one whose
   friction would exceed ``μs f_n`` starts to slide.
@@ -35,8 +37,9 @@ from scipy.optimize import brentq
 
 from animbatch.errors import SimulationError
 from animbatch.quaternion import cross
-from animbatch.sim.contact.contacts import Contacts
+from animbatch.sim.contact.contacts import SIDE_ROUND, Contacts
 from animbatch.sim.contact.detection import (
+    FOLLOWED_KINDS,
     body_reach,
     closing_margin,
     detect,
@@ -72,6 +75,9 @@ PATH_ALLOWANCE = 1.25
 #: Arcs between two samples are longer than their chords (by π/2 at most for a half turn).
 ARC_ALLOWANCE = 1.6
 MAX_EVENTS_PER_FRAME = 10_000
+#: Time step [s] of the second difference that gives a side contact's velocity terms (:meth:`ContactEvents.
+#: _side_curvature`).
+CURVATURE_STEP = 1e-4
 #: Consecutive events at one instant after which the event loop gives up (it would otherwise spin forever).
 MAX_STALLED_EVENTS = 100
 SLIP_ONSET = 1e-6  # m/s²: tangential acceleration of a sticking contact point at which it starts to slide
@@ -310,13 +316,44 @@ class ContactEvents:
         a, b = rows.a, rows.b
         # The gap and the slip follow the probe's centre, a point of the body: a sphere's contact point slides over
         # its surface and has no centripetal term of its own (a corner's centre is the corner itself).
-        centre = probe_centres(self.world, state)[contacts.probe] - x[a]
+        centre = contacts.point.copy()  # a side's contact point (followed along it, as a point of its body)
+        probes = contacts.probe < self.world.probes.count
+        centre[probes] = probe_centres(self.world, state)[contacts.probe[probes]]
+        centre -= x[a]
         centripetal = cross(w[a], cross(w[a], centre)) - cross(w[b], cross(w[b], rows.r_b))
         velocity = rows.along(v, w)  # (3, K): normal, first and second tangent
         inward = np.einsum("ki,dki->dk", centripetal, rows.directions)
+        sides = np.flatnonzero(contacts.probe >= self.world.probes.count)
+        if len(sides):
+            inward[0, sides] = self._side_curvature(state, contacts.select(sides))
         normal_bias = inward[0] + STIFFNESS * contacts.gap + DAMPING * velocity[0]
         tangent_bias = (inward[1:] + DAMPING * velocity[1:]).T
         return normal_bias, tangent_bias
+
+    def _side_curvature(self, state: Kinematics, contacts: Contacts) -> np.ndarray:
+        """The part of side contacts' gap accelerations (K,) [m/s²] that the bodies' velocities make with no
+        acceleration (points moving straight on, bodies turning steadily): the gaps' second difference along that
+        motion. A probe's centre is a point of its body, and the centripetal terms give its part; a side's contact
+        point runs along both bodies, and the distance of two turning lines bends as no point's path does."""
+        gaps = [pair_gaps(self.world, self._coasting(state, tau), contacts.probe, contacts.solid_kind,
+                          contacts.solid_index) for tau in (-CURVATURE_STEP, 0.0, CURVATURE_STEP)]
+        return (gaps[0] - 2 * gaps[1] + gaps[2]) / CURVATURE_STEP**2
+
+    @staticmethod
+    def _coasting(state: Kinematics, tau: float) -> Kinematics:
+        """``state`` moved on by ``tau`` [s] at its velocities: positions by v τ, rotations by exp(τ ω)."""
+        rotation = state.rotation
+        if rotation is not None and state.omega is not None:
+            turn = tau * state.omega  # (B, 3): Rodrigues' rotation for each body
+            angle = np.linalg.norm(turn, axis=1)
+            axis = np.divide(turn, angle[:, None], out=np.zeros_like(turn), where=angle[:, None] > 0)
+            k = np.zeros((len(turn), 3, 3))
+            k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
+            k -= np.transpose(k, (0, 2, 1))
+            exp = (np.eye(3) + np.sin(angle)[:, None, None] * k
+                   + (1 - np.cos(angle))[:, None, None] * (k @ k))
+            rotation = exp @ rotation
+        return Kinematics(state.x + tau * state.v, state.v, rotation, state.omega, state.first_rigid, state.t)
 
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         dydt = self.system.rhs(t, y)
@@ -343,6 +380,9 @@ class ContactEvents:
         x = np.vstack([state.x, np.zeros((1, 3))])
         rows = ContactRows(contacts, velocities, x)
         separating = rows.relative(rows.n, accelerations.v, accelerations.omega)
+        sides = np.flatnonzero(contacts.probe >= self.world.probes.count)
+        if len(sides):  # and, for sides, what the velocities alone do to the gap
+            separating[sides] += self._side_curvature(self._state(y, t), contacts.select(sides))
         # normal force per unit effective mass minus the separating acceleration: + pressing, - pulling apart
         values = result.normal_impulse / rows.w_n - np.maximum(separating, 0.0)
         slip = rows.tangential()
@@ -382,10 +422,35 @@ class ContactEvents:
         travels nothing), and that travel (K,) [m]."""
         s0, s1 = self._state(y0, t1 - h), self._state(y1, t1)
         travel = self._travel(s0, s1, h)
-        found = detect(self.world, s1, TOUCH, travel=travel)
+        found = self._detect(s1, TOUCH, travel)
         if self.resting.count and found.count:
             found = found.select(~self.resting.holds(found))
-        return found, closing_margin(self.world, found.probe, found.solid_body, 0.0, travel)
+        return found, closing_margin(found.probe_body, found.solid_body, 0.0, travel)
+
+    def _detect(self, state: Kinematics, margin: float, travel: np.ndarray | None = None) -> Contacts:
+        """:func:`detect`'s contacts of probes and, where there are rounds, of their sides (against other sides and
+        edges: the contacts beyond probes that :func:`evaluate_pairs` follows from state to state), one per pair,
+        at its nearest point, as :func:`evaluate_pairs` follows it (the search's stretch ends, two for rounds lying
+        along each other, are the fixed-step methods'). Box edges crossing edges are the fixed-step methods' alone
+        (the overlap audit names a run that needed them)."""
+        if self.world.cylinders is None:
+            return detect(self.world, state, margin, travel=travel)
+        found = detect(self.world, state, margin, travel=travel, edges=True)
+        probes = found.probe < self.world.probes.count
+        sides = np.isin(found.solid_kind, FOLLOWED_KINDS)
+        if not sides.any():
+            return found.select(probes)
+        # one name per pair, whichever end or way the search found it by: the near end's, and two rounds' sides as
+        # the lower-numbered round's against the other's
+        probe, kind, index = found.probe[sides], found.solid_kind[sides], found.solid_index[sides] // 2
+        rounds = kind == SIDE_ROUND
+        first = self.world.probes.count + 12 * self.world.boxes.count + self.world.cylinders.count
+        own, other = probe[rounds] - first, index[rounds]
+        probe[rounds], index[rounds] = first + np.minimum(own, other), np.maximum(own, other)
+        named = np.unique(np.stack([probe, kind, 2 * index]), axis=1)
+        followed = evaluate_pairs(self.world, state, *named)
+        near = followed.gap < closing_margin(followed.probe_body, followed.solid_body, margin, travel)
+        return Contacts.concatenate([found.select(probes), followed.select(near)])
 
     def _first_impact(self, solver: Any, candidates: Contacts, closing: np.ndarray) -> float | None:
         """Time of the first impact among the candidates during the solver's last step, or None; ``closing`` (K,)
@@ -408,6 +473,7 @@ class ContactEvents:
                              candidates.solid_kind[chosen], candidates.solid_index[chosen])
 
         sampled = [self._state(interpolant(t)) for t in times]
+        probes = candidates.probe < self.world.probes.count
         values = np.array([pair_gaps(self.world, state, candidates.probe, candidates.solid_kind,
                                      candidates.solid_index) for state in sampled])  # (S + 1, C)
         travel = self._sample_travel(sampled, candidates)  # (S, C)
@@ -441,8 +507,10 @@ class ContactEvents:
             # every ball to the floor): the impact is the earliest of their crossings, not the first pair's.
             brackets = [(times[k], times[k + 1], int(pair))
                         for pair in np.flatnonzero((values[k] > level) & (values[k + 1] <= level))]
-            # a thin solid may hide between samples: look for a dip below zero inside the interval
-            could = (values[k] > 0) & (values[k + 1] > 0) & (travel[k] > values[k] + values[k + 1])
+            # a thin solid may hide between samples: look for a dip below zero inside the interval (a probe's: a
+            # side against a round or an edge is a body's length, not a thin solid, and its search costs a
+            # hundred times a probe's)
+            could = (values[k] > 0) & (values[k + 1] > 0) & (travel[k] > values[k] + values[k + 1]) & probes
             brackets += self._dips(gaps, times[k], times[k + 1], could, level)
             for lower, upper, pair in brackets:
                 crossing = brentq(lambda t, p=pair: gaps(t, [p])[0] - level[p], lower, upper, xtol=1e-12,
@@ -457,20 +525,27 @@ class ContactEvents:
         change: the probe's move plus, for a solid that is a body, that body's (translation plus reach times the
         angle turned). A straight piece of path shorter than the gaps at its two ends cannot reach the solid
         (triangle inequality); probes and solids move on arcs, hence the allowance."""
-        centres = np.array([probe_centres(self.world, state)[candidates.probe] for state in sampled])  # (S+1, C, 3)
-        travel = np.linalg.norm(np.diff(centres, axis=0), axis=2)
+        def body_travel(bodies: np.ndarray) -> np.ndarray:
+            """(S, M): how far any point of each body moves between samples (translation plus reach × turn)."""
+            x = np.array([state.x[bodies] for state in sampled])  # (S+1, M, 3)
+            moved = np.linalg.norm(np.diff(x, axis=0), axis=2)
+            first = sampled[0].first_rigid
+            rigid = bodies >= first
+            if rigid.any():
+                rotations = np.array([state.rotation[bodies[rigid] - first] for state in sampled
+                                      if state.rotation is not None])  # (every state: it has rigid bodies)
+                moved[:, rigid] += self.reach[bodies[rigid]] * turn_angle(rotations[:-1], rotations[1:])
+            return moved
+
+        travel = np.zeros((len(sampled) - 1, candidates.count))
+        probes = candidates.probe < self.world.probes.count
+        centres = np.array([probe_centres(self.world, state)[candidates.probe[probes]] for state in sampled])
+        travel[:, probes] = np.linalg.norm(np.diff(centres, axis=0), axis=2)
+        if not probes.all():  # a side's contact point runs along it: bound it by its body's points
+            travel[:, ~probes] = body_travel(candidates.probe_body[~probes])
         moving = candidates.solid_body >= 0
         if moving.any():
-            solid = candidates.solid_body[moving]
-            x = np.array([state.x[solid] for state in sampled])  # (S+1, M, 3)
-            solid_travel = np.linalg.norm(np.diff(x, axis=0), axis=2)
-            first = sampled[0].first_rigid
-            rigid = solid >= first
-            if rigid.any():
-                rotations = np.array([state.rotation[solid[rigid] - first] for state in sampled
-                                      if state.rotation is not None])  # (every state: it has rigid bodies)
-                solid_travel[:, rigid] += self.reach[solid[rigid]] * turn_angle(rotations[:-1], rotations[1:])
-            travel[:, moving] += solid_travel
+            travel[:, moving] += body_travel(candidates.solid_body[moving])
         return ARC_ALLOWANCE * travel
 
     @staticmethod
@@ -512,7 +587,7 @@ class ContactEvents:
         """At an event (or the start) at time ``t`` [s]: apply impacts at touching contacts (and log them) and decide
         which contacts rest."""
         state = self._state(y, t)
-        touching = detect(self.world, state, TOUCH + self.settings.slop)
+        touching = self._detect(state, TOUCH + self.settings.slop)
         if touching.count:
             bodies = self._velocities(state)
             x = np.vstack([state.x, np.zeros((1, 3))])

@@ -16,7 +16,9 @@ rests on a line, not on a pivot. Against another round, points at its axis's end
 are probes, which hold those contacts (the other round is taken as its axis thickened, a capsule: exact along its
 side, which is all that is kept).
 
-Side contacts are fixed-step contacts (:class:`~animbatch.sim.contact.time_stepping.ContactResolver`), like box edges.
+Side contacts are found each step by the fixed-step methods (:class:`~animbatch.sim.contact.time_stepping.
+ContactResolver`), like box edges. The adaptive methods' events follow them too (:func:`side_pairs`: a contact named
+once is measured again at any state along the solver's path, for its impact time and, resting, its force).
 """
 
 from __future__ import annotations
@@ -31,7 +33,13 @@ from scipy.spatial import cKDTree
 
 from animbatch.sim.bodies import Kinematics
 from animbatch.sim.contact.contacts import SIDE_EDGE, SIDE_ROUND, STATIC, Contacts, make_contacts
-from animbatch.sim.contact.geometry import StaticColliders, round_distance, segment_distance, to_round
+from animbatch.sim.contact.geometry import (
+    StaticColliders,
+    round_distance,
+    segment_closest,
+    segment_distance,
+    to_round,
+)
 
 if TYPE_CHECKING:
     from animbatch.sim.contact.detection import ContactWorld
@@ -284,6 +292,100 @@ def build_side_kernels() -> None:
     search(f3, f3, f, f, b, i, b, i, f, i, f3, f3, i, i, i, True, 0.0, 0, np.linspace(0.0, 1.0, GRID))
 
 
+@dataclass(frozen=True, eq=False)
+class _Followed:
+    """Followed side contacts (K,) at one state: the rounds ``k`` (K,) with every round's ``centre`` and ``axis``
+    (C, 3), and the segments they meet, ``start + u along`` (K, 3), thickened by ``radius`` (K,), on ``body`` (K,)
+    of ``material`` (K,)."""
+
+    k: np.ndarray
+    centre: np.ndarray
+    axis: np.ndarray
+    start: np.ndarray
+    along: np.ndarray
+    radius: np.ndarray
+    body: np.ndarray
+    material: np.ndarray
+
+    @classmethod
+    def of(cls, world: ContactWorld, state: Kinematics, box_centres: np.ndarray, box_rotations: np.ndarray,
+           probe: np.ndarray, kind: np.ndarray, index: np.ndarray) -> _Followed:
+        rounds = world.cylinders
+        assert rounds is not None and state.rotation is not None
+        rigid = rounds.owner - state.first_rigid
+        centre = state.x[rounds.owner] + state.lever(rigid, rounds.offset)
+        axis = np.einsum("kij,kj->ki", state.rotation[rigid], rounds.axis)
+        first = world.probes.count + 12 * world.boxes.count + rounds.count
+        other, count = index // 2, len(probe)
+        start, along = np.zeros((count, 3)), np.zeros((count, 3))
+        radius, body, material = np.zeros(count), np.full(count, STATIC), np.zeros(count, np.intp)
+        sides = kind == SIDE_ROUND
+        b = other[sides]
+        start[sides] = centre[b] - rounds.half_length[b, None] * axis[b]
+        along[sides] = 2 * rounds.half_length[b, None] * axis[b]
+        radius[sides], body[sides] = rounds.radius[b], rounds.owner[b]
+        material[sides] = world.body_material[rounds.owner[b]]
+        if (~sides).any():
+            edges = edge_set(world, state, world.statics_at(state.t), box_centres, box_rotations)
+            e = other[~sides]
+            start[~sides], along[~sides] = edges.start[e], edges.end[e] - edges.start[e]
+            body[~sides], material[~sides] = edges.body[e], edges.material[e]
+        return cls(probe - first, centre, axis, start, along, radius, body, material)
+
+    def distance_at(self, world: ContactWorld) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+        """``gap(chosen, u)``: the gaps [m] of segments ``chosen`` at parameters u (as :func:`nearest_stretch`
+        takes it)."""
+        rounds = world.cylinders
+        assert rounds is not None
+
+        def gap(chosen: np.ndarray, u: np.ndarray) -> np.ndarray:
+            r = self.k[chosen]
+            return round_distance(self.start[chosen] + u[:, None] * self.along[chosen], self.centre[r],
+                                  self.axis[r], rounds.half_length[r], rounds.radius[r], rounds.rounded[r]
+                                  ) - self.radius[chosen]
+
+        return gap
+
+
+#: The gap [m] of a followed side contact between two rounds whose nearest point has reached an end of the other's
+#: axis: there the other's rim or cap probes hold the contact, and the side contact is gone (a resting one separates;
+#: a gap this large never closes within a step).
+SIDE_GONE = 1e3
+
+
+def side_pairs(world: ContactWorld, state: Kinematics, box_centres: np.ndarray, box_rotations: np.ndarray,
+               probe: np.ndarray, kind: np.ndarray, index: np.ndarray) -> Contacts:
+    """The side contacts (K,) named by ``probe``, ``kind`` (SIDE_ROUND or SIDE_EDGE) and ``index`` (as
+    :func:`side_contacts` numbers them), at ``state`` (its body boxes' centres and rotations given), however far
+    apart: for following a contact between events. Each is at the segment's point nearest the round (whatever the
+    ``index``'s end: a stretch's two ends depend on how far the search reaches, and a contact followed along a
+    solver's path must be one continuous function of the state, the same when found and when followed); two rounds'
+    whose nearest point is an end of the other's axis are :data:`SIDE_GONE` apart (:func:`side_contacts` leaves
+    those points to the probes too)."""
+    rounds = world.cylinders
+    assert rounds is not None
+    pairs = _Followed.of(world, state, box_centres, box_rotations, probe, kind, index)
+    k = pairs.k
+    # where the two axes (or the axis and the edge) come closest between their ends, the side's nearest point is
+    # theirs, in closed form: continuous in the state, as the events' root searches need (a grid's nearest point
+    # moves in steps, and the forces and mode functions with it); elsewhere (near an end, lying along each other)
+    # the grid search's
+    _, own, u = segment_closest(pairs.centre[k] - rounds.half_length[k, None] * pairs.axis[k],
+                                2 * rounds.half_length[k, None] * pairs.axis[k], pairs.start, pairs.along)
+    inside = (own > 1e-6) & (own < 1 - 1e-6) & (u > 1e-6) & (u < 1 - 1e-6)
+    if not inside.all():
+        rest = np.flatnonzero(~inside)
+        distance_at = pairs.distance_at(world)
+        u[rest] = nearest_point(lambda rows, at: distance_at(rest[rows], at), len(rest))[0]
+    points = pairs.start + u[:, None] * pairs.along
+    distance, normal = to_round(points, pairs.centre[k], pairs.axis[k], rounds.half_length[k], rounds.radius[k],
+                                rounds.rounded[k])
+    gap = distance - pairs.radius
+    gap[(kind == SIDE_ROUND) & ((u <= 1e-6) | (u >= 1 - 1e-6))] = SIDE_GONE
+    point = points - normal * (pairs.radius + 0.5 * gap)[:, None]
+    return make_contacts(world, rounds.owner[k], pairs.body, point, -normal, gap, pairs.material, probe, kind, index)
+
+
 def _touching(world: ContactWorld, k: np.ndarray, centre: np.ndarray, axis: np.ndarray, owner: np.ndarray,
               other_start: np.ndarray, other_along: np.ndarray, other_radius: np.ndarray, other_body: np.ndarray,
               other_material: np.ndarray, first: int, kind: int, index: np.ndarray, margin: float,
@@ -345,6 +447,32 @@ GRID, NEAREST_PASSES, END_PASSES = 17, 5, 4
 SHORT_STRETCH = 1e-3
 
 
+def _grid_search(gap: Callable[[np.ndarray, np.ndarray], np.ndarray]
+                 ) -> Callable[[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """``looked_at(chosen, low, high)``: parameters (N, GRID) spread over each bracket of segments ``chosen`` (N,),
+    and their gaps there."""
+    spacing = np.linspace(0.0, 1.0, GRID)
+
+    def looked_at(chosen: np.ndarray, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        u = low[:, None] + (high - low)[:, None] * spacing
+        return u, gap(np.repeat(chosen, GRID), u.ravel()).reshape(u.shape)
+
+    return looked_at
+
+
+def nearest_point(gap: Callable[[np.ndarray, np.ndarray], np.ndarray], count: int) -> tuple[np.ndarray, np.ndarray]:
+    """For ``count`` segments, each against a convex solid (``gap`` as in :func:`nearest_stretch`), the parameter
+    (K,) of each segment's point nearest its solid, to 1e-5 of the segment, and the least gap (K,) [m] there."""
+    looked_at = _grid_search(gap)
+    everyone, rows = np.arange(count), np.arange(count)
+    low, high = np.zeros(count), np.ones(count)
+    for _ in range(NEAREST_PASSES):
+        u, f = looked_at(everyone, low, high)
+        best = np.argmin(f, axis=1)
+        low, high = u[rows, np.maximum(best - 1, 0)], u[rows, np.minimum(best + 1, GRID - 1)]
+    return u[rows, best], f[rows, best]
+
+
 def nearest_stretch(gap: Callable[[np.ndarray, np.ndarray], np.ndarray], count: int, reach: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray]:
     """For ``count`` segments, each against a convex solid, where along the segment (u in [0, 1]) it comes within
@@ -354,20 +482,8 @@ def nearest_stretch(gap: Callable[[np.ndarray, np.ndarray], np.ndarray], count: 
     within ``least gap + slack`` (a tenth of the reach) are found the same way. All segments are searched at once,
     a few calls of ``gap`` in all. Returns (first, second) parameters (K,) each: the stretch's ends, or for a short
     stretch (crossing segments) its nearest point and NaN; both NaN where the segment stays out of reach."""
-    spacing = np.linspace(0.0, 1.0, GRID)
-
-    def looked_at(chosen: np.ndarray, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Parameters (N, GRID) spread over each bracket, and the gaps there."""
-        u = low[:, None] + (high - low)[:, None] * spacing
-        return u, gap(np.repeat(chosen, GRID), u.ravel()).reshape(u.shape)
-
-    everyone, rows = np.arange(count), np.arange(count)
-    low, high = np.zeros(count), np.ones(count)
-    for _ in range(NEAREST_PASSES):
-        u, f = looked_at(everyone, low, high)
-        best = np.argmin(f, axis=1)
-        low, high = u[rows, np.maximum(best - 1, 0)], u[rows, np.minimum(best + 1, GRID - 1)]
-    nearest, least = u[rows, best], f[rows, best]
+    looked_at = _grid_search(gap)
+    nearest, least = nearest_point(gap, count)
     first, second = np.full(count, np.nan), np.full(count, np.nan)
     near = np.flatnonzero(least < reach)
     if not len(near):
