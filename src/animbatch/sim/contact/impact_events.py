@@ -36,7 +36,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from animbatch.errors import SimulationError
-from animbatch.quaternion import cross
+from animbatch.quaternion import cross, from_rotation_vector, to_matrix
 from animbatch.sim.contact.contacts import SIDE_ROUND, Contacts
 from animbatch.sim.contact.detection import (
     FOLLOWED_KINDS,
@@ -344,15 +344,7 @@ class ContactEvents:
         """``state`` moved on by ``tau`` [s] at its velocities: positions by v τ, rotations by exp(τ ω)."""
         rotation = state.rotation
         if rotation is not None and state.omega is not None:
-            turn = tau * state.omega  # (B, 3): Rodrigues' rotation for each body
-            angle = np.linalg.norm(turn, axis=1)
-            axis = np.divide(turn, angle[:, None], out=np.zeros_like(turn), where=angle[:, None] > 0)
-            k = np.zeros((len(turn), 3, 3))
-            k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
-            k -= np.transpose(k, (0, 2, 1))
-            exp = (np.eye(3) + np.sin(angle)[:, None, None] * k
-                   + (1 - np.cos(angle))[:, None, None] * (k @ k))
-            rotation = exp @ rotation
+            rotation = to_matrix(from_rotation_vector(tau * state.omega)) @ rotation
         return Kinematics(state.x + tau * state.v, state.v, rotation, state.omega, state.first_rigid, state.t)
 
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
