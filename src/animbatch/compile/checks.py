@@ -52,6 +52,11 @@ def check_method(spec: SceneSpec) -> list[Problem]:
         return [(("bodies", kinematic[0], how), (
             f"rigid bodies on {how} need a fixed-step method; {spec.solver.method} is adaptive. Use "
             "solver.method: symplectic_euler or verlet (with a dt that resolves the body's motion)"))]
+    folding = [k for k, b in enumerate(spec.bodies) if getattr(b, "self_collision", None)]
+    if folding and spec.solver.method not in CONTACT_METHODS:
+        return [(("bodies", folding[0], "self_collision"), (
+            f"self-collision is applied between a fixed-step method's kick and its drift; {spec.solver.method} has "
+            f"none. Use solver.method: {', '.join(CONTACT_METHODS)}, or leave self_collision unset"))]
     moving = [k for k, c in enumerate(spec.colliders) if c.moves]
     if moving and has_contacts and adaptive:
         how = "keyframes" if spec.colliders[moving[0]].keyframes is not None else "motion"

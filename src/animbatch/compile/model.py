@@ -15,6 +15,7 @@ from animbatch.compile.forces import field_term
 from animbatch.curves import ParametricCurve, Polyline
 from animbatch.scene.schema import (
     CHARGED_FIELD_TYPES,
+    CONTACT_METHODS,
     DEFORMABLE_SPECS,
     AnchorSpec,
     ClothSpec,
@@ -25,7 +26,7 @@ from animbatch.scene.schema import (
 from animbatch.sim.forces.controllers import ControllerSetting, CurveTarget, FixedTarget, PathTarget, Target
 from animbatch.sim.joints import MotorTarget
 from animbatch.sim.joints.assembly import MotorSetting
-from animbatch.sim.model.builder import ModelBuilder, Pin
+from animbatch.sim.model.builder import ModelBuilder, Pin, SelfCollisionSetting
 from animbatch.sim.model.model import Model
 from animbatch.sim.motion import KeyframePath, KinematicBodies
 
@@ -46,7 +47,7 @@ def compile_scene(spec: SceneSpec, base_dir: str | Path = ".") -> Model:
                                                        position=body.position, velocity=body.velocity)]
     for body in spec.bodies:  # after the rigid bodies, which pins may attach to
         if isinstance(body, DEFORMABLE_SPECS):
-            handles[body.name] = list(_add_deformable(builder, body, handles, Path(base_dir)))
+            handles[body.name] = list(_add_deformable(builder, body, handles, Path(base_dir), spec))
     anchor = {a.name: builder.add_anchor(a.name, a.start, path=_anchor_path(a)) for a in spec.anchors}
     for spring in spec.springs:
         first, second = spring.between
@@ -137,7 +138,7 @@ def _anchor_path(anchor: AnchorSpec) -> KeyframePath | None:
 
 
 def _add_deformable(builder: ModelBuilder, body: ClothSpec | LatticeSpec, handles: dict[str, list[int]],
-                    base_dir: Path) -> np.ndarray:
+                    base_dir: Path, spec: SceneSpec) -> np.ndarray:
     """Add a cloth or lattice: its topology, vertex masses, pins and spring families."""
     topology = build.body_topology(body, base_dir)
     world = build.world_vertices(body, topology)
@@ -153,7 +154,22 @@ def _add_deformable(builder: ModelBuilder, body: ClothSpec | LatticeSpec, handle
         position=body.position, rotation=orientation_matrix(body.orientation),
         velocity=body.velocity, radius=body.radius, springs=build.spring_families(body),
         pins=pins, dihedral=(dihedral.stiffness, dihedral.damping) if dihedral is not None else None,
-        pressure=build.pressure_setting(body.pressure) if body.pressure is not None else None)
+        pressure=build.pressure_setting(body.pressure) if body.pressure is not None else None,
+        self_collision=_self_collision(body, spec))
+
+
+def _self_collision(body: ClothSpec | LatticeSpec, spec: SceneSpec) -> SelfCollisionSetting | None:
+    """The body's self-collision (None: off): on by default for a cloth that collides, where the method applies
+    it; its friction is its material's against itself."""
+    on = body.self_collision
+    if on is None:
+        on = isinstance(body, ClothSpec) and body.collide and spec.solver.method in CONTACT_METHODS
+    if not on:
+        return None
+    from animbatch.compile.contacts import material_table
+
+    friction = material_table(spec).pair(body.material, body.material).kinetic_friction
+    return SelfCollisionSetting(body.thickness, friction)
 
 
 def _add_joint(builder: ModelBuilder, joint: Any, handles: dict[str, list[int]], anchor: dict[str, int]) -> None:

@@ -4,7 +4,8 @@ The methods (:mod:`animbatch.sim.integrators`) know nothing of contacts: a fixed
 velocity constraint it is given between its kick and its drift, and an adaptive method stops at the events it is
 given (:class:`~animbatch.sim.integrators.interface.StepEvents`: it asks for the first event in each step, and lets the
 events act there before it restarts). This module gives them the contact ones when the model has contacts, so that
-``integrators`` never imports ``contact`` (contact code imports the integrators, one way).
+``integrators`` never imports ``contact`` (contact code imports the integrators, one way). Cloth that collides
+with itself gets its self-collision filter as a constraint too, after the contacts with solids.
 """
 
 from __future__ import annotations
@@ -12,9 +13,10 @@ from __future__ import annotations
 import numpy as np
 
 from animbatch.sim.contact.impact_events import ContactEvents
+from animbatch.sim.contact.self_collision_step import self_contact_constraint
 from animbatch.sim.contact.time_stepping import ContactResolver
 from animbatch.sim.integrators import SCIPY_METHODS, FixedStepIntegrator, Integrator, ScipyIntegrator
-from animbatch.sim.integrators.interface import EquationsOfMotion
+from animbatch.sim.integrators.interface import EquationsOfMotion, VelocityConstraint
 from animbatch.sim.joints.stops import JointStops
 from animbatch.sim.model.dynamics import Dynamics
 from animbatch.sim.model.model import Model
@@ -52,5 +54,20 @@ def integrator_for(model: Model | None, method: str, *, dt: float | None = None,
         stops = model is not None and model.joints is not None and model.joints.stopping and not contacts
         return ScipyIntegrator(method, rtol=rtol, atol=atol, max_step=max_step,
                                events=contact_events if contacts else joint_stops if stops else None)
+    folds = (model is not None and model.deformables is not None
+             and any(body.self_collision for body in model.deformables.bodies))
+    if folds:
+        return FixedStepIntegrator(method, dt=dt, constraint=contacts_and_self_contact if contacts
+                                   else self_contact_alone)
     return FixedStepIntegrator(method, dt=dt,
                                constraint=contact_constraint if contacts else None)
+
+
+def self_contact_alone(system: EquationsOfMotion) -> VelocityConstraint | None:
+    """The velocity constraint of a model whose cloth collides with itself but meets no solid."""
+    return self_contact_constraint(_dynamics(system), None)
+
+
+def contacts_and_self_contact(system: EquationsOfMotion) -> VelocityConstraint | None:
+    """Contacts with solids first, then self-collision on the velocities they leave."""
+    return self_contact_constraint(_dynamics(system), contact_constraint(system))

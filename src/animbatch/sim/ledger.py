@@ -314,18 +314,25 @@ def surface_crossings(model: Model, states: np.ndarray, times: np.ndarray) -> di
     if first is None:
         return None
     return {"first_time": first, "worst_time": worst, "pairs": most,
-            "bodies": [[bodies[a].name, bodies[b].name] for a, b in sorted(crossed)]}
+            "bodies": [[bodies[a].name, bodies[b].name] for a, b in sorted(crossed)],
+            "self_collision": [body.name for body in bodies if body.self_collision]}
 
 
 def crossing_message(surfaces: dict[str, Any]) -> str:
     """The warning for :func:`surface_crossings`' finding."""
     through = [f"'{a}' through itself" if a == b else f"'{a}' and '{b}' through each other"
                for a, b in surfaces["bodies"]]
-    return (f"{', '.join(through)} from t = {surfaces['first_time']:.4g} s ({surfaces['pairs']} triangle pairs "
-            f"crossing at t = {surfaces['worst_time']:.4g} s): cloth and lattices do not collide with their own "
-            "triangles or with each other's (see Limitations in docs/scene-format.md), so the frames from then on draw "
-            "them passing through. Give the cloth room to fall without folding onto itself (a lower drop, more "
-            "bending stiffness, cloth kept apart), or end the scene before it folds.")
+    colliding = set(surfaces.get("self_collision", ()))
+    off = sorted({name for pair in surfaces["bodies"] for name in pair} - colliding)
+    start = (f"{', '.join(through)} from t = {surfaces['first_time']:.4g} s ({surfaces['pairs']} triangle pairs "
+             f"crossing at t = {surfaces['worst_time']:.4g} s)")
+    if off:
+        return (f"{start}: {', '.join(map(repr, off))} {'has' if len(off) == 1 else 'have'} self-collision off, so "
+                "the frames from then on draw them passing through. Set self_collision: true on every cloth or "
+                "lattice that meets another or folds (with solver.method symplectic_euler, verlet or "
+                "backward_euler), or give the cloth room to fall without folding onto itself.")
+    return (f"{start}, though they collide with themselves and each other: a step too long for how fast the layers "
+            "close. Try a smaller solver.dt, or a larger thickness.")
 
 
 def orientation_drift(model: Model, states: np.ndarray) -> dict[str, Any]:
@@ -395,6 +402,12 @@ def judge(ledger: dict[str, Any]) -> list[str]:
             messages.append(Overlap(**overlap).message(method, adaptive=adaptive))
     if ledger.get("surfaces"):
         messages.append(crossing_message(ledger["surfaces"]))
+    folding = (ledger.get("work") or {}).get("bodies", {}).get("self_collision")
+    if folding and folding.get("unresolved"):
+        messages.append(
+            f"self-collision could not part every pair of the cloth's layers in {folding['unresolved']} step(s), even "
+            f"with impact zones of up to {folding['largest_zone']} vertices moving as one: those steps may pass "
+            "through. Try a smaller solver.dt, or a thickness closer to the cloth's edge length.")
     return messages
 
 
@@ -430,6 +443,8 @@ def build_ledger(model: Model, states: np.ndarray, stats: dict[str, Any], partic
         if solves and solves.get("solves") and model.contact_settings is not None:
             # how the contact impulse solves ended: those that ran out of sweeps left contacts off their targets
             work["bodies"]["contact_solves"] = {**solves, "iterations": model.contact_settings.iterations}
+        if stats.get("self_contact"):  # cloth's self-collision: what its filter did
+            work["bodies"]["self_collision"] = dict(stats["self_contact"])
     if particle_stats:
         work["particles"] = {"steps": particle_stats.get("steps", 0),
                              "rhs_evaluations": particle_stats.get("rhs_evaluations", 0),
@@ -522,6 +537,11 @@ def summary(ledger: dict[str, Any]) -> str:
         parts.append(f"contacts: {solves['unconverged']} of {solves['solves']} solves stopped short (stalled, or "
                      f"at all {solves['iterations']} iterations), leaving contacts off their targets by up to "
                      f"{_number(solves['residual'])} m/s")
+    folding = work.get("bodies", {}).get("self_collision")
+    if folding and (folding["repelled"] or folding["collisions"]):
+        zones = (f", {folding['zones']} impact zones (largest {folding['largest_zone']} vertices)" if folding["zones"]
+                 else "")
+        parts.append(f"self-collision: {folding['repelled']} repulsions, {folding['collisions']} collisions{zones}")
     if "particles" in work:
         particles = work["particles"]
         parts.append(f"particles ({method}{'' if 'bodies' in work else how}): {particles['steps']} steps, "

@@ -157,7 +157,13 @@ class _DeformableBase(SceneModel):
     radius: float | None = key(None, "Radius of each vertex for collisions (default: a quarter of the mean edge "
                                      "length).", "m", gt=0)
     material: Name = key("default", "Material, for collisions and friction.")
-    collide: bool = key(True, "Take part in collisions (its vertices never collide with each other).")
+    collide: bool = key(True, "Take part in collisions with colliders, bodies and particles.")
+    self_collision: bool | None = key(
+        None, "Its surface collides with itself and with the other self-colliding cloth and lattices, its layers "
+              "kept thickness apart (default: on for a cloth that collides, under symplectic_euler, verlet or "
+              "backward_euler; off for lattices and under other methods).")
+    thickness: float | None = key(None, "How far apart self-collision keeps its layers (default: twice the vertex "
+                                        "radius, half the mean edge length).", "m", gt=0)
     pressure: PressureSpec | None = key(None, "Pressure inside: a closed cloth (a mesh whose every edge joins two "
                                               "triangles) or a lattice, inflated or squeezed (none if not given).")
     color: Color | None = key(None, "Display colour (default: its material's colour, else from a palette, by body "

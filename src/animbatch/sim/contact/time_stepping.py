@@ -114,6 +114,10 @@ class ContactResolver:
         self.gravity = gravity_magnitude(system.terms)
         self.reach = body_reach(self.world, model.body_count)
         self.contacts_last_step = 0
+        #: Bodies of the last step's contacts (resting on a solid, or reaching it within the step) and the contacts'
+        #: normals (from the solid): the cloth's self-collision does not push these vertices into the solid.
+        self.resting = np.zeros(0, np.intp)
+        self.resting_normal = np.zeros((0, 3))
         self.impacts = ImpactLog()
         self.solves = ContactSolves()  # how the impulse solves ended (the run's ledger reports it)
         # warm starting: last step's impulses per unit time, normal (K,) and tangential vectors (K, 3), for the
@@ -225,6 +229,8 @@ class ContactResolver:
             speed = speed + self.world.moving.largest_speed(t, state.x, self.reach)
         contacts = self._search(state, travel=1.5 * h * speed)
         self.contacts_last_step = contacts.count
+        if bounce:
+            self.resting, self.resting_normal = contacts.probe_body, contacts.normal
         if not contacts.count:
             return None
         bodies, x = self._bodies(state)

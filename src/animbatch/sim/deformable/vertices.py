@@ -73,7 +73,9 @@ class VertexMap(VertexPlacement):
 @dataclass(frozen=True, eq=False)
 class DeformableBody:
     """One cloth or lattice: its vertices are ``vertices`` (a slice of the model's vertex map), ``triangles`` (T, 3)
-    and ``hinges`` (H, 4) index that map; ``kind`` is 'cloth' or 'lattice'."""
+    and ``hinges`` (H, 4) index that map; ``kind`` is 'cloth' or 'lattice'. With ``self_collision`` its surface
+    collides with itself and with the other such bodies' (:mod:`~animbatch.sim.deformable.self_collision`), its
+    layers kept ``thickness`` [m] apart, sliding with Coulomb's ``friction``."""
 
     name: str
     kind: str
@@ -81,6 +83,9 @@ class DeformableBody:
     triangles: np.ndarray
     hinges: np.ndarray
     radius: float
+    self_collision: bool = False
+    thickness: float = 0.0
+    friction: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)

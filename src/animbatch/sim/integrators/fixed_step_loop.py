@@ -84,6 +84,8 @@ class FixedStepIntegrator(Integrator):
         if scheme.constraint is not None:  # contacts log their impacts, and how their solves ended
             stats.impacts = scheme.constraint.impacts.as_list()
             stats.contact_solves = scheme.constraint.solves
+            totals = getattr(scheme.constraint, "totals", None)  # self-collision's counters
+            stats.self_contact = dict(totals) if totals is not None else None
         stats.dt = largest_step or None
         if len(times) > 1:
             stats.substeps_per_frame = substeps(float(times[1] - times[0]), dt)

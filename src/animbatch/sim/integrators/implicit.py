@@ -47,7 +47,8 @@ The price is numerical damping (energy is lost at a rate that grows with ``h ω`
   leaves out the curve's turn, a step is halved at most ``APPROXIMATE_HALVINGS`` times: what is left are rises of
   O(h²) of either sign (a bead on a circular wire at one step per frame stays at or below its starting energy at
   every frame; halving ten times over made its 4 s loop take a minute). Not in scenes with contacts either, whose
-  position corrections do not keep energy accounts.
+  position corrections do not keep energy accounts; cloth's self-collision alone is guarded in the steps where its
+  filter changes no velocity (a Newton correction passes through the filter again, as the step did).
 """
 
 from __future__ import annotations
@@ -152,7 +153,8 @@ class BackwardEuler(PartitionedScheme):
         residual = self._mass_diagonal * (motion[:size] - start_motion[:size] - h * rate[:size])
         motion[:size] -= factors.solve(residual)
         config[...] = start_config
-        system.drift(config, motion, h)
+        drifting = self.constraint.resolve(config, motion, h, t=t) if self.constraint is not None else None
+        system.drift(config, motion if drifting is None else drifting, h)
         system.project(y, t=t + h)
 
     def _singular(self, t: float, h: float) -> SimulationError:
@@ -176,7 +178,8 @@ class BackwardEuler(PartitionedScheme):
             "and damping (or the bodies physical masses)", time=t, body=springs.names[k])
 
     def step(self, t: float, y: np.ndarray, h: float) -> None:
-        if self.guard_energy and self.constraint is None:  # impacts change the energy by design
+        # impacts change the energy by design; self-collision alone only in the steps where it acts (below)
+        if self.guard_energy and (self.constraint is None or getattr(self.constraint, "guards_energy", False)):
             self._guarded_step(t, y, h, 0)
         else:
             self._plain_step(t, y, h)
@@ -191,6 +194,8 @@ class BackwardEuler(PartitionedScheme):
         energy, scale = self.system.energy(t, *self.system.split(y))
         self._plain_step(t, y, h)
         for correction in range(NEWTON_CORRECTIONS + 1):
+            if getattr(self.constraint, "acted", False):  # self-collision's impulses: a collision, not a gain
+                return
             after, after_scale = self.system.energy(t + h, *self.system.split(y))
             if after <= energy + max(ENERGY_TOLERANCE * max(scale, after_scale), self.energy_floor):
                 return

@@ -107,7 +107,7 @@ class VelocityConstraint(Protocol):
 
 
 #: (equations of motion) -> the constraint for them; how a fixed-step integrator is told about contacts.
-ConstraintFactory = Callable[[EquationsOfMotion], VelocityConstraint]
+ConstraintFactory = Callable[[EquationsOfMotion], VelocityConstraint | None]
 
 
 class StepEvents(Protocol):
@@ -171,6 +171,9 @@ class SolverStats:
     wall_time: float = 0.0  # [s]
     impacts: list[tuple[float, int]] = field(default_factory=list)  # (time [s], body index) of bounces, in order
     contact_solves: ContactSolves | None = None  # fixed-step methods with contacts: how their impulse solves ended
+    #: cloth's self-collision: repulsions, collisions, passes, impact zones, the largest zone [vertices], and the
+    #: steps that could not part every pair (animbatch.sim.deformable.self_collision.COUNTERS)
+    self_contact: dict[str, int] | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -191,6 +194,10 @@ class SolverStats:
             values = [v for v in (getattr(self, name), getattr(part, name)) if v is not None]
             setattr(self, name, pick(values) if values else None)
         self.impacts = list(self.impacts) + list(part.impacts)
+        if part.self_contact is not None:
+            mine = self.self_contact or dict.fromkeys(part.self_contact, 0)
+            self.self_contact = {name: max(mine[name], count) if name == "largest_zone" else mine[name] + count
+                                 for name, count in part.self_contact.items()}
         if part.contact_solves is not None:
             if self.contact_solves is None:
                 self.contact_solves = ContactSolves()

@@ -117,6 +117,16 @@ class _Deformable:
     radius: float
     dihedral: tuple[float, float] | None
     pressure: PressureSetting | None = None
+    self_collision: SelfCollisionSetting | None = None
+
+
+@dataclass(frozen=True)
+class SelfCollisionSetting:
+    """A body's self-collision: its layers kept ``thickness`` [m] apart (None: twice its vertex radius), sliding on
+    each other with Coulomb's ``friction``."""
+
+    thickness: float | None = None
+    friction: float = 0.0
 
 
 class ModelBuilder:
@@ -247,11 +257,12 @@ class ModelBuilder:
                        velocity: Sequence[float] = (0.0, 0.0, 0.0), radius: float | None = None,
                        springs: dict[str, tuple[float, float]] | None = None, pins: Sequence[Pin] = (),
                        dihedral: tuple[float, float] | None = None,
-                       pressure: PressureSetting | None = None) -> np.ndarray:
+                       pressure: PressureSetting | None = None,
+                       self_collision: SelfCollisionSetting | None = None) -> np.ndarray:
         """Add a cloth or lattice (``kind``) from its ``topology``, placed by ``rotation`` (3, 3) and ``position``
         [m]; ``masses`` (V,) [kg]; ``springs``: family -> (ks [N/m], kd [N·s/m]); ``dihedral``: (k [N·m/rad],
-        c [N·m·s/rad]); ``pressure`` inside its closed surface. Pinned vertices become anchors or body points; the
-        others particles ``name[k]``.
+        c [N·m·s/rad]); ``pressure`` inside its closed surface; ``self_collision`` (None: off). Pinned vertices
+        become anchors or body points; the others particles ``name[k]``.
 
         Returns the handles of its free vertices (the particles), for fields and selections. Rigid bodies that pins
         attach to must be added first.
@@ -281,7 +292,7 @@ class ModelBuilder:
                                      names=[f"{name}[{k}]" for k in free], owner=name)
         vertex_ref[free] = handles
         self._deformables.append(_Deformable(name, kind, topology, world, vertex_kind, vertex_ref, radius, dihedral,
-                                             pressure))
+                                             pressure, self_collision))
         for family, (stiffness, damping) in (springs or {}).items():
             self._add_mesh_springs(self._deformables[-1], family, topology.springs[family], stiffness, damping)
         return handles
@@ -538,9 +549,13 @@ class ModelBuilder:
             kinds.append(body.vertex_kind)
             indices.append(index)
             offsets.append(offset)
+            setting = body.self_collision
+            thickness = 0.0 if setting is None else (setting.thickness if setting.thickness is not None
+                                                     else 2 * body.radius)
             records.append(DeformableBody(body.name, body.kind, slice(start, start + count),
                                           body.topology.triangles + start, body.topology.hinges + start,
-                                          body.radius))
+                                          body.radius, setting is not None, thickness,
+                                          0.0 if setting is None else setting.friction))
             start += count
         vertex_map = VertexMap(np.concatenate(kinds), np.concatenate(indices), np.concatenate(offsets),
                                first_rigid=n, point_count=point_count)
