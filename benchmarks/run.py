@@ -43,8 +43,12 @@ Prints one table. Measures:
 
 14. grading: ``animbatch grade`` of each teaching template against itself (both runs and every check).
 
+15. self-collision: the 48×48 ``cloth_heap`` and ``pole_wrap`` scenes with and without it, wall time and the most
+    triangle pairs crossing in any frame.
+
 Options: ``--quick`` (smaller sizes, for a smoke run), ``--only NAME`` (particles, ivp, rigid, contacts, render,
-encode, cloth, fountain, lean, farm, ledger, joints, startup, stream, pool, export, peers, grade),
+encode, cloth, fountain, lean, farm, ledger, joints, startup, stream, pool, export, peers, grade,
+self_collision),
 ``--budget SECONDS`` (per cloth method, default 900; 60 with --quick),
 ``--cloth-method NAME`` (only the cloth methods whose label starts with NAME, e.g. ``BDF``; repeatable),
 ``--json FILE`` (also write the rows as JSON).
@@ -752,6 +756,34 @@ study: {rtols: [1.0e-6]}
 """
 
 
+def bench_self_collision(quick: bool) -> list[Row]:
+    """The bundled 48×48 cloth_heap and pole_wrap scenes simulated with and without self-collision in the same
+    run: wall time, and the most triangle pairs crossing in any frame (0 with self-collision, the issue's target)."""
+    import warnings
+
+    from animbatch import api
+
+    rows: list[Row] = []
+    root = Path(__file__).resolve().parent.parent / "scenes"
+    for name, duration in (("cloth_heap", 0.6 if quick else 3.0), ("pole_wrap", 0.5 if quick else 1.0)):
+        for on in (True, False):
+            changes = [f"duration={duration}", f"bodies[0].self_collision={str(on).lower()}"]
+            api.simulate(root / f"{name}.yaml", set=[*changes[:1], "duration=0.1", changes[1]])  # kernels loaded
+            print(f"  self-collision: {name} {'on' if on else 'off'} …", file=sys.stderr, flush=True)
+            started = time.perf_counter()
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                trajectory = api.simulate(root / f"{name}.yaml", set=changes)
+            wall = time.perf_counter() - started
+            surfaces = trajectory.ledger.get("surfaces") or {}
+            label = f"{name} 48×48, {duration:g} s, backward_euler dt 2 ms"
+            case = f"self-collision {'on' if on else 'off'}"
+            rows += [{"benchmark": label, "case": f"{case}: wall time", "value": wall, "unit": "s"},
+                     {"benchmark": label, "case": f"{case}: most triangle pairs crossing in a frame (target 0 on)",
+                      "value": surfaces.get("pairs", 0), "unit": "pairs"}]
+    return rows
+
+
 def bench_lean(quick: bool) -> list[Row]:
     """Right-hand-side cost of a 32×32 cloth, alone and with things of other kinds that act on nothing in it (an
     unused fixed and keyframed anchor, a material, an emitter, study settings): only what the scene calls for is
@@ -1134,7 +1166,7 @@ BENCHMARKS = {"particles": bench_particles, "ivp": bench_ivp, "rigid": bench_rig
               "render": bench_render, "encode": bench_encode, "cloth": bench_cloth, "fountain": bench_fountain,
               "lean": bench_lean, "farm": bench_farm, "ledger": bench_ledger, "joints": bench_joints,
               "startup": bench_startup, "stream": bench_stream, "pool": bench_pool, "export": bench_export,
-              "peers": bench_peers, "grade": bench_grade}
+              "peers": bench_peers, "grade": bench_grade, "self_collision": bench_self_collision}
 
 
 def main() -> int:
