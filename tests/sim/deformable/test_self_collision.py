@@ -197,3 +197,26 @@ def test_self_collision_asked_of_a_method_that_cannot_apply_it_is_refused_at_its
     message = str(caught.value)
     assert "bodies[0].self_collision" in message and "backward_euler" in message
     api.load(scene(text.replace("    self_collision: true\n", "")))
+
+
+def test_a_spread_out_sheet_is_a_height_field_and_a_folded_or_coiled_one_is_not():
+    """The shortcut that skips the search must only take sheets that cannot meet themselves: a rippling sheet is a
+    height field; one folded over (normals turned round) is not; nor is a strip coiled one and a tenth turns up a
+    ramp, whose normals all face up but whose border, seen from above, crosses itself."""
+    from animbatch.sim.deformable.self_collision import height_field, open_edges
+
+    sheet = grid((1.0, 1.0), (24, 24))
+    border = open_edges(sheet.triangles)
+    rippled = sheet.vertices + np.stack([0 * sheet.vertices[:, 0], 0 * sheet.vertices[:, 0],
+                                         0.05 * np.sin(6 * sheet.vertices[:, 0])], axis=1)
+    assert height_field(rippled, sheet.triangles, border)
+    folded = sheet.vertices.copy()
+    over = folded[:, 0] > 0.2  # folded back over x = 0.2, 1 cm above
+    folded[over, 0], folded[over, 2] = 0.4 - folded[over, 0], 0.01
+    assert not height_field(folded, sheet.triangles, border)
+    strip = grid((1.0, 0.1), (60, 4))
+    angle = (strip.vertices[:, 0] + 0.5) * 2.2 * np.pi
+    radius = 0.3 + strip.vertices[:, 1]
+    coiled = np.stack([radius * np.cos(angle), radius * np.sin(angle), 0.02 * angle], axis=1)
+    assert not height_field(coiled, strip.triangles, open_edges(strip.triangles))
+    assert height_field(strip.vertices, strip.triangles, open_edges(strip.triangles))

@@ -68,7 +68,7 @@ class SelfContact:
     system: Any  # the model's Dynamics
     surfaces: SelfCollisionSet
     inner: VelocityConstraint | None = None
-    totals: dict[str, int] = field(default_factory=lambda: dict.fromkeys(COUNTERS, 0))
+    totals: dict[str, int] = field(default_factory=lambda: dict.fromkeys((*COUNTERS, "spread_out"), 0))
     acted: bool = False
     _solves: ContactSolves = field(default_factory=ContactSolves)
 
@@ -132,6 +132,9 @@ class SelfContact:
         travel = h * float(np.sqrt((v * v).sum(axis=1)).max()) if len(v) else 0.0
         if not (np.isfinite(travel) and np.all(np.isfinite(x))) or travel > DIVERGED * surfaces.cell:
             return drifting  # a state running away: the divergence checks stop the run and name what ran away
+        if surfaces.spread_out(x, x + h * v):  # a sheet spread out cannot meet itself: no search this step
+            self.totals["spread_out"] += 1
+            return drifting
         # a step that sweeps vertices across many cells takes larger ones, so that each box covers a few of them
         cell = max(surfaces.cell, travel / 4)
         stats = self._filter(x, v, inverse_mass, surfaces.thickness, surfaces.friction, surfaces.triangles,
