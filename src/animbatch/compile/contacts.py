@@ -18,6 +18,7 @@ What each body contributes (all in body axes from its centre of mass):
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -228,13 +229,23 @@ def build_contact_world(spec: SceneSpec, model: Any, centres: dict[str, np.ndarr
         statics, table, np.array([table.index(by_name[n].material) for n in owner_names], np.intp),
         np.array([by_name[n].collide for n in owner_names], bool),
         settings.bodies, triangle_groups(statics, moving),
-        np.array([deformable_names.index(n) if n in deformable_names else -1 for n in owner_names], np.intp),
+        _vertex_groups(model, owner_names, deformable_names),
         sources, tuple(model.body_names), np.asarray(model.bodies.mass, float), _jointed_pairs(model),
         moving,
         BodyCylinders(*(np.array([c[k] for c in rounds], (np.intp, float, float, float, float, bool)[k])
                         for k in range(6))) if rounds else None,
         tuple(hulls))
     return world, ContactSettings(settings.iterations, settings.rest_speed, settings.slop)
+
+
+def _vertex_groups(model: Any, owner_names: Sequence[str], deformable_names: list[str]) -> np.ndarray:
+    """Each point's contact group (−1: none): the vertices of one cloth or lattice are one group, whose vertex
+    spheres never collide with each other; so are all the bodies with self-collision, whose surfaces meet through
+    it (a thickness apart) rather than through their vertex spheres."""
+    folding = ({body.name for body in model.deformables.bodies if body.self_collision}
+               if model.deformables is not None else set())
+    return np.array([len(deformable_names) if n in folding else deformable_names.index(n)
+                     if n in deformable_names else -1 for n in owner_names], np.intp)
 
 
 def _jointed_pairs(model: Any) -> np.ndarray | None:
