@@ -10,8 +10,7 @@ import pytest
 from animbatch import api
 from animbatch.errors import SceneError
 from animbatch.sim.deformable.intersections import crossing_pairs
-from animbatch.sim.deformable.self_collision import surface_edges
-from animbatch.sim.deformable.topology import grid
+from animbatch.sim.deformable.topology import grid, unique_edges
 from animbatch.sim.kernels import self_contact
 from support.scenes import scene
 
@@ -23,7 +22,7 @@ def _filter(x, v, w, triangles, thickness=0.01, friction=0.0, h=0.01, cell=0.05)
     v = np.array(v, float)
     stats = self_contact.filter_velocities(np.asarray(x, float), v, np.asarray(w, float), np.full(n, thickness),
                                            np.full(n, friction), np.asarray(triangles, np.int64),
-                                           surface_edges(np.asarray(triangles)), h, cell)
+                                           unique_edges(np.asarray(triangles)).astype(np.int64), h, cell)
     return v, dict(zip(self_contact.STATS, stats))
 
 
@@ -205,7 +204,8 @@ def test_a_spread_out_sheet_is_a_height_field_and_a_folded_or_coiled_one_is_not(
     """The shortcut that skips the search must only take sheets that cannot meet themselves: a rippling sheet is a
     height field; one folded over (normals turned round) is not; nor is a strip coiled one and a tenth turns up a
     ramp, whose normals all face up but whose border, seen from above, crosses itself."""
-    from animbatch.sim.deformable.self_collision import height_field, open_edges
+    from animbatch.sim.deformable.self_collision import height_field
+    from animbatch.sim.deformable.topology import open_edges
 
     sheet = grid((1.0, 1.0), (24, 24))
     border = open_edges(sheet.triangles)
@@ -222,3 +222,19 @@ def test_a_spread_out_sheet_is_a_height_field_and_a_folded_or_coiled_one_is_not(
     coiled = np.stack([radius * np.cos(angle), radius * np.sin(angle), 0.02 * angle], axis=1)
     assert not height_field(coiled, strip.triangles, open_edges(strip.triangles))
     assert height_field(strip.vertices, strip.triangles, open_edges(strip.triangles))
+
+
+def test_the_counters_are_named_as_the_kernel_returns_them():
+    """The constraint names the kernel's counters without importing numba at start-up: the two lists agree."""
+    from animbatch.sim.contact.self_collision_step import COUNTERS
+
+    assert COUNTERS == self_contact.STATS
+
+
+def test_without_compiled_kernels_self_collision_is_off_and_a_warning_says_so(monkeypatch):
+    """ANIMBATCH_KERNELS=numpy: the cloth runs without self-collision (it would take seconds a step in Python), and
+    the run says so, naming the cloth; the crossing audit still reports a pass-through."""
+    monkeypatch.setenv("ANIMBATCH_KERNELS", "numpy")
+    with pytest.warns(RuntimeWarning, match="self-collision of 'sheet' needs its compiled kernels"):
+        trajectory = api.simulate(scene(HEADER.format(duration=0.1, dt=0.002) + POLE_SHEET.format(n=6, on="true")))
+    assert "self_collision" not in trajectory.ledger["work"]["bodies"]

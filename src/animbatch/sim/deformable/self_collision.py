@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from animbatch.sim.deformable.topology import open_edges, unique_edges
 from animbatch.sim.deformable.vertices import DeformableSet
 
 
@@ -59,7 +60,7 @@ class SelfCollisionSet:
         local = np.full(deformables.vertex_map.count, -1, np.int64)
         local[vertices] = np.arange(len(vertices))
         triangles = local[np.concatenate([body.triangles for body in chosen])]
-        edges = surface_edges(triangles)
+        edges = unique_edges(triangles)
         thickness = np.concatenate([np.full(body.vertices.stop - body.vertices.start, body.thickness)
                                     for body in chosen])
         friction = np.concatenate([np.full(body.vertices.stop - body.vertices.start, body.friction)
@@ -69,24 +70,7 @@ class SelfCollisionSet:
         # cells about an edge long hold a handful of primitives each; never thinner than the thickness they search
         cell = max(float(np.median(lengths)) if len(lengths) else 0.0, 2 * float(thickness.max()), 1e-6)
         return cls(vertices, triangles.astype(np.int64), edges.astype(np.int64), thickness, friction, cell,
-                   tuple(body.name for body in chosen), open_edges(triangles))
-
-
-def surface_edges(triangles: np.ndarray) -> np.ndarray:
-    """The distinct edges (E, 2) of ``triangles`` (T, 3), each once with its lower vertex first."""
-    if not len(triangles):
-        return np.zeros((0, 2), np.int64)
-    edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
-    return np.unique(edges, axis=0)
-
-
-def open_edges(triangles: np.ndarray) -> np.ndarray:
-    """The edges (B, 2) that only one of ``triangles`` (T, 3) has: a sheet's border (none for a closed surface)."""
-    if not len(triangles):
-        return np.zeros((0, 2), np.int64)
-    edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
-    distinct, counts = np.unique(edges, axis=0, return_counts=True)
-    return distinct[counts == 1].astype(np.int64)
+                   tuple(body.name for body in chosen), open_edges(triangles).astype(np.int64))
 
 
 #: Every triangle's normal within this angle [rad] of the sheet's mean normal makes it a height field (below 90°,

@@ -101,6 +101,14 @@ def unique_edges(triangles: np.ndarray) -> np.ndarray:
     return np.unique(edges, axis=0)
 
 
+def open_edges(triangles: np.ndarray) -> np.ndarray:
+    """The edges (B, 2) that only one of ``triangles`` (T, 3) has, as sorted vertex pairs: a sheet's border (none
+    for a closed surface)."""
+    edges = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    distinct, counts = np.unique(edges, axis=0, return_counts=True)
+    return distinct[counts == 1]
+
+
 def hinges(triangles: np.ndarray) -> np.ndarray:
     """``[a, b, c, d]`` for every edge ``a–b`` shared by exactly two triangles, ``c`` opposite it in the first and
     ``d`` in the second; ``a, b`` follow the first triangle's winding. Edges of three or more triangles (non-manifold)
