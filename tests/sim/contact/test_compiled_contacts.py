@@ -18,73 +18,16 @@ from animbatch.stages import parse_scene
 
 pytest.importorskip("numba", reason="numba is not installed: numpy finds every contact")
 from animbatch.sim.kernels import probe_search  # noqa: E402  (needs numba)
-
-PRISM = [(-0.5, 0, -0.1), (-0.5, 0, 0.1), (-0.5, 0.2, 0), (0.5, 0, -0.1), (0.5, 0, 0.1), (0.5, 0.2, 0)]
-PRISM_FACES = [(1, 2, 3), (4, 6, 5), (1, 4, 5), (1, 5, 2), (2, 5, 6), (2, 6, 3), (3, 6, 4), (3, 4, 1)]
-TURNED_X, TURNED_Z = "{axis: [1, 0, 0], angle: 45}", "{axis: [0, 0, 1], angle: 45}"
-REST = 2 * 0.1 * np.sqrt(2)  # a 0.2 m square beam turned 45° lying across a ridge turned 45°: centre height
+from support.polyhedra import jittered_states, polyhedra_model, searched  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def polyhedra(tmp_path_factory):
-    """A model whose polyhedra touch edge on edge in every way the search knows, side by side: a beam across a fixed
-    ridge, a beam across a ridge body, a plank across a plank face on face, a prism ridge on ridge, and a box
-    on a gem."""
-    folder = tmp_path_factory.mktemp("meshes")
-    prism = folder / "prism.obj"
-    prism.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in PRISM)
-                     + "".join(f"f {a} {b} {c}\n" for a, b, c in PRISM_FACES))
-    beam = "type: rigid, shape: {type: box, size: [1.0, 0.2, 0.2]}, density: 500"
-    text = f"""
-        duration: 0.1
-        fps: 10
-        bodies:
-          - {{name: beam1, {beam}, position: [0, {REST - 0.002}, 0], orientation: {TURNED_X}}}
-          - {{name: ridge, type: rigid, shape: {{type: box, size: [0.2, 0.2, 1.0]}}, density: 500,
-              position: [3, 0, 0], orientation: {TURNED_Z}}}
-          - {{name: beam2, {beam}, position: [3, {REST - 0.001}, 0], orientation: {TURNED_X}}}
-          - {{name: low, type: rigid, shape: {{type: box, size: [1.0, 0.1, 0.2]}}, density: 500, position: [6, 0, 0]}}
-          - {{name: high, type: rigid, shape: {{type: box, size: [0.2, 0.1, 1.0]}}, density: 500,
-              position: [6, 0.099, 0]}}
-          - {{name: prism1, type: rigid, shape: {{type: mesh, file: prism.obj}}, density: 500,
-              position: [9, 0, 0], orientation: {{axis: [0, 1, 0], angle: 90}}}}
-          - {{name: prism2, type: rigid, shape: {{type: mesh, file: prism.obj}}, density: 500,
-              position: [9, {0.2 + 2 / 3 * 0.2 - 0.002}, 0], orientation: {{axis: [1, 0, 0], angle: 180}}}}
-          - {{name: gem, type: rigid, shape: {{type: mesh, file: prism.obj}}, density: 2600, position: [12, 0, 0]}}
-          - {{name: cube, type: rigid, shape: {{type: box, size: [0.2, 0.2, 0.2]}}, density: 500,
-              position: [12, 0.33, 0], orientation: {TURNED_X}}}
-        colliders:
-          - {{type: box, position: [0, 0, 0], size: [0.2, 0.2, 1.0], orientation: {TURNED_Z}}}
-        contacts: {{}}
-        """
-    loaded = parse_scene(textwrap.dedent(text), filename="polyhedra.yaml", path=folder / "polyhedra.yaml")
-    return compile_scene(loaded.spec, folder)
-
-
-def _states(model, count: int, scale: float) -> list[np.ndarray]:
-    """The start and states near it (positions and orientations jittered by about ``scale``), normalised."""
-    rng = np.random.default_rng(11)
-    found = [model.y0.copy()]
-    system = Dynamics(model)
-    for _ in range(count - 1):
-        y = model.y0 + scale * rng.normal(size=model.y0.shape)
-        system.project(y, joints=False)
-        found.append(y)
-    return found
-
-
-def _searched(model, y: np.ndarray, search) -> Contacts:
-    """What one of the searches that take the box poses (edges, sides) finds at state ``y``: margin 1 mm, every body
-    travelling 2 mm."""
-    system = Dynamics(model)
-    state = system.kinematics(*system.split(np.array(y, float)), t=0.0, copy=True)
-    world = model.contact_world
-    centres, rotations = body_box_poses(world, state)
-    return search(world, state, world.statics_at(0.0), centres, rotations, 0.001, np.full(model.body_count, 0.002))
+    return polyhedra_model(tmp_path_factory.mktemp("meshes"))
 
 
 def _edge_contacts(model, y: np.ndarray, compiled: bool) -> Contacts:
-    return _searched(model, y, hulls.compiled_edge_contacts if compiled else hulls.edge_contacts)
+    return searched(model, y, hulls.compiled_edge_contacts if compiled else hulls.edge_contacts)
 
 
 def _same(numpy_found: Contacts, compiled_found: Contacts) -> None:
@@ -102,7 +45,7 @@ def test_crossing_edges_are_the_numpy_ones(polyhedra):
     touching: the same contacts in the same order."""
     found = 0
     kinds = set()
-    for y in _states(polyhedra, 60, 0.004):
+    for y in jittered_states(polyhedra, 60, 0.004):
         numpy_found = _edge_contacts(polyhedra, y, compiled=False)
         _same(numpy_found, _edge_contacts(polyhedra, y, compiled=True))
         found += numpy_found.count
@@ -121,7 +64,7 @@ def test_the_kernel_constants_are_the_numpy_ones():
 def test_a_mutated_kernel_is_caught(polyhedra, monkeypatch):
     """The comparison can fail: a kernel whose normals point the wrong way, or that loses a contact, is caught."""
     original = hulls.compiled_edge_contacts
-    y = _states(polyhedra, 1, 0.0)[0]
+    y = jittered_states(polyhedra, 1, 0.0)[0]
     assert _edge_contacts(polyhedra, y, compiled=False).count
 
     def flipped(*args):
@@ -195,7 +138,7 @@ def test_probe_contacts_are_the_numpy_ones(touching):
     """Every contact of a step's search, at 40 states near touching: the same set (the order of the parts differs,
     and the contact solver does not depend on it)."""
     kinds = set()
-    for y in _states(touching, 40, 0.003):
+    for y in jittered_states(touching, 40, 0.003):
         numpy_found = _found(touching, y, compiled=False)
         _same(numpy_found, _found(touching, y, compiled=True))
         kinds |= set(numpy_found.solid_kind.tolist())
@@ -287,7 +230,7 @@ SIDES = """
 def _sides(model, y: np.ndarray, compiled: bool) -> Contacts:
     from animbatch.sim.contact import sides
 
-    found = _searched(model, y, sides.compiled_side_contacts if compiled else sides.side_contacts)
+    found = searched(model, y, sides.compiled_side_contacts if compiled else sides.side_contacts)
     return found.select(np.argsort(contact_codes(found), kind="stable"))
 
 
@@ -295,7 +238,7 @@ def test_round_sides_are_the_numpy_ones():
     """Side contacts at 40 states near touching: the same set (rods crossed, on edges, side by side)."""
     model = compile_scene(parse_scene(textwrap.dedent(SIDES), filename="sides.yaml").spec)
     found, kinds, stretches = 0, set(), 0
-    for y in _states(model, 40, 0.002):
+    for y in jittered_states(model, 40, 0.002):
         numpy_found = _sides(model, y, compiled=False)
         _same(numpy_found, _sides(model, y, compiled=True))
         found += numpy_found.count
@@ -707,7 +650,7 @@ def test_the_edges_placed_each_step_are_edge_sets(scene, polyhedra):
     if scene == "sides apart":
         world = dataclasses.replace(world, bodies_collide=False)
     assert world.boxes.count and (world.hulls or scene != "polyhedra")
-    for y in _states(model, 5, 0.01):
+    for y in jittered_states(model, 5, 0.01):
         state = system.kinematics(*system.split(np.array(y, float)), t=0.0, copy=True)
         centres, rotations = body_box_poses(world, state)
         expected = sides.edge_set(world, state, world.statics_at(0.0), centres, rotations)
