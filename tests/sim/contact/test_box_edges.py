@@ -1,5 +1,6 @@
 """Boxes touching edge to edge (issue 22): a beam laid crosswise on a ridge rests on it, whether the ridge is a fixed
-collider or a body, where corner probes alone let it fall through; and the edge contact's geometry."""
+collider or a body, where corner probes alone let it fall through; the edge contact's geometry; and the adaptive
+methods' events following an edge pair from state to state (issue 41) as the search finds it, and beyond."""
 
 from __future__ import annotations
 
@@ -12,7 +13,11 @@ from animbatch import api
 from animbatch.errors import AccuracyWarning
 from animbatch.scene.orientation import orientation_matrix
 from animbatch.scene.schema import OrientationSpec
-from animbatch.sim.contact.hulls import BodyHull, hull_edge_contact
+from animbatch.sim.contact import hulls
+from animbatch.sim.contact.detection import body_box_poses
+from animbatch.sim.contact.hulls import EDGE_GONE, BodyHull, edge_pairs, hull_edge_contact
+from animbatch.sim.model.dynamics import Dynamics
+from support.polyhedra import jittered_states, polyhedra_model, searched
 from support.scenes import scene
 
 TURNED = "{axis: [0, 0, 1], angle: 45}"
@@ -92,3 +97,48 @@ def test_a_plank_laid_across_another_face_on_face_rests_on_it():
     assert trajectory.positions[:, 1, 1].min() > 0.15 - 1e-3
     assert trajectory.positions[-1, 1, 1] == pytest.approx(0.15, abs=5e-4)
     np.testing.assert_allclose(trajectory.orientations[-1, 1], [1, 0, 0, 0], atol=1e-6)  # level, not tipped
+
+
+def test_edge_pairs_followed_between_events_are_the_contacts_the_search_finds(tmp_path):
+    """Every kind of edge pair (a beam across a fixed ridge and across a ridge body, planks face on face, prisms ridge
+    on ridge, a box on a gem), at 30 states near touching: named as the search names them, the followed pairs have
+    the search's bodies, gaps, normals and points, to round-off."""
+    model = polyhedra_model(tmp_path)
+    system, world = Dynamics(model), model.contact_world
+    kinds = set()
+    for y in jittered_states(model, 30, 0.004):
+        found = searched(model, y, hulls.edge_contacts)
+        state = system.kinematics(*system.split(y), t=0.0, copy=True)
+        followed = edge_pairs(world, state, *body_box_poses(world, state), found.probe, found.solid_kind,
+                              found.solid_index)
+        for name in ("probe_body", "solid_body", "gap", "normal", "point", "kinetic_friction"):
+            np.testing.assert_allclose(getattr(followed, name), getattr(found, name), rtol=0, atol=1e-12,
+                                       err_msg=name)
+        kinds |= set(found.solid_kind.tolist())
+    assert kinds == {hulls.STATIC_EDGE, hulls.BODY_EDGE, hulls.HULL_EDGE}
+
+
+def test_an_edge_pair_is_followed_deep_into_the_ridge_and_is_gone_past_an_edge_s_end(tmp_path):
+    """The beam on the fixed ridge, lowered by d: the followed pair's gap is its start's less d all the way down to
+    the ridge's middle (the lines' distance, closed form), so an event sees where a beam that went into the ridge
+    within one step struck; slid along until the crossing leaves the ridge's edge, the pair is gone (a corner probe
+    holds the contact there)."""
+    model = polyhedra_model(tmp_path)
+    system, world = Dynamics(model), model.contact_world
+    start = searched(model, model.y0, hulls.edge_contacts)
+    pair = start.select(start.solid_kind == hulls.STATIC_EDGE)
+    assert pair.count == 1
+    lifted = pair.gap[0]  # the beam starts 2 mm into the ridge
+    assert lifted == pytest.approx(-0.002, abs=1e-12)
+
+    def followed(shift: np.ndarray) -> float:
+        y = model.y0.copy()
+        y[0:3] += shift  # the beam is body 0: its position comes first
+        state = system.kinematics(*system.split(y), t=0.0, copy=True)
+        return edge_pairs(world, state, *body_box_poses(world, state), pair.probe, pair.solid_kind,
+                          pair.solid_index).gap[0]
+
+    for depth in (0.01, 0.1, 0.28):
+        assert followed(np.array([0.0, -depth, 0.0])) == pytest.approx(lifted - depth, abs=1e-12)
+    assert followed(np.array([0.0, 0.0, 0.49])) == pytest.approx(lifted)  # the ridge is 1 m long along z
+    assert followed(np.array([0.0, 0.0, 0.51])) == EDGE_GONE

@@ -16,8 +16,7 @@ Only frame times are looked at, so the cost is a few contact detections per fram
 
 At the frames, the contacts that probes miss are measured too: box and hull edges crossing edges, cylinders' rims on
 planes, and the sides of rods, cylinders and capsules (:mod:`animbatch.sim.contact.sides`). The fixed-step methods
-resolve them all; the adaptive methods' events follow probes and rounds' sides only, so there an overlap of edges
-(two crossed beams passing through each other) is reported as what it is, with the fix: a fixed-step method.
+resolve them all at every step, and the adaptive methods' events follow them (rims through the rim probes).
 """
 
 from __future__ import annotations
@@ -32,7 +31,6 @@ import numpy as np
 from animbatch.sim.contact.contacts import (
     BODY_BOX,
     BODY_BOX_FACE,
-    BODY_EDGE,
     BODY_HULL,
     BODY_ROUND,
     BODY_SPHERE,
@@ -72,9 +70,6 @@ RADIUS_FRACTION = 0.25
 
 _STATIC_KINDS = {PLANE: "plane", STATIC_SPHERE: "sphere", STATIC_BOX: "box", STATIC_BOX_FACE: "box",
                  TRIANGLE: "mesh", PLANE_RIM: "plane"}
-#: Contacts that only the fixed-step methods resolve: edges crossing edges, and exact rims on planes (the adaptive
-#: methods' events follow probes, and rounds' sides: SIDE_ROUND, SIDE_EDGE).
-FIXED_STEP_KINDS = (STATIC_EDGE, BODY_EDGE, PLANE_RIM, HULL_EDGE)
 
 
 @dataclass(frozen=True)
@@ -91,8 +86,6 @@ class Overlap:
     solid: str
     between_frames: bool = False
     at_start: bool = False
-    #: an edge or rim overlapped (a contact that only the fixed-step methods resolve)
-    edge: bool = False
 
     def as_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -104,12 +97,6 @@ class Overlap:
                     f"them {self.depth:.3g} m further apart (positions, sizes or radii).")
         where = f"between two frames, at about t = {self.time:.4g} s" if self.between_frames else \
             f"at t = {self.time:.4g} s"
-        if self.edge and adaptive:
-            return (f"body {self.body!r} was {self.depth:.3g} m inside {self.solid} {where}, an edge or rim of one "
-                    f"against the other (contact solving tolerates {self.allowance:.3g} m): {method} follows contacts "
-                    "at probes and rounds' sides only, and edges are the fixed-step methods' alone, so the bodies "
-                    "passed into each other and the motion after it is wrong. Use solver.method: verlet or "
-                    "symplectic_euler.")
         fix = ("a smaller solver.max_step (shorter than the time the bodies take to cross each other) or "
                "solver.method: verlet" if adaptive else "a smaller solver.dt")
         return (f"body {self.body!r} was {self.depth:.3g} m inside {self.solid} {where}, with no impact logged "
@@ -291,7 +278,7 @@ class OverlapAudit:
         kind = int(contacts.solid_kind[k])
         return Overlap(float(-contacts.gap[k]), float(allowance[k]), t, self.names[int(contacts.probe_body[k])],
                        self._solid_name(kind, int(contacts.solid_index[k]), int(contacts.solid_body[k])),
-                       between_frames, edge=kind in FIXED_STEP_KINDS)
+                       between_frames)
 
     def _deeper(self, worst: Overlap | None, contacts: Contacts, t: float, between_frames: bool) -> Overlap | None:
         """``worst``, or the deepest of ``contacts`` when that is deeper."""

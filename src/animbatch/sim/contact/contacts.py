@@ -17,8 +17,8 @@ STATIC = -1  # "solid body" index of fixed colliders
 # What a contact's solid is (``Contacts.solid_kind``); ``solid_index`` numbers solids within their kind. A box corner
 # against a box touches one face of it (``*_BOX_FACE``, ``solid_index = 6 box + face``, see geometry.to_box_face).
 PLANE, STATIC_SPHERE, STATIC_BOX, TRIANGLE, BODY_SPHERE, BODY_BOX, STATIC_BOX_FACE, BODY_BOX_FACE = range(8)
-# edge–edge contacts between boxes (fixed-step detection only): solid index 12 box + edge; their "probe" is a number
-# past the probes, 12 box + edge of the moving box (see edge_contacts)
+# edge–edge contacts between boxes: solid index 12 box + edge (of the box's hull, hulls.BodyHull.of_box); their
+# "probe" is a number past the probes, 12 box + edge of the moving box (see hulls.edge_contacts and edge_pairs)
 STATIC_EDGE, BODY_EDGE = 8, 9
 # a cylinder's rim against a plane (fixed-step detection only): solid index the plane; "probe" a number past the
 # edge numbers, one per cylinder (see rim_contacts)
@@ -27,7 +27,7 @@ PLANE_RIM = 10
 BODY_ROUND, BODY_HULL = 11, 12
 # see animbatch.sim.contact.sides (the adaptive methods' events follow these two as well): a round's side against
 # another round's side (solid index: the other round) or against an edge (solid index: the edge's number in
-# sides.EdgeSet), times 2 plus 0 or 1 (see sides._touching); two hulls' crossing edges (fixed-step only)
+# sides.EdgeSet), times 2 plus 0 or 1 (see sides._touching); two hulls' crossing edges (as the boxes')
 SIDE_ROUND, SIDE_EDGE, HULL_EDGE = 13, 14, 15
 
 

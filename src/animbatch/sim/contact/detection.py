@@ -27,9 +27,11 @@ from animbatch.sim.bodies import Kinematics
 from animbatch.sim.contact.contacts import (
     BODY_BOX,
     BODY_BOX_FACE,
+    BODY_EDGE,
     BODY_HULL,
     BODY_ROUND,
     BODY_SPHERE,
+    HULL_EDGE,
     PLANE,
     PLANE_RIM,
     SIDE_EDGE,
@@ -58,7 +60,14 @@ from animbatch.sim.contact.geometry import (
     to_sphere,
     to_triangles,
 )
-from animbatch.sim.contact.hulls import BodyHull, compiled_edge_contacts, edge_contacts, pack_rows, to_hull
+from animbatch.sim.contact.hulls import (
+    BodyHull,
+    compiled_edge_contacts,
+    edge_contacts,
+    edge_pairs,
+    pack_rows,
+    to_hull,
+)
 from animbatch.sim.contact.materials import MaterialTable
 from animbatch.sim.contact.meshes import TriangleGroup
 from animbatch.sim.contact.moving import MovingColliders
@@ -587,21 +596,38 @@ def round_poses(world: ContactWorld, state: Kinematics) -> tuple[np.ndarray, np.
 
 
 #: The contacts beyond probes' that can be followed from state to state (:func:`evaluate_pairs`): the sides of rounds
-#: against other rounds' sides and against edges (:func:`~animbatch.sim.contact.sides.side_pairs`).
-FOLLOWED_KINDS = (SIDE_ROUND, SIDE_EDGE)
+#: against other rounds' sides and against edges (:func:`~animbatch.sim.contact.sides.side_pairs`), and edges
+#: crossing edges (:func:`~animbatch.sim.contact.hulls.edge_pairs`).
+SIDE_KINDS, EDGE_KINDS = (SIDE_ROUND, SIDE_EDGE), (STATIC_EDGE, BODY_EDGE, HULL_EDGE)
+FOLLOWED_KINDS = SIDE_KINDS + EDGE_KINDS
 
 
 def evaluate_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, kind: np.ndarray,
                    index: np.ndarray) -> Contacts:
     """The contacts of given probe–solid pairs (K,) at ``state``, whatever their distance (for tracking contacts
     between events); pairs of :data:`FOLLOWED_KINDS` too."""
-    sides = np.isin(kind, FOLLOWED_KINDS)
-    if not sides.any():
+    followed = np.isin(kind, FOLLOWED_KINDS)
+    if not followed.any():
         centres, distance, normal, solid_body, material = _pair_geometry(world, state, probe, kind, index)
         return _contacts(world, probe, centres, distance, normal, solid_body, material, np.inf, kind, index)
-    parts = [evaluate_pairs(world, state, probe[~sides], kind[~sides], index[~sides]),
-             side_pairs(world, state, *body_box_poses(world, state), probe[sides], kind[sides], index[sides])]
-    asked = np.concatenate([np.flatnonzero(~sides), np.flatnonzero(sides)])  # the pairs in the parts' order
+    parts = [evaluate_pairs(world, state, probe[~followed], kind[~followed], index[~followed]),
+             _followed_pairs(world, state, probe[followed], kind[followed], index[followed])]
+    asked = np.concatenate([np.flatnonzero(~followed), np.flatnonzero(followed)])  # the pairs in the parts' order
+    return Contacts.concatenate(parts).select(np.argsort(asked))
+
+
+def _followed_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, kind: np.ndarray,
+                    index: np.ndarray) -> Contacts:
+    """:func:`evaluate_pairs` for pairs (K,) of :data:`FOLLOWED_KINDS` alone, in their order."""
+    poses = body_box_poses(world, state)
+    sides = np.isin(kind, SIDE_KINDS)
+    if sides.all():
+        return side_pairs(world, state, *poses, probe, kind, index)
+    if not sides.any():
+        return edge_pairs(world, state, *poses, probe, kind, index)
+    parts = [side_pairs(world, state, *poses, probe[sides], kind[sides], index[sides]),
+             edge_pairs(world, state, *poses, probe[~sides], kind[~sides], index[~sides])]
+    asked = np.concatenate([np.flatnonzero(sides), np.flatnonzero(~sides)])
     return Contacts.concatenate(parts).select(np.argsort(asked))
 
 
@@ -609,15 +635,14 @@ def pair_gaps(world: ContactWorld, state: Kinematics, probe: np.ndarray, kind: n
               index: np.ndarray) -> np.ndarray:
     """The gaps (K,) [m] of given probe–solid pairs at ``state``: :func:`evaluate_pairs`'s, without building the
     contacts (the event search asks for gaps alone, a root search many times over)."""
-    sides = np.isin(kind, FOLLOWED_KINDS)
+    followed = np.isin(kind, FOLLOWED_KINDS)
     gaps = np.zeros(len(kind))
-    if sides.any():
-        gaps[sides] = side_pairs(world, state, *body_box_poses(world, state), probe[sides], kind[sides],
-                                 index[sides]).gap
-        if sides.all():
+    if followed.any():
+        gaps[followed] = _followed_pairs(world, state, probe[followed], kind[followed], index[followed]).gap
+        if followed.all():
             return gaps
-    _, distance, *_ = _pair_geometry(world, state, probe[~sides], kind[~sides], index[~sides])
-    gaps[~sides] = distance - world.probes.radius[probe[~sides]]
+    _, distance, *_ = _pair_geometry(world, state, probe[~followed], kind[~followed], index[~followed])
+    gaps[~followed] = distance - world.probes.radius[probe[~followed]]
     return gaps
 
 

@@ -15,8 +15,9 @@ have a vertex (two planks crossed face on face). Hulls with more than :data:`MAX
 skip it: their vertices are dense enough that crossing edges cut in only as deep as the vertices are apart times
 the edges' slope.
 
-Edge contacts are fixed-step contacts (:class:`~animbatch.sim.contact.time_stepping.ContactResolver`); the adaptive
-methods' events follow probes and rounds' sides, not edges (the overlap audit names a run that needed them).
+Edge contacts are found each step by the fixed-step methods (:class:`~animbatch.sim.contact.time_stepping.
+ContactResolver`). The adaptive methods' events follow them too (:func:`edge_pairs`: a pair named once is measured
+again at any state along the solver's path, in closed form, for its impact time and, resting, its force).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ import numpy as np
 
 from animbatch.sim.bodies import Kinematics
 from animbatch.sim.contact.contacts import BODY_EDGE, HULL_EDGE, STATIC, STATIC_EDGE, Contacts, make_contacts
-from animbatch.sim.contact.geometry import StaticColliders, to_triangles
+from animbatch.sim.contact.geometry import StaticColliders, segment_closest, to_triangles
 from animbatch.sim.rigid.polyhedra import convex_mesh
 
 if TYPE_CHECKING:
@@ -349,3 +350,81 @@ def edge_contacts(world: ContactWorld, state: Kinematics, statics: StaticCollide
         return Contacts.concatenate([])
     owner_, probe, solid, kind_, index, material_, point_, normal_, gap_ = (np.array(c) for c in zip(*found))
     return make_contacts(world, owner_, solid, point_, normal_, gap_, material_, probe, kind_, index)
+
+
+#: The gap [m] of a followed edge pair whose closest points have left either edge (past an end a vertex probe holds
+#: the contact) or whose edges have turned parallel (no crossing): the pair is gone (a resting one separates; a gap
+#: this large never closes within a step).
+EDGE_GONE = 1e3
+
+
+def _edge_lines(world: ContactWorld, state: Kinematics, statics: StaticColliders, box_centres: np.ndarray,
+                box_rotations: np.ndarray, kind: np.ndarray, number: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Edges (K,) named as :func:`edge_contacts` names a solid's edge (``kind`` STATIC_EDGE, BODY_EDGE or
+    HULL_EDGE, ``number``: ``12 box + edge`` of the box's hull, or the edge's number among all hulls' edges) at
+    ``state``: their starts and directions (K, 3) [m] in world axes, the centres (K, 3) of their solids, their
+    bodies (K,) (STATIC for fixed boxes) and materials (K,)."""
+    count = len(kind)
+    start, along, centre = np.zeros((count, 3)), np.zeros((count, 3)), np.zeros((count, 3))
+    body, material = np.full(count, STATIC), np.zeros(count, np.intp)
+    edge_base = np.concatenate([[0], np.cumsum([len(h.edges) for h in world.hulls])]).astype(int)
+    solid = np.where(kind == HULL_EDGE, np.searchsorted(edge_base, number, side="right") - 1, number // 12)
+    for code, which in set(zip(kind.tolist(), solid.tolist())):  # each solid once: a handful of pairs
+        rows = np.flatnonzero((kind == code) & (solid == which))
+        if code == HULL_EDGE:
+            hull = world.hulls[which]
+            assert state.rotation is not None
+            corner_at, rotation = state.x[hull.owner], state.rotation[hull.owner - state.first_rigid]
+            edge = number[rows] - edge_base[which]
+            owner, used = hull.owner, world.body_material[hull.owner]
+        else:
+            fixed = code == STATIC_EDGE
+            half = statics.box_half[which] if fixed else world.boxes.half[which]
+            corner_at = statics.box_centre[which] if fixed else box_centres[which]
+            rotation = statics.box_rotation[which] if fixed else box_rotations[which]
+            hull, edge = _box_hull(tuple(half)), number[rows] % 12
+            owner = STATIC if fixed else int(world.boxes.owner[which])
+            used = statics.box_material[which] if fixed else world.body_material[owner]
+        ends = corner_at + hull.vertices[hull.edges[edge]] @ rotation.T  # (R, 2, 3)
+        start[rows], along[rows], centre[rows] = ends[:, 0], ends[:, 1] - ends[:, 0], corner_at
+        body[rows], material[rows] = owner, used
+    return start, along, centre, body, material
+
+
+def edge_pairs(world: ContactWorld, state: Kinematics, box_centres: np.ndarray, box_rotations: np.ndarray,
+               probe: np.ndarray, kind: np.ndarray, index: np.ndarray) -> Contacts:
+    """The edge–edge contacts (K,) named by ``probe`` (an edge of a moving box or hull, numbered as
+    :func:`edge_contacts` numbers it), ``kind`` (STATIC_EDGE, BODY_EDGE or HULL_EDGE) and ``index`` (the other
+    solid's edge), at ``state`` (its body boxes' centres and rotations given), however far apart: for following a
+    contact between events.
+
+    Each is where the two edges' lines come closest, in closed form: the gap is their distance along the common
+    normal ``n ∝ a × b``, turned out of the other solid (away from its centre: where two convex solids touch edge
+    on edge, the common normal is in the edge's cone of outward normals, so it points away from the solid's centre
+    however deep the probe's solid has gone in), and the contact point midway. So the gap is a smooth function of
+    the state while the edges cross, as the events' root searches and second differences need; a pair whose
+    closest points reach within :data:`END` of an edge's end, or whose edges turn parallel, is :data:`EDGE_GONE`
+    apart."""
+    statics = world.statics_at(state.t)
+    poses = (world, state, statics, box_centres, box_rotations)
+    rounds = world.cylinders.count if world.cylinders is not None else 0
+    first_hull = world.probes.count + 12 * world.boxes.count + 2 * rounds
+    hull_edge = probe >= first_hull
+    start_a, along_a, centre_a, body_a, _ = _edge_lines(
+        *poses, np.where(hull_edge, HULL_EDGE, BODY_EDGE),
+        np.where(hull_edge, probe - first_hull, probe - world.probes.count))
+    start_b, along_b, centre_b, body_b, material = _edge_lines(*poses, kind, index)
+    normal = np.cross(along_a, along_b)
+    size = np.linalg.norm(normal, axis=1)
+    crossing = size > PARALLEL * np.linalg.norm(along_a, axis=1) * np.linalg.norm(along_b, axis=1)
+    normal /= np.where(crossing, size, 1.0)[:, None]
+    outward = start_b + 0.5 * along_b - centre_b  # from the other solid's centre to its edge's middle
+    normal *= np.where(np.einsum("ki,ki->k", normal, outward) < 0, -1.0, 1.0)[:, None]
+    _, s, u = segment_closest(start_a, along_a, start_b, along_b)
+    point_a, point_b = start_a + s[:, None] * along_a, start_b + u[:, None] * along_b
+    gap = np.einsum("ki,ki->k", point_a - point_b, normal)
+    inside = crossing & (s > END) & (s < 1 - END) & (u > END) & (u < 1 - END)
+    gap[~inside] = EDGE_GONE
+    return make_contacts(world, body_a, body_b, 0.5 * (point_a + point_b), normal, gap, material, probe, kind,
+                         index)

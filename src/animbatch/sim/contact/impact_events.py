@@ -2,12 +2,13 @@
 
 The scipy solver integrates free motion. After each accepted step, the step is searched for
 
-* **impacts**: a probe, or a round's side (a rod's, cylinder's or capsule's, against another's side or an edge:
-  :func:`~animbatch.sim.contact.sides.side_pairs`), reaching a solid it was not resting on. The pairs that the
-  step's travel could bring into touch are evaluated along the solver's dense output; between samples a probe's gap
-  along the straight segment is minimised too, so that a thin wall cannot hide between two samples (a side is a
-  body's length, no thin wall, and its search costs a hundred times a probe's). The first crossing is refined by
-  Brent's method to the exact contact time;
+* **impacts**: a probe, a round's side (a rod's, cylinder's or capsule's, against another's side or an edge:
+  :func:`~animbatch.sim.contact.sides.side_pairs`) or an edge crossing an edge (of boxes and hulls:
+  :func:`~animbatch.sim.contact.hulls.edge_pairs`), reaching a solid it was not resting on. The pairs that the
+  step's travel could bring into touch, named at the step's start and at its end, are evaluated along the solver's
+  dense output; between samples a probe's gap along the straight segment is minimised too, so that a thin wall
+  cannot hide between two samples (a side or an edge is a body's length, no thin wall). The first crossing is
+  refined by Brent's method to the exact contact time;
 * **mode changes** of resting contacts (root finding on the dense output as well): a contact whose normal force
   would turn into a pull separates; a sliding contact whose slip reverses starts to stick; a sticking one whose
   friction would exceed ``μs f_n`` starts to slide.
@@ -37,9 +38,17 @@ from scipy.optimize import brentq
 
 from animbatch.errors import SimulationError
 from animbatch.quaternion import cross, from_rotation_vector, to_matrix
-from animbatch.sim.contact.contacts import SIDE_ROUND, Contacts
+from animbatch.sim.contact.contacts import (
+    BODY_BOX_FACE,
+    SIDE_ROUND,
+    STATIC_BOX_FACE,
+    Contacts,
+    contact_codes,
+)
 from animbatch.sim.contact.detection import (
     FOLLOWED_KINDS,
+    SIDE_KINDS,
+    body_box_poses,
     body_reach,
     closing_margin,
     detect,
@@ -48,6 +57,7 @@ from animbatch.sim.contact.detection import (
     probe_centres,
     turn_angle,
 )
+from animbatch.sim.contact.hulls import edge_contacts
 from animbatch.sim.contact.impacts import ImpactLog
 from animbatch.sim.contact.impulses import (
     BodyVelocities,
@@ -414,35 +424,62 @@ class ContactEvents:
         travels nothing), and that travel (K,) [m]."""
         s0, s1 = self._state(y0, t1 - h), self._state(y1, t1)
         travel = self._travel(s0, s1, h)
-        found = self._detect(s1, TOUCH, travel)
+        found = self._detect(s1, TOUCH, travel, start=s0)
         if self.resting.count and found.count:
             found = found.select(~self.resting.holds(found))
         return found, closing_margin(found.probe_body, found.solid_body, 0.0, travel)
 
-    def _detect(self, state: Kinematics, margin: float, travel: np.ndarray | None = None) -> Contacts:
-        """:func:`detect`'s contacts of probes and, where there are rounds, of their sides (against other sides and
-        edges: the contacts beyond probes that :func:`evaluate_pairs` follows from state to state), one per pair,
-        at its nearest point, as :func:`evaluate_pairs` follows it (the search's stretch ends, two for rounds lying
-        along each other, are the fixed-step methods'). Box edges crossing edges are the fixed-step methods' alone
-        (the overlap audit names a run that needed them)."""
-        if self.world.cylinders is None:
-            return detect(self.world, state, margin, travel=travel)
-        found = detect(self.world, state, margin, travel=travel, edges=True)
-        probes = found.probe < self.world.probes.count
-        sides = np.isin(found.solid_kind, FOLLOWED_KINDS)
-        if not sides.any():
+    def _detect(self, state: Kinematics, margin: float, travel: np.ndarray | None = None, *,
+                start: Kinematics | None = None) -> Contacts:
+        """:func:`detect`'s contacts of probes and, where there are rounds, boxes or hulls, of the features that
+        probes miss (rounds' sides against other sides and edges, edges crossing edges: the contacts that
+        :func:`evaluate_pairs` follows from state to state), one per pair, as :func:`evaluate_pairs` follows it
+        (for sides, at the nearest point: the search's stretch ends, two for rounds lying along each other, are
+        the fixed-step methods'). Rims on planes are the fixed-step methods' alone (the rim probes stand in).
+
+        With ``start``, the state a step began at, the pairs within reach there whose name fixes what their gap is
+        measured to (a box's face, two edges) are named too, once each: a body that passed through another within
+        one long step of free flight is measured at the step's end to the far face, or to no edge at all; named as
+        it came, its gap crosses zero where it struck. (A probe's distance to a sphere, plane, round or hull, and a
+        side's, are signed and named the same from either side: the step's end finds those.)"""
+        found = self._named(state, margin, travel)
+        world = self.world
+        if start is None or not (world.boxes.count or world.hulls or len(world.statics.box_centre)):
+            return found
+        named = detect(world, start, margin, travel=travel)
+        named = named.select(np.isin(named.solid_kind, (STATIC_BOX_FACE, BODY_BOX_FACE)))
+        if world.boxes.count or world.hulls:
+            named = Contacts.concatenate([named, edge_contacts(world, start, world.statics_at(start.t),
+                                                               *body_box_poses(world, start), margin, travel)])
+        found = Contacts.concatenate([found, named])
+        _, first = np.unique(contact_codes(found), return_index=True)
+        return found.select(np.sort(first))
+
+    def _named(self, state: Kinematics, margin: float, travel: np.ndarray | None) -> Contacts:
+        """:meth:`_detect` at one state."""
+        world = self.world
+        if world.cylinders is None and not world.boxes.count and not world.hulls:
+            return detect(world, state, margin, travel=travel)
+        found = detect(world, state, margin, travel=travel, edges=True)
+        probes = found.probe < world.probes.count
+        followed = ~probes & np.isin(found.solid_kind, FOLLOWED_KINDS)
+        if not followed.any():
             return found.select(probes)
-        # one name per pair, whichever end or way the search found it by: the near end's, and two rounds' sides as
-        # the lower-numbered round's against the other's
-        probe, kind, index = found.probe[sides], found.solid_kind[sides], found.solid_index[sides] // 2
+        # one name per pair, whichever end or way the search found it by: a side's near end's, and two rounds'
+        # sides as the lower-numbered round's against the other's (an edge pair has one name already)
+        probe, kind, index = found.probe[followed], found.solid_kind[followed], found.solid_index[followed]
+        sides = np.isin(kind, SIDE_KINDS)
+        index[sides] = 2 * (index[sides] // 2)
         rounds = kind == SIDE_ROUND
-        first = self.world.probes.count + 12 * self.world.boxes.count + self.world.cylinders.count
-        own, other = probe[rounds] - first, index[rounds]
-        probe[rounds], index[rounds] = first + np.minimum(own, other), np.maximum(own, other)
-        named = np.unique(np.stack([probe, kind, 2 * index]), axis=1)
-        followed = evaluate_pairs(self.world, state, *named)
-        near = followed.gap < closing_margin(followed.probe_body, followed.solid_body, margin, travel)
-        return Contacts.concatenate([found.select(probes), followed.select(near)])
+        if rounds.any():
+            assert world.cylinders is not None
+            first = world.probes.count + 12 * world.boxes.count + world.cylinders.count
+            own, other = probe[rounds] - first, index[rounds] // 2
+            probe[rounds], index[rounds] = first + np.minimum(own, other), 2 * np.maximum(own, other)
+        named = np.unique(np.stack([probe, kind, index]), axis=1)
+        pairs = evaluate_pairs(world, state, *named)
+        near = pairs.gap < closing_margin(pairs.probe_body, pairs.solid_body, margin, travel)
+        return Contacts.concatenate([found.select(probes), pairs.select(near)])
 
     def _first_impact(self, solver: Any, candidates: Contacts, closing: np.ndarray) -> float | None:
         """Time of the first impact among the candidates during the solver's last step, or None; ``closing`` (K,)
