@@ -13,6 +13,7 @@ import pytest
 
 from animbatch.sim.contact.contacts import PLANE, STATIC, Contacts
 from animbatch.sim.contact.impulses import BodyVelocities, solve_forces
+from animbatch.sim.contact.jointed import BlockInverse, JointedResponse
 from support.scenes import box_inverse_inertia, corners_on_floor
 
 G = 9.81
@@ -167,3 +168,35 @@ def test_the_compiled_forces_are_the_numpy_ones(count):
             answers.append((result.normal_impulse, result.tangent_impulse, accelerations.v, accelerations.omega))
         for numpy_value, compiled_value in zip(*answers):
             np.testing.assert_allclose(compiled_value, numpy_value, rtol=1e-12, atol=1e-12)
+
+
+def test_a_crate_on_a_plank_a_joint_holds_loads_the_joint_and_nothing_gives_way():
+    """A plank welded to the world (a fixed joint: its six velocity rows), a crate resting off-centre on it. With the
+    joint's rows, the contacts carry the crate's whole weight and neither body accelerates, the plank passing the
+    load and its moment on to the joint; taken as free, the plank gives way under the crate (which sinks faster
+    than m_c g / (m_c + m_p), the plank tipping away under the off-centre load)."""
+    plank_size, crate_size, plank, crate = (1.0, 0.1, 0.3), (0.2, 0.2, 0.2), 2.0, 5.0
+    centres = np.array([[0.0, 0.05, 0.0], [0.3, 0.2, 0.0], [0.0, 0.0, 0.0]])
+    contacts = corners_on_floor(1, centres[1], crate_size, mu=0.5, solid_body=0)
+
+    def loaded(jointed: JointedResponse | None) -> tuple[BodyVelocities, np.ndarray]:
+        accelerations = bodies_under_gravity([plank, crate], crate_size)
+        accelerations.inverse_inertia[0] = box_inverse_inertia(plank, plank_size)
+        accelerations.v[0] = 0.0  # the joint holds the plank up against its own weight
+        result = solve_forces(contacts, accelerations, centres, normal_bias=np.zeros(4), tangent_bias=np.zeros((4, 2)),
+                              sticking=np.ones(4, bool), slide_direction=np.zeros((4, 3)), iterations=500,
+                              jointed=jointed)
+        return accelerations, result.normal_impulse
+
+    weld = np.zeros((6, 18))  # rows over [v of the 3 slots, then ω of them]: the plank's (slot 0) v and ω are zero
+    weld[:3, :3] = weld[3:, 9:12] = np.eye(3)
+    accelerations = bodies_under_gravity([plank, crate], crate_size)
+    accelerations.inverse_inertia[0] = box_inverse_inertia(plank, plank_size)
+    held, pressing = loaded(JointedResponse(weld, BlockInverse(accelerations.inverse_mass,
+                                                               accelerations.inverse_inertia)))
+    assert pressing.sum() == pytest.approx(crate * G, rel=1e-6)
+    np.testing.assert_allclose(held.v[:2], 0.0, atol=1e-6)
+    np.testing.assert_allclose(held.omega[:2], 0.0, atol=1e-6)
+    free, _ = loaded(None)
+    assert free.v[1, 1] < -G * crate / (crate + plank)  # the crate sinks with the plank, which tips away under it
+    assert abs(free.omega[0, 2]) > 1.0

@@ -67,7 +67,8 @@ from animbatch.sim.contact.impulses import (
     solve_forces,
     solve_impulses,
 )
-from animbatch.sim.contact.time_stepping import DEFAULT_REST_SPEED, NumpyContactCost
+from animbatch.sim.contact.jointed import JointedResponse
+from animbatch.sim.contact.time_stepping import DEFAULT_REST_SPEED, NumpyContactCost, joints_on
 from animbatch.sim.forces import Kinematics
 from animbatch.sim.model.dynamics import Dynamics
 
@@ -289,10 +290,11 @@ class ContactEvents:
         warm = self._warm_forces
         if warm is not None and len(warm[0]) != contacts.count:
             warm = None
+        _, jointed = joints_on(self.system, state, bodies)  # a load on a jointed body passes to its joints
         result = solve_forces(contacts, bodies, x, normal_bias=normal_bias, tangent_bias=tangent_bias,
                               sticking=self.resting.sticking, slide_direction=self.resting.slide_direction,
                               iterations=self.settings.iterations, warm=warm, frame=frame,
-                              compiled=self._compiled_forces())
+                              compiled=self._compiled_forces(), jointed=jointed)
         # consecutive evaluations see nearly the same contacts: start the next solve from this one
         self._warm_forces = (result.normal_impulse.copy(), result.tangent_impulse.copy())
         rate[: 3 * n] = bodies.v[:n].ravel()
@@ -620,17 +622,20 @@ class ContactEvents:
         if touching.count:
             bodies = self._velocities(state)
             x = np.vstack([state.x, np.zeros((1, 3))])
+            couple, jointed = joints_on(self.system, state, bodies)
             result = solve_impulses(touching, bodies, x, 0.0, iterations=self.settings.iterations,
-                                    rest_speed=self.rest_speed, slop=self.settings.slop)
+                                    rest_speed=self.rest_speed, slop=self.settings.slop, couple=couple,
+                                    jointed=jointed)
             self.impacts.record(np.full(touching.count, t), touching.probe_body, result.impact)
             if self.landing is not None:
-                self._land(touching, bodies, x)
+                self._land(touching, bodies, x, jointed)
             self._write_velocities(y, state, bodies)
             state = self._state(y)
         self.landing = None
         self._choose_resting(y, state, touching)
 
-    def _land(self, touching: Contacts, bodies: BodyVelocities, x: np.ndarray) -> None:
+    def _land(self, touching: Contacts, bodies: BodyVelocities, x: np.ndarray,
+              jointed: JointedResponse | None) -> None:
         """Take away the separating normal velocity of the landing contacts among ``touching``, so that they rest
         (the kinetic energy of a hop the solver could not resolve, ½ m v² for v below what its step can show)."""
 
@@ -641,7 +646,7 @@ class ContactEvents:
                                                        touching.solid_index.tolist())], dtype=bool)
         if not chosen.any():
             return
-        rows = ContactRows(touching.select(chosen), bodies, x)
+        rows = ContactRows(touching.select(chosen), bodies, x, jointed=jointed)
         for _ in range(self.settings.iterations):  # contacts on one body share it: a few sweeps
             separating = np.maximum(rows.relative(rows.n), 0.0)
             if separating.max(initial=0.0) <= 1e-12:
@@ -701,8 +706,10 @@ class ContactEvents:
             to_stick = switch & ~resting.sticking
             to_slide = switch & resting.sticking
             if to_stick.any():  # the slip has just reversed: stop it exactly
+                couple, jointed = joints_on(self.system, state, bodies)
                 solve_impulses(contacts.select(to_stick), bodies, x, 0.0, iterations=self.settings.iterations,
-                               rest_speed=np.inf, slop=self.settings.slop, bounce=False)
+                               rest_speed=np.inf, slop=self.settings.slop, bounce=False, couple=couple,
+                               jointed=jointed)
                 self._write_velocities(y, state, bodies)
             sticking = resting.sticking.copy()
             sticking[to_stick] = True

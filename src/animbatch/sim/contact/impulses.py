@@ -930,7 +930,8 @@ def _small_converged(coupling: list[list[float]], constant: list[float], current
 def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarray, *, normal_bias: np.ndarray,
                  tangent_bias: np.ndarray, sticking: np.ndarray, slide_direction: np.ndarray,
                  iterations: int, warm: tuple[np.ndarray, np.ndarray] | None = None,
-                 frame: ContactFrame | None = None, compiled: bool = False) -> SolveResult:
+                 frame: ContactFrame | None = None, compiled: bool = False,
+                 jointed: JointedResponse | None = None) -> SolveResult:
     """Forces of resting contacts, changing the accelerations in ``accelerations`` (``v``: linear, ``omega``:
     angular) in place.
 
@@ -939,7 +940,10 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
     (K, 2): the same for the contact points' tangential acceleration. ``sticking`` (K,) bool; ``slide_direction``
     (K, 3): unit slip direction of sliding contacts (friction opposes it). ``warm``: normal (K,) and tangential
     (K, 2) forces to start from. ``frame``: the contacts' frame, when the caller has it already. ``compiled``: in one
-    compiled call (:mod:`animbatch.sim.kernels.resting_forces`; the same forces to round-off).
+    compiled call (:mod:`animbatch.sim.kernels.resting_forces`; the same forces to round-off). ``jointed``: the
+    joints on these bodies (over the flat velocity of all of ``accelerations``' slots): each force then moves the
+    bodies within their joints (``K Fᵀ`` for ``M⁻¹ Fᵀ``, :mod:`~animbatch.sim.contact.jointed`), so that a body a
+    joint holds passes a load on to the joint instead of giving way under it (numpy only).
 
     Resting contacts are few, so this builds their small contact matrix ``A = J M⁻¹ Fᵀ`` (J: what each row measures,
     F: the force each row applies; a sliding contact's normal row also carries its kinetic friction, ``n - μk d``)
@@ -957,7 +961,7 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
     if warm is not None:
         solution[:count] = warm[0]
         solution[count:] = np.concatenate([warm[1][:, 0], warm[1][:, 1]]) * np.tile(sticking, 2)
-    if compiled:
+    if compiled and jointed is None:
         _compiled_forces(rows, normal_force_direction, accelerations, normal_bias, tangent_bias, solution, sticking,
                          contacts.static_friction, iterations)
         result.normal_impulse[:] = solution[:count]
@@ -972,9 +976,16 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
     response = np.concatenate([accelerations.inverse_mass[body][:, :, None] * force[:, :, :3],  # M⁻¹ Fᵀ per end
                                np.einsum("reij,rej->rei", accelerations.inverse_inertia[body], force[:, :, 3:])],
                               axis=2)
-    # row i's acceleration per unit of force j, through the bodies their ends share (the fixed one responds not)
-    shared = body[:, :, None, None] == body[None, None, :, :]
-    matrix = np.einsum("iejf,iex,jfx->ij", shared, measure, response)  # (3K, 3K)
+    spread = None  # with joints: K Fᵀ (6N, 3K), what each row's force does to every body's acceleration
+    if jointed is None:
+        # row i's acceleration per unit of force j, through the bodies their ends share (the fixed one responds not)
+        shared = body[:, :, None, None] == body[None, None, :, :]
+        matrix = np.einsum("iejf,iex,jfx->ij", shared, measure, response)  # (3K, 3K)
+    else:
+        size = len(accelerations.v)
+        corrected = jointed.correct(_flat_columns(response, body, size))
+        spread = corrected if isinstance(corrected, np.ndarray) else corrected.toarray()
+        matrix = _flat_columns(measure, body, size).T @ spread
     v, w = accelerations.v, accelerations.omega
     free = (rows.along(v, w) + np.stack([normal_bias, tangent_bias[:, 0], tangent_bias[:, 1]])).ravel()
     diagonal = np.diag(matrix).copy()
@@ -1021,12 +1032,29 @@ def solve_forces(contacts: Contacts, accelerations: BodyVelocities, x: np.ndarra
         solution = np.array(current, float)
     normal_force = solution[:count]
     tangent_force = np.stack([solution[count:2 * count], solution[2 * count:]], axis=1)
-    change = response * solution[:, None, None]  # (3K, 2, 6): the accelerations the forces add at each end
-    np.add.at(accelerations.v, body, change[:, :, :3])
-    np.add.at(accelerations.omega, body, change[:, :, 3:])
+    if spread is not None:
+        change = (spread @ solution).reshape(2, -1, 3)  # the flat velocity's linear, then angular, parts
+        accelerations.v += change[0]
+        accelerations.omega += change[1]
+    else:
+        change = response * solution[:, None, None]  # (3K, 2, 6): the accelerations the forces add at each end
+        np.add.at(accelerations.v, body, change[:, :, :3])
+        np.add.at(accelerations.omega, body, change[:, :, 3:])
     result.normal_impulse[:] = normal_force
     result.tangent_impulse[:] = tangent_force
     return result
+
+
+def _flat_columns(per_end: np.ndarray, body: np.ndarray, size: int) -> np.ndarray:
+    """Rows' values at their two ends (R, 2, 6: linear, angular), bodies ``body`` (R, 2), as columns (6 size, R) over
+    the flat velocity ``[v.ravel(), ω.ravel()]`` of ``size`` bodies."""
+    count = len(body)
+    entry = 3 * body[:, :, None] + np.arange(3)  # (R, 2, 3): each end's three components in a part
+    column = np.broadcast_to(np.arange(count)[:, None, None], entry.shape)
+    flat = np.zeros((2, 3 * size, count))
+    np.add.at(flat[0], (entry, column), per_end[:, :, :3])
+    np.add.at(flat[1], (entry, column), per_end[:, :, 3:])
+    return flat.reshape(6 * size, count)
 
 
 def _compiled_forces(rows: ContactFrame, pushes: np.ndarray, accelerations: BodyVelocities, normal_bias: np.ndarray,

@@ -22,6 +22,7 @@ the loader refuses them for scenes with contacts.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -100,6 +101,27 @@ def numpy_contact_solve(contacts: int) -> float:
     """What a numpy contact step that finds ``contacts`` costs besides its search [s], by the counts above: its rows
     and write-back, and a sweep per contact at least (none without contacts: the search alone)."""
     return NUMPY_CONTACT_STEP + NUMPY_SWEEP * contacts if contacts else 0.0
+
+
+def joints_on(system: Dynamics, state: Kinematics, bodies: BodyVelocities
+              ) -> tuple[Callable[[BodyVelocities], None] | None, JointedResponse | None]:
+    """How contacts move jointed bodies at ``state`` (``bodies``: the velocity slots the contacts act on, the
+    fixed body's among them): ``couple``, the joints applied to velocities in place, and the joints' rows as a
+    :class:`~animbatch.sim.contact.jointed.JointedResponse`, with which every contact impulse or force moves the
+    bodies within their joints; (None, None) for a model without joints."""
+    if system.joints is None:
+        return None, None
+    count, n = system.model.body_count, system.model.particle_count
+
+    def couple(velocities: BodyVelocities) -> None:  # joints and contacts solved together
+        system.project_velocities(state, velocities.v[:count], velocities.omega[n:count]
+                                  if state.omega is not None else None)
+
+    size = len(bodies.v)
+    if 6 * size <= DENSE_COLUMNS:  # a ragdoll's few dozen columns: arrays, no sparse construction a step
+        return couple, JointedResponse(system.velocity_rows(state, size, dense=True),
+                                       BlockInverse(bodies.inverse_mass, bodies.inverse_inertia))
+    return couple, JointedResponse(system.velocity_rows(state, size), inverse_mass_matrix(bodies))
 
 
 class ContactResolver:
@@ -239,24 +261,10 @@ class ContactResolver:
             kinematic = np.where(kinematic >= 0, self.system.model.body_count + kinematic, -1)
         codes = contact_codes(contacts)
         warm = self._warm_start(codes, h)
-        joints, count, n = self.system.joints, self.system.model.body_count, self.system.model.particle_count
-
-        def couple(velocities: BodyVelocities) -> None:  # joints and contacts solved together
-            self.system.project_velocities(state, velocities.v[:count], velocities.omega[n:count]
-                                           if state.omega is not None else None)
-
-        jointed = None
-        if joints is not None:
-            size = len(bodies.v)
-            if 6 * size <= DENSE_COLUMNS:  # a ragdoll's few dozen columns: arrays, no sparse construction a step
-                jointed = JointedResponse(self.system.velocity_rows(state, size, dense=True),
-                                          BlockInverse(bodies.inverse_mass, bodies.inverse_inertia))
-            else:
-                jointed = JointedResponse(self.system.velocity_rows(state, size), inverse_mass_matrix(bodies))
+        couple, jointed = joints_on(self.system, state, bodies)
         result = solve_impulses(contacts, bodies, x, h, iterations=self.settings.iterations,
                                 rest_speed=self.rest_speed(h), slop=self.settings.slop, bounce=bounce, warm=warm,
-                                kinematic=kinematic, couple=couple if joints is not None else None, jointed=jointed,
-                                long_run=self.system.long_run)
+                                kinematic=kinematic, couple=couple, jointed=jointed, long_run=self.system.long_run)
         self._count_numpy_work(result.numpy_sweeps)
         self.solves.record(result.residual, result.unconverged)
         if bounce:  # remember the impulses of the main solve (not of end-of-step re-projections)
