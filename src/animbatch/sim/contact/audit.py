@@ -16,7 +16,7 @@ Only frame times are looked at, so the cost is a few contact detections per fram
 
 At the frames, the contacts that probes miss are measured too: box and hull edges crossing edges, cylinders' rims on
 planes, and the sides of rods, cylinders and capsules (:mod:`animbatch.sim.contact.sides`). The fixed-step methods
-resolve them all at every step, and the adaptive methods' events follow them (rims through the rim probes).
+resolve them all at every step, and the adaptive methods' events follow them.
 """
 
 from __future__ import annotations

@@ -20,8 +20,9 @@ PLANE, STATIC_SPHERE, STATIC_BOX, TRIANGLE, BODY_SPHERE, BODY_BOX, STATIC_BOX_FA
 # edge–edge contacts between boxes: solid index 12 box + edge (of the box's hull, hulls.BodyHull.of_box); their
 # "probe" is a number past the probes, 12 box + edge of the moving box (see hulls.edge_contacts and edge_pairs)
 STATIC_EDGE, BODY_EDGE = 8, 9
-# a cylinder's rim against a plane (fixed-step detection only): solid index the plane; "probe" a number past the
-# edge numbers, one per cylinder (see rim_contacts)
+# a cylinder's rim against a plane: solid index the plane (the deepest point of either rim), or past the planes, one
+# end's rim (detection.rim_index, as the adaptive methods' events follow them); "probe" a number past the edge
+# numbers, one per cylinder (see detection.rim_contacts and rim_pairs)
 PLANE_RIM = 10
 # probes against a body's round solid (cylinder, rod, capsule; solid index: the round) or convex hull (the hull)
 BODY_ROUND, BODY_HULL = 11, 12

@@ -476,6 +476,47 @@ def rim_contacts(world: ContactWorld, state: Kinematics, statics: StaticCollider
 
 
 
+def rim_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, index: np.ndarray) -> Contacts:
+    """The rim contacts (K,) named by ``probe`` (a cylinder's, numbered as :func:`rim_contacts` numbers it) and
+    ``index`` (:func:`rim_index`: a plane and which end's rim), at ``state``, however far apart: for following a
+    contact between events. Each is at the rim's point deepest towards the plane, in closed form, so its gap is a
+    smooth function of the state (standing on that end, the point is the end face's centre, as low as its rim). A
+    cylinder lying on its side rests on both ends' rims, a line, not a point that jumps from end to end; the plain
+    index (the plane alone, :func:`rim_contacts`' name) follows the deepest point of either."""
+    cylinders = world.cylinders
+    assert cylinders is not None and state.rotation is not None
+    statics = world.statics_at(state.t)
+    k = probe - (world.probes.count + 12 * world.boxes.count)
+    plane, end = index % len(statics.plane_point), index // len(statics.plane_point) - 1
+    owners = cylinders.owner[k]
+    rigid = owners - state.first_rigid
+    centres = state.x[owners] + state.lever(rigid, cylinders.offset[k])
+    axes = np.einsum("kij,kj->ki", state.rotation[rigid], cylinders.axis[k])
+    normal = statics.plane_normal[plane]
+    deepest = np.empty((len(k), 3))
+    for each in np.unique(plane).tolist():  # the support along one plane's normal at a time
+        rows = plane == each
+        deepest[rows] = cylinder_support(centres[rows], axes[rows], cylinders.half_length[k[rows]],
+                                         cylinders.radius[k[rows]], -statics.plane_normal[each])[0]
+    named = end >= 0
+    if named.any():  # the chosen end's rim: its centre, then the radius across the axis, downwards
+        across = -normal[named] + np.einsum("ki,ki->k", normal[named], axes[named])[:, None] * axes[named]
+        size = np.linalg.norm(across, axis=1)
+        across /= np.where(size > 1e-12, size, 1.0)[:, None]
+        ends = (2 * end[named] - 1) * cylinders.half_length[k[named]]
+        deepest[named] = (centres[named] + ends[:, None] * axes[named]
+                          + cylinders.radius[k[named], None] * across)
+    gap = np.einsum("ki,ki->k", deepest - statics.plane_point[plane], normal)
+    return make_contacts(world, owners, np.full(len(k), STATIC), deepest - 0.5 * gap[:, None] * normal, normal, gap,
+                         statics.plane_material[plane], probe, PLANE_RIM, index)
+
+
+def rim_index(world: ContactWorld, plane: np.ndarray, end: int) -> np.ndarray:
+    """The index (K,) that names the rim of one ``end`` of a cylinder (0: at −axis, 1: at +axis) on planes ``plane``
+    (K,) for :func:`rim_pairs`: past the planes' own numbers (which name the deepest point of either rim)."""
+    return plane + (1 + end) * len(world.statics.plane_point)
+
+
 def body_box_poses(world: ContactWorld, state: Kinematics) -> tuple[np.ndarray, np.ndarray]:
     """World centres (X, 3) and rotations (X, 3, 3) of the boxes moving with bodies."""
     boxes = world.boxes
@@ -596,10 +637,10 @@ def round_poses(world: ContactWorld, state: Kinematics) -> tuple[np.ndarray, np.
 
 
 #: The contacts beyond probes' that can be followed from state to state (:func:`evaluate_pairs`): the sides of rounds
-#: against other rounds' sides and against edges (:func:`~animbatch.sim.contact.sides.side_pairs`), and edges
-#: crossing edges (:func:`~animbatch.sim.contact.hulls.edge_pairs`).
+#: against other rounds' sides and against edges (:func:`~animbatch.sim.contact.sides.side_pairs`), edges crossing
+#: edges (:func:`~animbatch.sim.contact.hulls.edge_pairs`), and cylinders' rims on planes (:func:`rim_pairs`).
 SIDE_KINDS, EDGE_KINDS = (SIDE_ROUND, SIDE_EDGE), (STATIC_EDGE, BODY_EDGE, HULL_EDGE)
-FOLLOWED_KINDS = SIDE_KINDS + EDGE_KINDS
+FOLLOWED_KINDS = (*SIDE_KINDS, *EDGE_KINDS, PLANE_RIM)
 
 
 def evaluate_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, kind: np.ndarray,
@@ -620,15 +661,17 @@ def _followed_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, k
                     index: np.ndarray) -> Contacts:
     """:func:`evaluate_pairs` for pairs (K,) of :data:`FOLLOWED_KINDS` alone, in their order."""
     poses = body_box_poses(world, state)
-    sides = np.isin(kind, SIDE_KINDS)
-    if sides.all():
-        return side_pairs(world, state, *poses, probe, kind, index)
-    if not sides.any():
-        return edge_pairs(world, state, *poses, probe, kind, index)
-    parts = [side_pairs(world, state, *poses, probe[sides], kind[sides], index[sides]),
-             edge_pairs(world, state, *poses, probe[~sides], kind[~sides], index[~sides])]
-    asked = np.concatenate([np.flatnonzero(sides), np.flatnonzero(~sides)])
-    return Contacts.concatenate(parts).select(np.argsort(asked))
+    parts, asked = [], []
+    for kinds, follow in ((SIDE_KINDS, lambda p, k, i: side_pairs(world, state, *poses, p, k, i)),
+                          (EDGE_KINDS, lambda p, k, i: edge_pairs(world, state, *poses, p, k, i)),
+                          ((PLANE_RIM,), lambda p, k, i: rim_pairs(world, state, p, i))):
+        chosen = np.flatnonzero(np.isin(kind, kinds))
+        if len(chosen):
+            parts.append(follow(probe[chosen], kind[chosen], index[chosen]))
+            asked.append(chosen)
+    if len(parts) == 1:
+        return parts[0]
+    return Contacts.concatenate(parts).select(np.argsort(np.concatenate(asked)))
 
 
 def pair_gaps(world: ContactWorld, state: Kinematics, probe: np.ndarray, kind: np.ndarray,

@@ -40,6 +40,7 @@ from animbatch.errors import SimulationError
 from animbatch.quaternion import cross, from_rotation_vector, to_matrix
 from animbatch.sim.contact.contacts import (
     BODY_BOX_FACE,
+    PLANE_RIM,
     SIDE_ROUND,
     STATIC_BOX_FACE,
     Contacts,
@@ -55,6 +56,7 @@ from animbatch.sim.contact.detection import (
     evaluate_pairs,
     pair_gaps,
     probe_centres,
+    rim_index,
     turn_angle,
 )
 from animbatch.sim.contact.hulls import edge_contacts
@@ -437,7 +439,7 @@ class ContactEvents:
         probes miss (rounds' sides against other sides and edges, edges crossing edges: the contacts that
         :func:`evaluate_pairs` follows from state to state), one per pair, as :func:`evaluate_pairs` follows it
         (for sides, at the nearest point: the search's stretch ends, two for rounds lying along each other, are
-        the fixed-step methods'). Rims on planes are the fixed-step methods' alone (the rim probes stand in).
+        the fixed-step methods'; for rims on planes, the rim of each end that is near).
 
         With ``start``, the state a step began at, the pairs within reach there whose name fixes what their gap is
         measured to (a box's face, two edges) are named too, once each: a body that passed through another within
@@ -478,6 +480,12 @@ class ContactEvents:
             first = world.probes.count + 12 * world.boxes.count + world.cylinders.count
             own, other = probe[rounds] - first, index[rounds] // 2
             probe[rounds], index[rounds] = first + np.minimum(own, other), 2 * np.maximum(own, other)
+        rims = kind == PLANE_RIM  # a cylinder's rims on a plane: each end's rim, followed on its own
+        if rims.any():
+            probe = np.concatenate([probe, probe[rims]])
+            kind = np.concatenate([kind, kind[rims]])
+            index = np.concatenate([index, rim_index(world, index[rims], 1)])
+            index[np.flatnonzero(rims)] = rim_index(world, index[np.flatnonzero(rims)], 0)
         named = np.unique(np.stack([probe, kind, index]), axis=1)
         pairs = evaluate_pairs(world, state, *named)
         near = pairs.gap < closing_margin(pairs.probe_body, pairs.solid_body, margin, travel)
@@ -607,10 +615,20 @@ class ContactEvents:
         if not changed.any():
             return None
         interpolant = solver.dense_output()
-        pairs = np.flatnonzero(changed)
-        times = [brentq(lambda t, k=k: self._mode_functions(t, interpolant(t))[k], solver.t_old, solver.t,
-                        xtol=1e-12) for k in pairs]
-        return float(min(times))
+        # Each is evaluated again at the step's two ends before the root search: a contact whose force is shared with
+        # others (a rim probe just where the exact rim touches too) can take any share of it, and the solve's warm
+        # start gives it another at the same state. On the other side at the start already, its change is there;
+        # back on the first side at the end, it has none.
+        times = []
+        for k in np.flatnonzero(changed).tolist():
+            def mode(t: float, k: int = k) -> float:
+                return float(self._mode_functions(t, interpolant(t))[k])
+
+            if mode(solver.t_old) <= 0:
+                times.append(float(solver.t_old))
+            elif mode(solver.t) <= 0:
+                times.append(brentq(mode, solver.t_old, solver.t, xtol=1e-12))
+        return min(times, default=None)
 
     # ------------------------------------------------------------------------------------- handling events
 
