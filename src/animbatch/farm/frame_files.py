@@ -7,7 +7,8 @@ chunking of the frames draws the same pixels.
 
 Frames on disk are only reused for the same picture: ``frames/render-key.txt`` holds a hash of everything that
 decides the pixels (the trajectory's physics and solver, every render setting but the output formats and video
-encoding, colours, the package version). When it differs, the old frames are deleted before any is drawn.
+encoding, colours, the code that simulated the trajectory and the code that draws it: see
+:mod:`animbatch.provenance`). When it differs, the old frames are deleted before any is drawn.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from animbatch.encode.images import BackgroundFrameWriter, FrameWriter, PngSeque
 from animbatch.errors import RenderError
 from animbatch.farm.cache import simulation_settings
 from animbatch.files import sweep_partials, write_text_atomic
+from animbatch.provenance import drawing_code
 from animbatch.render.backend import select_backend
 from animbatch.render.renderer import FrameRenderer
 from animbatch.scene import LoadedScene
@@ -32,7 +34,6 @@ from animbatch.sim.integrators.budget import format_seconds
 from animbatch.stages import check_trajectory, frame_geometry, plan
 from animbatch.timeline import FrameRange, parse_frames
 from animbatch.trajectory import Trajectory
-from animbatch.version import __version__
 
 __all__ = ["FrameRange", "RangeResult", "draw_frames", "frame_is_complete", "frames_folder", "parse_frames",
            "prepare_frames", "render_frames"]
@@ -95,8 +96,9 @@ def render_key(scene: LoadedScene, trajectory: Trajectory) -> str:
     spec["solver"] = simulation_settings(spec["solver"])  # budgets and warning thresholds draw nothing
     for key in ("formats", "video", "max_cost"):
         spec["render"].pop(key, None)
+    # the code that simulated the trajectory and the code that draws it: either changed, the pixels may have
     content = {"scene": spec, "physics": trajectory.physics_hash, "solver": trajectory.solver.get("description"),
-               "version": __version__}
+               "simulated by": trajectory.package_version, "drawn by": drawing_code()}
     return hashlib.sha256(json.dumps(content, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
