@@ -8,6 +8,7 @@ from __future__ import annotations
 import socket
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -48,14 +49,21 @@ def test_the_server_listens_on_the_loopback_address_only():
         server.server_close()
 
 
-@pytest.mark.slow
-def test_a_save_re_renders_an_error_shows_its_line_and_a_fix_brings_the_video_back(browser, tmp_path):
-    scene = tmp_path / "scene.yaml"
+def _watching(folder: Path) -> tuple[Path, subprocess.Popen, list[str]]:
+    """``animbatch watch`` of the red ball written to ``folder``, started as a user starts it: the scene, the
+    process, and its output lines as they come."""
+    scene = folder / "scene.yaml"
     scene.write_text(BALL.format(color="#ff0000"))
     process = subprocess.Popen([sys.executable, "-m", "animbatch", "watch", str(scene), "--seconds", "0.5"],
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=tmp_path)
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=folder)
     lines: list[str] = []
     threading.Thread(target=lambda: lines.extend(iter(process.stdout.readline, "")), daemon=True).start()
+    return scene, process, lines
+
+
+@pytest.mark.slow
+def test_a_save_re_renders_an_error_shows_its_line_and_a_fix_brings_the_video_back(browser, tmp_path):
+    scene, process, lines = _watching(tmp_path)
     try:
         deadline = time.monotonic() + 60
         while not any("http://127.0.0.1:" in line for line in lines):
@@ -123,3 +131,22 @@ def test_a_frame_range_previews_those_frames_as_the_whole_render_draws_them(tmp_
     loop._render_once()
     assert broadcast.event == "errors" and "the scene has 12 frames (0-11)" in broadcast.data
     assert len(broadcast.videos) == 1
+
+
+def test_a_terminated_watch_stops_and_takes_its_folder_of_renders_with_it(tmp_path):
+    """SIGTERM (a service manager's stop, kill, a closed terminal) ends the watch as Ctrl-C does: it exits cleanly
+    and its folder in the temporary directory is gone (before, the process died before any cleanup, and every
+    terminated watch left its folder of renders behind)."""
+    _, process, lines = _watching(tmp_path)
+    folders = Path(tempfile.gettempdir()).glob
+    try:
+        deadline = time.monotonic() + 60
+        while not any("http://127.0.0.1:" in line for line in lines) or not list(
+                folders(f"animbatch-watch-{process.pid}-*")):
+            assert time.monotonic() < deadline and process.poll() is None, "".join(lines)
+            time.sleep(0.1)
+    finally:
+        process.terminate()
+        code = process.wait(timeout=20)
+    assert code == 0, "".join(lines)
+    assert not list(folders(f"animbatch-watch-{process.pid}-*"))

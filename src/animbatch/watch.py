@@ -17,6 +17,8 @@ The page swaps the new video in without reloading. Videos are WebM, which every 
 from __future__ import annotations
 
 import html
+import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -265,7 +267,11 @@ def watch(scene: Path, *, quality: str = "draft", seconds: float = PREVIEW_SECON
     url = f"http://127.0.0.1:{server.server_address[1]}/"
     threading.Thread(target=server.serve_forever, daemon=True).start()
     stop = stop or threading.Event()
-    with tempfile.TemporaryDirectory(prefix="animbatch-watch-") as folder:
+    # a terminated watch (a service manager's, a terminal closed, kill) stops as Ctrl-C does, and its folder of
+    # renders goes with it: left to the default, SIGTERM ends the process before any cleanup runs
+    main = threading.current_thread() is threading.main_thread()  # (signals are only the main thread's to handle)
+    on_terminate = signal.signal(signal.SIGTERM, lambda *_: stop.set()) if main else None
+    with tempfile.TemporaryDirectory(prefix=f"animbatch-watch-{os.getpid()}-") as folder:
         loop = PreviewLoop(scene, broadcast, Path(folder), quality=quality, seconds=seconds, frames=frames,
                            settings=settings, say=say)
         worker = threading.Thread(target=loop.run, daemon=True)
@@ -287,4 +293,6 @@ def watch(scene: Path, *, quality: str = "draft", seconds: float = PREVIEW_SECON
             worker.join(timeout=5)
             server.shutdown()
             server.server_close()
+            if main:
+                signal.signal(signal.SIGTERM, on_terminate if on_terminate is not None else signal.SIG_DFL)
 
