@@ -134,7 +134,7 @@ def test_a_frame_range_previews_those_frames_as_the_whole_render_draws_them(tmp_
 
 
 def test_a_terminated_watch_stops_and_takes_its_folder_of_renders_with_it(tmp_path):
-    """SIGTERM (a service manager's stop, kill, a closed terminal) ends the watch as Ctrl-C does: it exits cleanly
+    """SIGTERM (kill, a service manager's stop) ends the watch as Ctrl-C does: it exits cleanly
     and its folder in the temporary directory is gone (before, the process died before any cleanup, and every
     terminated watch left its folder of renders behind)."""
     _, process, lines = _watching(tmp_path)

@@ -267,8 +267,8 @@ def watch(scene: Path, *, quality: str = "draft", seconds: float = PREVIEW_SECON
     url = f"http://127.0.0.1:{server.server_address[1]}/"
     threading.Thread(target=server.serve_forever, daemon=True).start()
     stop = stop or threading.Event()
-    # a terminated watch (a service manager's, a terminal closed, kill) stops as Ctrl-C does, and its folder of
-    # renders goes with it: left to the default, SIGTERM ends the process before any cleanup runs
+    # a terminated watch (kill, a service manager's stop) stops as Ctrl-C does, and its folder of renders goes with
+    # it: left to the default, SIGTERM ends the process before any cleanup runs
     main = threading.current_thread() is threading.main_thread()  # (signals are only the main thread's to handle)
     on_terminate = signal.signal(signal.SIGTERM, lambda *_: stop.set()) if main else None
     with tempfile.TemporaryDirectory(prefix=f"animbatch-watch-{os.getpid()}-") as folder:
