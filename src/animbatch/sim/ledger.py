@@ -377,7 +377,7 @@ def step_record(adaptive: bool, stats: dict[str, Any], requested_dt: float | Non
 def judge(ledger: dict[str, Any]) -> list[str]:
     """The warnings a ledger (as a dict) calls for: one for the conserved quantities that drifted more than its
     ``drift_warning`` (with the fix the worst of them needs), one for a missed collision, one for bodies that start
-    inside each other."""
+    inside each other, one for joints that did not hold."""
     method, threshold = ledger["method"], ledger["drift_warning"]
     adaptive = ledger["kind"] == "adaptive"
     messages = []
@@ -402,6 +402,10 @@ def judge(ledger: dict[str, Any]) -> list[str]:
             messages.append(Overlap(**overlap).message(method, adaptive=adaptive))
     if ledger.get("surfaces"):
         messages.append(crossing_message(ledger["surfaces"]))
+    joints = ledger.get("joints")
+    if joints and (joints.get("max_violation", 0.0) > JOINT_LENGTH_WARNING
+                   or joints.get("max_angle_violation", 0.0) > JOINT_ANGLE_WARNING):
+        messages.append(joint_message(joints, method, adaptive=adaptive))
     folding = (ledger.get("work") or {}).get("bodies", {}).get("self_collision")
     if folding and folding.get("unresolved"):
         messages.append(
@@ -409,6 +413,24 @@ def judge(ledger: dict[str, Any]) -> list[str]:
             f"with impact zones of up to {folding['largest_zone']} vertices moving as one: those steps may pass "
             "through. Try a smaller solver.dt, or a thickness closer to the cloth's edge length.")
     return messages
+
+
+#: A joint further than this from holding [m, rad] over a run is reported: the fixed-step methods hold joints to
+#: rounding, and the adaptive ones to their tolerance, except a limit or rope next to contacts (held by stabilisation).
+JOINT_LENGTH_WARNING, JOINT_ANGLE_WARNING = 1e-3, 0.01
+
+
+def joint_message(joints: dict[str, Any], method: str, *, adaptive: bool) -> str:
+    """The warning for joints that did not hold (``joints``: :func:`joint_drift`'s entry)."""
+    parts = [f"{joints[key]:.3g} {unit}" for key, unit in (("max_violation", "m"), ("max_angle_violation", "rad"))
+             if joints.get(key, 0.0) > (JOINT_LENGTH_WARNING if unit == "m" else JOINT_ANGLE_WARNING)]
+    where = f"the worst joint {joints.get('joint')!r} at t = {joints.get('time', 0.0):.4g} s"
+    fix = (f"{method} holds the joints by stabilisation, and a limit or rope next to contacts by that alone, so a "
+           "stop reached fast is overshot. Use solver.method: symplectic_euler or verlet, which meet every stop and "
+           "project the joints at every step" if adaptive else
+           f"{method} projects the joints at every step, yet they came apart: try a smaller solver.dt")
+    return (f"the joints were up to {' and '.join(parts)} from holding ({where}: past a limit or a rope's length, "
+            f"or pulled apart), and the motion after it is wrong. {fix}.")
 
 
 def with_threshold(ledger: dict[str, Any], drift_warning: float) -> dict[str, Any]:
