@@ -493,20 +493,16 @@ def rim_pairs(world: ContactWorld, state: Kinematics, probe: np.ndarray, index: 
     centres = state.x[owners] + state.lever(rigid, cylinders.offset[k])
     axes = np.einsum("kij,kj->ki", state.rotation[rigid], cylinders.axis[k])
     normal = statics.plane_normal[plane]
-    deepest = np.empty((len(k), 3))
-    for each in np.unique(plane).tolist():  # the support along one plane's normal at a time
-        rows = plane == each
-        deepest[rows] = cylinder_support(centres[rows], axes[rows], cylinders.half_length[k[rows]],
-                                         cylinders.radius[k[rows]], -statics.plane_normal[each])[0]
-    named = end >= 0
-    if named.any():  # the chosen end's rim: its centre, then the radius across the axis, downwards
-        across = -normal[named] + np.einsum("ki,ki->k", normal[named], axes[named])[:, None] * axes[named]
-        size = np.linalg.norm(across, axis=1)
-        across /= np.where(size > 1e-12, size, 1.0)[:, None]
-        ends = (2 * end[named] - 1) * cylinders.half_length[k[named]]
-        deepest[named] = (centres[named] + ends[:, None] * axes[named]
-                          + cylinders.radius[k[named], None] * across)
-    gap = np.einsum("ki,ki->k", deepest - statics.plane_point[plane], normal)
+    # each end's rim point deepest towards the plane: the end's centre, then the radius across the axis, downwards
+    across = -normal + np.einsum("ki,ki->k", normal, axes)[:, None] * axes
+    size = np.linalg.norm(across, axis=1)
+    across /= np.where(size > 1e-12, size, 1.0)[:, None]
+    half = cylinders.half_length[k, None, None] * np.array([-1.0, 1.0])[None, :, None]  # (K, 2, 1)
+    rims = centres[:, None] + half * axes[:, None] + cylinders.radius[k, None, None] * across[:, None]  # (K, 2, 3)
+    heights = np.einsum("kei,ki->ke", rims - statics.plane_point[plane][:, None], normal)
+    chosen = np.where(end >= 0, end, np.argmin(heights, axis=1))  # the plain name: the deeper of the two
+    rows = np.arange(len(k))
+    deepest, gap = rims[rows, chosen], heights[rows, chosen]
     return make_contacts(world, owners, np.full(len(k), STATIC), deepest - 0.5 * gap[:, None] * normal, normal, gap,
                          statics.plane_material[plane], probe, PLANE_RIM, index)
 
