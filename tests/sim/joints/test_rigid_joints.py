@@ -5,6 +5,7 @@ invariants (energy, the vertical angular momentum of a top, the joints' drift)."
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -614,3 +615,34 @@ def test_a_limit_overshot_next_to_contacts_is_reported_with_the_joint_and_the_fi
         assert len(said) == 1 and "'shoulder'" in said[0] and "symplectic_euler" in said[0], said
     else:
         assert overshoot < 1e-9 and not said
+
+
+def test_contacts_on_free_bodies_next_to_joints_build_no_joint_response():
+    """A ball on the floor beside a hinged bar: its contact moves only the ball, so the contacts are solved without
+    the joints' rows (and may run compiled); a contact on the bar brings them in, with the bar's hinge row among
+    them."""
+    from animbatch.compile.model import compile_scene
+    from animbatch.sim.contact.contacts import PLANE, STATIC, Contacts
+    from animbatch.sim.contact.impulses import BodyVelocities
+    from animbatch.sim.contact.time_stepping import joints_on
+    from animbatch.sim.model.dynamics import Dynamics
+
+    model = compile_scene(scene("""
+        bodies:
+          - {name: bar, type: rigid, shape: {type: box, size: [0.6, 0.05, 0.05]}, density: 500, position: [0.3, 1, 0]}
+          - {name: ball, type: rigid, shape: {type: sphere, radius: 0.1}, density: 500, position: [2, 0.1, 0]}
+        joints: [{type: hinge, between: [bar], anchor: [0, 1, 0], axis: [0, 0, 1]}]
+        colliders: [{type: plane}]
+    """).spec, Path("."))
+    system = Dynamics(model)
+    state = system.kinematics(*system.split(model.y0), t=0.0, copy=True)
+    bodies = BodyVelocities(np.zeros((3, 3)), np.zeros((3, 3)), np.array([1.0, 1.0, 0.0]), np.zeros((3, 3, 3)))
+
+    def on(body: int) -> Contacts:
+        return Contacts(np.array([body]), np.array([STATIC]), np.zeros((1, 3)), np.array([[0.0, 1.0, 0.0]]),
+                        np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1, np.intp), np.full(1, PLANE),
+                        np.zeros(1, np.intp))
+
+    assert joints_on(system, state, bodies, on(1)) == (None, None)
+    couple, jointed = joints_on(system, state, bodies, on(0))
+    assert couple is not None and jointed is not None and jointed.count == 5  # a hinge holds five rows

@@ -292,7 +292,7 @@ class ContactEvents:
         warm = self._warm_forces
         if warm is not None and len(warm[0]) != contacts.count:
             warm = None
-        _, jointed = joints_on(self.system, state, bodies)  # a load on a jointed body passes to its joints
+        _, jointed = joints_on(self.system, state, bodies, contacts)  # a load on a jointed body passes to its joints
         result = solve_forces(contacts, bodies, x, normal_bias=normal_bias, tangent_bias=tangent_bias,
                               sticking=self.resting.sticking, slide_direction=self.resting.slide_direction,
                               iterations=self.settings.iterations, warm=warm, frame=frame,
@@ -640,7 +640,7 @@ class ContactEvents:
         if touching.count:
             bodies = self._velocities(state)
             x = np.vstack([state.x, np.zeros((1, 3))])
-            couple, jointed = joints_on(self.system, state, bodies)
+            couple, jointed = joints_on(self.system, state, bodies, touching)
             result = solve_impulses(touching, bodies, x, 0.0, iterations=self.settings.iterations,
                                     rest_speed=self.rest_speed, slop=self.settings.slop, couple=couple,
                                     jointed=jointed)
@@ -724,7 +724,7 @@ class ContactEvents:
             to_stick = switch & ~resting.sticking
             to_slide = switch & resting.sticking
             if to_stick.any():  # the slip has just reversed: stop it exactly
-                couple, jointed = joints_on(self.system, state, bodies)
+                couple, jointed = joints_on(self.system, state, bodies, contacts.select(to_stick))
                 solve_impulses(contacts.select(to_stick), bodies, x, 0.0, iterations=self.settings.iterations,
                                rest_speed=np.inf, slop=self.settings.slop, bounce=False, couple=couple,
                                jointed=jointed)

@@ -103,13 +103,17 @@ def numpy_contact_solve(contacts: int) -> float:
     return NUMPY_CONTACT_STEP + NUMPY_SWEEP * contacts if contacts else 0.0
 
 
-def joints_on(system: Dynamics, state: Kinematics, bodies: BodyVelocities
+def joints_on(system: Dynamics, state: Kinematics, bodies: BodyVelocities, touching: Contacts | None = None
               ) -> tuple[Callable[[BodyVelocities], None] | None, JointedResponse | None]:
     """How contacts move jointed bodies at ``state`` (``bodies``: the velocity slots the contacts act on, the
     fixed body's among them): ``couple``, the joints applied to velocities in place, and the joints' rows as a
     :class:`~animbatch.sim.contact.jointed.JointedResponse`, with which every contact impulse or force moves the
-    bodies within their joints; (None, None) for a model without joints."""
+    bodies within their joints; (None, None) for a model without joints, or when none of the contacts
+    ``touching`` (where given) is on a jointed body (they move free bodies only: nothing to build)."""
     if system.joints is None:
+        return None, None
+    if touching is not None and not np.isin(np.concatenate([touching.probe_body, touching.solid_body]),
+                                            system.joints.points).any():
         return None, None
     count, n = system.model.body_count, system.model.particle_count
 
